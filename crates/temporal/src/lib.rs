@@ -1,0 +1,1 @@
+//! Temporal models (work in progress).
