@@ -9,8 +9,8 @@ pub enum MapError {
     /// Resolution not finite and positive.
     #[error("invalid resolution {0} (must be a positive number of metres)")]
     InvalidResolution(f64),
-    /// A leaf depth outside 1..=16.
-    #[error("leaf depth {depth} is outside 1..=16")]
+    /// A leaf depth greater than 16.
+    #[error("leaf depth {depth} is greater than 16")]
     DepthOutOfRange {
         /// The offending depth.
         depth: u8,

@@ -90,7 +90,7 @@ impl fmt::Display for Occupancy {
 pub struct Leaf {
     /// Morton code of the node's first voxel (its minimum corner).
     pub start: MortonCode,
-    /// Depth below the root, 1..=16 (16 = one voxel). 0 is the root itself.
+    /// Depth below the root, 0..=16 (16 = one voxel, 0 = the root without children).
     pub depth: u8,
     /// Occupancy log-odds shared by every voxel of the node.
     pub log_odds: f32,

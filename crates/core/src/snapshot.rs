@@ -79,12 +79,13 @@ impl Snapshot {
     }
 
     /// Builds a snapshot from leaves in any order. Fails on an invalid resolution, a depth
-    /// outside 1..=16 (0 would make the root a leaf, which OctoMap files cannot express), a
-    /// start code not aligned to its depth, a NaN value or overlapping leaves.
+    /// greater than 16, a
+    /// start code not aligned to its depth, a NaN value or overlapping leaves. A depth-0 leaf
+    /// is the root without children: all space at one value (OctoMap can read such a tree).
     pub fn from_leaves(resolution: f64, mut leaves: Vec<Leaf>) -> Result<Self, MapError> {
         validate_resolution(resolution)?;
         for leaf in &leaves {
-            if leaf.depth == 0 || leaf.depth > TREE_DEPTH {
+            if leaf.depth > TREE_DEPTH {
                 return Err(MapError::DepthOutOfRange { depth: leaf.depth });
             }
             if leaf.start.0 >= MortonCode::END || leaf.start.node_start(leaf.depth) != leaf.start {
@@ -278,12 +279,12 @@ mod tests {
         ));
         assert!(Snapshot::from_leaves(0.0, vec![]).is_err());
         assert!(Snapshot::from_leaves(f64::NAN, vec![]).is_err());
-        let root = Leaf {
+        let too_deep = Leaf {
             start: MortonCode(0),
-            depth: 0,
+            depth: 17,
             log_odds: 0.0,
         };
-        assert!(Snapshot::from_leaves(0.1, vec![root]).is_err());
+        assert!(Snapshot::from_leaves(0.1, vec![too_deep]).is_err());
     }
 
     #[test]

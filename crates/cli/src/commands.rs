@@ -1,0 +1,242 @@
+//! The subcommands: thin layers over the library crates.
+
+use anyhow::Result;
+use clap::Args;
+use froctomap_core::{BoundingBox, Snapshot};
+use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Output settings shared by all commands.
+pub struct Ui {
+    /// Suppress warnings and summaries.
+    pub quiet: bool,
+}
+
+impl Ui {
+    fn warn(&self, path: &Path, warnings: &[String]) {
+        if !self.quiet {
+            for warning in warnings {
+                eprintln!("warning: {}: {warning}", path.display());
+            }
+        }
+    }
+
+    fn note(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("{message}");
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct InfoArgs {
+    /// The map file.
+    file: PathBuf,
+    /// Force the input format (see `froctomap formats`) instead of detecting it.
+    #[arg(long, value_name = "FORMAT")]
+    input_format: Option<String>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct MapInfo {
+    file: PathBuf,
+    file_bytes: u64,
+    format: &'static str,
+    format_description: &'static str,
+    resolution_m: f64,
+    nodes: u64,
+    leaves: u64,
+    occupied_leaves: u64,
+    free_leaves: u64,
+    voxels: u64,
+    occupied_voxels: u64,
+    free_voxels: u64,
+    known_bounds_m: Option<Bounds>,
+    occupied_bounds_m: Option<Bounds>,
+    warnings: Vec<String>,
+}
+
+#[derive(Serialize)]
+struct Bounds {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+impl From<BoundingBox> for Bounds {
+    fn from(b: BoundingBox) -> Self {
+        Bounds {
+            min: b.min,
+            max: b.max,
+        }
+    }
+}
+
+pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
+    let registry = FormatRegistry::with_default_formats();
+    let read = registry.read_file(
+        &args.file,
+        ReadOptions {
+            format: args.input_format.as_deref(),
+            ..ReadOptions::default()
+        },
+    )?;
+    let snapshot = &read.map.snapshot;
+    let stats = snapshot.stats();
+    let info = MapInfo {
+        file: args.file.clone(),
+        file_bytes: std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0),
+        format: read.format.name,
+        format_description: read.format.description,
+        resolution_m: snapshot.resolution(),
+        nodes: read.map.node_count,
+        leaves: snapshot.leaves().len() as u64,
+        occupied_leaves: stats.occupied_leaves,
+        free_leaves: stats.free_leaves,
+        voxels: stats.occupied_voxels + stats.free_voxels,
+        occupied_voxels: stats.occupied_voxels,
+        free_voxels: stats.free_voxels,
+        known_bounds_m: snapshot.known_bounds().map(Bounds::from),
+        occupied_bounds_m: snapshot.occupied_bounds().map(Bounds::from),
+        warnings: read.map.warnings.clone(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+    } else {
+        ui.warn(&args.file, &info.warnings);
+        print_info(&info);
+    }
+    Ok(())
+}
+
+fn print_info(info: &MapInfo) {
+    let n = group_thousands;
+    println!("file:            {} ({} bytes)", info.file.display(), n(info.file_bytes));
+    println!("format:          {} ({})", info.format, info.format_description);
+    println!("resolution:      {} m", info.resolution_m);
+    println!("nodes:           {}", n(info.nodes));
+    println!(
+        "leaves:          {} (occupied {}, free {})",
+        n(info.leaves),
+        n(info.occupied_leaves),
+        n(info.free_leaves)
+    );
+    println!(
+        "known voxels:    {} (occupied {}, free {})",
+        n(info.voxels),
+        n(info.occupied_voxels),
+        n(info.free_voxels)
+    );
+    let show = |label: &str, bounds: &Option<Bounds>| match bounds {
+        Some(b) => println!(
+            "{label}x [{:.3}, {:.3}]  y [{:.3}, {:.3}]  z [{:.3}, {:.3}] m",
+            b.min[0], b.max[0], b.min[1], b.max[1], b.min[2], b.max[2]
+        ),
+        None => println!("{label}none"),
+    };
+    show("known bounds:    ", &info.known_bounds_m);
+    show("occupied bounds: ", &info.occupied_bounds_m);
+}
+
+/// `1234567` → `1,234,567`.
+fn group_thousands(value: u64) -> String {
+    let digits = value.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[derive(Args)]
+pub struct ConvertArgs {
+    /// The map to read.
+    input: PathBuf,
+    /// Where to write; its extension chooses the format unless --format is given.
+    output: PathBuf,
+    /// Output format (see `froctomap formats`).
+    #[arg(short, long, value_name = "FORMAT")]
+    format: Option<String>,
+    /// Force the input format instead of detecting it from the content.
+    #[arg(long, value_name = "FORMAT")]
+    input_format: Option<String>,
+}
+
+pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
+    let registry = FormatRegistry::with_default_formats();
+    // Resolve the output format first so a bad output name fails before any work.
+    registry.output_format(
+        &args.output,
+        WriteOptions {
+            format: args.format.as_deref(),
+            ..WriteOptions::default()
+        },
+    )?;
+    let read = registry.read_file(
+        &args.input,
+        ReadOptions {
+            format: args.input_format.as_deref(),
+            ..ReadOptions::default()
+        },
+    )?;
+    ui.warn(&args.input, &read.map.warnings);
+    let written = registry.write_file(
+        &read.map.snapshot,
+        &args.output,
+        WriteOptions {
+            format: args.format.as_deref(),
+            ..WriteOptions::default()
+        },
+    )?;
+    ui.note(&summary(&args.input, read.format.name, &args.output, written.name, &read.map.snapshot));
+    Ok(())
+}
+
+fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapshot) -> String {
+    format!(
+        "{} ({from}) -> {} ({to}): {} leaves",
+        input.display(),
+        output.display(),
+        group_thousands(snapshot.leaves().len() as u64)
+    )
+}
+
+pub fn formats() -> Result<()> {
+    let registry = FormatRegistry::with_default_formats();
+    println!("{:<6} {:<8} {:<12} {:<6} description", "name", "backend", "extensions", "modes");
+    for format in registry.formats() {
+        let modes = match (format.reader.is_some(), format.writer.is_some()) {
+            (true, true) => "rw",
+            (true, false) => "r",
+            (false, true) => "w",
+            (false, false) => "-",
+        };
+        let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
+        println!(
+            "{:<6} {:<8} {:<12} {:<6} {}",
+            format.name,
+            format.backend.name(),
+            extensions.join(","),
+            modes,
+            format.description
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn thousands_are_grouped() {
+        assert_eq!(super::group_thousands(0), "0");
+        assert_eq!(super::group_thousands(999), "999");
+        assert_eq!(super::group_thousands(1000), "1,000");
+        assert_eq!(super::group_thousands(1136432), "1,136,432");
+    }
+}

@@ -1,0 +1,55 @@
+//! Why an OctoMap byte stream was rejected.
+
+use crate::header::FileKind;
+
+/// A `.bt`/`.ot` stream that cannot be read. Offsets count bytes from the start of the file.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum CodecError {
+    /// The file is empty.
+    #[error("the file is empty")]
+    Empty,
+    /// The first line does not identify the expected layout.
+    #[error("not an OctoMap .{} file: its first line is {found:?}, expected {:?}{hint}", kind.extension(), kind.first_line())]
+    WrongFirstLine {
+        /// Layout that was expected.
+        kind: FileKind,
+        /// Start of the first line actually found (control characters replaced).
+        found: String,
+        /// Extra advice, e.g. that the file is of the other layout.
+        hint: String,
+    },
+    /// The header is malformed.
+    #[error("malformed .{} header: {reason}", kind.extension())]
+    BadHeader {
+        /// Layout being read.
+        kind: FileKind,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A `.ot` file of a tree type other than `OcTree`, whose node layout differs.
+    #[error("unsupported tree type `{0}` (froctomap reads plain OcTree occupancy maps)")]
+    UnsupportedTreeType(String),
+    /// The body ends before the tree does.
+    #[error("truncated: the tree data needs more bytes than the file has (a node at offset {offset} needs {needed} bytes, {available} remain)")]
+    Truncated {
+        /// Offset of the node being read.
+        offset: usize,
+        /// Bytes the node needs.
+        needed: usize,
+        /// Bytes left.
+        available: usize,
+    },
+    /// A node at the finest depth (16) claims children.
+    #[error("corrupt tree data: a node at depth 16 (a single voxel) has children, at offset {offset}")]
+    TooDeep {
+        /// Offset of the offending node's data.
+        offset: usize,
+    },
+    /// A configured resource bound was hit.
+    #[error("limit exceeded: the tree has more than {limit} nodes (raise the node limit if the file is genuine)")]
+    TooManyNodes {
+        /// The bound.
+        limit: u64,
+    },
+}

@@ -1,0 +1,136 @@
+//! Pure-Rust reading of OctoMap's `.bt` and `.ot` files.
+//!
+//! The parser accepts what upstream OctoMap 1.9.7 accepts (header keywords in any order,
+//! comments, CRLF, a `size` that does not match, the pre-1.4 headerless `.bt`) and rejects
+//! everything else with a [`CodecError`] that says what is wrong and where. Unlike upstream,
+//! it never reads past the end of the data and never recurses deeper than the 16 levels a
+//! tree has, so the FFI crate runs it before handing untrusted bytes to the C++ library.
+//!
+//! ```
+//! use froctomap_octomap_codec::{decode, ReadLimits};
+//! // A tree with one inner node per level down to a single occupied voxel at depth 16:
+//! let mut file = b"# Octomap OcTree binary file\nid OcTree\nsize 17\nres 0.1\ndata\n".to_vec();
+//! for _ in 0..15 { file.extend([0b11, 0]); } // child 0 has children
+//! file.extend([0b10, 0]);                   // child 0 is an occupied leaf
+//! let tree = decode(&file, None, ReadLimits::default())?;
+//! assert_eq!(tree.node_count, 17);
+//! assert_eq!(tree.leaves.len(), 1);
+//! assert_eq!(tree.leaves[0].depth, 16);
+//! assert!(tree.leaves[0].occupancy().is_occupied());
+//! # Ok::<(), froctomap_octomap_codec::CodecError>(())
+//! ```
+
+mod body;
+mod error;
+mod header;
+
+pub use body::{walk_body, BodySummary, ReadLimits};
+pub use error::CodecError;
+pub use header::{
+    detect_kind, looks_like_legacy_binary, parse_header, FileKind, Header, HeaderLayout,
+    BINARY_FIRST_LINE, FULL_FIRST_LINE, OCTREE_ID,
+};
+
+use froctomap_core::Leaf;
+
+/// A file read completely: header, leaves in Morton order, and what upstream would warn about.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DecodedTree {
+    /// The parsed header.
+    pub header: Header,
+    /// Every leaf, in Morton order.
+    pub leaves: Vec<Leaf>,
+    /// Nodes in the tree as upstream counts them (0 for an empty tree).
+    pub node_count: u64,
+    /// Offset one past the last byte of tree data.
+    pub data_end: usize,
+    /// Header warnings plus size mismatches and ignored trailing bytes.
+    pub warnings: Vec<String>,
+}
+
+/// Decodes a whole file. `kind` forces a layout; `None` detects it from the first line
+/// (falling back to the legacy headerless `.bt`).
+pub fn decode(
+    bytes: &[u8],
+    kind: Option<FileKind>,
+    limits: ReadLimits,
+) -> Result<DecodedTree, CodecError> {
+    let mut leaves = Vec::new();
+    let summary = scan(bytes, kind, limits, &mut |leaf| leaves.push(leaf))?;
+    Ok(DecodedTree {
+        header: summary.header,
+        leaves,
+        node_count: summary.node_count,
+        data_end: summary.data_end,
+        warnings: summary.warnings,
+    })
+}
+
+/// What [`scan`] found, without the leaves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanSummary {
+    /// The parsed header.
+    pub header: Header,
+    /// Nodes in the tree as upstream counts them.
+    pub node_count: u64,
+    /// Offset one past the last byte of tree data.
+    pub data_end: usize,
+    /// Everything worth telling the user.
+    pub warnings: Vec<String>,
+}
+
+/// Checks a whole file and streams its leaves to `on_leaf` without keeping them.
+pub fn scan(
+    bytes: &[u8],
+    kind: Option<FileKind>,
+    limits: ReadLimits,
+    on_leaf: &mut dyn FnMut(Leaf),
+) -> Result<ScanSummary, CodecError> {
+    if bytes.is_empty() {
+        return Err(CodecError::Empty);
+    }
+    let kind = kind.or_else(|| detect_kind(bytes)).unwrap_or(FileKind::Binary);
+    let header = parse_header(bytes, kind)?;
+    if kind == FileKind::Full && header.tree_id != OCTREE_ID {
+        return Err(CodecError::UnsupportedTreeType(header.tree_id));
+    }
+    let mut warnings = header.warnings.clone();
+    if kind == FileKind::Binary && header.tree_id != OCTREE_ID {
+        warnings.push(format!(
+            "tree id `{}` read as a plain OcTree (a .bt file stores occupancy only)",
+            header.tree_id
+        ));
+    }
+    let body = bytes.get(header.body_offset..).unwrap_or_default();
+    let (node_count, data_end) = if header.declared_size == 0 {
+        // Upstream reads no data when the header says `size 0`.
+        if !body.is_empty() {
+            warnings.push(format!(
+                "header says `size 0`, so the {} bytes after it are ignored (as OctoMap does)",
+                body.len()
+            ));
+        }
+        (0, header.body_offset)
+    } else {
+        let summary = walk_body(kind, body, header.body_offset, limits, on_leaf)?;
+        if summary.node_count != u64::from(header.declared_size) {
+            warnings.push(format!(
+                "header says `size {}` but the tree has {} nodes; the tree data is complete, so it is used (OctoMap loads it too but reports failure)",
+                header.declared_size, summary.node_count
+            ));
+        }
+        (summary.node_count, header.body_offset + summary.len)
+    };
+    if data_end < bytes.len() {
+        warnings.push(format!(
+            "{} bytes after the end of the tree data are ignored",
+            bytes.len() - data_end
+        ));
+    }
+    Ok(ScanSummary {
+        header,
+        node_count,
+        data_end,
+        warnings,
+    })
+}

@@ -1,0 +1,39 @@
+//! The registry of map formats froctomap reads and writes.
+//!
+//! Each format is a [`MapFormat`]: plain data naming it, listing its extensions, telling how
+//! to recognise its content and how to make a reader and a writer. Formats are chosen by
+//! *content* when reading (OctoMap's first line tells `.bt` from `.ot`; extensions lie in the
+//! wild) and by `--format` or the output extension when writing.
+//!
+//! Adding a format is one module defining a `MapFormat` constant plus one line in
+//! [`register_default_formats`].
+//!
+//! ```no_run
+//! use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
+//! use std::path::Path;
+//!
+//! let registry = FormatRegistry::with_default_formats();
+//! let read = registry.read_file(Path::new("map.bt"), ReadOptions::default())?;
+//! println!("{} voxels known", read.map.snapshot.voxels().count());
+//! registry.write_file(&read.map.snapshot, Path::new("map.ot"), WriteOptions::default())?;
+//! # Ok::<(), froctomap_formats::FormatError>(())
+//! ```
+
+mod error;
+#[cfg(feature = "octomap-upstream")]
+pub mod octomap_upstream;
+mod registry;
+
+pub use error::{FormatError, PluginError};
+pub use registry::{
+    Backend, Confidence, FormatRegistry, MapFormat, MapReader, MapWriter, ReadMap, ReadOptions,
+    ReadOutcome, WriteOptions,
+};
+
+/// Registers every format enabled at compile time, preferred backends first.
+pub fn register_default_formats(registry: &mut FormatRegistry) {
+    #[cfg(feature = "octomap-upstream")]
+    registry.register(octomap_upstream::BINARY);
+    #[cfg(feature = "octomap-upstream")]
+    registry.register(octomap_upstream::FULL);
+}

@@ -1,0 +1,77 @@
+//! OctoMap `.bt` and `.ot` through the upstream C++ library (`froctomap-octomap-ffi`).
+
+use crate::error::PluginError;
+use crate::registry::{Backend, Confidence, MapFormat, MapReader, MapWriter, ReadMap};
+use froctomap_core::Snapshot;
+use froctomap_octomap_codec::{detect_kind, looks_like_legacy_binary, FileKind};
+use froctomap_octomap_ffi::{LoadedTree, OcTree};
+use std::io::Write;
+
+/// OctoMap binary (`.bt`): occupied/free states, read and written by liboctomap.
+pub const BINARY: MapFormat = MapFormat {
+    name: "bt",
+    description: "OctoMap binary tree (.bt): maximum-likelihood states, via the upstream C++ library",
+    backend: Backend::Octomap,
+    extensions: &["bt"],
+    probe: probe_binary,
+    reader: Some(|| Box::new(UpstreamReader(FileKind::Binary))),
+    writer: Some(|| Box::new(UpstreamWriter(FileKind::Binary))),
+};
+
+/// OctoMap full (`.ot`): log-odds per node, read and written by liboctomap.
+pub const FULL: MapFormat = MapFormat {
+    name: "ot",
+    description: "OctoMap full tree (.ot): log-odds occupancy per node, via the upstream C++ library",
+    backend: Backend::Octomap,
+    extensions: &["ot"],
+    probe: probe_full,
+    reader: Some(|| Box::new(UpstreamReader(FileKind::Full))),
+    writer: Some(|| Box::new(UpstreamWriter(FileKind::Full))),
+};
+
+fn probe_binary(bytes: &[u8]) -> Confidence {
+    match detect_kind(bytes) {
+        Some(FileKind::Binary) => Confidence::Certain,
+        None if looks_like_legacy_binary(bytes) => Confidence::Weak,
+        _ => Confidence::No,
+    }
+}
+
+fn probe_full(bytes: &[u8]) -> Confidence {
+    match detect_kind(bytes) {
+        Some(FileKind::Full) => Confidence::Certain,
+        _ => Confidence::No,
+    }
+}
+
+struct UpstreamReader(FileKind);
+
+impl MapReader for UpstreamReader {
+    fn read(&self, bytes: &[u8]) -> Result<ReadMap, PluginError> {
+        let LoadedTree { tree, warnings } = match self.0 {
+            FileKind::Binary => OcTree::read_binary(bytes)?,
+            FileKind::Full => OcTree::read_full(bytes)?,
+        };
+        Ok(ReadMap {
+            snapshot: tree.to_snapshot()?,
+            node_count: tree.node_count(),
+            warnings,
+        })
+    }
+}
+
+struct UpstreamWriter(FileKind);
+
+impl MapWriter for UpstreamWriter {
+    fn write(&self, snapshot: &Snapshot, out: &mut dyn Write) -> Result<(), PluginError> {
+        let mut tree = OcTree::from_snapshot(snapshot)?;
+        let bytes = match self.0 {
+            // Upstream's writeBinary (maximum likelihood + prune): the canonical .bt that
+            // upstream tools also produce for this tree.
+            FileKind::Binary => tree.write_binary()?,
+            FileKind::Full => tree.write_full()?,
+        };
+        out.write_all(&bytes)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,337 @@
+//! Map formats as data, and the registry that picks one for a file.
+
+use crate::error::{FormatError, PluginError};
+use froctomap_core::{write_atomically, Snapshot};
+use std::io::Write;
+use std::path::Path;
+
+/// How sure a probe is that bytes are of its format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Confidence {
+    /// Not this format.
+    No,
+    /// Could be (a weak signature, e.g. a headerless legacy layout).
+    Weak,
+    /// The format's own signature.
+    Certain,
+}
+
+/// A map read from a file, with what is worth telling the user about it.
+#[derive(Clone, Debug)]
+pub struct ReadMap {
+    /// The map.
+    pub snapshot: Snapshot,
+    /// Nodes of the stored tree (inner and leaf), as the format counts them.
+    pub node_count: u64,
+    /// Things the reader tolerated (e.g. a size mismatch) but the user may want to know.
+    pub warnings: Vec<String>,
+}
+
+/// Decodes a format's bytes into a map.
+pub trait MapReader: Send + Sync {
+    /// Reads a whole file's content.
+    fn read(&self, bytes: &[u8]) -> Result<ReadMap, PluginError>;
+}
+
+/// Encodes a map into a format's bytes.
+pub trait MapWriter: Send + Sync {
+    /// Writes the map to `out`.
+    fn write(&self, snapshot: &Snapshot, out: &mut dyn Write) -> Result<(), PluginError>;
+}
+
+/// Which implementation stands behind a format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Backend {
+    /// The upstream OctoMap C++ library.
+    Octomap,
+    /// froctomap's own Rust code.
+    Native,
+}
+
+impl Backend {
+    /// Name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Octomap => "octomap",
+            Backend::Native => "native",
+        }
+    }
+}
+
+/// One map format plugin, described by data (like Symphonia's probe descriptors).
+#[derive(Clone, Copy)]
+pub struct MapFormat {
+    /// Short name, as used with `--format` (e.g. `bt`).
+    pub name: &'static str,
+    /// One line for listings.
+    pub description: &'static str,
+    /// Implementation behind it.
+    pub backend: Backend,
+    /// File extensions, lower case, without dot; the first one is used for output names.
+    pub extensions: &'static [&'static str],
+    /// Recognises the format from the first bytes of a file (at least the first line).
+    pub probe: fn(&[u8]) -> Confidence,
+    /// Creates a reader, if the format can be read.
+    pub reader: Option<fn() -> Box<dyn MapReader>>,
+    /// Creates a writer, if the format can be written.
+    pub writer: Option<fn() -> Box<dyn MapWriter>>,
+}
+
+impl std::fmt::Debug for MapFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MapFormat")
+            .field("name", &self.name)
+            .field("backend", &self.backend)
+            .field("extensions", &self.extensions)
+            .finish()
+    }
+}
+
+impl MapFormat {
+    /// `true` when `path` ends in one of this format's extensions (case-insensitive).
+    pub fn matches_extension(&self, path: &Path) -> bool {
+        extension_of(path).is_some_and(|ext| self.extensions.contains(&ext.as_str()))
+    }
+}
+
+fn extension_of(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+}
+
+/// How a file should be read.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ReadOptions<'a> {
+    /// Force this format instead of detecting it from the content.
+    pub format: Option<&'a str>,
+    /// Prefer this backend where a format has several.
+    pub backend: Option<Backend>,
+}
+
+/// How a file should be written.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WriteOptions<'a> {
+    /// Use this format instead of the one the output extension names.
+    pub format: Option<&'a str>,
+    /// Prefer this backend where a format has several.
+    pub backend: Option<Backend>,
+}
+
+/// A file read through the registry.
+#[derive(Clone, Debug)]
+pub struct ReadOutcome {
+    /// The map and its warnings.
+    pub map: ReadMap,
+    /// The format that read it.
+    pub format: MapFormat,
+}
+
+/// The formats known to a program. Formats registered earlier win ties, so the preferred
+/// backend of a format is registered first.
+///
+/// ```
+/// use froctomap_formats::FormatRegistry;
+/// let registry = FormatRegistry::with_default_formats();
+/// let format = registry.probe(b"# Octomap OcTree binary file\n...").unwrap();
+/// assert_eq!(format.name, "bt");
+/// assert!(registry.by_name("ot", None).is_ok());
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct FormatRegistry {
+    formats: Vec<MapFormat>,
+}
+
+impl FormatRegistry {
+    /// A registry without formats.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A registry with every format enabled at compile time.
+    pub fn with_default_formats() -> Self {
+        let mut registry = Self::new();
+        crate::register_default_formats(&mut registry);
+        registry
+    }
+
+    /// Adds a format.
+    pub fn register(&mut self, format: MapFormat) {
+        self.formats.push(format);
+    }
+
+    /// Every registered format, in registration order.
+    pub fn formats(&self) -> &[MapFormat] {
+        &self.formats
+    }
+
+    /// Formats of the preferred backend first, then the rest, each in registration order.
+    fn ordered(&self, backend: Option<Backend>) -> impl Iterator<Item = &MapFormat> {
+        let preferred = self
+            .formats
+            .iter()
+            .filter(move |f| backend.is_none_or(|b| f.backend == b));
+        let others = self
+            .formats
+            .iter()
+            .filter(move |f| backend.is_some_and(|b| f.backend != b));
+        preferred.chain(others)
+    }
+
+    /// The format with this name, preferring `backend` when given.
+    pub fn by_name(&self, name: &str, backend: Option<Backend>) -> Result<&MapFormat, FormatError> {
+        self.ordered(backend)
+            .find(|f| f.name.eq_ignore_ascii_case(name))
+            .ok_or_else(|| FormatError::UnknownFormat {
+                name: name.to_string(),
+                known: self.known_names(),
+            })
+    }
+
+    /// The format a file name's extension suggests.
+    pub fn by_extension(&self, path: &Path, backend: Option<Backend>) -> Option<&MapFormat> {
+        self.ordered(backend).find(|f| f.matches_extension(path))
+    }
+
+    /// The readable format that recognises `bytes` most confidently.
+    pub fn probe(&self, bytes: &[u8]) -> Option<&MapFormat> {
+        self.probe_with(bytes, None)
+    }
+
+    fn probe_with(&self, bytes: &[u8], backend: Option<Backend>) -> Option<&MapFormat> {
+        let mut best: Option<(&MapFormat, Confidence)> = None;
+        for format in self.ordered(backend).filter(|f| f.reader.is_some()) {
+            let confidence = (format.probe)(bytes);
+            if confidence > Confidence::No && best.is_none_or(|(_, c)| confidence > c) {
+                best = Some((format, confidence));
+            }
+        }
+        best.map(|(format, _)| format)
+    }
+
+    fn known_names(&self) -> String {
+        let mut names: Vec<&str> = self.formats.iter().map(|f| f.name).collect();
+        names.dedup();
+        names.join(", ")
+    }
+
+    fn known_extensions(&self) -> String {
+        let mut extensions: Vec<String> = self
+            .formats
+            .iter()
+            .flat_map(|f| f.extensions.iter().map(|e| format!(".{e}")))
+            .collect();
+        extensions.dedup();
+        extensions.join(", ")
+    }
+
+    /// Reads a map from bytes already in memory; `path` is only used in messages.
+    pub fn read_bytes(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        options: ReadOptions<'_>,
+    ) -> Result<ReadOutcome, FormatError> {
+        let format = match options.format {
+            Some(name) => *self.by_name(name, options.backend)?,
+            None => *self.probe_with(bytes, options.backend).ok_or_else(|| {
+                FormatError::Unrecognized {
+                    path: path.to_path_buf(),
+                    reason: describe_start(bytes),
+                }
+            })?,
+        };
+        let make_reader = format.reader.ok_or(FormatError::Unsupported {
+            format: format.name,
+            action: "read",
+        })?;
+        let mut map = make_reader()
+            .read(bytes)
+            .map_err(|source| FormatError::Decode {
+                path: path.to_path_buf(),
+                format: format.name,
+                source,
+            })?;
+        if options.format.is_none() && extension_of(path).is_some() && !format.matches_extension(path) {
+            map.warnings.push(format!(
+                "the content is a .{} file despite the file name; read as such",
+                format.extensions.first().copied().unwrap_or(format.name)
+            ));
+        }
+        Ok(ReadOutcome { map, format })
+    }
+
+    /// Reads a map file, detecting its format from the content unless one is forced.
+    pub fn read_file(&self, path: &Path, options: ReadOptions<'_>) -> Result<ReadOutcome, FormatError> {
+        let bytes = std::fs::read(path).map_err(|source| FormatError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        self.read_bytes(path, &bytes, options)
+    }
+
+    /// The format a map written to `path` gets: `options.format`, else the extension's.
+    pub fn output_format(&self, path: &Path, options: WriteOptions<'_>) -> Result<&MapFormat, FormatError> {
+        let format = match options.format {
+            Some(name) => self.by_name(name, options.backend)?,
+            None => self
+                .ordered(options.backend)
+                .find(|f| f.writer.is_some() && f.matches_extension(path))
+                .ok_or_else(|| FormatError::UnknownExtension {
+                    path: path.to_path_buf(),
+                    known: self.known_extensions(),
+                })?,
+        };
+        if format.writer.is_none() {
+            return Err(FormatError::Unsupported {
+                format: format.name,
+                action: "written",
+            });
+        }
+        Ok(format)
+    }
+
+    /// Writes a map to `path` atomically (temporary file, then rename): on any error the
+    /// destination is left as it was.
+    pub fn write_file(
+        &self,
+        snapshot: &Snapshot,
+        path: &Path,
+        options: WriteOptions<'_>,
+    ) -> Result<MapFormat, FormatError> {
+        let format = *self.output_format(path, options)?;
+        let make_writer = format.writer.ok_or(FormatError::Unsupported {
+            format: format.name,
+            action: "written",
+        })?;
+        let writer = make_writer();
+        // Encode into memory first so an encoder error cannot be confused with an I/O error.
+        let mut bytes = Vec::new();
+        writer
+            .write(snapshot, &mut bytes)
+            .map_err(|source| FormatError::Encode {
+                path: path.to_path_buf(),
+                format: format.name,
+                source,
+            })?;
+        write_atomically(path, |out| out.write_all(&bytes)).map_err(|e| FormatError::Encode {
+            path: path.to_path_buf(),
+            format: format.name,
+            source: Box::new(e.source),
+        })?;
+        Ok(format)
+    }
+}
+
+/// A short description of unrecognised content for error messages.
+fn describe_start(bytes: &[u8]) -> String {
+    if bytes.is_empty() {
+        return "the file is empty".to_string();
+    }
+    let line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
+    let shown: String = String::from_utf8_lossy(&line[..line.len().min(40)])
+        .chars()
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect();
+    format!("it starts with {shown:?}")
+}
