@@ -8,7 +8,10 @@ fn main() {
     println!("cargo:rerun-if-changed=shim/octomap_shim.cc");
     println!("cargo:rerun-if-env-changed=PKG_CONFIG_PATH");
 
-    let library = match pkg_config::Config::new().atleast_version("1.9").probe("octomap") {
+    let library = match pkg_config::Config::new()
+        .atleast_version("1.9")
+        .probe("octomap")
+    {
         Ok(library) => library,
         Err(error) => {
             eprintln!(

@@ -338,27 +338,28 @@ impl OcTree {
 
     /// Every leaf in Morton order, in one call.
     pub fn leaf_records(&self) -> Result<Vec<LeafRecord>, OctomapError> {
-        call("exporting leaves", |log| ffi::export_leaves(self.tree(), log))
+        call("exporting leaves", |log| {
+            ffi::export_leaves(self.tree(), log)
+        })
     }
 
     /// Builds a tree from leaves (any order). Inner nodes get the maximum of their children,
     /// as upstream's `.bt` reader sets them. The tree is neither pruned nor expanded: each
     /// leaf becomes exactly one node.
-    pub fn from_leaf_records(
-        resolution: f64,
-        leaves: &[LeafRecord],
-    ) -> Result<Self, OctomapError> {
-        let snapshot = Snapshot::from_leaves(
-            resolution,
-            leaves.iter().map(LeafRecord::to_leaf).collect(),
-        )?;
+    pub fn from_leaf_records(resolution: f64, leaves: &[LeafRecord]) -> Result<Self, OctomapError> {
+        let snapshot =
+            Snapshot::from_leaves(resolution, leaves.iter().map(LeafRecord::to_leaf).collect())?;
         Self::from_snapshot(&snapshot)
     }
 
     /// Builds a tree holding exactly the snapshot's leaves.
     pub fn from_snapshot(snapshot: &Snapshot) -> Result<Self, OctomapError> {
         let resolution = check_resolution(snapshot.resolution())?;
-        let records: Vec<LeafRecord> = snapshot.leaves().iter().map(LeafRecord::from_leaf).collect();
+        let records: Vec<LeafRecord> = snapshot
+            .leaves()
+            .iter()
+            .map(LeafRecord::from_leaf)
+            .collect();
         let tree = call("building a tree", |log| {
             ffi::build_tree(resolution, &records, log)
         })?;
@@ -367,7 +368,11 @@ impl OcTree {
 
     /// The tree as a snapshot: its resolution and every leaf with its log-odds value.
     pub fn to_snapshot(&self) -> Result<Snapshot, OctomapError> {
-        let leaves = self.leaf_records()?.iter().map(LeafRecord::to_leaf).collect();
+        let leaves = self
+            .leaf_records()?
+            .iter()
+            .map(LeafRecord::to_leaf)
+            .collect();
         Ok(Snapshot::from_leaves(self.resolution(), leaves)?)
     }
 
@@ -419,7 +424,9 @@ impl OcTree {
 
     fn tree(&self) -> &ffi::ShimTree {
         // Every constructor checks for null, so the pointer is always valid.
-        self.inner.as_ref().unwrap_or_else(|| unreachable!("OcTree holds a null tree"))
+        self.inner
+            .as_ref()
+            .unwrap_or_else(|| unreachable!("OcTree holds a null tree"))
     }
 
     fn tree_mut(&mut self) -> Result<std::pin::Pin<&mut ffi::ShimTree>, OctomapError> {
@@ -437,13 +444,22 @@ fn check_stream(
     kind: FileKind,
     limits: ReadLimits,
 ) -> Result<froctomap_octomap_codec::ScanSummary, OctomapError> {
-    Ok(froctomap_octomap_codec::scan(bytes, Some(kind), limits, &mut |_| {})?)
+    Ok(froctomap_octomap_codec::scan(
+        bytes,
+        Some(kind),
+        limits,
+        &mut |_| {},
+    )?)
 }
 
 impl LeafRecord {
     /// The core leaf this record describes.
     pub fn to_leaf(&self) -> Leaf {
-        Leaf::containing(VoxelKey::new(self.x, self.y, self.z), self.depth, self.log_odds)
+        Leaf::containing(
+            VoxelKey::new(self.x, self.y, self.z),
+            self.depth,
+            self.log_odds,
+        )
     }
 
     /// The record of a core leaf.

@@ -10,7 +10,8 @@ use std::io::Write;
 /// OctoMap binary (`.bt`): occupied/free states, read and written by liboctomap.
 pub const BINARY: MapFormat = MapFormat {
     name: "bt",
-    description: "OctoMap binary tree (.bt): maximum-likelihood states, via the upstream C++ library",
+    description:
+        "OctoMap binary tree (.bt): maximum-likelihood states, via the upstream C++ library",
     backend: Backend::Octomap,
     extensions: &["bt"],
     probe: probe_binary,
@@ -21,7 +22,8 @@ pub const BINARY: MapFormat = MapFormat {
 /// OctoMap full (`.ot`): log-odds per node, read and written by liboctomap.
 pub const FULL: MapFormat = MapFormat {
     name: "ot",
-    description: "OctoMap full tree (.ot): log-odds occupancy per node, via the upstream C++ library",
+    description:
+        "OctoMap full tree (.ot): log-odds occupancy per node, via the upstream C++ library",
     backend: Backend::Octomap,
     extensions: &["ot"],
     probe: probe_full,

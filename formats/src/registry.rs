@@ -252,7 +252,10 @@ impl FormatRegistry {
                 format: format.name,
                 source,
             })?;
-        if options.format.is_none() && extension_of(path).is_some() && !format.matches_extension(path) {
+        if options.format.is_none()
+            && extension_of(path).is_some()
+            && !format.matches_extension(path)
+        {
             map.warnings.push(format!(
                 "the content is a .{} file despite the file name; read as such",
                 format.extensions.first().copied().unwrap_or(format.name)
@@ -262,7 +265,11 @@ impl FormatRegistry {
     }
 
     /// Reads a map file, detecting its format from the content unless one is forced.
-    pub fn read_file(&self, path: &Path, options: ReadOptions<'_>) -> Result<ReadOutcome, FormatError> {
+    pub fn read_file(
+        &self,
+        path: &Path,
+        options: ReadOptions<'_>,
+    ) -> Result<ReadOutcome, FormatError> {
         let bytes = std::fs::read(path).map_err(|source| FormatError::Io {
             path: path.to_path_buf(),
             source,
@@ -271,7 +278,11 @@ impl FormatRegistry {
     }
 
     /// The format a map written to `path` gets: `options.format`, else the extension's.
-    pub fn output_format(&self, path: &Path, options: WriteOptions<'_>) -> Result<&MapFormat, FormatError> {
+    pub fn output_format(
+        &self,
+        path: &Path,
+        options: WriteOptions<'_>,
+    ) -> Result<&MapFormat, FormatError> {
         let format = match options.format {
             Some(name) => self.by_name(name, options.backend)?,
             None => self

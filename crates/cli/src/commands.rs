@@ -114,8 +114,15 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
 
 fn print_info(info: &MapInfo) {
     let n = group_thousands;
-    println!("file:            {} ({} bytes)", info.file.display(), n(info.file_bytes));
-    println!("format:          {} ({})", info.format, info.format_description);
+    println!(
+        "file:            {} ({} bytes)",
+        info.file.display(),
+        n(info.file_bytes)
+    );
+    println!(
+        "format:          {} ({})",
+        info.format, info.format_description
+    );
     println!("resolution:      {} m", info.resolution_m);
     println!("nodes:           {}", n(info.nodes));
     println!(
@@ -194,7 +201,13 @@ pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
             ..WriteOptions::default()
         },
     )?;
-    ui.note(&summary(&args.input, read.format.name, &args.output, written.name, &read.map.snapshot));
+    ui.note(&summary(
+        &args.input,
+        read.format.name,
+        &args.output,
+        written.name,
+        &read.map.snapshot,
+    ));
     Ok(())
 }
 
@@ -209,7 +222,10 @@ fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapsho
 
 pub fn formats() -> Result<()> {
     let registry = FormatRegistry::with_default_formats();
-    println!("{:<6} {:<8} {:<12} {:<6} description", "name", "backend", "extensions", "modes");
+    println!(
+        "{:<6} {:<8} {:<12} {:<6} description",
+        "name", "backend", "extensions", "modes"
+    );
     for format in registry.formats() {
         let modes = match (format.reader.is_some(), format.writer.is_some()) {
             (true, true) => "rw",

@@ -142,7 +142,10 @@ impl Leaf {
 
     /// Metric minimum and maximum corners of the cube.
     pub fn bounds(&self, resolution: f64) -> ([f64; 3], [f64; 3]) {
-        let min = self.min_key().center(resolution).map(|c| c - resolution / 2.0);
+        let min = self
+            .min_key()
+            .center(resolution)
+            .map(|c| c - resolution / 2.0);
         let edge = f64::from(self.edge_voxels()) * resolution;
         (min, min.map(|c| c + edge))
     }

@@ -289,7 +289,11 @@ mod tests {
 
     #[test]
     fn coarse_leaf_equals_its_children() {
-        let coarse = Snapshot::from_leaves(0.1, vec![Leaf::containing(VoxelKey::new(2, 2, 2), 15, -2.0)]).unwrap();
+        let coarse = Snapshot::from_leaves(
+            0.1,
+            vec![Leaf::containing(VoxelKey::new(2, 2, 2), 15, -2.0)],
+        )
+        .unwrap();
         let fine = Snapshot::from_voxel_states(0.1, coarse.voxels()).unwrap();
         assert_eq!(fine.leaves().len(), 8);
         assert!(coarse.same_voxel_states(&fine));

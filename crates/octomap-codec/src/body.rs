@@ -19,7 +19,9 @@
 
 use crate::error::CodecError;
 use crate::header::FileKind;
-use froctomap_core::{free_log_odds, occupied_log_odds, voxels_per_node, Leaf, MortonCode, TREE_DEPTH};
+use froctomap_core::{
+    free_log_odds, occupied_log_odds, voxels_per_node, Leaf, MortonCode, TREE_DEPTH,
+};
 
 /// Resource bounds for reading untrusted files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -41,7 +41,9 @@ pub enum CodecError {
         available: usize,
     },
     /// A node at the finest depth (16) claims children.
-    #[error("corrupt tree data: a node at depth 16 (a single voxel) has children, at offset {offset}")]
+    #[error(
+        "corrupt tree data: a node at depth 16 (a single voxel) has children, at offset {offset}"
+    )]
     TooDeep {
         /// Offset of the offending node's data.
         offset: usize,

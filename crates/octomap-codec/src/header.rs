@@ -193,9 +193,7 @@ fn parse_legacy_header(bytes: &[u8], first_line: &[u8]) -> Result<Header, CodecE
                 declared_size,
                 resolution,
                 body_offset: 16,
-                warnings: vec![
-                    "outdated headerless .bt format (before OctoMap 1.4)".to_string()
-                ],
+                warnings: vec!["outdated headerless .bt format (before OctoMap 1.4)".to_string()],
             })
         }
         Some((resolution, _)) => Err(CodecError::BadHeader {
@@ -248,7 +246,11 @@ fn parse_size(input: &mut Tokens<'_>, kind: FileKind) -> Result<u32, CodecError>
         .parse()
         .map_err(|_| bad_header(kind, &format!("the `size` value {text} is out of range")))?;
     // Like strtoul, a negative value wraps around.
-    Ok(if negative { value.wrapping_neg() } else { value })
+    Ok(if negative {
+        value.wrapping_neg()
+    } else {
+        value
+    })
 }
 
 /// A byte cursor with the tokenising behaviour of a C++ `istream`.
@@ -370,9 +372,15 @@ mod tests {
         let cases: [(&[u8], &str); 5] = [
             (b"# Octomap OcTree file\nid OcTree\nres 0.1\n", "data"),
             (b"# Octomap OcTree file\nres 0.1\ndata\n", "id"),
-            (b"# Octomap OcTree file\nid OcTree\nres -2\ndata\n", "resolution"),
+            (
+                b"# Octomap OcTree file\nid OcTree\nres -2\ndata\n",
+                "resolution",
+            ),
             (b"# Octomap OcTree file\nid OcTree\nres x\ndata\n", "res"),
-            (b"# Octomap OcTree file\nid OcTree\nsize 99999999999\ndata\n", "size"),
+            (
+                b"# Octomap OcTree file\nid OcTree\nsize 99999999999\ndata\n",
+                "size",
+            ),
         ];
         for (text, needle) in cases {
             let err = parse_header(text, FileKind::Full).unwrap_err().to_string();
@@ -400,13 +408,19 @@ mod tests {
         assert!(looks_like_legacy_binary(&bytes));
         let header = parse_header(&bytes, FileKind::Binary).unwrap();
         assert_eq!(header.layout, HeaderLayout::Legacy);
-        assert_eq!((header.resolution, header.declared_size, header.body_offset), (0.2, 5, 16));
+        assert_eq!(
+            (header.resolution, header.declared_size, header.body_offset),
+            (0.2, 5, 16)
+        );
     }
 
     #[test]
     fn negative_size_wraps_like_strtoul() {
-        let header =
-            parse_header(b"# Octomap OcTree file\nid OcTree res 1 size -1 data\n", FileKind::Full).unwrap();
+        let header = parse_header(
+            b"# Octomap OcTree file\nid OcTree res 1 size -1 data\n",
+            FileKind::Full,
+        )
+        .unwrap();
         assert_eq!(header.declared_size, u32::MAX);
     }
 }

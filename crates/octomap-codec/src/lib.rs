@@ -89,7 +89,9 @@ pub fn scan(
     if bytes.is_empty() {
         return Err(CodecError::Empty);
     }
-    let kind = kind.or_else(|| detect_kind(bytes)).unwrap_or(FileKind::Binary);
+    let kind = kind
+        .or_else(|| detect_kind(bytes))
+        .unwrap_or(FileKind::Binary);
     let header = parse_header(bytes, kind)?;
     if kind == FileKind::Full && header.tree_id != OCTREE_ID {
         return Err(CodecError::UnsupportedTreeType(header.tree_id));

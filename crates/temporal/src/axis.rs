@@ -261,6 +261,45 @@ impl TimeAxis {
         }
     }
 
+    /// Seconds since the start for any sample index: extrapolated along the grid beyond the
+    /// end of a regular axis, the last instant beyond the end of an explicit axis.
+    pub(crate) fn sample_seconds(&self, i: u32) -> f64 {
+        match &self.repr {
+            Repr::Regular { step_ns, .. } => (i128::from(i) * i128::from(*step_ns)) as f64 / 1e9,
+            Repr::Explicit { times } => {
+                let t = times
+                    .get(i as usize)
+                    .or(times.last())
+                    .copied()
+                    .unwrap_or_default();
+                t.secs_since(self.start())
+            }
+        }
+    }
+
+    /// Checks that observations lie on the axis and avoid missing samples.
+    pub(crate) fn check(&self, obs: &crate::VoxelObservations) -> Result<(), TemporalError> {
+        if let Some(last) = obs.runs().last() {
+            if last.end() > u64::from(self.len()) {
+                return Err(TemporalError::InvalidObservations {
+                    reason: "observation beyond the axis",
+                    sample: last.end() - 1,
+                });
+            }
+        }
+        if !self.missing().is_empty() {
+            for run in obs.runs() {
+                if self.missing_in(run.first, run.len) > 0 {
+                    return Err(TemporalError::InvalidObservations {
+                        reason: "observation at a missing sample",
+                        sample: u64::from(run.first),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Number of missing samples in `first..first + len`.
     pub(crate) fn missing_in(&self, first: u32, len: u32) -> usize {
         let missing = self.missing();

@@ -33,6 +33,8 @@ pub enum Order {
     /// Chosen per voxel among `0..=max`:
     /// - [`OutlierMode::Lossless`]: the order with the smallest encoded voxel (parameters +
     ///   toggles), ties to the lower order; this is the most compact exact representation.
+    ///   Block-like series (long runs) often come out at order 0 or 1: toggles at the run
+    ///   edges are cheaper than sinusoids whose threshold crossings miss the edges.
     /// - [`OutlierMode::Lossy`]: the order with the smallest held-out squared error of
     ///   `p(t)`: the model is fitted on the first `1 − holdout_fraction` of the voxel's
     ///   observed samples and scored (Brier score) on the rest, ties to the lower order; the
@@ -253,9 +255,7 @@ pub trait PreparedModel: Send + Sync {
     /// wrong: the reconstruction error of lossy mode.
     fn reconstruction_error(&self, voxel: &FittedVoxel, obs: &VoxelObservations) -> u64 {
         obs.iter()
-            .filter(|&(i, s)| {
-                (self.probability_at_sample(voxel, i) > 0.5) != s.is_occupied()
-            })
+            .filter(|&(i, s)| (self.probability_at_sample(voxel, i) > 0.5) != s.is_occupied())
             .count() as u64
     }
 }

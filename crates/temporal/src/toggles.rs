@@ -38,7 +38,9 @@ impl Toggles {
     /// ```
     pub fn new(positions: Vec<u32>) -> Result<Self, TemporalError> {
         if positions.windows(2).any(|w| w[0] >= w[1]) {
-            return Err(TemporalError::Malformed("toggles (not strictly increasing)"));
+            return Err(TemporalError::Malformed(
+                "toggles (not strictly increasing)",
+            ));
         }
         Ok(Self(positions))
     }
@@ -94,17 +96,15 @@ impl Toggles {
     }
 
     pub(crate) fn read(r: &mut Reader<'_>, sample_limit: u32) -> Result<Self, TemporalError> {
-        let count = r.count(
-            "toggle count",
-            MAX_TOGGLES.min(u64::from(sample_limit)),
-            1,
-        )?;
+        let count = r.count("toggle count", MAX_TOGGLES.min(u64::from(sample_limit)), 1)?;
         let mut positions = Vec::with_capacity(count);
         let mut next = 0u64;
         for _ in 0..count {
             let pos = next + r.u64()?;
             if pos >= u64::from(sample_limit) {
-                return Err(TemporalError::Malformed("toggles (position beyond the axis)"));
+                return Err(TemporalError::Malformed(
+                    "toggles (position beyond the axis)",
+                ));
             }
             // pos < sample_limit <= u32::MAX, so the conversion cannot fail.
             positions.push(pos as u32);

@@ -143,7 +143,10 @@ impl<'a> Reader<'a> {
 
     /// Reads `N` raw bytes.
     pub fn array<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], TemporalError> {
-        let end = self.pos.checked_add(N).ok_or(TemporalError::Truncated(what))?;
+        let end = self
+            .pos
+            .checked_add(N)
+            .ok_or(TemporalError::Truncated(what))?;
         let slice = self
             .bytes
             .get(self.pos..end)

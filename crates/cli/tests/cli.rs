@@ -1,0 +1,197 @@
+//! The `froctomap` binary end to end: output, exit codes, messages, atomic outputs, and no
+//! OctoMap debug chatter on the terminal.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use froctomap_test_support::{compare_octrees, convert_octree, geb079, octomap_fixture, scratch};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn froctomap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(args)
+        .output()
+        .expect("run froctomap")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn path_str(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn info_describes_geb079() {
+    let out = froctomap(&["info", path_str(&geb079())]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    for expected in [
+        "format:          bt",
+        "resolution:      0.08 m",
+        "nodes:           532,566",
+        "leaves:          428,144 (occupied 143,729, free 284,415)",
+        "known voxels:    1,136,432 (occupied 185,673, free 950,759)",
+    ] {
+        assert!(
+            stdout.contains(expected),
+            "missing {expected:?} in:\n{stdout}"
+        );
+    }
+    assert!(out.stderr.is_empty(), "stderr: {}", text(&out.stderr));
+}
+
+#[test]
+fn info_json_agrees_with_upstream_counts() {
+    let out = froctomap(&["info", "--json", path_str(&geb079())]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert_eq!(json["format"], "bt");
+    assert_eq!(json["leaves"], 428_144);
+    // compare_octrees expands the tree and counts voxels independently.
+    let dir = scratch();
+    let ot = dir.path().join("geb.ot");
+    convert_octree(&geb079(), &ot);
+    let upstream_voxels = compare_octrees(&ot, &ot).expanded_leaves.expect("count");
+    assert_eq!(json["voxels"], upstream_voxels);
+    let bounds = &json["known_bounds_m"];
+    assert_eq!(bounds["min"][0], -8.0);
+    assert!(json["warnings"].as_array().unwrap().is_empty());
+}
+
+#[test]
+fn bt_to_ot_to_bt_matches_upstream_and_stays_quiet() {
+    let dir = scratch();
+    let ot = dir.path().join("geb.ot");
+    let bt = dir.path().join("geb.bt");
+    let upstream_ot = dir.path().join("upstream.ot");
+    for (input, output) in [(geb079(), ot.clone()), (ot.clone(), bt.clone())] {
+        let out = froctomap(&["convert", path_str(&input), path_str(&output)]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let stderr = text(&out.stderr);
+        assert!(stderr.contains("428,144 leaves"), "{stderr}");
+        assert!(
+            !stderr.contains("Writing") && !stderr.contains("Reading"),
+            "library chatter leaked: {stderr}"
+        );
+    }
+    convert_octree(&geb079(), &upstream_ot);
+    assert_eq!(
+        std::fs::read(&ot).unwrap(),
+        std::fs::read(&upstream_ot).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(&bt).unwrap(),
+        std::fs::read(geb079()).unwrap()
+    );
+    let quiet = froctomap(&["convert", "--quiet", path_str(&ot), path_str(&bt)]);
+    assert!(quiet.status.success() && quiet.stderr.is_empty());
+}
+
+#[test]
+fn format_flag_overrides_the_extension() {
+    let dir = scratch();
+    let out_path = dir.path().join("map.octomap");
+    let out = froctomap(&[
+        "convert",
+        path_str(&octomap_fixture("few_voxels.ot")),
+        path_str(&out_path),
+        "--format",
+        "bt",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(std::fs::read(&out_path)
+        .unwrap()
+        .starts_with(b"# Octomap OcTree binary file\n"));
+    let unknown = froctomap(&[
+        "convert",
+        path_str(&octomap_fixture("few_voxels.ot")),
+        path_str(&out_path),
+    ]);
+    assert!(!unknown.status.success());
+    let stderr = text(&unknown.stderr);
+    assert!(
+        stderr.contains("map.octomap") && stderr.contains("--format"),
+        "{stderr}"
+    );
+    let bad = froctomap(&[
+        "convert",
+        path_str(&octomap_fixture("few_voxels.ot")),
+        path_str(&out_path),
+        "--format",
+        "png",
+    ]);
+    assert!(text(&bad.stderr).contains("unknown map format `png` (known: bt, ot)"));
+}
+
+#[test]
+fn errors_name_the_file_and_exit_nonzero() {
+    let dir = scratch();
+    let truncated = dir.path().join("cut.bt");
+    let bytes = std::fs::read(octomap_fixture("few_voxels.bt")).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() - 3]).unwrap();
+    let out = froctomap(&["info", path_str(&truncated)]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.starts_with(&format!("error: {}: truncated", truncated.display())),
+        "{stderr}"
+    );
+    assert!(out.stdout.is_empty());
+
+    let renamed = dir.path().join("renamed.ot");
+    std::fs::write(&renamed, &bytes).unwrap();
+    let forced = froctomap(&["info", "--input-format", "ot", path_str(&renamed)]);
+    assert!(
+        text(&forced.stderr).contains("this is a .bt file"),
+        "{}",
+        text(&forced.stderr)
+    );
+    let detected = froctomap(&["info", path_str(&renamed)]);
+    assert!(detected.status.success());
+    assert!(
+        text(&detected.stderr).contains("warning:"),
+        "{}",
+        text(&detected.stderr)
+    );
+}
+
+#[test]
+fn failed_conversion_leaves_no_output_behind() {
+    let dir = scratch();
+    let existing = dir.path().join("keep.ot");
+    std::fs::write(&existing, b"previous content").unwrap();
+    let bad_input = dir.path().join("bad.bt");
+    std::fs::write(
+        &bad_input,
+        b"# Octomap OcTree binary file\nid OcTree\nsize 5\nres 0.1\ndata\n\x03",
+    )
+    .unwrap();
+    let out = froctomap(&["convert", path_str(&bad_input), path_str(&existing)]);
+    assert!(!out.status.success());
+    assert_eq!(std::fs::read(&existing).unwrap(), b"previous content");
+    let unwritable = froctomap(&[
+        "convert",
+        path_str(&octomap_fixture("few_voxels.bt")),
+        "/nonexistent-dir/out.ot",
+    ]);
+    assert!(!unwritable.status.success());
+    assert!(
+        text(&unwritable.stderr).contains("/nonexistent-dir/out.ot"),
+        "{}",
+        text(&unwritable.stderr)
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 2, "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn formats_lists_the_registry() {
+    let out = froctomap(&["formats"]);
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("bt     octomap  .bt"), "{stdout}");
+    assert!(stdout.contains("ot     octomap  .ot"), "{stdout}");
+}

@@ -1,0 +1,346 @@
+//! The fitting pipeline shared by every spectral model: mean, component choice, order choice,
+//! and the outlier set computed from the *quantised* parameters.
+
+use crate::fitted::{params_len, quantise_phase, quantise_unit, Component, Evaluable};
+use crate::toggles::ToggleBuilder;
+use crate::{FittedVoxel, Order, OutlierMode, VoxelObservations};
+
+/// Margin below which a bound on `p` is not trusted to decide the threshold (float error of
+/// the summation is many orders of magnitude smaller).
+const BOUND_MARGIN: f64 = 1e-9;
+
+/// An unquantised spectral component.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Candidate {
+    pub frequency: u32,
+    /// `A` (= 2|γ| for FreMEn), in `[0, 1]`.
+    pub amplitude: f64,
+    /// `φ = arg γ`, in turns.
+    pub phase_turns: f64,
+}
+
+/// Computes `(cos θ_c(i), sin θ_c(i))` of the base angle of each component at a sample,
+/// deterministically.
+pub(crate) trait Evaluator {
+    /// Fills `out[c]` for the first `out.len()` components.
+    fn angles(&mut self, sample: u32, out: &mut [(f64, f64)]);
+}
+
+/// What a spectral model provides to the shared pipeline.
+pub(crate) trait Spectral: Send + Sync {
+    type Eval<'a>: Evaluator
+    where
+        Self: 'a;
+
+    /// An evaluator for these components.
+    fn evaluator<'a>(&'a self, components: &[Component]) -> Self::Eval<'a>;
+
+    /// Up to `max` strongest usable components of `obs` (mean `mean`), strongest first.
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate>;
+}
+
+/// Settings the pipeline needs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FitSettings {
+    pub order: Order,
+    pub mode: OutlierMode,
+    pub holdout_fraction: f64,
+}
+
+/// The canonical probability (unclamped) at a sample, summed in stored order.
+pub(crate) fn raw_probability_at<E: Evaluator>(
+    eval: &mut E,
+    voxel: &FittedVoxel,
+    sample: u32,
+) -> f64 {
+    let comps = voxel.components();
+    let mut angles = vec![(0.0, 0.0); comps.len()];
+    eval.angles(sample, &mut angles);
+    let mut p = voxel.mean();
+    for (c, a) in comps.iter().zip(&angles) {
+        p += Evaluable::new(c).value(*a);
+    }
+    p
+}
+
+fn quantise(cands: &[Candidate]) -> Vec<Component> {
+    cands
+        .iter()
+        .map(|c| Component {
+            frequency: c.frequency,
+            amplitude_q: quantise_unit(c.amplitude),
+            phase_q: quantise_phase(c.phase_turns),
+        })
+        .filter(|c| c.amplitude_q > 0)
+        .collect()
+}
+
+/// Fits one voxel with a spectral model.
+pub(crate) fn fit_voxel<S: Spectral>(
+    model: &S,
+    settings: &FitSettings,
+    obs: &VoxelObservations,
+) -> FittedVoxel {
+    let n = obs.observed_count();
+    if n == 0 {
+        return FittedVoxel::new(0, Vec::new(), Default::default()).with_model_errors(0);
+    }
+    let mean = obs.occupied_count() as f64 / n as f64;
+    let mean_q = quantise_unit(mean);
+    let max = usize::from(settings.order.max());
+    if obs.is_constant().is_some() || max == 0 {
+        return finish(
+            model,
+            mean_q,
+            Vec::new(),
+            obs,
+            OrderChoice::Single(0),
+            settings.mode,
+        );
+    }
+    match (settings.order, settings.mode) {
+        (Order::Fixed(_), mode) => {
+            let comps = quantise(&model.candidates(obs, mean, max));
+            finish(model, mean_q, comps, obs, OrderChoice::Single(max), mode)
+        }
+        (Order::Auto { .. }, OutlierMode::Lossless) => {
+            let comps = quantise(&model.candidates(obs, mean, max));
+            finish(
+                model,
+                mean_q,
+                comps,
+                obs,
+                OrderChoice::SmallestEncoding(max),
+                OutlierMode::Lossless,
+            )
+        }
+        (Order::Auto { .. }, OutlierMode::Lossy) => {
+            let m = holdout_order(model, obs, max, settings.holdout_fraction);
+            let comps = quantise(&model.candidates(obs, mean, m));
+            finish(
+                model,
+                mean_q,
+                comps,
+                obs,
+                OrderChoice::Single(m),
+                OutlierMode::Lossy,
+            )
+        }
+    }
+}
+
+/// The order (≤ `max`) whose fit on the earlier observed samples best predicts the later
+/// ones (smallest Brier score); 0 when there is nothing to hold out or learn from.
+fn holdout_order<S: Spectral>(
+    model: &S,
+    obs: &VoxelObservations,
+    max: usize,
+    fraction: f64,
+) -> usize {
+    let n = obs.observed_count();
+    let train_count = ((1.0 - fraction) * n as f64).ceil() as u64;
+    let split = obs.sample_after_observed(train_count.min(n));
+    let train = obs.truncated(split);
+    let test_count = n - train.observed_count();
+    if train.observed_count() == 0 || test_count == 0 || train.is_constant().is_some() {
+        return 0;
+    }
+    let train_mean = train.occupied_count() as f64 / train.observed_count() as f64;
+    let comps = quantise(&model.candidates(&train, train_mean, max));
+    if comps.is_empty() {
+        return 0;
+    }
+    let mean = f64::from(quantise_unit(train_mean)) / 65535.0;
+    let evaluables: Vec<Evaluable> = comps.iter().map(Evaluable::new).collect();
+    let mut eval = model.evaluator(&comps);
+    let mut angles = vec![(0.0, 0.0); comps.len()];
+    let mut sq_err = vec![0.0f64; comps.len() + 1];
+    for run in obs.runs() {
+        let target = if run.state.is_occupied() { 1.0 } else { 0.0 };
+        let start = run.first.max(split);
+        let end = run.end();
+        let mut i = u64::from(start);
+        while i < end {
+            let sample = i as u32;
+            eval.angles(sample, &mut angles);
+            let mut p = mean;
+            for m in 0..=comps.len() {
+                let d = p.clamp(0.0, 1.0) - target;
+                sq_err[m] += d * d;
+                if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
+                    p += e.value(*a);
+                }
+            }
+            i += 1;
+        }
+    }
+    let mut best = 0;
+    for (m, e) in sq_err.iter().enumerate() {
+        if *e < sq_err[best] {
+            best = m;
+        }
+    }
+    best
+}
+
+#[derive(Debug, Clone, Copy)]
+enum OrderChoice {
+    /// Exactly this order (or all components when fewer).
+    Single(usize),
+    /// The order in `0..=max` with the smallest encoded voxel.
+    SmallestEncoding(usize),
+}
+
+/// Computes the outlier set (and disagreement count) for the chosen order(s) from the
+/// quantised components, and assembles the voxel.
+fn finish<S: Spectral>(
+    model: &S,
+    mean_q: u16,
+    mut comps: Vec<Component>,
+    obs: &VoxelObservations,
+    choice: OrderChoice,
+    mode: OutlierMode,
+) -> FittedVoxel {
+    let (lo, hi) = match choice {
+        OrderChoice::Single(m) => (m.min(comps.len()), m.min(comps.len())),
+        OrderChoice::SmallestEncoding(max) => (0, max.min(comps.len())),
+    };
+    comps.truncate(hi);
+    let mean = f64::from(mean_q) / 65535.0;
+    let evaluables: Vec<Evaluable> = comps.iter().map(Evaluable::new).collect();
+
+    // Orders whose |p − mean| bound keeps p on one side of 0.5 predict a constant state and
+    // need no per-sample evaluation.
+    let mut constant = Vec::with_capacity(hi + 1);
+    let mut bound = 0.0;
+    for m in 0..=hi {
+        let state = if m == 0 {
+            Some(mean > 0.5)
+        } else if mean + bound < 0.5 - BOUND_MARGIN {
+            Some(false)
+        } else if mean - bound > 0.5 + BOUND_MARGIN {
+            Some(true)
+        } else {
+            None
+        };
+        constant.push(state);
+        if let Some(e) = evaluables.get(m) {
+            bound += e.bound();
+        }
+    }
+    let evaluated = (lo..=hi)
+        .rev()
+        .find(|&m| constant.get(m).copied().flatten().is_none())
+        .unwrap_or(0);
+
+    let keep = mode == OutlierMode::Lossless;
+    let mut trackers: Vec<ToggleBuilder> = (lo..=hi).map(|_| ToggleBuilder::new(keep)).collect();
+    let mut eval = model.evaluator(&comps);
+    let mut angles = vec![(0.0, 0.0); evaluated];
+    for run in obs.runs() {
+        let occupied = run.state.is_occupied();
+        for (m, tracker) in (lo..=hi).zip(trackers.iter_mut()) {
+            if let Some(Some(predicted)) = constant.get(m) {
+                tracker.push_run(run.first, run.len, *predicted != occupied);
+            }
+        }
+        if evaluated == 0 {
+            continue;
+        }
+        let mut i = u64::from(run.first);
+        while i < run.end() {
+            let sample = i as u32;
+            eval.angles(sample, &mut angles);
+            let mut p = mean;
+            for m in 0..=evaluated {
+                if m >= lo && constant.get(m) == Some(&None) {
+                    if let Some(tracker) = trackers.get_mut(m - lo) {
+                        tracker.push(sample, (p > 0.5) != occupied);
+                    }
+                }
+                if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
+                    p += e.value(*a);
+                }
+            }
+            i += 1;
+        }
+    }
+
+    let mut best = 0;
+    let mut best_size = usize::MAX;
+    for (k, tracker) in trackers.iter().enumerate() {
+        let m = lo + k;
+        let size = params_len(comps.get(..m).unwrap_or(&comps)) + tracker.encoded_len();
+        if size < best_size {
+            best_size = size;
+            best = k;
+        }
+    }
+    let m = lo + best;
+    let tracker = trackers.swap_remove(best);
+    let errors = tracker.disagreements();
+    comps.truncate(m);
+    FittedVoxel::new(mean_q, comps, tracker.finish()).with_model_errors(errors)
+}
+
+/// Keeps the `max` largest by `key` (strongest first; ties to the lower frequency).
+pub(crate) struct TopK {
+    max: usize,
+    items: Vec<(f64, u32)>,
+}
+
+impl TopK {
+    pub fn new(max: usize) -> Self {
+        Self {
+            max,
+            items: Vec::with_capacity(max + 1),
+        }
+    }
+
+    /// Offers frequency `frequency` with strength `key`.
+    #[inline]
+    pub fn offer(&mut self, key: f64, frequency: u32) {
+        if self.max == 0 || !(key > 0.0) {
+            return;
+        }
+        if self.items.len() == self.max {
+            match self.items.last() {
+                Some(&(k, _)) if key > k => {}
+                _ => return,
+            }
+            self.items.pop();
+        }
+        let pos = self.items.partition_point(|&(k, _)| k >= key);
+        self.items.insert(pos, (key, frequency));
+    }
+
+    /// The kept `(key, frequency)` pairs, strongest first.
+    pub fn into_sorted(self) -> Vec<(f64, u32)> {
+        self.items
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn top_k_keeps_strongest_in_order() {
+        let mut t = TopK::new(3);
+        for (k, f) in [
+            (1.0, 1),
+            (5.0, 2),
+            (3.0, 3),
+            (5.0, 4),
+            (0.5, 5),
+            (4.0, 6),
+            (0.0, 7),
+        ] {
+            t.offer(k, f);
+        }
+        assert_eq!(t.into_sorted(), vec![(5.0, 2), (5.0, 4), (4.0, 6)]);
+        let mut none = TopK::new(0);
+        none.offer(1.0, 1);
+        assert!(none.into_sorted().is_empty());
+    }
+}

@@ -1,0 +1,378 @@
+//! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
+
+use super::SpectralLine;
+use crate::fit::{
+    fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral, TopK,
+};
+use crate::fitted::Evaluable;
+use crate::model::{read_parameters_header, write_parameters_header};
+use crate::trig::cos_sin_turns;
+use crate::varint::{self, Reader};
+use crate::{
+    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, OutlierMode, PreparedModel,
+    TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+};
+use std::sync::OnceLock;
+
+/// Registration of [`FremenPeriods`].
+pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
+    id: ModelId::FREMEN_PERIODS,
+    name: "fremen-periods",
+    description: "FreMEn at candidate periods (one week / k plus user periods), any time axis",
+    factory: || Box::new(FremenPeriods),
+};
+
+/// Largest prefix-sum table built for fitting (bytes).
+pub const MAX_TABLE_BYTES: u64 = 4 << 30;
+
+/// FreMEn at arbitrary timestamps: `γ_P = (1/N) Σ_observed (s_i − mean)·e^{−j2π·t_i/P}` at
+/// each candidate period `P` (seconds), with `t_i` the real time of sample `i`.
+///
+/// Candidates: `base_period / k` for `k = 1..=harmonics` plus the configured extra periods,
+/// deduplicated, longest first, keeping those the axis spans `min_cycles` times; per voxel a
+/// period is used only when the voxel's observed span covers it `min_cycles` times. The list
+/// is the model's parameter block, so a reader evaluates the same periods.
+///
+/// Fitting cost: the axis gets prefix sums of `(cos, sin)(2π·t_i/P)` per period (shared by
+/// all voxels; `16·K·(n+1)` bytes for `K` periods and `n` samples), so a voxel's spectrum
+/// costs two table reads per run boundary and period: sums over all occupied and all free
+/// runs give `Σ (s_i − mean)·e^{…} = (1 − mean)·S_occupied − mean·S_free`.
+///
+/// ```
+/// use froctomap_core::{Occupancy::*, Timestamp};
+/// use froctomap_temporal::{models::FremenPeriods, *};
+/// // Two weeks of jittered, irregular snapshots of a voxel occupied 9:00-17:00 each day.
+/// let mut times = Vec::new();
+/// let mut t = 0i64;
+/// while t < 14 * 86_400 {
+///     times.push(Timestamp::from_secs(t));
+///     t += 1_000 + (t * 7919) % 1_400; // 1000..2400 s apart
+/// }
+/// let axis = TimeAxis::explicit(times.clone())?;
+/// let mut b = ObservationsBuilder::new();
+/// for (i, ts) in times.iter().enumerate() {
+///     let hour = (ts.as_secs_f64() / 3600.0) as i64 % 24;
+///     b.push(i as u32, Some(if (9..17).contains(&hour) { Occupied } else { Free }))?;
+/// }
+/// let model = FremenPeriods.prepare(&axis, &ModelConfig::default().with_order(Order::Fixed(1)))?;
+/// let voxel = model.fit(&b.finish())?;
+/// // The strongest component is the daily one: week / 7.
+/// let day = 15.0 * 86_400.0 + 13.0 * 3600.0; // a future day, 13:00
+/// assert!(model.probability(&voxel, day) > 0.5);
+/// assert!(model.probability(&voxel, day + 12.0 * 3600.0) < 0.5);
+/// # Ok::<(), TemporalError>(())
+/// ```
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FremenPeriods;
+
+impl FremenPeriods {
+    /// [`TemporalModel::prepare`] returning the concrete type (e.g. to read spectra).
+    pub fn prepare_periods(
+        &self,
+        axis: &TimeAxis,
+        config: &ModelConfig,
+    ) -> Result<PreparedFremenPeriods, TemporalError> {
+        config.validate()?;
+        let mut periods: Vec<f64> = (1..=config.harmonics)
+            .map(|k| config.base_period / f64::from(k))
+            .chain(config.periods.iter().copied())
+            .collect();
+        periods.sort_by(|a, b| b.total_cmp(a));
+        periods.dedup_by(|b, a| (*a - *b).abs() <= 1e-9 * a.abs());
+        let span = axis.span_seconds();
+        periods.retain(|p| p * config.min_cycles <= span);
+        Ok(PreparedFremenPeriods::new(
+            axis,
+            periods,
+            config,
+            config.outliers,
+        ))
+    }
+}
+
+impl TemporalModel for FremenPeriods {
+    fn id(&self) -> ModelId {
+        ModelId::FREMEN_PERIODS
+    }
+
+    fn name(&self) -> &'static str {
+        DESCRIPTOR.name
+    }
+
+    fn prepare(
+        &self,
+        axis: &TimeAxis,
+        config: &ModelConfig,
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        Ok(Box::new(self.prepare_periods(axis, config)?))
+    }
+
+    fn prepare_from_parameters(
+        &self,
+        axis: &TimeAxis,
+        parameters: &[u8],
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        let mut r = Reader::new(parameters);
+        let mode = read_parameters_header(&mut r)?;
+        let count = r.count("period count", ModelConfig::MAX_PERIODS as u64, 8)?;
+        let mut periods = Vec::with_capacity(count);
+        for _ in 0..count {
+            let p = r.f64_le("period")?;
+            if !(p.is_finite() && p > 0.0) {
+                return Err(TemporalError::Malformed("period (not a positive number)"));
+            }
+            periods.push(p);
+        }
+        Ok(Box::new(PreparedFremenPeriods::new(
+            axis,
+            periods,
+            &ModelConfig::default(),
+            mode,
+        )))
+    }
+}
+
+/// [`FremenPeriods`] bound to an axis: the period list and (built on first fit) the shared
+/// prefix-sum table.
+#[derive(Debug)]
+pub struct PreparedFremenPeriods {
+    axis: TimeAxis,
+    periods: Vec<f64>,
+    /// `1 / P` per period, the factor the evaluation multiplies times by.
+    frequencies: Vec<f64>,
+    /// `prefix[i·K + j] = Σ_{l<i} (cos, sin)(2π·t_l/P_j)`.
+    prefix: OnceLock<Vec<[f64; 2]>>,
+    settings: FitSettings,
+    min_cycles: f64,
+}
+
+impl PreparedFremenPeriods {
+    fn new(axis: &TimeAxis, periods: Vec<f64>, config: &ModelConfig, mode: OutlierMode) -> Self {
+        Self {
+            axis: axis.clone(),
+            frequencies: periods.iter().map(|p| 1.0 / p).collect(),
+            periods,
+            prefix: OnceLock::new(),
+            settings: FitSettings {
+                order: config.order,
+                mode,
+                holdout_fraction: config.holdout_fraction,
+            },
+            min_cycles: config.min_cycles,
+        }
+    }
+
+    /// The candidate periods in seconds, longest first; component frequencies index this list.
+    pub fn periods(&self) -> &[f64] {
+        &self.periods
+    }
+
+    fn table(&self) -> Result<&[[f64; 2]], TemporalError> {
+        let k = self.periods.len() as u64;
+        let bytes = (u64::from(self.axis.len()) + 1) * k * 16;
+        if bytes > MAX_TABLE_BYTES {
+            return Err(TemporalError::LimitExceeded {
+                what: "fremen-periods table bytes",
+                value: bytes,
+                limit: MAX_TABLE_BYTES,
+            });
+        }
+        Ok(self.prefix.get_or_init(|| {
+            let k = self.periods.len();
+            let n = self.axis.len();
+            let mut table = Vec::with_capacity((n as usize + 1) * k);
+            table.extend(std::iter::repeat_n([0.0, 0.0], k));
+            for i in 0..n {
+                let t = self.axis.sample_seconds(i);
+                let base = i as usize * k;
+                for (j, f) in self.frequencies.iter().enumerate() {
+                    let (c, s) = cos_sin_turns(t * f);
+                    let prev = table.get(base + j).copied().unwrap_or([0.0, 0.0]);
+                    table.push([prev[0] + c, prev[1] + s]);
+                }
+            }
+            table
+        }))
+    }
+
+    /// Unnormalised `X_j = Σ_observed (s_i − mean)·e^{−j2π·t_i/P_j}` for every period.
+    fn sums(&self, obs: &VoxelObservations, mean: f64) -> Result<Vec<[f64; 2]>, TemporalError> {
+        let table = self.table()?;
+        let k = self.periods.len();
+        let mut occupied = vec![[0.0f64; 2]; k];
+        let mut free = vec![[0.0f64; 2]; k];
+        for run in obs.runs() {
+            let (Some(a), Some(b)) = (
+                table.get(run.first as usize * k..(run.first as usize + 1) * k),
+                table.get(run.end() as usize * k..(run.end() as usize + 1) * k),
+            ) else {
+                continue; // unreachable: observations are checked against the axis
+            };
+            let acc = if run.state.is_occupied() {
+                &mut occupied
+            } else {
+                &mut free
+            };
+            for ((s, pa), pb) in acc.iter_mut().zip(a).zip(b) {
+                s[0] += pb[0] - pa[0];
+                s[1] += pb[1] - pa[1];
+            }
+        }
+        Ok(occupied
+            .iter()
+            .zip(&free)
+            .map(|(o, f)| {
+                let re = (1.0 - mean) * o[0] - mean * f[0];
+                let im = (1.0 - mean) * o[1] - mean * f[1];
+                [re, -im] // e^{−jθ} = cos θ − j sin θ
+            })
+            .collect())
+    }
+
+    /// The spectrum `γ_j` of `obs` at every period of [`periods`](Self::periods).
+    pub fn spectrum(&self, obs: &VoxelObservations) -> Result<Vec<SpectralLine>, TemporalError> {
+        self.axis.check(obs)?;
+        let count = obs.observed_count();
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let mean = obs.occupied_count() as f64 / count as f64;
+        let norm = 1.0 / count as f64;
+        Ok(self
+            .sums(obs, mean)?
+            .iter()
+            .enumerate()
+            .map(|(j, x)| SpectralLine {
+                frequency: j as u32,
+                period_seconds: self.periods.get(j).copied().unwrap_or(f64::NAN),
+                re: x[0] * norm,
+                im: x[1] * norm,
+            })
+            .collect())
+    }
+
+    fn frequency(&self, index: u32) -> f64 {
+        self.frequencies.get(index as usize).copied().unwrap_or(0.0)
+    }
+}
+
+/// Base angles `2π·t_i/P` computed per sample with [`cos_sin_turns`].
+pub(crate) struct PeriodsEval<'a> {
+    axis: &'a TimeAxis,
+    frequencies: Vec<f64>,
+}
+
+impl Evaluator for PeriodsEval<'_> {
+    #[inline]
+    fn angles(&mut self, sample: u32, out: &mut [(f64, f64)]) {
+        let t = self.axis.sample_seconds(sample);
+        for (o, f) in out.iter_mut().zip(&self.frequencies) {
+            *o = cos_sin_turns(t * f);
+        }
+    }
+}
+
+impl Spectral for PreparedFremenPeriods {
+    type Eval<'a> = PeriodsEval<'a>;
+
+    fn evaluator<'a>(&'a self, components: &[Component]) -> PeriodsEval<'a> {
+        PeriodsEval {
+            axis: &self.axis,
+            frequencies: components
+                .iter()
+                .map(|c| self.frequency(c.frequency))
+                .collect(),
+        }
+    }
+
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
+        let Some((first, last)) = obs.observed_range() else {
+            return Vec::new();
+        };
+        let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
+        let Ok(sums) = self.sums(obs, mean) else {
+            return Vec::new();
+        };
+        let mut top = TopK::new(max);
+        for (j, (x, p)) in sums.iter().zip(&self.periods).enumerate() {
+            if p * self.min_cycles <= span {
+                top.offer(4.0 * (x[0] * x[0] + x[1] * x[1]), j as u32);
+            }
+        }
+        let norm = 1.0 / obs.observed_count() as f64;
+        top.into_sorted()
+            .into_iter()
+            .filter_map(|(key, j)| {
+                let x = sums.get(j as usize)?;
+                Some(Candidate {
+                    frequency: j,
+                    amplitude: key.sqrt() * norm,
+                    phase_turns: x[1].atan2(x[0]) / std::f64::consts::TAU,
+                })
+            })
+            .collect()
+    }
+}
+
+impl PreparedModel for PreparedFremenPeriods {
+    fn id(&self) -> ModelId {
+        ModelId::FREMEN_PERIODS
+    }
+
+    fn axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn outlier_mode(&self) -> OutlierMode {
+        self.settings.mode
+    }
+
+    fn fit(&self, obs: &VoxelObservations) -> Result<FittedVoxel, TemporalError> {
+        self.axis.check(obs)?;
+        if obs.is_constant().is_none() && self.settings.order.max() > 0 {
+            self.table()?; // surface the table-size limit as an error, not an empty fit
+        }
+        Ok(fit_voxel(self, &self.settings, obs))
+    }
+
+    fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
+        let t = seconds_since_axis_start;
+        let mut p = voxel.mean();
+        if t.is_finite() {
+            for c in voxel.components() {
+                let angle = cos_sin_turns(t * self.frequency(c.frequency));
+                p += Evaluable::new(c).value(angle);
+            }
+        }
+        p.clamp(0.0, 1.0)
+    }
+
+    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
+        let mut eval = self.evaluator(voxel.components());
+        raw_probability_at(&mut eval, voxel, sample).clamp(0.0, 1.0)
+    }
+
+    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
+        voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
+    }
+
+    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
+        FittedVoxel::decode(
+            bytes,
+            self.periods.len() as u32,
+            self.axis.len(),
+            self.settings.mode == OutlierMode::Lossless,
+        )
+    }
+
+    /// Header, then `varint K` and the `K` periods as f64 LE seconds.
+    fn encode_parameters(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        write_parameters_header(&mut out, self.settings.mode);
+        varint::write_u64(&mut out, self.periods.len() as u64);
+        for p in &self.periods {
+            out.extend_from_slice(&p.to_le_bytes());
+        }
+        out
+    }
+}

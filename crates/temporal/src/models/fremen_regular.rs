@@ -1,0 +1,372 @@
+//! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
+
+use super::SpectralLine;
+use crate::fit::{
+    fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral, TopK,
+};
+use crate::fitted::Evaluable;
+use crate::model::{read_parameters_header, write_parameters_header};
+use crate::trig::cos_sin_turns;
+use crate::varint::Reader;
+use crate::{
+    AxisKind, Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, OutlierMode,
+    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+};
+use realfft::num_complex::Complex;
+use realfft::{RealFftPlanner, RealToComplex};
+use std::sync::{Arc, OnceLock};
+
+/// Registration of [`FremenRegular`].
+pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
+    id: ModelId::FREMEN_REGULAR,
+    name: "fremen-regular",
+    description: "FreMEn over all DFT bins of a regular time axis (real FFT per voxel)",
+    factory: || Box::new(FremenRegular),
+};
+
+/// Longest axis the FFT model accepts (samples).
+pub const MAX_SAMPLES: u32 = 1 << 26;
+/// Longest axis for which the unit-root table is cached (16 bytes per sample); longer axes
+/// compute the same values on the fly.
+const MAX_ROOT_TABLE: u32 = 1 << 22;
+
+/// FreMEn on a regular axis of `n` samples (gaps allowed): the spectrum of `s_i − mean` over
+/// the observed samples at every DFT bin `k` (period `n·step/k`), from one real FFT with
+/// unknown samples set to zero, normalised by the observed count. Bins `k ≥ min_cycles·n /
+/// span` up to the Nyquist bin `n/2` are candidates; the strongest are kept.
+///
+/// ```
+/// use froctomap_core::{Occupancy::*, Timestamp};
+/// use froctomap_temporal::{models::FremenRegular, *};
+/// // 8 days of hourly samples: occupied from 9:00 to 17:00.
+/// let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, 24 * 8, vec![])?;
+/// let mut b = ObservationsBuilder::new();
+/// for i in 0..24 * 8 {
+///     let hour = i % 24;
+///     b.push(i, Some(if (9..17).contains(&hour) { Occupied } else { Free }))?;
+/// }
+/// let obs = b.finish();
+/// let model = FremenRegular.prepare(&axis, &ModelConfig::default().with_order(Order::Fixed(1)))?;
+/// let voxel = model.fit(&obs)?;
+/// assert_eq!(voxel.components()[0].frequency, 8); // one cycle per day
+/// assert!(model.probability(&voxel, 13.0 * 3600.0) > 0.5);
+/// assert!(model.probability(&voxel, 1.0 * 3600.0) < 0.5);
+/// for (i, s) in obs.iter() {
+///     assert_eq!(model.state_at_sample(&voxel, i), s); // lossless
+/// }
+/// # Ok::<(), TemporalError>(())
+/// ```
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FremenRegular;
+
+impl FremenRegular {
+    /// [`TemporalModel::prepare`] returning the concrete type (e.g. to read spectra).
+    pub fn prepare_regular(
+        &self,
+        axis: &TimeAxis,
+        config: &ModelConfig,
+    ) -> Result<PreparedFremenRegular, TemporalError> {
+        config.validate()?;
+        PreparedFremenRegular::new(axis, config, config.outliers)
+    }
+}
+
+impl TemporalModel for FremenRegular {
+    fn id(&self) -> ModelId {
+        ModelId::FREMEN_REGULAR
+    }
+
+    fn name(&self) -> &'static str {
+        DESCRIPTOR.name
+    }
+
+    fn prepare(
+        &self,
+        axis: &TimeAxis,
+        config: &ModelConfig,
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        Ok(Box::new(self.prepare_regular(axis, config)?))
+    }
+
+    fn prepare_from_parameters(
+        &self,
+        axis: &TimeAxis,
+        parameters: &[u8],
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        let mut r = Reader::new(parameters);
+        let mode = read_parameters_header(&mut r)?;
+        Ok(Box::new(PreparedFremenRegular::new(
+            axis,
+            &ModelConfig::default(),
+            mode,
+        )?))
+    }
+}
+
+/// [`FremenRegular`] bound to an axis: FFT plan (made on first fit) and unit-root table.
+pub struct PreparedFremenRegular {
+    axis: TimeAxis,
+    n: u32,
+    /// `n · step` in seconds: the period of bin 1.
+    base_seconds: f64,
+    /// `(cos, sin)(2π·r/n)` for `r` in `0..n`, computed with [`cos_sin_turns`].
+    roots: Vec<(f64, f64)>,
+    fft: OnceLock<Arc<dyn RealToComplex<f64>>>,
+    settings: FitSettings,
+    min_cycles: f64,
+}
+
+impl std::fmt::Debug for PreparedFremenRegular {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PreparedFremenRegular")
+            .field("n", &self.n)
+            .field("base_seconds", &self.base_seconds)
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
+#[inline]
+fn root(n: u32, r: u64) -> (f64, f64) {
+    cos_sin_turns(r as f64 / f64::from(n))
+}
+
+impl PreparedFremenRegular {
+    fn new(
+        axis: &TimeAxis,
+        config: &ModelConfig,
+        mode: OutlierMode,
+    ) -> Result<Self, TemporalError> {
+        let (AxisKind::Regular, Some(step_ns)) = (axis.kind(), axis.step_ns()) else {
+            return Err(TemporalError::Unsupported {
+                model: DESCRIPTOR.name,
+                reason: "explicit time axes (use fremen-periods)",
+            });
+        };
+        let n = axis.len();
+        if n > MAX_SAMPLES {
+            return Err(TemporalError::LimitExceeded {
+                what: "samples of a fremen-regular axis",
+                value: u64::from(n),
+                limit: u64::from(MAX_SAMPLES),
+            });
+        }
+        let roots = if n <= MAX_ROOT_TABLE {
+            (0..u64::from(n)).map(|r| root(n, r)).collect()
+        } else {
+            Vec::new()
+        };
+        Ok(Self {
+            axis: axis.clone(),
+            n,
+            base_seconds: f64::from(n) * (step_ns as f64 / 1e9),
+            roots,
+            fft: OnceLock::new(),
+            settings: FitSettings {
+                order: config.order,
+                mode,
+                holdout_fraction: config.holdout_fraction,
+            },
+            min_cycles: config.min_cycles,
+        })
+    }
+
+    fn plan(&self) -> &Arc<dyn RealToComplex<f64>> {
+        self.fft
+            .get_or_init(|| RealFftPlanner::<f64>::new().plan_fft_forward(self.n as usize))
+    }
+
+    /// Unnormalised DFT `X_k = Σ_observed (s_i − mean)·e^{−j2πki/n}` for `k` in `0..=n/2`.
+    fn dft(&self, obs: &VoxelObservations, mean: f64) -> Vec<Complex<f64>> {
+        let plan = self.plan();
+        let mut input = vec![0.0f64; self.n as usize];
+        for run in obs.runs() {
+            let value = if run.state.is_occupied() {
+                1.0 - mean
+            } else {
+                -mean
+            };
+            let start = run.first as usize;
+            let end = (run.end() as usize).min(input.len());
+            if let Some(slice) = input.get_mut(start..end) {
+                slice.fill(value);
+            }
+        }
+        let mut output = plan.make_output_vec();
+        let mut scratch = plan.make_scratch_vec();
+        if plan
+            .process_with_scratch(&mut input, &mut output, &mut scratch)
+            .is_err()
+        {
+            // Only possible with mismatched buffer lengths, which the plan itself made.
+            output.clear();
+        }
+        output
+    }
+
+    /// The spectrum `γ_k` of `obs` (already checked against the axis) for every bin
+    /// `0..=n/2`, from the FFT. `γ_0` is zero up to rounding (the mean is subtracted).
+    pub fn spectrum(&self, obs: &VoxelObservations) -> Result<Vec<SpectralLine>, TemporalError> {
+        self.axis.check(obs)?;
+        let count = obs.observed_count();
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let mean = obs.occupied_count() as f64 / count as f64;
+        let norm = 1.0 / count as f64;
+        Ok(self
+            .dft(obs, mean)
+            .iter()
+            .enumerate()
+            .map(|(k, x)| SpectralLine {
+                frequency: k as u32,
+                period_seconds: self.base_seconds / k as f64,
+                re: x.re * norm,
+                im: x.im * norm,
+            })
+            .collect())
+    }
+
+    /// Turns per second of bin `k`.
+    fn frequency_hz(&self, k: u32) -> f64 {
+        f64::from(k) / self.base_seconds
+    }
+}
+
+/// Base angles `2π·k·i/n` from the root table, advancing `k·i mod n` incrementally along runs.
+pub(crate) struct RegularEval<'a> {
+    model: &'a PreparedFremenRegular,
+    bins: Vec<u64>,
+    residues: Vec<u64>,
+    last: Option<u32>,
+}
+
+impl Evaluator for RegularEval<'_> {
+    #[inline]
+    fn angles(&mut self, sample: u32, out: &mut [(f64, f64)]) {
+        let n = u64::from(self.model.n);
+        let sequential = self.last.is_some_and(|l| l.checked_add(1) == Some(sample));
+        for ((o, &k), r) in out.iter_mut().zip(&self.bins).zip(self.residues.iter_mut()) {
+            if sequential {
+                *r += k;
+                if *r >= n {
+                    *r -= n;
+                }
+            } else {
+                *r = (k * u64::from(sample)) % n;
+            }
+            *o = match self.model.roots.get(*r as usize) {
+                Some(v) => *v,
+                None => root(self.model.n, *r),
+            };
+        }
+        self.last = Some(sample);
+    }
+}
+
+impl Spectral for PreparedFremenRegular {
+    type Eval<'a> = RegularEval<'a>;
+
+    fn evaluator<'a>(&'a self, components: &[Component]) -> RegularEval<'a> {
+        let n = u64::from(self.n.max(1));
+        RegularEval {
+            model: self,
+            // Frequencies are validated below n/2 when decoding; reduce anyway so the
+            // incremental update stays below n.
+            bins: components
+                .iter()
+                .map(|c| u64::from(c.frequency) % n)
+                .collect(),
+            residues: vec![0; components.len()],
+            last: None,
+        }
+    }
+
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
+        let Some((first, last)) = obs.observed_range() else {
+            return Vec::new();
+        };
+        let span = f64::from(last - first);
+        let nyquist = self.n / 2;
+        // Bin k has period n/k samples; it needs min_cycles periods within the span.
+        let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
+        if !(k_min <= f64::from(nyquist)) {
+            return Vec::new();
+        }
+        let k_min = k_min as u32;
+        let spectrum = self.dft(obs, mean);
+        let mut top = TopK::new(max);
+        for (k, x) in spectrum.iter().enumerate().skip(k_min as usize) {
+            // A = 2|γ| except at Nyquist (n even), whose real line is its own conjugate.
+            let weight = if 2 * k == self.n as usize { 1.0 } else { 4.0 };
+            top.offer(weight * x.norm_sqr(), k as u32);
+        }
+        let norm = 1.0 / obs.observed_count() as f64;
+        top.into_sorted()
+            .into_iter()
+            .filter_map(|(key, k)| {
+                let x = spectrum.get(k as usize)?;
+                Some(Candidate {
+                    frequency: k,
+                    amplitude: key.sqrt() * norm,
+                    phase_turns: x.im.atan2(x.re) / std::f64::consts::TAU,
+                })
+            })
+            .collect()
+    }
+}
+
+impl PreparedModel for PreparedFremenRegular {
+    fn id(&self) -> ModelId {
+        ModelId::FREMEN_REGULAR
+    }
+
+    fn axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn outlier_mode(&self) -> OutlierMode {
+        self.settings.mode
+    }
+
+    fn fit(&self, obs: &VoxelObservations) -> Result<FittedVoxel, TemporalError> {
+        self.axis.check(obs)?;
+        Ok(fit_voxel(self, &self.settings, obs))
+    }
+
+    fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
+        let t = seconds_since_axis_start;
+        let mut p = voxel.mean();
+        if t.is_finite() {
+            for c in voxel.components() {
+                let angle = cos_sin_turns(t * self.frequency_hz(c.frequency));
+                p += Evaluable::new(c).value(angle);
+            }
+        }
+        p.clamp(0.0, 1.0)
+    }
+
+    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
+        let mut eval = self.evaluator(voxel.components());
+        raw_probability_at(&mut eval, voxel, sample).clamp(0.0, 1.0)
+    }
+
+    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
+        voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
+    }
+
+    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
+        FittedVoxel::decode(
+            bytes,
+            self.n / 2 + 1,
+            self.axis.len(),
+            self.settings.mode == OutlierMode::Lossless,
+        )
+    }
+
+    fn encode_parameters(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        write_parameters_header(&mut out, self.settings.mode);
+        out
+    }
+}

@@ -1,0 +1,147 @@
+//! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
+
+use crate::fit::{fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral};
+use crate::model::{read_parameters_header, write_parameters_header};
+use crate::varint::Reader;
+use crate::{
+    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, Order, OutlierMode,
+    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+};
+
+/// Registration of [`StaticMean`].
+pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
+    id: ModelId::STATIC,
+    name: "static",
+    description: "mean occupancy only (the baseline); exact states via the outlier set",
+    factory: || Box::new(StaticMean),
+};
+
+/// The static model: mean only. Works on any axis; ignores the order.
+///
+/// ```
+/// use froctomap_core::{Occupancy::*, Timestamp};
+/// use froctomap_temporal::{models::StaticMean, *};
+/// let axis = TimeAxis::regular(Timestamp(0), 1, 10, vec![])?;
+/// let model = StaticMean.prepare(&axis, &ModelConfig::default())?;
+/// let obs = VoxelObservations::from_runs([(0, 7, Free), (7, 3, Occupied)])?;
+/// let voxel = model.fit(&obs)?;
+/// assert!((model.probability(&voxel, 1e9) - 0.3).abs() < 1e-4);
+/// assert_eq!(voxel.model_errors(), Some(3)); // the thresholded mean says "free" everywhere
+/// assert_eq!(model.state_at_sample(&voxel, 8), Occupied); // ...but the toggles fix it
+/// # Ok::<(), TemporalError>(())
+/// ```
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StaticMean;
+
+impl TemporalModel for StaticMean {
+    fn id(&self) -> ModelId {
+        ModelId::STATIC
+    }
+
+    fn name(&self) -> &'static str {
+        DESCRIPTOR.name
+    }
+
+    fn prepare(
+        &self,
+        axis: &TimeAxis,
+        config: &ModelConfig,
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        config.validate()?;
+        Ok(Box::new(PreparedStaticMean {
+            axis: axis.clone(),
+            mode: config.outliers,
+        }))
+    }
+
+    fn prepare_from_parameters(
+        &self,
+        axis: &TimeAxis,
+        parameters: &[u8],
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        let mut r = Reader::new(parameters);
+        let mode = read_parameters_header(&mut r)?;
+        Ok(Box::new(PreparedStaticMean {
+            axis: axis.clone(),
+            mode,
+        }))
+    }
+}
+
+/// [`StaticMean`] bound to an axis.
+#[derive(Debug, Clone)]
+pub struct PreparedStaticMean {
+    axis: TimeAxis,
+    mode: OutlierMode,
+}
+
+/// Evaluates no components.
+pub(crate) struct NoComponents;
+
+impl Evaluator for NoComponents {
+    fn angles(&mut self, _sample: u32, _out: &mut [(f64, f64)]) {}
+}
+
+impl Spectral for PreparedStaticMean {
+    type Eval<'a> = NoComponents;
+
+    fn evaluator<'a>(&'a self, _components: &[Component]) -> NoComponents {
+        NoComponents
+    }
+
+    fn candidates(&self, _obs: &VoxelObservations, _mean: f64, _max: usize) -> Vec<Candidate> {
+        Vec::new()
+    }
+}
+
+impl PreparedModel for PreparedStaticMean {
+    fn id(&self) -> ModelId {
+        ModelId::STATIC
+    }
+
+    fn axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn outlier_mode(&self) -> OutlierMode {
+        self.mode
+    }
+
+    fn fit(&self, obs: &VoxelObservations) -> Result<FittedVoxel, TemporalError> {
+        self.axis.check(obs)?;
+        let settings = FitSettings {
+            order: Order::Fixed(0),
+            mode: self.mode,
+            holdout_fraction: 0.5,
+        };
+        Ok(fit_voxel(self, &settings, obs))
+    }
+
+    fn probability(&self, voxel: &FittedVoxel, _seconds_since_axis_start: f64) -> f64 {
+        voxel.mean()
+    }
+
+    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
+        raw_probability_at(&mut NoComponents, voxel, sample).clamp(0.0, 1.0)
+    }
+
+    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
+        voxel.encode(self.mode == OutlierMode::Lossless, out);
+    }
+
+    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
+        // The static model has no components: frequency limit 0 rejects any.
+        FittedVoxel::decode(
+            bytes,
+            0,
+            self.axis.len(),
+            self.mode == OutlierMode::Lossless,
+        )
+    }
+
+    fn encode_parameters(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        write_parameters_header(&mut out, self.mode);
+        out
+    }
+}

@@ -1,0 +1,115 @@
+//! Models as data: a registry resolving file-recorded ids and command-line names.
+
+use crate::{ModelId, PreparedModel, TemporalError, TemporalModel, TimeAxis};
+
+/// Describes one model: its stable id and name, a one-line description, and a factory.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelDescriptor {
+    /// Stable id recorded in files.
+    pub id: ModelId,
+    /// Stable name used on command lines.
+    pub name: &'static str,
+    /// One line for `--help` and listings.
+    pub description: &'static str,
+    /// Creates the model.
+    pub factory: fn() -> Box<dyn TemporalModel>,
+}
+
+impl ModelDescriptor {
+    /// A new instance of the model.
+    pub fn create(&self) -> Box<dyn TemporalModel> {
+        (self.factory)()
+    }
+}
+
+/// The models a program knows, looked up by id (reading files) or name (command lines).
+///
+/// ```
+/// use froctomap_temporal::{ModelId, ModelRegistry};
+/// let registry = ModelRegistry::with_default_models();
+/// let fremen = registry.by_name("fremen-periods").unwrap();
+/// assert_eq!(fremen.id, ModelId::FREMEN_PERIODS);
+/// assert_eq!(registry.by_id(ModelId(0)).unwrap().name, "static");
+/// assert!(registry.by_id(ModelId(999)).is_none());
+/// assert_eq!(registry.iter().count(), 3);
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct ModelRegistry {
+    models: Vec<ModelDescriptor>,
+}
+
+impl ModelRegistry {
+    /// An empty registry.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A registry of every built-in model ([`models::DEFAULT_MODELS`](crate::models::DEFAULT_MODELS)).
+    pub fn with_default_models() -> Self {
+        let mut registry = Self::new();
+        for descriptor in crate::models::DEFAULT_MODELS {
+            // Built-in ids and names are distinct (checked by a test).
+            let _ = registry.register(*descriptor);
+        }
+        registry
+    }
+
+    /// Adds a model; its id and name must be new.
+    pub fn register(&mut self, descriptor: ModelDescriptor) -> Result<(), TemporalError> {
+        if self.by_id(descriptor.id).is_some() || self.by_name(descriptor.name).is_some() {
+            return Err(TemporalError::DuplicateModel(format!(
+                "{} (id {})",
+                descriptor.name, descriptor.id
+            )));
+        }
+        self.models.push(descriptor);
+        Ok(())
+    }
+
+    /// The model with this id.
+    pub fn by_id(&self, id: ModelId) -> Option<&ModelDescriptor> {
+        self.models.iter().find(|d| d.id == id)
+    }
+
+    /// The model with this name.
+    pub fn by_name(&self, name: &str) -> Option<&ModelDescriptor> {
+        self.models.iter().find(|d| d.name == name)
+    }
+
+    /// Every model, in registration order.
+    pub fn iter(&self) -> impl Iterator<Item = &ModelDescriptor> {
+        self.models.iter()
+    }
+
+    /// What a reader does with a file header: the prepared model for a stored id and
+    /// parameter block.
+    pub fn prepare_from_parameters(
+        &self,
+        id: ModelId,
+        axis: &TimeAxis,
+        parameters: &[u8],
+    ) -> Result<Box<dyn PreparedModel>, TemporalError> {
+        self.by_id(id)
+            .ok_or(TemporalError::UnknownModel(id))?
+            .create()
+            .prepare_from_parameters(axis, parameters)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_distinct_and_consistent() {
+        let registry = ModelRegistry::with_default_models();
+        assert_eq!(registry.iter().count(), crate::models::DEFAULT_MODELS.len());
+        for d in registry.iter() {
+            let model = d.create();
+            assert_eq!(model.id(), d.id);
+            assert_eq!(model.name(), d.name);
+        }
+        let mut again = registry.clone();
+        assert!(again.register(crate::models::DEFAULT_MODELS[0]).is_err());
+    }
+}
