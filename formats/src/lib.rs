@@ -6,7 +6,10 @@
 //! wild) and by `--format` or the output extension when writing.
 //!
 //! Adding a format is one module defining a `MapFormat` constant plus one line in
-//! [`register_default_formats`].
+//! [`register_default_formats`]. A format may have several implementations (backends) under
+//! one name: OctoMap's `.bt`/`.ot` are read and written by the native Rust codec
+//! ([`octomap_native`], the default) or by the upstream C++ library (`octomap_upstream`,
+//! chosen with [`Backend::Octomap`] in [`ReadOptions`]/[`WriteOptions`]).
 //!
 //! ```no_run
 //! use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
@@ -20,6 +23,7 @@
 //! ```
 
 mod error;
+pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
 pub mod octomap_upstream;
 mod registry;
@@ -30,8 +34,12 @@ pub use registry::{
     ReadOutcome, WriteOptions,
 };
 
-/// Registers every format enabled at compile time, preferred backends first.
+/// Registers every format enabled at compile time, preferred backends first: the native
+/// Rust codec is the default for `.bt`/`.ot`, the upstream C++ library stays selectable
+/// with backend `octomap`.
 pub fn register_default_formats(registry: &mut FormatRegistry) {
+    registry.register(octomap_native::BINARY);
+    registry.register(octomap_native::FULL);
     #[cfg(feature = "octomap-upstream")]
     registry.register(octomap_upstream::BINARY);
     #[cfg(feature = "octomap-upstream")]

@@ -1,9 +1,10 @@
 //! OctoMap `.bt` and `.ot` through the upstream C++ library (`froctomap-octomap-ffi`).
 
 use crate::error::PluginError;
-use crate::registry::{Backend, Confidence, MapFormat, MapReader, MapWriter, ReadMap};
+use crate::octomap_native::{probe_binary, probe_full};
+use crate::registry::{Backend, MapFormat, MapReader, MapWriter, ReadMap};
 use froctomap_core::Snapshot;
-use froctomap_octomap_codec::{detect_kind, looks_like_legacy_binary, FileKind};
+use froctomap_octomap_codec::FileKind;
 use froctomap_octomap_ffi::{LoadedTree, OcTree};
 use std::io::Write;
 
@@ -30,21 +31,6 @@ pub const FULL: MapFormat = MapFormat {
     reader: Some(|| Box::new(UpstreamReader(FileKind::Full))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Full))),
 };
-
-fn probe_binary(bytes: &[u8]) -> Confidence {
-    match detect_kind(bytes) {
-        Some(FileKind::Binary) => Confidence::Certain,
-        None if looks_like_legacy_binary(bytes) => Confidence::Weak,
-        _ => Confidence::No,
-    }
-}
-
-fn probe_full(bytes: &[u8]) -> Confidence {
-    match detect_kind(bytes) {
-        Some(FileKind::Full) => Confidence::Certain,
-        _ => Confidence::No,
-    }
-}
 
 struct UpstreamReader(FileKind);
 

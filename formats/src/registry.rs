@@ -209,19 +209,25 @@ impl FormatRegistry {
         best.map(|(format, _)| format)
     }
 
+    /// Registered names, each once (several backends may share a name), in order.
     fn known_names(&self) -> String {
-        let mut names: Vec<&str> = self.formats.iter().map(|f| f.name).collect();
-        names.dedup();
+        let mut names: Vec<&str> = Vec::new();
+        for format in &self.formats {
+            if !names.contains(&format.name) {
+                names.push(format.name);
+            }
+        }
         names.join(", ")
     }
 
     fn known_extensions(&self) -> String {
-        let mut extensions: Vec<String> = self
-            .formats
-            .iter()
-            .flat_map(|f| f.extensions.iter().map(|e| format!(".{e}")))
-            .collect();
-        extensions.dedup();
+        let mut extensions: Vec<String> = Vec::new();
+        for extension in self.formats.iter().flat_map(|f| f.extensions) {
+            let dotted = format!(".{extension}");
+            if !extensions.contains(&dotted) {
+                extensions.push(dotted);
+            }
+        }
         extensions.join(", ")
     }
 

@@ -3,14 +3,16 @@
 use anyhow::Result;
 use clap::Args;
 use froctomap_core::{BoundingBox, Snapshot};
-use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
+use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-/// Output settings shared by all commands.
+/// Settings shared by all commands.
 pub struct Ui {
     /// Suppress warnings and summaries.
     pub quiet: bool,
+    /// Preferred implementation of formats that have several (`--backend`).
+    pub backend: Backend,
 }
 
 impl Ui {
@@ -81,7 +83,7 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
         &args.file,
         ReadOptions {
             format: args.input_format.as_deref(),
-            ..ReadOptions::default()
+            backend: Some(ui.backend),
         },
     )?;
     let snapshot = &read.map.snapshot;
@@ -182,14 +184,14 @@ pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
         &args.output,
         WriteOptions {
             format: args.format.as_deref(),
-            ..WriteOptions::default()
+            backend: Some(ui.backend),
         },
     )?;
     let read = registry.read_file(
         &args.input,
         ReadOptions {
             format: args.input_format.as_deref(),
-            ..ReadOptions::default()
+            backend: Some(ui.backend),
         },
     )?;
     ui.warn(&args.input, &read.map.warnings);
@@ -198,7 +200,7 @@ pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
         &args.output,
         WriteOptions {
             format: args.format.as_deref(),
-            ..WriteOptions::default()
+            backend: Some(ui.backend),
         },
     )?;
     ui.note(&summary(

@@ -2,7 +2,8 @@
 
 mod commands;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use froctomap_formats::Backend;
 use std::process::ExitCode;
 
 /// Long-term 3D maps: turn a series of OctoMap snapshots into one spatio-temporal file and
@@ -14,8 +15,30 @@ struct Cli {
     #[arg(short, long, global = true)]
     quiet: bool,
 
+    /// Implementation that reads and writes OctoMap .bt/.ot files: froctomap's native Rust
+    /// codec, or the upstream OctoMap C++ library. Both give identical maps and bytes.
+    #[arg(long, global = true, value_enum, default_value_t = BackendArg::Native)]
+    backend: BackendArg,
+
     #[command(subcommand)]
     command: Command,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum BackendArg {
+    /// The upstream OctoMap C++ library (liboctomap).
+    Octomap,
+    /// froctomap's own Rust codec (the default; faster).
+    Native,
+}
+
+impl From<BackendArg> for Backend {
+    fn from(arg: BackendArg) -> Self {
+        match arg {
+            BackendArg::Octomap => Backend::Octomap,
+            BackendArg::Native => Backend::Native,
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -40,7 +63,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let ui = commands::Ui { quiet: cli.quiet };
+    let ui = commands::Ui {
+        quiet: cli.quiet,
+        backend: cli.backend.into(),
+    };
     let result = match cli.command {
         Command::Info(args) => commands::info(&ui, &args),
         Command::Convert(args) => commands::convert(&ui, &args),

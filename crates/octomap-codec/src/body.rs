@@ -51,12 +51,12 @@ pub struct BodySummary {
 /// Walks a body, calling `on_leaf` for every leaf in Morton order.
 ///
 /// `body_offset` is only used to report file offsets in errors.
-pub fn walk_body(
+pub fn walk_body<F: FnMut(Leaf) + ?Sized>(
     kind: FileKind,
     body: &[u8],
     body_offset: usize,
     limits: ReadLimits,
-    on_leaf: &mut dyn FnMut(Leaf),
+    on_leaf: &mut F,
 ) -> Result<BodySummary, CodecError> {
     let mut walk = Walk {
         body,
@@ -78,18 +78,18 @@ pub fn walk_body(
     })
 }
 
-struct Walk<'a, 'f> {
+struct Walk<'a, 'f, F: FnMut(Leaf) + ?Sized> {
     body: &'a [u8],
     pos: usize,
     body_offset: usize,
     nodes: u64,
     limits: ReadLimits,
-    on_leaf: &'f mut dyn FnMut(Leaf),
+    on_leaf: &'f mut F,
     free: f32,
     occupied: f32,
 }
 
-impl Walk<'_, '_> {
+impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
     fn take<const N: usize>(&mut self) -> Result<[u8; N], CodecError> {
         let bytes = self
             .body

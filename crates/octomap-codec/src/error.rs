@@ -55,3 +55,25 @@ pub enum CodecError {
         limit: u64,
     },
 }
+
+/// Leaves that an encoder cannot turn into an OctoMap tree.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum EncodeError {
+    /// The resolution or a leaf is invalid on its own (depth, alignment, NaN value).
+    #[error("invalid map: {0}")]
+    InvalidMap(#[from] froctomap_core::MapError),
+    /// A leaf does not come strictly after the previous one in Morton order (it overlaps it
+    /// or precedes it). Streaming encoders write depth-first, so order is required.
+    #[error("leaves must be pushed in increasing Morton order without overlap: the depth-{next_depth} leaf at key {next} comes after the depth-{previous_depth} leaf at key {previous}")]
+    OutOfOrder {
+        /// Minimum key of the previous leaf.
+        previous: froctomap_core::VoxelKey,
+        /// Its depth.
+        previous_depth: u8,
+        /// Minimum key of the offending leaf.
+        next: froctomap_core::VoxelKey,
+        /// Its depth.
+        next_depth: u8,
+    },
+}

@@ -1,10 +1,18 @@
-//! Pure-Rust reading of OctoMap's `.bt` and `.ot` files.
+//! Pure-Rust reading and writing of OctoMap's `.bt` and `.ot` files, without building a tree.
 //!
-//! The parser accepts what upstream OctoMap 1.9.7 accepts (header keywords in any order,
+//! **Reading.** The parser accepts what upstream OctoMap 1.9.7 accepts (header keywords in any order,
 //! comments, CRLF, a `size` that does not match, the pre-1.4 headerless `.bt`) and rejects
 //! everything else with a [`CodecError`] that says what is wrong and where. Unlike upstream,
 //! it never reads past the end of the data and never recurses deeper than the 16 levels a
 //! tree has, so the FFI crate runs it before handing untrusted bytes to the C++ library.
+//! It is also a reader in its own right: [`scan`] streams the leaves (coarse leaves as one
+//! item with their depth) in Morton order straight from the bit stream, [`scan_runs`] merges
+//! them into runs of equal state, [`decode`] collects them.
+//!
+//! **Writing.** [`encode_binary`] and [`encode_full`] (and their streaming forms
+//! [`BinaryEncoder`] and [`FullEncoder`], fed leaf by leaf in Morton order) write the files
+//! upstream writes for the same tree, byte for byte, including upstream's partial pruning
+//! of `.bt` output and its `%g` formatting of the resolution.
 //!
 //! ```
 //! use froctomap_octomap_codec::{decode, ReadLimits};
@@ -21,15 +29,19 @@
 //! ```
 
 mod body;
+mod encode;
 mod error;
 mod header;
+mod runs;
 
 pub use body::{walk_body, BodySummary, ReadLimits};
-pub use error::CodecError;
+pub use encode::{encode_binary, encode_full, format_resolution, BinaryEncoder, FullEncoder};
+pub use error::{CodecError, EncodeError};
 pub use header::{
     detect_kind, looks_like_legacy_binary, parse_header, FileKind, Header, HeaderLayout,
     BINARY_FIRST_LINE, FULL_FIRST_LINE, OCTREE_ID,
 };
+pub use runs::{scan_runs, VoxelRun};
 
 use froctomap_core::Leaf;
 
@@ -80,11 +92,24 @@ pub struct ScanSummary {
 }
 
 /// Checks a whole file and streams its leaves to `on_leaf` without keeping them.
-pub fn scan(
+///
+/// `on_leaf` may be a closure or a `&mut dyn FnMut(Leaf)`; a closure is inlined into the
+/// walk, which is what makes streaming reads cheap.
+///
+/// ```
+/// use froctomap_octomap_codec::{scan, ReadLimits};
+/// let file = b"# Octomap OcTree binary file\nid OcTree\nsize 3\nres 0.1\ndata\n\x09\x00";
+/// let mut states = Vec::new();
+/// let summary = scan(file, None, ReadLimits::default(), &mut |leaf| states.push(leaf.occupancy()))?;
+/// assert_eq!(summary.node_count, 3); // the root and two depth-1 leaves: child 0 free, 1 occupied
+/// assert_eq!(states.len(), 2);
+/// # Ok::<(), froctomap_octomap_codec::CodecError>(())
+/// ```
+pub fn scan<F: FnMut(Leaf) + ?Sized>(
     bytes: &[u8],
     kind: Option<FileKind>,
     limits: ReadLimits,
-    on_leaf: &mut dyn FnMut(Leaf),
+    on_leaf: &mut F,
 ) -> Result<ScanSummary, CodecError> {
     if bytes.is_empty() {
         return Err(CodecError::Empty);

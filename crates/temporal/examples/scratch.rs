@@ -1,44 +1,39 @@
 #![allow(missing_docs, clippy::unwrap_used)]
 use froctomap_core::{Occupancy, Timestamp};
+use froctomap_temporal::models::*;
 use froctomap_temporal::*;
+use std::time::Instant;
 fn main() {
-    let step = 600_000_000_000;
-    let axis = TimeAxis::regular(Timestamp::from_secs(0), step, 3 * 7 * 144, vec![]).unwrap();
+    let n = 100_000u32;
+    let step_ns = 28 * 86_400 * 1_000_000_000i64 / i64::from(n);
+    let axis = TimeAxis::regular(Timestamp(0), step_ns, n, vec![]).unwrap();
     let mut b = ObservationsBuilder::new();
-    for i in 0..axis.len() {
-        let (day, slot) = (i / 144, i % 144);
-        let state = (day % 7 < 5 && (48..108).contains(&slot)) ^ (i % 97 == 0);
-        let known = day != 3;
-        b.push(
-            i,
-            known.then_some(if state {
-                Occupancy::Occupied
-            } else {
-                Occupancy::Free
-            }),
-        )
-        .unwrap();
+    let mut rng = 12345u64;
+    for i in 0..n {
+        rng ^= rng << 13; rng ^= rng >> 7; rng ^= rng << 17;
+        let t = f64::from(i) * step_ns as f64 / 1e9;
+        let hour = (t / 3600.0) % 24.0;
+        let weekday = (t / 86_400.0) % 7.0 < 5.0;
+        let s = (weekday && (8.0..18.0).contains(&hour)) ^ (rng % 50 == 0);
+        b.push(i, Some(if s { Occupancy::Occupied } else { Occupancy::Free })).unwrap();
     }
     let obs = b.finish();
-    let registry = ModelRegistry::with_default_models();
-    for name in ["static", "fremen-regular", "fremen-periods"] {
-        for order in [
-            Order::Auto { max: 5 },
-            Order::Fixed(1),
-            Order::Fixed(3),
-            Order::Fixed(5),
-        ] {
-            let model = registry.by_name(name).unwrap().create();
-            let prepared = model
-                .prepare(&axis, &ModelConfig::default().with_order(order))
-                .unwrap();
-            let voxel = prepared.fit(&obs).unwrap();
-            let mut bytes = Vec::new();
-            prepared.encode_voxel(&voxel, &mut bytes);
-            let monday_noon = (21.0 * 86_400.0) + 12.0 * 3600.0;
-            println!("{name} {order:?}: mean {:.3} comps {:?} toggles {} bytes {} errors {:?} p(mon)={:.3} p(sun)={:.3}",
-                voxel.mean(), voxel.components(), voxel.toggles().len(), bytes.len(), voxel.model_errors(),
-                prepared.probability(&voxel, monday_noon), prepared.probability(&voxel, monday_noon + 6.0*86400.0));
+    println!("runs {}", obs.runs().len());
+    let reg = FremenRegular.prepare_regular(&axis, &ModelConfig::default()).unwrap();
+    let per = FremenPeriods.prepare_periods(&axis, &ModelConfig::default()).unwrap();
+    reg.spectrum(&obs).unwrap(); per.spectrum(&obs).unwrap();
+    let reps = 200;
+    let t = Instant::now(); for _ in 0..reps { reg.spectrum(&obs).unwrap(); } println!("reg spectrum {:.3} ms", t.elapsed().as_secs_f64()*1e3/reps as f64);
+    let t = Instant::now(); for _ in 0..reps { per.spectrum(&obs).unwrap(); } println!("per spectrum {:.3} ms", t.elapsed().as_secs_f64()*1e3/reps as f64);
+    for order in [Order::Fixed(0), Order::Fixed(1), Order::Fixed(3), Order::Fixed(5), Order::Auto{max:5}] {
+        for (name, m) in [("reg", &reg as &dyn PreparedModel), ("per", &per)] {
+            let cfg = ModelConfig::default().with_order(order);
+            let mm = if name == "reg" { FremenRegular.prepare(&axis, &cfg).unwrap() } else { FremenPeriods.prepare(&axis, &cfg).unwrap() };
+            let _ = m;
+            mm.fit(&obs).unwrap();
+            let t = Instant::now(); let mut v = None; for _ in 0..reps/4 { v = Some(mm.fit(&obs).unwrap()); }
+            let v = v.unwrap();
+            println!("{name} {order:?} fit {:.3} ms order {} toggles {} errors {:?}", t.elapsed().as_secs_f64()*1e3/(reps/4) as f64, v.order(), v.toggles().len(), v.model_errors());
         }
     }
 }

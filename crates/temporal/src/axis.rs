@@ -277,6 +277,36 @@ impl TimeAxis {
         }
     }
 
+    /// How many samples `j` in `from..end` (a prefix, as times increase) lie at most
+    /// `limit_ns` nanoseconds after sample `anchor ≤ from`. Exact integer arithmetic.
+    pub(crate) fn samples_within(&self, anchor: u32, from: u32, end: u64, limit_ns: i64) -> u32 {
+        let available = end.saturating_sub(u64::from(from));
+        if limit_ns < 0 || from < anchor {
+            return 0;
+        }
+        let count = match &self.repr {
+            Repr::Regular { step_ns, .. } => {
+                let offset = u64::from(from - anchor);
+                let max_steps = (limit_ns / step_ns) as u64;
+                if offset > max_steps {
+                    0
+                } else {
+                    (max_steps - offset + 1).min(available)
+                }
+            }
+            Repr::Explicit { times } => {
+                let stop = (end.min(times.len() as u64)) as usize;
+                match (times.get(anchor as usize), times.get(from as usize..stop)) {
+                    (Some(t0), Some(slice)) => {
+                        slice.partition_point(|t| t.0.saturating_sub(t0.0) <= limit_ns) as u64
+                    }
+                    _ => 0,
+                }
+            }
+        };
+        count.min(available) as u32
+    }
+
     /// Checks that observations lie on the axis and avoid missing samples.
     pub(crate) fn check(&self, obs: &crate::VoxelObservations) -> Result<(), TemporalError> {
         if let Some(last) = obs.runs().last() {

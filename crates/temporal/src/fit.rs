@@ -35,6 +35,12 @@ pub(crate) trait Spectral: Send + Sync {
     /// An evaluator for these components.
     fn evaluator<'a>(&'a self, components: &[Component]) -> Self::Eval<'a>;
 
+    /// The axis the samples belong to.
+    fn time_axis(&self) -> &crate::TimeAxis;
+
+    /// Turns per second of a component's base angle.
+    fn rate(&self, component: &Component) -> f64;
+
     /// Up to `max` strongest usable components of `obs` (mean `mean`), strongest first.
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate>;
 }
@@ -47,18 +53,15 @@ pub(crate) struct FitSettings {
     pub holdout_fraction: f64,
 }
 
-/// The canonical probability (unclamped) at a sample, summed in stored order.
-pub(crate) fn raw_probability_at<E: Evaluator>(
-    eval: &mut E,
+/// The canonical probability (unclamped): `((mean + v₀) + v₁) + …` with
+/// `v_c = ac·cos θ_c − as·sin θ_c`, where `angle(c)` gives `(cos θ_c, sin θ_c)`.
+pub(crate) fn canonical_sum(
     voxel: &FittedVoxel,
-    sample: u32,
+    mut angle: impl FnMut(&Component) -> (f64, f64),
 ) -> f64 {
-    let comps = voxel.components();
-    let mut angles = vec![(0.0, 0.0); comps.len()];
-    eval.angles(sample, &mut angles);
     let mut p = voxel.mean();
-    for (c, a) in comps.iter().zip(&angles) {
-        p += Evaluable::new(c).value(*a);
+    for c in voxel.components() {
+        p += Evaluable::new(c).value(angle(c));
     }
     p
 }
@@ -164,9 +167,9 @@ fn holdout_order<S: Spectral>(
             let sample = i as u32;
             eval.angles(sample, &mut angles);
             let mut p = mean;
-            for m in 0..=comps.len() {
+            for (m, err) in sq_err.iter_mut().enumerate() {
                 let d = p.clamp(0.0, 1.0) - target;
-                sq_err[m] += d * d;
+                *err += d * d;
                 if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
                     p += e.value(*a);
                 }
@@ -233,10 +236,26 @@ fn finish<S: Spectral>(
         .find(|&m| constant.get(m).copied().flatten().is_none())
         .unwrap_or(0);
 
+    // |dp/dt| ≤ Σ 2π·rate·bound: a sample whose p is d away from 0.5 decides the threshold
+    // for every sample within d/slope seconds after it, so those need no evaluation. This
+    // only skips work: the decision is the one each skipped sample's own p would give.
+    let mut slopes = Vec::with_capacity(hi + 1);
+    let mut slope = 0.0;
+    for m in 0..=hi {
+        slopes.push(slope);
+        if let (Some(e), Some(c)) = (evaluables.get(m), comps.get(m)) {
+            slope += std::f64::consts::TAU * model.rate(c).abs() * e.bound();
+        }
+    }
+    let axis = model.time_axis();
+
     let keep = mode == OutlierMode::Lossless;
     let mut trackers: Vec<ToggleBuilder> = (lo..=hi).map(|_| ToggleBuilder::new(keep)).collect();
     let mut eval = model.evaluator(&comps);
     let mut angles = vec![(0.0, 0.0); evaluated];
+    let mut predicted = vec![false; evaluated + 1];
+    // The last evaluated sample and how far (ns) its decisions are guaranteed to hold.
+    let mut anchor: Option<(u32, i64)> = None;
     for run in obs.runs() {
         let occupied = run.state.is_occupied();
         for (m, tracker) in (lo..=hi).zip(trackers.iter_mut()) {
@@ -250,19 +269,46 @@ fn finish<S: Spectral>(
         let mut i = u64::from(run.first);
         while i < run.end() {
             let sample = i as u32;
+            let covered = anchor.map_or(0, |(a, limit)| {
+                axis.samples_within(a, sample, run.end(), limit)
+            });
+            if covered > 0 {
+                for m in lo..=evaluated {
+                    if constant.get(m) == Some(&None) {
+                        if let (Some(tracker), Some(&pred)) =
+                            (trackers.get_mut(m - lo), predicted.get(m))
+                        {
+                            tracker.push_run(sample, covered, pred != occupied);
+                        }
+                    }
+                }
+                i += u64::from(covered);
+                continue;
+            }
             eval.angles(sample, &mut angles);
             let mut p = mean;
+            let mut horizon = f64::INFINITY;
             for m in 0..=evaluated {
                 if m >= lo && constant.get(m) == Some(&None) {
-                    if let Some(tracker) = trackers.get_mut(m - lo) {
-                        tracker.push(sample, (p > 0.5) != occupied);
+                    if let Some(slot) = predicted.get_mut(m) {
+                        *slot = p > 0.5;
                     }
+                    let distance = (p - 0.5).abs() - BOUND_MARGIN;
+                    let slope = slopes.get(m).copied().unwrap_or(f64::INFINITY);
+                    let h = if distance > 0.0 {
+                        distance / slope * (1.0 - 1e-6)
+                    } else {
+                        0.0
+                    };
+                    horizon = horizon.min(h);
                 }
                 if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
                     p += e.value(*a);
                 }
             }
-            i += 1;
+            // Covers at least the anchor itself (limit ≥ 0), so the loop advances.
+            let limit = (horizon * 1e9).floor().clamp(0.0, i64::MAX as f64) as i64;
+            anchor = Some((sample, limit));
         }
     }
 
@@ -300,7 +346,7 @@ impl TopK {
     /// Offers frequency `frequency` with strength `key`.
     #[inline]
     pub fn offer(&mut self, key: f64, frequency: u32) {
-        if self.max == 0 || !(key > 0.0) {
+        if self.max == 0 || key.is_nan() || key <= 0.0 {
             return;
         }
         if self.items.len() == self.max {

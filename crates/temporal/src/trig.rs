@@ -57,6 +57,22 @@ fn sin_poly(theta: f64) -> f64 {
                 - z * (S5 - z * (S7 - z * (S9 - z * (S11 - z * (S13 - z * (S15 - z * S17))))))))
 }
 
+/// `floor` without a libm call: exact, since truncating a float below 2^52 in magnitude to an
+/// integer is exact and larger floats are integers already.
+#[inline]
+fn floor(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = (x as i64) as f64;
+        if t > x {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        x
+    }
+}
+
 /// `(cos 2πx, sin 2πx)` for `x` in turns, computed deterministically (see the module docs).
 ///
 /// Any finite `x` is accepted; arguments beyond 2^52 in magnitude are whole turns. A
@@ -66,12 +82,12 @@ pub fn cos_sin_turns(x: f64) -> (f64, f64) {
     if !x.is_finite() {
         return (f64::NAN, f64::NAN);
     }
-    let mut r = x - x.floor(); // in [0, 1]; 1 only through rounding of tiny negative x
+    let mut r = x - floor(x); // in [0, 1]; 1 only through rounding of tiny negative x
     if r >= 1.0 {
         r = 0.0;
     }
     let q4 = r * 4.0; // exact
-    let q = q4.floor();
+    let q = floor(q4);
     let f = q4 - q; // exact, in [0, 1): position inside the quarter turn
     let (c, s) = if f <= 0.5 {
         let theta = f * FRAC_PI_2;
@@ -106,6 +122,25 @@ mod tests {
             prop_assert!((c - angle.cos()).abs() < 1e-14, "cos {x}");
             prop_assert!((s - angle.sin()).abs() < 1e-14, "sin {x}");
             prop_assert!(c.abs() <= 1.0 && s.abs() <= 1.0);
+        }
+    }
+
+    #[test]
+    fn floor_matches_std() {
+        for x in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            1e15 + 0.5,
+            -1e15 - 0.5,
+            2f64.powi(53),
+            -7.25,
+            3.999_999_999_999_999_6,
+        ] {
+            assert_eq!(floor(x), x.floor(), "{x}");
         }
     }
 

@@ -1,10 +1,7 @@
 //! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
 
 use super::SpectralLine;
-use crate::fit::{
-    fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral, TopK,
-};
-use crate::fitted::Evaluable;
+use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{read_parameters_header, write_parameters_header};
 use crate::trig::cos_sin_turns;
 use crate::varint::{self, Reader};
@@ -285,6 +282,14 @@ impl Spectral for PreparedFremenPeriods {
         }
     }
 
+    fn time_axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn rate(&self, component: &Component) -> f64 {
+        self.frequency(component.frequency)
+    }
+
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
@@ -337,19 +342,16 @@ impl PreparedModel for PreparedFremenPeriods {
 
     fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
         let t = seconds_since_axis_start;
-        let mut p = voxel.mean();
-        if t.is_finite() {
-            for c in voxel.components() {
-                let angle = cos_sin_turns(t * self.frequency(c.frequency));
-                p += Evaluable::new(c).value(angle);
-            }
+        if !t.is_finite() {
+            return voxel.mean();
         }
-        p.clamp(0.0, 1.0)
+        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency(c.frequency))).clamp(0.0, 1.0)
     }
 
     fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
-        let mut eval = self.evaluator(voxel.components());
-        raw_probability_at(&mut eval, voxel, sample).clamp(0.0, 1.0)
+        // Exactly the evaluator's computation for this sample.
+        let t = self.axis.sample_seconds(sample);
+        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency(c.frequency))).clamp(0.0, 1.0)
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
@@ -374,5 +376,50 @@ impl PreparedModel for PreparedFremenPeriods {
             out.extend_from_slice(&p.to_le_bytes());
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::Timestamp;
+
+    #[test]
+    fn period_set_is_deduplicated_sorted_and_spanned() {
+        // 3 weeks of hourly samples.
+        let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, 21 * 24, vec![]).unwrap();
+        let config = ModelConfig::default().with_periods(vec![86_400.0, 3600.0 * 5.0, 1e9]);
+        let model = FremenPeriods.prepare_periods(&axis, &config).unwrap();
+        let p = model.periods();
+        assert!(p.windows(2).all(|w| w[0] > w[1]));
+        assert_eq!(p.iter().filter(|&&x| x == 86_400.0).count(), 1); // week/7 == 1 day
+        assert!(p.contains(&18_000.0));
+        assert!(!p.contains(&1e9));
+        // The span is 503 hours: one week (168 h) fits 1.5 times, so it is kept.
+        assert_eq!(p.first(), Some(&604_800.0));
+        assert_eq!(p.len(), 24 + 1);
+
+        let params = model.encode_parameters();
+        let back = FremenPeriods
+            .prepare_from_parameters(&axis, &params)
+            .unwrap();
+        assert_eq!(back.encode_parameters(), params);
+    }
+
+    #[test]
+    fn table_limit_is_an_error() {
+        let axis = TimeAxis::regular(Timestamp(0), 1_000_000_000, u32::MAX, vec![]).unwrap();
+        let model = FremenPeriods
+            .prepare_periods(&axis, &ModelConfig::default())
+            .unwrap();
+        let obs = crate::VoxelObservations::from_runs([
+            (0, 1, froctomap_core::Occupancy::Free),
+            (5, 1, froctomap_core::Occupancy::Occupied),
+        ])
+        .unwrap();
+        assert!(matches!(
+            model.fit(&obs),
+            Err(TemporalError::LimitExceeded { .. })
+        ));
     }
 }

@@ -1,10 +1,7 @@
 //! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
 
 use super::SpectralLine;
-use crate::fit::{
-    fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral, TopK,
-};
-use crate::fitted::Evaluable;
+use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{read_parameters_header, write_parameters_header};
 use crate::trig::cos_sin_turns;
 use crate::varint::Reader;
@@ -227,6 +224,15 @@ impl PreparedFremenRegular {
             .collect())
     }
 
+    /// `(cos, sin)(2π·r/n)`, from the table when cached.
+    #[inline]
+    fn root_at(&self, r: u64) -> (f64, f64) {
+        match self.roots.get(r as usize) {
+            Some(v) => *v,
+            None => root(self.n, r),
+        }
+    }
+
     /// Turns per second of bin `k`.
     fn frequency_hz(&self, k: u32) -> f64 {
         f64::from(k) / self.base_seconds
@@ -255,10 +261,7 @@ impl Evaluator for RegularEval<'_> {
             } else {
                 *r = (k * u64::from(sample)) % n;
             }
-            *o = match self.model.roots.get(*r as usize) {
-                Some(v) => *v,
-                None => root(self.model.n, *r),
-            };
+            *o = self.model.root_at(*r);
         }
         self.last = Some(sample);
     }
@@ -282,6 +285,14 @@ impl Spectral for PreparedFremenRegular {
         }
     }
 
+    fn time_axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn rate(&self, component: &Component) -> f64 {
+        self.frequency_hz(component.frequency)
+    }
+
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
@@ -290,7 +301,7 @@ impl Spectral for PreparedFremenRegular {
         let nyquist = self.n / 2;
         // Bin k has period n/k samples; it needs min_cycles periods within the span.
         let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
-        if !(k_min <= f64::from(nyquist)) {
+        if k_min.is_nan() || k_min > f64::from(nyquist) {
             return Vec::new();
         }
         let k_min = k_min as u32;
@@ -336,19 +347,20 @@ impl PreparedModel for PreparedFremenRegular {
 
     fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
         let t = seconds_since_axis_start;
-        let mut p = voxel.mean();
-        if t.is_finite() {
-            for c in voxel.components() {
-                let angle = cos_sin_turns(t * self.frequency_hz(c.frequency));
-                p += Evaluable::new(c).value(angle);
-            }
+        if !t.is_finite() {
+            return voxel.mean();
         }
-        p.clamp(0.0, 1.0)
+        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency_hz(c.frequency))).clamp(0.0, 1.0)
     }
 
     fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
-        let mut eval = self.evaluator(voxel.components());
-        raw_probability_at(&mut eval, voxel, sample).clamp(0.0, 1.0)
+        let n = u64::from(self.n.max(1));
+        // The same residue the incremental evaluator reaches, so the same table entry.
+        canonical_sum(voxel, |c| {
+            let r = (u64::from(c.frequency) % n) * u64::from(sample) % n;
+            self.root_at(r)
+        })
+        .clamp(0.0, 1.0)
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
@@ -368,5 +380,93 @@ impl PreparedModel for PreparedFremenRegular {
         let mut out = Vec::new();
         write_parameters_header(&mut out, self.settings.mode);
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ObservationsBuilder, Order};
+    use froctomap_core::{Occupancy, Timestamp};
+
+    fn prepared(n: u32, order: Order) -> PreparedFremenRegular {
+        let axis = TimeAxis::regular(Timestamp(0), 1_000_000_000, n, vec![]).unwrap();
+        FremenRegular
+            .prepare_regular(&axis, &ModelConfig::default().with_order(order))
+            .unwrap()
+    }
+
+    #[test]
+    fn nyquist_line_counts_once() {
+        let model = prepared(64, Order::Fixed(1));
+        let mut b = ObservationsBuilder::new();
+        for i in 0..64 {
+            b.push(
+                i,
+                Some(if i % 2 == 0 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                }),
+            )
+            .unwrap();
+        }
+        let voxel = model.fit(&b.finish()).unwrap();
+        assert_eq!(voxel.components()[0].frequency, 32);
+        assert!((voxel.components()[0].amplitude() - 0.5).abs() < 1e-4);
+        assert!(model.probability_at_sample(&voxel, 10) > 0.999);
+        assert!(model.probability_at_sample(&voxel, 11) < 0.001);
+        assert_eq!(voxel.model_errors(), Some(0));
+    }
+
+    #[test]
+    fn short_observed_span_excludes_long_periods() {
+        // A voxel seen only during samples 100..160 of 1000: periods above 40 samples
+        // (bins below 25) are not usable with min_cycles 1.5.
+        let model = prepared(1000, Order::Fixed(3));
+        let mut b = ObservationsBuilder::new();
+        for i in 100..160 {
+            b.push(
+                i,
+                Some(if i < 130 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                }),
+            )
+            .unwrap();
+        }
+        let voxel = model.fit(&b.finish()).unwrap();
+        assert!(!voxel.components().is_empty());
+        for c in voxel.components() {
+            assert!(
+                1000.0 / f64::from(c.frequency) * 1.5 <= 59.0,
+                "bin {}",
+                c.frequency
+            );
+        }
+    }
+
+    #[test]
+    fn sample_and_time_evaluation_agree() {
+        let model = prepared(500, Order::Fixed(4));
+        let mut b = ObservationsBuilder::new();
+        for i in 0..500u32 {
+            b.push(
+                i,
+                Some(if (i * i) % 7 < 3 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                }),
+            )
+            .unwrap();
+        }
+        let voxel = model.fit(&b.finish()).unwrap();
+        for i in (0..500).step_by(7) {
+            let a = model.probability_at_sample(&voxel, i);
+            let b = model.probability(&voxel, f64::from(i));
+            assert!((a - b).abs() < 1e-9);
+        }
     }
 }

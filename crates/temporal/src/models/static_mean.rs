@@ -1,6 +1,6 @@
 //! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
 
-use crate::fit::{fit_voxel, raw_probability_at, Candidate, Evaluator, FitSettings, Spectral};
+use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
 use crate::model::{read_parameters_header, write_parameters_header};
 use crate::varint::Reader;
 use crate::{
@@ -85,8 +85,16 @@ impl Evaluator for NoComponents {
 impl Spectral for PreparedStaticMean {
     type Eval<'a> = NoComponents;
 
-    fn evaluator<'a>(&'a self, _components: &[Component]) -> NoComponents {
+    fn evaluator(&self, _components: &[Component]) -> NoComponents {
         NoComponents
+    }
+
+    fn time_axis(&self) -> &TimeAxis {
+        &self.axis
+    }
+
+    fn rate(&self, _component: &Component) -> f64 {
+        0.0
     }
 
     fn candidates(&self, _obs: &VoxelObservations, _mean: f64, _max: usize) -> Vec<Candidate> {
@@ -121,8 +129,8 @@ impl PreparedModel for PreparedStaticMean {
         voxel.mean()
     }
 
-    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
-        raw_probability_at(&mut NoComponents, voxel, sample).clamp(0.0, 1.0)
+    fn probability_at_sample(&self, voxel: &FittedVoxel, _sample: u32) -> f64 {
+        canonical_sum(voxel, |_| (0.0, 0.0)).clamp(0.0, 1.0)
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {

@@ -77,10 +77,18 @@ pub fn load() -> Result<Door, Box<dyn Error>> {
         explicit.push(u32::try_from(k)?, Some(occupancy(s)))?;
     }
     let missing = (0..count).filter(|&i| !present[i as usize]).collect();
-    let regular_axis =
-        TimeAxis::regular(Timestamp::from_secs(t0), step * 1_000_000_000, count, missing)?;
-    let explicit_axis =
-        TimeAxis::explicit(samples.iter().map(|&(t, _)| Timestamp::from_secs(t)).collect())?;
+    let regular_axis = TimeAxis::regular(
+        Timestamp::from_secs(t0),
+        step * 1_000_000_000,
+        count,
+        missing,
+    )?;
+    let explicit_axis = TimeAxis::explicit(
+        samples
+            .iter()
+            .map(|&(t, _)| Timestamp::from_secs(t))
+            .collect(),
+    )?;
     let mut weeks = Vec::new();
     for k in 1..=4 {
         let times = std::fs::read_to_string(dir.join(format!("test_times_{k}.txt")))?;
@@ -184,6 +192,14 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
             &door.weeks,
         )?);
     }
+    rows.push(evaluate(
+        "fremen-regular auto (held-out, max 5)".into(),
+        &FremenRegular,
+        &door.regular_axis,
+        &door.regular_obs,
+        Order::Auto { max: 5 },
+        &door.weeks,
+    )?);
     for n in 1..=5 {
         rows.push(evaluate(
             format!("fremen-periods {n}"),
@@ -194,5 +210,83 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
             &door.weeks,
         )?);
     }
+    rows.push(evaluate(
+        "fremen-periods auto (held-out, max 5)".into(),
+        &FremenPeriods,
+        &door.explicit_axis,
+        &door.explicit_obs,
+        Order::Auto { max: 5 },
+        &door.weeks,
+    )?);
     Ok(rows)
+}
+
+/// Lossless encoding of the training weeks by one model and order.
+pub struct Encoding {
+    pub label: String,
+    pub order: usize,
+    pub bytes: usize,
+    pub toggles: usize,
+    pub model_errors: u64,
+    pub components: Vec<f64>,
+}
+
+/// Encodes the training series losslessly with each model (fixed order 3 and auto).
+pub fn encodings(door: &Door) -> Result<Vec<Encoding>, Box<dyn Error>> {
+    use froctomap_temporal::models::{FremenPeriods, FremenRegular, StaticMean};
+    let cases: [(&str, &dyn TemporalModel, &TimeAxis, &VoxelObservations); 3] = [
+        ("static", &StaticMean, &door.regular_axis, &door.regular_obs),
+        ("fremen-regular", &FremenRegular, &door.regular_axis, &door.regular_obs),
+        ("fremen-periods", &FremenPeriods, &door.explicit_axis, &door.explicit_obs),
+    ];
+    let mut out = Vec::new();
+    for (name, model, axis, obs) in cases {
+        let orders: &[Order] = if name == "static" {
+            &[Order::Fixed(0)]
+        } else {
+            &[Order::Fixed(1), Order::Fixed(3), Order::Fixed(5), Order::Auto { max: 5 }]
+        };
+        for &order in orders {
+            let prepared = model.prepare(axis, &ModelConfig::default().with_order(order))?;
+            let voxel = prepared.fit(obs)?;
+            let mut bytes = Vec::new();
+            prepared.encode_voxel(&voxel, &mut bytes);
+            let periods = voxel
+                .components()
+                .iter()
+                .map(|c| 1.0 / prepared_rate(prepared.as_ref(), c.frequency, axis))
+                .collect();
+            out.push(Encoding {
+                label: format!("{name} {order:?}"),
+                order: voxel.order(),
+                bytes: bytes.len(),
+                toggles: voxel.toggles().len(),
+                model_errors: voxel.model_errors().unwrap_or(0),
+                components: periods,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Turns per second of a component, recovered through the public probability function:
+/// for display only (periods in hours), so it reads the model id instead.
+fn prepared_rate(model: &dyn PreparedModel, frequency: u32, axis: &TimeAxis) -> f64 {
+    use froctomap_temporal::ModelId;
+    match model.id() {
+        ModelId::FREMEN_REGULAR => {
+            let step = axis.step_ns().unwrap_or(1) as f64 / 1e9;
+            f64::from(frequency) / (f64::from(axis.len()) * step)
+        }
+        _ => {
+            // fremen-periods: the parameter block lists the periods after the header.
+            let params = model.encode_parameters();
+            let start = 2 + 2; // header + one-byte varint count (24 periods here)
+            let at = start + 8 * frequency as usize;
+            params
+                .get(at..at + 8)
+                .and_then(|b| b.try_into().ok())
+                .map_or(f64::NAN, |b: [u8; 8]| 1.0 / f64::from_le_bytes(b))
+        }
+    }
 }

@@ -1,0 +1,117 @@
+//! Bounds-checked little-endian reading of byte slices.
+
+use crate::error::{corrupt, FormatViolation};
+use froctomap_temporal::varint;
+
+/// Reads values from a byte slice; every read checks the remaining length, so hostile input
+/// can only produce an error, never a panic or an out-of-bounds read.
+pub(crate) struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    /// Which part of the file is being read, for error messages.
+    part: &'static str,
+}
+
+impl<'a> Cursor<'a> {
+    pub(crate) fn new(bytes: &'a [u8], part: &'static str) -> Self {
+        Self { bytes, pos: 0, part }
+    }
+
+    pub(crate) fn remaining(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.remaining() == 0
+    }
+
+    pub(crate) fn take(&mut self, len: usize) -> Result<&'a [u8], FormatViolation> {
+        let end = self
+            .pos
+            .checked_add(len)
+            .filter(|&end| end <= self.bytes.len())
+            .ok_or_else(|| {
+                corrupt(
+                    self.part,
+                    format!("truncated: {len} bytes needed at offset {}, {} left", self.pos, self.remaining()),
+                )
+            })?;
+        let slice = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(slice)
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], FormatViolation> {
+        let slice = self.take(N)?;
+        let mut out = [0u8; N];
+        out.copy_from_slice(slice);
+        Ok(out)
+    }
+
+    pub(crate) fn u8(&mut self) -> Result<u8, FormatViolation> {
+        Ok(self.array::<1>()?[0])
+    }
+
+    pub(crate) fn u16(&mut self) -> Result<u16, FormatViolation> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn i8(&mut self) -> Result<i8, FormatViolation> {
+        Ok(i8::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn u32(&mut self) -> Result<u32, FormatViolation> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn u64(&mut self) -> Result<u64, FormatViolation> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn i64(&mut self) -> Result<i64, FormatViolation> {
+        Ok(i64::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn f64(&mut self) -> Result<f64, FormatViolation> {
+        Ok(f64::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn varint(&mut self) -> Result<u64, FormatViolation> {
+        let (value, used) = varint::read_u64(&self.bytes[self.pos..])
+            .map_err(|e| corrupt(self.part, format!("{e} at offset {}", self.pos)))?;
+        self.pos += used;
+        Ok(value)
+    }
+
+    /// A count of items that each take at least `min_item_bytes`, checked against the bytes
+    /// left (so no allocation can exceed the input) and against `limit`.
+    pub(crate) fn count(
+        &mut self,
+        what: &'static str,
+        min_item_bytes: usize,
+        limit: u64,
+    ) -> Result<usize, FormatViolation> {
+        let value = self.varint()?;
+        self.check_count(what, value, min_item_bytes, limit)
+    }
+
+    pub(crate) fn check_count(
+        &self,
+        what: &'static str,
+        value: u64,
+        min_item_bytes: usize,
+        limit: u64,
+    ) -> Result<usize, FormatViolation> {
+        if value > limit {
+            return Err(FormatViolation::Limit { what, value, limit });
+        }
+        let fits = (self.remaining() / min_item_bytes.max(1)) as u64;
+        if value > fits {
+            return Err(corrupt(
+                self.part,
+                format!("{what} {value} exceeds what the remaining {} bytes can hold", self.remaining()),
+            ));
+        }
+        usize::try_from(value).map_err(|_| corrupt(self.part, format!("{what} {value} too large")))
+    }
+}

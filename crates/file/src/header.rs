@@ -1,0 +1,445 @@
+//! Preamble, header sections and the time axis ([FORMAT.md §2–4](../../../docs/FORMAT.md)).
+
+use crate::cursor::Cursor;
+use crate::error::{corrupt, FormatViolation};
+use crate::limits::ReadLimits;
+use froctomap_core::{validate_resolution, Timestamp, TREE_DEPTH};
+use froctomap_temporal::{varint, AxisKind, ModelId, TimeAxis};
+use serde_json::{Map, Value};
+
+/// First eight bytes of every file.
+pub const MAGIC: [u8; 8] = *b"\x89FROCT\r\n";
+/// Last eight bytes of every file.
+pub const END_MAGIC: [u8; 8] = *b"FROCTEND";
+/// Major version written and understood.
+pub const MAJOR_VERSION: u16 = 1;
+/// Minor version written.
+pub const MINOR_VERSION: u16 = 0;
+/// Bytes before the header sections.
+pub const PREAMBLE_LEN: usize = 16;
+
+pub(crate) const TAG_MAP: u16 = 1;
+pub(crate) const TAG_TIME_AXIS: u16 = 2;
+pub(crate) const TAG_MODEL: u16 = 3;
+pub(crate) const TAG_CODEC: u16 = 4;
+pub(crate) const TAG_METADATA: u16 = 5;
+const FLAG_CRITICAL: u16 = 1;
+
+/// How tile payloads are stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Codec {
+    /// Uncompressed.
+    Raw,
+    /// One zstd frame per tile, at the given compression level.
+    Zstd {
+        /// Compression level (informative for readers).
+        level: i8,
+    },
+}
+
+impl Default for Codec {
+    fn default() -> Self {
+        Codec::Zstd { level: 19 }
+    }
+}
+
+/// Everything a reader needs before touching a tile.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Voxel edge length in metres.
+    pub resolution: f64,
+    /// Depth of the octree nodes that group cells into tiles (1..=16).
+    pub tile_depth: u8,
+    /// The sample instants of the series.
+    pub axis: TimeAxis,
+    /// The temporal model of every modelled cell.
+    pub model_id: ModelId,
+    /// The model's global parameters (`PreparedModel::encode_parameters`).
+    pub model_parameters: Vec<u8>,
+    /// How tiles are stored.
+    pub codec: Codec,
+    /// Free-form JSON metadata (creator, sources, tags).
+    pub metadata: Map<String, Value>,
+    /// (major, minor) version of the file this header was read from, or to be written.
+    pub version: (u16, u16),
+}
+
+impl Header {
+    /// A header for a new file, with the current version and empty metadata.
+    pub fn new(
+        resolution: f64,
+        tile_depth: u8,
+        axis: TimeAxis,
+        model_id: ModelId,
+        model_parameters: Vec<u8>,
+        codec: Codec,
+    ) -> Self {
+        Self {
+            resolution,
+            tile_depth,
+            axis,
+            model_id,
+            model_parameters,
+            codec,
+            metadata: Map::new(),
+            version: (MAJOR_VERSION, MINOR_VERSION),
+        }
+    }
+
+    /// Checks the values a writer must not put in a file.
+    pub fn validate(&self) -> Result<(), String> {
+        validate_resolution(self.resolution).map_err(|e| e.to_string())?;
+        if !(1..=TREE_DEPTH).contains(&self.tile_depth) {
+            return Err(format!("tile depth {} is outside 1..=16", self.tile_depth));
+        }
+        Ok(())
+    }
+
+    /// Preamble, sections and header crc: the bytes a file starts with.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut sections = Vec::new();
+        let mut map = Vec::new();
+        map.extend(self.resolution.to_le_bytes());
+        map.push(TREE_DEPTH);
+        map.push(self.tile_depth);
+        push_section(&mut sections, TAG_MAP, true, &map);
+        push_section(&mut sections, TAG_TIME_AXIS, true, &encode_axis(&self.axis));
+        let mut model = self.model_id.0.to_le_bytes().to_vec();
+        varint::write_u64(&mut model, self.model_parameters.len() as u64);
+        model.extend(&self.model_parameters);
+        push_section(&mut sections, TAG_MODEL, true, &model);
+        let codec = match self.codec {
+            Codec::Raw => [0, 0],
+            Codec::Zstd { level } => [1, level.to_le_bytes()[0]],
+        };
+        push_section(&mut sections, TAG_CODEC, true, &codec);
+        if !self.metadata.is_empty() {
+            let json = Value::Object(self.metadata.clone()).to_string();
+            push_section(&mut sections, TAG_METADATA, false, json.as_bytes());
+        }
+        let mut out = Vec::with_capacity(PREAMBLE_LEN + sections.len() + 4);
+        out.extend(MAGIC);
+        out.extend(MAJOR_VERSION.to_le_bytes());
+        out.extend(MINOR_VERSION.to_le_bytes());
+        out.extend((sections.len() as u32).to_le_bytes());
+        out.extend(sections);
+        let crc = crc32c::crc32c(&out);
+        out.extend(crc.to_le_bytes());
+        out
+    }
+
+    /// Reads the preamble: checks magic and version and returns the header section length.
+    pub(crate) fn decode_preamble(
+        preamble: &[u8; PREAMBLE_LEN],
+        limits: &ReadLimits,
+    ) -> Result<((u16, u16), usize), FormatViolation> {
+        if preamble[..8] != MAGIC {
+            return Err(corrupt(
+                "preamble",
+                "not a FROctomap file (the first bytes are not the FROctomap magic)",
+            ));
+        }
+        let mut cursor = Cursor::new(&preamble[8..], "preamble");
+        let major = cursor.u16()?;
+        let minor = cursor.u16()?;
+        if major != MAJOR_VERSION {
+            return Err(FormatViolation::UnsupportedVersion {
+                major,
+                minor,
+                supported: MAJOR_VERSION,
+            });
+        }
+        let len = u64::from(cursor.u32()?);
+        if len > limits.max_header_bytes {
+            return Err(FormatViolation::Limit {
+                what: "header length",
+                value: len,
+                limit: limits.max_header_bytes,
+            });
+        }
+        Ok(((major, minor), len as usize))
+    }
+
+    /// Decodes the header from the preamble, the sections and the header crc.
+    pub(crate) fn decode(
+        preamble: &[u8; PREAMBLE_LEN],
+        sections_and_crc: &[u8],
+        limits: &ReadLimits,
+    ) -> Result<Header, FormatViolation> {
+        let (version, len) = Self::decode_preamble(preamble, limits)?;
+        if sections_and_crc.len() != len + 4 {
+            return Err(corrupt("header", "truncated"));
+        }
+        let (sections, crc) = sections_and_crc.split_at(len);
+        let mut hasher_input = preamble.to_vec();
+        hasher_input.extend_from_slice(sections);
+        let expected = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+        if crc32c::crc32c(&hasher_input) != expected {
+            return Err(FormatViolation::Checksum("header"));
+        }
+        let mut map = None;
+        let mut axis = None;
+        let mut model = None;
+        let mut codec = None;
+        let mut metadata = Map::new();
+        for section in Sections::new(sections, "header") {
+            let section = section?;
+            let mut c = Cursor::new(section.payload, "header section");
+            match section.tag {
+                TAG_MAP => {
+                    let resolution = c.f64()?;
+                    validate_resolution(resolution)
+                        .map_err(|e| corrupt("MAP section", e.to_string()))?;
+                    let tree_depth = c.u8()?;
+                    if tree_depth != TREE_DEPTH {
+                        return Err(FormatViolation::UnsupportedFeature(format!(
+                            "tree depth {tree_depth} (only 16 exists in OctoMap)"
+                        )));
+                    }
+                    let tile_depth = c.u8()?;
+                    if !(1..=TREE_DEPTH).contains(&tile_depth) {
+                        return Err(corrupt("MAP section", format!("tile depth {tile_depth}")));
+                    }
+                    set_once(&mut map, (resolution, tile_depth), "MAP")?;
+                }
+                TAG_TIME_AXIS => set_once(&mut axis, decode_axis(&mut c, limits)?, "TIME_AXIS")?,
+                TAG_MODEL => {
+                    let id = ModelId(c.u16()?);
+                    let n = c.count("model parameter length", 1, limits.max_model_parameter_bytes)?;
+                    let parameters = c.take(n)?.to_vec();
+                    set_once(&mut model, (id, parameters), "MODEL")?;
+                }
+                TAG_CODEC => {
+                    let codec_value = match c.u8()? {
+                        0 => Codec::Raw,
+                        1 => Codec::Zstd { level: c.i8()? },
+                        other => {
+                            return Err(FormatViolation::UnsupportedFeature(format!(
+                                "tile codec {other}"
+                            )))
+                        }
+                    };
+                    set_once(&mut codec, codec_value, "CODEC")?;
+                }
+                TAG_METADATA => {
+                    metadata = match serde_json::from_slice(section.payload) {
+                        Ok(Value::Object(object)) => object,
+                        _ => return Err(corrupt("METADATA section", "not a JSON object")),
+                    };
+                    continue;
+                }
+                _ => continue, // unknown non-critical sections are skipped by Sections
+            }
+            if !c.is_empty() {
+                return Err(corrupt("header", format!("section {} has {} extra bytes", section.tag, c.remaining())));
+            }
+        }
+        let missing = |name: &str| corrupt("header", format!("required section {name} is missing"));
+        let (resolution, tile_depth) = map.ok_or_else(|| missing("MAP"))?;
+        let (model_id, model_parameters) = model.ok_or_else(|| missing("MODEL"))?;
+        Ok(Header {
+            resolution,
+            tile_depth,
+            axis: axis.ok_or_else(|| missing("TIME_AXIS"))?,
+            model_id,
+            model_parameters,
+            codec: codec.ok_or_else(|| missing("CODEC"))?,
+            metadata,
+            version,
+        })
+    }
+}
+
+fn set_once<T>(slot: &mut Option<T>, value: T, name: &str) -> Result<(), FormatViolation> {
+    if slot.replace(value).is_some() {
+        return Err(corrupt("header", format!("section {name} appears twice")));
+    }
+    Ok(())
+}
+
+pub(crate) fn push_section(out: &mut Vec<u8>, tag: u16, critical: bool, payload: &[u8]) {
+    out.extend(tag.to_le_bytes());
+    out.extend((if critical { FLAG_CRITICAL } else { 0 }).to_le_bytes());
+    out.extend((payload.len() as u32).to_le_bytes());
+    out.extend(payload);
+}
+
+/// One section of a header or index tail.
+pub(crate) struct Section<'a> {
+    pub(crate) tag: u16,
+    pub(crate) payload: &'a [u8],
+}
+
+/// Iterates sections, rejecting malformed framing and unknown *critical* sections (a known
+/// tag set is passed by the caller through `known`).
+pub(crate) struct Sections<'a> {
+    cursor: Cursor<'a>,
+    failed: bool,
+    known: &'static [u16],
+}
+
+impl<'a> Sections<'a> {
+    pub(crate) fn new(bytes: &'a [u8], part: &'static str) -> Self {
+        Self::with_known(bytes, part, &[TAG_MAP, TAG_TIME_AXIS, TAG_MODEL, TAG_CODEC, TAG_METADATA])
+    }
+
+    pub(crate) fn with_known(bytes: &'a [u8], part: &'static str, known: &'static [u16]) -> Self {
+        Self {
+            cursor: Cursor::new(bytes, part),
+            failed: false,
+            known,
+        }
+    }
+
+    fn next_section(&mut self) -> Result<Option<Section<'a>>, FormatViolation> {
+        loop {
+            if self.cursor.is_empty() {
+                return Ok(None);
+            }
+            let tag = self.cursor.u16()?;
+            let flags = self.cursor.u16()?;
+            let len = self.cursor.u32()? as usize;
+            let payload = self.cursor.take(len)?;
+            if flags & !FLAG_CRITICAL != 0 {
+                return Err(corrupt("section", format!("section {tag} has reserved flags {flags:#x}")));
+            }
+            if self.known.contains(&tag) {
+                return Ok(Some(Section { tag, payload }));
+            }
+            if flags & FLAG_CRITICAL != 0 {
+                return Err(FormatViolation::UnsupportedFeature(format!("critical section {tag}")));
+            }
+        }
+    }
+}
+
+impl<'a> Iterator for Sections<'a> {
+    type Item = Result<Section<'a>, FormatViolation>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let item = self.next_section().transpose();
+        if matches!(item, Some(Err(_))) {
+            self.failed = true;
+        }
+        item
+    }
+}
+
+/// Encodes a time axis (FORMAT.md §4).
+pub fn encode_axis(axis: &TimeAxis) -> Vec<u8> {
+    let mut out = Vec::new();
+    match axis.kind() {
+        AxisKind::Regular => {
+            out.push(0);
+            out.extend(axis.start().0.to_le_bytes());
+            out.extend(axis.step_ns().unwrap_or(1).to_le_bytes());
+            out.extend(axis.len().to_le_bytes());
+            write_positions(&mut out, axis.missing());
+        }
+        AxisKind::Explicit => {
+            out.push(1);
+            out.extend(axis.len().to_le_bytes());
+            let times = axis.times().unwrap_or_default();
+            let mut previous = None;
+            for t in times {
+                match previous {
+                    None => out.extend(t.0.to_le_bytes()),
+                    // Strictly increasing, so the difference is positive.
+                    Some(p) => varint::write_u64(&mut out, (i128::from(t.0) - i128::from(p)) as u64),
+                }
+                previous = Some(t.0);
+            }
+        }
+    }
+    out
+}
+
+/// Writes sorted, distinct positions as a count plus gaps (`next − previous − 1`).
+pub(crate) fn write_positions(out: &mut Vec<u8>, positions: &[u32]) {
+    varint::write_u64(out, positions.len() as u64);
+    let mut next = 0u32;
+    for &p in positions {
+        varint::write_u32(out, p - next);
+        next = p.saturating_add(1);
+    }
+}
+
+fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, FormatViolation> {
+    let invalid = |e: froctomap_temporal::TemporalError| corrupt("TIME_AXIS section", e.to_string());
+    match c.u8()? {
+        0 => {
+            let start = Timestamp(c.i64()?);
+            let step = c.i64()?;
+            let count = c.u32()?;
+            let missing_count = c.count("missing sample count", 1, u64::from(count))?;
+            let mut missing = Vec::with_capacity(missing_count);
+            let mut next = 0u64;
+            for _ in 0..missing_count {
+                let sample = next + c.varint()?;
+                if sample >= u64::from(count) {
+                    return Err(corrupt("TIME_AXIS section", "missing sample beyond the axis"));
+                }
+                missing.push(sample as u32);
+                next = sample + 1;
+            }
+            TimeAxis::regular(start, step, count, missing).map_err(invalid)
+        }
+        1 => {
+            let count = u64::from(c.u32()?);
+            if count == 0 {
+                return Err(corrupt("TIME_AXIS section", "empty axis"));
+            }
+            let count = c.check_count("sample count", count - 1, 1, limits.max_samples)? + 1;
+            let mut times = Vec::with_capacity(count);
+            let mut t = i128::from(c.i64()?);
+            times.push(Timestamp(t as i64));
+            for _ in 1..count {
+                t += i128::from(c.varint()?);
+                let value = i64::try_from(t)
+                    .map_err(|_| corrupt("TIME_AXIS section", "instant beyond the representable range"))?;
+                times.push(Timestamp(value));
+            }
+            TimeAxis::explicit(times).map_err(invalid)
+        }
+        kind => Err(FormatViolation::UnsupportedFeature(format!("time axis kind {kind}"))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn roundtrip(axis: TimeAxis) {
+        let bytes = encode_axis(&axis);
+        let mut c = Cursor::new(&bytes, "test");
+        assert_eq!(decode_axis(&mut c, &ReadLimits::default()).unwrap(), axis);
+        assert!(c.is_empty());
+    }
+
+    #[test]
+    fn axes_round_trip() {
+        roundtrip(TimeAxis::regular(Timestamp(-5), 600_000_000_000, 4032, vec![0, 7, 8, 4000]).unwrap());
+        roundtrip(TimeAxis::regular(Timestamp(i64::MAX - 10), 1, 5, vec![]).unwrap());
+        roundtrip(TimeAxis::explicit(vec![Timestamp(i64::MIN), Timestamp(0), Timestamp(i64::MAX)]).unwrap());
+    }
+
+    #[test]
+    fn header_round_trips_and_detects_damage() {
+        let axis = TimeAxis::regular(Timestamp::from_secs(1_700_000_000), 60_000_000_000, 10, vec![3]).unwrap();
+        let mut header = Header::new(0.08, 10, axis, ModelId(2), vec![1, 0, 0], Codec::default());
+        header.metadata.insert("creator".into(), Value::from("test"));
+        let bytes = header.encode();
+        let preamble: [u8; PREAMBLE_LEN] = bytes[..PREAMBLE_LEN].try_into().unwrap();
+        let decoded = Header::decode(&preamble, &bytes[PREAMBLE_LEN..], &ReadLimits::default()).unwrap();
+        assert_eq!(decoded, header);
+        for i in 0..bytes.len() {
+            let mut damaged = bytes.clone();
+            damaged[i] ^= 0x10;
+            let preamble: [u8; PREAMBLE_LEN] = damaged[..PREAMBLE_LEN].try_into().unwrap();
+            assert!(Header::decode(&preamble, &damaged[PREAMBLE_LEN..], &ReadLimits::default()).is_err(), "byte {i}");
+        }
+    }
+}

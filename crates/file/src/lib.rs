@@ -1,0 +1,67 @@
+//! The FROctomap file: one file for a whole series of occupancy maps of one place.
+//!
+//! The normative specification is [`docs/FORMAT.md`](../../../docs/FORMAT.md). In short: a
+//! versioned, checksummed header (resolution, time axis, temporal model, codec, JSON
+//! metadata); then *tiles* — octree nodes at a fixed depth — each holding its *cells*
+//! (cubes of voxels that share their state at every sample) as zstd-compressed columnar
+//! streams; then an index of tiles (offset, length, crc32c, cell count, sample range) and a
+//! fixed-size footer. A writer streams tiles out in one pass; a reader opens a file by
+//! reading only header, footer and index, and decodes any tile on its own.
+//!
+//! Cells that never changed cost a class byte. Cells that changed carry a temporal model
+//! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
+//! is reproduced exactly. Unknown stays unknown: each cell has an observation mask unless it
+//! was observed at every sample.
+//!
+//! ```
+//! use froctomap_core::{Occupancy, Timestamp, VoxelKey};
+//! use froctomap_file::*;
+//! use froctomap_temporal::{ModelConfig, ModelRegistry, ObservationsBuilder, TimeAxis};
+//!
+//! let dir = tempfile::tempdir()?;
+//! let path = dir.path().join("door.froct");
+//! let axis = TimeAxis::regular(Timestamp::from_secs(0), 600_000_000_000, 6, vec![])?;
+//! let model = ModelRegistry::with_default_models().by_name("fremen-periods").unwrap().create();
+//! let prepared = model.prepare(&axis, &ModelConfig::default())?;
+//!
+//! // A door voxel that opens and closes, and a wall voxel that never changes.
+//! let mut door = ObservationsBuilder::new();
+//! for (i, open) in [false, true, true, false, false, true].into_iter().enumerate() {
+//!     door.push(i as u32, Some(if open { Occupancy::Free } else { Occupancy::Occupied }))?;
+//! }
+//! let cells = vec![
+//!     Cell { start: VoxelKey::new(32768, 32768, 32768).morton(), depth: 16, mask: None,
+//!            content: CellContent::Modelled(prepared.fit(&door.finish())?) },
+//!     Cell { start: VoxelKey::new(32769, 32768, 32768).morton(), depth: 16, mask: None,
+//!            content: CellContent::Constant(Occupancy::Occupied) },
+//! ];
+//! let header = Header::new(0.05, 10, axis, model.id(), prepared.encode_parameters(), Codec::default());
+//! let mut writer = FroctWriter::create(&path, &header)?;
+//! writer.write_tile(&encode_tile(10, &cells, prepared.as_ref(), header.codec)?)?;
+//! writer.finish(Default::default())?;
+//!
+//! let reader = FroctReader::open(&path)?;
+//! let map = reader.snapshot_at_sample(1)?;
+//! assert_eq!(map.state_at(VoxelKey::new(32768, 32768, 32768).morton()), Some(Occupancy::Free));
+//! assert_eq!(reader.read_tile(0)?, cells);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod cursor;
+mod error;
+mod header;
+mod index;
+mod limits;
+mod query;
+mod reader;
+mod tile;
+mod writer;
+
+pub use error::{FileError, FormatViolation};
+pub use header::{encode_axis, Codec, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN};
+pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
+pub use limits::ReadLimits;
+pub use query::CellValue;
+pub use reader::FroctReader;
+pub use tile::{encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes};
+pub use writer::{FroctWriter, WrittenFile};

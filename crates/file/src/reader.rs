@@ -1,0 +1,161 @@
+//! Random-access reading: header and index on open, any tile on demand.
+
+use crate::error::{corrupt, FileError, FormatViolation};
+use crate::header::{Header, PREAMBLE_LEN};
+use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
+use crate::limits::ReadLimits;
+use crate::tile::{decode_payload, decode_stored, Cell};
+use froctomap_core::{MortonCode, VoxelKey};
+use froctomap_temporal::{ModelRegistry, PreparedModel};
+use serde_json::{Map, Value};
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+/// An open FROctomap file. Opening reads only the header, the footer and the index; tiles
+/// are read with positioned reads when asked for, each on its own (a damaged tile does not
+/// affect the others). The reader is `Sync`: tiles can be decoded from several threads.
+pub struct FroctReader {
+    path: PathBuf,
+    file: File,
+    file_len: u64,
+    header: Header,
+    tiles: Vec<TileEntry>,
+    summary: Map<String, Value>,
+    model: Box<dyn PreparedModel>,
+    limits: ReadLimits,
+}
+
+impl std::fmt::Debug for FroctReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FroctReader")
+            .field("path", &self.path)
+            .field("tiles", &self.tiles.len())
+            .finish()
+    }
+}
+
+impl FroctReader {
+    /// Opens a file with the default [`ReadLimits`].
+    pub fn open(path: &Path) -> Result<Self, FileError> {
+        Self::open_with_limits(path, ReadLimits::default(), &ModelRegistry::with_default_models())
+    }
+
+    /// Opens a file with explicit limits and model registry.
+    pub fn open_with_limits(path: &Path, limits: ReadLimits, models: &ModelRegistry) -> Result<Self, FileError> {
+        let io = |source| FileError::Io { path: path.to_path_buf(), source };
+        let invalid = |violation| FileError::Invalid { path: path.to_path_buf(), violation };
+        let file = File::open(path).map_err(io)?;
+        let file_len = file.metadata().map_err(io)?.len();
+        let min_len = (PREAMBLE_LEN + 4 + FOOTER_LEN) as u64;
+        if file_len < min_len {
+            let violation = if file_len == 0 {
+                corrupt("file", "the file is empty")
+            } else {
+                corrupt("file", format!("{file_len} bytes is too short for a FROctomap file"))
+            };
+            return Err(invalid(violation));
+        }
+        let read = |offset: u64, len: usize| -> Result<Vec<u8>, FileError> {
+            let mut buf = vec![0u8; len];
+            file.read_exact_at(&mut buf, offset).map_err(io)?;
+            Ok(buf)
+        };
+        let mut preamble = [0u8; PREAMBLE_LEN];
+        file.read_exact_at(&mut preamble, 0).map_err(io)?;
+        let (_, header_len) = Header::decode_preamble(&preamble, &limits).map_err(invalid)?;
+        let data_start = (PREAMBLE_LEN + header_len + 4) as u64;
+        if data_start + FOOTER_LEN as u64 > file_len {
+            return Err(invalid(corrupt("header", "the header runs past the end of the file")));
+        }
+        let header = Header::decode(&preamble, &read(PREAMBLE_LEN as u64, header_len + 4)?, &limits).map_err(invalid)?;
+        let mut footer_bytes = [0u8; FOOTER_LEN];
+        file.read_exact_at(&mut footer_bytes, file_len - FOOTER_LEN as u64).map_err(io)?;
+        let footer = decode_footer(&footer_bytes, file_len, data_start, &limits).map_err(invalid)?;
+        let index_len = usize::try_from(footer.index_len).map_err(|_| invalid(corrupt("footer", "index too large")))?;
+        let index = read(footer.index_offset, index_len)?;
+        if crc32c::crc32c(&index) != footer.index_crc {
+            return Err(invalid(FormatViolation::Checksum("index")));
+        }
+        let (tiles, summary) =
+            decode_index(&index, data_start..footer.index_offset, header.tile_depth, &limits).map_err(invalid)?;
+        let model = models
+            .prepare_from_parameters(header.model_id, &header.axis, &header.model_parameters)
+            .map_err(|e| invalid(FormatViolation::Model(e)))?;
+        Ok(Self { path: path.to_path_buf(), file, file_len, header, tiles, summary, model, limits })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Total file length.
+    pub fn file_len(&self) -> u64 {
+        self.file_len
+    }
+
+    /// The header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The tiles, in Morton order.
+    pub fn tiles(&self) -> &[TileEntry] {
+        &self.tiles
+    }
+
+    /// The summary stored in the index at write time.
+    pub fn summary(&self) -> &Map<String, Value> {
+        &self.summary
+    }
+
+    /// The temporal model, prepared for this file's time axis.
+    pub fn model(&self) -> &dyn PreparedModel {
+        self.model.as_ref()
+    }
+
+    /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
+    pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
+        let invalid = |violation| FileError::Invalid { path: self.path.clone(), violation };
+        let entry = self.tiles.get(tile).ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
+        let mut stored = vec![0u8; entry.stored_len as usize];
+        self.file
+            .read_exact_at(&mut stored, entry.offset)
+            .map_err(|source| FileError::Io { path: self.path.clone(), source })?;
+        if crc32c::crc32c(&stored) != entry.crc {
+            return Err(invalid(FormatViolation::Checksum("tile")));
+        }
+        let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
+        let cells = decode_payload(&payload, entry.code, self.header.tile_depth, self.model.as_ref(), &self.limits)
+            .map_err(invalid)?;
+        if cells.len() != entry.cell_count as usize {
+            return Err(invalid(corrupt("tile", "cell count differs from the index")));
+        }
+        Ok(cells)
+    }
+
+    /// Index of the tile holding a voxel, if that tile exists.
+    pub fn tile_containing(&self, voxel: MortonCode) -> Option<usize> {
+        let code = voxel.node_start(self.header.tile_depth);
+        self.tiles.binary_search_by_key(&code, |t| t.code).ok()
+    }
+
+    /// Indices of the tiles that intersect the box of voxel keys `min..=max` (inclusive).
+    pub fn tiles_in_box(&self, min: VoxelKey, max: VoxelKey) -> Vec<usize> {
+        let edge = 1u32 << (16 - u32::from(self.header.tile_depth));
+        self.tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| {
+                let lo = t.code.key();
+                let inside = |lo: u16, min: u16, max: u16| {
+                    let hi = u32::from(lo) + edge - 1;
+                    u32::from(lo) <= u32::from(max) && hi >= u32::from(min)
+                };
+                inside(lo.x, min.x, max.x) && inside(lo.y, min.y, max.y) && inside(lo.z, min.z, max.z)
+            })
+            .map(|(i, _)| i)
+            .collect()
+    }
+}

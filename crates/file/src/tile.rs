@@ -1,0 +1,385 @@
+//! Tiles: groups of cells stored and checksummed together ([FORMAT.md §5](../../../docs/FORMAT.md)).
+
+use crate::cursor::Cursor;
+use crate::error::{corrupt, FormatViolation};
+use crate::header::Codec;
+use crate::limits::ReadLimits;
+use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
+use froctomap_temporal::{varint, FittedVoxel, PreparedModel, TimeAxis, Toggles};
+
+const CLASS_FREE: u8 = 0;
+const CLASS_OCCUPIED: u8 = 1;
+const CLASS_MODELLED: u8 = 2;
+const CLASS_KIND_MASK: u8 = 0b11;
+const CLASS_HAS_MASK: u8 = 0b100;
+
+/// What a cell stores about its states.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CellContent {
+    /// Observed in this state only: costs one class byte.
+    Constant(Occupancy),
+    /// A temporal model (with outliers in lossless files).
+    Modelled(FittedVoxel),
+}
+
+/// One cube of voxels that shares its state at every sample.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    /// Morton code of the first voxel.
+    pub start: MortonCode,
+    /// Depth (`tile_depth..=16`); the cell holds `8^(16 − depth)` voxels.
+    pub depth: u8,
+    /// Observation mask as toggles (observed-ness starts false and flips at each position);
+    /// `None` means observed at every sample that is not missing from the axis.
+    pub mask: Option<Toggles>,
+    /// States.
+    pub content: CellContent,
+}
+
+impl Cell {
+    /// One past the Morton code of the last voxel.
+    pub fn end(&self) -> u64 {
+        self.start.0 + voxels_per_node(self.depth)
+    }
+
+    /// `true` when the cell was observed at `sample`.
+    pub fn is_observed(&self, axis: &TimeAxis, sample: u32) -> bool {
+        sample < axis.len()
+            && !axis.is_missing(sample)
+            && self.mask.as_ref().is_none_or(|mask| mask.parity_at(sample))
+    }
+
+    /// The state at a sample: `None` where the cell was not observed. Exact in lossless files.
+    pub fn state_at(&self, axis: &TimeAxis, model: &dyn PreparedModel, sample: u32) -> Option<Occupancy> {
+        if !self.is_observed(axis, sample) {
+            return None;
+        }
+        Some(match &self.content {
+            CellContent::Constant(state) => *state,
+            CellContent::Modelled(voxel) => model.state_at_sample(voxel, sample),
+        })
+    }
+
+    /// Occupancy probability at any instant, in seconds since the first sample of the axis.
+    pub fn probability(&self, model: &dyn PreparedModel, seconds: f64) -> f64 {
+        match &self.content {
+            CellContent::Constant(Occupancy::Free) => 0.0,
+            CellContent::Constant(Occupancy::Occupied) => 1.0,
+            CellContent::Modelled(voxel) => model.probability(voxel, seconds),
+        }
+    }
+
+    /// A sample range outside which the cell is never observed (it may be unobserved at
+    /// some samples inside it).
+    pub fn observed_span(&self, axis_len: u32) -> Option<(u32, u32)> {
+        let last = axis_len.checked_sub(1)?;
+        match &self.mask {
+            None => Some((0, last)),
+            Some(mask) => {
+                let toggles = mask.as_slice();
+                let first = *toggles.first()?;
+                let end = if toggles.len() % 2 == 1 {
+                    last
+                } else {
+                    toggles.last()?.checked_sub(1)?
+                };
+                Some((first, end))
+            }
+        }
+    }
+}
+
+/// Raw bytes of each stream of a tile payload, before compression.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StreamSizes {
+    /// Cell positions.
+    pub geometry: u64,
+    /// Cell depths.
+    pub depth: u64,
+    /// Class bytes.
+    pub class: u64,
+    /// Observation masks.
+    pub masks: u64,
+    /// Model parameters and outliers.
+    pub models: u64,
+}
+
+impl StreamSizes {
+    /// Sum of all streams.
+    pub fn total(&self) -> u64 {
+        self.geometry + self.depth + self.class + self.masks + self.models
+    }
+
+    /// Adds another tile's sizes.
+    pub fn add(&mut self, other: &StreamSizes) {
+        self.geometry += other.geometry;
+        self.depth += other.depth;
+        self.class += other.class;
+        self.masks += other.masks;
+        self.models += other.models;
+    }
+}
+
+/// A tile ready to be written.
+#[derive(Clone, Debug)]
+pub struct EncodedTile {
+    /// Morton code of the tile's first voxel.
+    pub code: MortonCode,
+    /// Bytes as stored in the file.
+    pub stored: Vec<u8>,
+    /// Payload length before the codec.
+    pub raw_len: u32,
+    /// crc32c of `stored`.
+    pub crc: u32,
+    /// Cells in the tile.
+    pub cell_count: u32,
+    /// No cell is observed before this sample.
+    pub first_sample: u32,
+    /// No cell is observed after this sample.
+    pub last_sample: u32,
+    /// Raw bytes per stream.
+    pub streams: StreamSizes,
+}
+
+/// Encodes the cells of one tile (sorted, non-overlapping, all inside the tile).
+///
+/// Modelled cells are encoded with `model`, which must be the model the file header names.
+pub fn encode_tile(
+    tile_depth: u8,
+    cells: &[Cell],
+    model: &dyn PreparedModel,
+    codec: Codec,
+) -> Result<EncodedTile, String> {
+    let first = cells.first().ok_or("a tile needs at least one cell")?;
+    let code = first.start.node_start(tile_depth);
+    let tile_end = code.0 + voxels_per_node(tile_depth);
+    let axis_len = model.axis().len();
+    let mut geometry = Vec::new();
+    let mut depths = Vec::with_capacity(cells.len());
+    let mut classes = Vec::with_capacity(cells.len());
+    let mut masks = Vec::new();
+    let mut models = Vec::new();
+    let mut previous_end = code.0;
+    let mut span: Option<(u32, u32)> = None;
+    for cell in cells {
+        if !(tile_depth..=TREE_DEPTH).contains(&cell.depth)
+            || cell.start.node_start(cell.depth) != cell.start
+        {
+            return Err(format!("cell {:#x} at depth {} is not a valid cell of a depth-{tile_depth} tile", cell.start.0, cell.depth));
+        }
+        if cell.start.0 < previous_end || cell.end() > tile_end {
+            return Err(format!("cell {:#x} is out of order, overlapping or outside its tile", cell.start.0));
+        }
+        varint::write_u64(&mut geometry, cell.start.0 - previous_end);
+        previous_end = cell.end();
+        depths.push(cell.depth);
+        let mut class = match &cell.content {
+            CellContent::Constant(Occupancy::Free) => CLASS_FREE,
+            CellContent::Constant(Occupancy::Occupied) => CLASS_OCCUPIED,
+            CellContent::Modelled(voxel) => {
+                model.encode_voxel(voxel, &mut models);
+                CLASS_MODELLED
+            }
+        };
+        if let Some(mask) = &cell.mask {
+            if mask.as_slice().last().is_some_and(|&t| t >= axis_len) {
+                return Err("observation mask beyond the time axis".into());
+            }
+            class |= CLASS_HAS_MASK;
+            mask.encode(&mut masks);
+        }
+        classes.push(class);
+        let (a, b) = cell
+            .observed_span(axis_len)
+            .ok_or("a cell must be observed at least once")?;
+        span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+    }
+    let mut payload = Vec::new();
+    varint::write_u64(&mut payload, cells.len() as u64);
+    for stream in [&geometry, &depths, &classes, &masks, &models] {
+        varint::write_u64(&mut payload, stream.len() as u64);
+        payload.extend_from_slice(stream);
+    }
+    let raw_len = u32::try_from(payload.len()).map_err(|_| "tile payload exceeds 4 GiB")?;
+    let stored = match codec {
+        Codec::Raw => payload,
+        Codec::Zstd { level } => zstd::bulk::compress(&payload, i32::from(level))
+            .map_err(|e| format!("zstd compression failed: {e}"))?,
+    };
+    let (first_sample, last_sample) = span.unwrap_or((0, 0));
+    Ok(EncodedTile {
+        code,
+        crc: crc32c::crc32c(&stored),
+        stored,
+        raw_len,
+        cell_count: u32::try_from(cells.len()).map_err(|_| "too many cells in a tile")?,
+        first_sample,
+        last_sample,
+        streams: StreamSizes {
+            geometry: geometry.len() as u64,
+            depth: depths.len() as u64,
+            class: classes.len() as u64,
+            masks: masks.len() as u64,
+            models: models.len() as u64,
+        },
+    })
+}
+
+/// Turns stored tile bytes back into the payload.
+pub(crate) fn decode_stored(
+    stored: &[u8],
+    raw_len: u32,
+    codec: Codec,
+) -> Result<Vec<u8>, FormatViolation> {
+    match codec {
+        Codec::Raw => {
+            if stored.len() != raw_len as usize {
+                return Err(corrupt("tile", "stored length differs from the raw length of a raw tile"));
+            }
+            Ok(stored.to_vec())
+        }
+        Codec::Zstd { .. } => {
+            let payload = zstd::bulk::decompress(stored, raw_len as usize)
+                .map_err(|e| corrupt("tile", format!("zstd: {e}")))?;
+            if payload.len() != raw_len as usize {
+                return Err(corrupt("tile", format!("decoded {} bytes, index says {raw_len}", payload.len())));
+            }
+            Ok(payload)
+        }
+    }
+}
+
+/// Parses a tile payload into its cells.
+pub(crate) fn decode_payload(
+    payload: &[u8],
+    code: MortonCode,
+    tile_depth: u8,
+    model: &dyn PreparedModel,
+    limits: &ReadLimits,
+) -> Result<Vec<Cell>, FormatViolation> {
+    let axis_len = model.axis().len();
+    let mut c = Cursor::new(payload, "tile");
+    let count = c.count("cells per tile", 1, limits.max_cells_per_tile)?;
+    if count == 0 {
+        return Err(corrupt("tile", "no cells"));
+    }
+    let geometry = stream(&mut c)?;
+    let depths = stream(&mut c)?;
+    let classes = stream(&mut c)?;
+    let masks = stream(&mut c)?;
+    let models = stream(&mut c)?;
+    if !c.is_empty() {
+        return Err(corrupt("tile", "bytes after the last stream"));
+    }
+    if depths.len() != count || classes.len() != count {
+        return Err(corrupt("tile", "depth or class stream does not hold one byte per cell"));
+    }
+    let tile_end = code.0 + voxels_per_node(tile_depth);
+    let mut geometry = Cursor::new(geometry, "tile geometry");
+    let mut mask_pos = 0usize;
+    let mut model_pos = 0usize;
+    let mut previous_end = code.0;
+    let mut cells = Vec::with_capacity(count);
+    for (&depth, &class) in depths.iter().zip(classes) {
+        let gap = geometry.varint()?;
+        if !(tile_depth..=TREE_DEPTH).contains(&depth) {
+            return Err(corrupt("tile", format!("cell depth {depth} outside {tile_depth}..=16")));
+        }
+        let start = previous_end
+            .checked_add(gap)
+            .filter(|s| s % voxels_per_node(depth) == 0)
+            .ok_or_else(|| corrupt("tile", "cell not aligned to its depth"))?;
+        let end = start + voxels_per_node(depth);
+        if end > tile_end {
+            return Err(corrupt("tile", "cell outside its tile"));
+        }
+        previous_end = end;
+        if class & !(CLASS_KIND_MASK | CLASS_HAS_MASK) != 0 {
+            return Err(corrupt("tile", format!("reserved class bits {class:#x}")));
+        }
+        let mask = if class & CLASS_HAS_MASK != 0 {
+            let (toggles, used) = Toggles::decode(&masks[mask_pos..], axis_len)
+                .map_err(|e| corrupt("tile masks", e.to_string()))?;
+            mask_pos += used;
+            if toggles.is_empty() {
+                return Err(corrupt("tile masks", "a cell that is never observed"));
+            }
+            Some(toggles)
+        } else {
+            None
+        };
+        let content = match class & CLASS_KIND_MASK {
+            CLASS_FREE => CellContent::Constant(Occupancy::Free),
+            CLASS_OCCUPIED => CellContent::Constant(Occupancy::Occupied),
+            CLASS_MODELLED => {
+                let (voxel, used) = model.decode_voxel(&models[model_pos..])?;
+                model_pos += used;
+                CellContent::Modelled(voxel)
+            }
+            _ => return Err(corrupt("tile", "invalid cell class 3")),
+        };
+        cells.push(Cell {
+            start: MortonCode(start),
+            depth,
+            mask,
+            content,
+        });
+    }
+    if !geometry.is_empty() || mask_pos != masks.len() || model_pos != models.len() {
+        return Err(corrupt("tile", "a stream has bytes no cell uses"));
+    }
+    Ok(cells)
+}
+
+/// One length-prefixed stream of a tile payload.
+fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
+    let len = c.count("stream length", 1, u64::MAX)?;
+    c.take(len)
+}
+
+/// Helper for writers that build masks from observed runs: the mask toggles of a list of
+/// observed sample ranges `[first, end)`, or `None` when they cover every sample that is not
+/// missing from the axis.
+pub fn mask_from_ranges(axis: &TimeAxis, ranges: &[(u32, u64)]) -> Option<Toggles> {
+    let mut toggles: Vec<u32> = Vec::with_capacity(ranges.len() * 2);
+    let mut observed_end: Option<u64> = None;
+    for &(first, end) in ranges {
+        // Bridge gaps made only of missing samples: they are unknown for every cell anyway.
+        let bridged = observed_end.is_some_and(|prev| all_missing(axis, prev, u64::from(first)));
+        if bridged {
+            toggles.pop();
+        } else {
+            let leading = observed_end.is_none() && all_missing(axis, 0, u64::from(first));
+            toggles.push(if leading { 0 } else { first });
+        }
+        if end < u64::from(axis.len()) {
+            toggles.push(end as u32);
+        }
+        observed_end = Some(end);
+    }
+    // Trailing samples after the last run that are all missing need no toggle either.
+    if let (Some(end), Some(&last)) = (observed_end, toggles.last()) {
+        if toggles.len() % 2 == 0
+            && u64::from(last) == end
+            && all_missing(axis, end, u64::from(axis.len()))
+        {
+            toggles.pop();
+        }
+    }
+    if toggles == [0] {
+        return None;
+    }
+    Toggles::new(toggles).ok()
+}
+
+/// `true` when every sample in `[first, end)` is missing from the axis (vacuously for an
+/// empty range).
+fn all_missing(axis: &TimeAxis, first: u64, end: u64) -> bool {
+    if end <= first {
+        return true;
+    }
+    let missing = axis.missing();
+    let from = missing.partition_point(|&m| u64::from(m) < first);
+    let to = missing.partition_point(|&m| u64::from(m) < end);
+    (to - from) as u64 == end - first
+}

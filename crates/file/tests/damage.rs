@@ -1,0 +1,131 @@
+//! Damaged files give typed errors, never panics; damage inside one tile leaves the others
+//! readable.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use common::*;
+use froctomap_file::{FileError, FormatViolation, FroctReader};
+use proptest::prelude::*;
+
+fn open_bytes(bytes: &[u8]) -> Result<FroctReader, FileError> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("damaged.froct");
+    std::fs::write(&path, bytes).unwrap();
+    FroctReader::open(&path)
+}
+
+/// Opens and decodes everything; returns which tiles failed.
+fn read_all(bytes: &[u8]) -> Result<Vec<bool>, FileError> {
+    let reader = open_bytes(bytes)?;
+    Ok((0..reader.tiles().len()).map(|i| reader.read_tile(i).is_err()).collect())
+}
+
+#[test]
+fn every_truncation_point_is_a_typed_error() {
+    let bytes = std::fs::read(golden_path()).unwrap();
+    for len in 0..bytes.len() {
+        match open_bytes(&bytes[..len]) {
+            Err(FileError::Invalid { violation, path }) => {
+                assert!(path.ends_with("damaged.froct"));
+                assert!(matches!(violation, FormatViolation::Corrupt { .. } | FormatViolation::Checksum(_)), "{len}: {violation}");
+            }
+            Err(other) => panic!("truncation to {len}: unexpected error {other}"),
+            Ok(_) => panic!("truncation to {len} of {} bytes opened", bytes.len()),
+        }
+    }
+}
+
+#[test]
+fn empty_and_foreign_files_are_named_as_such() {
+    let err = open_bytes(b"").unwrap_err().to_string();
+    assert!(err.contains("damaged.froct") && err.contains("empty"), "{err}");
+    let octomap = b"# Octomap OcTree binary file\nid OcTree\nsize 0\nres 0.1\ndata\n".repeat(2);
+    let err = open_bytes(&octomap).unwrap_err().to_string();
+    assert!(err.contains("not a FROctomap file"), "{err}");
+}
+
+#[test]
+fn a_newer_major_version_is_refused_and_a_newer_minor_is_read() {
+    let bytes = std::fs::read(golden_path()).unwrap();
+    // Patch the version and fix the header crc, as a newer writer would have produced it.
+    let patched = |major: u16, minor: u16| {
+        let mut b = bytes.clone();
+        b[8..10].copy_from_slice(&major.to_le_bytes());
+        b[10..12].copy_from_slice(&minor.to_le_bytes());
+        let header_len = u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
+        let crc = crc32c::crc32c(&b[..16 + header_len]);
+        b[16 + header_len..20 + header_len].copy_from_slice(&crc.to_le_bytes());
+        b
+    };
+    let err = open_bytes(&patched(2, 0)).unwrap_err();
+    assert!(matches!(err.violation(), Some(FormatViolation::UnsupportedVersion { major: 2, .. })), "{err}");
+    let newer_minor = open_bytes(&patched(1, 7)).unwrap();
+    assert_eq!(newer_minor.header().version, (1, 7));
+    assert!(newer_minor.read_tile(0).is_ok());
+}
+
+#[test]
+fn a_flipped_bit_in_one_tile_leaves_the_others_readable() {
+    let bytes = std::fs::read(golden_path()).unwrap();
+    let reader = FroctReader::open(&golden_path()).unwrap();
+    let tiles = reader.tiles().to_vec();
+    for (damaged_tile, entry) in tiles.iter().enumerate() {
+        for offset in entry.offset..entry.offset + u64::from(entry.stored_len) {
+            let mut damaged = bytes.clone();
+            damaged[offset as usize] ^= 0x04;
+            let failed = read_all(&damaged).unwrap();
+            for (tile, &fail) in failed.iter().enumerate() {
+                assert_eq!(fail, tile == damaged_tile, "flip at {offset} in tile {damaged_tile}: tile {tile}");
+            }
+        }
+    }
+}
+
+#[test]
+fn checksum_errors_are_distinguished() {
+    let bytes = std::fs::read(golden_path()).unwrap();
+    let reader = FroctReader::open(&golden_path()).unwrap();
+    let entry = reader.tiles()[1];
+    let mut damaged = bytes.clone();
+    damaged[entry.offset as usize + 1] ^= 1;
+    let reader = open_bytes(&damaged).unwrap();
+    let err = reader.read_tile(1).unwrap_err();
+    assert!(matches!(err.violation(), Some(FormatViolation::Checksum("tile"))), "{err}");
+    let mut header_damage = bytes.clone();
+    header_damage[20] ^= 1;
+    assert!(matches!(open_bytes(&header_damage).unwrap_err().violation(), Some(FormatViolation::Checksum("header"))));
+    let mut index_damage = bytes;
+    let at = index_damage.len() - 40;
+    index_damage[at] ^= 1;
+    assert!(matches!(open_bytes(&index_damage).unwrap_err().violation(), Some(FormatViolation::Checksum("index"))));
+}
+
+#[test]
+fn limits_are_checked_before_allocating() {
+    let models = froctomap_temporal::ModelRegistry::with_default_models();
+    let limits = froctomap_file::ReadLimits { max_cells_per_tile: 1, ..Default::default() };
+    let reader = FroctReader::open_with_limits(&golden_path(), limits, &models).unwrap();
+    let busiest = (0..reader.tiles().len()).max_by_key(|&i| reader.tiles()[i].cell_count).unwrap();
+    assert!(reader.tiles()[busiest].cell_count > 1);
+    let err = reader.read_tile(busiest).unwrap_err();
+    assert!(matches!(err.violation(), Some(FormatViolation::Limit { what: "cells per tile", .. })), "{err}");
+    let limits = froctomap_file::ReadLimits { max_header_bytes: 10, ..Default::default() };
+    let err = FroctReader::open_with_limits(&golden_path(), limits, &models).unwrap_err();
+    assert!(matches!(err.violation(), Some(FormatViolation::Limit { what: "header length", .. })), "{err}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Any flipped bits anywhere: opening and reading every tile ends in values or errors.
+    #[test]
+    fn random_bit_flips_never_panic(flips in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..8), 1..5)) {
+        let mut bytes = std::fs::read(golden_path()).unwrap();
+        for (index, bit) in flips {
+            let i = index.index(bytes.len());
+            bytes[i] ^= 1 << bit;
+        }
+        let _ = read_all(&bytes);
+    }
+}

@@ -1,0 +1,76 @@
+//! The golden file `fixtures/froct/golden-v1.0.froct`, written by version 1.0, must stay
+//! readable by every later version, with the same content.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use common::*;
+use froctomap_file::{FroctReader, MAJOR_VERSION};
+
+/// The golden file is regenerated only on purpose: `FROCTOMAP_REGENERATE_GOLDEN=1 cargo test
+/// -p froctomap-file --test golden`. Otherwise the writer must reproduce it byte for byte.
+#[test]
+fn writer_reproduces_the_golden_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fresh = dir.path().join("golden.froct");
+    write_golden(&fresh);
+    let fresh = std::fs::read(&fresh).unwrap();
+    if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
+        std::fs::write(golden_path(), &fresh).unwrap();
+    }
+    let committed = std::fs::read(golden_path()).expect("the golden file is committed");
+    assert!(
+        committed == fresh,
+        "the writer's output differs from fixtures/froct/golden-v1.0.froct; if the format \
+         changed on purpose, bump the version, keep reading the old golden file, and add a new one"
+    );
+}
+
+#[test]
+fn golden_file_reads_back_every_observed_state() {
+    let reader = FroctReader::open(&golden_path()).unwrap();
+    let header = reader.header();
+    assert_eq!(header.version, (MAJOR_VERSION, 0));
+    assert_eq!(header.axis, golden_axis());
+    assert_eq!(header.tile_depth, GOLDEN_TILE_DEPTH);
+    assert_eq!(header.metadata["creator"], "froctomap-file tests");
+    assert_eq!(reader.tiles().len(), 3);
+    let expected = golden_cells();
+    let mut decoded = Vec::new();
+    for tile in 0..reader.tiles().len() {
+        decoded.extend(reader.read_tile(tile).unwrap());
+    }
+    assert_eq!(decoded.len(), expected.len());
+    let axis = golden_axis();
+    for (cell, series) in decoded.iter().zip(&expected) {
+        assert_eq!((cell.start, cell.depth), (series.start, series.depth));
+        for sample in 0..axis.len() {
+            let truth = if axis.is_missing(sample) { None } else { series.observations.state_at(sample) };
+            assert_eq!(cell.state_at(&axis, reader.model(), sample), truth, "cell {:?} sample {sample}", cell.start);
+        }
+    }
+}
+
+#[test]
+fn region_queries_read_only_what_they_need() {
+    let reader = FroctReader::open(&golden_path()).unwrap();
+    let o = 32768u16;
+    let door = froctomap_core::VoxelKey::new(o + 4, o, o);
+    // One tile holds the door; the box around it touches no other tile.
+    assert_eq!(reader.tiles_in_box(door, door).len(), 1);
+    let axis = golden_axis();
+    for sample in [3u32, 12, 40] {
+        let states = reader.region_states(door, door, sample).unwrap();
+        let expected = golden_cells().into_iter().find(|c| c.start == door.morton()).unwrap();
+        let truth = if axis.is_missing(sample) { None } else { expected.observations.state_at(sample) };
+        assert_eq!(states.iter().find(|c| c.start == door.morton()).map(|c| c.value), truth, "sample {sample}");
+    }
+    // Probabilities exist at any instant, also far in the future, and stay in [0, 1].
+    for seconds in [-3600.0, 1800.0, 86_400.0 * 30.0] {
+        let p = reader.region_probabilities(door, door, seconds).unwrap();
+        assert!(!p.is_empty() && p.iter().all(|c| (0.0..=1.0).contains(&c.value)));
+    }
+    // A box far away touches nothing.
+    let far = froctomap_core::VoxelKey::new(100, 100, 100);
+    assert!(reader.region_states(far, far, 0).unwrap().is_empty());
+}

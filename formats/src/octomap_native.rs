@@ -1,0 +1,98 @@
+//! OctoMap `.bt` and `.ot` through froctomap's own Rust codec (`froctomap-octomap-codec`):
+//! the default backend.
+//!
+//! Reading streams the file's leaves straight from its bit stream into a [`Snapshot`];
+//! writing emits the bytes upstream would write for the same tree (including upstream's
+//! partial pruning of `.bt` output). Both are checked against the upstream plugins
+//! ([`crate::octomap_upstream`]) leaf for leaf and byte for byte by the differential tests,
+//! and give the same warnings and error messages.
+
+use crate::error::PluginError;
+use crate::registry::{Backend, Confidence, MapFormat, MapReader, MapWriter, ReadMap};
+use froctomap_core::{MapError, Snapshot};
+use froctomap_octomap_codec::{
+    decode, detect_kind, encode_binary, encode_full, looks_like_legacy_binary, CodecError,
+    FileKind, ReadLimits,
+};
+use std::io::Write;
+
+/// OctoMap binary (`.bt`): occupied/free states, read and written in Rust.
+pub const BINARY: MapFormat = MapFormat {
+    name: "bt",
+    description: "OctoMap binary tree (.bt): maximum-likelihood states, native Rust codec",
+    backend: Backend::Native,
+    extensions: &["bt"],
+    probe: probe_binary,
+    reader: Some(|| Box::new(NativeReader(FileKind::Binary))),
+    writer: Some(|| Box::new(NativeWriter(FileKind::Binary))),
+};
+
+/// OctoMap full (`.ot`): log-odds per node, read and written in Rust.
+pub const FULL: MapFormat = MapFormat {
+    name: "ot",
+    description: "OctoMap full tree (.ot): log-odds occupancy per node, native Rust codec",
+    backend: Backend::Native,
+    extensions: &["ot"],
+    probe: probe_full,
+    reader: Some(|| Box::new(NativeReader(FileKind::Full))),
+    writer: Some(|| Box::new(NativeWriter(FileKind::Full))),
+};
+
+/// Recognises a `.bt` by its first line, or weakly by the pre-1.4 headerless layout.
+pub(crate) fn probe_binary(bytes: &[u8]) -> Confidence {
+    match detect_kind(bytes) {
+        Some(FileKind::Binary) => Confidence::Certain,
+        None if looks_like_legacy_binary(bytes) => Confidence::Weak,
+        _ => Confidence::No,
+    }
+}
+
+/// Recognises a `.ot` by its first line.
+pub(crate) fn probe_full(bytes: &[u8]) -> Confidence {
+    match detect_kind(bytes) {
+        Some(FileKind::Full) => Confidence::Certain,
+        _ => Confidence::No,
+    }
+}
+
+/// Why the native codec could not read a file. The messages are those of the upstream
+/// plugin's errors for the same causes, so switching backends never changes what users see.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NativeError {
+    /// The bytes are not a readable OctoMap file.
+    #[error(transparent)]
+    Malformed(#[from] CodecError),
+    /// The file is well-formed but its leaves are not a valid map (e.g. a NaN log-odds).
+    #[error("invalid map: {0}")]
+    InvalidMap(#[from] MapError),
+}
+
+struct NativeReader(FileKind);
+
+impl MapReader for NativeReader {
+    fn read(&self, bytes: &[u8]) -> Result<ReadMap, PluginError> {
+        let tree = decode(bytes, Some(self.0), ReadLimits::default()).map_err(NativeError::from)?;
+        let snapshot = Snapshot::from_leaves(tree.header.resolution, tree.leaves)
+            .map_err(NativeError::from)?;
+        Ok(ReadMap {
+            snapshot,
+            node_count: tree.node_count,
+            warnings: tree.warnings,
+        })
+    }
+}
+
+struct NativeWriter(FileKind);
+
+impl MapWriter for NativeWriter {
+    fn write(&self, snapshot: &Snapshot, out: &mut dyn Write) -> Result<(), PluginError> {
+        let bytes = match self.0 {
+            // Byte-identical to upstream's writeBinary (maximum likelihood + its prune()).
+            FileKind::Binary => encode_binary(snapshot),
+            FileKind::Full => encode_full(snapshot),
+        };
+        out.write_all(&bytes)?;
+        Ok(())
+    }
+}
