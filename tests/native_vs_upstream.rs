@@ -424,11 +424,13 @@ fn prune_quirks_are_reproduced() {
     leaves.extend(group(node(256, 15), 2.0));
     assert_eq!(leaves_after_write(leaves), [13, 13, 13, 13, 13, 13, 13, 13, 15]);
     // Every depth merges down to depth 1, leaving eight equal depth-1 leaves: the root
-    // never absorbs them.
-    let mut leaves = group(node(0, 0), 3.0);
-    let last = leaves.pop().unwrap();
-    leaves.extend(cascade(last, 3.0));
-    assert_eq!(leaves_after_write(leaves), [1; 8]);
+    // never absorbs them, whether the merging subtree comes first or last.
+    for which in [0, 7] {
+        let mut leaves = group(node(0, 0), 3.0);
+        let merging = leaves.remove(which);
+        leaves.extend(cascade(merging, 3.0));
+        assert_eq!(leaves_after_write(leaves), [1; 8]);
+    }
 }
 
 /// Runs of the native scan agree with the voxel states upstream reports.

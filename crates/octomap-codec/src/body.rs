@@ -19,9 +19,7 @@
 
 use crate::error::CodecError;
 use crate::header::FileKind;
-use froctomap_core::{
-    free_log_odds, occupied_log_odds, voxels_per_node, Leaf, MortonCode, TREE_DEPTH,
-};
+use froctomap_core::{free_log_odds, occupied_log_odds, Leaf, MortonCode, TREE_DEPTH};
 
 /// Resource bounds for reading untrusted files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -133,15 +131,15 @@ impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
             return Ok(());
         }
         let child_depth = depth + 1;
-        let child_size = voxels_per_node(child_depth);
-        for child in 0..8u64 {
-            let code = (codes >> (2 * child)) & 3;
-            if code == 0 {
-                continue;
-            }
+        let child_shift = 3 * u32::from(TREE_DEPTH - child_depth);
+        // Visit only the children that exist: the low bit of each non-zero 2-bit code.
+        let mut present = (codes | codes >> 1) & 0x5555;
+        while present != 0 {
+            let bit = present.trailing_zeros();
+            present &= present - 1;
             self.count_node()?;
-            let child_start = start + child * child_size;
-            match code {
+            let child_start = start + (u64::from(bit / 2) << child_shift);
+            match (codes >> bit) & 3 {
                 1 => self.emit(child_start, child_depth, self.free),
                 2 => self.emit(child_start, child_depth, self.occupied),
                 _ if child_depth >= TREE_DEPTH => return Err(CodecError::TooDeep { offset }),
@@ -164,12 +162,13 @@ impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
             return Err(CodecError::TooDeep { offset });
         }
         let child_depth = depth + 1;
-        let child_size = voxels_per_node(child_depth);
-        for child in 0..8u64 {
-            if mask & (1 << child) != 0 {
-                self.count_node()?;
-                self.full_node(child_depth, start + child * child_size)?;
-            }
+        let child_shift = 3 * u32::from(TREE_DEPTH - child_depth);
+        let mut present = mask;
+        while present != 0 {
+            let child = present.trailing_zeros();
+            present &= present - 1;
+            self.count_node()?;
+            self.full_node(child_depth, start + (u64::from(child) << child_shift))?;
         }
         Ok(())
     }

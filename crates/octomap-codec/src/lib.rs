@@ -67,7 +67,7 @@ pub fn decode(
     kind: Option<FileKind>,
     limits: ReadLimits,
 ) -> Result<DecodedTree, CodecError> {
-    let mut leaves = Vec::new();
+    let mut leaves = Vec::with_capacity(leaf_capacity_hint(bytes, kind, limits));
     let summary = scan(bytes, kind, limits, &mut |leaf| leaves.push(leaf))?;
     Ok(DecodedTree {
         header: summary.header,
@@ -76,6 +76,30 @@ pub fn decode(
         data_end: summary.data_end,
         warnings: summary.warnings,
     })
+}
+
+/// How many leaves to reserve room for: the header's node count (an upper bound on the
+/// leaves of a well-formed file), capped by what the body's length can hold and by the node
+/// limit, so a lying header cannot cause a large allocation. Growing the vector instead
+/// costs more than the walk itself on large files.
+fn leaf_capacity_hint(bytes: &[u8], kind: Option<FileKind>, limits: ReadLimits) -> usize {
+    let kind = kind
+        .or_else(|| detect_kind(bytes))
+        .unwrap_or(FileKind::Binary);
+    let Ok(header) = parse_header(bytes, kind) else {
+        return 0;
+    };
+    let body = bytes.len().saturating_sub(header.body_offset) as u64;
+    let most_leaves = match kind {
+        // Every 2 bytes describe at most 8 children.
+        FileKind::Binary => body.saturating_mul(4),
+        // Every node takes 5 bytes.
+        FileKind::Full => body / 5,
+    };
+    let hint = u64::from(header.declared_size)
+        .min(most_leaves)
+        .min(limits.max_nodes);
+    usize::try_from(hint).unwrap_or(0)
 }
 
 /// What [`scan`] found, without the leaves.

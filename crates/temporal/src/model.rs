@@ -225,7 +225,8 @@ pub trait PreparedModel: Send + Sync {
     fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64;
 
     /// `p` at sample `sample`, computed exactly as the outlier set was (deterministically,
-    /// from the encoded parameters), in `[0, 1]`.
+    /// from the encoded parameters), in `[0, 1]`. Beyond the axis, a regular grid is
+    /// extrapolated and an explicit axis repeats its last instant.
     fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64;
 
     /// The state at a sample: exact for observed samples in lossless mode, the thresholded
@@ -239,6 +240,10 @@ pub trait PreparedModel: Send + Sync {
     fn predicted_state(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> Occupancy {
         occupancy(self.probability(voxel, seconds_since_axis_start) > 0.5)
     }
+
+    /// Period in seconds of a component of this model (`None` when the model has no such
+    /// component).
+    fn period_seconds(&self, component: &crate::Component) -> Option<f64>;
 
     /// Appends the voxel's encoding (layout in the crate docs).
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>);
@@ -275,6 +280,17 @@ pub(crate) const PARAMETERS_VERSION: u8 = 1;
 pub(crate) fn write_parameters_header(out: &mut Vec<u8>, mode: OutlierMode) {
     out.push(PARAMETERS_VERSION);
     out.push(mode.to_byte());
+}
+
+/// Fails when bytes are left after a complete parameter block.
+pub(crate) fn expect_end(r: &Reader<'_>) -> Result<(), TemporalError> {
+    if r.remaining() == 0 {
+        Ok(())
+    } else {
+        Err(TemporalError::Malformed(
+            "model parameters (trailing bytes)",
+        ))
+    }
 }
 
 /// Reads the common parameter header.

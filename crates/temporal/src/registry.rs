@@ -100,6 +100,37 @@ impl ModelRegistry {
 mod tests {
     use super::*;
 
+    // Prepared models are shared across fitting threads.
+    const _: () = {
+        const fn shared<T: Send + Sync + ?Sized>() {}
+        shared::<dyn PreparedModel>();
+        shared::<dyn TemporalModel>();
+        shared::<crate::models::PreparedFremenRegular>();
+        shared::<crate::models::PreparedFremenPeriods>();
+        shared::<ModelRegistry>();
+    };
+
+    #[test]
+    fn parameters_with_trailing_bytes_are_rejected() {
+        let axis = TimeAxis::regular(froctomap_core::Timestamp(0), 1, 10, vec![]).unwrap();
+        let registry = ModelRegistry::with_default_models();
+        for d in registry.iter() {
+            let prepared = d.create().prepare(&axis, &Default::default()).unwrap();
+            let mut params = prepared.encode_parameters();
+            assert!(registry
+                .prepare_from_parameters(d.id, &axis, &params)
+                .is_ok());
+            params.push(0);
+            assert!(registry
+                .prepare_from_parameters(d.id, &axis, &params)
+                .is_err());
+        }
+        assert!(matches!(
+            registry.prepare_from_parameters(ModelId(77), &axis, &[1, 0]),
+            Err(TemporalError::UnknownModel(ModelId(77)))
+        ));
+    }
+
     #[test]
     fn defaults_are_distinct_and_consistent() {
         let registry = ModelRegistry::with_default_models();

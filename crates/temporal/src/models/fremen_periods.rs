@@ -2,7 +2,7 @@
 
 use super::SpectralLine;
 use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
-use crate::model::{read_parameters_header, write_parameters_header};
+use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::trig::cos_sin_turns;
 use crate::varint::{self, Reader};
 use crate::{
@@ -120,6 +120,7 @@ impl TemporalModel for FremenPeriods {
             }
             periods.push(p);
         }
+        expect_end(&r)?;
         Ok(Box::new(PreparedFremenPeriods::new(
             axis,
             periods,
@@ -352,6 +353,10 @@ impl PreparedModel for PreparedFremenPeriods {
         // Exactly the evaluator's computation for this sample.
         let t = self.axis.sample_seconds(sample);
         canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency(c.frequency))).clamp(0.0, 1.0)
+    }
+
+    fn period_seconds(&self, component: &Component) -> Option<f64> {
+        self.periods.get(component.frequency as usize).copied()
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {

@@ -2,7 +2,7 @@
 
 use super::SpectralLine;
 use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
-use crate::model::{read_parameters_header, write_parameters_header};
+use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::trig::cos_sin_turns;
 use crate::varint::Reader;
 use crate::{
@@ -92,6 +92,7 @@ impl TemporalModel for FremenRegular {
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
         let mut r = Reader::new(parameters);
         let mode = read_parameters_header(&mut r)?;
+        expect_end(&r)?;
         Ok(Box::new(PreparedFremenRegular::new(
             axis,
             &ModelConfig::default(),
@@ -361,6 +362,11 @@ impl PreparedModel for PreparedFremenRegular {
             self.root_at(r)
         })
         .clamp(0.0, 1.0)
+    }
+
+    fn period_seconds(&self, component: &Component) -> Option<f64> {
+        (component.frequency > 0 && component.frequency <= self.n / 2)
+            .then(|| self.base_seconds / f64::from(component.frequency))
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {

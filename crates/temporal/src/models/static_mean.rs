@@ -1,7 +1,7 @@
 //! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
 
 use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
-use crate::model::{read_parameters_header, write_parameters_header};
+use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::varint::Reader;
 use crate::{
     Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, Order, OutlierMode,
@@ -61,6 +61,7 @@ impl TemporalModel for StaticMean {
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
         let mut r = Reader::new(parameters);
         let mode = read_parameters_header(&mut r)?;
+        expect_end(&r)?;
         Ok(Box::new(PreparedStaticMean {
             axis: axis.clone(),
             mode,
@@ -131,6 +132,10 @@ impl PreparedModel for PreparedStaticMean {
 
     fn probability_at_sample(&self, voxel: &FittedVoxel, _sample: u32) -> f64 {
         canonical_sum(voxel, |_| (0.0, 0.0)).clamp(0.0, 1.0)
+    }
+
+    fn period_seconds(&self, _component: &Component) -> Option<f64> {
+        None
     }
 
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {

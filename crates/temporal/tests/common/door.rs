@@ -236,15 +236,30 @@ pub fn encodings(door: &Door) -> Result<Vec<Encoding>, Box<dyn Error>> {
     use froctomap_temporal::models::{FremenPeriods, FremenRegular, StaticMean};
     let cases: [(&str, &dyn TemporalModel, &TimeAxis, &VoxelObservations); 3] = [
         ("static", &StaticMean, &door.regular_axis, &door.regular_obs),
-        ("fremen-regular", &FremenRegular, &door.regular_axis, &door.regular_obs),
-        ("fremen-periods", &FremenPeriods, &door.explicit_axis, &door.explicit_obs),
+        (
+            "fremen-regular",
+            &FremenRegular,
+            &door.regular_axis,
+            &door.regular_obs,
+        ),
+        (
+            "fremen-periods",
+            &FremenPeriods,
+            &door.explicit_axis,
+            &door.explicit_obs,
+        ),
     ];
     let mut out = Vec::new();
     for (name, model, axis, obs) in cases {
         let orders: &[Order] = if name == "static" {
             &[Order::Fixed(0)]
         } else {
-            &[Order::Fixed(1), Order::Fixed(3), Order::Fixed(5), Order::Auto { max: 5 }]
+            &[
+                Order::Fixed(1),
+                Order::Fixed(3),
+                Order::Fixed(5),
+                Order::Auto { max: 5 },
+            ]
         };
         for &order in orders {
             let prepared = model.prepare(axis, &ModelConfig::default().with_order(order))?;
@@ -254,7 +269,7 @@ pub fn encodings(door: &Door) -> Result<Vec<Encoding>, Box<dyn Error>> {
             let periods = voxel
                 .components()
                 .iter()
-                .map(|c| 1.0 / prepared_rate(prepared.as_ref(), c.frequency, axis))
+                .map(|c| prepared.period_seconds(c).unwrap_or(f64::NAN))
                 .collect();
             out.push(Encoding {
                 label: format!("{name} {order:?}"),
@@ -267,26 +282,4 @@ pub fn encodings(door: &Door) -> Result<Vec<Encoding>, Box<dyn Error>> {
         }
     }
     Ok(out)
-}
-
-/// Turns per second of a component, recovered through the public probability function:
-/// for display only (periods in hours), so it reads the model id instead.
-fn prepared_rate(model: &dyn PreparedModel, frequency: u32, axis: &TimeAxis) -> f64 {
-    use froctomap_temporal::ModelId;
-    match model.id() {
-        ModelId::FREMEN_REGULAR => {
-            let step = axis.step_ns().unwrap_or(1) as f64 / 1e9;
-            f64::from(frequency) / (f64::from(axis.len()) * step)
-        }
-        _ => {
-            // fremen-periods: the parameter block lists the periods after the header.
-            let params = model.encode_parameters();
-            let start = 2 + 2; // header + one-byte varint count (24 periods here)
-            let at = start + 8 * frequency as usize;
-            params
-                .get(at..at + 8)
-                .and_then(|b| b.try_into().ok())
-                .map_or(f64::NAN, |b: [u8; 8]| 1.0 / f64::from_le_bytes(b))
-        }
-    }
 }
