@@ -50,6 +50,7 @@ pub(crate) trait Spectral: Send + Sync {
 pub(crate) struct FitSettings {
     pub order: Order,
     pub mode: OutlierMode,
+    pub criterion: crate::OrderCriterion,
     pub holdout_fraction: f64,
 }
 
@@ -106,7 +107,9 @@ pub(crate) fn fit_voxel<S: Spectral>(
             let comps = quantise(&model.candidates(obs, mean, max));
             finish(model, mean_q, comps, obs, OrderChoice::Single(max), mode)
         }
-        (Order::Auto { .. }, OutlierMode::Lossless) => {
+        (Order::Auto { .. }, OutlierMode::Lossless)
+            if settings.criterion == crate::OrderCriterion::SmallestFile =>
+        {
             let comps = quantise(&model.candidates(obs, mean, max));
             finish(
                 model,
@@ -117,17 +120,10 @@ pub(crate) fn fit_voxel<S: Spectral>(
                 OutlierMode::Lossless,
             )
         }
-        (Order::Auto { .. }, OutlierMode::Lossy) => {
+        (Order::Auto { .. }, mode) => {
             let m = holdout_order(model, obs, max, settings.holdout_fraction);
             let comps = quantise(&model.candidates(obs, mean, m));
-            finish(
-                model,
-                mean_q,
-                comps,
-                obs,
-                OrderChoice::Single(m),
-                OutlierMode::Lossy,
-            )
+            finish(model, mean_q, comps, obs, OrderChoice::Single(m), mode)
         }
     }
 }

@@ -34,8 +34,9 @@
 //!   sample units ([`varint`]), not absolute `u32`s. The encoder thresholds `p` computed from
 //!   the *quantised* parameters with a deterministic cos/sin ([`trig`]), exactly as a decoder
 //!   on any machine will, so lossless means bit-exact everywhere.
-//! - **Model order per voxel.** [`Order::Fixed`] or [`Order::Auto`]: the smallest encoded
-//!   voxel (lossless) or the best held-out prediction (lossy); see [`Order`].
+//! - **Model order per voxel.** [`Order::Fixed`] or [`Order::Auto`]: the best held-out
+//!   prediction (default, also in lossless files) or the smallest encoded voxel
+//!   ([`OrderCriterion`]); see [`Order`].
 //!
 //! # Plugins
 //!
@@ -124,7 +125,9 @@ pub mod varint;
 pub use axis::{AxisKind, TimeAxis};
 pub use error::TemporalError;
 pub use fitted::{Component, FittedVoxel, MAX_COMPONENTS};
-pub use model::{ModelConfig, ModelId, Order, OutlierMode, PreparedModel, TemporalModel};
+pub use model::{
+    ModelConfig, ModelId, Order, OrderCriterion, OutlierMode, PreparedModel, TemporalModel,
+};
 pub use observations::{ObservationsBuilder, Run, VoxelObservations};
 pub use registry::{ModelDescriptor, ModelRegistry};
 pub use toggles::{ToggleBuilder, Toggles, MAX_TOGGLES};

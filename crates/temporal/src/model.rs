@@ -30,15 +30,18 @@ pub enum Order {
     /// At most this many (fewer when fewer usable frequencies exist or amplitudes quantise
     /// to zero). `Fixed(0)` is the mean alone.
     Fixed(u8),
-    /// Chosen per voxel among `0..=max`:
-    /// - [`OutlierMode::Lossless`]: the order with the smallest encoded voxel (parameters +
-    ///   toggles), ties to the lower order; this is the most compact exact representation.
-    ///   Block-like series (long runs) often come out at order 0 or 1: toggles at the run
-    ///   edges are cheaper than sinusoids whose threshold crossings miss the edges.
-    /// - [`OutlierMode::Lossy`]: the order with the smallest held-out squared error of
-    ///   `p(t)`: the model is fitted on the first `1 − holdout_fraction` of the voxel's
-    ///   observed samples and scored (Brier score) on the rest, ties to the lower order; the
-    ///   chosen order is then refitted on all samples. This targets prediction, not size.
+    /// Chosen per voxel among `0..=max` by [`ModelConfig::criterion`]:
+    /// - [`OrderCriterion::Prediction`] (default): the order with the smallest held-out
+    ///   squared error of `p(t)`: the model is fitted on the first `1 − holdout_fraction` of
+    ///   the voxel's observed samples and scored (Brier score) on the rest, ties to the lower
+    ///   order; the chosen order is then refitted on all samples. This targets prediction;
+    ///   in lossless mode the outliers still make the states exact.
+    /// - [`OrderCriterion::SmallestFile`] (lossless only; lossy falls back to prediction):
+    ///   the order with the smallest encoded voxel (parameters + toggles), ties to the lower
+    ///   order; the most compact exact representation. Block-like series (long runs) often
+    ///   come out at order 0 or 1: toggles at the run edges are cheaper than sinusoids
+    ///   whose threshold crossings miss the edges, so such files predict no better than the
+    ///   mean.
     Auto {
         /// Highest order tried.
         max: u8,
@@ -52,6 +55,16 @@ impl Order {
             Order::Fixed(n) | Order::Auto { max: n } => n,
         }
     }
+}
+
+/// How [`Order::Auto`] chooses a voxel's order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum OrderCriterion {
+    /// Best held-out prediction (default): the file predicts as well as it can.
+    #[default]
+    Prediction,
+    /// Smallest encoded voxel (lossless mode): the file is as small as it can be.
+    SmallestFile,
 }
 
 /// Whether the exact states are kept.
@@ -98,6 +111,8 @@ pub struct ModelConfig {
     pub order: Order,
     /// Keep exact states or not. Default lossless.
     pub outliers: OutlierMode,
+    /// How `Order::Auto` picks each voxel's order. Default [`OrderCriterion::Prediction`].
+    pub criterion: OrderCriterion,
     /// Extra candidate periods in seconds for [`FremenPeriods`](crate::models::FremenPeriods),
     /// added to `base_period / k` for `k = 1..=harmonics`. Default none.
     pub periods: Vec<f64>,
@@ -120,6 +135,7 @@ impl Default for ModelConfig {
         Self {
             order: Order::Auto { max: 5 },
             outliers: OutlierMode::Lossless,
+            criterion: OrderCriterion::Prediction,
             periods: Vec::new(),
             base_period: 604_800.0,
             harmonics: 24,
@@ -132,6 +148,12 @@ impl Default for ModelConfig {
 impl ModelConfig {
     /// Most candidate periods accepted (harmonics plus extra periods).
     pub const MAX_PERIODS: usize = 4096;
+
+    /// This configuration with another order criterion.
+    pub fn with_criterion(mut self, criterion: OrderCriterion) -> Self {
+        self.criterion = criterion;
+        self
+    }
 
     /// This configuration with another order.
     pub fn with_order(mut self, order: Order) -> Self {

@@ -315,14 +315,16 @@ proptest! {
         }
     }
 
-    /// `Auto` in lossless mode gives the smallest encoding among the fixed orders.
+    /// `Auto` with the smallest-file criterion gives the smallest lossless encoding among
+    /// the fixed orders.
     #[test]
-    fn auto_lossless_is_smallest(samples in series(300), max in 0u8..5) {
+    fn auto_smallest_file_is_smallest(samples in series(300), max in 0u8..5) {
         let axis = regular_axis(&samples);
         let obs = observations(&samples);
         for model in [&FremenRegular as &dyn TemporalModel, &FremenPeriods] {
             let size = |order| -> Result<usize, TemporalError> {
-                let p = model.prepare(&axis, &test_config(order, OutlierMode::Lossless))?;
+                let config = test_config(order, OutlierMode::Lossless).with_criterion(OrderCriterion::SmallestFile);
+                let p = model.prepare(&axis, &config)?;
                 let mut out = Vec::new();
                 p.encode_voxel(&p.fit(&obs)?, &mut out);
                 Ok(out.len())
@@ -330,6 +332,23 @@ proptest! {
             let auto = size(Order::Auto { max })?;
             let best = (0..=max).map(|m| size(Order::Fixed(m))).collect::<Result<Vec<_>, _>>()?;
             prop_assert_eq!(Some(&auto), best.iter().min());
+        }
+    }
+
+    /// With the default prediction criterion, a lossless voxel keeps exactly the model a
+    /// lossy file would keep (plus its outliers), so lossless files predict as well.
+    #[test]
+    fn auto_prediction_keeps_the_lossy_model_in_lossless_files(samples in series(300), max in 1u8..5) {
+        let axis = regular_axis(&samples);
+        let obs = observations(&samples);
+        for model in [&FremenRegular as &dyn TemporalModel, &FremenPeriods] {
+            let fit = |mode| -> Result<FittedVoxel, TemporalError> {
+                let p = model.prepare(&axis, &test_config(Order::Auto { max }, mode))?;
+                p.fit(&obs)
+            };
+            let (lossless, lossy) = (fit(OutlierMode::Lossless)?, fit(OutlierMode::Lossy)?);
+            prop_assert_eq!(lossless.components(), lossy.components());
+            prop_assert_eq!(lossless.mean_q(), lossy.mean_q());
         }
     }
 

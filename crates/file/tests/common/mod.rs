@@ -107,8 +107,12 @@ pub fn golden_cells() -> Vec<SeriesCell> {
     cells
 }
 
+/// Every setting spelled out, so a change of defaults does not change the golden file.
 pub fn golden_config() -> ModelConfig {
-    ModelConfig::default().with_outliers(OutlierMode::Lossless)
+    ModelConfig::default()
+        .with_outliers(OutlierMode::Lossless)
+        .with_order(froctomap_temporal::Order::Auto { max: 3 })
+        .with_criterion(froctomap_temporal::OrderCriterion::Prediction)
 }
 
 /// Writes the golden file to `path`.

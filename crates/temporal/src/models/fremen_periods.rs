@@ -154,6 +154,7 @@ impl PreparedFremenPeriods {
             settings: FitSettings {
                 order: config.order,
                 mode,
+                criterion: config.criterion,
                 holdout_fraction: config.holdout_fraction,
             },
             min_cycles: config.min_cycles,

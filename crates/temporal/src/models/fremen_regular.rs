@@ -163,6 +163,7 @@ impl PreparedFremenRegular {
             settings: FitSettings {
                 order: config.order,
                 mode,
+                criterion: config.criterion,
                 holdout_fraction: config.holdout_fraction,
             },
             min_cycles: config.min_cycles,

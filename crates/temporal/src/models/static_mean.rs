@@ -121,6 +121,7 @@ impl PreparedModel for PreparedStaticMean {
         let settings = FitSettings {
             order: Order::Fixed(0),
             mode: self.mode,
+            criterion: crate::OrderCriterion::Prediction,
             holdout_fraction: 0.5,
         };
         Ok(fit_voxel(self, &settings, obs))
