@@ -139,7 +139,10 @@ fn geb079_reads_and_writes_identically() {
     let read = assert_backends_agree("geb079.bt", &bytes).unwrap();
     assert_eq!(read.map.snapshot.leaves().len(), 428_144);
     let (bt, ot) = assert_writers_agree("geb079", &read.map.snapshot);
-    assert!(bt == bytes, "geb079.bt is canonical: rewriting it changes nothing");
+    assert!(
+        bt == bytes,
+        "geb079.bt is canonical: rewriting it changes nothing"
+    );
     let from_ot = assert_backends_agree("geb079.ot", &ot).unwrap();
     assert_eq!(from_ot.map.snapshot, read.map.snapshot);
 }
@@ -422,7 +425,10 @@ fn prune_quirks_are_reproduced() {
     // A merge at depth 15 but none at 14 stops the prune before eight equal depth-13 leaves.
     let mut leaves = group(node(0, 12), 2.0);
     leaves.extend(group(node(256, 15), 2.0));
-    assert_eq!(leaves_after_write(leaves), [13, 13, 13, 13, 13, 13, 13, 13, 15]);
+    assert_eq!(
+        leaves_after_write(leaves),
+        [13, 13, 13, 13, 13, 13, 13, 13, 15]
+    );
     // Every depth merges down to depth 1, leaving eight equal depth-1 leaves: the root
     // never absorbs them, whether the merging subtree comes first or last.
     for which in [0, 7] {
@@ -431,6 +437,100 @@ fn prune_quirks_are_reproduced() {
         leaves.extend(cascade(merging, 3.0));
         assert_eq!(leaves_after_write(leaves), [1; 8]);
     }
+}
+
+/// Edge trees: empty, a root without children (free or occupied: upstream writes a `.bt`
+/// root without child codes, which reads back occupied either way), single voxels at the
+/// corners of the key space, and one coarse leaf at every depth.
+#[test]
+fn edge_trees_read_and_write_identically() {
+    let root = |log_odds: f32| Leaf {
+        start: MortonCode(0),
+        depth: 0,
+        log_odds,
+    };
+    let mut maps = vec![
+        vec![],
+        vec![root(-2.0)],
+        vec![root(3.5)],
+        vec![root(-0.0)],
+        vec![Leaf::voxel(VoxelKey::new(0, 0, 0), 1.0)],
+        vec![Leaf::voxel(
+            VoxelKey::new(u16::MAX, u16::MAX, u16::MAX),
+            -1.0,
+        )],
+    ];
+    for depth in 1..=TREE_DEPTH {
+        maps.push(vec![Leaf::containing(
+            VoxelKey::new(40000, 9, 65000),
+            depth,
+            0.5,
+        )]);
+    }
+    for leaves in maps {
+        let snapshot = Snapshot::from_leaves(0.2, leaves).unwrap();
+        let (bt, ot) = assert_writers_agree("edge tree", &snapshot);
+        let from_bt = assert_backends_agree("edge.bt", &bt).unwrap();
+        let from_ot = assert_backends_agree("edge.ot", &ot).unwrap();
+        assert_eq!(from_ot.map.snapshot, snapshot);
+        if let [leaf] = snapshot.leaves() {
+            if leaf.depth == 0 {
+                assert!(from_bt.map.snapshot.leaves()[0].occupancy().is_occupied());
+                continue;
+            }
+        }
+        assert!(from_bt
+            .map
+            .snapshot
+            .same_voxel_states(&snapshot.to_max_likelihood()));
+    }
+}
+
+/// Hostile structure is refused by both backends alike, before anything large happens.
+#[test]
+fn deep_chains_and_node_floods_fail_alike() {
+    let header = |size: usize| {
+        format!("# Octomap OcTree binary file\nid OcTree\nsize {size}\nres 0.1\ndata\n")
+            .into_bytes()
+    };
+    let mut deep = header(1_000_001);
+    deep.extend(std::iter::repeat_n([0b11u8, 0], 1_000_000).flatten());
+    let err = assert_backends_agree("deep.bt", &deep).unwrap_err();
+    assert!(err.contains("depth 16"), "{err}");
+    // Every inner node has eight inner children down to depth 15, whose eight voxels are
+    // occupied: 8^16 leaves claimed, cut off after 200 kB. Refused as truncated, in time.
+    fn claim_everything(depth: u8, out: &mut Vec<u8>) {
+        if out.len() >= 200_000 {
+            return;
+        }
+        if depth == 15 {
+            out.extend([0xAA, 0xAA]);
+            return;
+        }
+        out.extend([0xFF, 0xFF]);
+        for _ in 0..8 {
+            claim_everything(depth + 1, out);
+        }
+    }
+    let mut flood = header(4_000_000_000);
+    claim_everything(0, &mut flood);
+    let err = assert_backends_agree("flood.bt", &flood).unwrap_err();
+    assert!(err.contains("truncated"), "{err}");
+    // With a node limit below what the prefix holds, the limit is what stops it.
+    let limited = froctomap_octomap_codec::decode(&flood, None, ReadLimits { max_nodes: 50_000 });
+    assert!(
+        matches!(
+            limited,
+            Err(froctomap_octomap_codec::CodecError::TooManyNodes { limit: 50_000 })
+        ),
+        "{limited:?}"
+    );
+    assert!(matches!(
+        OcTree::read_binary_with_limits(&flood, ReadLimits { max_nodes: 50_000 }),
+        Err(froctomap_octomap_ffi::OctomapError::Malformed(
+            froctomap_octomap_codec::CodecError::TooManyNodes { .. }
+        ))
+    ));
 }
 
 /// Runs of the native scan agree with the voxel states upstream reports.
@@ -443,7 +543,10 @@ fn voxel_runs_cover_the_same_voxels_as_upstream_leaves() {
         .to_snapshot()
         .unwrap();
     let mut runs = Vec::new();
-    scan_runs(&bytes, None, ReadLimits::default(), &mut |run| runs.push(run)).unwrap();
+    scan_runs(&bytes, None, ReadLimits::default(), &mut |run| {
+        runs.push(run)
+    })
+    .unwrap();
     let covered: u64 = runs.iter().map(|r| r.len()).sum();
     let stats = upstream.stats();
     assert_eq!(covered, stats.occupied_voxels + stats.free_voxels);

@@ -11,7 +11,7 @@
 
 use froctomap_core::{Leaf, Occupancy, Snapshot};
 use froctomap_formats::{Backend, FormatRegistry, MapFormat, ReadOptions};
-use froctomap_octomap_codec::{encode_binary, encode_full};
+use froctomap_octomap_codec::{encode_binary, encode_full, scan, ReadLimits};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -22,10 +22,13 @@ enum Op {
     ReadOt,
     WriteBt,
     WriteOt,
+    /// Native streaming of a `.bt`'s leaves (`scan`, no `Snapshot`), against upstream's full
+    /// read: the cost a pipeline that consumes leaves as they come pays per file.
+    ScanBt,
 }
 
 impl Op {
-    const ALL: [Op; 4] = [Op::ReadBt, Op::ReadOt, Op::WriteBt, Op::WriteOt];
+    const ALL: [Op; 5] = [Op::ReadBt, Op::ReadOt, Op::WriteBt, Op::WriteOt, Op::ScanBt];
 
     fn label(self) -> &'static str {
         match self {
@@ -33,12 +36,13 @@ impl Op {
             Op::ReadOt => "read .ot → Snapshot",
             Op::WriteBt => "write .bt (Snapshot → bytes)",
             Op::WriteOt => "write .ot (Snapshot → bytes)",
+            Op::ScanBt => "stream .bt leaves (native `scan`) vs upstream read .bt",
         }
     }
 
     fn format_name(self) -> &'static str {
         match self {
-            Op::ReadBt | Op::WriteBt => "bt",
+            Op::ReadBt | Op::WriteBt | Op::ScanBt => "bt",
             Op::ReadOt | Op::WriteOt => "ot",
         }
     }
@@ -70,9 +74,26 @@ fn format(registry: &FormatRegistry, op: Op, backend: Backend) -> MapFormat {
 
 /// Runs one operation once and returns its wall time.
 fn time_once(registry: &FormatRegistry, op: Op, backend: Backend, sample: &Sample) -> Duration {
+    if op == Op::ScanBt && backend == Backend::Octomap {
+        // Upstream has no streaming reader: compare with its full read.
+        return time_once(registry, Op::ReadBt, backend, sample);
+    }
     let format = format(registry, op, backend);
     let start = Instant::now();
     match op {
+        Op::ScanBt => {
+            let mut occupied = 0u64;
+            scan(
+                &sample.bt,
+                None,
+                ReadLimits::default(),
+                &mut |leaf: Leaf| {
+                    occupied += u64::from(leaf.occupancy().is_occupied());
+                },
+            )
+            .unwrap();
+            black_box(occupied);
+        }
         Op::ReadBt | Op::ReadOt => {
             let bytes = if op == Op::ReadBt {
                 &sample.bt

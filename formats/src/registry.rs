@@ -352,3 +352,33 @@ fn describe_start(bytes: &[u8]) -> String {
         .collect();
     format!("it starts with {shown:?}")
 }
+
+#[cfg(all(test, feature = "octomap-upstream"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn native_is_the_default_and_octomap_is_selectable() {
+        let registry = FormatRegistry::with_default_formats();
+        let bt = b"# Octomap OcTree binary file\n";
+        let probed = |backend| {
+            registry
+                .probe_with(bt, backend)
+                .map(|f| (f.name, f.backend))
+        };
+        assert_eq!(probed(None), Some(("bt", Backend::Native)));
+        assert_eq!(
+            probed(Some(Backend::Octomap)),
+            Some(("bt", Backend::Octomap))
+        );
+        for backend in [Backend::Native, Backend::Octomap] {
+            let format = registry.by_name("ot", Some(backend)).map(|f| f.backend);
+            assert_eq!(format.ok(), Some(backend));
+            let by_extension = registry.by_extension(Path::new("x.BT"), Some(backend));
+            assert_eq!(by_extension.map(|f| f.backend), Some(backend));
+        }
+        // Names and extensions shared by several backends are listed once.
+        assert_eq!(registry.known_names(), "bt, ot");
+        assert_eq!(registry.known_extensions(), ".bt, .ot");
+    }
+}

@@ -16,7 +16,7 @@ pub struct Ui {
 }
 
 impl Ui {
-    fn warn(&self, path: &Path, warnings: &[String]) {
+    pub(crate) fn warn(&self, path: &Path, warnings: &[String]) {
         if !self.quiet {
             for warning in warnings {
                 eprintln!("warning: {}: {warning}", path.display());
@@ -24,7 +24,7 @@ impl Ui {
         }
     }
 
-    fn note(&self, message: &str) {
+    pub(crate) fn note(&self, message: &str) {
         if !self.quiet {
             eprintln!("{message}");
         }
@@ -33,8 +33,12 @@ impl Ui {
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// The map file.
+    /// The map file: an OctoMap file or a FROctomap file.
     file: PathBuf,
+    /// For a FROctomap file: recount cells by decoding every tile instead of trusting the
+    /// summary written at build time.
+    #[arg(long)]
+    count: bool,
     /// Force the input format (see `froctomap formats`) instead of detecting it.
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -78,6 +82,9 @@ impl From<BoundingBox> for Bounds {
 }
 
 pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
+    if args.input_format.is_none() && crate::series::is_froct(&args.file) {
+        return crate::series::froct_info(&args.file, args.json, args.count);
+    }
     let registry = FormatRegistry::with_default_formats();
     let read = registry.read_file(
         &args.file,
@@ -151,7 +158,7 @@ fn print_info(info: &MapInfo) {
 }
 
 /// `1234567` → `1,234,567`.
-fn group_thousands(value: u64) -> String {
+pub(crate) fn group_thousands(value: u64) -> String {
     let digits = value.to_string();
     let mut out = String::with_capacity(digits.len() + digits.len() / 3);
     for (i, c) in digits.chars().enumerate() {

@@ -1,13 +1,21 @@
 //! `froctomap`: the command-line front end of the froctomap libraries.
 
 mod commands;
+mod progress;
+mod series;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use froctomap_formats::Backend;
 use std::process::ExitCode;
 
-/// Long-term 3D maps: turn a series of OctoMap snapshots into one spatio-temporal file and
-/// back. This version inspects and converts OctoMap files.
+/// Long-term 3D maps: turn a series of OctoMap snapshots into one compact spatio-temporal
+/// file (FROctomap: a FreMEn model per changing voxel), retrieve the map at any past time,
+/// predict it at a future one, and export either as standard OctoMap files.
+///
+/// Typical use:
+///   froctomap build snapshots/ -o office.froct
+///   froctomap retrieve office.froct --time 2016-01-05T10:00:00Z -o then.bt
+///   froctomap predict office.froct --time 2016-02-01T10:00:00Z -o later.ot
 #[derive(Parser)]
 #[command(name = "froctomap", version, about, long_about = None, propagate_version = true)]
 struct Cli {
@@ -59,6 +67,39 @@ enum Command {
     Convert(commands::ConvertArgs),
     /// List the registered map formats.
     Formats,
+    /// Build one FROctomap file from a series of OctoMap snapshots.
+    ///
+    /// Inputs are directories (their manifest.csv, else every .bt/.ot file), glob patterns,
+    /// manifests (`path,time` CSV, times in Unix seconds or ISO 8601) or files. Times come
+    /// from the manifest, from the file names (Unix seconds or ISO 8601 in the name), or
+    /// from --start/--step. Snapshots are read in parallel and accumulated in time order;
+    /// memory grows with the map, not with the number of snapshots. Unknown space stays
+    /// unknown. Lossless by default: every observed state comes back exactly.
+    ///
+    /// Example: froctomap build maps/ -o office.froct
+    ///          froctomap build 'scans/*.bt' --start 2016-01-04T00:00:00Z --step 10min -o office.froct
+    Build(series::BuildArgs),
+    /// Write the map as observed at a time (exact in lossless files).
+    ///
+    /// Example: froctomap retrieve office.froct --time 2016-01-05T10:00:00Z -o then.bt
+    Retrieve(series::RetrieveArgs),
+    /// Write the predicted map at any time, including the future.
+    ///
+    /// A .ot output carries each voxel's probability p(t) as log-odds (within OctoMap's
+    /// clamping bounds); a .bt output the thresholded states (occupied when p(t) > 0.5).
+    ///
+    /// Example: froctomap predict office.froct --time 2016-02-01T10:00:00Z -o later.ot
+    Predict(series::PredictArgs),
+    /// Write one OctoMap file per instant of a range, plus a manifest.csv.
+    ///
+    /// Example: froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h -o hourly/
+    Export(series::ExportArgs),
+    /// Compare a FROctomap file with ground-truth maps: reconstruction error inside the
+    /// modelled span, prediction error outside it, against the static-mean and last-seen
+    /// baselines.
+    ///
+    /// Example: froctomap eval office.froct --against later-maps/
+    Eval(series::EvalArgs),
 }
 
 fn main() -> ExitCode {
@@ -71,6 +112,11 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info(&ui, &args),
         Command::Convert(args) => commands::convert(&ui, &args),
         Command::Formats => commands::formats(),
+        Command::Build(args) => series::build_command(&ui, &args),
+        Command::Retrieve(args) => series::retrieve_command(&ui, &args),
+        Command::Predict(args) => series::predict_command(&ui, &args),
+        Command::Export(args) => series::export_command(&ui, &args),
+        Command::Eval(args) => series::eval_command(&ui, &args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -189,9 +189,104 @@ fn failed_conversion_leaves_no_output_behind() {
 }
 
 #[test]
-fn formats_lists_the_registry() {
+fn formats_lists_both_backends_native_first() {
     let out = froctomap(&["formats"]);
+    assert!(out.status.success());
     let stdout = text(&out.stdout);
-    assert!(stdout.contains("bt     octomap  .bt"), "{stdout}");
-    assert!(stdout.contains("ot     octomap  .ot"), "{stdout}");
+    let line_of = |needle: &str| {
+        stdout
+            .lines()
+            .position(|line| line.starts_with(needle))
+            .unwrap_or_else(|| panic!("no line starting with {needle:?} in:\n{stdout}"))
+    };
+    for name in ["bt", "ot"] {
+        let native = line_of(&format!("{name}     native   .{name}"));
+        let upstream = line_of(&format!("{name}     octomap  .{name}"));
+        assert!(
+            native < upstream,
+            "native is the default, listed first:\n{stdout}"
+        );
+    }
+}
+
+/// `--backend octomap` selects the C++ library; it must tell exactly the same story as the
+/// native default: same info (only the format description names the backend), same bytes
+/// written, same warnings and errors.
+#[test]
+fn both_backends_give_identical_info_and_conversions() {
+    let dir = scratch();
+    let info = |backend: &str, file: &Path| -> serde_json::Value {
+        let out = froctomap(&["--backend", backend, "info", "--json", path_str(file)]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice(&out.stdout).expect("valid JSON")
+    };
+    for file in [
+        geb079(),
+        octomap_fixture("coarse_leaves.ot"),
+        octomap_fixture("size_mismatch.bt"),
+    ] {
+        let mut native = info("native", &file);
+        let mut upstream = info("octomap", &file);
+        let description = |v: &mut serde_json::Value| {
+            v["format_description"].take().as_str().unwrap().to_string()
+        };
+        assert!(description(&mut native).contains("native Rust"));
+        assert!(description(&mut upstream).contains("upstream C++"));
+        assert_eq!(native, upstream, "{}", file.display());
+    }
+    // The default is native.
+    let default = froctomap(&["info", path_str(&geb079())]);
+    assert!(text(&default.stdout).contains("native Rust codec"));
+
+    let (native_ot, upstream_ot) = (dir.path().join("n.ot"), dir.path().join("u.ot"));
+    let (native_bt, upstream_bt) = (dir.path().join("n.bt"), dir.path().join("u.bt"));
+    for (backend, input, output) in [
+        ("native", geb079(), &native_ot),
+        ("octomap", geb079(), &upstream_ot),
+        ("native", native_ot.clone(), &native_bt),
+        ("octomap", upstream_ot.clone(), &upstream_bt),
+    ] {
+        let out = froctomap(&[
+            "convert",
+            "--backend",
+            backend,
+            path_str(&input),
+            path_str(output),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    assert_eq!(
+        std::fs::read(&native_ot).unwrap(),
+        std::fs::read(&upstream_ot).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(&native_bt).unwrap(),
+        std::fs::read(&upstream_bt).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(&native_bt).unwrap(),
+        std::fs::read(geb079()).unwrap()
+    );
+
+    // Errors read the same.
+    let truncated = dir.path().join("cut.bt");
+    let bytes = std::fs::read(octomap_fixture("few_voxels.bt")).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() - 3]).unwrap();
+    let errors: Vec<String> = ["native", "octomap"]
+        .iter()
+        .map(|backend| {
+            let out = froctomap(&["--backend", backend, "info", path_str(&truncated)]);
+            assert_eq!(out.status.code(), Some(1));
+            text(&out.stderr)
+        })
+        .collect();
+    assert_eq!(errors[0], errors[1]);
+
+    let bad = froctomap(&["--backend", "cxx", "formats"]);
+    assert!(!bad.status.success());
+    assert!(
+        text(&bad.stderr).contains("octomap"),
+        "{}",
+        text(&bad.stderr)
+    );
 }

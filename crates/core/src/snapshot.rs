@@ -1,7 +1,7 @@
 //! One map at one instant: resolution plus the known leaves, in Morton order.
 
 use crate::error::MapError;
-use crate::key::{MortonCode, TREE_DEPTH};
+use crate::key::{voxels_per_node, MortonCode, TREE_DEPTH};
 use crate::leaf::{Leaf, Occupancy};
 
 /// A map at one instant: the resolution and every known leaf; space not covered by a leaf is
@@ -84,27 +84,20 @@ impl Snapshot {
     /// is the root without children: all space at one value (OctoMap can read such a tree).
     pub fn from_leaves(resolution: f64, mut leaves: Vec<Leaf>) -> Result<Self, MapError> {
         validate_resolution(resolution)?;
-        for leaf in &leaves {
-            if leaf.depth > TREE_DEPTH {
-                return Err(MapError::DepthOutOfRange { depth: leaf.depth });
+        // One pass validates every leaf and, for the usual already-sorted input (every
+        // reader produces Morton order), also proves order and disjointness.
+        let mut sorted_disjoint = true;
+        let mut previous_end = 0u64;
+        for (i, leaf) in leaves.iter().enumerate() {
+            validate_leaf(leaf)?;
+            if i > 0 && leaf.start.0 < previous_end {
+                sorted_disjoint = false;
             }
-            if leaf.start.0 >= MortonCode::END || leaf.start.node_start(leaf.depth) != leaf.start {
-                return Err(MapError::MisalignedLeaf {
-                    code: leaf.start.0,
-                    depth: leaf.depth,
-                });
-            }
-            if leaf.log_odds.is_nan() {
-                return Err(MapError::NanLogOdds {
-                    key: leaf.min_key(),
-                });
-            }
+            previous_end = leaf.end();
         }
-        if !leaves.is_sorted_by_key(|l| l.start) {
+        if !sorted_disjoint {
             leaves.sort_unstable_by_key(|l| l.start);
-        }
-        for pair in leaves.windows(2) {
-            if pair[0].end() > pair[1].start.0 {
+            if let Some(pair) = leaves.windows(2).find(|p| p[0].end() > p[1].start.0) {
                 return Err(MapError::OverlappingLeaves {
                     first: pair[0].min_key(),
                     first_depth: pair[0].depth,
@@ -229,11 +222,83 @@ impl Snapshot {
         }
     }
 
+    /// The canonical split: every 8 sibling leaves with bit-identical values merged into
+    /// their parent, repeatedly, bottom-up (never into the root, as upstream's `prune()`).
+    /// This is what upstream OctoMap writes for a fully expanded tree, and the coarsest
+    /// split of the same map; it does not depend on how the input happened to be split.
+    ///
+    /// ```
+    /// use froctomap_core::{Leaf, Snapshot, VoxelKey};
+    /// let block = Leaf::containing(VoxelKey::new(0, 0, 0), 14, -2.0);
+    /// let voxels = Snapshot::from_voxel_states(0.1, Snapshot::from_leaves(0.1, vec![block])?.voxels())?;
+    /// assert_eq!(voxels.leaves().len(), 64);
+    /// assert_eq!(voxels.canonical().leaves(), &[Leaf { log_odds: froctomap_core::free_log_odds(), ..block }]);
+    /// # Ok::<(), froctomap_core::MapError>(())
+    /// ```
+    pub fn canonical(&self) -> Snapshot {
+        let mut merged: Vec<Leaf> = Vec::with_capacity(self.leaves.len());
+        for &leaf in &self.leaves {
+            merged.push(leaf);
+            // Merge while the last eight entries are the complete, equal children of one node.
+            while let Some(parent) = complete_family(&merged) {
+                merged.truncate(merged.len() - 8);
+                merged.push(parent);
+            }
+        }
+        Snapshot {
+            resolution: self.resolution,
+            leaves: merged,
+        }
+    }
+
     /// `true` when both snapshots know exactly the same voxels with the same states, however
     /// they are split into leaves (a coarse leaf equals its eight equal children).
     pub fn same_voxel_states(&self, other: &Snapshot) -> bool {
         self.resolution == other.resolution && runs(&self.leaves).eq(runs(&other.leaves))
     }
+}
+
+/// Checks one leaf's depth, alignment and value.
+fn validate_leaf(leaf: &Leaf) -> Result<(), MapError> {
+    if leaf.depth > TREE_DEPTH {
+        return Err(MapError::DepthOutOfRange { depth: leaf.depth });
+    }
+    if leaf.start.0 >= MortonCode::END || leaf.start.0 & (voxels_per_node(leaf.depth) - 1) != 0 {
+        return Err(MapError::MisalignedLeaf {
+            code: leaf.start.0,
+            depth: leaf.depth,
+        });
+    }
+    if leaf.log_odds.is_nan() {
+        return Err(MapError::NanLogOdds {
+            key: leaf.min_key(),
+        });
+    }
+    Ok(())
+}
+
+/// The parent of the last eight leaves, when they are its eight children with one value.
+fn complete_family(leaves: &[Leaf]) -> Option<Leaf> {
+    let family = leaves.get(leaves.len().checked_sub(8)?..)?;
+    let first = family[0];
+    if first.depth < 2 {
+        return None;
+    }
+    let parent_depth = first.depth - 1;
+    if first.start.node_start(parent_depth) != first.start {
+        return None;
+    }
+    let size = first.voxel_count();
+    let same = family.iter().enumerate().all(|(i, leaf)| {
+        leaf.depth == first.depth
+            && leaf.log_odds.to_bits() == first.log_odds.to_bits()
+            && leaf.start.0 == first.start.0 + i as u64 * size
+    });
+    same.then_some(Leaf {
+        start: first.start,
+        depth: parent_depth,
+        log_odds: first.log_odds,
+    })
 }
 
 /// Maximal runs of consecutive voxels with one state: a canonical form for comparisons.
@@ -301,6 +366,61 @@ mod tests {
         changed[3].1 = Occupancy::Occupied;
         let changed = Snapshot::from_voxel_states(0.1, changed).unwrap();
         assert!(!coarse.same_voxel_states(&changed));
+    }
+
+    #[test]
+    fn canonical_merges_recursively_but_never_into_the_root() {
+        // All 8 depth-1 children: complete, but upstream never merges into the root.
+        let top: Vec<Leaf> = (0..8u64)
+            .map(|i| Leaf {
+                start: MortonCode(i << 45),
+                depth: 1,
+                log_odds: 1.0,
+            })
+            .collect();
+        let s = Snapshot::from_leaves(0.1, top).unwrap();
+        assert_eq!(s.canonical().leaves().len(), 8);
+        // Eight voxels merge, completing eight depth-15 leaves, which merge once more.
+        let mut leaves: Vec<Leaf> = (1..8u64)
+            .map(|i| Leaf {
+                start: MortonCode(i * 8),
+                depth: 15,
+                log_odds: 1.0,
+            })
+            .collect();
+        leaves.extend((0..8u64).map(|i| Leaf {
+            start: MortonCode(i),
+            depth: 16,
+            log_odds: 1.0,
+        }));
+        let s = Snapshot::from_leaves(0.1, leaves).unwrap();
+        let c = s.canonical();
+        assert_eq!(
+            c.leaves(),
+            &[Leaf {
+                start: MortonCode(0),
+                depth: 14,
+                log_odds: 1.0
+            }]
+        );
+        assert!(c.same_voxel_states(&s));
+        // Different values do not merge.
+        let mut mixed: Vec<Leaf> = (0..8u64)
+            .map(|i| Leaf {
+                start: MortonCode(i),
+                depth: 16,
+                log_odds: 1.0,
+            })
+            .collect();
+        mixed[3].log_odds = 2.0;
+        assert_eq!(
+            Snapshot::from_leaves(0.1, mixed)
+                .unwrap()
+                .canonical()
+                .leaves()
+                .len(),
+            8
+        );
     }
 
     #[test]

@@ -14,7 +14,11 @@ pub(crate) struct Cursor<'a> {
 
 impl<'a> Cursor<'a> {
     pub(crate) fn new(bytes: &'a [u8], part: &'static str) -> Self {
-        Self { bytes, pos: 0, part }
+        Self {
+            bytes,
+            pos: 0,
+            part,
+        }
     }
 
     pub(crate) fn remaining(&self) -> usize {
@@ -33,7 +37,11 @@ impl<'a> Cursor<'a> {
             .ok_or_else(|| {
                 corrupt(
                     self.part,
-                    format!("truncated: {len} bytes needed at offset {}, {} left", self.pos, self.remaining()),
+                    format!(
+                        "truncated: {len} bytes needed at offset {}, {} left",
+                        self.pos,
+                        self.remaining()
+                    ),
                 )
             })?;
         let slice = &self.bytes[self.pos..end];
@@ -109,7 +117,10 @@ impl<'a> Cursor<'a> {
         if value > fits {
             return Err(corrupt(
                 self.part,
-                format!("{what} {value} exceeds what the remaining {} bytes can hold", self.remaining()),
+                format!(
+                    "{what} {value} exceeds what the remaining {} bytes can hold",
+                    self.remaining()
+                ),
             ));
         }
         usize::try_from(value).map_err(|_| corrupt(self.part, format!("{what} {value} too large")))

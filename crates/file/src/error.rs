@@ -29,7 +29,9 @@ pub enum FormatViolation {
         limit: u64,
     },
     /// A major version this reader does not understand.
-    #[error("unsupported FROctomap version {major}.{minor} (this reader understands {supported}.x)")]
+    #[error(
+        "unsupported FROctomap version {major}.{minor} (this reader understands {supported}.x)"
+    )]
     UnsupportedVersion {
         /// Major version found.
         major: u16,

@@ -205,7 +205,11 @@ impl Header {
                 TAG_TIME_AXIS => set_once(&mut axis, decode_axis(&mut c, limits)?, "TIME_AXIS")?,
                 TAG_MODEL => {
                     let id = ModelId(c.u16()?);
-                    let n = c.count("model parameter length", 1, limits.max_model_parameter_bytes)?;
+                    let n = c.count(
+                        "model parameter length",
+                        1,
+                        limits.max_model_parameter_bytes,
+                    )?;
                     let parameters = c.take(n)?.to_vec();
                     set_once(&mut model, (id, parameters), "MODEL")?;
                 }
@@ -231,7 +235,10 @@ impl Header {
                 _ => continue, // unknown non-critical sections are skipped by Sections
             }
             if !c.is_empty() {
-                return Err(corrupt("header", format!("section {} has {} extra bytes", section.tag, c.remaining())));
+                return Err(corrupt(
+                    "header",
+                    format!("section {} has {} extra bytes", section.tag, c.remaining()),
+                ));
             }
         }
         let missing = |name: &str| corrupt("header", format!("required section {name} is missing"));
@@ -280,7 +287,11 @@ pub(crate) struct Sections<'a> {
 
 impl<'a> Sections<'a> {
     pub(crate) fn new(bytes: &'a [u8], part: &'static str) -> Self {
-        Self::with_known(bytes, part, &[TAG_MAP, TAG_TIME_AXIS, TAG_MODEL, TAG_CODEC, TAG_METADATA])
+        Self::with_known(
+            bytes,
+            part,
+            &[TAG_MAP, TAG_TIME_AXIS, TAG_MODEL, TAG_CODEC, TAG_METADATA],
+        )
     }
 
     pub(crate) fn with_known(bytes: &'a [u8], part: &'static str, known: &'static [u16]) -> Self {
@@ -301,13 +312,18 @@ impl<'a> Sections<'a> {
             let len = self.cursor.u32()? as usize;
             let payload = self.cursor.take(len)?;
             if flags & !FLAG_CRITICAL != 0 {
-                return Err(corrupt("section", format!("section {tag} has reserved flags {flags:#x}")));
+                return Err(corrupt(
+                    "section",
+                    format!("section {tag} has reserved flags {flags:#x}"),
+                ));
             }
             if self.known.contains(&tag) {
                 return Ok(Some(Section { tag, payload }));
             }
             if flags & FLAG_CRITICAL != 0 {
-                return Err(FormatViolation::UnsupportedFeature(format!("critical section {tag}")));
+                return Err(FormatViolation::UnsupportedFeature(format!(
+                    "critical section {tag}"
+                )));
             }
         }
     }
@@ -348,7 +364,9 @@ pub fn encode_axis(axis: &TimeAxis) -> Vec<u8> {
                 match previous {
                     None => out.extend(t.0.to_le_bytes()),
                     // Strictly increasing, so the difference is positive.
-                    Some(p) => varint::write_u64(&mut out, (i128::from(t.0) - i128::from(p)) as u64),
+                    Some(p) => {
+                        varint::write_u64(&mut out, (i128::from(t.0) - i128::from(p)) as u64)
+                    }
                 }
                 previous = Some(t.0);
             }
@@ -368,7 +386,8 @@ pub(crate) fn write_positions(out: &mut Vec<u8>, positions: &[u32]) {
 }
 
 fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, FormatViolation> {
-    let invalid = |e: froctomap_temporal::TemporalError| corrupt("TIME_AXIS section", e.to_string());
+    let invalid =
+        |e: froctomap_temporal::TemporalError| corrupt("TIME_AXIS section", e.to_string());
     match c.u8()? {
         0 => {
             let start = Timestamp(c.i64()?);
@@ -380,7 +399,10 @@ fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, Form
             for _ in 0..missing_count {
                 let sample = next + c.varint()?;
                 if sample >= u64::from(count) {
-                    return Err(corrupt("TIME_AXIS section", "missing sample beyond the axis"));
+                    return Err(corrupt(
+                        "TIME_AXIS section",
+                        "missing sample beyond the axis",
+                    ));
                 }
                 missing.push(sample as u32);
                 next = sample + 1;
@@ -398,13 +420,19 @@ fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, Form
             times.push(Timestamp(t as i64));
             for _ in 1..count {
                 t += i128::from(c.varint()?);
-                let value = i64::try_from(t)
-                    .map_err(|_| corrupt("TIME_AXIS section", "instant beyond the representable range"))?;
+                let value = i64::try_from(t).map_err(|_| {
+                    corrupt(
+                        "TIME_AXIS section",
+                        "instant beyond the representable range",
+                    )
+                })?;
                 times.push(Timestamp(value));
             }
             TimeAxis::explicit(times).map_err(invalid)
         }
-        kind => Err(FormatViolation::UnsupportedFeature(format!("time axis kind {kind}"))),
+        kind => Err(FormatViolation::UnsupportedFeature(format!(
+            "time axis kind {kind}"
+        ))),
     }
 }
 
@@ -421,25 +449,43 @@ mod tests {
 
     #[test]
     fn axes_round_trip() {
-        roundtrip(TimeAxis::regular(Timestamp(-5), 600_000_000_000, 4032, vec![0, 7, 8, 4000]).unwrap());
+        roundtrip(
+            TimeAxis::regular(Timestamp(-5), 600_000_000_000, 4032, vec![0, 7, 8, 4000]).unwrap(),
+        );
         roundtrip(TimeAxis::regular(Timestamp(i64::MAX - 10), 1, 5, vec![]).unwrap());
-        roundtrip(TimeAxis::explicit(vec![Timestamp(i64::MIN), Timestamp(0), Timestamp(i64::MAX)]).unwrap());
+        roundtrip(
+            TimeAxis::explicit(vec![Timestamp(i64::MIN), Timestamp(0), Timestamp(i64::MAX)])
+                .unwrap(),
+        );
     }
 
     #[test]
     fn header_round_trips_and_detects_damage() {
-        let axis = TimeAxis::regular(Timestamp::from_secs(1_700_000_000), 60_000_000_000, 10, vec![3]).unwrap();
+        let axis = TimeAxis::regular(
+            Timestamp::from_secs(1_700_000_000),
+            60_000_000_000,
+            10,
+            vec![3],
+        )
+        .unwrap();
         let mut header = Header::new(0.08, 10, axis, ModelId(2), vec![1, 0, 0], Codec::default());
-        header.metadata.insert("creator".into(), Value::from("test"));
+        header
+            .metadata
+            .insert("creator".into(), Value::from("test"));
         let bytes = header.encode();
         let preamble: [u8; PREAMBLE_LEN] = bytes[..PREAMBLE_LEN].try_into().unwrap();
-        let decoded = Header::decode(&preamble, &bytes[PREAMBLE_LEN..], &ReadLimits::default()).unwrap();
+        let decoded =
+            Header::decode(&preamble, &bytes[PREAMBLE_LEN..], &ReadLimits::default()).unwrap();
         assert_eq!(decoded, header);
         for i in 0..bytes.len() {
             let mut damaged = bytes.clone();
             damaged[i] ^= 0x10;
             let preamble: [u8; PREAMBLE_LEN] = damaged[..PREAMBLE_LEN].try_into().unwrap();
-            assert!(Header::decode(&preamble, &damaged[PREAMBLE_LEN..], &ReadLimits::default()).is_err(), "byte {i}");
+            assert!(
+                Header::decode(&preamble, &damaged[PREAMBLE_LEN..], &ReadLimits::default())
+                    .is_err(),
+                "byte {i}"
+            );
         }
     }
 }

@@ -47,7 +47,14 @@ pub(crate) fn encode_index(entries: &[TileEntry], summary: &Map<String, Value>) 
     for e in entries {
         out.extend(e.code.0.to_le_bytes());
         out.extend(e.offset.to_le_bytes());
-        for value in [e.stored_len, e.raw_len, e.crc, e.cell_count, e.first_sample, e.last_sample] {
+        for value in [
+            e.stored_len,
+            e.raw_len,
+            e.crc,
+            e.cell_count,
+            e.first_sample,
+            e.last_sample,
+        ] {
             out.extend(value.to_le_bytes());
         }
     }
@@ -83,22 +90,44 @@ pub(crate) fn decode_index(
             last_sample: c.u32()?,
         };
         if entry.code.0 >= MortonCode::END || entry.code.0 % tile_size != 0 {
-            return Err(corrupt("index", format!("tile code {:#x} is not a depth-{tile_depth} node", entry.code.0)));
+            return Err(corrupt(
+                "index",
+                format!(
+                    "tile code {:#x} is not a depth-{tile_depth} node",
+                    entry.code.0
+                ),
+            ));
         }
         if entries.last().is_some_and(|p| p.code >= entry.code) {
             return Err(corrupt("index", "tile codes are not strictly increasing"));
         }
         let end = entry.offset.checked_add(u64::from(entry.stored_len));
         if entry.offset < next_free || end.is_none_or(|end| end > data.end) {
-            return Err(corrupt("index", format!("tile {:#x} has an impossible location", entry.code.0)));
+            return Err(corrupt(
+                "index",
+                format!("tile {:#x} has an impossible location", entry.code.0),
+            ));
         }
-        for (what, value) in [("stored tile length", entry.stored_len), ("decoded tile length", entry.raw_len)] {
+        for (what, value) in [
+            ("stored tile length", entry.stored_len),
+            ("decoded tile length", entry.raw_len),
+        ] {
             if u64::from(value) > limits.max_tile_bytes {
-                return Err(FormatViolation::Limit { what, value: u64::from(value), limit: limits.max_tile_bytes });
+                return Err(FormatViolation::Limit {
+                    what,
+                    value: u64::from(value),
+                    limit: limits.max_tile_bytes,
+                });
             }
         }
         if entry.cell_count == 0 || entry.first_sample > entry.last_sample {
-            return Err(corrupt("index", format!("tile {:#x} has an impossible cell count or sample range", entry.code.0)));
+            return Err(corrupt(
+                "index",
+                format!(
+                    "tile {:#x} has an impossible cell count or sample range",
+                    entry.code.0
+                ),
+            ));
         }
         next_free = end.unwrap_or(data.end);
         entries.push(entry);
@@ -135,9 +164,17 @@ pub(crate) struct Footer {
     pub(crate) index_crc: u32,
 }
 
-pub(crate) fn decode_footer(bytes: &[u8; FOOTER_LEN], file_len: u64, data_start: u64, limits: &ReadLimits) -> Result<Footer, FormatViolation> {
+pub(crate) fn decode_footer(
+    bytes: &[u8; FOOTER_LEN],
+    file_len: u64,
+    data_start: u64,
+    limits: &ReadLimits,
+) -> Result<Footer, FormatViolation> {
     if bytes[24..32] != END_MAGIC {
-        return Err(corrupt("footer", "the end magic is missing (truncated or not a FROctomap file)"));
+        return Err(corrupt(
+            "footer",
+            "the end magic is missing (truncated or not a FROctomap file)",
+        ));
     }
     let mut c = Cursor::new(bytes, "footer");
     let index_offset = c.u64()?;
@@ -148,11 +185,22 @@ pub(crate) fn decode_footer(bytes: &[u8; FOOTER_LEN], file_len: u64, data_start:
         return Err(FormatViolation::Checksum("footer"));
     }
     if index_len > limits.max_index_bytes {
-        return Err(FormatViolation::Limit { what: "index length", value: index_len, limit: limits.max_index_bytes });
+        return Err(FormatViolation::Limit {
+            what: "index length",
+            value: index_len,
+            limit: limits.max_index_bytes,
+        });
     }
     let footer_start = file_len - FOOTER_LEN as u64;
     if index_offset < data_start || index_offset.checked_add(index_len) != Some(footer_start) {
-        return Err(corrupt("footer", "the index location does not fit the file"));
+        return Err(corrupt(
+            "footer",
+            "the index location does not fit the file",
+        ));
     }
-    Ok(Footer { index_offset, index_len, index_crc })
+    Ok(Footer {
+        index_offset,
+        index_len,
+        index_crc,
+    })
 }

@@ -58,7 +58,9 @@ mod tile;
 mod writer;
 
 pub use error::{FileError, FormatViolation};
-pub use header::{encode_axis, Codec, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN};
+pub use header::{
+    encode_axis, Codec, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN,
+};
 pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
 pub use limits::ReadLimits;
 pub use query::CellValue;

@@ -17,7 +17,11 @@ pub struct CellValue<T> {
 }
 
 fn intersects(cell: &Cell, min: VoxelKey, max: VoxelKey) -> bool {
-    let leaf = Leaf { start: cell.start, depth: cell.depth, log_odds: 0.0 };
+    let leaf = Leaf {
+        start: cell.start,
+        depth: cell.depth,
+        log_odds: 0.0,
+    };
     let lo = leaf.min_key();
     let edge = leaf.edge_voxels();
     let axis = |lo: u16, min: u16, max: u16| {
@@ -42,7 +46,11 @@ impl FroctReader {
             for cell in self.read_tile(tile)? {
                 if intersects(&cell, min, max) {
                     if let Some(v) = value(&cell) {
-                        out.push(CellValue { start: cell.start, depth: cell.depth, value: v });
+                        out.push(CellValue {
+                            start: cell.start,
+                            depth: cell.depth,
+                            value: v,
+                        });
                     }
                 }
             }
@@ -59,7 +67,12 @@ impl FroctReader {
         sample: u32,
     ) -> Result<Vec<CellValue<Occupancy>>, FileError> {
         let axis = &self.header().axis;
-        self.region_cells(min, max, |t| !t.may_observe(sample), |cell| cell.state_at(axis, self.model(), sample))
+        self.region_cells(
+            min,
+            max,
+            |t| !t.may_observe(sample),
+            |cell| cell.state_at(axis, self.model(), sample),
+        )
     }
 
     /// Occupancy probability of every cell intersecting the key box at any instant, given in
@@ -70,7 +83,12 @@ impl FroctReader {
         max: VoxelKey,
         seconds: f64,
     ) -> Result<Vec<CellValue<f64>>, FileError> {
-        self.region_cells(min, max, |_| false, |cell| Some(cell.probability(self.model(), seconds)))
+        self.region_cells(
+            min,
+            max,
+            |_| false,
+            |cell| Some(cell.probability(self.model(), seconds)),
+        )
     }
 
     /// The whole map as observed at `sample`, one leaf per observed cell (with the `.bt`
@@ -84,7 +102,11 @@ impl FroctReader {
             }
             for cell in self.read_tile(i)? {
                 if let Some(state) = cell.state_at(axis, self.model(), sample) {
-                    leaves.push(Leaf { start: cell.start, depth: cell.depth, log_odds: state.log_odds() });
+                    leaves.push(Leaf {
+                        start: cell.start,
+                        depth: cell.depth,
+                        log_odds: state.log_odds(),
+                    });
                 }
             }
         }

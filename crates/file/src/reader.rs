@@ -38,13 +38,27 @@ impl std::fmt::Debug for FroctReader {
 impl FroctReader {
     /// Opens a file with the default [`ReadLimits`].
     pub fn open(path: &Path) -> Result<Self, FileError> {
-        Self::open_with_limits(path, ReadLimits::default(), &ModelRegistry::with_default_models())
+        Self::open_with_limits(
+            path,
+            ReadLimits::default(),
+            &ModelRegistry::with_default_models(),
+        )
     }
 
     /// Opens a file with explicit limits and model registry.
-    pub fn open_with_limits(path: &Path, limits: ReadLimits, models: &ModelRegistry) -> Result<Self, FileError> {
-        let io = |source| FileError::Io { path: path.to_path_buf(), source };
-        let invalid = |violation| FileError::Invalid { path: path.to_path_buf(), violation };
+    pub fn open_with_limits(
+        path: &Path,
+        limits: ReadLimits,
+        models: &ModelRegistry,
+    ) -> Result<Self, FileError> {
+        let io = |source| FileError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let invalid = |violation| FileError::Invalid {
+            path: path.to_path_buf(),
+            violation,
+        };
         let file = File::open(path).map_err(io)?;
         let file_len = file.metadata().map_err(io)?.len();
         let min_len = (PREAMBLE_LEN + 4 + FOOTER_LEN) as u64;
@@ -52,7 +66,10 @@ impl FroctReader {
             let violation = if file_len == 0 {
                 corrupt("file", "the file is empty")
             } else {
-                corrupt("file", format!("{file_len} bytes is too short for a FROctomap file"))
+                corrupt(
+                    "file",
+                    format!("{file_len} bytes is too short for a FROctomap file"),
+                )
             };
             return Err(invalid(violation));
         }
@@ -66,23 +83,48 @@ impl FroctReader {
         let (_, header_len) = Header::decode_preamble(&preamble, &limits).map_err(invalid)?;
         let data_start = (PREAMBLE_LEN + header_len + 4) as u64;
         if data_start + FOOTER_LEN as u64 > file_len {
-            return Err(invalid(corrupt("header", "the header runs past the end of the file")));
+            return Err(invalid(corrupt(
+                "header",
+                "the header runs past the end of the file",
+            )));
         }
-        let header = Header::decode(&preamble, &read(PREAMBLE_LEN as u64, header_len + 4)?, &limits).map_err(invalid)?;
+        let header = Header::decode(
+            &preamble,
+            &read(PREAMBLE_LEN as u64, header_len + 4)?,
+            &limits,
+        )
+        .map_err(invalid)?;
         let mut footer_bytes = [0u8; FOOTER_LEN];
-        file.read_exact_at(&mut footer_bytes, file_len - FOOTER_LEN as u64).map_err(io)?;
-        let footer = decode_footer(&footer_bytes, file_len, data_start, &limits).map_err(invalid)?;
-        let index_len = usize::try_from(footer.index_len).map_err(|_| invalid(corrupt("footer", "index too large")))?;
+        file.read_exact_at(&mut footer_bytes, file_len - FOOTER_LEN as u64)
+            .map_err(io)?;
+        let footer =
+            decode_footer(&footer_bytes, file_len, data_start, &limits).map_err(invalid)?;
+        let index_len = usize::try_from(footer.index_len)
+            .map_err(|_| invalid(corrupt("footer", "index too large")))?;
         let index = read(footer.index_offset, index_len)?;
         if crc32c::crc32c(&index) != footer.index_crc {
             return Err(invalid(FormatViolation::Checksum("index")));
         }
-        let (tiles, summary) =
-            decode_index(&index, data_start..footer.index_offset, header.tile_depth, &limits).map_err(invalid)?;
+        let (tiles, summary) = decode_index(
+            &index,
+            data_start..footer.index_offset,
+            header.tile_depth,
+            &limits,
+        )
+        .map_err(invalid)?;
         let model = models
             .prepare_from_parameters(header.model_id, &header.axis, &header.model_parameters)
             .map_err(|e| invalid(FormatViolation::Model(e)))?;
-        Ok(Self { path: path.to_path_buf(), file, file_len, header, tiles, summary, model, limits })
+        Ok(Self {
+            path: path.to_path_buf(),
+            file,
+            file_len,
+            header,
+            tiles,
+            summary,
+            model,
+            limits,
+        })
     }
 
     /// The file's path.
@@ -117,20 +159,38 @@ impl FroctReader {
 
     /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
     pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
-        let invalid = |violation| FileError::Invalid { path: self.path.clone(), violation };
-        let entry = self.tiles.get(tile).ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
+        let invalid = |violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        };
+        let entry = self
+            .tiles
+            .get(tile)
+            .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
         let mut stored = vec![0u8; entry.stored_len as usize];
         self.file
             .read_exact_at(&mut stored, entry.offset)
-            .map_err(|source| FileError::Io { path: self.path.clone(), source })?;
+            .map_err(|source| FileError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
         if crc32c::crc32c(&stored) != entry.crc {
             return Err(invalid(FormatViolation::Checksum("tile")));
         }
         let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
-        let cells = decode_payload(&payload, entry.code, self.header.tile_depth, self.model.as_ref(), &self.limits)
-            .map_err(invalid)?;
+        let cells = decode_payload(
+            &payload,
+            entry.code,
+            self.header.tile_depth,
+            self.model.as_ref(),
+            &self.limits,
+        )
+        .map_err(invalid)?;
         if cells.len() != entry.cell_count as usize {
-            return Err(invalid(corrupt("tile", "cell count differs from the index")));
+            return Err(invalid(corrupt(
+                "tile",
+                "cell count differs from the index",
+            )));
         }
         Ok(cells)
     }
@@ -153,7 +213,9 @@ impl FroctReader {
                     let hi = u32::from(lo) + edge - 1;
                     u32::from(lo) <= u32::from(max) && hi >= u32::from(min)
                 };
-                inside(lo.x, min.x, max.x) && inside(lo.y, min.y, max.y) && inside(lo.z, min.z, max.z)
+                inside(lo.x, min.x, max.x)
+                    && inside(lo.y, min.y, max.y)
+                    && inside(lo.z, min.z, max.z)
             })
             .map(|(i, _)| i)
             .collect()

@@ -50,7 +50,12 @@ impl Cell {
     }
 
     /// The state at a sample: `None` where the cell was not observed. Exact in lossless files.
-    pub fn state_at(&self, axis: &TimeAxis, model: &dyn PreparedModel, sample: u32) -> Option<Occupancy> {
+    pub fn state_at(
+        &self,
+        axis: &TimeAxis,
+        model: &dyn PreparedModel,
+        sample: u32,
+    ) -> Option<Occupancy> {
         if !self.is_observed(axis, sample) {
             return None;
         }
@@ -165,10 +170,16 @@ pub fn encode_tile(
         if !(tile_depth..=TREE_DEPTH).contains(&cell.depth)
             || cell.start.node_start(cell.depth) != cell.start
         {
-            return Err(format!("cell {:#x} at depth {} is not a valid cell of a depth-{tile_depth} tile", cell.start.0, cell.depth));
+            return Err(format!(
+                "cell {:#x} at depth {} is not a valid cell of a depth-{tile_depth} tile",
+                cell.start.0, cell.depth
+            ));
         }
         if cell.start.0 < previous_end || cell.end() > tile_end {
-            return Err(format!("cell {:#x} is out of order, overlapping or outside its tile", cell.start.0));
+            return Err(format!(
+                "cell {:#x} is out of order, overlapping or outside its tile",
+                cell.start.0
+            ));
         }
         varint::write_u64(&mut geometry, cell.start.0 - previous_end);
         previous_end = cell.end();
@@ -234,7 +245,10 @@ pub(crate) fn decode_stored(
     match codec {
         Codec::Raw => {
             if stored.len() != raw_len as usize {
-                return Err(corrupt("tile", "stored length differs from the raw length of a raw tile"));
+                return Err(corrupt(
+                    "tile",
+                    "stored length differs from the raw length of a raw tile",
+                ));
             }
             Ok(stored.to_vec())
         }
@@ -242,7 +256,10 @@ pub(crate) fn decode_stored(
             let payload = zstd::bulk::decompress(stored, raw_len as usize)
                 .map_err(|e| corrupt("tile", format!("zstd: {e}")))?;
             if payload.len() != raw_len as usize {
-                return Err(corrupt("tile", format!("decoded {} bytes, index says {raw_len}", payload.len())));
+                return Err(corrupt(
+                    "tile",
+                    format!("decoded {} bytes, index says {raw_len}", payload.len()),
+                ));
             }
             Ok(payload)
         }
@@ -272,7 +289,10 @@ pub(crate) fn decode_payload(
         return Err(corrupt("tile", "bytes after the last stream"));
     }
     if depths.len() != count || classes.len() != count {
-        return Err(corrupt("tile", "depth or class stream does not hold one byte per cell"));
+        return Err(corrupt(
+            "tile",
+            "depth or class stream does not hold one byte per cell",
+        ));
     }
     let tile_end = code.0 + voxels_per_node(tile_depth);
     let mut geometry = Cursor::new(geometry, "tile geometry");
@@ -283,7 +303,10 @@ pub(crate) fn decode_payload(
     for (&depth, &class) in depths.iter().zip(classes) {
         let gap = geometry.varint()?;
         if !(tile_depth..=TREE_DEPTH).contains(&depth) {
-            return Err(corrupt("tile", format!("cell depth {depth} outside {tile_depth}..=16")));
+            return Err(corrupt(
+                "tile",
+                format!("cell depth {depth} outside {tile_depth}..=16"),
+            ));
         }
         let start = previous_end
             .checked_add(gap)

@@ -47,12 +47,19 @@ impl FroctWriter {
     /// Starts a file at `path` (created atomically on [`finish`](Self::finish)).
     pub fn create(path: &Path, header: &Header) -> Result<Self, FileError> {
         header.validate().map_err(FileError::Usage)?;
-        let io = |source| FileError::Io { path: path.to_path_buf(), source };
+        let io = |source| FileError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        let temp = tempfile::Builder::new().prefix(".froct-").suffix(".tmp").tempfile_in(dir).map_err(io)?;
+        let temp = tempfile::Builder::new()
+            .prefix(".froct-")
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(io)?;
         let mut out = BufWriter::with_capacity(1 << 20, temp);
         let bytes = header.encode();
         out.write_all(&bytes).map_err(io)?;
@@ -70,7 +77,11 @@ impl FroctWriter {
 
     /// Appends a tile; tiles must come in strictly increasing Morton order.
     pub fn write_tile(&mut self, tile: &EncodedTile) -> Result<(), FileError> {
-        if self.entries.last().is_some_and(|last| last.code >= tile.code) {
+        if self
+            .entries
+            .last()
+            .is_some_and(|last| last.code >= tile.code)
+        {
             return Err(FileError::Usage(format!(
                 "tiles must be written in increasing Morton order ({:#x} after {:#x})",
                 tile.code.0,
@@ -79,7 +90,12 @@ impl FroctWriter {
         }
         let stored_len = u32::try_from(tile.stored.len())
             .map_err(|_| FileError::Usage("a stored tile exceeds 4 GiB".into()))?;
-        self.out.write_all(&tile.stored).map_err(|source| FileError::Io { path: self.path.clone(), source })?;
+        self.out
+            .write_all(&tile.stored)
+            .map_err(|source| FileError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
         self.entries.push(TileEntry {
             code: tile.code,
             offset: self.offset,
@@ -119,13 +135,25 @@ impl FroctWriter {
         summary.insert("cells".into(), Value::from(self.cells));
         let index = encode_index(&self.entries, &summary);
         let footer = encode_footer(self.offset, &index);
-        let io = |source| FileError::Io { path: self.path.clone(), source };
+        let io = |source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        };
         self.out.write_all(&index).map_err(io)?;
         self.out.write_all(&footer).map_err(io)?;
         let result = written((index.len() + footer.len()) as u64);
-        let temp = self.out.into_inner().map_err(|e| FileError::Io { path: self.path.clone(), source: e.into_error() })?;
-        temp.as_file().sync_all().map_err(|source| FileError::Io { path: self.path.clone(), source })?;
-        temp.persist(&self.path).map_err(|e| FileError::Io { path: self.path.clone(), source: e.error })?;
+        let temp = self.out.into_inner().map_err(|e| FileError::Io {
+            path: self.path.clone(),
+            source: e.into_error(),
+        })?;
+        temp.as_file().sync_all().map_err(|source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        temp.persist(&self.path).map_err(|e| FileError::Io {
+            path: self.path.clone(),
+            source: e.error,
+        })?;
         Ok(result)
     }
 }

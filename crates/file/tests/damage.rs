@@ -18,7 +18,9 @@ fn open_bytes(bytes: &[u8]) -> Result<FroctReader, FileError> {
 /// Opens and decodes everything; returns which tiles failed.
 fn read_all(bytes: &[u8]) -> Result<Vec<bool>, FileError> {
     let reader = open_bytes(bytes)?;
-    Ok((0..reader.tiles().len()).map(|i| reader.read_tile(i).is_err()).collect())
+    Ok((0..reader.tiles().len())
+        .map(|i| reader.read_tile(i).is_err())
+        .collect())
 }
 
 #[test]
@@ -28,7 +30,13 @@ fn every_truncation_point_is_a_typed_error() {
         match open_bytes(&bytes[..len]) {
             Err(FileError::Invalid { violation, path }) => {
                 assert!(path.ends_with("damaged.froct"));
-                assert!(matches!(violation, FormatViolation::Corrupt { .. } | FormatViolation::Checksum(_)), "{len}: {violation}");
+                assert!(
+                    matches!(
+                        violation,
+                        FormatViolation::Corrupt { .. } | FormatViolation::Checksum(_)
+                    ),
+                    "{len}: {violation}"
+                );
             }
             Err(other) => panic!("truncation to {len}: unexpected error {other}"),
             Ok(_) => panic!("truncation to {len} of {} bytes opened", bytes.len()),
@@ -39,7 +47,10 @@ fn every_truncation_point_is_a_typed_error() {
 #[test]
 fn empty_and_foreign_files_are_named_as_such() {
     let err = open_bytes(b"").unwrap_err().to_string();
-    assert!(err.contains("damaged.froct") && err.contains("empty"), "{err}");
+    assert!(
+        err.contains("damaged.froct") && err.contains("empty"),
+        "{err}"
+    );
     let octomap = b"# Octomap OcTree binary file\nid OcTree\nsize 0\nres 0.1\ndata\n".repeat(2);
     let err = open_bytes(&octomap).unwrap_err().to_string();
     assert!(err.contains("not a FROctomap file"), "{err}");
@@ -59,7 +70,13 @@ fn a_newer_major_version_is_refused_and_a_newer_minor_is_read() {
         b
     };
     let err = open_bytes(&patched(2, 0)).unwrap_err();
-    assert!(matches!(err.violation(), Some(FormatViolation::UnsupportedVersion { major: 2, .. })), "{err}");
+    assert!(
+        matches!(
+            err.violation(),
+            Some(FormatViolation::UnsupportedVersion { major: 2, .. })
+        ),
+        "{err}"
+    );
     let newer_minor = open_bytes(&patched(1, 7)).unwrap();
     assert_eq!(newer_minor.header().version, (1, 7));
     assert!(newer_minor.read_tile(0).is_ok());
@@ -76,7 +93,11 @@ fn a_flipped_bit_in_one_tile_leaves_the_others_readable() {
             damaged[offset as usize] ^= 0x04;
             let failed = read_all(&damaged).unwrap();
             for (tile, &fail) in failed.iter().enumerate() {
-                assert_eq!(fail, tile == damaged_tile, "flip at {offset} in tile {damaged_tile}: tile {tile}");
+                assert_eq!(
+                    fail,
+                    tile == damaged_tile,
+                    "flip at {offset} in tile {damaged_tile}: tile {tile}"
+                );
             }
         }
     }
@@ -91,28 +112,63 @@ fn checksum_errors_are_distinguished() {
     damaged[entry.offset as usize + 1] ^= 1;
     let reader = open_bytes(&damaged).unwrap();
     let err = reader.read_tile(1).unwrap_err();
-    assert!(matches!(err.violation(), Some(FormatViolation::Checksum("tile"))), "{err}");
+    assert!(
+        matches!(err.violation(), Some(FormatViolation::Checksum("tile"))),
+        "{err}"
+    );
     let mut header_damage = bytes.clone();
     header_damage[20] ^= 1;
-    assert!(matches!(open_bytes(&header_damage).unwrap_err().violation(), Some(FormatViolation::Checksum("header"))));
+    assert!(matches!(
+        open_bytes(&header_damage).unwrap_err().violation(),
+        Some(FormatViolation::Checksum("header"))
+    ));
     let mut index_damage = bytes;
     let at = index_damage.len() - 40;
     index_damage[at] ^= 1;
-    assert!(matches!(open_bytes(&index_damage).unwrap_err().violation(), Some(FormatViolation::Checksum("index"))));
+    assert!(matches!(
+        open_bytes(&index_damage).unwrap_err().violation(),
+        Some(FormatViolation::Checksum("index"))
+    ));
 }
 
 #[test]
 fn limits_are_checked_before_allocating() {
     let models = froctomap_temporal::ModelRegistry::with_default_models();
-    let limits = froctomap_file::ReadLimits { max_cells_per_tile: 1, ..Default::default() };
+    let limits = froctomap_file::ReadLimits {
+        max_cells_per_tile: 1,
+        ..Default::default()
+    };
     let reader = FroctReader::open_with_limits(&golden_path(), limits, &models).unwrap();
-    let busiest = (0..reader.tiles().len()).max_by_key(|&i| reader.tiles()[i].cell_count).unwrap();
+    let busiest = (0..reader.tiles().len())
+        .max_by_key(|&i| reader.tiles()[i].cell_count)
+        .unwrap();
     assert!(reader.tiles()[busiest].cell_count > 1);
     let err = reader.read_tile(busiest).unwrap_err();
-    assert!(matches!(err.violation(), Some(FormatViolation::Limit { what: "cells per tile", .. })), "{err}");
-    let limits = froctomap_file::ReadLimits { max_header_bytes: 10, ..Default::default() };
+    assert!(
+        matches!(
+            err.violation(),
+            Some(FormatViolation::Limit {
+                what: "cells per tile",
+                ..
+            })
+        ),
+        "{err}"
+    );
+    let limits = froctomap_file::ReadLimits {
+        max_header_bytes: 10,
+        ..Default::default()
+    };
     let err = FroctReader::open_with_limits(&golden_path(), limits, &models).unwrap_err();
-    assert!(matches!(err.violation(), Some(FormatViolation::Limit { what: "header length", .. })), "{err}");
+    assert!(
+        matches!(
+            err.violation(),
+            Some(FormatViolation::Limit {
+                what: "header length",
+                ..
+            })
+        ),
+        "{err}"
+    );
 }
 
 proptest! {

@@ -45,8 +45,17 @@ fn golden_file_reads_back_every_observed_state() {
     for (cell, series) in decoded.iter().zip(&expected) {
         assert_eq!((cell.start, cell.depth), (series.start, series.depth));
         for sample in 0..axis.len() {
-            let truth = if axis.is_missing(sample) { None } else { series.observations.state_at(sample) };
-            assert_eq!(cell.state_at(&axis, reader.model(), sample), truth, "cell {:?} sample {sample}", cell.start);
+            let truth = if axis.is_missing(sample) {
+                None
+            } else {
+                series.observations.state_at(sample)
+            };
+            assert_eq!(
+                cell.state_at(&axis, reader.model(), sample),
+                truth,
+                "cell {:?} sample {sample}",
+                cell.start
+            );
         }
     }
 }
@@ -61,9 +70,23 @@ fn region_queries_read_only_what_they_need() {
     let axis = golden_axis();
     for sample in [3u32, 12, 40] {
         let states = reader.region_states(door, door, sample).unwrap();
-        let expected = golden_cells().into_iter().find(|c| c.start == door.morton()).unwrap();
-        let truth = if axis.is_missing(sample) { None } else { expected.observations.state_at(sample) };
-        assert_eq!(states.iter().find(|c| c.start == door.morton()).map(|c| c.value), truth, "sample {sample}");
+        let expected = golden_cells()
+            .into_iter()
+            .find(|c| c.start == door.morton())
+            .unwrap();
+        let truth = if axis.is_missing(sample) {
+            None
+        } else {
+            expected.observations.state_at(sample)
+        };
+        assert_eq!(
+            states
+                .iter()
+                .find(|c| c.start == door.morton())
+                .map(|c| c.value),
+            truth,
+            "sample {sample}"
+        );
     }
     // Probabilities exist at any instant, also far in the future, and stay in [0, 1].
     for seconds in [-3600.0, 1800.0, 86_400.0 * 30.0] {

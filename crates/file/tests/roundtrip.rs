@@ -15,44 +15,66 @@ const TILE_DEPTH: u8 = 13;
 /// Random non-overlapping cells below a few random tiles, by random subdivision.
 fn cells_strategy() -> impl Strategy<Value = Vec<(MortonCode, u8)>> {
     let tile_size = 1u64 << (3 * (16 - u32::from(TILE_DEPTH)));
-    (proptest::collection::btree_set(0u64..4096, 1..4), any::<u64>()).prop_map(move |(tiles, seed)| {
-        let mut rng = seed | 1;
-        let mut next = move || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            rng
-        };
-        let mut cells = Vec::new();
-        for t in tiles {
-            let origin = VoxelKey::new(30000, 30000, 30000).morton().node_start(TILE_DEPTH).0 + t * tile_size;
-            let mut stack = vec![(origin, TILE_DEPTH)];
-            while let Some((start, depth)) = stack.pop() {
-                let roll = next() % 10;
-                if depth < 16 && roll < 4 {
-                    let child = 1u64 << (3 * (16 - u32::from(depth) - 1));
-                    for i in (0..8).rev() {
-                        stack.push((start + i * child, depth + 1));
+    (
+        proptest::collection::btree_set(0u64..4096, 1..4),
+        any::<u64>(),
+    )
+        .prop_map(move |(tiles, seed)| {
+            let mut rng = seed | 1;
+            let mut next = move || {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                rng
+            };
+            let mut cells = Vec::new();
+            for t in tiles {
+                let origin = VoxelKey::new(30000, 30000, 30000)
+                    .morton()
+                    .node_start(TILE_DEPTH)
+                    .0
+                    + t * tile_size;
+                let mut stack = vec![(origin, TILE_DEPTH)];
+                while let Some((start, depth)) = stack.pop() {
+                    let roll = next() % 10;
+                    if depth < 16 && roll < 4 {
+                        let child = 1u64 << (3 * (16 - u32::from(depth) - 1));
+                        for i in (0..8).rev() {
+                            stack.push((start + i * child, depth + 1));
+                        }
+                    } else if roll < 8 {
+                        cells.push((MortonCode(start), depth));
                     }
-                } else if roll < 8 {
-                    cells.push((MortonCode(start), depth));
                 }
             }
-        }
-        cells.sort();
-        cells
-    })
+            cells.sort();
+            cells
+        })
 }
 
 fn axis_strategy() -> impl Strategy<Value = TimeAxis> {
     prop_oneof![
         (2u32..120, proptest::collection::btree_set(0u32..120, 0..5)).prop_map(|(n, missing)| {
             let missing: Vec<u32> = missing.into_iter().filter(|&m| m < n && m > 0).collect();
-            TimeAxis::regular(Timestamp::from_secs(1_600_000_000), 600_000_000_000, n, missing).unwrap()
+            TimeAxis::regular(
+                Timestamp::from_secs(1_600_000_000),
+                600_000_000_000,
+                n,
+                missing,
+            )
+            .unwrap()
         }),
         proptest::collection::vec(1i64..2_000_000_000_000, 1..100).prop_map(|gaps| {
             let mut t = 1_600_000_000_000_000_000i64;
-            TimeAxis::explicit(gaps.into_iter().map(|g| { t += g; Timestamp(t) }).collect()).unwrap()
+            TimeAxis::explicit(
+                gaps.into_iter()
+                    .map(|g| {
+                        t += g;
+                        Timestamp(t)
+                    })
+                    .collect(),
+            )
+            .unwrap()
         }),
     ]
 }
@@ -61,7 +83,11 @@ fn axis_strategy() -> impl Strategy<Value = TimeAxis> {
 fn series(axis: &TimeAxis, seed: u64) -> froctomap_temporal::VoxelObservations {
     let mut rng = seed | 1;
     let mut b = ObservationsBuilder::new();
-    let mut state = Some(if seed % 2 == 0 { Occupancy::Free } else { Occupancy::Occupied });
+    let mut state = Some(if seed % 2 == 0 {
+        Occupancy::Free
+    } else {
+        Occupancy::Occupied
+    });
     let volatility = seed % 5;
     for i in 0..axis.len() {
         rng ^= rng << 13;
@@ -87,16 +113,36 @@ fn series(axis: &TimeAxis, seed: u64) -> froctomap_temporal::VoxelObservations {
     b.finish()
 }
 
-fn check(model: &str, outliers: OutlierMode, axis: TimeAxis, geometry: Vec<(MortonCode, u8)>, seed: u64) {
+fn check(
+    model: &str,
+    outliers: OutlierMode,
+    axis: TimeAxis,
+    geometry: Vec<(MortonCode, u8)>,
+    seed: u64,
+) {
     let cells: Vec<SeriesCell> = geometry
         .iter()
         .enumerate()
-        .map(|(i, &(start, depth))| SeriesCell { start, depth, observations: series(&axis, seed.wrapping_add(i as u64 * 7919)) })
+        .map(|(i, &(start, depth))| SeriesCell {
+            start,
+            depth,
+            observations: series(&axis, seed.wrapping_add(i as u64 * 7919)),
+        })
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("series.froct");
-    let config = ModelConfig::default().with_outliers(outliers).with_order(Order::Auto { max: 3 });
-    write_file(&path, &axis, model, &config, TILE_DEPTH, Codec::Zstd { level: 3 }, &cells);
+    let config = ModelConfig::default()
+        .with_outliers(outliers)
+        .with_order(Order::Auto { max: 3 });
+    write_file(
+        &path,
+        &axis,
+        model,
+        &config,
+        TILE_DEPTH,
+        Codec::Zstd { level: 3 },
+        &cells,
+    );
     let reader = FroctReader::open(&path).unwrap();
     let mut decoded = Vec::new();
     for tile in 0..reader.tiles().len() {
@@ -110,14 +156,19 @@ fn check(model: &str, outliers: OutlierMode, axis: TimeAxis, geometry: Vec<(Mort
             let got = cell.state_at(&axis, reader.model(), sample);
             match outliers {
                 OutlierMode::Lossless => assert_eq!(got, expected, "sample {sample}"),
-                OutlierMode::Lossy => assert_eq!(got.is_some(), expected.is_some(), "mask at {sample}"),
+                OutlierMode::Lossy => {
+                    assert_eq!(got.is_some(), expected.is_some(), "mask at {sample}")
+                }
             }
         }
     }
     // The whole-map view agrees with the cells.
     for sample in [0, axis.len() / 2, axis.len() - 1] {
         let snapshot = reader.snapshot_at_sample(sample).unwrap();
-        let known = cells.iter().filter(|c| c.observations.state_at(sample).is_some()).count();
+        let known = cells
+            .iter()
+            .filter(|c| c.observations.state_at(sample).is_some())
+            .count();
         assert_eq!(snapshot.leaves().len(), known);
     }
 }

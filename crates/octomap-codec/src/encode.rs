@@ -61,7 +61,7 @@ pub fn format_resolution(value: f64) -> String {
     let scientific = format!("{:.*e}", (PRECISION - 1) as usize, value);
     let (mantissa, exponent) = scientific.split_once('e').unwrap_or((&scientific, "0"));
     let exponent: i32 = exponent.parse().unwrap_or(0);
-    if exponent < -4 || exponent >= PRECISION {
+    if !(-4..PRECISION).contains(&exponent) {
         let sign = if exponent < 0 { '-' } else { '+' };
         format!(
             "{}e{sign}{:02}",
@@ -297,18 +297,14 @@ impl BinaryEncoder {
     /// Writes the whole `.bt` file to `out` and returns the number of tree nodes (the
     /// header's `size`).
     pub fn finish<W: Write + ?Sized>(self, out: &mut W) -> std::io::Result<u64> {
-        let (body, nodes) = render_binary(&self.leaves);
-        out.write_all(header(BINARY_FIRST_LINE, nodes, self.resolution).as_bytes())?;
-        out.write_all(&body)?;
+        let (bytes, nodes) = render_binary(&self.leaves, self.resolution);
+        out.write_all(&bytes)?;
         Ok(nodes)
     }
 
     /// The whole `.bt` file in memory.
     pub fn finish_to_vec(self) -> Vec<u8> {
-        let (body, nodes) = render_binary(&self.leaves);
-        let mut bytes = header(BINARY_FIRST_LINE, nodes, self.resolution).into_bytes();
-        bytes.extend_from_slice(&body);
-        bytes
+        render_binary(&self.leaves, self.resolution).0
     }
 }
 
@@ -363,22 +359,52 @@ fn merge_level(leaves: &mut Vec<Packed>, parent_depth: u8) -> usize {
     merged
 }
 
-/// The `.bt` body of a tree whose leaves are `leaves` (sorted, non-overlapping), and its node
-/// count. Each inner node is written as its two code bytes when it opens (depth-first order
-/// is opening order); its codes are filled in as its children appear.
-fn render_binary(leaves: &[Packed]) -> (Vec<u8>, u64) {
-    let Some(first) = leaves.first() else {
-        return (Vec::new(), 0);
-    };
-    let mut body = Vec::with_capacity(leaves.len() / 2 + 2);
-    if first.depth() == 0 {
-        // A root without children: upstream writes its (empty) child codes.
-        return (vec![0, 0], 1);
+/// Nodes of the tree made of these leaves (sorted, non-overlapping `(start, depth)`): the
+/// root, every inner node on a path to a leaf, and the leaves.
+fn count_nodes(leaves: impl Iterator<Item = (u64, u8)>) -> u64 {
+    let mut nodes = 0u64;
+    let mut previous = None;
+    for (start, depth) in leaves {
+        if depth == 0 {
+            return 1;
+        }
+        let shared = match previous {
+            None => {
+                nodes += 1; // the root
+                0
+            }
+            Some(previous) => divergence_depth(previous, start),
+        };
+        // Inner nodes at depths shared + 1 .. depth − 1 open for this leaf, then the leaf.
+        nodes += u64::from(depth - shared);
+        previous = Some(start);
     }
+    nodes
+}
+
+/// The `.bt` file of a tree whose leaves are `leaves` (sorted, non-overlapping), and its node
+/// count. The node count comes first (the header needs it), so the file is built in one
+/// buffer of the exact size. Each inner node is written as its two code bytes when it opens
+/// (depth-first order is opening order); its codes are filled in as its children appear.
+fn render_binary(leaves: &[Packed], resolution: f64) -> (Vec<u8>, u64) {
+    let nodes = count_nodes(leaves.iter().map(|l| (l.start(), l.depth())));
+    let header = header(BINARY_FIRST_LINE, nodes, resolution);
+    let inner_nodes = usize::try_from(nodes)
+        .unwrap_or(usize::MAX)
+        .saturating_sub(leaves.len());
+    let mut bytes = Vec::with_capacity(header.len() + 2 * inner_nodes.max(1));
+    bytes.extend_from_slice(header.as_bytes());
+    let Some(first) = leaves.first() else {
+        return (bytes, nodes);
+    };
     // Offset of the code bytes of the open inner node at each depth.
     let mut slots = [0usize; TREE_DEPTH as usize];
-    body.extend([0, 0]);
-    let mut nodes = 1u64;
+    slots[0] = bytes.len();
+    bytes.extend([0, 0]);
+    if first.depth() == 0 {
+        // A root without children: upstream writes its (empty) child codes.
+        return (bytes, nodes);
+    }
     let mut previous: Option<u64> = None;
     for leaf in leaves {
         let (start, depth) = (leaf.start(), leaf.depth());
@@ -387,17 +413,27 @@ fn render_binary(leaves: &[Packed]) -> (Vec<u8>, u64) {
             Some(previous) => divergence_depth(previous, start),
         };
         for inner in shared + 1..depth {
-            set_code(&mut body, slots[usize::from(inner - 1)], start, inner - 1, 3);
-            slots[usize::from(inner)] = body.len();
-            body.extend([0, 0]);
-            nodes += 1;
+            set_code(
+                &mut bytes,
+                slots[usize::from(inner - 1)],
+                start,
+                inner - 1,
+                3,
+            );
+            slots[usize::from(inner)] = bytes.len();
+            bytes.extend([0, 0]);
         }
         let code = if leaf.occupied() { 2 } else { 1 };
-        set_code(&mut body, slots[usize::from(depth - 1)], start, depth - 1, code);
-        nodes += 1;
+        set_code(
+            &mut bytes,
+            slots[usize::from(depth - 1)],
+            start,
+            depth - 1,
+            code,
+        );
         previous = Some(start);
     }
-    (body, nodes)
+    (bytes, nodes)
 }
 
 /// Sets the 2-bit code of the child containing `start` in the code bytes at `slot` of its
@@ -433,7 +469,10 @@ fn set_code(body: &mut [u8], slot: usize, start: u64, parent_depth: u8, code: u8
 #[derive(Clone, Debug)]
 pub struct FullEncoder {
     resolution: f64,
+    /// The output so far: the header too when it was written up front (`header_written`),
+    /// otherwise only the tree data.
     body: Vec<u8>,
+    header_written: bool,
     /// Open inner nodes by depth: offset of their record and the maximum of their children
     /// so far.
     open: [(usize, f32); TREE_DEPTH as usize],
@@ -449,6 +488,7 @@ impl FullEncoder {
         Ok(Self {
             resolution: validate_resolution(resolution)?,
             body: Vec::new(),
+            header_written: false,
             open: [(0, -f32::MAX); TREE_DEPTH as usize],
             open_count: 0,
             nodes: 0,
@@ -552,7 +592,9 @@ impl FullEncoder {
     /// header's `size`).
     pub fn finish<W: Write + ?Sized>(mut self, out: &mut W) -> std::io::Result<u64> {
         self.close_all();
-        out.write_all(header(FULL_FIRST_LINE, self.nodes, self.resolution).as_bytes())?;
+        if !self.header_written {
+            out.write_all(header(FULL_FIRST_LINE, self.nodes, self.resolution).as_bytes())?;
+        }
         out.write_all(&self.body)?;
         Ok(self.nodes)
     }
@@ -560,9 +602,11 @@ impl FullEncoder {
     /// The whole `.ot` file in memory.
     pub fn finish_to_vec(mut self) -> Vec<u8> {
         self.close_all();
-        let mut bytes = header(FULL_FIRST_LINE, self.nodes, self.resolution).into_bytes();
-        bytes.extend_from_slice(&self.body);
-        bytes
+        if !self.header_written {
+            let header = header(FULL_FIRST_LINE, self.nodes, self.resolution);
+            self.body.splice(0..0, header.into_bytes());
+        }
+        self.body
     }
 }
 
@@ -608,9 +652,17 @@ pub fn encode_binary(snapshot: &Snapshot) -> Vec<u8> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn encode_full(snapshot: &Snapshot) -> Vec<u8> {
+    // Counting the nodes first lets the header go in front and the file be built in one
+    // buffer of the exact size.
+    let nodes = count_nodes(snapshot.leaves().iter().map(|l| (l.start.0, l.depth)));
+    let header = header(FULL_FIRST_LINE, nodes, snapshot.resolution());
+    let mut body =
+        Vec::with_capacity(header.len() + usize::try_from(nodes).unwrap_or(0).saturating_mul(5));
+    body.extend_from_slice(header.as_bytes());
     let mut encoder = FullEncoder {
         resolution: snapshot.resolution(),
-        body: Vec::with_capacity(snapshot.leaves().len().saturating_mul(7)),
+        body,
+        header_written: true,
         open: [(0, -f32::MAX); TREE_DEPTH as usize],
         open_count: 0,
         nodes: 0,
@@ -679,7 +731,9 @@ mod tests {
         ot.push(Leaf::containing(VoxelKey::new(0, 0, 0), 14, 1.0))
             .unwrap();
         assert!(ot.push(voxel(3)).is_err(), "inside the coarse leaf");
-        assert!(ot.push(Leaf::voxel(VoxelKey::new(9, 9, 9), f32::NAN)).is_err());
+        assert!(ot
+            .push(Leaf::voxel(VoxelKey::new(9, 9, 9), f32::NAN))
+            .is_err());
         let misaligned = Leaf {
             start: VoxelKey::new(1, 0, 0).morton(),
             depth: 15,
@@ -734,9 +788,12 @@ mod tests {
     proptest! {
         #[test]
         fn encoded_files_decode_to_the_same_voxels(snapshot in snapshot_strategy()) {
+            // No warnings: in particular the header's `size` is the node count.
             let full = decode(&encode_full(&snapshot), None, ReadLimits::default()).unwrap();
+            prop_assert!(full.warnings.is_empty(), "{:?}", full.warnings);
             prop_assert_eq!(&Snapshot::from_leaves(0.1, full.leaves).unwrap(), &snapshot);
             let binary = decode(&encode_binary(&snapshot), None, ReadLimits::default()).unwrap();
+            prop_assert!(binary.warnings.is_empty(), "{:?}", binary.warnings);
             let binary = Snapshot::from_leaves(0.1, binary.leaves).unwrap();
             prop_assert!(binary.same_voxel_states(&snapshot.to_max_likelihood()));
             prop_assert!(binary.leaves().len() <= snapshot.leaves().len());

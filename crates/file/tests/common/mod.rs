@@ -2,8 +2,12 @@
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use froctomap_core::{MortonCode, Occupancy, Timestamp, VoxelKey};
-use froctomap_file::{encode_tile, mask_from_ranges, Cell, CellContent, Codec, FroctWriter, Header};
-use froctomap_temporal::{ModelConfig, ModelRegistry, OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
+use froctomap_file::{
+    encode_tile, mask_from_ranges, Cell, CellContent, Codec, FroctWriter, Header,
+};
+use froctomap_temporal::{
+    ModelConfig, ModelRegistry, OutlierMode, PreparedModel, TimeAxis, VoxelObservations,
+};
 use std::path::Path;
 
 /// A cell and what was observed of it.
@@ -32,7 +36,12 @@ pub fn to_cell(axis: &TimeAxis, model: &dyn PreparedModel, cell: &SeriesCell) ->
         Some(state) => CellContent::Constant(state),
         None => CellContent::Modelled(model.fit(&cell.observations).unwrap()),
     };
-    Cell { start: cell.start, depth: cell.depth, mask, content }
+    Cell {
+        start: cell.start,
+        depth: cell.depth,
+        mask,
+        content,
+    }
 }
 
 /// Writes cells (sorted) to a file, grouping them into tiles.
@@ -48,15 +57,36 @@ pub fn write_file(
     let registry = ModelRegistry::with_default_models();
     let model = registry.by_name(model_name).unwrap().create();
     let prepared = model.prepare(axis, config).unwrap();
-    let mut header = Header::new(0.1, tile_depth, axis.clone(), model.id(), prepared.encode_parameters(), codec);
-    header.metadata.insert("creator".into(), "froctomap-file tests".into());
+    let mut header = Header::new(
+        0.1,
+        tile_depth,
+        axis.clone(),
+        model.id(),
+        prepared.encode_parameters(),
+        codec,
+    );
+    header
+        .metadata
+        .insert("creator".into(), "froctomap-file tests".into());
     let mut writer = FroctWriter::create(path, &header).unwrap();
-    let file_cells: Vec<Cell> = cells.iter().map(|c| to_cell(axis, prepared.as_ref(), c)).collect();
+    let file_cells: Vec<Cell> = cells
+        .iter()
+        .map(|c| to_cell(axis, prepared.as_ref(), c))
+        .collect();
     let mut start = 0;
     while start < file_cells.len() {
         let tile = file_cells[start].start.node_start(tile_depth);
-        let len = file_cells[start..].iter().take_while(|c| c.start.node_start(tile_depth) == tile).count();
-        let encoded = encode_tile(tile_depth, &file_cells[start..start + len], prepared.as_ref(), codec).unwrap();
+        let len = file_cells[start..]
+            .iter()
+            .take_while(|c| c.start.node_start(tile_depth) == tile)
+            .count();
+        let encoded = encode_tile(
+            tile_depth,
+            &file_cells[start..start + len],
+            prepared.as_ref(),
+            codec,
+        )
+        .unwrap();
         writer.write_tile(&encoded).unwrap();
         start += len;
     }
@@ -78,7 +108,13 @@ fn golden_obs(series: impl IntoIterator<Item = (u32, Option<Occupancy>)>) -> Vox
 /// tiles of depth 12: a daily door, a noisy surface voxel, static walls and free space, and
 /// a region seen only on the second and third day.
 pub fn golden_axis() -> TimeAxis {
-    TimeAxis::regular(Timestamp::from_secs(1_700_000_000), 3_600_000_000_000, 72, vec![40]).unwrap()
+    TimeAxis::regular(
+        Timestamp::from_secs(1_700_000_000),
+        3_600_000_000_000,
+        72,
+        vec![40],
+    )
+    .unwrap()
 }
 
 pub const GOLDEN_TILE_DEPTH: u8 = 12;
@@ -86,22 +122,72 @@ pub const GOLDEN_TILE_DEPTH: u8 = 12;
 pub fn golden_cells() -> Vec<SeriesCell> {
     let o = 32768u16;
     let voxel = |x: u16, y: u16, z: u16| VoxelKey::new(x, y, z).morton();
-    let block = |x: u16, y: u16, z: u16, depth: u8| VoxelKey::new(x, y, z).morton().node_start(depth);
+    let block =
+        |x: u16, y: u16, z: u16, depth: u8| VoxelKey::new(x, y, z).morton().node_start(depth);
     let all = |state: Occupancy| golden_obs((0..72).map(move |i| (i, Some(state))));
     let door = golden_obs((0..72).map(|i| {
         let hour = i % 24;
-        (i, Some(if (8..18).contains(&hour) { Occupancy::Free } else { Occupancy::Occupied }))
+        (
+            i,
+            Some(if (8..18).contains(&hour) {
+                Occupancy::Free
+            } else {
+                Occupancy::Occupied
+            }),
+        )
     }));
-    let noisy = golden_obs((0..72).map(|i| (i, Some(if i % 7 == 3 || i % 11 == 5 { Occupancy::Free } else { Occupancy::Occupied }))));
-    let late = golden_obs((24..72).map(|i| (i, Some(if i % 24 < 12 { Occupancy::Free } else { Occupancy::Occupied }))));
+    let noisy = golden_obs((0..72).map(|i| {
+        (
+            i,
+            Some(if i % 7 == 3 || i % 11 == 5 {
+                Occupancy::Free
+            } else {
+                Occupancy::Occupied
+            }),
+        )
+    }));
+    let late = golden_obs((24..72).map(|i| {
+        (
+            i,
+            Some(if i % 24 < 12 {
+                Occupancy::Free
+            } else {
+                Occupancy::Occupied
+            }),
+        )
+    }));
     let gaps = golden_obs((0..72).map(|i| (i, (i % 10 < 6).then_some(Occupancy::Free))));
     let mut cells = vec![
-        SeriesCell { start: block(o, o, o, 14), depth: 14, observations: all(Occupancy::Free) },
-        SeriesCell { start: voxel(o + 4, o, o), depth: 16, observations: door },
-        SeriesCell { start: voxel(o + 5, o, o), depth: 16, observations: all(Occupancy::Occupied) },
-        SeriesCell { start: voxel(o + 5, o + 1, o), depth: 16, observations: noisy },
-        SeriesCell { start: block(o + 16, o, o, 13), depth: 13, observations: late },
-        SeriesCell { start: block(o - 16, o, o, 15), depth: 15, observations: gaps },
+        SeriesCell {
+            start: block(o, o, o, 14),
+            depth: 14,
+            observations: all(Occupancy::Free),
+        },
+        SeriesCell {
+            start: voxel(o + 4, o, o),
+            depth: 16,
+            observations: door,
+        },
+        SeriesCell {
+            start: voxel(o + 5, o, o),
+            depth: 16,
+            observations: all(Occupancy::Occupied),
+        },
+        SeriesCell {
+            start: voxel(o + 5, o + 1, o),
+            depth: 16,
+            observations: noisy,
+        },
+        SeriesCell {
+            start: block(o + 16, o, o, 13),
+            depth: 13,
+            observations: late,
+        },
+        SeriesCell {
+            start: block(o - 16, o, o, 15),
+            depth: 15,
+            observations: gaps,
+        },
     ];
     cells.sort_by_key(|c| c.start);
     cells
@@ -117,7 +203,15 @@ pub fn golden_config() -> ModelConfig {
 
 /// Writes the golden file to `path`.
 pub fn write_golden(path: &Path) -> Box<dyn PreparedModel> {
-    write_file(path, &golden_axis(), "fremen-periods", &golden_config(), GOLDEN_TILE_DEPTH, Codec::Zstd { level: 19 }, &golden_cells())
+    write_file(
+        path,
+        &golden_axis(),
+        "fremen-periods",
+        &golden_config(),
+        GOLDEN_TILE_DEPTH,
+        Codec::Zstd { level: 19 },
+        &golden_cells(),
+    )
 }
 
 pub fn golden_path() -> std::path::PathBuf {

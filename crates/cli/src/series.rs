@@ -1,0 +1,657 @@
+//! The spatio-temporal commands: build, retrieve, predict, export, eval, and `info` for
+//! FROctomap files. Each is a thin layer over `froctomap-convert`.
+
+use crate::commands::{group_thousands, Ui};
+use crate::progress::{peak_memory_bytes, Bars};
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use froctomap_convert::{
+    build, collect_inputs, describe, evaluate, export, format_iso, parse_duration, parse_time,
+    resolve_observed, write_map, BuildOptions, EvalReport, ExportMode, ExportOptions, LoadedMap,
+    SeriesInput, TimeQuery, TimeSource,
+};
+use froctomap_file::{Codec, FroctReader};
+use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
+use serde_json::{Map, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How the inputs of a series get their times (shared by `build` and `eval`).
+#[derive(Args, Clone)]
+pub struct TimeArgs {
+    /// Time of the first file (Unix seconds or ISO 8601), for a plain list of files without
+    /// times in their names; needs --step.
+    #[arg(long, value_name = "TIME", requires = "step")]
+    start: Option<String>,
+    /// Time between consecutive files (e.g. 10min, 600, 1.5h), with --start.
+    #[arg(long, value_name = "DURATION", requires = "start")]
+    step: Option<String>,
+    /// Take times from the file names even where a manifest gives them.
+    #[arg(long, conflicts_with = "start")]
+    times_from_names: bool,
+}
+
+impl TimeArgs {
+    fn source(&self) -> Result<TimeSource> {
+        Ok(match (&self.start, &self.step) {
+            (Some(start), Some(step)) => TimeSource::StartStep {
+                start: parse_time(start)?,
+                step_ns: parse_duration(step)?,
+            },
+            _ if self.times_from_names => TimeSource::FileNames,
+            _ => TimeSource::Auto,
+        })
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ModelArg {
+    /// FreMEn at a candidate period set (one week / k, plus --periods); any time axis.
+    FremenPeriods,
+    /// FreMEn over every DFT bin; regularly spaced snapshots only.
+    FremenRegular,
+    /// The mean only: the baseline.
+    Static,
+}
+
+impl ModelArg {
+    fn name(self) -> &'static str {
+        match self {
+            ModelArg::FremenPeriods => "fremen-periods",
+            ModelArg::FremenRegular => "fremen-regular",
+            ModelArg::Static => "static",
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum CriterionArg {
+    /// The order that predicts held-out samples best (the file predicts well).
+    Prediction,
+    /// The order with the smallest encoding (lossless only; the file is smallest).
+    Size,
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Snapshots: directories (their manifest.csv, else every .bt/.ot file), glob patterns,
+    /// manifest CSV files (`path,time`), or single files.
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<PathBuf>,
+    /// The FROctomap file to write.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    #[command(flatten)]
+    times: TimeArgs,
+    /// Temporal model of dynamic voxels.
+    #[arg(long, value_enum, default_value_t = ModelArg::FremenPeriods)]
+    model: ModelArg,
+    /// Spectral components per voxel: a number, or `auto` to choose per voxel up to --max-order.
+    #[arg(long, default_value = "auto", value_name = "N|auto")]
+    order: String,
+    /// Highest order `--order auto` tries.
+    #[arg(long, default_value_t = 5)]
+    max_order: u8,
+    /// How `--order auto` chooses.
+    #[arg(long, value_enum, default_value_t = CriterionArg::Prediction)]
+    criterion: CriterionArg,
+    /// Keep every observed state exactly (the default).
+    #[arg(long, conflicts_with = "lossy")]
+    lossless: bool,
+    /// Keep only the models: much smaller, states approximate (the error is reported).
+    #[arg(long)]
+    lossy: bool,
+    /// Extra candidate periods, in seconds or with units (e.g. 1d,8h,45min).
+    #[arg(long, value_delimiter = ',', value_name = "DURATION")]
+    periods: Vec<String>,
+    /// Tile depth: tiles are cubes of 2^(16 - depth) voxels per edge.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u8).range(1..=16))]
+    tile_depth: u8,
+    /// zstd level for tiles (1-22; 0 stores tiles uncompressed).
+    #[arg(long, default_value_t = 19, value_parser = clap::value_parser!(i8).range(0..=22))]
+    zstd_level: i8,
+    /// Leave unreadable files and files of another resolution out (listed at the end)
+    /// instead of stopping.
+    #[arg(long)]
+    skip_bad: bool,
+    /// Force the input map format instead of detecting it.
+    #[arg(long, value_name = "FORMAT")]
+    input_format: Option<String>,
+    /// A key=value tag stored in the file's metadata (repeatable).
+    #[arg(long, value_name = "KEY=VALUE")]
+    tag: Vec<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn model_config(args: &BuildArgs) -> Result<ModelConfig> {
+    let order = match args.order.as_str() {
+        "auto" => Order::Auto {
+            max: args.max_order,
+        },
+        n => Order::Fixed(
+            n.parse()
+                .with_context(|| format!("--order {n:?}: expected a number 0-255 or `auto`"))?,
+        ),
+    };
+    let periods = args
+        .periods
+        .iter()
+        .map(|p| parse_duration(p).map(|ns| ns as f64 / 1e9))
+        .collect::<Result<Vec<_>, _>>()?;
+    let config = ModelConfig::default()
+        .with_order(order)
+        .with_outliers(if args.lossy {
+            OutlierMode::Lossy
+        } else {
+            OutlierMode::Lossless
+        })
+        .with_criterion(match args.criterion {
+            CriterionArg::Prediction => OrderCriterion::Prediction,
+            CriterionArg::Size => OrderCriterion::SmallestFile,
+        })
+        .with_periods(periods);
+    config.validate()?;
+    Ok(config)
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
+}
+
+pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
+    let started = Instant::now();
+    let registry = FormatRegistry::with_default_formats();
+    let inputs = collect_inputs(&args.inputs, args.times.source()?, &registry)?;
+    let mut metadata = Map::new();
+    let mut tags = Map::new();
+    for tag in &args.tag {
+        let (k, v) = tag
+            .split_once('=')
+            .with_context(|| format!("--tag {tag:?}: expected KEY=VALUE"))?;
+        tags.insert(k.to_string(), Value::from(v));
+    }
+    if !tags.is_empty() {
+        metadata.insert("tags".into(), Value::Object(tags));
+    }
+    let options = BuildOptions {
+        model: args.model.name().to_string(),
+        config: model_config(args)?,
+        tile_depth: args.tile_depth,
+        codec: if args.zstd_level == 0 {
+            Codec::Raw
+        } else {
+            Codec::Zstd {
+                level: args.zstd_level,
+            }
+        },
+        skip_bad: args.skip_bad,
+        input_format: args.input_format.clone(),
+        backend: Some(ui.backend),
+        metadata,
+        ..BuildOptions::default()
+    };
+    ui.note(&format!(
+        "building {} from {} snapshots ({} .. {})",
+        args.output.display(),
+        inputs.len(),
+        inputs
+            .first()
+            .map_or_else(String::new, |i| format_iso(i.time)),
+        inputs
+            .last()
+            .map_or_else(String::new, |i| format_iso(i.time)),
+    ));
+    let bars = Bars::new(ui.quiet);
+    let report = build(&inputs, &args.output, &options, &bars)?;
+    drop(bars);
+    let peak = peak_memory_bytes();
+    if args.json {
+        let mut value = serde_json::to_value(&report)?;
+        if let Value::Object(map) = &mut value {
+            map.insert("peak_memory_bytes".into(), Value::from(peak));
+            map.insert(
+                "seconds".into(),
+                Value::from(started.elapsed().as_secs_f64()),
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        let n = group_thousands;
+        println!(
+            "wrote {} ({} bytes)",
+            report.output.display(),
+            n(report.file_bytes)
+        );
+        println!(
+            "snapshots:   {} used of {} ({} samples, {} axis)",
+            report.used,
+            report.inputs,
+            report.samples,
+            if report.regular_axis {
+                "regular"
+            } else {
+                "explicit"
+            }
+        );
+        println!(
+            "cells:       {} ({} static free, {} static occupied, {} dynamic; {} sometimes unknown)",
+            n(report.cells.total()),
+            n(report.cells.static_free),
+            n(report.cells.static_occupied),
+            n(report.cells.dynamic),
+            n(report.cells.unknown_sometimes)
+        );
+        println!(
+            "voxels:      {} ({} dynamic)",
+            n(report.voxels.total()),
+            n(report.voxels.dynamic)
+        );
+        println!(
+            "size:        {} bytes from {} input bytes: {:.1}x smaller",
+            n(report.file_bytes),
+            n(report.input_bytes),
+            report.input_bytes as f64 / report.file_bytes.max(1) as f64
+        );
+        if args.lossy {
+            println!(
+                "model error: {} observed cell-samples differ from the input (lossy)",
+                n(report.model_errors)
+            );
+        } else {
+            println!(
+                "outliers:    {} toggles stored (lossless)",
+                n(report.toggles)
+            );
+        }
+        println!(
+            "time:        {:.1} s reading, {:.1} s modelling{}",
+            report.read_seconds,
+            report.model_seconds,
+            peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
+        );
+    }
+    if !report.warnings.is_empty() && !ui.quiet {
+        for (path, warning) in report.warnings.iter().take(10) {
+            eprintln!("warning: {}: {warning}", path.display());
+        }
+        if report.warnings.len() > 10 {
+            eprintln!(
+                "warning: ... and {} more warnings",
+                report.warnings.len() - 10
+            );
+        }
+    }
+    if !report.skipped.is_empty() {
+        eprintln!("skipped {} file(s):", report.skipped.len());
+        for (path, reason) in &report.skipped {
+            eprintln!("  {}: {reason}", path.display());
+        }
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MapFormatArg {
+    /// OctoMap binary: states only.
+    Bt,
+    /// OctoMap full: log-odds per node.
+    Ot,
+}
+
+impl MapFormatArg {
+    fn name(self) -> &'static str {
+        match self {
+            MapFormatArg::Bt => "bt",
+            MapFormatArg::Ot => "ot",
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct RetrieveArgs {
+    /// The FROctomap file.
+    file: PathBuf,
+    /// When: Unix seconds, ISO 8601 (`2016-01-04T08:30:00Z`), or a sample index
+    /// (`index:42`). Between snapshots, the last earlier one is used.
+    #[arg(long, value_name = "TIME")]
+    time: String,
+    /// The map to write (.bt or .ot).
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Output format instead of the one the extension names.
+    #[arg(long, value_enum)]
+    format: Option<MapFormatArg>,
+}
+
+pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
+    let reader = FroctReader::open(&args.file)?;
+    let query: TimeQuery = args.time.parse()?;
+    let when = resolve_observed(&reader, query)?;
+    if !when.exact {
+        ui.note(&format!(
+            "no snapshot at {}; using the last one before it, at {}",
+            args.time,
+            format_iso(when.time)
+        ));
+    }
+    let map = LoadedMap::load(&reader)?;
+    let snapshot = map.observed(when.sample)?;
+    let format = write_map(
+        &snapshot,
+        &args.output,
+        args.format.map(MapFormatArg::name),
+        Some(ui.backend),
+    )?;
+    ui.note(&format!(
+        "{} ({}): map observed at {} (sample {}), {} leaves",
+        args.output.display(),
+        format.name,
+        format_iso(when.time),
+        when.sample,
+        group_thousands(snapshot.leaves().len() as u64)
+    ));
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct PredictArgs {
+    /// The FROctomap file.
+    file: PathBuf,
+    /// When: Unix seconds or ISO 8601, past or future.
+    #[arg(long, value_name = "TIME")]
+    time: String,
+    /// The map to write: .ot carries p(t) as log-odds, .bt the thresholded states.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Output format instead of the one the extension names.
+    #[arg(long, value_enum)]
+    format: Option<MapFormatArg>,
+}
+
+pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
+    let reader = FroctReader::open(&args.file)?;
+    let t = match args.time.parse::<TimeQuery>()? {
+        TimeQuery::Instant(t) => t,
+        TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
+            format!(
+                "sample {s} is beyond the {} samples of {}",
+                reader.header().axis.len(),
+                args.file.display()
+            )
+        })?,
+    };
+    let map = LoadedMap::load(&reader)?;
+    let snapshot = map.predicted(t)?;
+    let format = write_map(
+        &snapshot,
+        &args.output,
+        args.format.map(MapFormatArg::name),
+        Some(ui.backend),
+    )?;
+    let axis = &reader.header().axis;
+    let relation = if t > axis.end() {
+        format!(
+            "{:.1} days after the last snapshot",
+            t.secs_since(axis.end()) / 86_400.0
+        )
+    } else if t < axis.start() {
+        format!(
+            "{:.1} days before the first snapshot",
+            axis.start().secs_since(t) / 86_400.0
+        )
+    } else {
+        "within the modelled span".to_string()
+    };
+    ui.note(&format!(
+        "{} ({}): map predicted for {} ({relation}), {} leaves",
+        args.output.display(),
+        format.name,
+        format_iso(t),
+        group_thousands(snapshot.leaves().len() as u64)
+    ));
+    Ok(())
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ExportModeArg {
+    /// Predicted maps (any instant).
+    Predict,
+    /// The last observed snapshot at or before each instant.
+    Retrieve,
+}
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The FROctomap file.
+    file: PathBuf,
+    /// First instant (Unix seconds or ISO 8601).
+    #[arg(long, value_name = "TIME")]
+    from: String,
+    /// Last instant (inclusive).
+    #[arg(long, value_name = "TIME")]
+    to: String,
+    /// Interval between maps (e.g. 1h, 10min, 600).
+    #[arg(long, value_name = "DURATION")]
+    every: String,
+    /// Directory for the maps and manifest.csv (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Predicted or retrieved maps.
+    #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
+    mode: ExportModeArg,
+    /// Map format.
+    #[arg(long, value_enum, default_value_t = MapFormatArg::Bt)]
+    format: MapFormatArg,
+    /// File name prefix.
+    #[arg(long, default_value = "map")]
+    prefix: String,
+}
+
+pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
+    let reader = FroctReader::open(&args.file)?;
+    let options = ExportOptions {
+        from: parse_time(&args.from)?,
+        to: parse_time(&args.to)?,
+        every_ns: parse_duration(&args.every)?,
+        mode: match args.mode {
+            ExportModeArg::Predict => ExportMode::Predict,
+            ExportModeArg::Retrieve => ExportMode::Retrieve,
+        },
+        format: args.format.name().to_string(),
+        backend: Some(ui.backend),
+        prefix: args.prefix.clone(),
+    };
+    let map = LoadedMap::load(&reader)?;
+    let bars = Bars::new(ui.quiet);
+    let report = export(&map, &args.output, &options, &bars)?;
+    drop(bars);
+    ui.note(&format!(
+        "wrote {} maps ({} bytes) and {}",
+        report.files.len(),
+        group_thousands(report.bytes),
+        report.manifest.display()
+    ));
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct EvalArgs {
+    /// The FROctomap file.
+    file: PathBuf,
+    /// Ground-truth maps (directories, globs, manifests, files), e.g. later snapshots.
+    #[arg(long, required = true, num_args = 1.., value_name = "INPUT")]
+    against: Vec<PathBuf>,
+    #[command(flatten)]
+    times: TimeArgs,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
+    let reader = FroctReader::open(&args.file)?;
+    let registry = FormatRegistry::with_default_formats();
+    let truths: Vec<SeriesInput> = collect_inputs(&args.against, args.times.source()?, &registry)?;
+    let map = LoadedMap::load(&reader)?;
+    let bars = Bars::new(ui.quiet);
+    let report = evaluate(
+        &map,
+        &truths,
+        ReadOptions {
+            format: None,
+            backend: Some(ui.backend),
+        },
+        &bars,
+    )?;
+    drop(bars);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_eval(&report);
+    }
+    Ok(())
+}
+
+fn print_eval(report: &EvalReport) {
+    let cell = |rate: &froctomap_convert::Rate| {
+        rate.percent()
+            .map_or_else(|| "-".to_string(), |p| format!("{p:.2} %"))
+    };
+    println!("error rates (wrong voxels / compared voxels):\n");
+    for (title, rows, n) in [
+        (
+            "reconstruction (inside the modelled span)",
+            &report.reconstruction,
+            report.inside,
+        ),
+        (
+            "prediction (outside the modelled span)",
+            &report.prediction,
+            report.outside,
+        ),
+    ] {
+        println!("{title}: {n} ground-truth maps");
+        if n == 0 {
+            println!();
+            continue;
+        }
+        println!("| method | all voxels | non-empty | dynamic |");
+        println!("| --- | ---: | ---: | ---: |");
+        for (method, rates) in rows.iter() {
+            println!(
+                "| {method} | {} | {} | {} |",
+                cell(&rates.all),
+                cell(&rates.non_empty),
+                cell(&rates.dynamic)
+            );
+        }
+        println!();
+    }
+    if report.unmodelled_voxels > 0 {
+        println!(
+            "{} ground-truth voxels were never observed in the file's data (not compared)",
+            group_thousands(report.unmodelled_voxels)
+        );
+    }
+}
+
+/// `true` when the file starts with the FROctomap magic.
+pub fn is_froct(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok()
+        && magic == froctomap_file::MAGIC
+}
+
+pub fn froct_info(path: &Path, json: bool, count: bool) -> Result<()> {
+    let reader = FroctReader::open(path)?;
+    let info = describe(&reader, count)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+        return Ok(());
+    }
+    let n = group_thousands;
+    println!(
+        "file:            {} ({} bytes, FROctomap {})",
+        info.file.display(),
+        n(info.size.file),
+        info.version
+    );
+    println!(
+        "resolution:      {} m, tiles of depth {} ({} tiles)",
+        info.resolution_m, info.tile_depth, info.tiles
+    );
+    let t = &info.time;
+    println!(
+        "time:            {} .. {} ({:.1} days), {} samples{}{}",
+        t.start,
+        t.end,
+        t.span_seconds / 86_400.0,
+        n(u64::from(t.samples)),
+        t.step_seconds
+            .map_or_else(|| ", irregular".to_string(), |s| format!(" every {s} s")),
+        if t.missing > 0 {
+            format!(", {} missing", t.missing)
+        } else {
+            String::new()
+        }
+    );
+    println!("model:           {} ({})", info.model, info.outliers);
+    println!(
+        "cells:           {} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
+        n(info.cells.total()),
+        n(info.cells.static_free),
+        n(info.cells.static_occupied),
+        n(info.cells.dynamic),
+        n(info.cells.unknown_sometimes)
+    );
+    println!(
+        "voxels:          {} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
+        n(info.voxels.total()),
+        n(info.voxels.static_free),
+        n(info.voxels.static_occupied),
+        n(info.voxels.dynamic),
+        n(info.voxels.unknown_sometimes)
+    );
+    println!(
+        "size:            header {} + tiles {} + index {} bytes",
+        n(info.size.header),
+        n(info.size.tiles),
+        n(info.size.index)
+    );
+    if let Value::Object(streams) = &info.size.raw_streams {
+        let parts: Vec<String> = streams
+            .iter()
+            .map(|(k, v)| format!("{k} {}", n(v.as_u64().unwrap_or(0))))
+            .collect();
+        println!("raw streams:     {}", parts.join(", "));
+    }
+    if let (Some(files), Some(bytes), Some(ratio)) =
+        (info.input_files, info.input_bytes, info.ratio_vs_inputs)
+    {
+        println!(
+            "compression:     {ratio:.1}x vs the {} input files ({} bytes)",
+            n(files),
+            n(bytes)
+        );
+    }
+    println!(
+        "vs raw states:   {:.1}x (1 bit per voxel per sample)",
+        info.ratio_vs_raw_states
+    );
+    if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
+        println!(
+            "created:         {} by {creator}",
+            info.metadata
+                .get("created")
+                .and_then(Value::as_str)
+                .unwrap_or("?")
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,260 @@
+//! The spatio-temporal commands end to end through the binary: build → info → retrieve →
+//! predict → export → eval, and their error messages.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use froctomap_core::{Leaf, Snapshot, VoxelKey};
+use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn froctomap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(args)
+        .output()
+        .expect("run froctomap")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = froctomap(args);
+    assert!(
+        out.status.success(),
+        "froctomap {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn err(args: &[&str]) -> String {
+    let out = froctomap(args);
+    assert_eq!(out.status.code(), Some(1), "froctomap {args:?} should fail");
+    String::from_utf8(out.stderr).unwrap()
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// A room of 16×16 free voxels with a wall, and a "door" of 4 voxels that is closed
+/// (occupied) on frames 2, 3, 6, 7 (every other pair), ten minutes apart.
+fn frame(i: u32) -> Snapshot {
+    let mut leaves = Vec::new();
+    for x in 0..16u16 {
+        for y in 0..16u16 {
+            let wall = x == 15;
+            let door = x == 8 && (4..8).contains(&y);
+            let occupied = wall || (door && (i / 2) % 2 == 1);
+            leaves.push(Leaf::voxel(
+                VoxelKey::new(32768 + x, 32768 + y, 32768),
+                if occupied { 3.5 } else { -2.0 },
+            ));
+        }
+    }
+    Snapshot::from_leaves(0.1, leaves).unwrap()
+}
+
+fn write_series(dir: &Path, n: u32) -> Vec<PathBuf> {
+    let registry = FormatRegistry::with_default_formats();
+    (0..n)
+        .map(|i| {
+            let path = dir.join(format!("room_{}.bt", 1_451_865_600 + i * 600));
+            registry
+                .write_file(&frame(i), &path, WriteOptions::default())
+                .unwrap();
+            path
+        })
+        .collect()
+}
+
+#[test]
+fn build_info_retrieve_predict_export_eval() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("inputs");
+    std::fs::create_dir(&inputs).unwrap();
+    let files = write_series(&inputs, 8);
+    let map = dir.path().join("room.froct");
+
+    let built = ok(&["build", s(&inputs), "-o", s(&map)]);
+    assert!(
+        built.contains("snapshots:   8 used of 8 (8 samples, regular axis)"),
+        "{built}"
+    );
+    let report: serde_json::Value = serde_json::from_str(&ok(&[
+        "build",
+        "--quiet",
+        "--json",
+        s(&inputs),
+        "-o",
+        s(&map),
+    ]))
+    .unwrap();
+    assert_eq!(report["used"], 8);
+    assert_eq!(report["cells"]["dynamic"], 4);
+    assert!(report["peak_memory_bytes"].as_u64().unwrap() > 0);
+
+    let info = ok(&["info", s(&map)]);
+    assert!(
+        info.contains("2016-01-04T00:00:00Z .. 2016-01-04T01:10:00Z"),
+        "{info}"
+    );
+    assert!(info.contains("8 samples every 600 s"), "{info}");
+    assert!(
+        info.contains("model:           fremen-periods (lossless)"),
+        "{info}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(&map)])).unwrap();
+    assert_eq!(json["voxels"]["dynamic"], 4);
+    assert_eq!(json["input_files"], 8);
+
+    // Retrieve by ISO time, by Unix seconds and by index: identical to the input file.
+    for (i, time) in [
+        (2usize, "2016-01-04T00:20:00Z"),
+        (3, "1451867400"),
+        (5, "index:5"),
+    ] {
+        let out = dir.path().join(format!("r{i}.bt"));
+        ok(&["retrieve", s(&map), "--time", time, "-o", s(&out)]);
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            std::fs::read(&files[i]).unwrap(),
+            "{time}"
+        );
+    }
+    // Between snapshots: the last earlier one, with a note.
+    let between = froctomap(&[
+        "retrieve",
+        s(&map),
+        "--time",
+        "2016-01-04T00:25:00Z",
+        "-o",
+        s(&dir.path().join("b.bt")),
+    ]);
+    assert!(String::from_utf8_lossy(&between.stderr)
+        .contains("using the last one before it, at 2016-01-04T00:20:00Z"));
+
+    // Predict a week later as .ot and .bt.
+    let ot = dir.path().join("later.ot");
+    let note = froctomap(&[
+        "predict",
+        s(&map),
+        "--time",
+        "2016-01-11T00:00:00Z",
+        "-o",
+        s(&ot),
+    ]);
+    assert!(note.status.success());
+    assert!(String::from_utf8_lossy(&note.stderr).contains("days after the last snapshot"));
+    let predicted = FormatRegistry::with_default_formats()
+        .read_file(&ot, ReadOptions::default())
+        .unwrap();
+    assert_eq!(predicted.map.snapshot.voxels().count(), 256);
+
+    // Export retrieved maps every 20 minutes: files + manifest that build reads again.
+    let exported = dir.path().join("exported");
+    ok(&[
+        "export",
+        s(&map),
+        "--from",
+        "2016-01-04T00:00:00Z",
+        "--to",
+        "2016-01-04T01:10:00Z",
+        "--every",
+        "20min",
+        "--mode",
+        "retrieve",
+        "-o",
+        s(&exported),
+    ]);
+    let manifest = std::fs::read_to_string(exported.join("manifest.csv")).unwrap();
+    assert_eq!(manifest.lines().count(), 1 + 4, "{manifest}");
+    assert_eq!(
+        std::fs::read(exported.join("map_20160104T002000Z.bt")).unwrap(),
+        std::fs::read(&files[2]).unwrap()
+    );
+    ok(&[
+        "build",
+        "--quiet",
+        s(&exported.join("manifest.csv")),
+        "-o",
+        s(&dir.path().join("again.froct")),
+    ]);
+
+    // Evaluation against the inputs: stored states exact.
+    let eval: serde_json::Value = serde_json::from_str(&ok(&[
+        "eval",
+        "--quiet",
+        "--json",
+        s(&map),
+        "--against",
+        s(&inputs),
+    ]))
+    .unwrap();
+    assert_eq!(eval["inside"], 8);
+    let stored = eval["reconstruction"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r[0] == "stored")
+        .unwrap();
+    assert_eq!(stored[1]["all"]["wrong"], 0);
+    let table = ok(&["eval", "--quiet", s(&map), "--against", s(&inputs)]);
+    assert!(
+        table.contains("| method | all voxels | non-empty | dynamic |"),
+        "{table}"
+    );
+}
+
+#[test]
+fn errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 3);
+    let map = dir.path().join("room.froct");
+    // Duplicate time through a manifest.
+    std::fs::write(
+        dir.path().join("dup.csv"),
+        format!("{},1451865600\n{},1451865600\n", s(&files[0]), s(&files[1])),
+    )
+    .unwrap();
+    let e = err(&["build", s(&dir.path().join("dup.csv")), "-o", s(&map)]);
+    assert!(e.contains("same time 2016-01-04T00:00:00Z"), "{e}");
+    // Unwritable output.
+    let e = err(&["build", s(dir.path()), "-o", "/nonexistent-dir/x.froct"]);
+    assert!(e.contains("/nonexistent-dir/x.froct"), "{e}");
+    ok(&["build", "--quiet", s(dir.path()), "-o", s(&map)]);
+    // Time outside any sensible range, and before the series.
+    let e = err(&[
+        "retrieve",
+        s(&map),
+        "--time",
+        "99999999999",
+        "-o",
+        s(&dir.path().join("x.bt")),
+    ]);
+    assert!(e.contains("outside the supported range"), "{e}");
+    let e = err(&[
+        "retrieve",
+        s(&map),
+        "--time",
+        "2010-01-01",
+        "-o",
+        s(&dir.path().join("x.bt")),
+    ]);
+    assert!(e.contains("before the first snapshot"), "{e}");
+    assert!(!dir.path().join("x.bt").exists());
+    // Not a FROctomap file.
+    let e = err(&[
+        "retrieve",
+        s(&files[0]),
+        "--time",
+        "index:0",
+        "-o",
+        s(&dir.path().join("x.bt")),
+    ]);
+    assert!(e.contains("not a FROctomap file"), "{e}");
+    // A damaged FROctomap file.
+    let mut bytes = std::fs::read(&map).unwrap();
+    let n = bytes.len();
+    bytes.truncate(n - 5);
+    std::fs::write(&map, &bytes).unwrap();
+    let e = err(&["info", s(&map)]);
+    assert!(e.contains("room.froct") && e.contains("end magic"), "{e}");
+}

@@ -1,0 +1,657 @@
+//! `build`: a series of maps → one FROctomap file, streaming, with bounded memory.
+
+use crate::error::ConvertError;
+use crate::history::{segments, SeriesHistory};
+use crate::inputs::SeriesInput;
+use crate::progress::Progress;
+use crate::time::format_iso;
+use froctomap_core::{MortonCode, Occupancy, Timestamp};
+use froctomap_file::{
+    encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
+    WrittenFile,
+};
+use froctomap_formats::{Backend, FormatRegistry, ReadOptions};
+use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
+use froctomap_temporal::{
+    ModelConfig, ModelRegistry, OutlierMode, PreparedModel, TimeAxis, VoxelObservations,
+};
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::{json, Map, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to build.
+#[derive(Clone, Debug)]
+pub struct BuildOptions {
+    /// Temporal model name (see `froctomap_temporal::ModelRegistry`). Default `fremen-periods`,
+    /// which works on any time axis.
+    pub model: String,
+    /// Model settings: order, lossless/lossy, periods.
+    pub config: ModelConfig,
+    /// Depth of the tiles of the output (default 10: cubes of 64 voxels per edge).
+    pub tile_depth: u8,
+    /// Tile codec (default zstd level 19).
+    pub codec: Codec,
+    /// Leave unreadable files and files of another resolution out (listed in the report)
+    /// instead of stopping.
+    pub skip_bad: bool,
+    /// Force the input map format.
+    pub input_format: Option<String>,
+    /// Preferred implementation for reading maps.
+    pub backend: Option<Backend>,
+    /// Extra metadata stored in the file header (e.g. `tags`, `source`).
+    pub metadata: Map<String, Value>,
+    /// Files decoded in parallel per batch (bounds memory; default 4 × threads).
+    pub batch: usize,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            model: "fremen-periods".to_string(),
+            config: ModelConfig::default(),
+            tile_depth: 10,
+            codec: Codec::default(),
+            skip_bad: false,
+            input_format: None,
+            backend: None,
+            metadata: Map::new(),
+            batch: 4 * rayon::current_num_threads().max(1),
+        }
+    }
+}
+
+/// Cell and voxel counts by class.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ClassCounts {
+    /// Always observed free.
+    pub static_free: u64,
+    /// Always observed occupied.
+    pub static_occupied: u64,
+    /// Changed state at least once (carry a model).
+    pub dynamic: u64,
+    /// Unobserved at some sample of the series (carry an observation mask).
+    pub unknown_sometimes: u64,
+}
+
+impl ClassCounts {
+    fn add(&mut self, other: &ClassCounts) {
+        self.static_free += other.static_free;
+        self.static_occupied += other.static_occupied;
+        self.dynamic += other.dynamic;
+        self.unknown_sometimes += other.unknown_sometimes;
+    }
+
+    /// All cells (or voxels).
+    pub fn total(&self) -> u64 {
+        self.static_free + self.static_occupied + self.dynamic
+    }
+}
+
+/// What a build did.
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildReport {
+    /// The file written.
+    pub output: PathBuf,
+    /// Snapshots given.
+    pub inputs: usize,
+    /// Snapshots used.
+    pub used: usize,
+    /// Files left out with `skip_bad`, and why.
+    pub skipped: Vec<(PathBuf, String)>,
+    /// Reader warnings (file, message), e.g. tolerated header problems.
+    pub warnings: Vec<(PathBuf, String)>,
+    /// Total bytes of the input files used.
+    pub input_bytes: u64,
+    /// Samples of the time axis.
+    pub samples: u32,
+    /// `true` for a regular axis.
+    pub regular_axis: bool,
+    /// Cells by class.
+    pub cells: ClassCounts,
+    /// Voxels by class.
+    pub voxels: ClassCounts,
+    /// Outlier toggles stored (lossless).
+    pub toggles: u64,
+    /// Observed cell-samples the model gets wrong without outliers (lossy files store no
+    /// outliers, so these are their reconstruction errors).
+    pub model_errors: u64,
+    /// Voxel-samples whose state changed between consecutive snapshots.
+    pub changed_voxels: u64,
+    /// Bytes of the output, by part.
+    pub file_bytes: u64,
+    /// Header bytes.
+    pub header_bytes: u64,
+    /// Index and footer bytes.
+    pub index_bytes: u64,
+    /// Stored tile bytes.
+    pub tile_bytes: u64,
+    /// Seconds spent reading and accumulating the inputs.
+    pub read_seconds: f64,
+    /// Seconds spent fitting, encoding and writing.
+    pub model_seconds: f64,
+}
+
+/// The time axis of sorted, distinct instants: a regular grid (with missing samples) when
+/// the instants lie on one with at most as many gaps as snapshots, else an explicit list.
+pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
+    let first = *times
+        .first()
+        .ok_or_else(|| ConvertError::Inputs("no input files".into()))?;
+    let invalid =
+        |e: froctomap_temporal::TemporalError| ConvertError::Inputs(format!("time axis: {e}"));
+    if times.len() == 1 {
+        return TimeAxis::regular(first, 1_000_000_000, 1, Vec::new()).map_err(invalid);
+    }
+    let gcd = times.windows(2).fold(0i64, |g, w| gcd(g, w[1].0 - w[0].0));
+    let span = times[times.len() - 1].0 - first.0;
+    let count = span / gcd.max(1) + 1;
+    if gcd > 0 && count <= 2 * times.len() as i64 && count <= i64::from(u32::MAX) {
+        let present: Vec<i64> = times.iter().map(|t| (t.0 - first.0) / gcd).collect();
+        let mut missing = Vec::new();
+        let mut next = 0usize;
+        for i in 0..count {
+            if present.get(next) == Some(&i) {
+                next += 1;
+            } else {
+                missing.push(i as u32);
+            }
+        }
+        return TimeAxis::regular(first, gcd, count as u32, missing).map_err(invalid);
+    }
+    TimeAxis::explicit(times.to_vec()).map_err(invalid)
+}
+
+fn gcd(a: i64, b: i64) -> i64 {
+    if b == 0 {
+        a.abs()
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// A file's resolution from its first bytes, when its format is OctoMap's.
+fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(4096);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(4096).read_to_end(&mut head))
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if head.is_empty() {
+        return Err("the file is empty".into());
+    }
+    let kind = detect_kind(&head).unwrap_or(FileKind::Binary);
+    match parse_header(&head, kind) {
+        Ok(header) => Ok(Some(header.resolution)),
+        // Not an OctoMap header (another format, or a long header): the full read decides.
+        Err(_) => Ok(None),
+    }
+}
+
+struct Decoded {
+    index: usize,
+    bytes: u64,
+    outcome: Result<(f64, Vec<crate::history::Segment>, Vec<String>), String>,
+}
+
+/// Builds a FROctomap file from snapshots (sorted by time, distinct times).
+///
+/// Reads the inputs in parallel batches and accumulates them in time order (memory grows
+/// with the cells and their changes, not with the number of snapshots), then fits a model
+/// per dynamic cell and writes the file tile by tile, atomically.
+pub fn build(
+    inputs: &[SeriesInput],
+    output: &Path,
+    options: &BuildOptions,
+    progress: &dyn Progress,
+) -> Result<BuildReport, ConvertError> {
+    let started = Instant::now();
+    let registry = FormatRegistry::with_default_formats();
+    let models = ModelRegistry::with_default_models();
+    let model = models
+        .by_name(&options.model)
+        .ok_or_else(|| {
+            let known: Vec<&str> = models.iter().map(|d| d.name).collect();
+            ConvertError::Inputs(format!(
+                "unknown model `{}` (known: {})",
+                options.model,
+                known.join(", ")
+            ))
+        })?
+        .create();
+    let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+    let axis = axis_for_times(&times)?;
+    // Fail on a bad model/axis combination before reading anything.
+    let prepared = model.prepare(&axis, &options.config)?;
+
+    // Pass 1: headers only, to fail fast on unreadable files and mixed resolutions.
+    progress.stage("checking inputs", inputs.len() as u64);
+    let resolutions: Vec<Result<Option<f64>, String>> = inputs
+        .par_iter()
+        .map(|input| {
+            let r = header_resolution(&input.path);
+            progress.advance(1);
+            r
+        })
+        .collect();
+    let mut skipped: Vec<(PathBuf, String)> = Vec::new();
+    let mut usable = vec![true; inputs.len()];
+    let mut series_resolution: Option<(f64, usize)> = None;
+    for (i, r) in resolutions.into_iter().enumerate() {
+        match r {
+            Err(reason) if options.skip_bad => {
+                skipped.push((inputs[i].path.clone(), reason));
+                usable[i] = false;
+            }
+            Err(reason) => {
+                return Err(ConvertError::Inputs(format!(
+                    "{}: {reason} (use --skip-bad to leave it out)",
+                    inputs[i].path.display()
+                )))
+            }
+            Ok(Some(res)) => match series_resolution {
+                None => series_resolution = Some((res, i)),
+                Some((first, _)) if first == res => {}
+                Some((first, j)) => {
+                    if !options.skip_bad {
+                        return Err(ConvertError::MixedResolution {
+                            first: inputs[j].path.clone(),
+                            first_resolution: first,
+                            second: inputs[i].path.clone(),
+                            second_resolution: res,
+                        });
+                    }
+                    skipped.push((
+                        inputs[i].path.clone(),
+                        format!("resolution {res} m differs from the series' {first} m"),
+                    ));
+                    usable[i] = false;
+                }
+            },
+            Ok(None) => {}
+        }
+    }
+
+    // Pass 2: decode in parallel batches, accumulate in time order.
+    progress.stage("reading snapshots", inputs.len() as u64);
+    let read_options = ReadOptions {
+        format: options.input_format.as_deref(),
+        backend: options.backend,
+    };
+    let mut history = SeriesHistory::new(options.tile_depth);
+    let mut warnings = Vec::new();
+    let mut input_bytes = 0u64;
+    let mut used = 0usize;
+    let mut absent: Vec<u32> = axis.missing().to_vec();
+    let mut resolution = series_resolution.map(|(r, _)| r);
+    let mut previous_bytes: Option<Vec<u8>> = None;
+    let mut previous_ok = false;
+    let batch = options.batch.max(1);
+    for chunk_start in (0..inputs.len()).step_by(batch) {
+        let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
+            .filter(|&i| usable[i])
+            .collect();
+        let raw: Vec<(usize, Result<Vec<u8>, String>)> = chunk
+            .par_iter()
+            .map(|&i| {
+                (
+                    i,
+                    std::fs::read(&inputs[i].path).map_err(|e| format!("cannot read: {e}")),
+                )
+            })
+            .collect();
+        // A file byte-identical to its predecessor needs no decoding.
+        let mut identical = vec![false; raw.len()];
+        for (k, (_, bytes)) in raw.iter().enumerate() {
+            let before = if k == 0 {
+                previous_bytes.as_deref()
+            } else {
+                raw[k - 1].1.as_deref().ok()
+            };
+            identical[k] = matches!((bytes, before), (Ok(b), Some(p)) if b.as_slice() == p);
+        }
+        let decode = |i: usize, bytes: &Result<Vec<u8>, String>| match bytes {
+            Err(e) => Err(e.clone()),
+            Ok(bytes) => registry
+                .read_bytes(&inputs[i].path, bytes, read_options)
+                .map(|read| {
+                    (
+                        read.map.snapshot.resolution(),
+                        segments(read.map.snapshot.leaves()),
+                        read.map.warnings,
+                    )
+                })
+                .map_err(|e| e.to_string()),
+        };
+        let decoded: Vec<Decoded> = raw
+            .par_iter()
+            .zip(identical.par_iter())
+            .map(|((i, bytes), &same)| Decoded {
+                index: *i,
+                bytes: bytes.as_ref().map_or(0, |b| b.len() as u64),
+                outcome: if same {
+                    Ok((f64::NAN, Vec::new(), Vec::new()))
+                } else {
+                    decode(*i, bytes)
+                },
+            })
+            .collect();
+        for (k, d) in decoded.into_iter().enumerate() {
+            let input = &inputs[d.index];
+            let sample = axis.index_of(input.time).ok_or_else(|| {
+                ConvertError::Inputs(format!("{}: time not on the axis", input.path.display()))
+            })?;
+            // Identical bytes repeat the previous snapshot, unless that one was left out.
+            let same = identical[k] && previous_ok;
+            let outcome = if identical[k] && !same {
+                decode(d.index, &raw[k].1)
+            } else {
+                d.outcome
+            };
+            let outcome = outcome.and_then(|(res, segs, warns)| {
+                if same {
+                    return Ok((segs, warns));
+                }
+                match resolution {
+                    Some(r) if r != res => {
+                        Err(format!("resolution {res} m differs from the series' {r} m"))
+                    }
+                    _ => {
+                        resolution = Some(res);
+                        Ok((segs, warns))
+                    }
+                }
+            });
+            previous_ok = outcome.is_ok();
+            match outcome {
+                Ok((segs, warns)) => {
+                    if same {
+                        history.repeat(sample)?;
+                    } else {
+                        history.ingest(sample, segs)?;
+                    }
+                    warnings.extend(warns.into_iter().map(|w| (input.path.clone(), w)));
+                    input_bytes += d.bytes;
+                    used += 1;
+                }
+                Err(reason) if options.skip_bad => {
+                    skipped.push((input.path.clone(), reason));
+                    absent.push(sample);
+                }
+                Err(reason) if reason.starts_with("resolution") => {
+                    let first = inputs
+                        .iter()
+                        .zip(&usable)
+                        .find(|(_, &u)| u)
+                        .map(|(i, _)| i.path.clone())
+                        .unwrap_or_default();
+                    return Err(ConvertError::Inputs(format!(
+                        "{}: {reason} (first file {}); use --skip-bad to leave it out",
+                        input.path.display(),
+                        first.display()
+                    )));
+                }
+                Err(reason) => {
+                    let message = if reason.starts_with(&input.path.display().to_string()) {
+                        reason
+                    } else {
+                        format!("{}: {reason}", input.path.display())
+                    };
+                    return Err(ConvertError::Inputs(format!(
+                        "{message} (use --skip-bad to leave it out)"
+                    )));
+                }
+            }
+            progress.advance(1);
+        }
+        // Keep the last file's bytes for the next batch's identity check.
+        previous_bytes = raw
+            .into_iter()
+            .rev()
+            .find_map(|(_, b)| b.ok())
+            .or(previous_bytes);
+    }
+    for (i, &u) in usable.iter().enumerate() {
+        if !u {
+            if let Some(sample) = axis.index_of(inputs[i].time) {
+                absent.push(sample);
+            }
+        }
+    }
+    absent.sort_unstable();
+    absent.dedup();
+    let resolution = resolution.ok_or_else(|| {
+        ConvertError::NothingToBuild(format!("all {} inputs were left out", inputs.len()))
+    })?;
+    let read_seconds = started.elapsed().as_secs_f64();
+    let changed_voxels = history.changed_voxels();
+
+    // Pass 3: fit, encode and write, tile by tile.
+    let modelling = Instant::now();
+    let mut header = Header::new(
+        resolution,
+        options.tile_depth,
+        axis.clone(),
+        model.id(),
+        prepared.encode_parameters(),
+        options.codec,
+    );
+    header.metadata = metadata(inputs, used, input_bytes, &options.metadata);
+    let mut writer = FroctWriter::create(output, &header)?;
+    progress.stage("modelling cells", history.cell_count() as u64);
+    let axis_len = axis.len();
+    let mut stats = TileStats::default();
+    let mut pending: Vec<(MortonCode, u8, VoxelObservations)> = Vec::new();
+    let mut tiles: Vec<Vec<(MortonCode, u8, VoxelObservations)>> = Vec::new();
+    let flush = |tiles: &mut Vec<Vec<(MortonCode, u8, VoxelObservations)>>,
+                 writer: &mut FroctWriter,
+                 stats: &mut TileStats|
+     -> Result<(), ConvertError> {
+        let encoded: Vec<Result<(EncodedTile, TileStats), ConvertError>> = tiles
+            .par_iter()
+            .map(|cells| {
+                let r = encode_cells(
+                    cells,
+                    &axis,
+                    prepared.as_ref(),
+                    options.tile_depth,
+                    options.codec,
+                );
+                progress.advance(cells.len() as u64);
+                r
+            })
+            .collect();
+        for result in encoded {
+            let (tile, tile_stats) = result?;
+            writer.write_tile(&tile)?;
+            stats.add(&tile_stats);
+        }
+        tiles.clear();
+        Ok(())
+    };
+    for item in history.finish(axis_len, &absent) {
+        let cell = item?;
+        if pending.first().is_some_and(|p| {
+            p.0.node_start(options.tile_depth) != cell.0.node_start(options.tile_depth)
+        }) {
+            tiles.push(std::mem::take(&mut pending));
+            if tiles.len() >= 4 * rayon::current_num_threads().max(1) {
+                flush(&mut tiles, &mut writer, &mut stats)?;
+            }
+        }
+        pending.push(cell);
+    }
+    if !pending.is_empty() {
+        tiles.push(pending);
+    }
+    flush(&mut tiles, &mut writer, &mut stats)?;
+    let model_seconds = modelling.elapsed().as_secs_f64();
+    let summary = json!({
+        "cell_classes": stats.cells,
+        "voxel_classes": stats.voxels,
+        "toggles": stats.toggles,
+        "model_errors": stats.model_errors,
+        "outliers": if options.config.outliers == OutlierMode::Lossless { "lossless" } else { "lossy" },
+        "snapshots_used": used,
+        "snapshots_skipped": skipped.len(),
+        "input_bytes": input_bytes,
+        "changed_voxels": changed_voxels,
+        "read_seconds": read_seconds,
+        "model_seconds": model_seconds,
+    });
+    let Value::Object(summary) = summary else {
+        unreachable!("json! of an object literal")
+    };
+    let written: WrittenFile = writer.finish(summary)?;
+    Ok(BuildReport {
+        output: output.to_path_buf(),
+        inputs: inputs.len(),
+        used,
+        skipped,
+        warnings,
+        input_bytes,
+        samples: axis.len(),
+        regular_axis: axis.step_ns().is_some(),
+        cells: stats.cells,
+        voxels: stats.voxels,
+        toggles: stats.toggles,
+        model_errors: stats.model_errors,
+        changed_voxels,
+        file_bytes: written.file_bytes,
+        header_bytes: written.header_bytes,
+        index_bytes: written.index_bytes,
+        tile_bytes: written.tile_bytes,
+        read_seconds,
+        model_seconds,
+    })
+}
+
+fn metadata(
+    inputs: &[SeriesInput],
+    used: usize,
+    input_bytes: u64,
+    extra: &Map<String, Value>,
+) -> Map<String, Value> {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
+        .unwrap_or_default();
+    let mut meta = Map::new();
+    meta.insert(
+        "creator".into(),
+        Value::from(format!("froctomap {}", env!("CARGO_PKG_VERSION"))),
+    );
+    meta.insert(
+        "created".into(),
+        Value::from(format_iso(Timestamp(now.0 - now.0 % 1_000_000_000))),
+    );
+    if let Some(dir) = inputs.first().and_then(|i| i.path.parent()) {
+        meta.insert("source".into(), Value::from(dir.display().to_string()));
+    }
+    meta.insert("sources".into(), Value::from(used));
+    meta.insert("input_bytes".into(), Value::from(input_bytes));
+    for (k, v) in extra {
+        meta.insert(k.clone(), v.clone());
+    }
+    meta
+}
+
+#[derive(Default)]
+struct TileStats {
+    cells: ClassCounts,
+    voxels: ClassCounts,
+    toggles: u64,
+    model_errors: u64,
+}
+
+impl TileStats {
+    fn add(&mut self, other: &TileStats) {
+        self.cells.add(&other.cells);
+        self.voxels.add(&other.voxels);
+        self.toggles += other.toggles;
+        self.model_errors += other.model_errors;
+    }
+}
+
+/// Observed sample ranges `[first, end)` of a cell.
+pub(crate) fn observed_ranges(obs: &VoxelObservations) -> Vec<(u32, u64)> {
+    let mut ranges: Vec<(u32, u64)> = Vec::new();
+    for run in obs.runs() {
+        match ranges.last_mut() {
+            Some(last) if last.1 == u64::from(run.first) => last.1 = run.end(),
+            _ => ranges.push((run.first, run.end())),
+        }
+    }
+    ranges
+}
+
+fn encode_cells(
+    cells: &[(MortonCode, u8, VoxelObservations)],
+    axis: &TimeAxis,
+    model: &dyn PreparedModel,
+    tile_depth: u8,
+    codec: Codec,
+) -> Result<(EncodedTile, TileStats), ConvertError> {
+    let mut stats = TileStats::default();
+    let mut out = Vec::with_capacity(cells.len());
+    for (start, depth, obs) in cells {
+        let voxels = froctomap_core::voxels_per_node(*depth);
+        let mask = mask_from_ranges(axis, &observed_ranges(obs));
+        if mask.is_some() {
+            stats.cells.unknown_sometimes += 1;
+            stats.voxels.unknown_sometimes += voxels;
+        }
+        let content = match obs.is_constant() {
+            Some(Occupancy::Free) => {
+                stats.cells.static_free += 1;
+                stats.voxels.static_free += voxels;
+                CellContent::Constant(Occupancy::Free)
+            }
+            Some(Occupancy::Occupied) => {
+                stats.cells.static_occupied += 1;
+                stats.voxels.static_occupied += voxels;
+                CellContent::Constant(Occupancy::Occupied)
+            }
+            None => {
+                let fitted = model.fit(obs)?;
+                stats.cells.dynamic += 1;
+                stats.voxels.dynamic += voxels;
+                stats.toggles += fitted.toggles().len() as u64;
+                stats.model_errors += fitted.model_errors().unwrap_or(0);
+                CellContent::Modelled(fitted)
+            }
+        };
+        out.push(Cell {
+            start: *start,
+            depth: *depth,
+            mask,
+            content,
+        });
+    }
+    let tile = encode_tile(tile_depth, &out, model, codec)
+        .map_err(|e| ConvertError::Inputs(format!("internal: {e}")))?;
+    Ok((tile, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regular_axes_are_recognised_with_gaps() {
+        let s = |v: i64| Timestamp::from_secs(v);
+        let axis = axis_for_times(&[s(0), s(600), s(1800), s(2400)]).unwrap();
+        assert_eq!(axis.step_ns(), Some(600_000_000_000));
+        assert_eq!(axis.len(), 5);
+        assert_eq!(axis.missing(), &[2]);
+        // Jittered times are explicit.
+        let axis = axis_for_times(&[s(0), s(601), s(1199), s(1800)]).unwrap();
+        assert_eq!(axis.step_ns(), None);
+        assert_eq!(axis.len(), 4);
+        // One long outage would need too many missing samples: explicit.
+        let axis = axis_for_times(&[s(0), s(600), s(6_000_000)]).unwrap();
+        assert_eq!(axis.step_ns(), None);
+        assert_eq!(axis_for_times(&[s(5)]).unwrap().len(), 1);
+    }
+}

@@ -1,0 +1,282 @@
+//! `eval`: how well a FROctomap file reproduces and predicts ground-truth maps, against the
+//! baselines a user would otherwise use.
+//!
+//! Every ground-truth voxel that the file models is compared, weighted by voxel count (a
+//! coarse leaf counts for all its voxels). Errors are reported, as in the FROctomap paper,
+//! over *all* voxels, *non-empty* voxels (occupied in the ground truth, or ever occupied in
+//! the file's data) and *dynamic* voxels (whose state changed at least once in the file's
+//! data). Ground truths inside the file's time span measure reconstruction; those outside it
+//! (typically later) measure prediction.
+//!
+//! Methods compared:
+//! * `model`: the temporal model alone, `p(t) > 0.5` (outliers ignored): what FreMEn knows.
+//! * `stored`: what the file gives back for that time — the exact state at the last
+//!   snapshot at or before it (lossless files reproduce their inputs, so inside the span
+//!   this is the retrieval error); outside the span it is not defined.
+//! * `static mean`: each voxel's mean occupancy over its observations, `> 0.5`.
+//! * `last seen`: each voxel's latest observed state strictly before the time.
+
+use crate::error::ConvertError;
+use crate::inputs::SeriesInput;
+use crate::maps::LoadedMap;
+use crate::progress::Progress;
+use froctomap_core::{Occupancy, Snapshot, Timestamp};
+use froctomap_file::{Cell, CellContent};
+use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_temporal::{PreparedModel, TimeAxis};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Wrong voxels out of compared voxels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Rate {
+    /// Voxels whose state was wrong.
+    pub wrong: u64,
+    /// Voxels compared.
+    pub total: u64,
+}
+
+impl Rate {
+    /// The error in percent (`None` when nothing was compared).
+    pub fn percent(&self) -> Option<f64> {
+        (self.total > 0).then(|| 100.0 * self.wrong as f64 / self.total as f64)
+    }
+
+    fn add(&mut self, wrong: bool, weight: u64) {
+        self.total += weight;
+        if wrong {
+            self.wrong += weight;
+        }
+    }
+
+    fn merge(&mut self, other: &Rate) {
+        self.wrong += other.wrong;
+        self.total += other.total;
+    }
+}
+
+/// Errors over the three voxel sets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ErrorRates {
+    /// All compared voxels.
+    pub all: Rate,
+    /// Voxels occupied in the truth or ever occupied in the data.
+    pub non_empty: Rate,
+    /// Voxels that changed state in the data.
+    pub dynamic: Rate,
+}
+
+impl ErrorRates {
+    fn merge(&mut self, other: &ErrorRates) {
+        self.all.merge(&other.all);
+        self.non_empty.merge(&other.non_empty);
+        self.dynamic.merge(&other.dynamic);
+    }
+}
+
+/// The methods compared, in report order.
+pub const METHODS: [&str; 4] = ["model", "stored", "static mean", "last seen"];
+
+/// The result of an evaluation.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct EvalReport {
+    /// Ground truths within the file's time span.
+    pub inside: usize,
+    /// Ground truths outside it.
+    pub outside: usize,
+    /// Per method (see [`METHODS`]): errors inside the span.
+    pub reconstruction: Vec<(String, ErrorRates)>,
+    /// Per method: errors outside the span (`stored` is absent).
+    pub prediction: Vec<(String, ErrorRates)>,
+    /// Ground-truth voxels the file has no cell for (never observed in the file's data).
+    pub unmodelled_voxels: u64,
+}
+
+/// Per method, per set, for one ground truth.
+#[derive(Clone, Copy, Default)]
+struct Tally {
+    methods: [ErrorRates; 4],
+    unmodelled: u64,
+}
+
+/// The latest sample `≤ k` at which the cell was observed.
+fn last_observed(cell: &Cell, axis: &TimeAxis, mut k: u32) -> Option<u32> {
+    loop {
+        if cell.is_observed(axis, k) {
+            return Some(k);
+        }
+        if let Some(mask) = cell.mask.as_ref().filter(|m| !m.parity_at(k)) {
+            // Jump over the whole unobserved stretch of the mask.
+            let toggles = mask.as_slice();
+            let before = toggles.partition_point(|&p| p <= k);
+            k = toggles.get(before.checked_sub(1)?)?.checked_sub(1)?;
+        } else {
+            k = k.checked_sub(1)?;
+        }
+    }
+}
+
+fn mean_state(cell: &Cell) -> Occupancy {
+    match &cell.content {
+        CellContent::Constant(state) => *state,
+        CellContent::Modelled(voxel) => {
+            Occupancy::from_log_odds(if voxel.mean() > 0.5 { 1.0 } else { -1.0 })
+        }
+    }
+}
+
+/// What each method says about one cell at the evaluated time.
+struct Verdicts {
+    states: [Option<Occupancy>; 4],
+    dynamic: bool,
+    ever_occupied: bool,
+}
+
+fn verdicts(
+    cell: &Cell,
+    axis: &TimeAxis,
+    model: &dyn PreparedModel,
+    t: Timestamp,
+    inside: bool,
+) -> Verdicts {
+    let seconds = t.secs_since(axis.start());
+    let predicted = match &cell.content {
+        CellContent::Constant(state) => *state,
+        CellContent::Modelled(voxel) => model.predicted_state(voxel, seconds),
+    };
+    let at_or_before = axis.last_at_or_before(t);
+    let stored = if inside {
+        at_or_before
+            .and_then(|k| last_observed(cell, axis, k))
+            .and_then(|k| cell.state_at(axis, model, k))
+    } else {
+        None
+    };
+    let strictly_before = match at_or_before {
+        Some(k) if axis.time(k) == Some(t) => k.checked_sub(1),
+        other => other,
+    };
+    let last_seen = strictly_before
+        .and_then(|k| last_observed(cell, axis, k))
+        .and_then(|k| cell.state_at(axis, model, k));
+    Verdicts {
+        states: [Some(predicted), stored, Some(mean_state(cell)), last_seen],
+        dynamic: matches!(cell.content, CellContent::Modelled(_)),
+        ever_occupied: !matches!(cell.content, CellContent::Constant(Occupancy::Free)),
+    }
+}
+
+fn tally(
+    map: &LoadedMap<'_>,
+    cells: &[&Cell],
+    truth: &Snapshot,
+    t: Timestamp,
+    inside: bool,
+) -> Tally {
+    let reader = map.reader();
+    let axis = &reader.header().axis;
+    let model = reader.model();
+    let mut out = Tally::default();
+    let leaves = truth.leaves();
+    let known: u64 = leaves.iter().map(|l| l.voxel_count()).sum();
+    let mut matched = 0u64;
+    let (mut i, mut j) = (0usize, 0usize);
+    let mut current: Option<(usize, Verdicts)> = None;
+    // Both lists are sorted and disjoint: walk them together, weighting each overlap.
+    while let (Some(leaf), Some(cell)) = (leaves.get(i), cells.get(j)) {
+        let start = leaf.start.0.max(cell.start.0);
+        let end = leaf.end().min(cell.end());
+        if start < end {
+            if current.as_ref().is_none_or(|(k, _)| *k != j) {
+                current = Some((j, verdicts(cell, axis, model, t, inside)));
+            }
+            if let Some((_, v)) = &current {
+                let weight = end - start;
+                matched += weight;
+                let truth_state = leaf.occupancy();
+                for (rates, state) in out.methods.iter_mut().zip(v.states) {
+                    let Some(state) = state else { continue };
+                    let wrong = state != truth_state;
+                    rates.all.add(wrong, weight);
+                    if v.ever_occupied || truth_state.is_occupied() {
+                        rates.non_empty.add(wrong, weight);
+                    }
+                    if v.dynamic {
+                        rates.dynamic.add(wrong, weight);
+                    }
+                }
+            }
+        }
+        if leaf.end() <= cell.end() {
+            i += 1;
+        } else {
+            j += 1;
+        }
+    }
+    out.unmodelled = known - matched;
+    out
+}
+
+/// Compares a file with ground-truth maps (any readable map files with their times).
+pub fn evaluate(
+    map: &LoadedMap<'_>,
+    truths: &[SeriesInput],
+    read: ReadOptions<'_>,
+    progress: &dyn Progress,
+) -> Result<EvalReport, ConvertError> {
+    let reader = map.reader();
+    let axis = &reader.header().axis;
+    let resolution = reader.header().resolution;
+    let cells: Vec<&Cell> = map.cells().collect();
+    let registry = FormatRegistry::with_default_formats();
+    progress.stage("evaluating", truths.len() as u64);
+    let tallies: Vec<(bool, Tally)> = truths
+        .par_iter()
+        .map(|truth| {
+            let read = registry
+                .read_file(&truth.path, read)
+                .map_err(ConvertError::Read)?;
+            let snapshot = read.map.snapshot;
+            if snapshot.resolution() != resolution {
+                return Err(ConvertError::MixedResolution {
+                    first: reader.path().to_path_buf(),
+                    first_resolution: resolution,
+                    second: truth.path.clone(),
+                    second_resolution: snapshot.resolution(),
+                });
+            }
+            let inside = truth.time >= axis.start() && truth.time <= axis.end();
+            let t = tally(map, &cells, &snapshot, truth.time, inside);
+            progress.advance(1);
+            Ok((inside, t))
+        })
+        .collect::<Result<_, ConvertError>>()?;
+    let mut report = EvalReport::default();
+    let mut inside_rates = [ErrorRates::default(); 4];
+    let mut outside_rates = [ErrorRates::default(); 4];
+    for (inside, t) in &tallies {
+        let target = if *inside {
+            report.inside += 1;
+            &mut inside_rates
+        } else {
+            report.outside += 1;
+            &mut outside_rates
+        };
+        for (sum, r) in target.iter_mut().zip(&t.methods) {
+            sum.merge(r);
+        }
+        report.unmodelled_voxels += t.unmodelled;
+    }
+    report.reconstruction = METHODS
+        .iter()
+        .zip(inside_rates)
+        .map(|(m, r)| (m.to_string(), r))
+        .collect();
+    report.prediction = METHODS
+        .iter()
+        .zip(outside_rates)
+        .filter(|(m, _)| **m != "stored")
+        .map(|(m, r)| (m.to_string(), r))
+        .collect();
+    Ok(report)
+}

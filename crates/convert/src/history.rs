@@ -1,0 +1,400 @@
+//! Streaming accumulation of a series into per-cell observation runs.
+//!
+//! Snapshots arrive one at a time in time order. Each is reduced to *segments* (maximal
+//! Morton ranges of one known state) and compared with the previous snapshot: only the
+//! ranges whose state changed (including known ↔ unknown) touch the cells. Unchanged space
+//! costs nothing per snapshot, so the work per snapshot is proportional to its leaves plus
+//! its changes, and memory to the cells and their changes — never to the number of
+//! snapshots.
+//!
+//! Cells are the common refinement of every snapshot seen: a cell is split only when a
+//! change boundary falls inside it, and its history is inherited by its eight children.
+//! Cells are never coarser than a tile of the output file.
+
+use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, TREE_DEPTH};
+use froctomap_temporal::{Run, TemporalError, VoxelObservations};
+use std::collections::BTreeMap;
+
+/// A maximal Morton range `[start, end)` of one known state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Segment {
+    /// First voxel.
+    pub start: u64,
+    /// One past the last voxel.
+    pub end: u64,
+    /// The state of every voxel of the range.
+    pub state: Occupancy,
+}
+
+/// Merges Morton-sorted leaves into maximal same-state segments.
+pub fn segments(leaves: &[Leaf]) -> Vec<Segment> {
+    let mut out: Vec<Segment> = Vec::with_capacity(leaves.len() / 2 + 1);
+    for leaf in leaves {
+        let state = leaf.occupancy();
+        match out.last_mut() {
+            Some(last) if last.end == leaf.start.0 && last.state == state => last.end = leaf.end(),
+            _ => out.push(Segment {
+                start: leaf.start.0,
+                end: leaf.end(),
+                state,
+            }),
+        }
+    }
+    out
+}
+
+/// A range whose state changed between two snapshots, and its new state (`None` = unknown).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Change {
+    start: u64,
+    end: u64,
+    new: Option<Occupancy>,
+}
+
+/// The state at `pos` in sorted segments (advancing `i`), and where that state ends.
+fn state_at(segments: &[Segment], i: &mut usize, pos: u64) -> (Option<Occupancy>, u64) {
+    while *i < segments.len() && segments[*i].end <= pos {
+        *i += 1;
+    }
+    match segments.get(*i) {
+        Some(s) if s.start <= pos => (Some(s.state), s.end),
+        Some(s) => (None, s.start),
+        None => (None, MortonCode::END),
+    }
+}
+
+/// Ranges where `current` differs from `previous`, maximal per new state.
+fn changes(previous: &[Segment], current: &[Segment]) -> Vec<Change> {
+    let mut out: Vec<Change> = Vec::new();
+    let (mut i, mut j, mut pos) = (0usize, 0usize, 0u64);
+    while pos < MortonCode::END {
+        let (old, old_end) = state_at(previous, &mut i, pos);
+        let (new, new_end) = state_at(current, &mut j, pos);
+        let end = old_end.min(new_end);
+        if old != new {
+            match out.last_mut() {
+                Some(last) if last.end == pos && last.new == new => last.end = end,
+                _ => out.push(Change {
+                    start: pos,
+                    end,
+                    new,
+                }),
+            }
+        }
+        pos = end;
+    }
+    out
+}
+
+#[derive(Clone, Debug)]
+struct CellHistory {
+    depth: u8,
+    /// Closed runs; they may span samples without a snapshot, removed in `finish`.
+    runs: Vec<Run>,
+    /// The state observed since a sample, if observed at the latest snapshot.
+    open: Option<(Occupancy, u32)>,
+}
+
+impl CellHistory {
+    fn observe(&mut self, sample: u32, state: Option<Occupancy>) {
+        if let Some((old, first)) = self.open.take() {
+            self.runs.push(Run {
+                first,
+                len: sample - first,
+                state: old,
+            });
+        }
+        self.open = state.map(|s| (s, sample));
+    }
+}
+
+/// The cells of a series so far, with their observation histories.
+#[derive(Debug)]
+pub struct SeriesHistory {
+    cells: BTreeMap<u64, CellHistory>,
+    previous: Vec<Segment>,
+    tile_depth: u8,
+    last_sample: Option<u32>,
+    changed_voxels: u64,
+}
+
+impl SeriesHistory {
+    /// An empty history whose cells will never be coarser than a depth-`tile_depth` node.
+    pub fn new(tile_depth: u8) -> Self {
+        Self {
+            cells: BTreeMap::new(),
+            previous: Vec::new(),
+            tile_depth: tile_depth.clamp(1, TREE_DEPTH),
+            last_sample: None,
+            changed_voxels: 0,
+        }
+    }
+
+    /// Number of cells so far.
+    pub fn cell_count(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Voxel-changes seen so far (a voxel changing state at one snapshot counts once).
+    pub fn changed_voxels(&self) -> u64 {
+        self.changed_voxels
+    }
+
+    /// Adds the snapshot taken at `sample` (strictly after the previous one), given as its
+    /// segments.
+    pub fn ingest(&mut self, sample: u32, current: Vec<Segment>) -> Result<(), TemporalError> {
+        if self.last_sample.is_some_and(|last| sample <= last) {
+            return Err(TemporalError::InvalidObservations {
+                reason: "snapshots must arrive in increasing sample order",
+                sample: u64::from(sample),
+            });
+        }
+        self.last_sample = Some(sample);
+        for change in changes(&self.previous, &current) {
+            self.changed_voxels += change.end - change.start;
+            self.apply(sample, change);
+        }
+        self.previous = current;
+        Ok(())
+    }
+
+    /// Marks that the previous snapshot's state continues unchanged at `sample` (for an input
+    /// byte-identical to the previous one).
+    pub fn repeat(&mut self, sample: u32) -> Result<(), TemporalError> {
+        if self.last_sample.is_some_and(|last| sample <= last) {
+            return Err(TemporalError::InvalidObservations {
+                reason: "snapshots must arrive in increasing sample order",
+                sample: u64::from(sample),
+            });
+        }
+        self.last_sample = Some(sample);
+        Ok(())
+    }
+
+    fn apply(&mut self, sample: u32, change: Change) {
+        self.split_at(change.start);
+        self.split_at(change.end);
+        let mut cursor = change.start;
+        let mut gaps = Vec::new();
+        for (&start, cell) in self.cells.range_mut(change.start..change.end) {
+            if start > cursor {
+                gaps.push((cursor, start));
+            }
+            cell.observe(sample, change.new);
+            cursor = start + voxels_per_node(cell.depth);
+        }
+        if cursor < change.end {
+            gaps.push((cursor, change.end));
+        }
+        // Space seen for the first time becomes new cells (only where something is known).
+        if let Some(state) = change.new {
+            for (from, to) in gaps {
+                self.add_cells(from, to, sample, state);
+            }
+        }
+    }
+
+    /// Covers `[from, to)` with maximal aligned cells no coarser than a tile.
+    fn add_cells(&mut self, mut from: u64, to: u64, sample: u32, state: Occupancy) {
+        while from < to {
+            let mut depth = TREE_DEPTH;
+            while depth > self.tile_depth {
+                let bigger = voxels_per_node(depth - 1);
+                if from % bigger != 0 || from + bigger > to {
+                    break;
+                }
+                depth -= 1;
+            }
+            self.cells.insert(
+                from,
+                CellHistory {
+                    depth,
+                    runs: Vec::new(),
+                    open: Some((state, sample)),
+                },
+            );
+            from += voxels_per_node(depth);
+        }
+    }
+
+    /// Splits the cell that strictly contains position `at`, recursively, until `at` is a
+    /// cell boundary. Children inherit the history.
+    fn split_at(&mut self, at: u64) {
+        loop {
+            let Some((&start, cell)) = self.cells.range(..at).next_back() else {
+                return;
+            };
+            if start + voxels_per_node(cell.depth) <= at || cell.depth >= TREE_DEPTH {
+                return;
+            }
+            let Some(parent) = self.cells.remove(&start) else {
+                return;
+            };
+            let depth = parent.depth + 1;
+            let size = voxels_per_node(depth);
+            for child in 0..8 {
+                let history = CellHistory {
+                    depth,
+                    runs: parent.runs.clone(),
+                    open: parent.open,
+                };
+                self.cells.insert(start + child * size, history);
+            }
+        }
+    }
+
+    /// Closes every history at the end of an axis of `axis_len` samples and yields each
+    /// cell's observations in Morton order, with the samples in `absent` (sorted: samples
+    /// with no snapshot) removed from the runs.
+    pub fn finish(
+        self,
+        axis_len: u32,
+        absent: &[u32],
+    ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), TemporalError>> + '_ {
+        self.cells.into_iter().map(move |(start, mut cell)| {
+            cell.observe(axis_len, None);
+            let runs = cell
+                .runs
+                .iter()
+                .flat_map(|run| without_absent(*run, absent));
+            Ok((
+                MortonCode(start),
+                cell.depth,
+                VoxelObservations::from_runs(runs)?,
+            ))
+        })
+    }
+}
+
+/// A run with the absent samples cut out, as `(first, len, state)` pieces.
+fn without_absent(run: Run, absent: &[u32]) -> Vec<(u32, u32, Occupancy)> {
+    let end = run.end();
+    let from = absent.partition_point(|&a| a < run.first);
+    let to = absent.partition_point(|&a| u64::from(a) < end);
+    let mut pieces = Vec::with_capacity(to - from + 1);
+    let mut first = run.first;
+    for &hole in &absent[from..to] {
+        if hole > first {
+            pieces.push((first, hole - first, run.state));
+        }
+        first = hole + 1;
+    }
+    if u64::from(first) < end {
+        pieces.push((first, (end - u64::from(first)) as u32, run.state));
+    }
+    pieces
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::{Snapshot, VoxelKey};
+    use proptest::prelude::*;
+
+    fn leaf(x: u16, depth: u8, occupied: bool) -> Leaf {
+        Leaf::containing(
+            VoxelKey::new(x, 0, 0),
+            depth,
+            if occupied { 1.0 } else { -1.0 },
+        )
+    }
+
+    /// The state of a voxel at a sample according to the cells, by brute force.
+    fn state(
+        cells: &[(MortonCode, u8, VoxelObservations)],
+        voxel: u64,
+        sample: u32,
+    ) -> Option<Occupancy> {
+        let cell = cells
+            .iter()
+            .find(|(s, d, _)| s.0 <= voxel && voxel < s.0 + voxels_per_node(*d))?;
+        cell.2.state_at(sample)
+    }
+
+    #[test]
+    fn unchanged_space_is_not_touched_and_changes_split_cells() {
+        let mut h = SeriesHistory::new(10);
+        let first = vec![leaf(0, 13, false), leaf(64, 16, true)];
+        h.ingest(0, segments(&first)).unwrap();
+        let cells_after_first = h.cell_count();
+        h.ingest(1, segments(&first)).unwrap();
+        assert_eq!(
+            h.cell_count(),
+            cells_after_first,
+            "identical snapshot changes nothing"
+        );
+        // One voxel inside the free block becomes occupied: the block splits down to it.
+        let mut second = Snapshot::from_voxel_states(
+            0.1,
+            Snapshot::from_leaves(0.1, first.clone()).unwrap().voxels(),
+        )
+        .unwrap()
+        .into_leaves();
+        second[5].log_odds = 1.0;
+        h.ingest(2, segments(&second)).unwrap();
+        assert!(h.cell_count() > cells_after_first);
+        let cells: Vec<_> = h.finish(3, &[]).map(Result::unwrap).collect();
+        let v5 = second[5].start.0;
+        assert_eq!(state(&cells, v5, 1), Some(Occupancy::Free));
+        assert_eq!(state(&cells, v5, 2), Some(Occupancy::Occupied));
+        assert_eq!(state(&cells, v5 + 1, 2), Some(Occupancy::Free));
+    }
+
+    #[test]
+    fn absent_samples_are_cut_out() {
+        let run = Run {
+            first: 2,
+            len: 6,
+            state: Occupancy::Free,
+        };
+        assert_eq!(
+            without_absent(run, &[1, 3, 4, 7, 9]),
+            vec![(2, 1, Occupancy::Free), (5, 2, Occupancy::Free)]
+        );
+    }
+
+    proptest! {
+        /// Against brute force: every voxel's state at every sample is what the snapshots said.
+        #[test]
+        fn matches_brute_force(
+            frames in proptest::collection::vec(proptest::collection::vec((0u16..24, 14u8..=16, proptest::option::of(any::<bool>())), 0..12), 1..8),
+            absent in proptest::collection::btree_set(0u32..10, 0..3),
+        ) {
+            let mut h = SeriesHistory::new(12);
+            let mut snapshots = Vec::new();
+            let mut sample = 0u32;
+            for frame in frames {
+                while absent.contains(&sample) { sample += 1; }
+                // Non-overlapping leaves: one per 4-voxel slot, at most.
+                let mut leaves: Vec<Leaf> = Vec::new();
+                for (slot, depth, state) in frame {
+                    let x = slot * 4;
+                    if let Some(occupied) = state {
+                        let l = leaf(x, depth, occupied);
+                        if leaves.iter().all(|o| o.end() <= l.start.0 || l.end() <= o.start.0) {
+                            leaves.push(l);
+                        }
+                    }
+                }
+                let snapshot = Snapshot::from_leaves(0.1, leaves).unwrap();
+                h.ingest(sample, segments(snapshot.leaves())).unwrap();
+                snapshots.push((sample, snapshot));
+                sample += 1;
+            }
+            let axis_len = sample;
+            let absent: Vec<u32> = (0..axis_len).filter(|s| !snapshots.iter().any(|(t, _)| t == s)).collect();
+            let cells: Vec<_> = h.finish(axis_len, &absent).map(Result::unwrap).collect();
+            for (t, snapshot) in &snapshots {
+                for x in 0..100u16 {
+                    let voxel = VoxelKey::new(x, 0, 0).morton();
+                    prop_assert_eq!(state(&cells, voxel.0, *t), snapshot.state_at(voxel), "x {} sample {}", x, t);
+                }
+            }
+            for s in &absent {
+                for x in 0..100u16 {
+                    prop_assert_eq!(state(&cells, VoxelKey::new(x, 0, 0).morton().0, *s), None);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,208 @@
+//! `info` for FROctomap files: what a file holds and what it costs.
+
+use crate::build::ClassCounts;
+use crate::error::ConvertError;
+use crate::time::format_iso;
+use froctomap_core::{voxels_per_node, Occupancy};
+use froctomap_file::{CellContent, FroctReader};
+use froctomap_temporal::{AxisKind, ModelRegistry};
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::{Map, Value};
+use std::path::PathBuf;
+
+/// The time axis, for people.
+#[derive(Clone, Debug, Serialize)]
+pub struct AxisInfo {
+    /// `regular` or `explicit`.
+    pub kind: &'static str,
+    /// First sample, ISO 8601.
+    pub start: String,
+    /// Last sample, ISO 8601.
+    pub end: String,
+    /// Samples (including missing ones of a regular axis).
+    pub samples: u32,
+    /// Samples without a snapshot.
+    pub missing: usize,
+    /// Step of a regular axis, seconds.
+    pub step_seconds: Option<f64>,
+    /// Span, seconds.
+    pub span_seconds: f64,
+}
+
+/// Bytes by part.
+#[derive(Clone, Debug, Serialize)]
+pub struct SizeInfo {
+    /// Whole file.
+    pub file: u64,
+    /// Preamble, header sections and crc.
+    pub header: u64,
+    /// Index and footer.
+    pub index: u64,
+    /// Stored (compressed) tiles.
+    pub tiles: u64,
+    /// Raw bytes per tile stream before compression, as recorded by the writer.
+    pub raw_streams: Value,
+}
+
+/// Everything `froctomap info` says about a FROctomap file.
+#[derive(Clone, Debug, Serialize)]
+pub struct FroctInfo {
+    /// The file.
+    pub file: PathBuf,
+    /// Format version.
+    pub version: String,
+    /// Voxel edge length, metres.
+    pub resolution_m: f64,
+    /// Tile depth and count.
+    pub tile_depth: u8,
+    /// Tiles stored.
+    pub tiles: usize,
+    /// The time axis.
+    pub time: AxisInfo,
+    /// Model name.
+    pub model: String,
+    /// `lossless` or `lossy`.
+    pub outliers: &'static str,
+    /// Cells by class.
+    pub cells: ClassCounts,
+    /// Voxels by class.
+    pub voxels: ClassCounts,
+    /// Sizes.
+    pub size: SizeInfo,
+    /// Input snapshots and their total size, as recorded at build time.
+    pub input_files: Option<u64>,
+    /// Input bytes recorded at build time.
+    pub input_bytes: Option<u64>,
+    /// `input_bytes / file bytes`.
+    pub ratio_vs_inputs: Option<f64>,
+    /// Raw states (one bit per known voxel per sample, as the FROctomap paper counts) over
+    /// file bytes.
+    pub ratio_vs_raw_states: f64,
+    /// The header metadata.
+    pub metadata: Map<String, Value>,
+}
+
+fn counts_from_summary(summary: &Map<String, Value>, key: &str) -> Option<ClassCounts> {
+    let object = summary.get(key)?;
+    let field = |name: &str| object.get(name).and_then(Value::as_u64);
+    Some(ClassCounts {
+        static_free: field("static_free")?,
+        static_occupied: field("static_occupied")?,
+        dynamic: field("dynamic")?,
+        unknown_sometimes: field("unknown_sometimes")?,
+    })
+}
+
+/// Describes a file from its header and index (and its tiles, when the index carries no
+/// summary, or when `count_cells` asks for an exact recount).
+pub fn describe(reader: &FroctReader, count_cells: bool) -> Result<FroctInfo, ConvertError> {
+    let header = reader.header();
+    let axis = &header.axis;
+    let summary = reader.summary();
+    let recorded = counts_from_summary(summary, "cell_classes")
+        .zip(counts_from_summary(summary, "voxel_classes"));
+    let (cells, voxels) = match recorded.filter(|_| !count_cells) {
+        Some(counts) => counts,
+        None => count(reader)?,
+    };
+    let tiles: u64 = reader.tiles().iter().map(|t| u64::from(t.stored_len)).sum();
+    let file = reader.file_len();
+    let index = file
+        - reader
+            .tiles()
+            .last()
+            .map_or(0, |t| t.offset + u64::from(t.stored_len));
+    let input_bytes = header.metadata.get("input_bytes").and_then(Value::as_u64);
+    let raw_bits = voxels.total() as f64 * f64::from(axis.len());
+    let model = ModelRegistry::with_default_models()
+        .by_id(header.model_id)
+        .map_or_else(
+            || format!("unknown model {}", header.model_id),
+            |d| d.name.to_string(),
+        );
+    Ok(FroctInfo {
+        file: reader.path().to_path_buf(),
+        version: format!("{}.{}", header.version.0, header.version.1),
+        resolution_m: header.resolution,
+        tile_depth: header.tile_depth,
+        tiles: reader.tiles().len(),
+        time: AxisInfo {
+            kind: match axis.kind() {
+                AxisKind::Regular => "regular",
+                AxisKind::Explicit => "explicit",
+            },
+            start: format_iso(axis.start()),
+            end: format_iso(axis.end()),
+            samples: axis.len(),
+            missing: axis.missing().len(),
+            step_seconds: axis.step_ns().map(|s| s as f64 / 1e9),
+            span_seconds: axis.span_seconds(),
+        },
+        model,
+        outliers: if header.model_parameters.get(1) == Some(&1) {
+            "lossy"
+        } else {
+            "lossless"
+        },
+        cells,
+        voxels,
+        size: SizeInfo {
+            file,
+            header: reader.tiles().first().map_or(file - index, |t| t.offset),
+            index,
+            tiles,
+            raw_streams: summary
+                .get("raw_stream_bytes")
+                .cloned()
+                .unwrap_or(Value::Null),
+        },
+        input_files: header.metadata.get("sources").and_then(Value::as_u64),
+        input_bytes,
+        ratio_vs_inputs: input_bytes.map(|b| b as f64 / file as f64),
+        ratio_vs_raw_states: raw_bits / 8.0 / file as f64,
+        metadata: header.metadata.clone(),
+    })
+}
+
+fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertError> {
+    let per_tile = (0..reader.tiles().len())
+        .into_par_iter()
+        .map(|i| {
+            let mut cells = ClassCounts::default();
+            let mut voxels = ClassCounts::default();
+            for cell in reader.read_tile(i)? {
+                let n = voxels_per_node(cell.depth);
+                let (c, v) = match cell.content {
+                    CellContent::Constant(Occupancy::Free) => {
+                        (&mut cells.static_free, &mut voxels.static_free)
+                    }
+                    CellContent::Constant(Occupancy::Occupied) => {
+                        (&mut cells.static_occupied, &mut voxels.static_occupied)
+                    }
+                    CellContent::Modelled(_) => (&mut cells.dynamic, &mut voxels.dynamic),
+                };
+                *c += 1;
+                *v += n;
+                if cell.mask.is_some() {
+                    cells.unknown_sometimes += 1;
+                    voxels.unknown_sometimes += n;
+                }
+            }
+            Ok((cells, voxels))
+        })
+        .collect::<Result<Vec<_>, ConvertError>>()?;
+    let mut cells = ClassCounts::default();
+    let mut voxels = ClassCounts::default();
+    for (c, v) in per_tile {
+        cells.static_free += c.static_free;
+        cells.static_occupied += c.static_occupied;
+        cells.dynamic += c.dynamic;
+        cells.unknown_sometimes += c.unknown_sometimes;
+        voxels.static_free += v.static_free;
+        voxels.static_occupied += v.static_occupied;
+        voxels.dynamic += v.dynamic;
+        voxels.unknown_sometimes += v.unknown_sometimes;
+    }
+    Ok((cells, voxels))
+}

@@ -1,0 +1,268 @@
+//! Which files make a series, and at what time each snapshot was taken.
+
+use crate::error::ConvertError;
+use crate::time::{check_range, parse_time, time_from_file_name};
+use froctomap_core::Timestamp;
+use froctomap_formats::FormatRegistry;
+use std::path::{Path, PathBuf};
+
+/// One snapshot file of a series.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SeriesInput {
+    /// The file.
+    pub path: PathBuf,
+    /// When the snapshot was taken.
+    pub time: Timestamp,
+}
+
+/// Where snapshot times come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TimeSource {
+    /// Manifests give times; plain files take theirs from their names.
+    #[default]
+    Auto,
+    /// Every file's name holds its time (manifest times are ignored).
+    FileNames,
+    /// The files, in the order given (directories and globs sorted by name), are taken at
+    /// `start + i · step`.
+    StartStep {
+        /// Time of the first file.
+        start: Timestamp,
+        /// Nanoseconds between files.
+        step_ns: i64,
+    },
+}
+
+/// The name of a manifest inside a series directory.
+pub const MANIFEST_NAME: &str = "manifest.csv";
+
+/// A file named on the command line, before times are known.
+struct Candidate {
+    path: PathBuf,
+    manifest_time: Option<Timestamp>,
+}
+
+/// Expands command-line inputs into the files of a series with their times, sorted by time.
+///
+/// Each input is a directory (its `manifest.csv` if present, else every file with an
+/// extension of a registered map format, sorted by name), a glob pattern (`maps/*.bt`), a
+/// manifest CSV (`path,time` lines; paths relative to the manifest; times in Unix seconds or
+/// ISO 8601; a header line is optional) or a single file. Duplicate times are an error naming
+/// both files.
+pub fn collect_inputs(
+    inputs: &[PathBuf],
+    times: TimeSource,
+    registry: &FormatRegistry,
+) -> Result<Vec<SeriesInput>, ConvertError> {
+    let extensions: Vec<&str> = registry
+        .formats()
+        .iter()
+        .flat_map(|f| f.extensions.iter().copied())
+        .collect();
+    let mut candidates = Vec::new();
+    for input in inputs {
+        let text = input.to_string_lossy();
+        if text.contains(['*', '?', '[']) && !input.exists() {
+            let paths = glob::glob(&text)
+                .map_err(|e| ConvertError::Inputs(format!("bad pattern {text:?}: {e}")))?;
+            let mut matched: Vec<PathBuf> = paths
+                .filter_map(Result::ok)
+                .filter(|p| p.is_file())
+                .collect();
+            if matched.is_empty() {
+                return Err(ConvertError::Inputs(format!(
+                    "the pattern {text:?} matches no files"
+                )));
+            }
+            matched.sort();
+            candidates.extend(matched.into_iter().map(|path| Candidate {
+                path,
+                manifest_time: None,
+            }));
+        } else if input.is_dir() {
+            let manifest = input.join(MANIFEST_NAME);
+            if manifest.is_file() {
+                candidates.extend(read_manifest(&manifest)?);
+            } else {
+                let mut files = list_map_files(input, &extensions)?;
+                if files.is_empty() {
+                    return Err(ConvertError::Inputs(format!(
+                        "{}: no {} or map files (.{}) in this directory",
+                        input.display(),
+                        MANIFEST_NAME,
+                        extensions.join(", .")
+                    )));
+                }
+                files.sort();
+                candidates.extend(files.into_iter().map(|path| Candidate {
+                    path,
+                    manifest_time: None,
+                }));
+            }
+        } else if input
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+        {
+            candidates.extend(read_manifest(input)?);
+        } else if input.is_file() {
+            candidates.push(Candidate {
+                path: input.clone(),
+                manifest_time: None,
+            });
+        } else {
+            return Err(ConvertError::Inputs(format!(
+                "{}: no such file or directory",
+                input.display()
+            )));
+        }
+    }
+    if candidates.is_empty() {
+        return Err(ConvertError::Inputs("no input files".into()));
+    }
+    let mut series = assign_times(candidates, times)?;
+    series.sort_by(|a, b| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
+    if let Some(pair) = series.windows(2).find(|w| w[0].time == w[1].time) {
+        return Err(ConvertError::DuplicateTime {
+            first: pair[0].path.clone(),
+            second: pair[1].path.clone(),
+            time: pair[0].time,
+        });
+    }
+    Ok(series)
+}
+
+fn assign_times(
+    candidates: Vec<Candidate>,
+    times: TimeSource,
+) -> Result<Vec<SeriesInput>, ConvertError> {
+    match times {
+        TimeSource::StartStep { start, step_ns } => candidates
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let t = (i as i64)
+                    .checked_mul(step_ns)
+                    .and_then(|offset| start.0.checked_add(offset))
+                    .map(Timestamp)
+                    .ok_or_else(|| {
+                        ConvertError::Inputs("--start/--step run past the year 2262".into())
+                    })?;
+                check_range(&c.path.to_string_lossy(), t)
+                    .map_err(|e| ConvertError::Inputs(e.to_string()))?;
+                Ok(SeriesInput {
+                    path: c.path,
+                    time: t,
+                })
+            })
+            .collect(),
+        TimeSource::Auto | TimeSource::FileNames => {
+            let use_manifest = times == TimeSource::Auto;
+            let mut out = Vec::with_capacity(candidates.len());
+            let mut unnamed = Vec::new();
+            for c in candidates {
+                let from_name = || {
+                    c.path
+                        .file_name()
+                        .and_then(|n| n.to_str())
+                        .and_then(time_from_file_name)
+                };
+                match c.manifest_time.filter(|_| use_manifest).or_else(from_name) {
+                    Some(time) => out.push(SeriesInput { path: c.path, time }),
+                    None => unnamed.push(c.path),
+                }
+            }
+            if !unnamed.is_empty() {
+                let shown: Vec<String> = unnamed
+                    .iter()
+                    .take(5)
+                    .map(|p| p.display().to_string())
+                    .collect();
+                return Err(ConvertError::Inputs(format!(
+                    "no time in the name of {} file(s): {}{}; give a manifest (path,time) or --start/--step",
+                    unnamed.len(),
+                    shown.join(", "),
+                    if unnamed.len() > 5 { ", ..." } else { "" }
+                )));
+            }
+            Ok(out)
+        }
+    }
+}
+
+fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, ConvertError> {
+    let io = |e: std::io::Error| ConvertError::Inputs(format!("{}: {e}", dir.display()));
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let known = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| extensions.iter().any(|k| k.eq_ignore_ascii_case(e)));
+        if known && path.is_file() {
+            files.push(path);
+        }
+    }
+    Ok(files)
+}
+
+/// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
+fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
+    let text = std::fs::read_to_string(manifest)
+        .map_err(|e| ConvertError::Inputs(format!("{}: {e}", manifest.display())))?;
+    let base = manifest.parent().unwrap_or(Path::new("."));
+    let mut out = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty()
+            || line.starts_with('#')
+            || (number == 0 && line.eq_ignore_ascii_case("path,time"))
+        {
+            continue;
+        }
+        let bad = |reason: String| {
+            ConvertError::Inputs(format!("{}:{}: {reason}", manifest.display(), number + 1))
+        };
+        let (path, time) = line
+            .rsplit_once(',')
+            .ok_or_else(|| bad("expected `path,time`".into()))?;
+        let time = parse_time(time).map_err(|e| bad(e.to_string()))?;
+        let path = PathBuf::from(path.trim().trim_matches('"'));
+        let path = if path.is_absolute() {
+            path
+        } else {
+            base.join(path)
+        };
+        out.push(Candidate {
+            path,
+            manifest_time: Some(time),
+        });
+    }
+    if out.is_empty() {
+        return Err(ConvertError::Inputs(format!(
+            "{}: the manifest lists no files",
+            manifest.display()
+        )));
+    }
+    Ok(out)
+}
+
+/// Writes a manifest (`path,time` with Unix seconds) for files relative to `dir`.
+pub fn manifest_text(dir: &Path, entries: &[SeriesInput]) -> String {
+    let mut out = String::from("path,time\n");
+    for e in entries {
+        let rel = e.path.strip_prefix(dir).unwrap_or(&e.path);
+        out.push_str(&format!("{},{}\n", rel.display(), unix_seconds(e.time)));
+    }
+    out
+}
+
+/// Unix seconds with up to nine decimals, no trailing zeros.
+pub fn unix_seconds(t: Timestamp) -> String {
+    let secs = t.0.div_euclid(1_000_000_000);
+    let nanos = t.0.rem_euclid(1_000_000_000);
+    if nanos == 0 {
+        secs.to_string()
+    } else {
+        format!("{secs}.{}", format!("{nanos:09}").trim_end_matches('0'))
+    }
+}

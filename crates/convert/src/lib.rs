@@ -1,0 +1,58 @@
+//! Converters between OctoMap series and FROctomap files — the library behind every
+//! `froctomap` command.
+//!
+//! * [`collect_inputs`] turns directories, globs, manifests and files into a time-sorted
+//!   series; [`build`] streams it into one FROctomap file (memory grows with the map's cells
+//!   and their changes, not with the number of snapshots).
+//! * [`LoadedMap`] decodes a file once; [`LoadedMap::observed`] gives the map as observed
+//!   at a sample (bit-exact in lossless files), [`LoadedMap::predicted`] the predicted map at
+//!   any instant; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
+//!   range of them with a manifest.
+//! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
+//!   last-seen baselines; [`describe`] summarises a file.
+//!
+//! ```no_run
+//! use froctomap_convert::*;
+//! use froctomap_formats::FormatRegistry;
+//! use std::path::{Path, PathBuf};
+//!
+//! let registry = FormatRegistry::with_default_formats();
+//! let series = collect_inputs(&[PathBuf::from("maps/")], TimeSource::Auto, &registry)?;
+//! let report = build(&series, Path::new("office.froct"), &BuildOptions::default(), &Silent)?;
+//! println!("{} snapshots → {} bytes", report.used, report.file_bytes);
+//!
+//! let reader = froctomap_file::FroctReader::open(Path::new("office.froct"))?;
+//! let map = LoadedMap::load(&reader)?;
+//! let when = resolve_observed(&reader, "2016-01-05T12:00:00Z".parse()?)?;
+//! write_map(&map.observed(when.sample)?, Path::new("noon.bt"), None, None)?;
+//! write_map(&map.predicted(parse_time("2016-02-01T12:00:00Z")?)?, Path::new("future.ot"), None, None)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod build;
+mod error;
+mod eval;
+mod history;
+mod info;
+mod inputs;
+mod maps;
+mod progress;
+mod time;
+
+pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
+pub use error::ConvertError;
+pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
+pub use history::{segments, Segment, SeriesHistory};
+pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
+pub use inputs::{
+    collect_inputs, manifest_text, unix_seconds, SeriesInput, TimeSource, MANIFEST_NAME,
+};
+pub use maps::{
+    export, probability_log_odds, resolve_observed, write_map, ExportMode, ExportOptions,
+    ExportReport, LoadedMap, ResolvedSample, TimeQuery, MAX_EXPORTS,
+};
+pub use progress::{Progress, Silent};
+pub use time::{
+    check_range, format_compact, format_iso, parse_duration, parse_time, time_from_file_name,
+    TimeError, EARLIEST, LATEST,
+};

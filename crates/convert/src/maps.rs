@@ -1,0 +1,339 @@
+//! Maps out of a FROctomap file: retrieved (as observed), predicted (any instant), exported.
+
+use crate::error::ConvertError;
+use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
+use crate::progress::Progress;
+use crate::time::{check_range, format_compact, format_iso, parse_time};
+use froctomap_core::{defaults, log_odds, write_atomically, Leaf, Snapshot, Timestamp};
+use froctomap_file::{Cell, FroctReader};
+use froctomap_formats::{Backend, FormatRegistry, MapFormat, WriteOptions};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// A time as a user gives it for `retrieve`/`predict`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeQuery {
+    /// An instant.
+    Instant(Timestamp),
+    /// A sample index of the file's time axis.
+    Sample(u32),
+}
+
+impl std::str::FromStr for TimeQuery {
+    type Err = ConvertError;
+
+    /// `index:42` is a sample index; anything else is Unix seconds or ISO 8601.
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        if let Some(index) = text.trim().strip_prefix("index:") {
+            return index.trim().parse().map(TimeQuery::Sample).map_err(|_| {
+                ConvertError::Time(format!("{text:?}: `index:` needs a sample number"))
+            });
+        }
+        parse_time(text)
+            .map(TimeQuery::Instant)
+            .map_err(|e| ConvertError::Time(e.to_string()))
+    }
+}
+
+/// A snapshot sample chosen for a retrieval.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ResolvedSample {
+    /// The sample.
+    pub sample: u32,
+    /// Its time.
+    pub time: Timestamp,
+    /// `false` when the query fell between samples and the last earlier one was taken.
+    pub exact: bool,
+}
+
+/// The sample of the map as observed at `query`: the sample itself, or the last snapshot at
+/// or before an instant. Instants before the first snapshot, sample indices beyond the axis
+/// and samples without a snapshot are errors.
+pub fn resolve_observed(
+    reader: &FroctReader,
+    query: TimeQuery,
+) -> Result<ResolvedSample, ConvertError> {
+    let axis = &reader.header().axis;
+    let span = || format!("{} .. {}", format_iso(axis.start()), format_iso(axis.end()));
+    match query {
+        TimeQuery::Sample(sample) => {
+            let time = axis.time(sample).ok_or_else(|| {
+                ConvertError::Time(format!(
+                    "sample {sample} is beyond the {} samples of the file ({})",
+                    axis.len(),
+                    span()
+                ))
+            })?;
+            if axis.is_missing(sample) {
+                return Err(ConvertError::Time(format!(
+                    "sample {sample} ({}) has no snapshot",
+                    format_iso(time)
+                )));
+            }
+            Ok(ResolvedSample {
+                sample,
+                time,
+                exact: true,
+            })
+        }
+        TimeQuery::Instant(t) => {
+            if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
+                return Ok(ResolvedSample {
+                    sample,
+                    time: t,
+                    exact: true,
+                });
+            }
+            let sample = axis.last_at_or_before(t).ok_or_else(|| {
+                ConvertError::Time(format!(
+                    "{} is before the first snapshot; the file covers {}",
+                    format_iso(t),
+                    span()
+                ))
+            })?;
+            let time = axis.time(sample).unwrap_or(t);
+            Ok(ResolvedSample {
+                sample,
+                time,
+                exact: false,
+            })
+        }
+    }
+}
+
+/// Every cell of a file, decoded once (in parallel) for repeated queries.
+pub struct LoadedMap<'r> {
+    reader: &'r FroctReader,
+    tiles: Vec<Vec<Cell>>,
+}
+
+impl<'r> LoadedMap<'r> {
+    /// Decodes every tile.
+    pub fn load(reader: &'r FroctReader) -> Result<Self, ConvertError> {
+        let tiles = (0..reader.tiles().len())
+            .into_par_iter()
+            .map(|i| reader.read_tile(i))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { reader, tiles })
+    }
+
+    /// The reader the cells came from.
+    pub fn reader(&self) -> &'r FroctReader {
+        self.reader
+    }
+
+    /// All cells in Morton order.
+    pub fn cells(&self) -> impl Iterator<Item = &Cell> {
+        self.tiles.iter().flatten()
+    }
+
+    /// Number of cells.
+    pub fn cell_count(&self) -> usize {
+        self.tiles.iter().map(Vec::len).sum()
+    }
+
+    fn collect(
+        &self,
+        value: impl Fn(&Cell) -> Option<f32> + Sync,
+    ) -> Result<Snapshot, ConvertError> {
+        let leaves: Vec<Leaf> = self
+            .tiles
+            .par_iter()
+            .flat_map_iter(|tile| {
+                tile.iter()
+                    .filter_map(|cell| {
+                        value(cell).map(|log_odds| Leaf {
+                            start: cell.start,
+                            depth: cell.depth,
+                            log_odds,
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let snapshot =
+            Snapshot::from_leaves(self.reader.header().resolution, leaves).map_err(|e| {
+                ConvertError::Time(format!(
+                    "{}: inconsistent cells: {e}",
+                    self.reader.path().display()
+                ))
+            })?;
+        Ok(snapshot.canonical())
+    }
+
+    /// The map as observed at a sample (exact in lossless files), in the canonical split.
+    pub fn observed(&self, sample: u32) -> Result<Snapshot, ConvertError> {
+        let axis = &self.reader.header().axis;
+        let model = self.reader.model();
+        self.collect(|cell| cell.state_at(axis, model, sample).map(|s| s.log_odds()))
+    }
+
+    /// The predicted map at any instant: every cell with log-odds of its probability `p(t)`,
+    /// kept within OctoMap's clamping bounds (0.1192 ..= 0.971), so that cells with `p ≤ 0.5`
+    /// are free and `p > 0.5` occupied for OctoMap tools as for froctomap.
+    pub fn predicted(&self, t: Timestamp) -> Result<Snapshot, ConvertError> {
+        let seconds = t.secs_since(self.reader.header().axis.start());
+        let model = self.reader.model();
+        self.collect(|cell| Some(probability_log_odds(cell.probability(model, seconds))))
+    }
+}
+
+/// Log-odds for a predicted probability: clamped to OctoMap's bounds, and strictly negative
+/// at `p ≤ 0.5` (OctoMap calls log-odds 0 occupied; froctomap's threshold is `p > 0.5`).
+pub fn probability_log_odds(p: f64) -> f32 {
+    let clamped = p.clamp(defaults::CLAMPING_MIN, defaults::CLAMPING_MAX);
+    let value = log_odds(clamped);
+    if p > 0.5 {
+        value.max(f32::MIN_POSITIVE)
+    } else {
+        value.min(-f32::MIN_POSITIVE)
+    }
+}
+
+/// Writes a map to `path` in the format its extension (or `format`) names, atomically. A
+/// `.bt` holds states only, so the map is reduced to maximum likelihood and its canonical
+/// split first.
+pub fn write_map(
+    snapshot: &Snapshot,
+    path: &Path,
+    format: Option<&str>,
+    backend: Option<Backend>,
+) -> Result<MapFormat, ConvertError> {
+    let registry = FormatRegistry::with_default_formats();
+    let options = WriteOptions { format, backend };
+    let chosen = *registry
+        .output_format(path, options)
+        .map_err(ConvertError::Write)?;
+    let states_only;
+    let to_write = if chosen.name == "bt" {
+        states_only = snapshot.to_max_likelihood().canonical();
+        &states_only
+    } else {
+        snapshot
+    };
+    registry
+        .write_file(to_write, path, options)
+        .map_err(ConvertError::Write)
+}
+
+/// What `export` produces at each instant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ExportMode {
+    /// The predicted map (any instant).
+    #[default]
+    Predict,
+    /// The last observed snapshot at or before the instant.
+    Retrieve,
+}
+
+/// Settings of an export.
+#[derive(Clone, Debug)]
+pub struct ExportOptions {
+    /// First instant.
+    pub from: Timestamp,
+    /// Last instant (inclusive).
+    pub to: Timestamp,
+    /// Nanoseconds between instants.
+    pub every_ns: i64,
+    /// Predicted or retrieved maps.
+    pub mode: ExportMode,
+    /// Output format name (`bt` or `ot`).
+    pub format: String,
+    /// Preferred writer implementation.
+    pub backend: Option<Backend>,
+    /// File name prefix.
+    pub prefix: String,
+}
+
+/// Most maps one export may write (a guard against a mistyped interval).
+pub const MAX_EXPORTS: u64 = 1_000_000;
+
+/// What `export` wrote.
+#[derive(Clone, Debug)]
+pub struct ExportReport {
+    /// Files and their instants, in time order.
+    pub files: Vec<SeriesInput>,
+    /// The manifest (`path,time`), which `build` accepts.
+    pub manifest: PathBuf,
+    /// Bytes written.
+    pub bytes: u64,
+}
+
+/// Writes one map per instant of `from..=to` (every `every_ns`) into `dir`, each atomically,
+/// then a manifest. A failure leaves only complete files behind.
+pub fn export(
+    map: &LoadedMap<'_>,
+    dir: &Path,
+    options: &ExportOptions,
+    progress: &dyn Progress,
+) -> Result<ExportReport, ConvertError> {
+    for (what, t) in [("--from", options.from), ("--to", options.to)] {
+        check_range(what, t).map_err(|e| ConvertError::Time(e.to_string()))?;
+    }
+    if options.to < options.from {
+        return Err(ConvertError::Time(format!(
+            "--to {} is before --from {}",
+            format_iso(options.to),
+            format_iso(options.from)
+        )));
+    }
+    if options.every_ns <= 0 {
+        return Err(ConvertError::Time("--every must be positive".into()));
+    }
+    let count =
+        (i128::from(options.to.0) - i128::from(options.from.0)) / i128::from(options.every_ns) + 1;
+    if count > i128::from(MAX_EXPORTS) {
+        return Err(ConvertError::Time(format!(
+            "{count} maps requested, more than the limit of {MAX_EXPORTS}; use a longer --every"
+        )));
+    }
+    let times: Vec<Timestamp> = (0..count as i64)
+        .map(|i| Timestamp(options.from.0 + i * options.every_ns))
+        .collect();
+    let samples: Vec<Option<u32>> = match options.mode {
+        ExportMode::Predict => vec![None; times.len()],
+        ExportMode::Retrieve => times
+            .iter()
+            .map(|&t| resolve_observed(map.reader(), TimeQuery::Instant(t)).map(|r| Some(r.sample)))
+            .collect::<Result<_, _>>()?,
+    };
+    std::fs::create_dir_all(dir).map_err(|source| froctomap_core::AtomicWriteError {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let registry = FormatRegistry::with_default_formats();
+    let format = registry
+        .by_name(&options.format, options.backend)
+        .map_err(ConvertError::Write)?;
+    let extension = format.extensions.first().copied().unwrap_or(format.name);
+    progress.stage("exporting maps", times.len() as u64);
+    let files: Vec<(SeriesInput, u64)> = times
+        .par_iter()
+        .zip(samples.par_iter())
+        .map(|(&t, sample)| {
+            let snapshot = match sample {
+                Some(s) => map.observed(*s)?,
+                None => map.predicted(t)?,
+            };
+            let path = dir.join(format!(
+                "{}_{}.{extension}",
+                options.prefix,
+                format_compact(t)
+            ));
+            write_map(&snapshot, &path, Some(&options.format), options.backend)?;
+            let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+            progress.advance(1);
+            Ok((SeriesInput { path, time: t }, bytes))
+        })
+        .collect::<Result<_, ConvertError>>()?;
+    let bytes = files.iter().map(|(_, b)| b).sum();
+    let files: Vec<SeriesInput> = files.into_iter().map(|(f, _)| f).collect();
+    let manifest = dir.join(MANIFEST_NAME);
+    let text = manifest_text(dir, &files);
+    write_atomically(&manifest, |out| out.write_all(text.as_bytes()))?;
+    Ok(ExportReport {
+        files,
+        manifest,
+        bytes,
+    })
+}

@@ -1,0 +1,16 @@
+//! Progress reporting for long operations, implemented by front ends (the CLI draws bars).
+
+/// Receives progress of a long operation. All methods have empty defaults; implementations
+/// must be `Sync` because work runs on several threads.
+pub trait Progress: Sync {
+    /// A new stage begins, with `total` units of work (0 if unknown).
+    fn stage(&self, _name: &str, _total: u64) {}
+    /// `units` more units of the current stage are done.
+    fn advance(&self, _units: u64) {}
+}
+
+/// Reports nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Silent;
+
+impl Progress for Silent {}

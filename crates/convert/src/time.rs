@@ -1,0 +1,491 @@
+//! Instants as users write them: Unix seconds, ISO 8601, or embedded in file names.
+
+use froctomap_core::Timestamp;
+
+/// Earliest instant froctomap accepts: 1970-01-01T00:00:00Z. Robot maps are not older.
+pub const EARLIEST: Timestamp = Timestamp(0);
+/// Latest instant froctomap accepts: 2200-01-01T00:00:00Z.
+pub const LATEST: Timestamp = Timestamp(7_258_118_400 * 1_000_000_000);
+
+/// Days from 1970-01-01 to a proleptic Gregorian date (Howard Hinnant's algorithm).
+fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let m = i64::from(month);
+    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// The date of a day count since 1970-01-01 (inverse of `days_from_civil`).
+fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    (year, month, day)
+}
+
+fn days_in_month(year: i64, month: u32) -> u32 {
+    match month {
+        2 if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 => 29,
+        2 => 28,
+        4 | 6 | 9 | 11 => 30,
+        _ => 31,
+    }
+}
+
+/// Formats an instant as ISO 8601 UTC (`2016-01-04T08:30:00Z`, with fractional seconds only
+/// when present).
+pub fn format_iso(t: Timestamp) -> String {
+    let secs = t.0.div_euclid(1_000_000_000);
+    let nanos = t.0.rem_euclid(1_000_000_000);
+    let (year, month, day) = civil_from_days(secs.div_euclid(86_400));
+    let rem = secs.rem_euclid(86_400);
+    let (h, m, s) = (rem / 3600, rem % 3600 / 60, rem % 60);
+    let mut out = format!("{year:04}-{month:02}-{day:02}T{h:02}:{m:02}:{s:02}");
+    if nanos != 0 {
+        let frac = format!("{nanos:09}");
+        out.push('.');
+        out.push_str(frac.trim_end_matches('0'));
+    }
+    out.push('Z');
+    out
+}
+
+/// Compact ISO 8601 for file names: `20160104T083000Z` (fraction as `.123` when present).
+pub fn format_compact(t: Timestamp) -> String {
+    format_iso(t).replace(['-', ':'], "")
+}
+
+/// Why a time could not be understood.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[error("cannot read {input:?} as a time: {reason}")]
+pub struct TimeError {
+    /// What was given.
+    pub input: String,
+    /// What is wrong.
+    pub reason: String,
+}
+
+fn error(input: &str, reason: impl Into<String>) -> TimeError {
+    TimeError {
+        input: input.to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// Checks that an instant is in the range froctomap accepts (1970 to 2200).
+pub fn check_range(input: &str, t: Timestamp) -> Result<Timestamp, TimeError> {
+    if t < EARLIEST || t > LATEST {
+        return Err(error(
+            input,
+            format!(
+                "{} is outside the supported range 1970-01-01 .. 2200-01-01",
+                format_iso_saturating(t)
+            ),
+        ));
+    }
+    Ok(t)
+}
+
+fn format_iso_saturating(t: Timestamp) -> String {
+    // Years far outside 0..9999 still format; the message only needs to be readable.
+    format_iso(t)
+}
+
+/// Parses Unix seconds (`1451865600`, `1451865600.25`) or ISO 8601
+/// (`2016-01-04T08:30:00Z`, `2016-01-04 08:30:00+01:00`, `2016-01-04`, `20160104T083000Z`).
+/// A time without zone is UTC.
+///
+/// ```
+/// use froctomap_convert::parse_time;
+/// use froctomap_core::Timestamp;
+/// assert_eq!(parse_time("1451865600").unwrap(), Timestamp::from_secs(1_451_865_600));
+/// assert_eq!(parse_time("2016-01-04T00:00:00Z").unwrap(), Timestamp::from_secs(1_451_865_600));
+/// assert_eq!(parse_time("2016-01-04T01:00:00+01:00").unwrap(), Timestamp::from_secs(1_451_865_600));
+/// assert!(parse_time("99999999999999").is_err()); // year 5138
+/// ```
+pub fn parse_time(input: &str) -> Result<Timestamp, TimeError> {
+    let text = input.trim();
+    if text.is_empty() {
+        return Err(error(input, "empty"));
+    }
+    let t = if text
+        .bytes()
+        .all(|b| b.is_ascii_digit() || b == b'.' || b == b'-' || b == b'+')
+        && text.bytes().filter(|&b| b == b'-').count() <= 1
+        && !text.get(1..).unwrap_or("").contains('-')
+    {
+        match parse_unix(text) {
+            Some(t) => t,
+            // Digits that do not fit 64-bit nanoseconds are far outside any useful range.
+            None if text
+                .trim_start_matches(['-', '+'])
+                .split('.')
+                .all(|p| p.bytes().all(|b| b.is_ascii_digit())) =>
+            {
+                return Err(error(
+                    input,
+                    "is outside the supported range 1970-01-01 .. 2200-01-01",
+                ))
+            }
+            None => return Err(error(input, "not a number of seconds")),
+        }
+    } else {
+        parse_iso(text).map_err(|reason| error(input, reason))?
+    };
+    check_range(input, t)
+}
+
+fn parse_unix(text: &str) -> Option<Timestamp> {
+    let (negative, body) = match text.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
+    };
+    let (int, frac) = body.split_once('.').unwrap_or((body, ""));
+    if int.is_empty()
+        || !int.bytes().all(|b| b.is_ascii_digit())
+        || !frac.bytes().all(|b| b.is_ascii_digit())
+        || frac.len() > 9
+    {
+        return None;
+    }
+    let secs: i64 = int.parse().ok()?;
+    let nanos: i64 = if frac.is_empty() {
+        0
+    } else {
+        format!("{frac:0<9}").parse().ok()?
+    };
+    let total = secs.checked_mul(1_000_000_000)?.checked_add(nanos)?;
+    Some(Timestamp(if negative { -total } else { total }))
+}
+
+/// Parses the ISO 8601 forms froctomap accepts; the error says what is wrong.
+fn parse_iso(text: &str) -> Result<Timestamp, String> {
+    let (t, rest) = parse_iso_prefix(text).ok_or("not Unix seconds or an ISO 8601 date/time")?;
+    if !rest.is_empty() {
+        return Err(format!("unexpected {rest:?} after the time"));
+    }
+    Ok(t)
+}
+
+struct Digits<'a> {
+    s: &'a [u8],
+    pos: usize,
+}
+
+impl Digits<'_> {
+    fn number(&mut self, len: usize) -> Option<u32> {
+        let digits = self.s.get(self.pos..self.pos + len)?;
+        if !digits.iter().all(u8::is_ascii_digit) {
+            return None;
+        }
+        self.pos += len;
+        digits
+            .iter()
+            .try_fold(0u32, |acc, d| Some(acc * 10 + u32::from(d - b'0')))
+    }
+
+    fn eat(&mut self, options: &[u8]) -> Option<u8> {
+        let c = *self.s.get(self.pos)?;
+        if options.contains(&c) {
+            self.pos += 1;
+            Some(c)
+        } else {
+            None
+        }
+    }
+}
+
+/// An ISO 8601 instant at the start of `text` (extended `2016-01-04T08:30:00.5Z` or basic
+/// `20160104T083000Z`, date alone = midnight), and what follows it.
+fn parse_iso_prefix(text: &str) -> Option<(Timestamp, &str)> {
+    let mut d = Digits {
+        s: text.as_bytes(),
+        pos: 0,
+    };
+    let year = d.number(4)?;
+    let extended = d.eat(b"-").is_some();
+    let month = d.number(2)?;
+    if extended {
+        d.eat(b"-")?;
+    }
+    let day = d.number(2)?;
+    if !(1..=12).contains(&month) || day == 0 || day > days_in_month(i64::from(year), month) {
+        return None;
+    }
+    let mut secs_of_day = 0i64;
+    let mut nanos = 0i64;
+    let mut offset = 0i64;
+    let before_time = d.pos;
+    if d.eat(b"T t_").is_some() {
+        let time_start = d.pos;
+        let parsed = (|| {
+            let h = d.number(2)?;
+            if extended {
+                d.eat(b":-")?;
+            }
+            let m = d.number(2)?;
+            let mut s = 0;
+            let colon = if extended {
+                d.eat(b":-").is_some()
+            } else {
+                true
+            };
+            if colon {
+                if let Some(v) = d.number(2) {
+                    s = v;
+                } else if extended {
+                    return None;
+                }
+            }
+            if h > 23 || m > 59 || s > 60 {
+                return None;
+            }
+            Some((h, m, s))
+        })();
+        match parsed {
+            Some((h, m, s)) => {
+                secs_of_day = i64::from(h) * 3600 + i64::from(m) * 60 + i64::from(s);
+                let fraction_follows = d.s.get(d.pos + 1).is_some_and(u8::is_ascii_digit);
+                if fraction_follows && d.eat(b".,").is_some() {
+                    let start = d.pos;
+                    while d.s.get(d.pos).is_some_and(u8::is_ascii_digit) {
+                        d.pos += 1;
+                    }
+                    let frac = std::str::from_utf8(&d.s[start..d.pos]).ok()?;
+                    if frac.is_empty() || frac.len() > 9 {
+                        return None;
+                    }
+                    nanos = format!("{frac:0<9}").parse().ok()?;
+                }
+                if d.eat(b"Zz").is_none() {
+                    if let Some(sign) = d.eat(b"+-") {
+                        let oh = i64::from(d.number(2)?);
+                        d.eat(b":");
+                        let om = i64::from(d.number(2)?);
+                        offset = (oh * 3600 + om * 60) * if sign == b'-' { -1 } else { 1 };
+                    }
+                }
+            }
+            None => {
+                d.pos = if time_start > before_time {
+                    before_time
+                } else {
+                    time_start
+                }
+            }
+        }
+    }
+    let days = days_from_civil(i64::from(year), month, day);
+    let secs = days * 86_400 + secs_of_day - offset;
+    let t = Timestamp(secs.checked_mul(1_000_000_000)?.checked_add(nanos)?);
+    Some((t, text.get(d.pos..)?))
+}
+
+/// Finds an instant in a file name: an ISO 8601 date-time (`frame_2016-01-04T08-30-00Z.bt`,
+/// `20160104T083000Z`, `2016-01-04_08:30:00`) or a run of Unix time digits (10 digits =
+/// seconds, 13 = milliseconds, 16 = microseconds, 19 = nanoseconds; seconds may carry a
+/// fraction: `scan_1451865600.250.bt`). Returns `None` when the name holds no time.
+///
+/// ```
+/// use froctomap_convert::time_from_file_name;
+/// use froctomap_core::Timestamp;
+/// assert_eq!(time_from_file_name("map_1451865600.bt"), Some(Timestamp::from_secs(1_451_865_600)));
+/// assert_eq!(time_from_file_name("map_1451865600123.bt"), Some(Timestamp(1_451_865_600_123_000_000)));
+/// assert_eq!(time_from_file_name("frame_20160104T000000Z.bt"), Some(Timestamp::from_secs(1_451_865_600)));
+/// assert_eq!(time_from_file_name("office-2016-01-04T00-00-00.ot"), Some(Timestamp::from_secs(1_451_865_600)));
+/// assert_eq!(time_from_file_name("map_0042.bt"), None);
+/// ```
+pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
+    let bytes = name.as_bytes();
+    // ISO first: a date with a time part wins over a bare digit run.
+    for start in 0..bytes.len() {
+        if start > 0 && bytes[start - 1].is_ascii_digit() {
+            continue;
+        }
+        if let Some((t, rest)) = name.get(start..).and_then(parse_iso_prefix) {
+            let consumed = name.len() - start - rest.len();
+            // A bare 8-digit date could be anything; require a time part or separators.
+            let text = &name[start..start + consumed];
+            if (text.contains('T')
+                || text.contains('t')
+                || text.contains('-')
+                || text.contains('_'))
+                && !rest.as_bytes().first().is_some_and(u8::is_ascii_digit)
+                && check_range(name, t).is_ok()
+            {
+                return Some(t);
+            }
+        }
+    }
+    // Then Unix digits.
+    let mut i = 0;
+    while i < bytes.len() {
+        if !bytes[i].is_ascii_digit() {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < bytes.len() && bytes[i].is_ascii_digit() {
+            i += 1;
+        }
+        let digits = &name[start..i];
+        let mut frac = "";
+        if digits.len() == 10 && bytes.get(i) == Some(&b'.') {
+            let fstart = i + 1;
+            let mut j = fstart;
+            while j < bytes.len() && bytes[j].is_ascii_digit() {
+                j += 1;
+            }
+            if j > fstart && j - fstart <= 9 {
+                frac = &name[fstart..j];
+                i = j;
+            }
+        }
+        let value: i64 = match digits.parse() {
+            Ok(v) => v,
+            Err(_) => continue,
+        };
+        let nanos = match digits.len() {
+            10 => {
+                let f: i64 = if frac.is_empty() {
+                    0
+                } else {
+                    format!("{frac:0<9}").parse().unwrap_or(0)
+                };
+                value
+                    .checked_mul(1_000_000_000)
+                    .and_then(|v| v.checked_add(f))
+            }
+            13 => value.checked_mul(1_000_000),
+            16 => value.checked_mul(1_000),
+            19 => Some(value),
+            _ => None,
+        };
+        if let Some(t) = nanos.map(Timestamp) {
+            if check_range(name, t).is_ok() {
+                return Some(t);
+            }
+        }
+    }
+    None
+}
+
+/// Parses a duration: a number with unit `ns`, `ms`, `s`, `min`/`m`, `h`, `d`, `w`
+/// (`10min`, `1.5h`, `600`) — a bare number is seconds. Returns nanoseconds.
+///
+/// ```
+/// assert_eq!(froctomap_convert::parse_duration("10min"), Ok(600_000_000_000));
+/// assert_eq!(froctomap_convert::parse_duration("1.5h"), Ok(5_400_000_000_000));
+/// ```
+pub fn parse_duration(input: &str) -> Result<i64, TimeError> {
+    let text = input.trim();
+    let split = text
+        .find(|c: char| c.is_ascii_alphabetic())
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| error(input, "not a duration like 10min, 1.5h or 600"))?;
+    let unit_ns = match unit.trim() {
+        "ns" => 1.0,
+        "us" | "µs" => 1e3,
+        "ms" => 1e6,
+        "" | "s" | "sec" => 1e9,
+        "m" | "min" => 60e9,
+        "h" => 3600e9,
+        "d" => 86_400e9,
+        "w" => 604_800e9,
+        other => {
+            return Err(error(
+                input,
+                format!("unknown unit {other:?} (use ns, ms, s, min, h, d or w)"),
+            ))
+        }
+    };
+    let ns = (value * unit_ns).round();
+    if !(ns.is_finite() && ns > 0.0 && ns < 9.2e18) {
+        return Err(error(input, "must be positive and below 290 years"));
+    }
+    Ok(ns as i64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn iso_round_trips(secs in 0i64..7_258_118_399, nanos in 0i64..1_000_000_000) {
+            let t = Timestamp(secs * 1_000_000_000 + nanos);
+            prop_assert_eq!(parse_time(&format_iso(t)), Ok(t));
+            prop_assert_eq!(time_from_file_name(&format!("frame_{}.bt", format_compact(t))), Some(t));
+        }
+
+        #[test]
+        fn unix_seconds_round_trip(secs in 0i64..7_258_118_399) {
+            prop_assert_eq!(parse_time(&secs.to_string()), Ok(Timestamp::from_secs(secs)));
+        }
+    }
+
+    #[test]
+    fn invalid_times_say_why() {
+        for bad in [
+            "",
+            "yesterday",
+            "2016-13-01",
+            "2016-02-30T00:00:00Z",
+            "2016-01-04T25:00:00Z",
+            "1e9",
+            "2016-01-04T00:00:00Zjunk",
+        ] {
+            assert!(parse_time(bad).is_err(), "{bad}");
+        }
+        let err = parse_time("-5").unwrap_err().to_string();
+        assert!(err.contains("outside the supported range"), "{err}");
+        let err = parse_time("9999999999999").unwrap_err().to_string();
+        assert!(err.contains("outside the supported range"), "{err}");
+    }
+
+    #[test]
+    fn known_dates() {
+        assert_eq!(
+            format_iso(Timestamp::from_secs(1_451_865_600)),
+            "2016-01-04T00:00:00Z"
+        );
+        assert_eq!(
+            format_iso(Timestamp(1_500_000_000)),
+            "1970-01-01T00:00:01.5Z"
+        );
+        assert_eq!(
+            parse_time("2000-02-29").unwrap(),
+            Timestamp::from_secs(951_782_400)
+        );
+        assert_eq!(
+            parse_time("2016-01-04 08:30:00").unwrap(),
+            Timestamp::from_secs(1_451_896_200)
+        );
+        assert_eq!(
+            parse_time("20160104T083000Z").unwrap(),
+            Timestamp::from_secs(1_451_896_200)
+        );
+    }
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("600"), Ok(600_000_000_000));
+        assert_eq!(parse_duration("2d"), Ok(172_800_000_000_000));
+        assert!(parse_duration("0s").is_err());
+        assert!(parse_duration("5 fortnights").is_err());
+    }
+}

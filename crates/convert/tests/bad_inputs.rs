@@ -1,0 +1,269 @@
+//! Every way a series can be wrong stops the build with a message naming the files (or,
+//! with `skip_bad`, leaves them out and lists them).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use froctomap_convert::*;
+use froctomap_core::{Leaf, Snapshot, Timestamp, VoxelKey};
+use froctomap_formats::{FormatRegistry, WriteOptions};
+use std::path::{Path, PathBuf};
+
+fn small(resolution: f64, occupied: bool) -> Snapshot {
+    let leaves = (0..20u16)
+        .map(|i| {
+            Leaf::voxel(
+                VoxelKey::new(32768 + i, 32768, 32768),
+                if occupied && i % 3 == 0 { 3.5 } else { -2.0 },
+            )
+        })
+        .collect();
+    Snapshot::from_leaves(resolution, leaves).unwrap()
+}
+
+fn write(dir: &Path, name: &str, snapshot: &Snapshot) -> PathBuf {
+    let path = dir.join(name);
+    FormatRegistry::with_default_formats()
+        .write_file(snapshot, &path, WriteOptions::default())
+        .unwrap();
+    path
+}
+
+fn series(dir: &Path, n: u32) -> Vec<PathBuf> {
+    (0..n)
+        .map(|i| {
+            write(
+                dir,
+                &format!("map_{}.bt", 1_451_865_600 + i * 600),
+                &small(0.1, i % 2 == 0),
+            )
+        })
+        .collect()
+}
+
+fn inputs(dir: &Path) -> Result<Vec<SeriesInput>, ConvertError> {
+    collect_inputs(
+        &[dir.to_path_buf()],
+        TimeSource::Auto,
+        &FormatRegistry::with_default_formats(),
+    )
+}
+
+fn build_dir(dir: &Path, options: &BuildOptions) -> Result<BuildReport, ConvertError> {
+    build(
+        &inputs(dir)?,
+        &dir.join("out").with_extension("froct"),
+        options,
+        &Silent,
+    )
+}
+
+#[test]
+fn duplicate_times_name_both_files() {
+    let dir = tempfile::tempdir().unwrap();
+    series(dir.path(), 3);
+    let manifest = dir.path().join("manifest.csv");
+    std::fs::write(
+        &manifest,
+        "path,time\nmap_1451865600.bt,1451865600\nmap_1451866200.bt,2016-01-04T00:00:00Z\n",
+    )
+    .unwrap();
+    let err = inputs(dir.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("map_1451865600.bt")
+            && err.contains("map_1451866200.bt")
+            && err.contains("same time 2016-01-04T00:00:00Z"),
+        "{err}"
+    );
+}
+
+#[test]
+fn mixed_resolutions_name_both_files_or_are_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    series(dir.path(), 3);
+    write(dir.path(), "map_1451867400.bt", &small(0.05, true));
+    let err = build_dir(dir.path(), &BuildOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("map_1451867400.bt has resolution 0.05 m")
+            && err.contains("map_1451865600.bt has 0.1 m"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("out.froct").exists(),
+        "no output after a failed build"
+    );
+    let report = build_dir(
+        dir.path(),
+        &BuildOptions {
+            skip_bad: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((report.used, report.skipped.len()), (3, 1));
+    assert!(report.skipped[0].0.ends_with("map_1451867400.bt"));
+}
+
+#[test]
+fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = series(dir.path(), 4);
+    let bytes = std::fs::read(&files[2]).unwrap();
+    std::fs::write(&files[2], &bytes[..bytes.len() - 2]).unwrap();
+    let err = build_dir(dir.path(), &BuildOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("map_1451866800.bt")
+            && err.contains("truncated")
+            && err.contains("--skip-bad"),
+        "{err}"
+    );
+    let report = build_dir(
+        dir.path(),
+        &BuildOptions {
+            skip_bad: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(report.used, 3);
+    // The skipped snapshot's time is unknown in the file, not a copy of a neighbour.
+    let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
+    let map = LoadedMap::load(&reader).unwrap();
+    assert!(
+        resolve_observed(&reader, TimeQuery::Sample(2)).is_err()
+            || map.observed(2).unwrap().is_empty()
+    );
+    // An empty file is named as such.
+    std::fs::write(&files[1], b"").unwrap();
+    let err = build_dir(dir.path(), &BuildOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("map_1451866200.bt") && err.contains("empty"),
+        "{err}"
+    );
+}
+
+#[test]
+fn names_without_times_and_missing_inputs_are_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "kitchen.bt", &small(0.1, true));
+    let err = inputs(dir.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("no time in the name")
+            && err.contains("kitchen.bt")
+            && err.contains("--start/--step"),
+        "{err}"
+    );
+    let with_step = collect_inputs(
+        &[dir.path().join("kitchen.bt")],
+        TimeSource::StartStep {
+            start: Timestamp::from_secs(1_451_865_600),
+            step_ns: 600_000_000_000,
+        },
+        &FormatRegistry::with_default_formats(),
+    )
+    .unwrap();
+    assert_eq!(with_step[0].time, Timestamp::from_secs(1_451_865_600));
+    let err = collect_inputs(
+        &[dir.path().join("nope")],
+        TimeSource::Auto,
+        &FormatRegistry::with_default_formats(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("nope") && err.contains("no such file"),
+        "{err}"
+    );
+    let err = collect_inputs(
+        &[dir.path().join("*.ot")],
+        TimeSource::Auto,
+        &FormatRegistry::with_default_formats(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("matches no files"), "{err}");
+}
+
+#[test]
+fn unwritable_output_is_reported_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    series(dir.path(), 2);
+    let err = build(
+        &inputs(dir.path()).unwrap(),
+        Path::new("/nonexistent-dir/out.froct"),
+        &BuildOptions::default(),
+        &Silent,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("/nonexistent-dir/out.froct"), "{err}");
+}
+
+#[test]
+fn times_outside_a_sensible_range_are_refused() {
+    for bad in [
+        "1e12",
+        "-1",
+        "99999999999",
+        "2300-01-01T00:00:00Z",
+        "next tuesday",
+    ] {
+        assert!(bad.parse::<TimeQuery>().is_err(), "{bad}");
+    }
+    let err = "99999999999".parse::<TimeQuery>().unwrap_err().to_string();
+    assert!(
+        err.contains("outside the supported range 1970-01-01 .. 2200-01-01"),
+        "{err}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    series(dir.path(), 3);
+    build_dir(dir.path(), &BuildOptions::default()).unwrap();
+    let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
+    let before = resolve_observed(&reader, "2015-01-01T00:00:00Z".parse().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        before.contains("before the first snapshot")
+            && before.contains("2016-01-04T00:00:00Z .. 2016-01-04T00:20:00Z"),
+        "{before}"
+    );
+    let beyond = resolve_observed(&reader, "index:3".parse().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(beyond.contains("beyond the 3 samples"), "{beyond}");
+}
+
+#[test]
+fn unknown_model_and_incompatible_axis_are_refused_before_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    series(dir.path(), 3);
+    let err = build_dir(
+        dir.path(),
+        &BuildOptions {
+            model: "magic".into(),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("unknown model `magic`") && err.contains("fremen-periods"),
+        "{err}"
+    );
+    // Irregular times cannot use the FFT model.
+    write(dir.path(), "map_1451867437.bt", &small(0.1, true));
+    let err = build_dir(
+        dir.path(),
+        &BuildOptions {
+            model: "fremen-regular".into(),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("fremen-regular"), "{err}");
+}

@@ -1,0 +1,11 @@
+//! The native `.bt` reader on arbitrary bytes (header variants, legacy layout, bodies).
+#![no_main]
+
+mod common;
+
+use froctomap_octomap_codec::FileKind;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    common::check_reader(data, FileKind::Binary);
+});
