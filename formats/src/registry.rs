@@ -231,13 +231,13 @@ impl FormatRegistry {
         extensions.join(", ")
     }
 
-    /// Reads a map from bytes already in memory; `path` is only used in messages.
-    pub fn read_bytes(
+    /// The format that reads `bytes` (forced or detected), and a reader for it.
+    fn reader_for(
         &self,
         path: &Path,
         bytes: &[u8],
         options: ReadOptions<'_>,
-    ) -> Result<ReadOutcome, FormatError> {
+    ) -> Result<(MapFormat, Box<dyn MapReader>), FormatError> {
         let format = match options.format {
             Some(name) => *self.by_name(name, options.backend)?,
             None => *self.probe_with(bytes, options.backend).ok_or_else(|| {
@@ -251,22 +251,46 @@ impl FormatRegistry {
             format: format.name,
             action: "read",
         })?;
-        let mut map = make_reader()
-            .read(bytes)
-            .map_err(|source| FormatError::Decode {
-                path: path.to_path_buf(),
-                format: format.name,
-                source,
-            })?;
+        Ok((format, make_reader()))
+    }
+
+    /// Runs `read` with the right reader, naming the file in errors and warning when the
+    /// detected format contradicts the file name.
+    fn read_with<T>(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        options: ReadOptions<'_>,
+        read: impl FnOnce(&dyn MapReader) -> Result<T, PluginError>,
+        warnings: impl FnOnce(&mut T) -> &mut Vec<String>,
+    ) -> Result<(T, MapFormat), FormatError> {
+        let (format, reader) = self.reader_for(path, bytes, options)?;
+        let mut value = read(reader.as_ref()).map_err(|source| FormatError::Decode {
+            path: path.to_path_buf(),
+            format: format.name,
+            source,
+        })?;
         if options.format.is_none()
             && extension_of(path).is_some()
             && !format.matches_extension(path)
         {
-            map.warnings.push(format!(
+            warnings(&mut value).push(format!(
                 "the content is a .{} file despite the file name; read as such",
                 format.extensions.first().copied().unwrap_or(format.name)
             ));
         }
+        Ok((value, format))
+    }
+
+    /// Reads a map from bytes already in memory; `path` is only used in messages.
+    pub fn read_bytes(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        options: ReadOptions<'_>,
+    ) -> Result<ReadOutcome, FormatError> {
+        let (map, format) =
+            self.read_with(path, bytes, options, |r| r.read(bytes), |m| &mut m.warnings)?;
         Ok(ReadOutcome { map, format })
     }
 

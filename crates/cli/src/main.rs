@@ -8,6 +8,11 @@ use clap::{Parser, Subcommand, ValueEnum};
 use froctomap_formats::Backend;
 use std::process::ExitCode;
 
+// Building a series allocates and frees a multi-megabyte leaf list per snapshot; glibc's
+// malloc serves those with fresh mmaps (page faults on every touch), mimalloc reuses them.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Long-term 3D maps: turn a series of OctoMap snapshots into one compact spatio-temporal
 /// file (FROctomap: a FreMEn model per changing voxel), retrieve the map at any past time,
 /// predict it at a future one, and export either as standard OctoMap files.

@@ -1,11 +1,11 @@
 //! `build`: a series of maps → one FROctomap file, streaming, with bounded memory.
 
 use crate::error::ConvertError;
-use crate::history::{segments, SeriesHistory};
+use crate::history::{changes, Change, SeriesHistory};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use crate::time::format_iso;
-use froctomap_core::{MortonCode, Occupancy, Timestamp};
+use froctomap_core::{Leaf, MortonCode, Occupancy, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
     WrittenFile,
@@ -42,7 +42,7 @@ pub struct BuildOptions {
     pub backend: Option<Backend>,
     /// Extra metadata stored in the file header (e.g. `tags`, `source`).
     pub metadata: Map<String, Value>,
-    /// Files decoded in parallel per batch (bounds memory; default 4 × threads).
+    /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
     pub batch: usize,
 }
 
@@ -57,7 +57,7 @@ impl Default for BuildOptions {
             input_format: None,
             backend: None,
             metadata: Map::new(),
-            batch: 4 * rayon::current_num_threads().max(1),
+            batch: 8 * rayon::current_num_threads().max(1),
         }
     }
 }
@@ -129,6 +129,8 @@ pub struct BuildReport {
     pub tile_bytes: u64,
     /// Seconds spent reading and accumulating the inputs.
     pub read_seconds: f64,
+    /// Of those, seconds spent applying changes to the cells (the part that is sequential).
+    pub accumulate_seconds: f64,
     /// Seconds spent fitting, encoding and writing.
     pub model_seconds: f64,
 }
@@ -189,10 +191,12 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
     }
 }
 
-struct Decoded {
-    index: usize,
-    bytes: u64,
-    outcome: Result<(f64, Vec<crate::history::Segment>, Vec<String>), String>,
+/// One input after the parallel stage.
+enum Decoded {
+    /// Byte-identical to the file before it.
+    SameAsPrevious,
+    /// Its leaves (Morton order) and reader warnings.
+    Leaves(Vec<Leaf>, Vec<String>),
 }
 
 /// Builds a FROctomap file from snapshots (sorted by time, distinct times).
@@ -273,145 +277,195 @@ pub fn build(
         }
     }
 
-    // Pass 2: decode in parallel batches, accumulate in time order.
+    // Pass 2: decode and compare with the predecessor in parallel batches, while a second
+    // thread accumulates the previous batch's differences in time order.
     progress.stage("reading snapshots", inputs.len() as u64);
     let read_options = ReadOptions {
         format: options.input_format.as_deref(),
         backend: options.backend,
     };
-    let mut history = SeriesHistory::new(options.tile_depth);
     let mut warnings = Vec::new();
     let mut input_bytes = 0u64;
     let mut used = 0usize;
     let mut absent: Vec<u32> = axis.missing().to_vec();
     let mut resolution = series_resolution.map(|(r, _)| r);
-    let mut previous_bytes: Option<Vec<u8>> = None;
-    let mut previous_ok = false;
+    let first_path = series_resolution.map(|(_, i)| inputs[i].path.clone());
     let batch = options.batch.max(1);
-    for chunk_start in (0..inputs.len()).step_by(batch) {
-        let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
-            .filter(|&i| usable[i])
-            .collect();
-        let raw: Vec<(usize, Result<Vec<u8>, String>)> = chunk
-            .par_iter()
-            .map(|&i| {
-                (
-                    i,
-                    std::fs::read(&inputs[i].path).map_err(|e| format!("cannot read: {e}")),
-                )
-            })
-            .collect();
-        // A file byte-identical to its predecessor needs no decoding.
-        let mut identical = vec![false; raw.len()];
-        for (k, (_, bytes)) in raw.iter().enumerate() {
-            let before = if k == 0 {
-                previous_bytes.as_deref()
-            } else {
-                raw[k - 1].1.as_deref().ok()
-            };
-            identical[k] = matches!((bytes, before), (Ok(b), Some(p)) if b.as_slice() == p);
-        }
-        let decode = |i: usize, bytes: &Result<Vec<u8>, String>| match bytes {
-            Err(e) => Err(e.clone()),
-            Ok(bytes) => registry
-                .read_bytes(&inputs[i].path, bytes, read_options)
-                .map(|read| {
-                    (
-                        read.map.snapshot.resolution(),
-                        segments(read.map.snapshot.leaves()),
-                        read.map.warnings,
-                    )
-                })
-                .map_err(|e| e.to_string()),
-        };
-        let decoded: Vec<Decoded> = raw
-            .par_iter()
-            .zip(identical.par_iter())
-            .map(|((i, bytes), &same)| Decoded {
-                index: *i,
-                bytes: bytes.as_ref().map_or(0, |b| b.len() as u64),
-                outcome: if same {
-                    Ok((f64::NAN, Vec::new(), Vec::new()))
-                } else {
-                    decode(*i, bytes)
-                },
-            })
-            .collect();
-        for (k, d) in decoded.into_iter().enumerate() {
-            let input = &inputs[d.index];
-            let sample = axis.index_of(input.time).ok_or_else(|| {
-                ConvertError::Inputs(format!("{}: time not on the axis", input.path.display()))
-            })?;
-            // Identical bytes repeat the previous snapshot, unless that one was left out.
-            let same = identical[k] && previous_ok;
-            let outcome = if identical[k] && !same {
-                decode(d.index, &raw[k].1)
-            } else {
-                d.outcome
-            };
-            let outcome = outcome.and_then(|(res, segs, warns)| {
-                if same {
-                    return Ok((segs, warns));
-                }
-                match resolution {
-                    Some(r) if r != res => {
-                        Err(format!("resolution {res} m differs from the series' {r} m"))
+    let (sender, receiver) = std::sync::mpsc::sync_channel::<Vec<(u32, Vec<Change>)>>(1);
+    let (history, accumulate_seconds) =
+        std::thread::scope(|scope| -> Result<(SeriesHistory, f64), ConvertError> {
+            let accumulator = scope.spawn(move || -> Result<(SeriesHistory, f64), ConvertError> {
+                let mut history = SeriesHistory::new(options.tile_depth);
+                let mut busy = 0.0;
+                for batch in receiver {
+                    let started = Instant::now();
+                    for (sample, diff) in &batch {
+                        history.apply_changes(*sample, diff)?;
+                        progress.advance(1);
                     }
-                    _ => {
-                        resolution = Some(res);
-                        Ok((segs, warns))
-                    }
+                    busy += started.elapsed().as_secs_f64();
                 }
+                Ok((history, busy))
             });
-            previous_ok = outcome.is_ok();
-            match outcome {
-                Ok((segs, warns)) => {
-                    if same {
-                        history.repeat(sample)?;
-                    } else {
-                        history.ingest(sample, segs)?;
+            // The last snapshot accumulated: its bytes (for the identity check) and leaves.
+            let mut previous: Option<(Vec<u8>, Vec<Leaf>)> = None;
+            let produced = (|| -> Result<(), ConvertError> {
+                for chunk_start in (0..inputs.len()).step_by(batch) {
+                    let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
+                        .filter(|&i| usable[i])
+                        .collect();
+                    let raw: Vec<Result<Vec<u8>, String>> = chunk
+                        .par_iter()
+                        .map(|&i| {
+                            std::fs::read(&inputs[i].path).map_err(|e| format!("cannot read: {e}"))
+                        })
+                        .collect();
+                    // When the series' resolution is not known from the headers, the first file sets it.
+                    if resolution.is_none() {
+                        if let (Some(&i), Some(Ok(bytes))) = (chunk.first(), raw.first()) {
+                            if let Ok(read) =
+                                registry.read_bytes(&inputs[i].path, bytes, read_options)
+                            {
+                                resolution = Some(read.map.snapshot.resolution());
+                            }
+                        }
                     }
-                    warnings.extend(warns.into_iter().map(|w| (input.path.clone(), w)));
-                    input_bytes += d.bytes;
-                    used += 1;
-                }
-                Err(reason) if options.skip_bad => {
-                    skipped.push((input.path.clone(), reason));
-                    absent.push(sample);
-                }
-                Err(reason) if reason.starts_with("resolution") => {
-                    let first = inputs
-                        .iter()
-                        .zip(&usable)
-                        .find(|(_, &u)| u)
-                        .map(|(i, _)| i.path.clone())
-                        .unwrap_or_default();
-                    return Err(ConvertError::Inputs(format!(
-                        "{}: {reason} (first file {}); use --skip-bad to leave it out",
-                        input.path.display(),
-                        first.display()
-                    )));
-                }
-                Err(reason) => {
-                    let message = if reason.starts_with(&input.path.display().to_string()) {
-                        reason
-                    } else {
-                        format!("{}: {reason}", input.path.display())
+                    let decoded: Vec<Result<Decoded, String>> = chunk
+                        .par_iter()
+                        .zip(raw.par_iter())
+                        .enumerate()
+                        .map(|(k, (&i, bytes))| {
+                            let bytes = bytes.as_ref().map_err(Clone::clone)?;
+                            let before = match k {
+                                0 => previous.as_ref().map(|(b, _)| b.as_slice()),
+                                _ => raw[k - 1].as_deref().ok(),
+                            };
+                            if before == Some(bytes.as_slice()) {
+                                return Ok(Decoded::SameAsPrevious);
+                            }
+                            let read = registry
+                                .read_bytes(&inputs[i].path, bytes, read_options)
+                                .map_err(|e| e.to_string())?;
+                            let res = read.map.snapshot.resolution();
+                            if resolution.is_some_and(|r| r != res) {
+                                return Err(format!(
+                                    "resolution {res} m differs from the series' {} m",
+                                    resolution.unwrap_or(res)
+                                ));
+                            }
+                            Ok(Decoded::Leaves(
+                                read.map.snapshot.into_leaves(),
+                                read.map.warnings,
+                            ))
+                        })
+                        .collect();
+                    // A file identical to its predecessor shares its fate.
+                    let mut outcomes: Vec<Result<Decoded, String>> =
+                        Vec::with_capacity(decoded.len());
+                    for d in decoded {
+                        let shared = match (&d, outcomes.last()) {
+                            (Ok(Decoded::SameAsPrevious), Some(Err(e))) => Some(Err(e.clone())),
+                            _ => None,
+                        };
+                        outcomes.push(shared.unwrap_or(d));
+                    }
+                    // Differences from the predecessor (the last file that will be accumulated).
+                    let predecessor = |k: usize| -> Option<&[Leaf]> {
+                        outcomes[..k]
+                            .iter()
+                            .rev()
+                            .find_map(|o| match o {
+                                Ok(Decoded::Leaves(leaves, _)) => Some(leaves.as_slice()),
+                                _ => None,
+                            })
+                            .or_else(|| previous.as_ref().map(|(_, l)| l.as_slice()))
                     };
-                    return Err(ConvertError::Inputs(format!(
-                        "{message} (use --skip-bad to leave it out)"
-                    )));
+                    let diffs: Vec<Option<Vec<Change>>> = (0..outcomes.len())
+                        .into_par_iter()
+                        .map(|k| match &outcomes[k] {
+                            Ok(Decoded::Leaves(leaves, _)) => {
+                                Some(changes(predecessor(k).unwrap_or(&[]), leaves))
+                            }
+                            Ok(Decoded::SameAsPrevious) => Some(Vec::new()),
+                            Err(_) => None,
+                        })
+                        .collect();
+                    let mut accepted = Vec::with_capacity(outcomes.len());
+                    for (k, (outcome, diff)) in outcomes.iter().zip(diffs).enumerate() {
+                        let input = &inputs[chunk[k]];
+                        let sample = axis.index_of(input.time).ok_or_else(|| {
+                            ConvertError::Inputs(format!(
+                                "{}: time not on the axis",
+                                input.path.display()
+                            ))
+                        })?;
+                        match (outcome, diff) {
+                            (Ok(decoded), Some(diff)) => {
+                                if let Decoded::Leaves(_, warns) = decoded {
+                                    warnings.extend(
+                                        warns.iter().map(|w| (input.path.clone(), w.clone())),
+                                    );
+                                }
+                                input_bytes += raw[k].as_ref().map_or(0, |b| b.len() as u64);
+                                used += 1;
+                                accepted.push((sample, diff));
+                            }
+                            (Err(reason), _) if options.skip_bad => {
+                                skipped.push((input.path.clone(), reason.clone()));
+                                absent.push(sample);
+                                progress.advance(1);
+                            }
+                            (Err(reason), _) if reason.starts_with("resolution") => {
+                                return Err(ConvertError::Inputs(format!(
+                                    "{}: {reason} (first file {}); use --skip-bad to leave it out",
+                                    input.path.display(),
+                                    first_path.as_deref().unwrap_or(Path::new("?")).display()
+                                )));
+                            }
+                            (Err(reason), _) => {
+                                let message =
+                                    if reason.starts_with(&input.path.display().to_string()) {
+                                        reason.clone()
+                                    } else {
+                                        format!("{}: {reason}", input.path.display())
+                                    };
+                                return Err(ConvertError::Inputs(format!(
+                                    "{message} (use --skip-bad to leave it out)"
+                                )));
+                            }
+                            (Ok(_), None) => {
+                                unreachable!("every accepted outcome has a difference")
+                            }
+                        }
+                    }
+                    // Carry the last accumulated snapshot into the next batch.
+                    let last = outcomes
+                        .iter()
+                        .zip(&raw)
+                        .rev()
+                        .find_map(|(o, b)| match (o, b) {
+                            (Ok(Decoded::Leaves(leaves, _)), Ok(bytes)) => {
+                                Some((bytes.clone(), leaves.clone()))
+                            }
+                            _ => None,
+                        });
+                    if let Some(last) = last {
+                        previous = Some(last);
+                    }
+                    if sender.send(accepted).is_err() {
+                        // The accumulator stopped on an error, which `join` reports.
+                        break;
+                    }
                 }
-            }
-            progress.advance(1);
-        }
-        // Keep the last file's bytes for the next batch's identity check.
-        previous_bytes = raw
-            .into_iter()
-            .rev()
-            .find_map(|(_, b)| b.ok())
-            .or(previous_bytes);
-    }
+                Ok(())
+            })();
+            drop(sender);
+            let accumulated = accumulator.join().map_err(|_| {
+                ConvertError::Inputs("internal error: the accumulating thread panicked".into())
+            })?;
+            produced?;
+            accumulated
+        })?;
     for (i, &u) in usable.iter().enumerate() {
         if !u {
             if let Some(sample) = axis.index_of(inputs[i].time) {
@@ -523,6 +577,7 @@ pub fn build(
         index_bytes: written.index_bytes,
         tile_bytes: written.tile_bytes,
         read_seconds,
+        accumulate_seconds,
         model_seconds,
     })
 }
@@ -586,6 +641,12 @@ pub(crate) fn observed_ranges(obs: &VoxelObservations) -> Vec<(u32, u64)> {
     ranges
 }
 
+/// `true` for a probability OctoMap would clamp (below 0.1192 or above 0.971).
+fn outside_clamping(p: f64) -> bool {
+    use froctomap_core::defaults::{CLAMPING_MAX, CLAMPING_MIN};
+    !(CLAMPING_MIN..=CLAMPING_MAX).contains(&p)
+}
+
 fn encode_cells(
     cells: &[(MortonCode, u8, VoxelObservations)],
     axis: &TimeAxis,
@@ -619,7 +680,20 @@ fn encode_cells(
                 stats.voxels.dynamic += voxels;
                 stats.toggles += fitted.toggles().len() as u64;
                 stats.model_errors += fitted.model_errors().unwrap_or(0);
-                CellContent::Modelled(fitted)
+                if fitted.order() == 0 && outside_clamping(fitted.mean()) {
+                    // A mean no map can express (beyond the clamping bounds) adds nothing to
+                    // the constant state; only the exceptions matter.
+                    CellContent::ConstantExcept {
+                        state: if fitted.mean() > 0.5 {
+                            Occupancy::Occupied
+                        } else {
+                            Occupancy::Free
+                        },
+                        exceptions: fitted.toggles().clone(),
+                    }
+                } else {
+                    CellContent::Modelled(fitted)
+                }
             }
         };
         out.push(Cell {

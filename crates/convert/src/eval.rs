@@ -118,7 +118,7 @@ fn last_observed(cell: &Cell, axis: &TimeAxis, mut k: u32) -> Option<u32> {
 
 fn mean_state(cell: &Cell) -> Occupancy {
     match &cell.content {
-        CellContent::Constant(state) => *state,
+        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
         CellContent::Modelled(voxel) => {
             Occupancy::from_log_odds(if voxel.mean() > 0.5 { 1.0 } else { -1.0 })
         }
@@ -141,7 +141,7 @@ fn verdicts(
 ) -> Verdicts {
     let seconds = t.secs_since(axis.start());
     let predicted = match &cell.content {
-        CellContent::Constant(state) => *state,
+        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
         CellContent::Modelled(voxel) => model.predicted_state(voxel, seconds),
     };
     let at_or_before = axis.last_at_or_before(t);
@@ -161,7 +161,7 @@ fn verdicts(
         .and_then(|k| cell.state_at(axis, model, k));
     Verdicts {
         states: [Some(predicted), stored, Some(mean_state(cell)), last_seen],
-        dynamic: matches!(cell.content, CellContent::Modelled(_)),
+        dynamic: !matches!(cell.content, CellContent::Constant(_)),
         ever_occupied: !matches!(cell.content, CellContent::Constant(Occupancy::Free)),
     }
 }

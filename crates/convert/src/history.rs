@@ -1,8 +1,8 @@
 //! Streaming accumulation of a series into per-cell observation runs.
 //!
-//! Snapshots arrive one at a time in time order. Each is reduced to *segments* (maximal
-//! Morton ranges of one known state) and compared with the previous snapshot: only the
-//! ranges whose state changed (including known ↔ unknown) touch the cells. Unchanged space
+//! Snapshots arrive one at a time in time order, as the ranges where each differs from the
+//! previous one ([`changes`], which callers can compute in parallel): only the ranges whose
+//! state changed (including known ↔ unknown) touch the cells. Unchanged space
 //! costs nothing per snapshot, so the work per snapshot is proportional to its leaves plus
 //! its changes, and memory to the cells and their changes — never to the number of
 //! snapshots.
@@ -12,62 +12,54 @@
 //! Cells are never coarser than a tile of the output file.
 
 use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, TREE_DEPTH};
-use froctomap_temporal::{Run, TemporalError, VoxelObservations};
+use froctomap_temporal::{varint, Run, TemporalError, VoxelObservations};
 use std::collections::BTreeMap;
-
-/// A maximal Morton range `[start, end)` of one known state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Segment {
-    /// First voxel.
-    pub start: u64,
-    /// One past the last voxel.
-    pub end: u64,
-    /// The state of every voxel of the range.
-    pub state: Occupancy,
-}
-
-/// Merges Morton-sorted leaves into maximal same-state segments.
-pub fn segments(leaves: &[Leaf]) -> Vec<Segment> {
-    let mut out: Vec<Segment> = Vec::with_capacity(leaves.len() / 2 + 1);
-    for leaf in leaves {
-        let state = leaf.occupancy();
-        match out.last_mut() {
-            Some(last) if last.end == leaf.start.0 && last.state == state => last.end = leaf.end(),
-            _ => out.push(Segment {
-                start: leaf.start.0,
-                end: leaf.end(),
-                state,
-            }),
-        }
-    }
-    out
-}
 
 /// A range whose state changed between two snapshots, and its new state (`None` = unknown).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Change {
-    start: u64,
-    end: u64,
-    new: Option<Occupancy>,
+pub struct Change {
+    /// First voxel (Morton code).
+    pub start: u64,
+    /// One past the last voxel.
+    pub end: u64,
+    /// The state from now on (`None`: unknown).
+    pub new: Option<Occupancy>,
 }
 
-/// The state at `pos` in sorted segments (advancing `i`), and where that state ends.
-fn state_at(segments: &[Segment], i: &mut usize, pos: u64) -> (Option<Occupancy>, u64) {
-    while *i < segments.len() && segments[*i].end <= pos {
+/// The state at `pos` in sorted, disjoint leaves (advancing `i`), and where it ends.
+fn state_at(leaves: &[Leaf], i: &mut usize, pos: u64) -> (Option<Occupancy>, u64) {
+    while *i < leaves.len() && leaves[*i].end() <= pos {
         *i += 1;
     }
-    match segments.get(*i) {
-        Some(s) if s.start <= pos => (Some(s.state), s.end),
-        Some(s) => (None, s.start),
+    match leaves.get(*i) {
+        Some(l) if l.start.0 <= pos => (Some(l.occupancy()), l.end()),
+        Some(l) => (None, l.start.0),
         None => (None, MortonCode::END),
     }
 }
 
-/// Ranges where `current` differs from `previous`, maximal per new state.
-fn changes(previous: &[Segment], current: &[Segment]) -> Vec<Change> {
+/// The ranges where `current` differs from `previous` (both sorted and disjoint, as a
+/// [`Snapshot`](froctomap_core::Snapshot)'s leaves are), maximal per new state. Leaves
+/// equal in both are skipped pairwise, so consecutive snapshots of a mostly static scene
+/// compare at the speed of a linear scan; how either splits space into leaves does not
+/// matter.
+pub fn changes(previous: &[Leaf], current: &[Leaf]) -> Vec<Change> {
     let mut out: Vec<Change> = Vec::new();
     let (mut i, mut j, mut pos) = (0usize, 0usize, 0u64);
     while pos < MortonCode::END {
+        // Fast path: the same leaf in both.
+        if let (Some(a), Some(b)) = (previous.get(i), current.get(j)) {
+            if a.start.0 == pos
+                && b.start.0 == pos
+                && a.depth == b.depth
+                && a.occupancy() == b.occupancy()
+            {
+                pos = a.end();
+                i += 1;
+                j += 1;
+                continue;
+            }
+        }
         let (old, old_end) = state_at(previous, &mut i, pos);
         let (new, new_end) = state_at(current, &mut j, pos);
         let end = old_end.min(new_end);
@@ -86,11 +78,52 @@ fn changes(previous: &[Segment], current: &[Segment]) -> Vec<Change> {
     out
 }
 
+/// Closed runs packed as varints (gap since the previous run's end, then `len << 1 | state`):
+/// two to four bytes a run instead of twelve, since a long series with partial views gives
+/// every cell many runs.
+#[derive(Clone, Debug, Default)]
+struct PackedRuns {
+    bytes: Vec<u8>,
+    end: u32,
+}
+
+impl PackedRuns {
+    fn push(&mut self, run: Run) {
+        varint::write_u32(&mut self.bytes, run.first - self.end);
+        varint::write_u64(
+            &mut self.bytes,
+            u64::from(run.len) << 1 | u64::from(run.state.is_occupied()),
+        );
+        self.end = run.first + run.len;
+    }
+
+    fn iter(&self) -> impl Iterator<Item = Run> + '_ {
+        let mut pos = 0usize;
+        let mut end = 0u32;
+        std::iter::from_fn(move || {
+            let rest = self.bytes.get(pos..)?;
+            // Written by `push` above, so well-formed; a failure just ends the iteration.
+            let (gap, a) = varint::read_u32(rest).ok()?;
+            let (packed, b) = varint::read_u64(rest.get(a..)?).ok()?;
+            pos += a + b;
+            let first = end + gap;
+            let len = (packed >> 1) as u32;
+            end = first + len;
+            let state = if packed & 1 == 1 {
+                Occupancy::Occupied
+            } else {
+                Occupancy::Free
+            };
+            Some(Run { first, len, state })
+        })
+    }
+}
+
 #[derive(Clone, Debug)]
 struct CellHistory {
     depth: u8,
     /// Closed runs; they may span samples without a snapshot, removed in `finish`.
-    runs: Vec<Run>,
+    runs: PackedRuns,
     /// The state observed since a sample, if observed at the latest snapshot.
     open: Option<(Occupancy, u32)>,
 }
@@ -112,7 +145,6 @@ impl CellHistory {
 #[derive(Debug)]
 pub struct SeriesHistory {
     cells: BTreeMap<u64, CellHistory>,
-    previous: Vec<Segment>,
     tile_depth: u8,
     last_sample: Option<u32>,
     changed_voxels: u64,
@@ -123,7 +155,6 @@ impl SeriesHistory {
     pub fn new(tile_depth: u8) -> Self {
         Self {
             cells: BTreeMap::new(),
-            previous: Vec::new(),
             tile_depth: tile_depth.clamp(1, TREE_DEPTH),
             last_sample: None,
             changed_voxels: 0,
@@ -140,9 +171,9 @@ impl SeriesHistory {
         self.changed_voxels
     }
 
-    /// Adds the snapshot taken at `sample` (strictly after the previous one), given as its
-    /// segments.
-    pub fn ingest(&mut self, sample: u32, current: Vec<Segment>) -> Result<(), TemporalError> {
+    /// Records the snapshot taken at `sample` (after the previous one) by the ranges where
+    /// it differs from the previous snapshot ([`changes`]); none when it is identical.
+    pub fn apply_changes(&mut self, sample: u32, changes: &[Change]) -> Result<(), TemporalError> {
         if self.last_sample.is_some_and(|last| sample <= last) {
             return Err(TemporalError::InvalidObservations {
                 reason: "snapshots must arrive in increasing sample order",
@@ -150,24 +181,10 @@ impl SeriesHistory {
             });
         }
         self.last_sample = Some(sample);
-        for change in changes(&self.previous, &current) {
+        for &change in changes {
             self.changed_voxels += change.end - change.start;
             self.apply(sample, change);
         }
-        self.previous = current;
-        Ok(())
-    }
-
-    /// Marks that the previous snapshot's state continues unchanged at `sample` (for an input
-    /// byte-identical to the previous one).
-    pub fn repeat(&mut self, sample: u32) -> Result<(), TemporalError> {
-        if self.last_sample.is_some_and(|last| sample <= last) {
-            return Err(TemporalError::InvalidObservations {
-                reason: "snapshots must arrive in increasing sample order",
-                sample: u64::from(sample),
-            });
-        }
-        self.last_sample = Some(sample);
         Ok(())
     }
 
@@ -209,7 +226,7 @@ impl SeriesHistory {
                 from,
                 CellHistory {
                     depth,
-                    runs: Vec::new(),
+                    runs: PackedRuns::default(),
                     open: Some((state, sample)),
                 },
             );
@@ -253,10 +270,11 @@ impl SeriesHistory {
     ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), TemporalError>> + '_ {
         self.cells.into_iter().map(move |(start, mut cell)| {
             cell.observe(axis_len, None);
-            let runs = cell
+            let runs: Vec<(u32, u32, Occupancy)> = cell
                 .runs
                 .iter()
-                .flat_map(|run| without_absent(*run, absent));
+                .flat_map(|run| without_absent(run, absent))
+                .collect();
             Ok((
                 MortonCode(start),
                 cell.depth,
@@ -315,9 +333,10 @@ mod tests {
     fn unchanged_space_is_not_touched_and_changes_split_cells() {
         let mut h = SeriesHistory::new(10);
         let first = vec![leaf(0, 13, false), leaf(64, 16, true)];
-        h.ingest(0, segments(&first)).unwrap();
+        h.apply_changes(0, &changes(&[], &first)).unwrap();
         let cells_after_first = h.cell_count();
-        h.ingest(1, segments(&first)).unwrap();
+        assert!(changes(&first, &first).is_empty());
+        h.apply_changes(1, &changes(&first, &first)).unwrap();
         assert_eq!(
             h.cell_count(),
             cells_after_first,
@@ -331,7 +350,11 @@ mod tests {
         .unwrap()
         .into_leaves();
         second[5].log_odds = 1.0;
-        h.ingest(2, segments(&second)).unwrap();
+        // Split differently but equal elsewhere: only the one voxel changed.
+        let diff = changes(&first, &second);
+        assert_eq!(diff.len(), 1, "{diff:?}");
+        assert_eq!(diff[0].end - diff[0].start, 1);
+        h.apply_changes(2, &diff).unwrap();
         assert!(h.cell_count() > cells_after_first);
         let cells: Vec<_> = h.finish(3, &[]).map(Result::unwrap).collect();
         let v5 = second[5].start.0;
@@ -361,7 +384,7 @@ mod tests {
             absent in proptest::collection::btree_set(0u32..10, 0..3),
         ) {
             let mut h = SeriesHistory::new(12);
-            let mut snapshots = Vec::new();
+            let mut snapshots: Vec<(u32, Snapshot)> = Vec::new();
             let mut sample = 0u32;
             for frame in frames {
                 while absent.contains(&sample) { sample += 1; }
@@ -377,7 +400,8 @@ mod tests {
                     }
                 }
                 let snapshot = Snapshot::from_leaves(0.1, leaves).unwrap();
-                h.ingest(sample, segments(snapshot.leaves())).unwrap();
+                let previous = snapshots.last().map_or(&[][..], |(_, s)| s.leaves());
+                h.apply_changes(sample, &changes(previous, snapshot.leaves())).unwrap();
                 snapshots.push((sample, snapshot));
                 sample += 1;
             }

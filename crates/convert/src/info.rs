@@ -180,7 +180,9 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
                     CellContent::Constant(Occupancy::Occupied) => {
                         (&mut cells.static_occupied, &mut voxels.static_occupied)
                     }
-                    CellContent::Modelled(_) => (&mut cells.dynamic, &mut voxels.dynamic),
+                    CellContent::Modelled(_) | CellContent::ConstantExcept { .. } => {
+                        (&mut cells.dynamic, &mut voxels.dynamic)
+                    }
                 };
                 *c += 1;
                 *v += n;

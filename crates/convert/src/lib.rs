@@ -42,7 +42,7 @@ mod time;
 pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
 pub use error::ConvertError;
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
-pub use history::{segments, Segment, SeriesHistory};
+pub use history::{changes, Change, SeriesHistory};
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
 pub use inputs::{
     collect_inputs, manifest_text, unix_seconds, SeriesInput, TimeSource, MANIFEST_NAME,

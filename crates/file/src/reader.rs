@@ -195,6 +195,27 @@ impl FroctReader {
         Ok(cells)
     }
 
+    /// The raw streams of a tile's payload, in the order of FORMAT.md §5.2, for size analysis.
+    pub fn tile_streams(&self, tile: usize) -> Result<Vec<Vec<u8>>, FileError> {
+        let invalid = |violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        };
+        let entry = self
+            .tiles
+            .get(tile)
+            .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
+        let mut stored = vec![0u8; entry.stored_len as usize];
+        self.file
+            .read_exact_at(&mut stored, entry.offset)
+            .map_err(|source| FileError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
+        let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
+        crate::tile::split_streams(&payload).map_err(invalid)
+    }
+
     /// Index of the tile holding a voxel, if that tile exists.
     pub fn tile_containing(&self, voxel: MortonCode) -> Option<usize> {
         let code = voxel.node_start(self.header.tile_depth);

@@ -6,19 +6,32 @@ use crate::header::Codec;
 use crate::limits::ReadLimits;
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_temporal::{varint, FittedVoxel, PreparedModel, TimeAxis, Toggles};
+use std::collections::HashMap;
+use std::sync::Arc;
 
 const CLASS_FREE: u8 = 0;
 const CLASS_OCCUPIED: u8 = 1;
 const CLASS_MODELLED: u8 = 2;
 const CLASS_KIND_MASK: u8 = 0b11;
 const CLASS_HAS_MASK: u8 = 0b100;
+const CLASS_HAS_OUTLIERS: u8 = 0b1000;
 
 /// What a cell stores about its states.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CellContent {
     /// Observed in this state only: costs one class byte.
     Constant(Occupancy),
-    /// A temporal model (with outliers in lossless files).
+    /// Almost always in `state`, except between toggles (state flips at each position):
+    /// rare changes, such as sensor noise at a surface, whose mean occupancy is outside
+    /// OctoMap's clamping bounds, so that a model would predict nothing a map can express
+    /// beyond `state`. Lossy files drop the exceptions.
+    ConstantExcept {
+        /// The usual state.
+        state: Occupancy,
+        /// Where the state differs from the usual one.
+        exceptions: Toggles,
+    },
+    /// A temporal model (with its outliers in lossless files).
     Modelled(FittedVoxel),
 }
 
@@ -30,8 +43,9 @@ pub struct Cell {
     /// Depth (`tile_depth..=16`); the cell holds `8^(16 − depth)` voxels.
     pub depth: u8,
     /// Observation mask as toggles (observed-ness starts false and flips at each position);
-    /// `None` means observed at every sample that is not missing from the axis.
-    pub mask: Option<Toggles>,
+    /// `None` means observed at every sample that is not missing from the axis. Shared:
+    /// neighbouring cells usually have the same mask, which a tile stores once.
+    pub mask: Option<Arc<Toggles>>,
     /// States.
     pub content: CellContent,
 }
@@ -61,6 +75,13 @@ impl Cell {
         }
         Some(match &self.content {
             CellContent::Constant(state) => *state,
+            CellContent::ConstantExcept { state, exceptions } => {
+                if exceptions.parity_at(sample) {
+                    flip(*state)
+                } else {
+                    *state
+                }
+            }
             CellContent::Modelled(voxel) => model.state_at_sample(voxel, sample),
         })
     }
@@ -68,8 +89,13 @@ impl Cell {
     /// Occupancy probability at any instant, in seconds since the first sample of the axis.
     pub fn probability(&self, model: &dyn PreparedModel, seconds: f64) -> f64 {
         match &self.content {
-            CellContent::Constant(Occupancy::Free) => 0.0,
-            CellContent::Constant(Occupancy::Occupied) => 1.0,
+            CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => {
+                if state.is_occupied() {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
             CellContent::Modelled(voxel) => model.probability(voxel, seconds),
         }
     }
@@ -105,14 +131,16 @@ pub struct StreamSizes {
     pub class: u64,
     /// Observation masks.
     pub masks: u64,
-    /// Model parameters and outliers.
+    /// Model parameters.
     pub models: u64,
+    /// Outlier and exception toggles.
+    pub outliers: u64,
 }
 
 impl StreamSizes {
     /// Sum of all streams.
     pub fn total(&self) -> u64 {
-        self.geometry + self.depth + self.class + self.masks + self.models
+        self.geometry + self.depth + self.class + self.masks + self.models + self.outliers
     }
 
     /// Adds another tile's sizes.
@@ -122,6 +150,7 @@ impl StreamSizes {
         self.class += other.class;
         self.masks += other.masks;
         self.models += other.models;
+        self.outliers += other.outliers;
     }
 }
 
@@ -162,8 +191,11 @@ pub fn encode_tile(
     let mut geometry = Vec::new();
     let mut depths = Vec::with_capacity(cells.len());
     let mut classes = Vec::with_capacity(cells.len());
-    let mut masks = Vec::new();
+    let mut mask_table: Vec<&Toggles> = Vec::new();
+    let mut mask_ids: HashMap<&[u32], u64> = HashMap::new();
+    let mut mask_refs = Vec::new();
     let mut models = Vec::new();
+    let mut outliers = ToggleColumns::default();
     let mut previous_end = code.0;
     let mut span: Option<(u32, u32)> = None;
     for cell in cells {
@@ -184,20 +216,41 @@ pub fn encode_tile(
         varint::write_u64(&mut geometry, cell.start.0 - previous_end);
         previous_end = cell.end();
         depths.push(cell.depth);
-        let mut class = match &cell.content {
-            CellContent::Constant(Occupancy::Free) => CLASS_FREE,
-            CellContent::Constant(Occupancy::Occupied) => CLASS_OCCUPIED,
-            CellContent::Modelled(voxel) => {
-                model.encode_voxel(voxel, &mut models);
-                CLASS_MODELLED
+        let state_class = |state: &Occupancy| {
+            if state.is_occupied() {
+                CLASS_OCCUPIED
+            } else {
+                CLASS_FREE
             }
         };
+        let (mut class, toggles) = match &cell.content {
+            CellContent::Constant(state) => (state_class(state), None),
+            CellContent::ConstantExcept { state, exceptions } => {
+                (state_class(state), Some(exceptions))
+            }
+            CellContent::Modelled(voxel) => {
+                voxel.encode(false, &mut models);
+                (CLASS_MODELLED, Some(voxel.toggles()))
+            }
+        };
+        if let Some(toggles) = toggles.filter(|t| !t.is_empty()) {
+            if toggles.as_slice().last().is_some_and(|&t| t >= axis_len) {
+                return Err("outliers beyond the time axis".into());
+            }
+            class |= CLASS_HAS_OUTLIERS;
+            outliers.push(toggles);
+        }
         if let Some(mask) = &cell.mask {
             if mask.as_slice().last().is_some_and(|&t| t >= axis_len) {
                 return Err("observation mask beyond the time axis".into());
             }
             class |= CLASS_HAS_MASK;
-            mask.encode(&mut masks);
+            let next = mask_table.len() as u64;
+            let id = *mask_ids.entry(mask.as_slice()).or_insert_with(|| {
+                mask_table.push(mask);
+                next
+            });
+            varint::write_u64(&mut mask_refs, id);
         }
         classes.push(class);
         let (a, b) = cell
@@ -205,9 +258,30 @@ pub fn encode_tile(
             .ok_or("a cell must be observed at least once")?;
         span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
     }
+    // The tile's distinct masks are stored once; masked cells refer to them by index.
+    let mut masks = ToggleColumns::default();
+    for mask in &mask_table {
+        masks.push(mask);
+    }
+    let mut mask_count = Vec::new();
+    varint::write_u64(&mut mask_count, mask_table.len() as u64);
+    let streams = [
+        &geometry,
+        &depths,
+        &classes,
+        &mask_count,
+        &mask_refs,
+        &masks.counts,
+        &masks.starts,
+        &masks.lengths,
+        &models,
+        &outliers.counts,
+        &outliers.starts,
+        &outliers.lengths,
+    ];
     let mut payload = Vec::new();
     varint::write_u64(&mut payload, cells.len() as u64);
-    for stream in [&geometry, &depths, &classes, &masks, &models] {
+    for stream in streams {
         varint::write_u64(&mut payload, stream.len() as u64);
         payload.extend_from_slice(stream);
     }
@@ -230,8 +304,9 @@ pub fn encode_tile(
             geometry: geometry.len() as u64,
             depth: depths.len() as u64,
             class: classes.len() as u64,
-            masks: masks.len() as u64,
+            masks: (mask_count.len() + mask_refs.len() + masks.len()) as u64,
             models: models.len() as u64,
+            outliers: outliers.len() as u64,
         },
     })
 }
@@ -283,8 +358,19 @@ pub(crate) fn decode_payload(
     let geometry = stream(&mut c)?;
     let depths = stream(&mut c)?;
     let classes = stream(&mut c)?;
-    let masks = stream(&mut c)?;
+    let mask_count = stream(&mut c)?;
+    let mask_refs = stream(&mut c)?;
+    let mut masks = ToggleColumnReader::new(
+        [stream(&mut c)?, stream(&mut c)?, stream(&mut c)?],
+        axis_len,
+        "tile masks",
+    );
     let models = stream(&mut c)?;
+    let mut outliers = ToggleColumnReader::new(
+        [stream(&mut c)?, stream(&mut c)?, stream(&mut c)?],
+        axis_len,
+        "tile outliers",
+    );
     if !c.is_empty() {
         return Err(corrupt("tile", "bytes after the last stream"));
     }
@@ -294,10 +380,31 @@ pub(crate) fn decode_payload(
             "depth or class stream does not hold one byte per cell",
         ));
     }
+    let mut mask_count = Cursor::new(mask_count, "tile masks");
+    let distinct = mask_count.varint()?;
+    if distinct > count as u64 || distinct > masks.max_lists() as u64 {
+        return Err(corrupt(
+            "tile masks",
+            format!("{distinct} distinct masks cannot fit"),
+        ));
+    }
+    let distinct = distinct as usize;
+    let mut mask_table = Vec::with_capacity(distinct);
+    for _ in 0..distinct {
+        let toggles = masks.next_list()?;
+        if toggles.is_empty() {
+            return Err(corrupt(
+                "tile masks",
+                "a mask under which a cell is never observed",
+            ));
+        }
+        mask_table.push(Arc::new(toggles));
+    }
+    let mut mask_refs = Cursor::new(mask_refs, "tile masks");
     let tile_end = code.0 + voxels_per_node(tile_depth);
     let mut geometry = Cursor::new(geometry, "tile geometry");
-    let mut mask_pos = 0usize;
     let mut model_pos = 0usize;
+    let frequency_limit = model.frequency_limit();
     let mut previous_end = code.0;
     let mut cells = Vec::with_capacity(count);
     for (&depth, &class) in depths.iter().zip(classes) {
@@ -317,27 +424,48 @@ pub(crate) fn decode_payload(
             return Err(corrupt("tile", "cell outside its tile"));
         }
         previous_end = end;
-        if class & !(CLASS_KIND_MASK | CLASS_HAS_MASK) != 0 {
+        if class & !(CLASS_KIND_MASK | CLASS_HAS_MASK | CLASS_HAS_OUTLIERS) != 0 {
             return Err(corrupt("tile", format!("reserved class bits {class:#x}")));
         }
         let mask = if class & CLASS_HAS_MASK != 0 {
-            let (toggles, used) = Toggles::decode(&masks[mask_pos..], axis_len)
-                .map_err(|e| corrupt("tile masks", e.to_string()))?;
-            mask_pos += used;
+            let id = mask_refs.varint()?;
+            let mask = usize::try_from(id)
+                .ok()
+                .and_then(|i| mask_table.get(i))
+                .ok_or_else(|| {
+                    corrupt(
+                        "tile masks",
+                        format!("mask index {id} beyond the {distinct} masks"),
+                    )
+                })?;
+            Some(Arc::clone(mask))
+        } else {
+            None
+        };
+        let toggles = if class & CLASS_HAS_OUTLIERS != 0 {
+            let toggles = outliers.next_list()?;
             if toggles.is_empty() {
-                return Err(corrupt("tile masks", "a cell that is never observed"));
+                return Err(corrupt(
+                    "tile outliers",
+                    "an empty outlier list is stored by leaving the flag clear",
+                ));
             }
             Some(toggles)
         } else {
             None
         };
+        let constant = |state: Occupancy| match toggles.clone() {
+            Some(exceptions) => CellContent::ConstantExcept { state, exceptions },
+            None => CellContent::Constant(state),
+        };
         let content = match class & CLASS_KIND_MASK {
-            CLASS_FREE => CellContent::Constant(Occupancy::Free),
-            CLASS_OCCUPIED => CellContent::Constant(Occupancy::Occupied),
+            CLASS_FREE => constant(Occupancy::Free),
+            CLASS_OCCUPIED => constant(Occupancy::Occupied),
             CLASS_MODELLED => {
-                let (voxel, used) = model.decode_voxel(&models[model_pos..])?;
+                let (voxel, used) =
+                    FittedVoxel::decode(&models[model_pos..], frequency_limit, axis_len, false)?;
                 model_pos += used;
-                CellContent::Modelled(voxel)
+                CellContent::Modelled(voxel.with_toggles(toggles.unwrap_or_default()))
             }
             _ => return Err(corrupt("tile", "invalid cell class 3")),
         };
@@ -348,10 +476,125 @@ pub(crate) fn decode_payload(
             content,
         });
     }
-    if !geometry.is_empty() || mask_pos != masks.len() || model_pos != models.len() {
+    if !geometry.is_empty()
+        || !mask_refs.is_empty()
+        || !mask_count.is_empty()
+        || model_pos != models.len()
+    {
         return Err(corrupt("tile", "a stream has bytes no cell uses"));
     }
+    masks.finish()?;
+    outliers.finish()?;
     Ok(cells)
+}
+
+/// The streams of a payload, copied out.
+pub(crate) fn split_streams(payload: &[u8]) -> Result<Vec<Vec<u8>>, FormatViolation> {
+    let mut c = Cursor::new(payload, "tile");
+    c.varint()?;
+    (0..STREAMS)
+        .map(|_| stream(&mut c).map(<[u8]>::to_vec))
+        .collect()
+}
+
+/// Streams in a tile payload (FORMAT.md §5.2).
+pub(crate) const STREAMS: usize = 12;
+
+/// Lists of toggles stored column-wise: each list's length, the gaps before toggles at even
+/// positions (where a run of the other state starts) and those before odd positions (one
+/// less than the run's length). Separating them lets zstd model each distribution on its
+/// own: run starts are spread out, run lengths are mostly tiny (a one-sample flicker is 0).
+#[derive(Default)]
+struct ToggleColumns {
+    counts: Vec<u8>,
+    starts: Vec<u8>,
+    lengths: Vec<u8>,
+}
+
+impl ToggleColumns {
+    fn push(&mut self, toggles: &Toggles) {
+        varint::write_u64(&mut self.counts, toggles.len() as u64);
+        let mut next = 0u32;
+        for (k, &t) in toggles.as_slice().iter().enumerate() {
+            let column = if k % 2 == 0 {
+                &mut self.starts
+            } else {
+                &mut self.lengths
+            };
+            varint::write_u32(column, t - next);
+            next = t.saturating_add(1);
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.counts.len() + self.starts.len() + self.lengths.len()
+    }
+}
+
+/// Reads [`ToggleColumns`] back, validating every position against the axis.
+struct ToggleColumnReader<'a> {
+    counts: Cursor<'a>,
+    starts: Cursor<'a>,
+    lengths: Cursor<'a>,
+    axis_len: u32,
+    part: &'static str,
+}
+
+impl<'a> ToggleColumnReader<'a> {
+    fn new(columns: [&'a [u8]; 3], axis_len: u32, part: &'static str) -> Self {
+        let [counts, starts, lengths] = columns;
+        Self {
+            counts: Cursor::new(counts, part),
+            starts: Cursor::new(starts, part),
+            lengths: Cursor::new(lengths, part),
+            axis_len,
+            part,
+        }
+    }
+
+    /// Upper bound on the lists left (each takes at least one count byte).
+    fn max_lists(&self) -> usize {
+        self.counts.remaining()
+    }
+
+    fn next_list(&mut self) -> Result<Toggles, FormatViolation> {
+        let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
+        let count = self.counts.varint()?;
+        if count > left || count > u64::from(self.axis_len) {
+            return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
+        }
+        let mut positions = Vec::with_capacity(count as usize);
+        let mut next = 0u64;
+        for k in 0..count {
+            let column = if k % 2 == 0 {
+                &mut self.starts
+            } else {
+                &mut self.lengths
+            };
+            let position = next + column.varint()?;
+            if position >= u64::from(self.axis_len) {
+                return Err(corrupt(self.part, "toggle beyond the time axis"));
+            }
+            positions.push(position as u32);
+            next = position + 1;
+        }
+        Toggles::new(positions).map_err(|e| corrupt(self.part, e.to_string()))
+    }
+
+    fn finish(&self) -> Result<(), FormatViolation> {
+        if self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty() {
+            Ok(())
+        } else {
+            Err(corrupt(self.part, "bytes no list uses"))
+        }
+    }
+}
+
+fn flip(state: Occupancy) -> Occupancy {
+    match state {
+        Occupancy::Free => Occupancy::Occupied,
+        Occupancy::Occupied => Occupancy::Free,
+    }
 }
 
 /// One length-prefixed stream of a tile payload.
@@ -363,7 +606,7 @@ fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
 /// Helper for writers that build masks from observed runs: the mask toggles of a list of
 /// observed sample ranges `[first, end)`, or `None` when they cover every sample that is not
 /// missing from the axis.
-pub fn mask_from_ranges(axis: &TimeAxis, ranges: &[(u32, u64)]) -> Option<Toggles> {
+pub fn mask_from_ranges(axis: &TimeAxis, ranges: &[(u32, u64)]) -> Option<Arc<Toggles>> {
     let mut toggles: Vec<u32> = Vec::with_capacity(ranges.len() * 2);
     let mut observed_end: Option<u64> = None;
     for &(first, end) in ranges {
@@ -392,7 +635,7 @@ pub fn mask_from_ranges(axis: &TimeAxis, ranges: &[(u32, u64)]) -> Option<Toggle
     if toggles == [0] {
         return None;
     }
-    Toggles::new(toggles).ok()
+    Toggles::new(toggles).ok().map(Arc::new)
 }
 
 /// `true` when every sample in `[first, end)` is missing from the axis (vacuously for an

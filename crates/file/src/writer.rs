@@ -128,7 +128,7 @@ impl FroctWriter {
         };
         let stream_json = serde_json::json!({
             "geometry": streams.geometry, "depth": streams.depth, "class": streams.class,
-            "masks": streams.masks, "models": streams.models,
+            "masks": streams.masks, "models": streams.models, "outliers": streams.outliers,
         });
         summary.insert("raw_stream_bytes".into(), stream_json);
         summary.insert("stored_tile_bytes".into(), Value::from(self.stored_bytes));

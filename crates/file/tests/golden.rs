@@ -16,7 +16,8 @@ fn writer_reproduces_the_golden_file() {
     write_golden(&fresh);
     let fresh = std::fs::read(&fresh).unwrap();
     if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
-        std::fs::write(golden_path(), &fresh).unwrap();
+        // Atomically, so tests reading the golden file meanwhile never see half of it.
+        froctomap_core::write_atomically(&golden_path(), |out| out.write_all(&fresh)).unwrap();
     }
     let committed = std::fs::read(golden_path()).expect("the golden file is committed");
     assert!(

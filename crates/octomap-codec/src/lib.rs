@@ -41,7 +41,7 @@ pub use header::{
     detect_kind, looks_like_legacy_binary, parse_header, FileKind, Header, HeaderLayout,
     BINARY_FIRST_LINE, FULL_FIRST_LINE, OCTREE_ID,
 };
-pub use runs::{scan_runs, VoxelRun};
+pub use runs::{merge_runs, scan_runs, RunMerger, VoxelRun};
 
 use froctomap_core::Leaf;
 

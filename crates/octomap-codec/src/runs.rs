@@ -52,25 +52,61 @@ pub fn scan_runs<F: FnMut(VoxelRun) + ?Sized>(
     limits: ReadLimits,
     on_run: &mut F,
 ) -> Result<ScanSummary, CodecError> {
-    let mut pending: Option<VoxelRun> = None;
+    let mut merger = RunMerger::default();
     let summary = scan(bytes, kind, limits, &mut |leaf: Leaf| {
-        let state = leaf.occupancy();
-        match pending.as_mut() {
-            Some(run) if run.end == leaf.start.0 && run.state == state => run.end = leaf.end(),
-            _ => {
-                if let Some(run) = pending.take() {
-                    on_run(run);
-                }
-                pending = Some(VoxelRun {
-                    start: leaf.start,
-                    end: leaf.end(),
-                    state,
-                });
-            }
+        if let Some(run) = merger.push(&leaf) {
+            on_run(run);
         }
     })?;
-    if let Some(run) = pending {
+    if let Some(run) = merger.finish() {
         on_run(run);
     }
     Ok(summary)
+}
+
+/// Merges Morton-ordered leaves into maximal runs of equal state, one leaf at a time.
+#[derive(Clone, Debug, Default)]
+pub struct RunMerger {
+    pending: Option<VoxelRun>,
+}
+
+impl RunMerger {
+    /// Adds the next leaf; returns a run that can no longer grow.
+    pub fn push(&mut self, leaf: &Leaf) -> Option<VoxelRun> {
+        let state = leaf.occupancy();
+        match self.pending.as_mut() {
+            Some(run) if run.end == leaf.start.0 && run.state == state => {
+                run.end = leaf.end();
+                None
+            }
+            _ => self.pending.replace(VoxelRun {
+                start: leaf.start,
+                end: leaf.end(),
+                state,
+            }),
+        }
+    }
+
+    /// The last run, if any.
+    pub fn finish(self) -> Option<VoxelRun> {
+        self.pending
+    }
+}
+
+/// The maximal runs of equal state of Morton-ordered leaves.
+///
+/// ```
+/// use froctomap_core::{Leaf, VoxelKey};
+/// let leaves = [Leaf::voxel(VoxelKey::new(0, 0, 0), 1.0), Leaf::voxel(VoxelKey::new(1, 0, 0), 2.0)];
+/// let runs = froctomap_octomap_codec::merge_runs(&leaves);
+/// assert_eq!((runs.len(), runs[0].len()), (1, 2));
+/// ```
+pub fn merge_runs<'a>(leaves: impl IntoIterator<Item = &'a Leaf>) -> Vec<VoxelRun> {
+    let mut merger = RunMerger::default();
+    let mut runs: Vec<VoxelRun> = leaves
+        .into_iter()
+        .filter_map(|leaf| merger.push(leaf))
+        .collect();
+    runs.extend(merger.finish());
+    runs
 }

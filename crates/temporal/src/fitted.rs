@@ -130,6 +130,12 @@ impl FittedVoxel {
         }
     }
 
+    /// The same model with another outlier set (for containers that store toggles apart).
+    pub fn with_toggles(mut self, toggles: Toggles) -> Self {
+        self.toggles = toggles;
+        self
+    }
+
     pub(crate) fn with_model_errors(mut self, errors: u64) -> Self {
         self.model_errors = Some(errors);
         self

@@ -33,8 +33,10 @@ pub enum Order {
     /// Chosen per voxel among `0..=max` by [`ModelConfig::criterion`]:
     /// - [`OrderCriterion::Prediction`] (default): the order with the smallest held-out
     ///   squared error of `p(t)`: the model is fitted on the first `1 − holdout_fraction` of
-    ///   the voxel's observed samples and scored (Brier score) on the rest, ties to the lower
-    ///   order; the chosen order is then refitted on all samples. This targets prediction;
+    ///   the voxel's observed samples and scored (Brier score) on the rest (at most 512
+    ///   evenly spaced held-out samples); the lowest order within 1 % of the best score wins
+    ///   (a component must earn its place: noise-like voxels keep the mean alone); the
+    ///   chosen order is then refitted on all samples. This targets prediction;
     ///   in lossless mode the outliers still make the states exact.
     /// - [`OrderCriterion::SmallestFile`] (lossless only; lossy falls back to prediction):
     ///   the order with the smallest encoded voxel (parameters + toggles), ties to the lower
@@ -267,8 +269,15 @@ pub trait PreparedModel: Send + Sync {
     /// component).
     fn period_seconds(&self, component: &crate::Component) -> Option<f64>;
 
-    /// Appends the voxel's encoding (layout in the crate docs).
+    /// Appends the voxel's encoding (layout in the crate docs): parameters, then its
+    /// toggles in lossless mode.
     fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>);
+
+    /// One past the largest valid [`Component::frequency`](crate::Component) of this
+    /// model (0 when it has no components). Containers that store a voxel's parameters
+    /// and its toggles in separate places decode the parameters with
+    /// [`FittedVoxel::decode`]`(bytes, model.frequency_limit(), axis_len, false)`.
+    fn frequency_limit(&self) -> u32;
 
     /// Decodes one voxel from the start of `bytes`: the voxel and the bytes consumed.
     /// Untrusted input is validated; it never panics or allocates beyond its size.

@@ -140,9 +140,16 @@ pub struct PreparedFremenPeriods {
     frequencies: Vec<f64>,
     /// `prefix[i·K + j] = Σ_{l<i} (cos, sin)(2π·t_l/P_j)`.
     prefix: OnceLock<Vec<[f64; 2]>>,
+    /// `angles[j·N + i] = (cos, sin)(2π·t_i/P_j)`, computed exactly as the evaluator would
+    /// compute them (so lookups are bit-identical): a cache, built on first use when it
+    /// fits [`MAX_ANGLE_TABLE_BYTES`].
+    angles: OnceLock<Option<Vec<(f64, f64)>>>,
     settings: FitSettings,
     min_cycles: f64,
 }
+
+/// Largest per-sample angle table kept (64 MiB: 24 periods × 175,000 samples).
+const MAX_ANGLE_TABLE_BYTES: u64 = 64 << 20;
 
 impl PreparedFremenPeriods {
     fn new(axis: &TimeAxis, periods: Vec<f64>, config: &ModelConfig, mode: OutlierMode) -> Self {
@@ -151,6 +158,7 @@ impl PreparedFremenPeriods {
             frequencies: periods.iter().map(|p| 1.0 / p).collect(),
             periods,
             prefix: OnceLock::new(),
+            angles: OnceLock::new(),
             settings: FitSettings {
                 order: config.order,
                 mode,
@@ -253,20 +261,64 @@ impl PreparedFremenPeriods {
     fn frequency(&self, index: u32) -> f64 {
         self.frequencies.get(index as usize).copied().unwrap_or(0.0)
     }
+
+    /// The per-sample angle cache, if it fits.
+    fn angle_table(&self) -> Option<&[(f64, f64)]> {
+        self.angles
+            .get_or_init(|| {
+                let n = self.axis.len() as usize;
+                let bytes = (n as u64) * (self.frequencies.len() as u64) * 16;
+                (bytes <= MAX_ANGLE_TABLE_BYTES).then(|| {
+                    let mut table = Vec::with_capacity(n * self.frequencies.len());
+                    for f in &self.frequencies {
+                        for i in 0..n {
+                            table.push(angle(&self.axis, *f, i as u32));
+                        }
+                    }
+                    table
+                })
+            })
+            .as_deref()
+    }
 }
 
-/// Base angles `2π·t_i/P` computed per sample with [`cos_sin_turns`].
+/// The base angle `2π·t_i·f` of a sample: the one computation both the table and direct
+/// evaluation use, so they agree bit for bit.
+#[inline]
+fn angle(axis: &TimeAxis, frequency: f64, sample: u32) -> (f64, f64) {
+    cos_sin_turns(axis.sample_seconds(sample) * frequency)
+}
+
+/// The angle table and the row offset of each component's period in it.
+type CachedRows<'a> = (&'a [(f64, f64)], Vec<usize>);
+
+/// Base angles `2π·t_i/P` per sample, from the cached table or computed with
+/// [`cos_sin_turns`].
 pub(crate) struct PeriodsEval<'a> {
     axis: &'a TimeAxis,
     frequencies: Vec<f64>,
+    /// The cached table and, per component, the offset of its period's row.
+    table: Option<CachedRows<'a>>,
 }
 
 impl Evaluator for PeriodsEval<'_> {
     #[inline]
     fn angles(&mut self, sample: u32, out: &mut [(f64, f64)]) {
-        let t = self.axis.sample_seconds(sample);
-        for (o, f) in out.iter_mut().zip(&self.frequencies) {
-            *o = cos_sin_turns(t * f);
+        match &self.table {
+            // Samples beyond the axis (extrapolated) are not in the table.
+            Some((table, rows)) if sample < self.axis.len() => {
+                for ((o, row), f) in out.iter_mut().zip(rows).zip(&self.frequencies) {
+                    *o = match table.get(row + sample as usize) {
+                        Some(&cached) => cached,
+                        None => angle(self.axis, *f, sample),
+                    };
+                }
+            }
+            _ => {
+                for (o, f) in out.iter_mut().zip(&self.frequencies) {
+                    *o = angle(self.axis, *f, sample);
+                }
+            }
         }
     }
 }
@@ -275,12 +327,20 @@ impl Spectral for PreparedFremenPeriods {
     type Eval<'a> = PeriodsEval<'a>;
 
     fn evaluator<'a>(&'a self, components: &[Component]) -> PeriodsEval<'a> {
+        let n = self.axis.len() as usize;
         PeriodsEval {
             axis: &self.axis,
             frequencies: components
                 .iter()
                 .map(|c| self.frequency(c.frequency))
                 .collect(),
+            table: self.angle_table().map(|table| {
+                let rows = components
+                    .iter()
+                    .map(|c| c.frequency as usize * n)
+                    .collect();
+                (table, rows)
+            }),
         }
     }
 
@@ -364,10 +424,14 @@ impl PreparedModel for PreparedFremenPeriods {
         voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
     }
 
+    fn frequency_limit(&self) -> u32 {
+        self.periods.len() as u32
+    }
+
     fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
         FittedVoxel::decode(
             bytes,
-            self.periods.len() as u32,
+            self.frequency_limit(),
             self.axis.len(),
             self.settings.mode == OutlierMode::Lossless,
         )

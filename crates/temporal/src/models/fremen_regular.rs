@@ -374,10 +374,14 @@ impl PreparedModel for PreparedFremenRegular {
         voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
     }
 
+    fn frequency_limit(&self) -> u32 {
+        self.n / 2 + 1
+    }
+
     fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
         FittedVoxel::decode(
             bytes,
-            self.n / 2 + 1,
+            self.frequency_limit(),
             self.axis.len(),
             self.settings.mode == OutlierMode::Lossless,
         )

@@ -143,11 +143,15 @@ impl PreparedModel for PreparedStaticMean {
         voxel.encode(self.mode == OutlierMode::Lossless, out);
     }
 
+    fn frequency_limit(&self) -> u32 {
+        0
+    }
+
     fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
         // The static model has no components: frequency limit 0 rejects any.
         FittedVoxel::decode(
             bytes,
-            0,
+            self.frequency_limit(),
             self.axis.len(),
             self.mode == OutlierMode::Lossless,
         )
