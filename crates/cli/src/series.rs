@@ -6,9 +6,9 @@ use crate::progress::{peak_memory_bytes, Bars};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::{
-    build, collect_inputs, describe, evaluate, export, format_iso, parse_duration, parse_time,
-    resolve_observed, write_map, BuildOptions, EvalReport, ExportMode, ExportOptions, LoadedMap,
-    SeriesInput, TimeQuery, TimeSource,
+    build, collect_inputs, describe, evaluate, export, format_iso, observed_map, parse_duration,
+    parse_time, predicted_map, resolve_observed, write_map, BuildOptions, EvalReport, ExportMode,
+    ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_file::{Codec, FroctReader};
 use froctomap_formats::{FormatRegistry, ReadOptions};
@@ -337,9 +337,8 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
             format_iso(when.time)
         ));
     }
-    let map = LoadedMap::load(&reader)?;
-    let snapshot = map.observed(when.sample)?;
-    let format = write_map(
+    let snapshot = observed_map(&reader, when.sample)?;
+    let written = write_map(
         &snapshot,
         &args.output,
         args.format.map(MapFormatArg::name),
@@ -348,10 +347,10 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
         args.output.display(),
-        format.name,
+        written.format.name,
         format_iso(when.time),
         when.sample,
-        group_thousands(snapshot.leaves().len() as u64)
+        group_thousands(written.leaves as u64)
     ));
     Ok(())
 }
@@ -383,9 +382,8 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
             )
         })?,
     };
-    let map = LoadedMap::load(&reader)?;
-    let snapshot = map.predicted(t)?;
-    let format = write_map(
+    let snapshot = predicted_map(&reader, t)?;
+    let written = write_map(
         &snapshot,
         &args.output,
         args.format.map(MapFormatArg::name),
@@ -408,9 +406,9 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
         args.output.display(),
-        format.name,
+        written.format.name,
         format_iso(t),
-        group_thousands(snapshot.leaves().len() as u64)
+        group_thousands(written.leaves as u64)
     ));
     Ok(())
 }
@@ -464,9 +462,8 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
     };
-    let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);
-    let report = export(&map, &args.output, &options, &bars)?;
+    let report = export(&reader, &args.output, &options, &bars)?;
     drop(bars);
     ui.note(&format!(
         "wrote {} maps ({} bytes) and {}",

@@ -480,6 +480,18 @@ pub fn build(
     })?;
     let read_seconds = started.elapsed().as_secs_f64();
     let changed_voxels = history.changed_voxels();
+    // Snapshots left out become missing samples of a regular axis, so the file says there
+    // is no snapshot at their time (an explicit axis keeps the instant, with nothing
+    // observed at it).
+    let (axis, prepared) = match axis.step_ns() {
+        Some(step) if absent.len() > axis.missing().len() => {
+            let regular = TimeAxis::regular(axis.start(), step, axis.len(), absent.clone())
+                .map_err(|e| ConvertError::NothingToBuild(format!("time axis: {e}")))?;
+            let prepared = model.prepare(&regular, &options.config)?;
+            (regular, prepared)
+        }
+        _ => (axis, prepared),
+    };
 
     // Pass 3: fit, encode and write, tile by tile.
     let modelling = Instant::now();

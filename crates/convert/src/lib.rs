@@ -4,10 +4,10 @@
 //! * [`collect_inputs`] turns directories, globs, manifests and files into a time-sorted
 //!   series; [`build`] streams it into one FROctomap file (memory grows with the map's cells
 //!   and their changes, not with the number of snapshots).
-//! * [`LoadedMap`] decodes a file once; [`LoadedMap::observed`] gives the map as observed
-//!   at a sample (bit-exact in lossless files), [`LoadedMap::predicted`] the predicted map at
-//!   any instant; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
-//!   range of them with a manifest.
+//! * [`observed_map`] gives the map as observed at a sample (bit-exact in lossless files),
+//!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
+//!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
+//!   range of them with a manifest. [`LoadedMap`] decodes every cell once, for evaluation.
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
 //!   last-seen baselines; [`describe`] summarises a file.
 //!
@@ -22,10 +22,9 @@
 //! println!("{} snapshots → {} bytes", report.used, report.file_bytes);
 //!
 //! let reader = froctomap_file::FroctReader::open(Path::new("office.froct"))?;
-//! let map = LoadedMap::load(&reader)?;
 //! let when = resolve_observed(&reader, "2016-01-05T12:00:00Z".parse()?)?;
-//! write_map(&map.observed(when.sample)?, Path::new("noon.bt"), None, None)?;
-//! write_map(&map.predicted(parse_time("2016-02-01T12:00:00Z")?)?, Path::new("future.ot"), None, None)?;
+//! write_map(&observed_map(&reader, when.sample)?, Path::new("noon.bt"), None, None)?;
+//! write_map(&predicted_map(&reader, parse_time("2016-02-01T12:00:00Z")?)?, Path::new("future.ot"), None, None)?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
@@ -48,8 +47,9 @@ pub use inputs::{
     collect_inputs, manifest_text, unix_seconds, SeriesInput, TimeSource, MANIFEST_NAME,
 };
 pub use maps::{
-    export, probability_log_odds, resolve_observed, write_map, ExportMode, ExportOptions,
-    ExportReport, LoadedMap, ResolvedSample, TimeQuery, MAX_EXPORTS,
+    export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
+    ExportMode, ExportOptions, ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
+    MAX_EXPORTS,
 };
 pub use progress::{Progress, Silent};
 pub use time::{

@@ -101,7 +101,45 @@ pub fn resolve_observed(
     }
 }
 
-/// Every cell of a file, decoded once (in parallel) for repeated queries.
+/// The map as observed at a sample (exact in lossless files): one leaf per observed cell,
+/// in Morton order. Tiles are streamed in parallel without building cells; call
+/// [`Snapshot::canonical`] (or [`write_map`], which does) for OctoMap's split.
+pub fn observed_map(reader: &FroctReader, sample: u32) -> Result<Snapshot, ConvertError> {
+    collect_tiles(reader, |tile, out| {
+        reader.observed_leaves(tile, sample, out)
+    })
+}
+
+/// The predicted map at any instant: every cell with log-odds of its probability `p(t)`
+/// ([`probability_log_odds`]), in Morton order, tiles streamed in parallel.
+pub fn predicted_map(reader: &FroctReader, t: Timestamp) -> Result<Snapshot, ConvertError> {
+    let seconds = t.secs_since(reader.header().axis.start());
+    collect_tiles(reader, |tile, out| {
+        reader.predicted_leaves(tile, seconds, &probability_log_odds, out)
+    })
+}
+
+fn collect_tiles(
+    reader: &FroctReader,
+    leaves_of: impl Fn(usize, &mut Vec<Leaf>) -> Result<(), froctomap_file::FileError> + Sync,
+) -> Result<Snapshot, ConvertError> {
+    let per_tile = (0..reader.tiles().len())
+        .into_par_iter()
+        .map(|tile| {
+            let mut out = Vec::new();
+            leaves_of(tile, &mut out).map(|()| out)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let leaves: Vec<Leaf> = per_tile.into_iter().flatten().collect();
+    Snapshot::from_leaves(reader.header().resolution, leaves).map_err(|e| {
+        ConvertError::Time(format!(
+            "{}: inconsistent cells: {e}",
+            reader.path().display()
+        ))
+    })
+}
+
+/// Every cell of a file, decoded once (in parallel) for repeated queries over all cells.
 pub struct LoadedMap<'r> {
     reader: &'r FroctReader,
     tiles: Vec<Vec<Cell>>,
@@ -131,51 +169,6 @@ impl<'r> LoadedMap<'r> {
     pub fn cell_count(&self) -> usize {
         self.tiles.iter().map(Vec::len).sum()
     }
-
-    fn collect(
-        &self,
-        value: impl Fn(&Cell) -> Option<f32> + Sync,
-    ) -> Result<Snapshot, ConvertError> {
-        let leaves: Vec<Leaf> = self
-            .tiles
-            .par_iter()
-            .flat_map_iter(|tile| {
-                tile.iter()
-                    .filter_map(|cell| {
-                        value(cell).map(|log_odds| Leaf {
-                            start: cell.start,
-                            depth: cell.depth,
-                            log_odds,
-                        })
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        let snapshot =
-            Snapshot::from_leaves(self.reader.header().resolution, leaves).map_err(|e| {
-                ConvertError::Time(format!(
-                    "{}: inconsistent cells: {e}",
-                    self.reader.path().display()
-                ))
-            })?;
-        Ok(snapshot.canonical())
-    }
-
-    /// The map as observed at a sample (exact in lossless files), in the canonical split.
-    pub fn observed(&self, sample: u32) -> Result<Snapshot, ConvertError> {
-        let axis = &self.reader.header().axis;
-        let model = self.reader.model();
-        self.collect(|cell| cell.state_at(axis, model, sample).map(|s| s.log_odds()))
-    }
-
-    /// The predicted map at any instant: every cell with log-odds of its probability `p(t)`,
-    /// kept within OctoMap's clamping bounds (0.1192 ..= 0.971), so that cells with `p ≤ 0.5`
-    /// are free and `p > 0.5` occupied for OctoMap tools as for froctomap.
-    pub fn predicted(&self, t: Timestamp) -> Result<Snapshot, ConvertError> {
-        let seconds = t.secs_since(self.reader.header().axis.start());
-        let model = self.reader.model();
-        self.collect(|cell| Some(probability_log_odds(cell.probability(model, seconds))))
-    }
 }
 
 /// Log-odds for a predicted probability: clamped to OctoMap's bounds, and strictly negative
@@ -190,30 +183,41 @@ pub fn probability_log_odds(p: f64) -> f32 {
     }
 }
 
-/// Writes a map to `path` in the format its extension (or `format`) names, atomically. A
-/// `.bt` holds states only, so the map is reduced to maximum likelihood and its canonical
-/// split first.
+/// Writes a map to `path` in the format its extension (or `format`) names, atomically, in
+/// the canonical split ([`Snapshot::canonical`]). A `.bt` holds states only, so the map is
+/// reduced to maximum likelihood first.
 pub fn write_map(
     snapshot: &Snapshot,
     path: &Path,
     format: Option<&str>,
     backend: Option<Backend>,
-) -> Result<MapFormat, ConvertError> {
+) -> Result<WrittenMap, ConvertError> {
     let registry = FormatRegistry::with_default_formats();
     let options = WriteOptions { format, backend };
     let chosen = *registry
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
-    let states_only;
-    let to_write = if chosen.name == "bt" {
-        states_only = snapshot.to_max_likelihood().canonical();
-        &states_only
+    let canonical = if chosen.name == "bt" {
+        snapshot.to_max_likelihood().canonical()
     } else {
-        snapshot
+        snapshot.canonical()
     };
-    registry
-        .write_file(to_write, path, options)
-        .map_err(ConvertError::Write)
+    let format = registry
+        .write_file(&canonical, path, options)
+        .map_err(ConvertError::Write)?;
+    Ok(WrittenMap {
+        format,
+        leaves: canonical.leaves().len(),
+    })
+}
+
+/// What [`write_map`] wrote.
+#[derive(Clone, Copy, Debug)]
+pub struct WrittenMap {
+    /// The format.
+    pub format: MapFormat,
+    /// Leaves in the file.
+    pub leaves: usize,
 }
 
 /// What `export` produces at each instant.
@@ -262,7 +266,7 @@ pub struct ExportReport {
 /// Writes one map per instant of `from..=to` (every `every_ns`) into `dir`, each atomically,
 /// then a manifest. A failure leaves only complete files behind.
 pub fn export(
-    map: &LoadedMap<'_>,
+    reader: &FroctReader,
     dir: &Path,
     options: &ExportOptions,
     progress: &dyn Progress,
@@ -294,7 +298,7 @@ pub fn export(
         ExportMode::Predict => vec![None; times.len()],
         ExportMode::Retrieve => times
             .iter()
-            .map(|&t| resolve_observed(map.reader(), TimeQuery::Instant(t)).map(|r| Some(r.sample)))
+            .map(|&t| resolve_observed(reader, TimeQuery::Instant(t)).map(|r| Some(r.sample)))
             .collect::<Result<_, _>>()?,
     };
     std::fs::create_dir_all(dir).map_err(|source| froctomap_core::AtomicWriteError {
@@ -312,8 +316,8 @@ pub fn export(
         .zip(samples.par_iter())
         .map(|(&t, sample)| {
             let snapshot = match sample {
-                Some(s) => map.observed(*s)?,
-                None => map.predicted(t)?,
+                Some(s) => observed_map(reader, *s)?,
+                None => predicted_map(reader, t)?,
             };
             let path = dir.join(format!(
                 "{}_{}.{extension}",

@@ -130,11 +130,15 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
     assert_eq!(report.used, 3);
     // The skipped snapshot's time is unknown in the file, not a copy of a neighbour.
     let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
-    let map = LoadedMap::load(&reader).unwrap();
+    let err = resolve_observed(&reader, TimeQuery::Sample(2))
+        .unwrap_err()
+        .to_string();
     assert!(
-        resolve_observed(&reader, TimeQuery::Sample(2)).is_err()
-            || map.observed(2).unwrap().is_empty()
+        err.contains("sample 2") && err.contains("has no snapshot"),
+        "{err}"
     );
+    assert!(observed_map(&reader, 2).unwrap().is_empty());
+    assert!(!observed_map(&reader, 3).unwrap().is_empty());
     // An empty file is named as such.
     std::fs::write(&files[1], b"").unwrap();
     let err = build_dir(dir.path(), &BuildOptions::default())

@@ -92,11 +92,10 @@ fn lossless_build_gives_back_every_input() {
         "{report:?}"
     );
     let reader = FroctReader::open(&out).unwrap();
-    let map = LoadedMap::load(&reader).unwrap();
     for (path, t, truth) in &series {
         let when = resolve_observed(&reader, TimeQuery::Instant(*t)).unwrap();
         assert!(when.exact);
-        let got = map.observed(when.sample).unwrap();
+        let got = observed_map(&reader, when.sample).unwrap();
         assert!(got.same_voxel_states(truth), "{}", path.display());
         // Written back, the file is byte-identical to the input.
         let back = dir.path().join("back.bt");
@@ -124,7 +123,7 @@ fn predictions_exports_and_evaluation() {
 
     // A prediction a day later: every cell present, .ot keeps probabilities, .bt states.
     let later = Timestamp(series[8].1 .0 + 86_400_000_000_000);
-    let predicted = map.predicted(later).unwrap();
+    let predicted = predicted_map(&reader, later).unwrap();
     assert!(predicted.leaves().len() > 100_000);
     let ot = dir.path().join("later.ot");
     let bt = dir.path().join("later.bt");
@@ -172,7 +171,7 @@ fn predictions_exports_and_evaluation() {
         backend: None,
         prefix: "map".into(),
     };
-    let report = export(&map, &export_dir, &options, &Silent).unwrap();
+    let report = export(&reader, &export_dir, &options, &Silent).unwrap();
     assert_eq!(report.files.len(), 5);
     for file in &report.files {
         let when = resolve_observed(&reader, TimeQuery::Instant(file.time)).unwrap();
@@ -195,7 +194,7 @@ fn predictions_exports_and_evaluation() {
         every_ns: 1,
         ..options.clone()
     };
-    assert!(export(&map, &export_dir, &too_many, &Silent)
+    assert!(export(&reader, &export_dir, &too_many, &Silent)
         .unwrap_err()
         .to_string()
         .contains("limit"));

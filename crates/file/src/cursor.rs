@@ -84,11 +84,45 @@ impl<'a> Cursor<'a> {
         Ok(f64::from_le_bytes(self.array()?))
     }
 
+    #[inline]
     pub(crate) fn varint(&mut self) -> Result<u64, FormatViolation> {
+        // Most values in tile streams fit one byte.
+        if let Some(&byte) = self.bytes.get(self.pos) {
+            if byte < 0x80 {
+                self.pos += 1;
+                return Ok(u64::from(byte));
+            }
+        }
         let (value, used) = varint::read_u64(&self.bytes[self.pos..])
             .map_err(|e| corrupt(self.part, format!("{e} at offset {}", self.pos)))?;
         self.pos += used;
         Ok(value)
+    }
+
+    /// Skips `count` varints without decoding them (each ends at a byte below 0x80).
+    pub(crate) fn skip_varints(&mut self, count: u64) -> Result<(), FormatViolation> {
+        let mut left = count;
+        let rest = &self.bytes[self.pos..];
+        let mut used = 0usize;
+        if left > 0 {
+            for (i, &b) in rest.iter().enumerate() {
+                if b < 0x80 {
+                    left -= 1;
+                    if left == 0 {
+                        used = i + 1;
+                        break;
+                    }
+                }
+            }
+        }
+        if left > 0 {
+            return Err(corrupt(
+                self.part,
+                format!("truncated: {left} varints missing at offset {}", self.pos),
+            ));
+        }
+        self.pos += used;
+        Ok(())
     }
 
     /// A count of items that each take at least `min_item_bytes`, checked against the bytes

@@ -94,21 +94,9 @@ impl FroctReader {
     /// The whole map as observed at `sample`, one leaf per observed cell (with the `.bt`
     /// log-odds of its state), in Morton order.
     pub fn snapshot_at_sample(&self, sample: u32) -> Result<Snapshot, FileError> {
-        let axis = &self.header().axis;
         let mut leaves = Vec::new();
-        for (i, tile) in self.tiles().iter().enumerate() {
-            if !tile.may_observe(sample) {
-                continue;
-            }
-            for cell in self.read_tile(i)? {
-                if let Some(state) = cell.state_at(axis, self.model(), sample) {
-                    leaves.push(Leaf {
-                        start: cell.start,
-                        depth: cell.depth,
-                        log_odds: state.log_odds(),
-                    });
-                }
-            }
+        for tile in 0..self.tiles().len() {
+            self.observed_leaves(tile, sample, &mut leaves)?;
         }
         Snapshot::from_leaves(self.header().resolution, leaves)
             .map_err(|e| FileError::Usage(format!("{}: cells overlap: {e}", self.path().display())))

@@ -4,8 +4,8 @@ use crate::error::{corrupt, FileError, FormatViolation};
 use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
-use crate::tile::{decode_payload, decode_stored, Cell};
-use froctomap_core::{MortonCode, VoxelKey};
+use crate::tile::{decode_payload, decode_stored, walk_payload, Cell, WalkNeed};
+use froctomap_core::{Leaf, MortonCode, VoxelKey};
 use froctomap_temporal::{ModelRegistry, PreparedModel};
 use serde_json::{Map, Value};
 use std::fs::File;
@@ -157,13 +157,13 @@ impl FroctReader {
         self.model.as_ref()
     }
 
-    /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
-    pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
+    /// A tile's payload: read, checksum verified, decompressed.
+    fn tile_payload(&self, tile: usize) -> Result<(TileEntry, Vec<u8>), FileError> {
         let invalid = |violation| FileError::Invalid {
             path: self.path.clone(),
             violation,
         };
-        let entry = self
+        let entry = *self
             .tiles
             .get(tile)
             .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
@@ -178,6 +178,22 @@ impl FroctReader {
             return Err(invalid(FormatViolation::Checksum("tile")));
         }
         let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
+        Ok((entry, payload))
+    }
+
+    fn check_count(&self, entry: &TileEntry, count: usize) -> Result<(), FileError> {
+        if count != entry.cell_count as usize {
+            return Err(FileError::Invalid {
+                path: self.path.clone(),
+                violation: corrupt("tile", "cell count differs from the index"),
+            });
+        }
+        Ok(())
+    }
+
+    /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
+    pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
+        let (entry, payload) = self.tile_payload(tile)?;
         let cells = decode_payload(
             &payload,
             entry.code,
@@ -185,35 +201,92 @@ impl FroctReader {
             self.model.as_ref(),
             &self.limits,
         )
-        .map_err(invalid)?;
-        if cells.len() != entry.cell_count as usize {
-            return Err(invalid(corrupt(
-                "tile",
-                "cell count differs from the index",
-            )));
-        }
+        .map_err(|violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        })?;
+        self.check_count(&entry, cells.len())?;
         Ok(cells)
+    }
+
+    /// Appends to `out` one leaf per cell of a tile observed at `sample`, with the `.bt`
+    /// log-odds of its state (exact in lossless files), in Morton order. Streams through
+    /// the tile without building cells: the fast path of a retrieval.
+    pub fn observed_leaves(
+        &self,
+        tile: usize,
+        sample: u32,
+        out: &mut Vec<Leaf>,
+    ) -> Result<(), FileError> {
+        let (entry, payload) = self.tile_payload(tile)?;
+        if !entry.may_observe(sample) {
+            return Ok(());
+        }
+        let model = self.model.as_ref();
+        let count = walk_payload(
+            &payload,
+            entry.code,
+            self.header.tile_depth,
+            model,
+            &self.limits,
+            WalkNeed::StateAt(sample),
+            &mut |cell| {
+                if cell.observed {
+                    out.push(Leaf {
+                        start: cell.start,
+                        depth: cell.depth,
+                        log_odds: cell.state(model, sample).log_odds(),
+                    });
+                }
+            },
+        )
+        .map_err(|violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        })?;
+        self.check_count(&entry, count)
+    }
+
+    /// Appends to `out` one leaf per cell of a tile with `log_odds(p)` of its probability at
+    /// `seconds` since the first sample (any instant), in Morton order.
+    pub fn predicted_leaves(
+        &self,
+        tile: usize,
+        seconds: f64,
+        log_odds: &dyn Fn(f64) -> f32,
+        out: &mut Vec<Leaf>,
+    ) -> Result<(), FileError> {
+        let (entry, payload) = self.tile_payload(tile)?;
+        let model = self.model.as_ref();
+        let count = walk_payload(
+            &payload,
+            entry.code,
+            self.header.tile_depth,
+            model,
+            &self.limits,
+            WalkNeed::ModelOnly,
+            &mut |cell| {
+                out.push(Leaf {
+                    start: cell.start,
+                    depth: cell.depth,
+                    log_odds: log_odds(cell.probability(model, seconds)),
+                });
+            },
+        )
+        .map_err(|violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        })?;
+        self.check_count(&entry, count)
     }
 
     /// The raw streams of a tile's payload, in the order of FORMAT.md §5.2, for size analysis.
     pub fn tile_streams(&self, tile: usize) -> Result<Vec<Vec<u8>>, FileError> {
-        let invalid = |violation| FileError::Invalid {
+        let (_, payload) = self.tile_payload(tile)?;
+        crate::tile::split_streams(&payload).map_err(|violation| FileError::Invalid {
             path: self.path.clone(),
             violation,
-        };
-        let entry = self
-            .tiles
-            .get(tile)
-            .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
-        let mut stored = vec![0u8; entry.stored_len as usize];
-        self.file
-            .read_exact_at(&mut stored, entry.offset)
-            .map_err(|source| FileError::Io {
-                path: self.path.clone(),
-                source,
-            })?;
-        let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
-        crate::tile::split_streams(&payload).map_err(invalid)
+        })
     }
 
     /// Index of the tile holding a voxel, if that tile exists.

@@ -341,15 +341,83 @@ pub(crate) fn decode_stored(
     }
 }
 
-/// Parses a tile payload into its cells.
-pub(crate) fn decode_payload(
+/// What a payload walk needs of each cell's mask and outliers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum WalkNeed {
+    /// Everything (to build [`Cell`]s).
+    Everything,
+    /// Only whether the cell is observed at this sample and its state there: masks are
+    /// evaluated once per distinct mask, outlier lists only as far as the sample.
+    StateAt(u32),
+    /// Only the model (for predictions): outliers are skipped undecoded.
+    ModelOnly,
+}
+
+/// One cell as the payload walk sees it, borrowing from the tile instead of allocating.
+pub(crate) struct CellRef<'a> {
+    pub(crate) start: MortonCode,
+    pub(crate) depth: u8,
+    /// The cell's observation mask (shared by the tile), if it has one.
+    pub(crate) mask: Option<&'a Arc<Toggles>>,
+    /// The constant state, or `None` for a modelled cell.
+    pub(crate) constant: Option<Occupancy>,
+    /// A modelled cell's parameters (without outliers).
+    pub(crate) model: Option<&'a FittedVoxel>,
+    /// With [`WalkNeed::Everything`]: the cell's outlier (or exception) toggles.
+    pub(crate) outliers: &'a [u32],
+    /// With [`WalkNeed::StateAt`]: whether the cell is observed at the sample, and whether
+    /// an odd number of its outliers lie at or before it.
+    pub(crate) observed: bool,
+    pub(crate) outlier_parity: bool,
+}
+
+impl CellRef<'_> {
+    /// With [`WalkNeed::StateAt`]: the state at the sample (meaningful when observed).
+    pub(crate) fn state(&self, model: &dyn PreparedModel, sample: u32) -> Occupancy {
+        let base = match (self.constant, self.model) {
+            (Some(state), _) => state,
+            (None, Some(voxel)) => occupancy(model.probability_at_sample(voxel, sample) > 0.5),
+            (None, None) => Occupancy::Free,
+        };
+        if self.outlier_parity {
+            flip(base)
+        } else {
+            base
+        }
+    }
+
+    /// Occupancy probability at any instant.
+    pub(crate) fn probability(&self, model: &dyn PreparedModel, seconds: f64) -> f64 {
+        match (self.constant, self.model) {
+            (Some(state), _) => f64::from(u8::from(state.is_occupied())),
+            (None, Some(voxel)) => model.probability(voxel, seconds),
+            (None, None) => 0.0,
+        }
+    }
+}
+
+fn occupancy(occupied: bool) -> Occupancy {
+    if occupied {
+        Occupancy::Occupied
+    } else {
+        Occupancy::Free
+    }
+}
+
+/// Parses a tile payload, handing each cell to `visit` in Morton order, decoding only what
+/// `need` asks for. Validates the structure it reads; allocates per distinct mask and per
+/// modelled cell only.
+pub(crate) fn walk_payload(
     payload: &[u8],
     code: MortonCode,
     tile_depth: u8,
     model: &dyn PreparedModel,
     limits: &ReadLimits,
-) -> Result<Vec<Cell>, FormatViolation> {
-    let axis_len = model.axis().len();
+    need: WalkNeed,
+    visit: &mut dyn FnMut(CellRef<'_>),
+) -> Result<usize, FormatViolation> {
+    let axis = model.axis();
+    let axis_len = axis.len();
     let mut c = Cursor::new(payload, "tile");
     let count = c.count("cells per tile", 1, limits.max_cells_per_tile)?;
     if count == 0 {
@@ -390,23 +458,33 @@ pub(crate) fn decode_payload(
     }
     let distinct = distinct as usize;
     let mut mask_table = Vec::with_capacity(distinct);
+    let mut scratch = Vec::new();
     for _ in 0..distinct {
-        let toggles = masks.next_list()?;
-        if toggles.is_empty() {
+        masks.next_list_into(&mut scratch)?;
+        if scratch.is_empty() {
             return Err(corrupt(
                 "tile masks",
                 "a mask under which a cell is never observed",
             ));
         }
+        let toggles =
+            Toggles::new(scratch.clone()).map_err(|e| corrupt("tile masks", e.to_string()))?;
         mask_table.push(Arc::new(toggles));
     }
+    // For a query at one sample: each distinct mask is evaluated once, not once per cell.
+    let (sample_present, mask_observed): (bool, Vec<bool>) = match need {
+        WalkNeed::StateAt(sample) => (
+            sample < axis_len && !axis.is_missing(sample),
+            mask_table.iter().map(|m| m.parity_at(sample)).collect(),
+        ),
+        _ => (false, Vec::new()),
+    };
     let mut mask_refs = Cursor::new(mask_refs, "tile masks");
     let tile_end = code.0 + voxels_per_node(tile_depth);
     let mut geometry = Cursor::new(geometry, "tile geometry");
     let mut model_pos = 0usize;
     let frequency_limit = model.frequency_limit();
     let mut previous_end = code.0;
-    let mut cells = Vec::with_capacity(count);
     for (&depth, &class) in depths.iter().zip(classes) {
         let gap = geometry.varint()?;
         if !(tile_depth..=TREE_DEPTH).contains(&depth) {
@@ -427,53 +505,60 @@ pub(crate) fn decode_payload(
         if class & !(CLASS_KIND_MASK | CLASS_HAS_MASK | CLASS_HAS_OUTLIERS) != 0 {
             return Err(corrupt("tile", format!("reserved class bits {class:#x}")));
         }
-        let mask = if class & CLASS_HAS_MASK != 0 {
+        let (mask, mask_index) = if class & CLASS_HAS_MASK != 0 {
             let id = mask_refs.varint()?;
-            let mask = usize::try_from(id)
+            let index = usize::try_from(id)
                 .ok()
-                .and_then(|i| mask_table.get(i))
+                .filter(|&i| i < distinct)
                 .ok_or_else(|| {
                     corrupt(
                         "tile masks",
                         format!("mask index {id} beyond the {distinct} masks"),
                     )
                 })?;
-            Some(Arc::clone(mask))
+            (mask_table.get(index), Some(index))
         } else {
-            None
+            (None, None)
         };
-        let toggles = if class & CLASS_HAS_OUTLIERS != 0 {
-            let toggles = outliers.next_list()?;
-            if toggles.is_empty() {
-                return Err(corrupt(
-                    "tile outliers",
-                    "an empty outlier list is stored by leaving the flag clear",
-                ));
+        let observed = sample_present
+            && mask_index.is_none_or(|i| mask_observed.get(i).copied().unwrap_or(false));
+        scratch.clear();
+        let mut outlier_parity = false;
+        if class & CLASS_HAS_OUTLIERS != 0 {
+            match need {
+                WalkNeed::Everything => {
+                    outliers.next_list_into(&mut scratch)?;
+                    if scratch.is_empty() {
+                        return Err(corrupt(
+                            "tile outliers",
+                            "an empty outlier list is stored by leaving the flag clear",
+                        ));
+                    }
+                }
+                WalkNeed::StateAt(sample) => outlier_parity = outliers.parity_at(sample)?,
+                WalkNeed::ModelOnly => outliers.skip_list()?,
             }
-            Some(toggles)
-        } else {
-            None
-        };
-        let constant = |state: Occupancy| match toggles.clone() {
-            Some(exceptions) => CellContent::ConstantExcept { state, exceptions },
-            None => CellContent::Constant(state),
-        };
-        let content = match class & CLASS_KIND_MASK {
-            CLASS_FREE => constant(Occupancy::Free),
-            CLASS_OCCUPIED => constant(Occupancy::Occupied),
+        }
+        let (constant, voxel) = match class & CLASS_KIND_MASK {
+            CLASS_FREE => (Some(Occupancy::Free), None),
+            CLASS_OCCUPIED => (Some(Occupancy::Occupied), None),
             CLASS_MODELLED => {
                 let (voxel, used) =
                     FittedVoxel::decode(&models[model_pos..], frequency_limit, axis_len, false)?;
                 model_pos += used;
-                CellContent::Modelled(voxel.with_toggles(toggles.unwrap_or_default()))
+                (None, Some(voxel))
             }
             _ => return Err(corrupt("tile", "invalid cell class 3")),
         };
-        cells.push(Cell {
+        visit(CellRef {
             start: MortonCode(start),
             depth,
             mask,
-            content,
+            constant,
+            model: voxel.as_ref(),
+            outliers: &scratch,
+            observed,
+            outlier_parity,
         });
     }
     if !geometry.is_empty()
@@ -485,6 +570,59 @@ pub(crate) fn decode_payload(
     }
     masks.finish()?;
     outliers.finish()?;
+    Ok(count)
+}
+
+/// Parses a tile payload into its cells.
+pub(crate) fn decode_payload(
+    payload: &[u8],
+    code: MortonCode,
+    tile_depth: u8,
+    model: &dyn PreparedModel,
+    limits: &ReadLimits,
+) -> Result<Vec<Cell>, FormatViolation> {
+    let mut cells = Vec::new();
+    let mut invalid = None;
+    walk_payload(
+        payload,
+        code,
+        tile_depth,
+        model,
+        limits,
+        WalkNeed::Everything,
+        &mut |cell| {
+            let outliers = if cell.outliers.is_empty() {
+                None
+            } else {
+                match Toggles::new(cell.outliers.to_vec()) {
+                    Ok(t) => Some(t),
+                    Err(e) => {
+                        invalid.get_or_insert(e.to_string());
+                        None
+                    }
+                }
+            };
+            let content = match (cell.constant, cell.model, outliers) {
+                (Some(state), _, None) => CellContent::Constant(state),
+                (Some(state), _, Some(exceptions)) => {
+                    CellContent::ConstantExcept { state, exceptions }
+                }
+                (None, Some(voxel), toggles) => {
+                    CellContent::Modelled(voxel.clone().with_toggles(toggles.unwrap_or_default()))
+                }
+                (None, None, _) => return,
+            };
+            cells.push(Cell {
+                start: cell.start,
+                depth: cell.depth,
+                mask: cell.mask.cloned(),
+                content,
+            });
+        },
+    )?;
+    if let Some(detail) = invalid {
+        return Err(corrupt("tile outliers", detail));
+    }
     Ok(cells)
 }
 
@@ -557,13 +695,63 @@ impl<'a> ToggleColumnReader<'a> {
         self.counts.remaining()
     }
 
-    fn next_list(&mut self) -> Result<Toggles, FormatViolation> {
+    /// Skips the next list undecoded.
+    fn skip_list(&mut self) -> Result<(), FormatViolation> {
+        let count = self.counts.varint()?;
+        let (even, odd) = (count.div_ceil(2), count / 2);
+        self.starts.skip_varints(even)?;
+        self.lengths.skip_varints(odd)
+    }
+
+    /// Reads the next list only as far as needed to tell whether an odd number of its
+    /// positions are `≤ sample`, skipping the rest undecoded: the fast path of a query at
+    /// one sample. Validates less than [`next_list_into`](Self::next_list_into) (positions
+    /// after `sample` are not range-checked), which only affects what a damaged file reads
+    /// as, never memory safety.
+    fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
         let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
         let count = self.counts.varint()?;
         if count > left || count > u64::from(self.axis_len) {
             return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
         }
-        let mut positions = Vec::with_capacity(count as usize);
+        let mut next = 0u64;
+        let mut k = 0u64;
+        while k < count {
+            let column = if k % 2 == 0 {
+                &mut self.starts
+            } else {
+                &mut self.lengths
+            };
+            let position = next + column.varint()?;
+            if position > u64::from(sample) {
+                break;
+            }
+            next = position + 1;
+            k += 1;
+        }
+        let parity = k % 2 == 1;
+        if k < count {
+            // The position just read (index k) was after `sample`; skip the others.
+            let rest = count - k - 1;
+            let (even, odd) = (
+                (rest + u64::from(k % 2 == 1)) / 2,
+                (rest + u64::from(k % 2 == 0)) / 2,
+            );
+            self.starts.skip_varints(even)?;
+            self.lengths.skip_varints(odd)?;
+        }
+        Ok(parity)
+    }
+
+    /// Reads the next list into `positions` (cleared first), reusing its allocation.
+    fn next_list_into(&mut self, positions: &mut Vec<u32>) -> Result<(), FormatViolation> {
+        positions.clear();
+        let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
+        let count = self.counts.varint()?;
+        if count > left || count > u64::from(self.axis_len) {
+            return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
+        }
+        positions.reserve(count as usize);
         let mut next = 0u64;
         for k in 0..count {
             let column = if k % 2 == 0 {
@@ -578,7 +766,7 @@ impl<'a> ToggleColumnReader<'a> {
             positions.push(position as u32);
             next = position + 1;
         }
-        Toggles::new(positions).map_err(|e| corrupt(self.part, e.to_string()))
+        Ok(())
     }
 
     fn finish(&self) -> Result<(), FormatViolation> {
