@@ -1,6 +1,7 @@
 //! `froctomap`: the command-line front end of the froctomap libraries.
 
 mod commands;
+mod generate;
 mod progress;
 mod series;
 
@@ -105,6 +106,14 @@ enum Command {
     ///
     /// Example: froctomap eval office.froct --against later-maps/
     Eval(series::EvalArgs),
+    /// Write a realistic series of OctoMap snapshots made from a real map: doors (driven by
+    /// real recordings with --real-doors, or schedules), people and chairs in working hours,
+    /// objects staying for days, machines on shifts, sensor noise at surfaces and partially
+    /// observed snapshots. Deterministic for a seed. Files are named by time, with a
+    /// manifest.csv that `build` reads.
+    ///
+    /// Example: froctomap generate --days 3 --step 30min -o series/
+    Generate(generate::GenerateArgs),
 }
 
 fn main() -> ExitCode {
@@ -122,6 +131,7 @@ fn main() -> ExitCode {
         Command::Predict(args) => series::predict_command(&ui, &args),
         Command::Export(args) => series::export_command(&ui, &args),
         Command::Eval(args) => series::eval_command(&ui, &args),
+        Command::Generate(args) => generate::generate_command(&ui, &args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,153 @@
+//! `froctomap generate`: a realistic, deterministic series of OctoMap snapshots from a real
+//! base map (the sample data of the demo, the tests and the benchmarks).
+
+use crate::commands::{group_thousands, Ui};
+use crate::progress::Bars;
+use anyhow::{Context, Result};
+use clap::Args;
+use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
+use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_synth::{frames_for, write_series, Generator, SeriesSpec, WriteSeriesOptions};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Where Debian's liboctomap-dev puts the FR-079 corridor scan.
+pub const GEB079: &str = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt";
+
+#[derive(Args)]
+pub struct GenerateArgs {
+    /// Directory for the snapshots and manifest.csv (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// The real map the series is made from.
+    #[arg(long, default_value = GEB079, value_name = "FILE")]
+    base: PathBuf,
+    /// Length of the series in days.
+    #[arg(long, default_value_t = 2.0)]
+    days: f64,
+    /// Time between snapshots (e.g. 10min, 1h).
+    #[arg(long, default_value = "10min", value_name = "DURATION")]
+    step: String,
+    /// Time of the first snapshot (default 2016-01-04T00:00:00Z, a Monday).
+    #[arg(long, value_name = "TIME")]
+    start: Option<String>,
+    /// Seed of every random choice; the same seed gives the same series.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Real door recordings (`unix_time state` per line, 1 = open) that drive some doors,
+    /// e.g. ../shared/data/greg_door_2016_min/training_data.txt.
+    #[arg(long, value_name = "FILE")]
+    real_doors: Option<PathBuf>,
+    /// Uniform jitter of each snapshot time, in seconds (irregular timestamps).
+    #[arg(long, default_value_t = 0.0)]
+    jitter: f64,
+    /// Probability that a snapshot is missed entirely.
+    #[arg(long, default_value_t = 0.0)]
+    missed: f64,
+    /// Per-snapshot flip probability of surface voxels (sensor noise).
+    #[arg(long)]
+    noise: Option<f64>,
+    /// Probability that a snapshot leaves a region unobserved.
+    #[arg(long)]
+    partial: Option<f64>,
+    /// A JSON scenario (a serialised SeriesSpec) to start from.
+    #[arg(long, value_name = "FILE")]
+    spec: Option<PathBuf>,
+    /// Map format of the snapshots.
+    #[arg(long, default_value = "bt")]
+    format: String,
+}
+
+fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
+    let mut spec = match &args.spec {
+        Some(path) => serde_json::from_str(
+            &std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?,
+        )
+        .with_context(|| format!("{}: not a scenario", path.display()))?,
+        None => SeriesSpec::default(),
+    };
+    spec.step_secs = parse_duration(&args.step)? as f64 / 1e9;
+    spec.count = frames_for(args.days, spec.step_secs);
+    if let Some(start) = &args.start {
+        spec.start = parse_time(start)?;
+    }
+    spec.seed = args.seed;
+    spec.jitter_secs = args.jitter;
+    spec.missed_frames = args.missed;
+    if args.real_doors.is_some() {
+        spec.door_file.clone_from(&args.real_doors);
+    }
+    if let Some(noise) = args.noise {
+        spec.surface_noise = noise;
+    }
+    if let Some(partial) = args.partial {
+        spec.partial_probability = partial;
+    }
+    spec.validate()?;
+    Ok(spec)
+}
+
+pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
+    let spec = spec(args)?;
+    let base = FormatRegistry::with_default_formats()
+        .read_file(
+            &args.base,
+            ReadOptions {
+                format: None,
+                backend: Some(ui.backend),
+            },
+        )?
+        .map
+        .snapshot
+        .to_max_likelihood();
+    let generator = Generator::new(&base, spec, None)?;
+    for warning in generator.warnings() {
+        ui.note(&format!("warning: {warning}"));
+    }
+    let options = WriteSeriesOptions {
+        format: args.format.clone(),
+        file_pattern: "frame_{time}.{ext}".to_string(),
+        threads: 0,
+    };
+    let bars = Bars::new(ui.quiet);
+    bars.stage("writing snapshots", generator.frames().count() as u64);
+    // `write_series` reports totals done so far; the bar wants increments.
+    let done_so_far = AtomicU64::new(0);
+    let manifest = write_series(&generator, &args.output, &options, &|done, _total| {
+        let before = done_so_far.fetch_max(done, Ordering::Relaxed);
+        bars.advance(done.saturating_sub(before));
+    })?;
+    drop(bars);
+    let n = group_thousands;
+    let frames = manifest.entries.len() as u64;
+    println!(
+        "wrote {} snapshots ({} bytes) and {}",
+        n(frames),
+        n(manifest.total_bytes),
+        manifest.manifest_path().display()
+    );
+    if let (Some(first), Some(last)) = (manifest.entries.first(), manifest.entries.last()) {
+        println!(
+            "time:      {} .. {}",
+            format_iso(first.time),
+            format_iso(last.time)
+        );
+    }
+    let summary = generator.change_summary();
+    for kind in &summary.kinds {
+        println!(
+            "{:<10} {} placed, {} voxels, {} voxel-changes",
+            kind.kind.name(),
+            kind.placed,
+            n(kind.voxels as u64),
+            n(manifest.changes.of(kind.kind))
+        );
+    }
+    println!(
+        "{:<10} {} surface voxels, {} flips",
+        "noise",
+        n(summary.noise_candidates),
+        n(manifest.changes.noise)
+    );
+    Ok(())
+}
