@@ -5,7 +5,9 @@ set -euo pipefail
 
 need=()
 have_pkg() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
-for pkg in liboctomap-dev octomap-tools pkg-config g++; do
+# liboctomap-dev/octomap-tools: the upstream library and tools; zstd, xz-utils and
+# fonts-dejavu-core: the benchmark's archive baselines and plot labels.
+for pkg in liboctomap-dev octomap-tools pkg-config g++ zstd xz-utils fonts-dejavu-core; do
   have_pkg "$pkg" || need+=("$pkg")
 done
 # The interoperability tests build a venv; Debian's python3 needs python3-venv for that.

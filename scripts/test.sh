@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: installs missing system packages, prepares the second OctoMap client
-# (octomap-python in a venv), checks formatting and lints, then runs every test and doc test.
+# (octomap-python in a venv), checks formatting and lints, runs every test and doc test,
+# builds the fuzz targets and runs each on a short seeded smoke campaign.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -12,3 +13,14 @@ export FROCTOMAP_PYTHON="$venv/bin/python"
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo test --workspace --locked "$@"
+
+# The fuzz crate is its own workspace (cargo-fuzz layout); it must keep building, and each
+# target runs briefly from the fixtures so a crash cannot hide.
+cargo build --locked --manifest-path fuzz/Cargo.toml
+corpus=$(mktemp -d)
+trap 'rm -rf "$corpus"' EXIT
+for target in read_bt read_ot roundtrip; do
+  mkdir -p "$corpus/$target"
+  cp fixtures/octomap/* "$corpus/$target/"
+  fuzz/target/debug/$target -runs=50000 -max_len=4096 -seed=1 "$corpus/$target" 2>&1 | tail -n 1
+done

@@ -139,7 +139,7 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
             "{:<10} {} placed, {} voxels, {} voxel-changes",
             kind.kind.name(),
             kind.placed,
-            n(kind.voxels as u64),
+            n(kind.voxels),
             n(manifest.changes.of(kind.kind))
         );
     }
