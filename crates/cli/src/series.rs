@@ -7,8 +7,8 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, export, format_iso, observed_map, parse_duration,
-    parse_time, predicted_map, resolve_observed, write_map, BuildOptions, EvalReport, ExportMode,
-    ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    parse_time, predicted_map, resolve_observed, write_map, BuildOptions, ClassCounts, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_file::{Codec, FroctReader};
 use froctomap_formats::{FormatRegistry, ReadOptions};
@@ -157,6 +157,19 @@ fn model_config(args: &BuildArgs) -> Result<ModelConfig> {
     Ok(config)
 }
 
+/// `N (a static free, b static occupied, c dynamic, d sometimes unknown)`.
+fn class_counts(c: &ClassCounts) -> String {
+    let n = group_thousands;
+    format!(
+        "{} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
+        n(c.total()),
+        n(c.static_free),
+        n(c.static_occupied),
+        n(c.dynamic),
+        n(c.unknown_sometimes)
+    )
+}
+
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
@@ -236,14 +249,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
                 "explicit"
             }
         );
-        println!(
-            "cells:       {} ({} static free, {} static occupied, {} dynamic; {} sometimes unknown)",
-            n(report.cells.total()),
-            n(report.cells.static_free),
-            n(report.cells.static_occupied),
-            n(report.cells.dynamic),
-            n(report.cells.unknown_sometimes)
-        );
+        println!("cells:       {}", class_counts(&report.cells));
         println!(
             "voxels:      {} ({} dynamic)",
             n(report.voxels.total()),
@@ -599,22 +605,8 @@ pub fn froct_info(path: &Path, json: bool, count: bool) -> Result<()> {
         }
     );
     println!("model:           {} ({})", info.model, info.outliers);
-    println!(
-        "cells:           {} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
-        n(info.cells.total()),
-        n(info.cells.static_free),
-        n(info.cells.static_occupied),
-        n(info.cells.dynamic),
-        n(info.cells.unknown_sometimes)
-    );
-    println!(
-        "voxels:          {} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
-        n(info.voxels.total()),
-        n(info.voxels.static_free),
-        n(info.voxels.static_occupied),
-        n(info.voxels.dynamic),
-        n(info.voxels.unknown_sometimes)
-    );
+    println!("cells:           {}", class_counts(&info.cells));
+    println!("voxels:          {}", class_counts(&info.voxels));
     println!(
         "size:            header {} + tiles {} + index {} bytes",
         n(info.size.header),

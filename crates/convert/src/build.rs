@@ -76,7 +76,8 @@ pub struct ClassCounts {
 }
 
 impl ClassCounts {
-    fn add(&mut self, other: &ClassCounts) {
+    /// Adds another count.
+    pub fn add(&mut self, other: &ClassCounts) {
         self.static_free += other.static_free;
         self.static_occupied += other.static_occupied;
         self.dynamic += other.dynamic;
@@ -641,18 +642,6 @@ impl TileStats {
     }
 }
 
-/// Observed sample ranges `[first, end)` of a cell.
-pub(crate) fn observed_ranges(obs: &VoxelObservations) -> Vec<(u32, u64)> {
-    let mut ranges: Vec<(u32, u64)> = Vec::new();
-    for run in obs.runs() {
-        match ranges.last_mut() {
-            Some(last) if last.1 == u64::from(run.first) => last.1 = run.end(),
-            _ => ranges.push((run.first, run.end())),
-        }
-    }
-    ranges
-}
-
 /// `true` for a probability OctoMap would clamp (below 0.1192 or above 0.971).
 fn outside_clamping(p: f64) -> bool {
     use froctomap_core::defaults::{CLAMPING_MAX, CLAMPING_MIN};
@@ -670,7 +659,7 @@ fn encode_cells(
     let mut out = Vec::with_capacity(cells.len());
     for (start, depth, obs) in cells {
         let voxels = froctomap_core::voxels_per_node(*depth);
-        let mask = mask_from_ranges(axis, &observed_ranges(obs));
+        let mask = mask_from_ranges(axis, &obs.observed_ranges());
         if mask.is_some() {
             stats.cells.unknown_sometimes += 1;
             stats.voxels.unknown_sometimes += voxels;

@@ -197,14 +197,8 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
     let mut cells = ClassCounts::default();
     let mut voxels = ClassCounts::default();
     for (c, v) in per_tile {
-        cells.static_free += c.static_free;
-        cells.static_occupied += c.static_occupied;
-        cells.dynamic += c.dynamic;
-        cells.unknown_sometimes += c.unknown_sometimes;
-        voxels.static_free += v.static_free;
-        voxels.static_occupied += v.static_occupied;
-        voxels.dynamic += v.dynamic;
-        voxels.unknown_sometimes += v.unknown_sometimes;
+        cells.add(&c);
+        voxels.add(&v);
     }
     Ok((cells, voxels))
 }

@@ -2,7 +2,7 @@
 
 use crate::error::ConvertError;
 use crate::time::{check_range, parse_time, time_from_file_name};
-use froctomap_core::Timestamp;
+use froctomap_core::{calendar, Timestamp};
 use froctomap_formats::FormatRegistry;
 use std::path::{Path, PathBuf};
 
@@ -251,18 +251,11 @@ pub fn manifest_text(dir: &Path, entries: &[SeriesInput]) -> String {
     let mut out = String::from("path,time\n");
     for e in entries {
         let rel = e.path.strip_prefix(dir).unwrap_or(&e.path);
-        out.push_str(&format!("{},{}\n", rel.display(), unix_seconds(e.time)));
+        out.push_str(&format!(
+            "{},{}\n",
+            rel.display(),
+            calendar::unix_seconds(e.time)
+        ));
     }
     out
-}
-
-/// Unix seconds with up to nine decimals, no trailing zeros.
-pub fn unix_seconds(t: Timestamp) -> String {
-    let secs = t.0.div_euclid(1_000_000_000);
-    let nanos = t.0.rem_euclid(1_000_000_000);
-    if nanos == 0 {
-        secs.to_string()
-    } else {
-        format!("{secs}.{}", format!("{nanos:09}").trim_end_matches('0'))
-    }
 }

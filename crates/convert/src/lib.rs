@@ -41,11 +41,10 @@ mod time;
 pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
 pub use error::ConvertError;
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
+pub use froctomap_core::calendar::unix_seconds;
 pub use history::{changes, Change, SeriesHistory};
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
-pub use inputs::{
-    collect_inputs, manifest_text, unix_seconds, SeriesInput, TimeSource, MANIFEST_NAME,
-};
+pub use inputs::{collect_inputs, manifest_text, SeriesInput, TimeSource, MANIFEST_NAME};
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
     ExportMode, ExportOptions, ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,

