@@ -1,1 +1,76 @@
-fn main() {}
+//! `froctomap-bench`: where froctomap stands, in numbers, on a series that looks like a
+//! real long-term deployment.
+//!
+//! * `froctomap-bench generate` writes a deterministic series of `.bt` snapshots plus
+//!   `manifest.csv` from a real base map (the `froctomap-synth` generator: doors driven by
+//!   the real door recording and by schedules, people, chairs, objects, machines, surface
+//!   noise, partial views, optional jitter and missed frames). It streams: memory does not
+//!   grow with the number of frames.
+//! * `froctomap-bench run --size ci|week|4weeks|<days>` generates a training series and the
+//!   held-out days after it, then measures in one process, on the same files: storage
+//!   (raw `.bt`, `tar | zstd -19 --long=31`, `tar | xz -9`, froctomap lossless and lossy at
+//!   orders 0–5, ratio against raw states), time (`build` against the C++ library's
+//!   read-only time, `retrieve`/`predict` of one snapshot against one C++ read, peak memory
+//!   at two series lengths) and accuracy (reconstruction and prediction error against the
+//!   static-mean and last-seen baselines). It prints markdown tables and writes
+//!   `results.json` and PNG plots. `scripts/bench.sh` runs it in one line; what each number
+//!   means is in `docs/BENCHMARKS.md`.
+//!
+//! Builds run as child processes of this binary (a hidden `build-child` subcommand) so that
+//! each one's peak memory (`VmHWM`) is its own.
+
+mod dataset;
+mod generate;
+mod plots;
+mod report;
+mod run;
+mod size;
+mod system;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+// The same allocator as the `froctomap` CLI, so builds here cost what they cost there.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+/// Long-term benchmark of froctomap: realistic series, storage, time and accuracy against
+/// tar | zstd, xz and the upstream OctoMap library.
+#[derive(Parser)]
+#[command(name = "froctomap-bench", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write a deterministic series of OctoMap snapshots (.bt) and manifest.csv.
+    ///
+    /// Example: froctomap-bench generate --days 28 --step 10min -o /work/data/w4
+    Generate(generate::GenerateArgs),
+    /// Generate a series and measure storage, time and accuracy; print markdown, write
+    /// results.json and PNG plots.
+    ///
+    /// Example: froctomap-bench run --size 4weeks --out bench-out
+    Run(run::RunArgs),
+    /// Build one file and print the report with this process's peak memory as JSON.
+    #[command(hide = true)]
+    BuildChild(run::BuildChildArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Generate(args) => generate::generate(&args),
+        Command::Run(args) => run::run(&args),
+        Command::BuildChild(args) => run::build_child(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

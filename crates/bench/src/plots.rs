@@ -76,9 +76,11 @@ pub fn lines(
     } else {
         (0.0, 1.0)
     };
-    let (y0, y1) = ys.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| {
-        (a.min(y), b.max(y))
-    });
+    let (y0, y1) = ys
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| {
+            (a.min(y), b.max(y))
+        });
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
     let pad_x = (x1 - x0) * 0.02;
@@ -101,6 +103,8 @@ pub fn lines(
             .x_desc(x_label)
             .y_desc(y_label)
             .label_style(("sans-serif", 15))
+            .x_labels(x_ticks(x0, x1))
+            .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&|v| short_number(*v))
             .draw()
             .map_err(err)?;
@@ -131,6 +135,8 @@ pub fn lines(
             .x_desc(x_label)
             .y_desc(y_label)
             .label_style(("sans-serif", 15))
+            .x_labels(x_ticks(x0, x1))
+            .x_label_formatter(&|v| format!("{v:.0}"))
             .draw()
             .map_err(err)?;
         draw_series(&mut chart, lines, levels, (x0 - pad_x, x1 + pad_x))?;
@@ -169,11 +175,7 @@ where
             .label(line.name.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
         chart
-            .draw_series(
-                line.points
-                    .iter()
-                    .map(|&p| Circle::new(p, 4, c.filled())),
-            )
+            .draw_series(line.points.iter().map(|&p| Circle::new(p, 4, c.filled())))
             .map_err(err)?;
     }
     for (k, level) in levels.iter().enumerate() {
@@ -195,6 +197,11 @@ where
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
     Ok(())
+}
+
+/// One tick per integer of the x range (the x axes here are model orders).
+fn x_ticks(x0: f64, x1: f64) -> usize {
+    ((x1 - x0).round().max(1.0) as usize + 1).min(20)
 }
 
 /// `1.5M`, `230k`, `12`: axis labels of a log scale.
@@ -339,8 +346,18 @@ mod tests {
             y: 2.5,
         };
         let png = dir.path().join("lines.png");
-        lines(&png, "t", "x", "y", &[line.clone()], &[level.clone()], false).unwrap();
-        lines(&png, "t", "x", "y", &[line.clone()], &[level], true).unwrap();
+        let one_line = std::slice::from_ref(&line);
+        lines(
+            &png,
+            "t",
+            "x",
+            "y",
+            one_line,
+            std::slice::from_ref(&level),
+            false,
+        )
+        .unwrap();
+        lines(&png, "t", "x", "y", one_line, &[level], true).unwrap();
         assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
         let png = dir.path().join("voxel.png");
         voxel(

@@ -392,7 +392,8 @@ impl Results {
                 measured: format!(
                     "{} ({} vs {})",
                     times(r),
-                    self.build(name).map_or("n/a".into(), |b| duration(b.seconds)),
+                    self.build(name)
+                        .map_or("n/a".into(), |b| duration(b.seconds)),
                     duration(read)
                 ),
                 met: r.map(|r| r <= limit),
@@ -753,10 +754,7 @@ mod tests {
             &[Align::Left, Align::Right],
             &[vec!["x".into(), "1".into()], vec!["only".into()]],
         );
-        assert_eq!(
-            t,
-            "| a | b\\|c |\n| --- | ---: |\n| x | 1 |\n| only |  |\n"
-        );
+        assert_eq!(t, "| a | b\\|c |\n| --- | ---: |\n| x | 1 |\n| only |  |\n");
     }
 
     #[test]
@@ -821,7 +819,10 @@ mod tests {
             ],
             time: TimeResults {
                 cpp_read_all_seconds: 100.0,
-                builds: vec![build(rows::BUILD_NATIVE, 11.0), build(rows::BUILD_FFI, 110.0)],
+                builds: vec![
+                    build(rows::BUILD_NATIVE, 11.0),
+                    build(rows::BUILD_FFI, 110.0),
+                ],
                 cpp_read_one_seconds: 0.08,
                 retrieve_seconds: 0.02,
                 ..TimeResults::default()

@@ -46,7 +46,11 @@ pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
     if !(heldout > 0.0 && heldout <= 365.0) {
         bail!("--heldout-days {heldout}: must be more than 0 and at most 365");
     }
-    let short = if train >= 4.0 { train / 4.0 } else { train / 2.0 };
+    let short = if train >= 4.0 {
+        train / 4.0
+    } else {
+        train / 2.0
+    };
     Ok(Plan {
         train_days: train,
         heldout_days: heldout,
@@ -57,9 +61,9 @@ pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
 fn number(text: &str, size: &str) -> Result<f64> {
     match text.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => bail!(
-            "--size {size:?}: expected ci, week, 4weeks, <n>weeks, <n>d or a number of days"
-        ),
+        _ => {
+            bail!("--size {size:?}: expected ci, week, 4weeks, <n>weeks, <n>d or a number of days")
+        }
     }
 }
 
@@ -70,10 +74,16 @@ mod tests {
     #[test]
     fn sizes() {
         let p = plan("ci", None).unwrap();
-        assert_eq!((p.train_days, p.heldout_days, p.short_days), (2.0, 1.0, 1.0));
+        assert_eq!(
+            (p.train_days, p.heldout_days, p.short_days),
+            (2.0, 1.0, 1.0)
+        );
         assert_eq!(plan("week", None).unwrap().train_days, 7.0);
         let p = plan("4weeks", None).unwrap();
-        assert_eq!((p.train_days, p.heldout_days, p.short_days), (28.0, 2.0, 7.0));
+        assert_eq!(
+            (p.train_days, p.heldout_days, p.short_days),
+            (28.0, 2.0, 7.0)
+        );
         assert_eq!(plan("12w", None).unwrap().train_days, 84.0);
         assert_eq!(plan("1week", None).unwrap().train_days, 7.0);
         assert_eq!(plan("3d", Some(0.5)).unwrap().heldout_days, 0.5);

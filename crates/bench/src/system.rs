@@ -53,7 +53,13 @@ pub fn check_tools() -> Result<Vec<String>> {
                 } else {
                     text.into_owned()
                 };
-                versions.push(text.lines().next().unwrap_or(tool.program).trim().to_string());
+                versions.push(
+                    text.lines()
+                        .next()
+                        .unwrap_or(tool.program)
+                        .trim_matches(|c: char| c == '*' || c.is_whitespace())
+                        .to_string(),
+                );
             }
             _ => missing.push(tool),
         }

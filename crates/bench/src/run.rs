@@ -1,0 +1,892 @@
+//! `froctomap-bench run`: one series, every measurement, one report.
+
+use crate::dataset::{self, spread};
+use crate::generate::{door_file, step_seconds, DEFAULT_BASE};
+use crate::plots::{self, Level, Line, VoxelPlot};
+use crate::report::{
+    median, rows, AccuracyRow, BuildRow, Dataset, Errors, MemoryRow, Results, StorageRow,
+    TimeResults,
+};
+use crate::size::{plan, Plan};
+use crate::system::{self, peak_memory_bytes, tar_through, FONT};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use froctomap_convert::{
+    build, collect_inputs, describe, evaluate, format_iso, observed_map, predicted_map,
+    unix_seconds, write_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
+};
+use froctomap_core::{MortonCode, Occupancy, Timestamp};
+use froctomap_file::{Cell, CellContent, FroctReader};
+use froctomap_formats::{Backend, FormatRegistry, ReadOptions};
+use froctomap_synth::{DoorDriver, ElementKind, Generator, SeriesSpec};
+use froctomap_temporal::{ModelConfig, Order, OutlierMode};
+use rayon::prelude::*;
+use serde_json::Value;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+/// Options of `run`.
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Training span: ci (2 days, 1 held out), week, 4weeks, <n>weeks, <n>d, or days.
+    #[arg(long, default_value = "ci")]
+    size: String,
+    /// Time between snapshots (e.g. 10min, 600, 1h).
+    #[arg(long, default_value = "10min")]
+    step: String,
+    /// Held-out days after the training span (default 1 for ci, else 2).
+    #[arg(long)]
+    heldout_days: Option<f64>,
+    /// Where results.json, results.md and the PNG plots go.
+    #[arg(long, default_value = "target/bench")]
+    out: PathBuf,
+    /// Where the series and the built files go (default: a temporary directory, removed at
+    /// the end unless --keep-data). A directory that already holds the same series is reused.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Keep the temporary data directory.
+    #[arg(long)]
+    keep_data: bool,
+    /// Seed of the generator.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Base map (.bt or .ot).
+    #[arg(long, default_value = DEFAULT_BASE)]
+    base: PathBuf,
+    /// Real door series (default: shared/data/greg_door_2016_min/training_data.txt beside
+    /// the checkout).
+    #[arg(long)]
+    real_doors: Option<PathBuf>,
+    /// The froctomap CLI to time as a process (default: `froctomap` beside this binary;
+    /// skipped when absent).
+    #[arg(long)]
+    cli: Option<PathBuf>,
+    /// Runs behind each single-snapshot median.
+    #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeats: u32,
+    /// Highest fixed order of the lossy files (0..=N), and the auto order's maximum.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(0..=16))]
+    max_order: u8,
+    /// Training snapshots used as reconstruction ground truth (evenly spread).
+    #[arg(long, default_value_t = 48)]
+    reconstruction_truths: usize,
+    /// Held-out maps used as prediction ground truth (evenly spread).
+    #[arg(long, default_value_t = 144)]
+    prediction_truths: usize,
+    /// Skip the lossless build through the C++ reader (it takes about as long as reading
+    /// every file with the C++ library).
+    #[arg(long)]
+    skip_cpp_build: bool,
+    /// Skip the xz baseline (slow on large series).
+    #[arg(long)]
+    skip_xz: bool,
+}
+
+/// Options of the hidden `build-child`.
+#[derive(Args, Debug)]
+pub struct BuildChildArgs {
+    /// Inputs (a manifest or directory).
+    #[arg(long)]
+    input: PathBuf,
+    /// The file to write.
+    #[arg(long)]
+    output: PathBuf,
+    /// Fixed order (default: auto up to --max-order).
+    #[arg(long)]
+    order: Option<u8>,
+    /// Highest auto order.
+    #[arg(long, default_value_t = 5)]
+    max_order: u8,
+    /// Lossy (no outliers).
+    #[arg(long)]
+    lossy: bool,
+    /// Read the inputs with the upstream C++ library.
+    #[arg(long)]
+    cpp_reader: bool,
+}
+
+/// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
+pub fn build_child(args: &BuildChildArgs) -> Result<()> {
+    let registry = FormatRegistry::with_default_formats();
+    let inputs = collect_inputs(
+        std::slice::from_ref(&args.input),
+        TimeSource::Auto,
+        &registry,
+    )?;
+    let config = ModelConfig::default()
+        .with_order(match args.order {
+            Some(n) => Order::Fixed(n),
+            None => Order::Auto {
+                max: args.max_order,
+            },
+        })
+        .with_outliers(if args.lossy {
+            OutlierMode::Lossy
+        } else {
+            OutlierMode::Lossless
+        });
+    config.validate()?;
+    let options = BuildOptions {
+        config,
+        backend: Some(if args.cpp_reader {
+            Backend::Octomap
+        } else {
+            Backend::Native
+        }),
+        ..BuildOptions::default()
+    };
+    let started = Instant::now();
+    let report = build(&inputs, &args.output, &options, &Silent)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let value = serde_json::json!({
+        "report": report,
+        "seconds": seconds,
+        "peak_memory_bytes": peak_memory_bytes(),
+    });
+    println!("{value}");
+    Ok(())
+}
+
+/// Runs `build-child` as a process and reads its report.
+fn spawn_build(
+    name: &str,
+    input: &Path,
+    output: &Path,
+    order: Option<u8>,
+    max_order: u8,
+    lossy: bool,
+    cpp_reader: bool,
+) -> Result<BuildRow> {
+    let exe = std::env::current_exe().context("cannot find this executable")?;
+    let mut command = Command::new(exe);
+    command
+        .arg("build-child")
+        .arg("--input")
+        .arg(input)
+        .arg("--output")
+        .arg(output)
+        .arg("--max-order")
+        .arg(max_order.to_string());
+    if let Some(n) = order {
+        command.arg("--order").arg(n.to_string());
+    }
+    if lossy {
+        command.arg("--lossy");
+    }
+    if cpp_reader {
+        command.arg("--cpp-reader");
+    }
+    let out = command
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .with_context(|| format!("starting the build of {name}"))?;
+    if !out.status.success() {
+        bail!("the build of {name} failed ({})", out.status);
+    }
+    let value: Value = serde_json::from_slice(&out.stdout)
+        .with_context(|| format!("reading the report of the build of {name}"))?;
+    let report = &value["report"];
+    let f = |v: &Value| v.as_f64().unwrap_or(0.0);
+    Ok(BuildRow {
+        name: name.to_string(),
+        frames: report["used"].as_u64().unwrap_or(0) as usize,
+        seconds: f(&value["seconds"]),
+        read_seconds: f(&report["read_seconds"]),
+        model_seconds: f(&report["model_seconds"]),
+        peak_memory_bytes: value["peak_memory_bytes"].as_u64(),
+        file_bytes: report["file_bytes"].as_u64().unwrap_or(0),
+    })
+}
+
+/// Median seconds of `repeats` runs of `f` after one warm-up run.
+fn timed(repeats: u32, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
+    f()?;
+    let mut times = Vec::with_capacity(repeats as usize);
+    for _ in 0..repeats {
+        let started = Instant::now();
+        f()?;
+        times.push(started.elapsed().as_secs_f64());
+    }
+    median(&times).context("no timing")
+}
+
+/// Reads every file with the C++ library, in parallel on `threads` threads.
+fn cpp_read_all(inputs: &[SeriesInput], threads: usize) -> Result<(f64, u64)> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("thread pool")?;
+    let started = Instant::now();
+    let leaves = pool.install(|| {
+        inputs
+            .par_iter()
+            .map(|input| -> Result<u64> {
+                let bytes = std::fs::read(&input.path)
+                    .with_context(|| format!("reading {}", input.path.display()))?;
+                let tree = froctomap_octomap_ffi::OcTree::read_binary(&bytes)
+                    .with_context(|| format!("C++ read of {}", input.path.display()))?;
+                Ok(tree.tree.leaf_count())
+            })
+            .collect::<Result<Vec<u64>>>()
+    })?;
+    Ok((started.elapsed().as_secs_f64(), leaves.iter().sum()))
+}
+
+/// The errors a method makes, by name, from one evaluation.
+fn method(report: &EvalReport, name: &str) -> (Errors, Errors) {
+    let find = |rows: &[(String, froctomap_convert::ErrorRates)]| {
+        rows.iter()
+            .find(|(m, _)| m == name)
+            .map(|(_, r)| Errors::from_rates(r))
+            .unwrap_or_default()
+    };
+    (find(&report.reconstruction), find(&report.prediction))
+}
+
+/// Evaluates one file against the ground truths.
+fn evaluate_file(path: &Path, truths: &[SeriesInput]) -> Result<EvalReport> {
+    let reader = FroctReader::open(path)?;
+    let map = LoadedMap::load(&reader)?;
+    Ok(evaluate(&map, truths, ReadOptions::default(), &Silent)?)
+}
+
+/// The cell holding `voxel` in a file.
+fn cell_of(
+    reader: &FroctReader,
+    cache: &mut HashMap<usize, Vec<Cell>>,
+    voxel: MortonCode,
+) -> Result<Option<Cell>> {
+    let Some(tile) = reader.tile_containing(voxel) else {
+        return Ok(None);
+    };
+    if let std::collections::hash_map::Entry::Vacant(e) = cache.entry(tile) {
+        e.insert(reader.read_tile(tile)?);
+    }
+    Ok(cache
+        .get(&tile)
+        .and_then(|cells| {
+            cells
+                .iter()
+                .find(|c| c.start.0 <= voxel.0 && voxel.0 < c.end())
+        })
+        .cloned())
+}
+
+/// Plots one door voxel's `p(t)` against its observations and the held-out truth.
+fn plot_voxel(
+    generator: &Generator,
+    files: &[(String, PathBuf)],
+    train: &[SeriesInput],
+    heldout: &[(SeriesInput, u64)],
+    out: &Path,
+) -> Result<Option<String>> {
+    let elements = generator.elements();
+    let door = elements
+        .iter()
+        .find(|e| {
+            e.kind == ElementKind::Door && matches!(e.door_driver, Some(DoorDriver::Real { .. }))
+        })
+        .or_else(|| elements.iter().find(|e| e.kind == ElementKind::Door))
+        .or_else(|| elements.first());
+    let Some(door) = door else {
+        return Ok(None);
+    };
+    let Some((_, first_path)) = files.first() else {
+        return Ok(None);
+    };
+    let reader = FroctReader::open(first_path)?;
+    let mut cache = HashMap::new();
+    let mut chosen = None;
+    for &v in &door.voxels {
+        if let Some(cell) = cell_of(&reader, &mut cache, v)? {
+            let modelled = matches!(cell.content, CellContent::Modelled(_));
+            if modelled || chosen.is_none() {
+                chosen = Some((v, cell));
+            }
+            if modelled {
+                break;
+            }
+        }
+    }
+    let Some((voxel, cell)) = chosen else {
+        return Ok(None);
+    };
+    let axis = reader.header().axis.clone();
+    let start = axis.start();
+    let (Some(last_train), Some(last)) = (train.last(), heldout.last().or(None)) else {
+        return Ok(None);
+    };
+    let window_days = 3.0f64.min(last_train.time.secs_since(start) / 86_400.0);
+    let from = Timestamp(last_train.time.0 - (window_days * 86_400e9) as i64);
+    let days = |t: Timestamp| t.secs_since(from) / 86_400.0;
+    let step_ns = train
+        .windows(2)
+        .next()
+        .map_or(600_000_000_000, |w| w[1].time.0 - w[0].time.0)
+        .max(1);
+    let mut curves = Vec::new();
+    for (name, path) in files {
+        let reader = FroctReader::open(path)?;
+        let mut cache = HashMap::new();
+        let Some(cell) = cell_of(&reader, &mut cache, voxel)? else {
+            continue;
+        };
+        let model = reader.model();
+        let mut points = Vec::new();
+        let mut t = from;
+        while t <= last.0.time {
+            points.push((days(t), cell.probability(model, t.secs_since(start))));
+            t = Timestamp(t.0 + step_ns / 2);
+        }
+        curves.push(Line {
+            name: name.clone(),
+            points,
+        });
+    }
+    let model = reader.model();
+    let observed: Vec<(f64, f64)> = train
+        .iter()
+        .filter(|s| s.time >= from)
+        .filter_map(|s| {
+            let k = axis.index_of(s.time)?;
+            let state = cell.state_at(&axis, model, k)?;
+            Some((days(s.time), if state.is_occupied() { 1.0 } else { 0.0 }))
+        })
+        .collect();
+    let key = voxel.key();
+    let truth: Vec<(f64, f64)> = heldout
+        .iter()
+        .filter_map(|(s, index)| {
+            let state = generator.truth_state(*index, key).ok()??;
+            Some((
+                days(s.time),
+                if state == Occupancy::Occupied {
+                    1.0
+                } else {
+                    0.0
+                },
+            ))
+        })
+        .collect();
+    let c = key.center(generator.base().resolution());
+    let driver = door
+        .door_driver
+        .as_ref()
+        .map_or_else(|| door.kind.to_string(), ToString::to_string);
+    let title = format!(
+        "{} voxel at ({:.2}, {:.2}, {:.2}) m: {driver}",
+        door.kind, c[0], c[1], c[2]
+    );
+    let x_label = format!("days since {}", format_iso(from));
+    plots::voxel(
+        &out.join("voxel_pt.png"),
+        &VoxelPlot {
+            title: &title,
+            curves: &curves,
+            observed: &observed,
+            truth: &truth,
+            train_end: days(last_train.time),
+            x_label: &x_label,
+        },
+    )?;
+    Ok(Some(title))
+}
+
+/// Everything `run` does.
+pub fn run(args: &RunArgs) -> Result<()> {
+    let started = Instant::now();
+    let Plan {
+        train_days,
+        heldout_days,
+        short_days,
+    } = plan(&args.size, args.heldout_days)?;
+    let step = step_seconds(&args.step)?;
+    let tools = system::check_tools()?;
+    plots::register_font(system::load_font(Path::new(FONT))?)?;
+    let doors = door_file(args.real_doors.as_deref())?;
+    let threads = rayon::current_num_threads();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let temp;
+    let root = match &args.data {
+        Some(dir) => dir.clone(),
+        None => {
+            temp = tempfile::Builder::new()
+                .prefix("froctomap-bench-")
+                .tempdir()
+                .context("creating a temporary directory")?;
+            if args.keep_data {
+                temp.keep()
+            } else {
+                temp.path().to_path_buf()
+            }
+        }
+    };
+    std::fs::create_dir_all(&root).with_context(|| format!("creating {}", root.display()))?;
+    let note = |m: &str| eprintln!("[{:>6.0} s] {m}", started.elapsed().as_secs_f64());
+    note(&format!("data in {}", root.display()));
+
+    // The series.
+    let base = FormatRegistry::with_default_formats()
+        .read_file(&args.base, ReadOptions::default())
+        .with_context(|| format!("reading the base map {}", args.base.display()))?
+        .map
+        .snapshot;
+    let spec = SeriesSpec {
+        seed: args.seed,
+        door_file: Some(doors.clone()),
+        ..SeriesSpec::with_duration(train_days + heldout_days, step)
+    };
+    let train_count = froctomap_synth::frames_for(train_days, step);
+    if train_count >= spec.count {
+        bail!("the held-out span is shorter than one step");
+    }
+    let generator = Generator::new(&base, spec, None)?;
+    for warning in generator.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    let written = dataset::write(&generator, &args.base, train_count, &root, &|m| note(m))?;
+    note(&format!(
+        "series: {} training snapshots, {} held-out maps{}",
+        written.train.len(),
+        written.heldout.len(),
+        if written.reused { " (reused)" } else { "" }
+    ));
+    let train = &written.train;
+    let train_dir = root.join("train");
+    let mut bt_bytes = 0u64;
+    // Read every file once so that every measurement starts from the page cache.
+    for input in train {
+        bt_bytes += std::fs::read(&input.path)
+            .with_context(|| format!("reading {}", input.path.display()))?
+            .len() as u64;
+    }
+    let summary = generator.change_summary();
+    let mut elements: Vec<String> = summary
+        .kinds
+        .iter()
+        .map(|k| {
+            format!(
+                "{}: {} of {} placed, {} voxels",
+                k.kind, k.placed, k.requested, k.voxels
+            )
+        })
+        .collect();
+    let real = generator
+        .elements()
+        .iter()
+        .filter(|e| matches!(e.door_driver, Some(DoorDriver::Real { .. })))
+        .count();
+    elements.push(format!(
+        "doors on the real recording: {real}; surface noise: {} candidate voxels, {:.0} flips per frame; partial views: {:.0} % of frames",
+        summary.noise_candidates,
+        summary.noise_flips_per_frame,
+        100.0 * generator.spec().partial_probability
+    ));
+
+    // The C++ read-only baseline.
+    note("C++ library reading every training file");
+    let (cpp_read_all_seconds, cpp_read_leaves) = cpp_read_all(train, threads)?;
+
+    // Builds, each in its own process.
+    let train_manifest = train_dir.join("manifest.csv");
+    let lossless = root.join("lossless.froct");
+    let mut builds = Vec::new();
+    note("building lossless (native reader)");
+    builds.push(spawn_build(
+        rows::BUILD_NATIVE,
+        &train_manifest,
+        &lossless,
+        None,
+        args.max_order,
+        false,
+        false,
+    )?);
+    if !args.skip_cpp_build {
+        note("building lossless (C++ reader)");
+        builds.push(spawn_build(
+            rows::BUILD_FFI,
+            &train_manifest,
+            &root.join("lossless-cpp.froct"),
+            None,
+            args.max_order,
+            false,
+            true,
+        )?);
+    }
+    let mut lossy_files = Vec::new();
+    for n in 0..=args.max_order {
+        note(&format!("building lossy, order {n}"));
+        let path = root.join(format!("lossy-{n}.froct"));
+        builds.push(spawn_build(
+            &rows::lossy(n),
+            &train_manifest,
+            &path,
+            Some(n),
+            args.max_order,
+            true,
+            false,
+        )?);
+        lossy_files.push((n, path));
+    }
+    let short_frames =
+        froctomap_synth::frames_for(short_days, step).min(train.len() as u64) as usize;
+    let short_manifest = dataset::prefix_manifest(train, &root, short_frames)?;
+    note(&format!(
+        "building lossless from the first {short_frames} snapshots (memory)"
+    ));
+    let short = spawn_build(
+        &format!("build lossless, first {short_frames} snapshots"),
+        &short_manifest,
+        &root.join("short.froct"),
+        None,
+        args.max_order,
+        false,
+        false,
+    )?;
+    let full = builds[0].clone();
+    let memory = vec![
+        MemoryRow {
+            frames: short.frames,
+            days: short_days,
+            peak_memory_bytes: short.peak_memory_bytes,
+            seconds: short.seconds,
+            file_bytes: short.file_bytes,
+        },
+        MemoryRow {
+            frames: full.frames,
+            days: train_days,
+            peak_memory_bytes: full.peak_memory_bytes,
+            seconds: full.seconds,
+            file_bytes: full.file_bytes,
+        },
+    ];
+    builds.push(short);
+
+    // Archive baselines.
+    note("tar | zstd -19 --long=31 -T0");
+    let zstd = tar_through(&train_dir, "zstd", &["-19", "--long=31", "-T0", "-q", "-c"])?;
+    let xz = if args.skip_xz {
+        None
+    } else {
+        note("tar | xz -9 -T0");
+        Some(tar_through(&train_dir, "xz", &["-9", "-T0", "-c"])?)
+    };
+
+    // Sizes.
+    let lossless_reader = FroctReader::open(&lossless)?;
+    let info = describe(&lossless_reader, false)?;
+    let raw_state_bytes = info.voxels.total() as f64 * f64::from(info.time.samples) / 8.0;
+    let vs_states = |bytes: u64| crate::report::ratio(raw_state_bytes, bytes as f64);
+    let mut storage = vec![
+        StorageRow {
+            name: rows::RAW.into(),
+            bytes: bt_bytes,
+            seconds: None,
+            vs_raw_states: vs_states(bt_bytes),
+            order: None,
+        },
+        StorageRow {
+            name: rows::ZSTD.into(),
+            bytes: zstd.bytes,
+            seconds: Some(zstd.seconds),
+            vs_raw_states: vs_states(zstd.bytes),
+            order: None,
+        },
+    ];
+    if let Some(xz) = xz {
+        storage.push(StorageRow {
+            name: rows::XZ.into(),
+            bytes: xz.bytes,
+            seconds: Some(xz.seconds),
+            vs_raw_states: vs_states(xz.bytes),
+            order: None,
+        });
+    }
+    storage.push(StorageRow {
+        name: rows::LOSSLESS.into(),
+        bytes: full.file_bytes,
+        seconds: Some(full.seconds),
+        vs_raw_states: vs_states(full.file_bytes),
+        order: None,
+    });
+    for (n, _) in &lossy_files {
+        if let Some(b) = builds.iter().find(|b| b.name == rows::lossy(*n)) {
+            storage.push(StorageRow {
+                name: rows::lossy(*n),
+                bytes: b.file_bytes,
+                seconds: Some(b.seconds),
+                vs_raw_states: vs_states(b.file_bytes),
+                order: Some(*n),
+            });
+        }
+    }
+
+    // One snapshot.
+    note("timing one snapshot");
+    let mid = &train[train.len() / 2];
+    let sample = lossless_reader
+        .header()
+        .axis
+        .index_of(mid.time)
+        .context("the middle snapshot is not on the file's axis")?;
+    let registry = FormatRegistry::with_default_formats();
+    let cpp_read_one_seconds = timed(args.repeats, || {
+        let bytes = std::fs::read(&mid.path)?;
+        std::hint::black_box(froctomap_octomap_ffi::OcTree::read_binary(&bytes)?);
+        Ok(())
+    })?;
+    let native_read_one_seconds = timed(args.repeats, || {
+        std::hint::black_box(registry.read_file(&mid.path, ReadOptions::default())?);
+        Ok(())
+    })?;
+    let scratch = root.join("scratch");
+    std::fs::create_dir_all(&scratch)?;
+    let retrieved = scratch.join("retrieved.bt");
+    let retrieve_seconds = timed(args.repeats, || {
+        let reader = FroctReader::open(&lossless)?;
+        let map = observed_map(&reader, sample)?;
+        write_map(&map, &retrieved, None, None)?;
+        Ok(())
+    })?;
+    // The retrieved map must be the input snapshot (lossless).
+    let back = registry.read_file(&retrieved, ReadOptions::default())?;
+    let original = registry.read_file(&mid.path, ReadOptions::default())?;
+    if back.map.snapshot.to_max_likelihood().canonical()
+        != original.map.snapshot.to_max_likelihood().canonical()
+    {
+        bail!("the retrieved snapshot differs from the input it was built from");
+    }
+    let future = written.heldout.first().map_or(mid.time, |(s, _)| s.time);
+    let predicted = scratch.join("predicted.bt");
+    let predict_seconds = timed(args.repeats, || {
+        let reader = FroctReader::open(&lossless)?;
+        let map = predicted_map(&reader, future)?;
+        write_map(&map, &predicted, None, None)?;
+        Ok(())
+    })?;
+    let cli = system::find_cli(args.cli.as_deref());
+    let cli_time = |sub: &str, time: String, out: &Path| -> Result<Option<f64>> {
+        let Some(cli) = &cli else { return Ok(None) };
+        let seconds = timed(args.repeats, || {
+            let status = Command::new(cli)
+                .args(["--quiet", sub])
+                .arg(&lossless)
+                .arg("--time")
+                .arg(&time)
+                .arg("-o")
+                .arg(out)
+                .stdin(Stdio::null())
+                .status()
+                .with_context(|| format!("running {}", cli.display()))?;
+            if !status.success() {
+                bail!("{} {sub} failed ({status})", cli.display());
+            }
+            Ok(())
+        })?;
+        Ok(Some(seconds))
+    };
+    let cli_retrieve_seconds = cli_time("retrieve", format!("index:{sample}"), &retrieved)?;
+    let cli_predict_seconds = cli_time("predict", unix_seconds(future), &predicted)?;
+    if cli.is_none() {
+        note("froctomap CLI not found beside this binary: CLI timings skipped (build froctomap-cli or pass --cli)");
+    }
+
+    // Accuracy.
+    note("evaluating");
+    let recon: Vec<SeriesInput> = spread(train.len(), args.reconstruction_truths)
+        .into_iter()
+        .map(|i| train[i].clone())
+        .collect();
+    let heldout_inputs: Vec<SeriesInput> = written.heldout.iter().map(|(s, _)| s.clone()).collect();
+    let pred: Vec<SeriesInput> = spread(heldout_inputs.len(), args.prediction_truths)
+        .into_iter()
+        .map(|i| heldout_inputs[i].clone())
+        .collect();
+    let truths: Vec<SeriesInput> = recon.iter().chain(&pred).cloned().collect();
+    let mut accuracy = Vec::new();
+    let mut baselines = Vec::new();
+    let lossless_eval = evaluate_file(&lossless, &truths)?;
+    let (r, p) = method(&lossless_eval, "model");
+    accuracy.push(AccuracyRow {
+        name: rows::MODEL_LOSSLESS.into(),
+        order: None,
+        reconstruction: r,
+        prediction: p,
+    });
+    for (name, method_name) in [
+        (rows::STORED, "stored"),
+        (rows::STATIC_MEAN, "static mean"),
+        (rows::LAST_SEEN, "last seen"),
+    ] {
+        let (r, p) = method(&lossless_eval, method_name);
+        baselines.push(AccuracyRow {
+            name: name.into(),
+            order: None,
+            reconstruction: r,
+            prediction: p,
+        });
+    }
+    for (n, path) in &lossy_files {
+        let report = evaluate_file(path, &truths)?;
+        let (r, p) = method(&report, "model");
+        accuracy.push(AccuracyRow {
+            name: format!("model, order {n} (lossy file)"),
+            order: Some(*n),
+            reconstruction: r,
+            prediction: p,
+        });
+    }
+
+    // Plots.
+    note("plotting");
+    let order_points = |f: &dyn Fn(&AccuracyRow) -> Option<f64>| -> Vec<(f64, f64)> {
+        accuracy
+            .iter()
+            .filter_map(|r| Some((f64::from(r.order?), f(r)?)))
+            .collect()
+    };
+    let level = |rows: &[AccuracyRow], name: &str, f: &dyn Fn(&AccuracyRow) -> Option<f64>| {
+        rows.iter()
+            .find(|r| r.name == name)
+            .and_then(f)
+            .map(|y| Level {
+                name: format!("{name} (prediction)"),
+                y,
+            })
+    };
+    let pred_dyn = |r: &AccuracyRow| r.prediction.dynamic;
+    let recon_dyn = |r: &AccuracyRow| r.reconstruction.dynamic;
+    let error_levels: Vec<Level> = [
+        level(&accuracy, rows::MODEL_LOSSLESS, &pred_dyn),
+        level(&baselines, rows::STATIC_MEAN, &pred_dyn),
+        level(&baselines, rows::LAST_SEEN, &pred_dyn),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    plots::lines(
+        &args.out.join("error_vs_order.png"),
+        "Error on dynamic voxels vs model order (lossy files)",
+        "model order (spectral components per voxel)",
+        "error on dynamic voxels (%)",
+        &[
+            Line {
+                name: "reconstruction (training snapshots)".into(),
+                points: order_points(&recon_dyn),
+            },
+            Line {
+                name: "prediction (held-out days)".into(),
+                points: order_points(&pred_dyn),
+            },
+        ],
+        &error_levels,
+        false,
+    )?;
+    let mut size_levels = vec![Level {
+        name: "froctomap lossless".into(),
+        y: full.file_bytes as f64,
+    }];
+    for s in &storage {
+        if s.name == rows::ZSTD || s.name == rows::XZ || s.name == rows::RAW {
+            size_levels.push(Level {
+                name: s.name.clone(),
+                y: s.bytes as f64,
+            });
+        }
+    }
+    plots::lines(
+        &args.out.join("size_vs_order.png"),
+        "Storage vs model order",
+        "model order of the lossy file",
+        "bytes (log scale)",
+        &[Line {
+            name: "froctomap lossy".into(),
+            points: storage
+                .iter()
+                .filter_map(|s| Some((f64::from(s.order?), s.bytes as f64)))
+                .collect(),
+        }],
+        &size_levels,
+        true,
+    )?;
+    let mut voxel_files = vec![(
+        "p(t), lossless file (auto order)".to_string(),
+        lossless.clone(),
+    )];
+    if let Some((n, path)) = lossy_files
+        .iter()
+        .find(|(n, _)| *n == 2.min(args.max_order))
+    {
+        voxel_files.push((format!("p(t), lossy file (order {n})"), path.clone()));
+    }
+    let voxel_title = plot_voxel(&generator, &voxel_files, train, &written.heldout, &args.out)?;
+
+    let mut results = Results {
+        machine: system::machine(threads, tools),
+        dataset: Dataset {
+            base: args.base.display().to_string(),
+            door_file: doors.display().to_string(),
+            seed: args.seed,
+            step_seconds: step,
+            train_days,
+            heldout_days,
+            train_frames: train.len(),
+            heldout_frames: written.heldout.len(),
+            first: train
+                .first()
+                .map_or_else(String::new, |s| format_iso(s.time)),
+            last: train
+                .last()
+                .map_or_else(String::new, |s| format_iso(s.time)),
+            bt_bytes,
+            base_leaves: base.leaves().len(),
+            voxels: info.voxels.total(),
+            dynamic_voxels: info.voxels.dynamic,
+            elements,
+            reconstruction_truths: recon.len(),
+            prediction_truths: pred.len(),
+            generate_seconds: written.seconds,
+        },
+        storage,
+        time: TimeResults {
+            cpp_read_all_seconds,
+            cpp_read_leaves,
+            builds,
+            cpp_read_one_seconds,
+            native_read_one_seconds,
+            retrieve_seconds,
+            predict_seconds,
+            cli_retrieve_seconds,
+            cli_predict_seconds,
+            repeats: args.repeats as usize,
+            retrieve_sample: sample,
+        },
+        memory,
+        accuracy,
+        baselines,
+        targets: Vec::new(),
+        total_seconds: 0.0,
+    };
+    results.targets = results.judge();
+    results.total_seconds = started.elapsed().as_secs_f64();
+    let mut markdown = results.markdown();
+    markdown.push_str(&format!(
+        "\nPlots: `error_vs_order.png`, `size_vs_order.png`, `voxel_pt.png`{}.\n",
+        voxel_title.map_or_else(String::new, |t| format!(" ({t})"))
+    ));
+    std::fs::write(
+        args.out.join("results.json"),
+        serde_json::to_string_pretty(&results)?,
+    )?;
+    std::fs::write(args.out.join("results.md"), &markdown)?;
+    println!("{markdown}");
+    note(&format!("results in {}", args.out.display()));
+    if args.data.is_none() && args.keep_data {
+        note(&format!("data kept in {}", root.display()));
+    }
+    Ok(())
+}
