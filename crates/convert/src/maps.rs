@@ -123,14 +123,21 @@ fn collect_tiles(
     reader: &FroctReader,
     leaves_of: impl Fn(usize, &mut Vec<Leaf>) -> Result<(), froctomap_file::FileError> + Sync,
 ) -> Result<Snapshot, ConvertError> {
-    let per_tile = (0..reader.tiles().len())
-        .into_par_iter()
-        .map(|tile| {
-            let mut out = Vec::new();
+    // A tile yields at most one leaf per cell, so every buffer is sized once: growing them
+    // (copies and fresh pages) cost more than the walk itself on large maps.
+    let per_tile = reader
+        .tiles()
+        .par_iter()
+        .enumerate()
+        .map(|(tile, entry)| {
+            let mut out = Vec::with_capacity(entry.cell_count as usize);
             leaves_of(tile, &mut out).map(|()| out)
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let leaves: Vec<Leaf> = per_tile.into_iter().flatten().collect();
+    let mut leaves: Vec<Leaf> = Vec::with_capacity(per_tile.iter().map(Vec::len).sum());
+    for tile_leaves in per_tile {
+        leaves.extend_from_slice(&tile_leaves);
+    }
     Snapshot::from_leaves(reader.header().resolution, leaves).map_err(|e| {
         ConvertError::Time(format!(
             "{}: inconsistent cells: {e}",
@@ -198,7 +205,7 @@ pub fn write_map(
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
     let canonical = if chosen.name == "bt" {
-        snapshot.to_max_likelihood().canonical()
+        snapshot.to_max_likelihood().into_canonical()
     } else {
         snapshot.canonical()
     };

@@ -236,19 +236,33 @@ impl Snapshot {
     /// # Ok::<(), froctomap_core::MapError>(())
     /// ```
     pub fn canonical(&self) -> Snapshot {
-        let mut merged: Vec<Leaf> = Vec::with_capacity(self.leaves.len());
-        for &leaf in &self.leaves {
-            merged.push(leaf);
+        self.clone().into_canonical()
+    }
+
+    /// [`canonical`](Self::canonical) in place, without a second leaf buffer.
+    pub fn into_canonical(mut self) -> Snapshot {
+        // The merged prefix `leaves[..len]` never overtakes the read position `i`, so the
+        // merge can share the buffer.
+        let mut len = 0usize;
+        for i in 0..self.leaves.len() {
+            self.leaves[len] = self.leaves[i];
+            len += 1;
             // Merge while the last eight entries are the complete, equal children of one node.
-            while let Some(parent) = complete_family(&merged) {
-                merged.truncate(merged.len() - 8);
-                merged.push(parent);
+            while let Some(parent) = complete_family(&self.leaves[..len]) {
+                len -= 7;
+                self.leaves[len - 1] = parent;
             }
         }
-        Snapshot {
-            resolution: self.resolution,
-            leaves: merged,
+        self.leaves.truncate(len);
+        self
+    }
+
+    /// [`to_max_likelihood`](Self::to_max_likelihood) in place.
+    pub fn into_max_likelihood(mut self) -> Snapshot {
+        for leaf in &mut self.leaves {
+            leaf.log_odds = leaf.occupancy().log_odds();
         }
+        self
     }
 
     /// `true` when both snapshots know exactly the same voxels with the same states, however
@@ -439,5 +453,32 @@ mod tests {
         let occupied = s.occupied_bounds().unwrap();
         assert_eq!(occupied.min, [0.0, 0.0, 0.0]);
         assert_eq!(occupied.max, [0.5, 0.5, 0.5]);
+    }
+
+    proptest::proptest! {
+        /// Voxels of a small block (so that complete families are common), each occupied,
+        /// free or unknown: the canonical split keeps every voxel's state, leaves no
+        /// mergeable family behind and is its own canonical split.
+        #[test]
+        fn canonical_split_keeps_states_and_is_final(
+            states in proptest::collection::vec(0u8..3, 512),
+        ) {
+            let voxels = states.iter().enumerate().filter_map(|(i, &state)| {
+                let state = match state {
+                    0 => Occupancy::Free,
+                    1 => Occupancy::Occupied,
+                    _ => return None,
+                };
+                Some((MortonCode(i as u64), state))
+            });
+            let fine = Snapshot::from_voxel_states(0.1, voxels).unwrap();
+            let canonical = fine.canonical();
+            proptest::prop_assert!(canonical.same_voxel_states(&fine));
+            let leaves = canonical.leaves();
+            for end in 8..=leaves.len() {
+                proptest::prop_assert!(complete_family(&leaves[..end]).is_none());
+            }
+            proptest::prop_assert_eq!(canonical.clone().into_canonical(), canonical);
+        }
     }
 }
