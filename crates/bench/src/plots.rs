@@ -109,14 +109,7 @@ pub fn lines(
             .draw()
             .map_err(err)?;
         draw_series(&mut chart, lines, levels, (x0 - pad_x, x1 + pad_x))?;
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight)?;
     } else {
         let (lo, hi) = if y0.is_finite() && y1 >= y0 {
             (0.0f64.min(y0), (y1 * 1.15).max(y0 + 1e-9))
@@ -140,16 +133,31 @@ pub fn lines(
             .draw()
             .map_err(err)?;
         draw_series(&mut chart, lines, levels, (x0 - pad_x, x1 + pad_x))?;
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)?;
+    Ok(())
+}
+
+/// The legend of every labelled series, in a framed box.
+fn draw_legend<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    font_size: u32,
+    position: SeriesLabelPosition,
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font_size))
+        .position(position)
+        .draw()
+        .map_err(err)?;
     Ok(())
 }
 
@@ -306,14 +314,7 @@ pub fn voxel(path: &Path, plot: &VoxelPlot<'_>) -> Result<()> {
             BLACK.stroke_width(1),
         ))
         .map_err(err)?;
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(err)?;
+    draw_legend(&mut chart, 14, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(err)?;
     Ok(())
 }

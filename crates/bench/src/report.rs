@@ -219,6 +219,15 @@ pub enum Align {
 }
 
 /// A markdown table. Cells containing `|` are escaped; short rows are padded.
+/// Alignment of a table whose first column names the row and the others hold numbers.
+fn label_then_numbers(columns: usize) -> Vec<Align> {
+    let mut align = vec![Align::Right; columns];
+    if let Some(first) = align.first_mut() {
+        *first = Align::Left;
+    }
+    align
+}
+
 pub fn table(headers: &[&str], align: &[Align], rows: &[Vec<String>]) -> String {
     let escape = |s: &str| s.replace('|', "\\|");
     let mut out = String::new();
@@ -532,14 +541,7 @@ impl Results {
                 "vs raw states (1 bit/voxel/snapshot)",
                 "time to make",
             ],
-            &[
-                Align::Left,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-            ],
+            &label_then_numbers(6),
             &rows,
         ));
 
@@ -580,16 +582,7 @@ impl Results {
                 "peak memory",
                 "bytes",
             ],
-            &[
-                Align::Left,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-            ],
+            &label_then_numbers(8),
             &rows,
         ));
         let one = t.cpp_read_one_seconds;
@@ -632,7 +625,7 @@ impl Results {
         );
         out.push_str(&table(
             &["operation", "time", "vs one C++ read"],
-            &[Align::Left, Align::Right, Align::Right],
+            &label_then_numbers(3),
             &rows,
         ));
 
@@ -701,15 +694,7 @@ impl Results {
                 "non-empty",
                 "dynamic",
             ],
-            &[
-                Align::Left,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-                Align::Right,
-            ],
+            &label_then_numbers(7),
             &rows,
         ));
 
