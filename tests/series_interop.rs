@@ -49,7 +49,12 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
     write_series(&generator, &series_dir, &options, &|_, _| {}).unwrap();
 
     let registry = FormatRegistry::with_default_formats();
-    let inputs = collect_inputs(&[series_dir.clone()], TimeSource::Auto, &registry).unwrap();
+    let inputs = collect_inputs(
+        std::slice::from_ref(&series_dir),
+        TimeSource::Auto,
+        &registry,
+    )
+    .unwrap();
     assert_eq!(inputs.len(), 18);
     let froct = dir.path().join("series.froct");
     let report = build(&inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
