@@ -537,16 +537,23 @@ pub fn build(
         tiles.clear();
         Ok(())
     };
+    // Tiles are fitted in parallel batches; a batch ends at a few tiles per thread or at a
+    // bound on the runs it holds (cells' observations are unpacked here, and a long series
+    // with partial views gives every cell many runs), whichever comes first.
+    const BATCH_RUNS: usize = 4 << 20;
+    let mut batch_runs = 0usize;
     for item in history.finish(axis_len, &absent) {
         let cell = item?;
         if pending.first().is_some_and(|p| {
             p.0.node_start(options.tile_depth) != cell.0.node_start(options.tile_depth)
         }) {
             tiles.push(std::mem::take(&mut pending));
-            if tiles.len() >= 4 * rayon::current_num_threads().max(1) {
+            if tiles.len() >= 4 * rayon::current_num_threads().max(1) || batch_runs >= BATCH_RUNS {
                 flush(&mut tiles, &mut writer, &mut stats)?;
+                batch_runs = 0;
             }
         }
+        batch_runs += cell.2.runs().len();
         pending.push(cell);
     }
     if !pending.is_empty() {

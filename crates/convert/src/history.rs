@@ -124,27 +124,85 @@ struct CellHistory {
     depth: u8,
     /// Closed runs; they may span samples without a snapshot, removed in `finish`.
     runs: PackedRuns,
-    /// The state observed since a sample, if observed at the latest snapshot.
+    /// The state observed since a sample, while the cell is observed or may resume it.
     open: Option<(Occupancy, u32)>,
+    /// Unobserved since this sample, with `open` kept: a partial view usually hides a
+    /// region for a frame or two and then shows it unchanged, and closing a run in every
+    /// cell of the region would make memory grow with every such frame.
+    unobserved_since: Option<u32>,
 }
 
 impl CellHistory {
-    fn observe(&mut self, sample: u32, state: Option<Occupancy>) {
-        if let Some((old, first)) = self.open.take() {
+    fn new(depth: u8, open: Option<(Occupancy, u32)>) -> Self {
+        Self {
+            depth,
+            runs: PackedRuns::default(),
+            open,
+            unobserved_since: None,
+        }
+    }
+
+    /// Records the state observed from `sample` on (`None`: unknown). Returns the start of
+    /// an unobserved gap that ends at `sample` when the cell reappears in the state it had
+    /// before the gap: the caller records that gap once for a whole region ([`Gap`]).
+    fn observe(&mut self, sample: u32, state: Option<Occupancy>) -> Option<u32> {
+        let Some((old, _)) = self.open else {
+            self.open = state.map(|s| (s, sample));
+            return None;
+        };
+        match (state, self.unobserved_since) {
+            (None, None) => self.unobserved_since = Some(sample),
+            (None, Some(_)) => {}
+            (Some(new), Some(since)) if new == old => {
+                self.unobserved_since = None;
+                return Some(since);
+            }
+            (Some(new), since) => {
+                self.close(since.unwrap_or(sample));
+                self.unobserved_since = None;
+                self.open = Some((new, sample));
+            }
+        }
+        None
+    }
+
+    /// Ends the open run (if any) before `end`.
+    fn close(&mut self, end: u32) {
+        if let Some((state, first)) = self.open.take() {
             self.runs.push(Run {
                 first,
-                len: sample - first,
-                state: old,
+                len: end - first,
+                state,
             });
         }
-        self.open = state.map(|s| (s, sample));
     }
+
+    /// Ends the history at the end of an axis of `axis_len` samples.
+    fn finish(&mut self, axis_len: u32) {
+        let end = self.unobserved_since.take().unwrap_or(axis_len);
+        self.close(end);
+    }
+}
+
+/// Cells `[start, end)` (Morton codes) that were all unobserved in samples `[from, to)` while
+/// their open runs continued: cut out of those runs in `finish`. One gap stands for every
+/// cell of a region a partial view hid, so memory grows with the number of such regions,
+/// not with the cells in them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Gap {
+    start: u64,
+    end: u64,
+    from: u32,
+    to: u32,
 }
 
 /// The cells of a series so far, with their observation histories.
 #[derive(Debug)]
 pub struct SeriesHistory {
     cells: BTreeMap<u64, CellHistory>,
+    /// Closed gaps, and the one still growing at the current sample.
+    gaps: Vec<Gap>,
+    growing_gap: Option<Gap>,
     tile_depth: u8,
     last_sample: Option<u32>,
     changed_voxels: u64,
@@ -155,6 +213,8 @@ impl SeriesHistory {
     pub fn new(tile_depth: u8) -> Self {
         Self {
             cells: BTreeMap::new(),
+            gaps: Vec::new(),
+            growing_gap: None,
             tile_depth: tile_depth.clamp(1, TREE_DEPTH),
             last_sample: None,
             changed_voxels: 0,
@@ -181,6 +241,7 @@ impl SeriesHistory {
             });
         }
         self.last_sample = Some(sample);
+        self.gaps.extend(self.growing_gap.take());
         for &change in changes {
             self.changed_voxels += change.end - change.start;
             self.apply(sample, change);
@@ -191,21 +252,42 @@ impl SeriesHistory {
     fn apply(&mut self, sample: u32, change: Change) {
         self.split_at(change.start);
         self.split_at(change.end);
+        // A gap may only stretch over space that holds no other cell.
+        if let Some(gap) = self.growing_gap {
+            if self.cells.range(gap.end..change.start).next().is_some() {
+                self.gaps.extend(self.growing_gap.take());
+            }
+        }
         let mut cursor = change.start;
-        let mut gaps = Vec::new();
+        let mut unseen = Vec::new();
         for (&start, cell) in self.cells.range_mut(change.start..change.end) {
             if start > cursor {
-                gaps.push((cursor, start));
+                unseen.push((cursor, start));
             }
-            cell.observe(sample, change.new);
             cursor = start + voxels_per_node(cell.depth);
+            match cell.observe(sample, change.new) {
+                Some(from) => match &mut self.growing_gap {
+                    Some(gap) if gap.from == from => gap.end = cursor,
+                    growing => {
+                        self.gaps.extend(growing.take());
+                        *growing = Some(Gap {
+                            start,
+                            end: cursor,
+                            from,
+                            to: sample,
+                        });
+                    }
+                },
+                None => self.gaps.extend(self.growing_gap.take()),
+            }
         }
         if cursor < change.end {
-            gaps.push((cursor, change.end));
+            unseen.push((cursor, change.end));
         }
         // Space seen for the first time becomes new cells (only where something is known).
+        // They start at `sample`, after any gap that may stretch over them.
         if let Some(state) = change.new {
-            for (from, to) in gaps {
+            for (from, to) in unseen {
                 self.add_cells(from, to, sample, state);
             }
         }
@@ -222,14 +304,8 @@ impl SeriesHistory {
                 }
                 depth -= 1;
             }
-            self.cells.insert(
-                from,
-                CellHistory {
-                    depth,
-                    runs: PackedRuns::default(),
-                    open: Some((state, sample)),
-                },
-            );
+            self.cells
+                .insert(from, CellHistory::new(depth, Some((state, sample))));
             from += voxels_per_node(depth);
         }
     }
@@ -252,8 +328,7 @@ impl SeriesHistory {
             for child in 0..8 {
                 let history = CellHistory {
                     depth,
-                    runs: parent.runs.clone(),
-                    open: parent.open,
+                    ..parent.clone()
                 };
                 self.cells.insert(start + child * size, history);
             }
@@ -262,17 +337,40 @@ impl SeriesHistory {
 
     /// Closes every history at the end of an axis of `axis_len` samples and yields each
     /// cell's observations in Morton order, with the samples in `absent` (sorted: samples
-    /// with no snapshot) removed from the runs.
+    /// with no snapshot) and the cell's unobserved gaps removed from the runs.
     pub fn finish(
-        self,
+        mut self,
         axis_len: u32,
         absent: &[u32],
     ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), TemporalError>> + '_ {
+        self.gaps.extend(self.growing_gap.take());
+        let mut gaps = std::mem::take(&mut self.gaps);
+        gaps.sort_unstable_by_key(|gap| gap.start);
+        let mut next_gap = 0usize;
+        // The gaps that contain the current cell (cells never straddle a gap's bounds).
+        let mut containing: Vec<Gap> = Vec::new();
+        let mut first_end = u64::MAX;
+        let mut cut: Vec<(u32, u32)> = Vec::new();
         self.cells.into_iter().map(move |(start, mut cell)| {
-            cell.observe(axis_len, None);
+            cell.finish(axis_len);
+            if start >= first_end {
+                containing.retain(|gap| gap.end > start);
+                first_end = containing.iter().map(|g| g.end).min().unwrap_or(u64::MAX);
+            }
+            while let Some(&gap) = gaps.get(next_gap).filter(|g| g.start <= start) {
+                next_gap += 1;
+                if gap.end > start {
+                    first_end = first_end.min(gap.end);
+                    containing.push(gap);
+                }
+            }
+            cut.clear();
+            cut.extend(containing.iter().map(|gap| (gap.from, gap.to)));
+            cut.sort_unstable();
             let runs: Vec<(u32, u32, Occupancy)> = cell
                 .runs
                 .iter()
+                .flat_map(|run| without_gaps(run, &cut))
                 .flat_map(|run| without_absent(run, absent))
                 .collect();
             Ok((
@@ -282,6 +380,34 @@ impl SeriesHistory {
             ))
         })
     }
+}
+
+/// A run with the sample ranges `[from, to)` of `gaps` (sorted, disjoint) cut out.
+fn without_gaps(run: Run, gaps: &[(u32, u32)]) -> Vec<Run> {
+    let mut pieces = Vec::with_capacity(gaps.len() + 1);
+    let mut first = run.first;
+    let end = run.end();
+    for &(from, to) in gaps {
+        if u64::from(from) >= end {
+            break;
+        }
+        if from > first {
+            pieces.push(Run {
+                first,
+                len: from - first,
+                state: run.state,
+            });
+        }
+        first = first.max(to);
+    }
+    if u64::from(first) < end {
+        pieces.push(Run {
+            first,
+            len: (end - u64::from(first)) as u32,
+            state: run.state,
+        });
+    }
+    pieces
 }
 
 /// A run with the absent samples cut out, as `(first, len, state)` pieces.
@@ -361,6 +487,51 @@ mod tests {
         assert_eq!(state(&cells, v5, 1), Some(Occupancy::Free));
         assert_eq!(state(&cells, v5, 2), Some(Occupancy::Occupied));
         assert_eq!(state(&cells, v5 + 1, 2), Some(Occupancy::Free));
+    }
+
+    #[test]
+    fn a_region_hidden_and_shown_unchanged_costs_one_gap_not_a_run_per_cell() {
+        let mut h = SeriesHistory::new(10);
+        // 40 single voxels every other slot, so that no two cells merge.
+        let all: Vec<Leaf> = (0..40u16).map(|i| leaf(2 * i, 16, i % 3 == 0)).collect();
+        // A partial view hides the first 30 of them.
+        let partial = all[30..].to_vec();
+        let frames = [&all, &partial, &partial, &all, &all, &partial, &all];
+        let mut previous: &[Leaf] = &[];
+        for (sample, frame) in frames.iter().enumerate() {
+            h.apply_changes(sample as u32, &changes(previous, frame))
+                .unwrap();
+            previous = frame;
+        }
+        h.gaps.extend(h.growing_gap.take());
+        assert_eq!(h.gaps.len(), 2, "{:?}", h.gaps);
+        assert!(h.cells.values().all(|cell| cell.runs.bytes.is_empty()));
+        let cells: Vec<_> = h.finish(7, &[]).map(Result::unwrap).collect();
+        for (sample, frame) in frames.iter().enumerate() {
+            let snapshot = Snapshot::from_leaves(0.1, frame.to_vec()).unwrap();
+            for x in 0..80u16 {
+                let voxel = VoxelKey::new(x, 0, 0).morton();
+                assert_eq!(
+                    state(&cells, voxel.0, sample as u32),
+                    snapshot.state_at(voxel),
+                    "x {x} sample {sample}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn runs_are_cut_by_gaps() {
+        let run = Run {
+            first: 2,
+            len: 10,
+            state: Occupancy::Free,
+        };
+        let pieces: Vec<(u32, u32)> = without_gaps(run, &[(0, 3), (5, 7), (11, 20)])
+            .iter()
+            .map(|r| (r.first, r.len))
+            .collect();
+        assert_eq!(pieces, vec![(3, 2), (7, 4)]);
     }
 
     #[test]
