@@ -3,6 +3,7 @@
 //! Everything here is plain data and arithmetic, so it is unit-tested without running
 //! anything; `results.json` is the serialised [`Results`].
 
+use froctomap_convert::group_thousands;
 use serde::Serialize;
 use std::fmt::Write as _;
 
@@ -254,19 +255,6 @@ pub fn table(headers: &[&str], align: &[Align], rows: &[Vec<String>]) -> String 
     out
 }
 
-/// `1234567` → `1,234,567`.
-pub fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
-
 /// Bytes in decimal megabytes with three significant decimals where small.
 pub fn megabytes(bytes: u64) -> String {
     let mb = bytes as f64 / 1e6;
@@ -454,9 +442,9 @@ impl Results {
                     format!(
                         "{} for {} snapshots, {} for {} ({} the memory for {} the snapshots)",
                         mebibytes(short.peak_memory_bytes),
-                        thousands(short.frames as u64),
+                        group_thousands(short.frames as u64),
                         mebibytes(long.peak_memory_bytes),
-                        thousands(long.frames as u64),
+                        group_thousands(long.frames as u64),
                         times(growth),
                         times(ratio(long.frames as f64, short.frames as f64)),
                     ),
@@ -485,20 +473,20 @@ impl Results {
              ({} leaves) with doors driven by `{}` (seed {}), plus {} held-out days right after \
              ({} ground-truth maps). Raw `.bt` files: {} bytes. Voxels: {} ({} dynamic). \
              Generated in {:.0} s.\n",
-            thousands(d.train_frames as u64),
+            group_thousands(d.train_frames as u64),
             d.train_days,
             d.step_seconds,
             d.first,
             d.last,
             d.base,
-            thousands(d.base_leaves as u64),
+            group_thousands(d.base_leaves as u64),
             d.door_file,
             d.seed,
             d.heldout_days,
-            thousands(d.heldout_frames as u64),
-            thousands(d.bt_bytes),
-            thousands(d.voxels),
-            thousands(d.dynamic_voxels),
+            group_thousands(d.heldout_frames as u64),
+            group_thousands(d.bt_bytes),
+            group_thousands(d.voxels),
+            group_thousands(d.dynamic_voxels),
             d.generate_seconds,
         );
         for line in &d.elements {
@@ -524,7 +512,7 @@ impl Results {
             .map(|r| {
                 vec![
                     r.name.clone(),
-                    thousands(r.bytes),
+                    group_thousands(r.bytes),
                     megabytes(r.bytes),
                     times(ratio(raw, r.bytes as f64)),
                     times(r.vs_raw_states),
@@ -550,10 +538,10 @@ impl Results {
             out,
             "\n## Time\n\nC++ library (`OcTree::readBinary`) reading all {} training files on {} threads: \
              {} ({} leaves).\n",
-            thousands(d.train_frames as u64),
+            group_thousands(d.train_frames as u64),
             m.threads,
             duration(t.cpp_read_all_seconds),
-            thousands(t.cpp_read_leaves)
+            group_thousands(t.cpp_read_leaves)
         );
         let rows: Vec<Vec<String>> = t
             .builds
@@ -561,13 +549,13 @@ impl Results {
             .map(|b| {
                 vec![
                     b.name.clone(),
-                    thousands(b.frames as u64),
+                    group_thousands(b.frames as u64),
                     duration(b.seconds),
                     duration(b.read_seconds),
                     duration(b.model_seconds),
                     times(ratio(b.seconds, t.cpp_read_all_seconds)),
                     mebibytes(b.peak_memory_bytes),
-                    thousands(b.file_bytes),
+                    group_thousands(b.file_bytes),
                 ]
             })
             .collect();
@@ -635,11 +623,11 @@ impl Results {
             .iter()
             .map(|r| {
                 vec![
-                    thousands(r.frames as u64),
+                    group_thousands(r.frames as u64),
                     format!("{:.1}", r.days),
                     mebibytes(r.peak_memory_bytes),
                     duration(r.seconds),
-                    thousands(r.file_bytes),
+                    group_thousands(r.file_bytes),
                 ]
             })
             .collect();
@@ -744,10 +732,6 @@ mod tests {
 
     #[test]
     fn numbers_format() {
-        assert_eq!(thousands(0), "0");
-        assert_eq!(thousands(999), "999");
-        assert_eq!(thousands(1000), "1,000");
-        assert_eq!(thousands(845_123_456), "845,123,456");
         assert_eq!(megabytes(2_430_000), "2.43 MB");
         assert_eq!(megabytes(845_000_000), "845 MB");
         assert_eq!(megabytes(61_500), "61.5 kB");

@@ -2,6 +2,7 @@
 
 use anyhow::Result;
 use clap::Args;
+use froctomap_convert::group_thousands;
 use froctomap_core::{BoundingBox, Snapshot};
 use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
 use serde::Serialize;
@@ -157,19 +158,6 @@ fn print_info(info: &MapInfo) {
     show("occupied bounds: ", &info.occupied_bounds_m);
 }
 
-/// `1234567` → `1,234,567`.
-pub(crate) fn group_thousands(value: u64) -> String {
-    let digits = value.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
-
 #[derive(Args)]
 pub struct ConvertArgs {
     /// The map to read.
@@ -253,15 +241,4 @@ pub fn formats() -> Result<()> {
         );
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn thousands_are_grouped() {
-        assert_eq!(super::group_thousands(0), "0");
-        assert_eq!(super::group_thousands(999), "999");
-        assert_eq!(super::group_thousands(1000), "1,000");
-        assert_eq!(super::group_thousands(1136432), "1,136,432");
-    }
 }

@@ -1,10 +1,11 @@
 //! `froctomap generate`: a realistic, deterministic series of OctoMap snapshots from a real
 //! base map (the sample data of the demo, the tests and the benchmarks).
 
-use crate::commands::{group_thousands, Ui};
+use crate::commands::Ui;
 use crate::progress::Bars;
 use anyhow::{Context, Result};
 use clap::Args;
+use froctomap_convert::group_thousands;
 use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
 use froctomap_formats::{FormatRegistry, ReadOptions};
 use froctomap_synth::{frames_for, write_series, Generator, SeriesSpec, WriteSeriesOptions};

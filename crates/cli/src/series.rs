@@ -1,10 +1,11 @@
 //! The spatio-temporal commands: build, retrieve, predict, export, eval, and `info` for
 //! FROctomap files. Each is a thin layer over `froctomap-convert`.
 
-use crate::commands::{group_thousands, Ui};
+use crate::commands::Ui;
 use crate::progress::{peak_memory_bytes, Bars};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, export, format_iso, observed_map, parse_duration,
     parse_time, predicted_map, resolve_observed, write_map, BuildOptions, ClassCounts, EvalReport,

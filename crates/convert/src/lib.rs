@@ -36,6 +36,7 @@ mod info;
 mod inputs;
 mod maps;
 mod progress;
+mod text;
 mod time;
 
 pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
@@ -51,6 +52,7 @@ pub use maps::{
     MAX_EXPORTS,
 };
 pub use progress::{Progress, Silent};
+pub use text::group_thousands;
 pub use time::{
     check_range, format_compact, format_iso, parse_duration, parse_time, time_from_file_name,
     TimeError, EARLIEST, LATEST,
