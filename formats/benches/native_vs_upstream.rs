@@ -9,9 +9,11 @@
 //! `FROCTOMAP_BENCH_REPEATS` (repetitions on geb079, default 15).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use froctomap_core::{Leaf, Occupancy, Snapshot};
+use froctomap_core::{Leaf, Occupancy, Snapshot, StateChange};
 use froctomap_formats::{Backend, FormatRegistry, MapFormat, ReadOptions};
-use froctomap_octomap_codec::{encode_binary, encode_full, scan, ReadLimits};
+use froctomap_octomap_codec::{
+    diff, encode_binary, encode_full, scan, FileKind, ReadLimits, TreeIndex,
+};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -25,10 +27,20 @@ enum Op {
     /// Native streaming of a `.bt`'s leaves (`scan`, no `Snapshot`), against upstream's full
     /// read: the cost a pipeline that consumes leaves as they come pays per file.
     ScanBt,
+    /// Native comparison of a `.bt` with the file before it (`diff`, with the index kept from
+    /// comparing that one), against upstream's full read: what `build` pays per snapshot.
+    DiffBt,
 }
 
 impl Op {
-    const ALL: [Op; 5] = [Op::ReadBt, Op::ReadOt, Op::WriteBt, Op::WriteOt, Op::ScanBt];
+    const ALL: [Op; 6] = [
+        Op::ReadBt,
+        Op::ReadOt,
+        Op::WriteBt,
+        Op::WriteOt,
+        Op::ScanBt,
+        Op::DiffBt,
+    ];
 
     fn label(self) -> &'static str {
         match self {
@@ -37,12 +49,13 @@ impl Op {
             Op::WriteBt => "write .bt (Snapshot → bytes)",
             Op::WriteOt => "write .ot (Snapshot → bytes)",
             Op::ScanBt => "stream .bt leaves (native `scan`) vs upstream read .bt",
+            Op::DiffBt => "compare .bt with the one before (native `diff`) vs upstream read .bt",
         }
     }
 
     fn format_name(self) -> &'static str {
         match self {
-            Op::ReadBt | Op::WriteBt | Op::ScanBt => "bt",
+            Op::ReadBt | Op::WriteBt | Op::ScanBt | Op::DiffBt => "bt",
             Op::ReadOt | Op::WriteOt => "ot",
         }
     }
@@ -53,15 +66,21 @@ struct Sample {
     snapshot: Snapshot,
     bt: Vec<u8>,
     ot: Vec<u8>,
+    /// The `.bt` of the map before it in the series (itself for a lone map), and its index.
+    previous_bt: (Vec<u8>, TreeIndex),
 }
 
 impl Sample {
-    fn new(snapshot: Snapshot) -> Self {
+    fn new(snapshot: Snapshot, previous: Option<&Snapshot>) -> Self {
         // The native encoders are byte-identical to upstream's (tests/native_vs_upstream.rs).
+        let bt = encode_binary(&snapshot);
+        let previous_bt = previous.map_or_else(|| bt.clone(), encode_binary);
+        let index = TreeIndex::of(&previous_bt, FileKind::Binary).unwrap();
         Sample {
-            bt: encode_binary(&snapshot),
+            bt,
             ot: encode_full(&snapshot),
             snapshot,
+            previous_bt: (previous_bt, index),
         }
     }
 }
@@ -74,7 +93,7 @@ fn format(registry: &FormatRegistry, op: Op, backend: Backend) -> MapFormat {
 
 /// Runs one operation once and returns its wall time.
 fn time_once(registry: &FormatRegistry, op: Op, backend: Backend, sample: &Sample) -> Duration {
-    if op == Op::ScanBt && backend == Backend::Octomap {
+    if matches!(op, Op::ScanBt | Op::DiffBt) && backend == Backend::Octomap {
         // Upstream has no streaming reader: compare with its full read.
         return time_once(registry, Op::ReadBt, backend, sample);
     }
@@ -93,6 +112,19 @@ fn time_once(registry: &FormatRegistry, op: Op, backend: Backend, sample: &Sampl
             )
             .unwrap();
             black_box(occupied);
+        }
+        Op::DiffBt => {
+            let (previous, index) = &sample.previous_bt;
+            let mut changed = 0u64;
+            diff(
+                Some((previous, Some(index))),
+                &sample.bt,
+                None,
+                ReadLimits::default(),
+                &mut |change: StateChange| changed += change.end - change.start,
+            )
+            .unwrap();
+            black_box(changed);
         }
         Op::ReadBt | Op::ReadOt => {
             let bytes = if op == Op::ReadBt {
@@ -226,13 +258,16 @@ fn main() {
     let series_len = env_number("FROCTOMAP_BENCH_SERIES", 30).max(1);
     let repeats = env_number("FROCTOMAP_BENCH_REPEATS", 15).max(1);
 
-    let geb_sample = [Sample::new(geb.clone())];
+    let geb_sample = [Sample::new(geb.clone(), None)];
     assert!(
         geb_sample[0].bt == geb_bytes,
         "geb079.bt is canonical; the native writer must reproduce it"
     );
-    let series: Vec<Sample> = (0..series_len as u64)
-        .map(|i| Sample::new(perturbed(&geb, i)))
+    let maps: Vec<Snapshot> = (0..series_len as u64).map(|i| perturbed(&geb, i)).collect();
+    let series: Vec<Sample> = maps
+        .iter()
+        .enumerate()
+        .map(|(i, map)| Sample::new(map.clone(), i.checked_sub(1).map(|j| &maps[j])))
         .collect();
     let leaves: usize = series.iter().map(|s| s.snapshot.leaves().len()).sum();
     let bt_bytes: usize = series.iter().map(|s| s.bt.len()).sum();
@@ -270,6 +305,6 @@ fn main() {
         }
     }
     println!(
-        "\n(`build`, `retrieve` and `export` do not exist yet; the pipeline goals are not measured here.)"
+        "\n(geb079 is compared with itself, the series with the copy before. The pipeline itself (`build`, `retrieve`) is measured by `froctomap-bench`.)"
     );
 }

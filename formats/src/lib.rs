@@ -5,6 +5,10 @@
 //! *content* when reading (OctoMap's first line tells `.bt` from `.ot`; extensions lie in the
 //! wild) and by `--format` or the output extension when writing.
 //!
+//! A format may also offer a [`MapDiffer`], which compares two files straight from their
+//! bytes ([`FormatRegistry::diff_bytes`]); building a series from consecutive snapshots uses
+//! it to skip decoding what did not change.
+//!
 //! Adding a format is one module defining a `MapFormat` constant plus one line in
 //! [`register_default_formats`]. A format may have several implementations (backends) under
 //! one name: OctoMap's `.bt`/`.ot` are read and written by the native Rust codec
@@ -30,8 +34,8 @@ mod registry;
 
 pub use error::{FormatError, PluginError};
 pub use registry::{
-    Backend, Confidence, FormatRegistry, MapFormat, MapReader, MapWriter, ReadMap, ReadOptions,
-    ReadOutcome, WriteOptions,
+    Backend, Confidence, DiffOutcome, DiffState, FormatRegistry, MapDiff, MapDiffer, MapFormat,
+    MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome, WriteOptions,
 };
 
 /// Registers every format enabled at compile time, preferred backends first: the native

@@ -8,11 +8,13 @@
 //! and give the same warnings and error messages.
 
 use crate::error::PluginError;
-use crate::registry::{Backend, Confidence, MapFormat, MapReader, MapWriter, ReadMap};
-use froctomap_core::{MapError, Snapshot};
+use crate::registry::{
+    Backend, Confidence, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap,
+};
+use froctomap_core::{validate_resolution, MapError, Snapshot, StateChange};
 use froctomap_octomap_codec::{
-    decode, detect_kind, encode_binary, encode_full, looks_like_legacy_binary, CodecError,
-    FileKind, ReadLimits,
+    decode, detect_kind, diff, encode_binary, encode_full, looks_like_legacy_binary, CodecError,
+    FileKind, ReadLimits, TreeIndex,
 };
 use std::io::Write;
 
@@ -25,6 +27,7 @@ pub const BINARY: MapFormat = MapFormat {
     probe: probe_binary,
     reader: Some(|| Box::new(NativeReader(FileKind::Binary))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Binary))),
+    differ: Some(|| Box::new(NativeDiffer(FileKind::Binary))),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written in Rust.
@@ -36,6 +39,7 @@ pub const FULL: MapFormat = MapFormat {
     probe: probe_full,
     reader: Some(|| Box::new(NativeReader(FileKind::Full))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Full))),
+    differ: Some(|| Box::new(NativeDiffer(FileKind::Full))),
 };
 
 /// Recognises a `.bt` by its first line, or weakly by the pre-1.4 headerless layout.
@@ -79,6 +83,38 @@ impl MapReader for NativeReader {
             snapshot,
             node_count: tree.node_count,
             warnings: tree.warnings,
+        })
+    }
+}
+
+struct NativeDiffer(FileKind);
+
+impl MapDiffer for NativeDiffer {
+    fn diff(
+        &self,
+        previous: Option<PreviousFile<'_>>,
+        current: &[u8],
+        on_change: &mut dyn FnMut(StateChange),
+    ) -> Result<MapDiff, PluginError> {
+        let previous = previous.map(|p| {
+            let index = p.state.and_then(|s| s.downcast_ref::<TreeIndex>());
+            (p.bytes, index)
+        });
+        let (summary, index) = diff(
+            previous,
+            current,
+            Some(self.0),
+            ReadLimits::default(),
+            on_change,
+        )
+        .map_err(NativeError::from)?;
+        let resolution =
+            validate_resolution(summary.header.resolution).map_err(NativeError::from)?;
+        Ok(MapDiff {
+            resolution,
+            node_count: summary.node_count,
+            warnings: summary.warnings,
+            state: Some(Box::new(index)),
         })
     }
 }

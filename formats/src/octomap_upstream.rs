@@ -18,6 +18,7 @@ pub const BINARY: MapFormat = MapFormat {
     probe: probe_binary,
     reader: Some(|| Box::new(UpstreamReader(FileKind::Binary))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Binary))),
+    differ: None,
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written by liboctomap.
@@ -30,6 +31,7 @@ pub const FULL: MapFormat = MapFormat {
     probe: probe_full,
     reader: Some(|| Box::new(UpstreamReader(FileKind::Full))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Full))),
+    differ: None,
 };
 
 struct UpstreamReader(FileKind);

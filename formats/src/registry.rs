@@ -1,7 +1,7 @@
 //! Map formats as data, and the registry that picks one for a file.
 
 use crate::error::{FormatError, PluginError};
-use froctomap_core::{write_atomically, Snapshot};
+use froctomap_core::{write_atomically, Snapshot, StateChange};
 use std::io::Write;
 use std::path::Path;
 
@@ -31,6 +31,47 @@ pub struct ReadMap {
 pub trait MapReader: Send + Sync {
     /// Reads a whole file's content.
     fn read(&self, bytes: &[u8]) -> Result<ReadMap, PluginError>;
+}
+
+/// What a [`MapDiffer`] keeps about a file it compared, to compare the next file with it
+/// faster (its own type; other differs ignore it).
+pub type DiffState = Box<dyn std::any::Any + Send + Sync>;
+
+/// A file compared before, as the next comparison sees it.
+#[derive(Clone, Copy, Debug)]
+pub struct PreviousFile<'a> {
+    /// Its content.
+    pub bytes: &'a [u8],
+    /// What the differ kept when it compared this file ([`MapDiff::state`]), if at hand.
+    pub state: Option<&'a DiffState>,
+}
+
+/// What a [`MapDiffer`] learnt about the current file while comparing it.
+#[derive(Debug)]
+pub struct MapDiff {
+    /// Voxel edge length of the current file, in metres.
+    pub resolution: f64,
+    /// Nodes of its stored tree, as the format counts them.
+    pub node_count: u64,
+    /// What a [`MapReader`] would have warned about.
+    pub warnings: Vec<String>,
+    /// Kept to compare the next file with this one ([`PreviousFile::state`]).
+    pub state: Option<DiffState>,
+}
+
+/// Compares two files of a format straight from their bytes, without decoding either: the
+/// fast path for consecutive snapshots of a series, which differ in few places.
+pub trait MapDiffer: Send + Sync {
+    /// Checks `current` as [`MapReader::read`] would and streams, in Morton order and maximal
+    /// per new state, the ranges where its map differs from `previous`'s (a file of the same
+    /// format that was read before; `None`: a map where nothing is known): the list
+    /// [`froctomap_core::changes`] gives for the two maps' leaves.
+    fn diff(
+        &self,
+        previous: Option<PreviousFile<'_>>,
+        current: &[u8],
+        on_change: &mut dyn FnMut(StateChange),
+    ) -> Result<MapDiff, PluginError>;
 }
 
 /// Encodes a map into a format's bytes.
@@ -75,6 +116,8 @@ pub struct MapFormat {
     pub reader: Option<fn() -> Box<dyn MapReader>>,
     /// Creates a writer, if the format can be written.
     pub writer: Option<fn() -> Box<dyn MapWriter>>,
+    /// Creates a differ, if two files of the format can be compared without decoding them.
+    pub differ: Option<fn() -> Box<dyn MapDiffer>>,
 }
 
 impl std::fmt::Debug for MapFormat {
@@ -124,6 +167,15 @@ pub struct ReadOutcome {
     /// The map and its warnings.
     pub map: ReadMap,
     /// The format that read it.
+    pub format: MapFormat,
+}
+
+/// Two files compared through the registry.
+#[derive(Debug)]
+pub struct DiffOutcome {
+    /// What the differ learnt about the current file, with the registry's warnings.
+    pub diff: MapDiff,
+    /// The format that compared them.
     pub format: MapFormat,
 }
 
@@ -238,7 +290,22 @@ impl FormatRegistry {
         bytes: &[u8],
         options: ReadOptions<'_>,
     ) -> Result<(MapFormat, Box<dyn MapReader>), FormatError> {
-        let format = match options.format {
+        let format = self.format_of(path, bytes, options)?;
+        let make_reader = format.reader.ok_or(FormatError::Unsupported {
+            format: format.name,
+            action: "read",
+        })?;
+        Ok((format, make_reader()))
+    }
+
+    /// The format that reads `bytes`: the one forced in `options`, else the one detected.
+    pub fn format_of(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        options: ReadOptions<'_>,
+    ) -> Result<MapFormat, FormatError> {
+        Ok(match options.format {
             Some(name) => *self.by_name(name, options.backend)?,
             None => *self.probe_with(bytes, options.backend).ok_or_else(|| {
                 FormatError::Unrecognized {
@@ -246,12 +313,24 @@ impl FormatRegistry {
                     reason: describe_start(bytes),
                 }
             })?,
-        };
-        let make_reader = format.reader.ok_or(FormatError::Unsupported {
-            format: format.name,
-            action: "read",
-        })?;
-        Ok((format, make_reader()))
+        })
+    }
+
+    /// The warning due when the content's format contradicts the file name.
+    fn extension_warning(
+        path: &Path,
+        format: &MapFormat,
+        options: ReadOptions<'_>,
+    ) -> Option<String> {
+        (options.format.is_none()
+            && extension_of(path).is_some()
+            && !format.matches_extension(path))
+        .then(|| {
+            format!(
+                "the content is a .{} file despite the file name; read as such",
+                format.extensions.first().copied().unwrap_or(format.name)
+            )
+        })
     }
 
     /// Runs `read` with the right reader, naming the file in errors and warning when the
@@ -270,16 +349,59 @@ impl FormatRegistry {
             format: format.name,
             source,
         })?;
-        if options.format.is_none()
-            && extension_of(path).is_some()
-            && !format.matches_extension(path)
-        {
-            warnings(&mut value).push(format!(
-                "the content is a .{} file despite the file name; read as such",
-                format.extensions.first().copied().unwrap_or(format.name)
-            ));
+        if let Some(warning) = Self::extension_warning(path, &format, options) {
+            warnings(&mut value).push(warning);
         }
         Ok((value, format))
+    }
+
+    /// Compares `current` with `previous` (a file read or compared before with the same
+    /// options; `None`: nothing known) from their bytes, streaming the ranges where `current`'s map differs,
+    /// when `current`'s format has a [`MapDiffer`] and `previous` is of the same format.
+    /// `Ok(None)` otherwise: read both and compare their leaves with
+    /// [`froctomap_core::changes`] instead. `path` (of `current`) is only used in messages.
+    ///
+    /// ```
+    /// use froctomap_formats::{FormatRegistry, ReadOptions};
+    /// use std::path::Path;
+    /// let registry = FormatRegistry::with_default_formats();
+    /// let file = b"# Octomap OcTree binary file\nid OcTree\nsize 3\nres 0.1\ndata\n\x09\x00";
+    /// let mut changes = Vec::new();
+    /// let outcome = registry
+    ///     .diff_bytes(Path::new("a.bt"), None, file, ReadOptions::default(), &mut |c| changes.push(c))?
+    ///     .expect("the native .bt format compares files without decoding them");
+    /// assert_eq!((outcome.diff.resolution, changes.len()), (0.1, 2)); // a free and an occupied octant
+    /// # Ok::<(), froctomap_formats::FormatError>(())
+    /// ```
+    pub fn diff_bytes(
+        &self,
+        path: &Path,
+        previous: Option<PreviousFile<'_>>,
+        current: &[u8],
+        options: ReadOptions<'_>,
+        on_change: &mut dyn FnMut(StateChange),
+    ) -> Result<Option<DiffOutcome>, FormatError> {
+        let format = self.format_of(path, current, options)?;
+        let Some(make_differ) = format.differ else {
+            return Ok(None);
+        };
+        if let Some(previous) = previous {
+            match self.format_of(path, previous.bytes, options) {
+                Ok(f) if f.name == format.name && f.backend == format.backend => {}
+                _ => return Ok(None),
+            }
+        }
+        let mut diff = make_differ()
+            .diff(previous, current, on_change)
+            .map_err(|source| FormatError::Decode {
+                path: path.to_path_buf(),
+                format: format.name,
+                source,
+            })?;
+        if let Some(warning) = Self::extension_warning(path, &format, options) {
+            diff.warnings.push(warning);
+        }
+        Ok(Some(DiffOutcome { diff, format }))
     }
 
     /// Reads a map from bytes already in memory; `path` is only used in messages.

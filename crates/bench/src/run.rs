@@ -13,7 +13,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, format_iso, observed_map, predicted_map,
-    unix_seconds, write_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
+    unix_seconds, write_owned_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent,
+    TimeSource,
 };
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
@@ -649,7 +650,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let retrieve_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
         let map = observed_map(&reader, sample)?;
-        write_map(&map, &retrieved, None, None)?;
+        write_owned_map(map, &retrieved, None, None)?;
         Ok(())
     })?;
     // The retrieved map must be the input snapshot (lossless).
@@ -665,7 +666,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let predict_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
         let map = predicted_map(&reader, future)?;
-        write_map(&map, &predicted, None, None)?;
+        write_owned_map(map, &predicted, None, None)?;
         Ok(())
     })?;
     let cli = system::find_cli(args.cli.as_deref());

@@ -8,8 +8,8 @@ use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, export, format_iso, observed_map, parse_duration,
-    parse_time, predicted_map, resolve_observed, write_map, BuildOptions, ClassCounts, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    parse_time, predicted_map, resolve_observed, write_owned_map, BuildOptions, ClassCounts,
+    EvalReport, ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_file::{Codec, FroctReader};
 use froctomap_formats::{FormatRegistry, ReadOptions};
@@ -345,8 +345,8 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         ));
     }
     let snapshot = observed_map(&reader, when.sample)?;
-    let written = write_map(
-        &snapshot,
+    let written = write_owned_map(
+        snapshot,
         &args.output,
         args.format.map(MapFormatArg::name),
         Some(ui.backend),
@@ -390,8 +390,8 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
         })?,
     };
     let snapshot = predicted_map(&reader, t)?;
-    let written = write_map(
-        &snapshot,
+    let written = write_owned_map(
+        snapshot,
         &args.output,
         args.format.map(MapFormatArg::name),
         Some(ui.backend),

@@ -1,6 +1,6 @@
 //! Times `changes` between two consecutive snapshots.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use froctomap_convert::changes;
+use froctomap_core::changes;
 use froctomap_formats::{FormatRegistry, ReadOptions};
 use std::time::Instant;
 

@@ -1,11 +1,12 @@
 //! `build`: a series of maps → one FROctomap file, streaming, with bounded memory.
 
 use crate::error::ConvertError;
-use crate::history::{changes, Change, SeriesHistory};
+use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
+use crate::snapshot_changes::{Accepted, ChangeReader};
 use crate::time::format_iso;
-use froctomap_core::{Leaf, MortonCode, Occupancy, Timestamp};
+use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
     WrittenFile,
@@ -18,7 +19,11 @@ use froctomap_temporal::{
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::{json, Map, Value};
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::SyncSender;
+use std::sync::Arc;
+use std::thread::ScopedJoinHandle;
 use std::time::Instant;
 
 /// How to build.
@@ -192,14 +197,6 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
     }
 }
 
-/// One input after the parallel stage.
-enum Decoded {
-    /// Byte-identical to the file before it.
-    SameAsPrevious,
-    /// Its leaves (Morton order) and reader warnings.
-    Leaves(Vec<Leaf>, Vec<String>),
-}
-
 /// Builds a FROctomap file from snapshots (sorted by time, distinct times).
 ///
 /// Reads the inputs in parallel batches and accumulates them in time order (memory grows
@@ -292,24 +289,16 @@ pub fn build(
     let mut resolution = series_resolution.map(|(r, _)| r);
     let first_path = series_resolution.map(|(_, i)| inputs[i].path.clone());
     let batch = options.batch.max(1);
-    let (sender, receiver) = std::sync::mpsc::sync_channel::<Vec<(u32, Vec<Change>)>>(1);
-    let (history, accumulate_seconds) =
-        std::thread::scope(|scope| -> Result<(SeriesHistory, f64), ConvertError> {
-            let accumulator = scope.spawn(move || -> Result<(SeriesHistory, f64), ConvertError> {
-                let mut history = SeriesHistory::new(options.tile_depth);
-                let mut busy = 0.0;
-                for batch in receiver {
-                    let started = Instant::now();
-                    for (sample, diff) in &batch {
-                        history.apply_changes(*sample, diff)?;
-                        progress.advance(1);
-                    }
-                    busy += started.elapsed().as_secs_f64();
-                }
-                Ok((history, busy))
-            });
-            // The last snapshot accumulated: its bytes (for the identity check) and leaves.
-            let mut previous: Option<(Vec<u8>, Vec<Leaf>)> = None;
+    // Space is split into ranges (at tile boundaries, which no cell straddles) accumulated
+    // by one thread each; the ranges are chosen from the first batch's changes.
+    let parts = rayon::current_num_threads().clamp(1, 8);
+    let (histories, accumulate_seconds) =
+        std::thread::scope(|scope| -> Result<(Vec<SeriesHistory>, f64), ConvertError> {
+            type Batch = Arc<Vec<(u32, Vec<StateChange>)>>;
+            let mut workers: Vec<(SyncSender<Batch>, ScopedJoinHandle<'_, Accumulated>)> =
+                Vec::new();
+            // The last snapshot accepted, which the next one is compared with.
+            let mut previous: Option<Accepted> = None;
             let produced = (|| -> Result<(), ConvertError> {
                 for chunk_start in (0..inputs.len()).step_by(batch) {
                     let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
@@ -331,68 +320,16 @@ pub fn build(
                             }
                         }
                     }
-                    let decoded: Vec<Result<Decoded, String>> = chunk
-                        .par_iter()
-                        .zip(raw.par_iter())
-                        .enumerate()
-                        .map(|(k, (&i, bytes))| {
-                            let bytes = bytes.as_ref().map_err(Clone::clone)?;
-                            let before = match k {
-                                0 => previous.as_ref().map(|(b, _)| b.as_slice()),
-                                _ => raw[k - 1].as_deref().ok(),
-                            };
-                            if before == Some(bytes.as_slice()) {
-                                return Ok(Decoded::SameAsPrevious);
-                            }
-                            let read = registry
-                                .read_bytes(&inputs[i].path, bytes, read_options)
-                                .map_err(|e| e.to_string())?;
-                            let res = read.map.snapshot.resolution();
-                            if resolution.is_some_and(|r| r != res) {
-                                return Err(format!(
-                                    "resolution {res} m differs from the series' {} m",
-                                    resolution.unwrap_or(res)
-                                ));
-                            }
-                            Ok(Decoded::Leaves(
-                                read.map.snapshot.into_leaves(),
-                                read.map.warnings,
-                            ))
-                        })
-                        .collect();
-                    // A file identical to its predecessor shares its fate.
-                    let mut outcomes: Vec<Result<Decoded, String>> =
-                        Vec::with_capacity(decoded.len());
-                    for d in decoded {
-                        let shared = match (&d, outcomes.last()) {
-                            (Ok(Decoded::SameAsPrevious), Some(Err(e))) => Some(Err(e.clone())),
-                            _ => None,
-                        };
-                        outcomes.push(shared.unwrap_or(d));
-                    }
-                    // Differences from the predecessor (the last file that will be accumulated).
-                    let predecessor = |k: usize| -> Option<&[Leaf]> {
-                        outcomes[..k]
-                            .iter()
-                            .rev()
-                            .find_map(|o| match o {
-                                Ok(Decoded::Leaves(leaves, _)) => Some(leaves.as_slice()),
-                                _ => None,
-                            })
-                            .or_else(|| previous.as_ref().map(|(_, l)| l.as_slice()))
+                    let reader = ChangeReader {
+                        registry: &registry,
+                        options: read_options,
+                        resolution,
                     };
-                    let diffs: Vec<Option<Vec<Change>>> = (0..outcomes.len())
-                        .into_par_iter()
-                        .map(|k| match &outcomes[k] {
-                            Ok(Decoded::Leaves(leaves, _)) => {
-                                Some(changes(predecessor(k).unwrap_or(&[]), leaves))
-                            }
-                            Ok(Decoded::SameAsPrevious) => Some(Vec::new()),
-                            Err(_) => None,
-                        })
-                        .collect();
+                    let paths: Vec<&Path> =
+                        chunk.iter().map(|&i| inputs[i].path.as_path()).collect();
+                    let outcomes = reader.batch(&paths, &raw, &mut previous);
                     let mut accepted = Vec::with_capacity(outcomes.len());
-                    for (k, (outcome, diff)) in outcomes.iter().zip(diffs).enumerate() {
+                    for (k, outcome) in outcomes.into_iter().enumerate() {
                         let input = &inputs[chunk[k]];
                         let sample = axis.index_of(input.time).ok_or_else(|| {
                             ConvertError::Inputs(format!(
@@ -400,33 +337,31 @@ pub fn build(
                                 input.path.display()
                             ))
                         })?;
-                        match (outcome, diff) {
-                            (Ok(decoded), Some(diff)) => {
-                                if let Decoded::Leaves(_, warns) = decoded {
-                                    warnings.extend(
-                                        warns.iter().map(|w| (input.path.clone(), w.clone())),
-                                    );
-                                }
+                        match outcome {
+                            Ok(read) => {
+                                warnings.extend(
+                                    read.warnings.into_iter().map(|w| (input.path.clone(), w)),
+                                );
                                 input_bytes += raw[k].as_ref().map_or(0, |b| b.len() as u64);
                                 used += 1;
-                                accepted.push((sample, diff));
+                                accepted.push((sample, read.changes));
                             }
-                            (Err(reason), _) if options.skip_bad => {
-                                skipped.push((input.path.clone(), reason.clone()));
+                            Err(reason) if options.skip_bad => {
+                                skipped.push((input.path.clone(), reason));
                                 absent.push(sample);
                                 progress.advance(1);
                             }
-                            (Err(reason), _) if reason.starts_with("resolution") => {
+                            Err(reason) if reason.starts_with("resolution") => {
                                 return Err(ConvertError::Inputs(format!(
                                     "{}: {reason} (first file {}); use --skip-bad to leave it out",
                                     input.path.display(),
                                     first_path.as_deref().unwrap_or(Path::new("?")).display()
                                 )));
                             }
-                            (Err(reason), _) => {
+                            Err(reason) => {
                                 let message =
                                     if reason.starts_with(&input.path.display().to_string()) {
-                                        reason.clone()
+                                        reason
                                     } else {
                                         format!("{}: {reason}", input.path.display())
                                     };
@@ -434,38 +369,55 @@ pub fn build(
                                     "{message} (use --skip-bad to leave it out)"
                                 )));
                             }
-                            (Ok(_), None) => {
-                                unreachable!("every accepted outcome has a difference")
-                            }
                         }
                     }
-                    // Carry the last accumulated snapshot into the next batch.
-                    let last = outcomes
-                        .iter()
-                        .zip(&raw)
-                        .rev()
-                        .find_map(|(o, b)| match (o, b) {
-                            (Ok(Decoded::Leaves(leaves, _)), Ok(bytes)) => {
-                                Some((bytes.clone(), leaves.clone()))
-                            }
-                            _ => None,
-                        });
-                    if let Some(last) = last {
-                        previous = Some(last);
+                    if workers.is_empty() {
+                        let bounds = split_points(&accepted, parts, options.tile_depth);
+                        for (part, range) in ranges(&bounds).into_iter().enumerate() {
+                            let (sender, receiver) = std::sync::mpsc::sync_channel::<Batch>(1);
+                            // One thread reports progress for all.
+                            let report = part == 0;
+                            let worker = scope.spawn(move || -> Accumulated {
+                                let mut history = SeriesHistory::new(options.tile_depth);
+                                let mut busy = 0.0;
+                                for batch in receiver {
+                                    let started = Instant::now();
+                                    for (sample, changes) in batch.iter() {
+                                        history.apply_changes(*sample, &clip(changes, range))?;
+                                        if report {
+                                            progress.advance(1);
+                                        }
+                                    }
+                                    busy += started.elapsed().as_secs_f64();
+                                }
+                                Ok((history, busy))
+                            });
+                            workers.push((sender, worker));
+                        }
                     }
-                    if sender.send(accepted).is_err() {
-                        // The accumulator stopped on an error, which `join` reports.
+                    let batch: Batch = Arc::new(accepted);
+                    if workers
+                        .iter()
+                        .any(|(sender, _)| sender.send(batch.clone()).is_err())
+                    {
+                        // An accumulator stopped on an error, which `join` reports.
                         break;
                     }
                 }
                 Ok(())
             })();
-            drop(sender);
-            let accumulated = accumulator.join().map_err(|_| {
-                ConvertError::Inputs("internal error: the accumulating thread panicked".into())
-            })?;
+            let mut histories = Vec::with_capacity(workers.len());
+            let mut busy = 0.0f64;
+            for (sender, worker) in workers {
+                drop(sender);
+                let (history, seconds) = worker.join().map_err(|_| {
+                    ConvertError::Inputs("internal error: an accumulating thread panicked".into())
+                })??;
+                histories.push(history);
+                busy = busy.max(seconds);
+            }
             produced?;
-            accumulated
+            Ok((histories, busy))
         })?;
     for (i, &u) in usable.iter().enumerate() {
         if !u {
@@ -480,7 +432,7 @@ pub fn build(
         ConvertError::NothingToBuild(format!("all {} inputs were left out", inputs.len()))
     })?;
     let read_seconds = started.elapsed().as_secs_f64();
-    let changed_voxels = history.changed_voxels();
+    let changed_voxels = histories.iter().map(SeriesHistory::changed_voxels).sum();
     // Snapshots left out become missing samples of a regular axis, so the file says there
     // is no snapshot at their time (an explicit axis keeps the instant, with nothing
     // observed at it).
@@ -506,11 +458,10 @@ pub fn build(
     );
     header.metadata = metadata(inputs, used, input_bytes, &options.metadata);
     let mut writer = FroctWriter::create(output, &header)?;
-    progress.stage("modelling cells", history.cell_count() as u64);
+    let cell_count: usize = histories.iter().map(SeriesHistory::cell_count).sum();
+    progress.stage("modelling cells", cell_count as u64);
     let axis_len = axis.len();
     let mut stats = TileStats::default();
-    let mut pending: Vec<(MortonCode, u8, VoxelObservations)> = Vec::new();
-    let mut tiles: Vec<Vec<(MortonCode, u8, VoxelObservations)>> = Vec::new();
     let flush = |tiles: &mut Vec<Vec<(MortonCode, u8, VoxelObservations)>>,
                  writer: &mut FroctWriter,
                  stats: &mut TileStats|
@@ -539,27 +490,56 @@ pub fn build(
     };
     // Tiles are fitted in parallel batches; a batch ends at a few tiles per thread or at a
     // bound on the runs it holds (cells' observations are unpacked here, and a long series
-    // with partial views gives every cell many runs), whichever comes first.
+    // with partial views gives every cell many runs), whichever comes first. A thread of
+    // its own walks the cells and gathers the next batch while one is fitted.
     const BATCH_RUNS: usize = 4 << 20;
-    let mut batch_runs = 0usize;
-    for item in history.finish(axis_len, &absent) {
-        let cell = item?;
-        if pending.first().is_some_and(|p| {
-            p.0.node_start(options.tile_depth) != cell.0.node_start(options.tile_depth)
-        }) {
-            tiles.push(std::mem::take(&mut pending));
-            if tiles.len() >= 4 * rayon::current_num_threads().max(1) || batch_runs >= BATCH_RUNS {
-                flush(&mut tiles, &mut writer, &mut stats)?;
-                batch_runs = 0;
+    type TileBatch = Vec<Vec<(MortonCode, u8, VoxelObservations)>>;
+    std::thread::scope(|scope| -> Result<(), ConvertError> {
+        let (sender, receiver) =
+            std::sync::mpsc::sync_channel::<Result<TileBatch, ConvertError>>(0);
+        let absent = &absent;
+        scope.spawn(move || {
+            let mut pending: Vec<(MortonCode, u8, VoxelObservations)> = Vec::new();
+            let mut tiles: TileBatch = Vec::new();
+            let mut batch_runs = 0usize;
+            let cells = histories
+                .into_iter()
+                .flat_map(|history| history.finish(axis_len, absent));
+            for item in cells {
+                let cell = match item {
+                    Ok(cell) => cell,
+                    Err(e) => {
+                        let _ = sender.send(Err(e.into()));
+                        return;
+                    }
+                };
+                if pending.first().is_some_and(|p| {
+                    p.0.node_start(options.tile_depth) != cell.0.node_start(options.tile_depth)
+                }) {
+                    tiles.push(std::mem::take(&mut pending));
+                    if tiles.len() >= 4 * rayon::current_num_threads().max(1)
+                        || batch_runs >= BATCH_RUNS
+                    {
+                        if sender.send(Ok(std::mem::take(&mut tiles))).is_err() {
+                            // The writer stopped on an error.
+                            return;
+                        }
+                        batch_runs = 0;
+                    }
+                }
+                batch_runs += cell.2.runs().len();
+                pending.push(cell);
             }
+            if !pending.is_empty() {
+                tiles.push(pending);
+            }
+            let _ = sender.send(Ok(tiles));
+        });
+        for batch in receiver {
+            flush(&mut batch?, &mut writer, &mut stats)?;
         }
-        batch_runs += cell.2.runs().len();
-        pending.push(cell);
-    }
-    if !pending.is_empty() {
-        tiles.push(pending);
-    }
-    flush(&mut tiles, &mut writer, &mut stats)?;
+        Ok(())
+    })?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let summary = json!({
         "cell_classes": stats.cells,
@@ -600,6 +580,57 @@ pub fn build(
         accumulate_seconds,
         model_seconds,
     })
+}
+
+/// What an accumulating thread hands back: its part of the history and its busy seconds.
+type Accumulated = Result<(SeriesHistory, f64), ConvertError>;
+
+/// Up to `parts - 1` increasing tile boundaries that split the changes of a batch into parts
+/// of about as many changes (the first snapshot, which is all new, is left out when others
+/// follow: later snapshots change where the scene moves).
+fn split_points(batch: &[(u32, Vec<StateChange>)], parts: usize, tile_depth: u8) -> Vec<u64> {
+    let sample = match batch {
+        [_, rest @ ..] if rest.iter().any(|(_, c)| !c.is_empty()) => rest,
+        all => all,
+    };
+    let mut starts: Vec<u64> = sample
+        .iter()
+        .flat_map(|(_, changes)| changes.iter().map(|c| c.start))
+        .collect();
+    starts.sort_unstable();
+    let mut bounds: Vec<u64> = (1..parts)
+        .filter_map(|i| starts.get(starts.len() * i / parts))
+        .map(|&at| MortonCode(at).node_start(tile_depth).0)
+        .filter(|&at| at > 0)
+        .collect();
+    bounds.dedup();
+    bounds
+}
+
+/// The ranges `[from, to)` between consecutive bounds, covering all space.
+fn ranges(bounds: &[u64]) -> Vec<(u64, u64)> {
+    let mut edges = vec![0];
+    edges.extend_from_slice(bounds);
+    edges.push(MortonCode::END);
+    edges.windows(2).map(|w| (w[0], w[1])).collect()
+}
+
+/// The changes (sorted, disjoint) inside `[from, to)`, cut at its ends.
+fn clip(changes: &[StateChange], (from, to): (u64, u64)) -> Cow<'_, [StateChange]> {
+    let first = changes.partition_point(|c| c.end <= from);
+    let last = changes.partition_point(|c| c.start < to).max(first);
+    let inside = &changes[first..last];
+    match (inside.first(), inside.last()) {
+        (Some(a), Some(b)) if a.start < from || b.end > to => inside
+            .iter()
+            .map(|c| StateChange {
+                start: c.start.max(from),
+                end: c.end.min(to),
+                new: c.new,
+            })
+            .collect(),
+        _ => Cow::Borrowed(inside),
+    }
 }
 
 fn metadata(

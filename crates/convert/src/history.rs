@@ -1,7 +1,7 @@
 //! Streaming accumulation of a series into per-cell observation runs.
 //!
 //! Snapshots arrive one at a time in time order, as the ranges where each differs from the
-//! previous one ([`changes`], which callers can compute in parallel): only the ranges whose
+//! previous one ([`froctomap_core::changes`], or a format's byte-level differ), which callers can compute in parallel): only the ranges whose
 //! state changed (including known ↔ unknown) touch the cells. Unchanged space
 //! costs nothing per snapshot, so the work per snapshot is proportional to its leaves plus
 //! its changes, and memory to the cells and their changes — never to the number of
@@ -11,72 +11,9 @@
 //! change boundary falls inside it, and its history is inherited by its eight children.
 //! Cells are never coarser than a tile of the output file.
 
-use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, TREE_DEPTH};
+use froctomap_core::{voxels_per_node, MortonCode, Occupancy, StateChange, TREE_DEPTH};
 use froctomap_temporal::{varint, Run, TemporalError, VoxelObservations};
 use std::collections::BTreeMap;
-
-/// A range whose state changed between two snapshots, and its new state (`None` = unknown).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Change {
-    /// First voxel (Morton code).
-    pub start: u64,
-    /// One past the last voxel.
-    pub end: u64,
-    /// The state from now on (`None`: unknown).
-    pub new: Option<Occupancy>,
-}
-
-/// The state at `pos` in sorted, disjoint leaves (advancing `i`), and where it ends.
-fn state_at(leaves: &[Leaf], i: &mut usize, pos: u64) -> (Option<Occupancy>, u64) {
-    while *i < leaves.len() && leaves[*i].end() <= pos {
-        *i += 1;
-    }
-    match leaves.get(*i) {
-        Some(l) if l.start.0 <= pos => (Some(l.occupancy()), l.end()),
-        Some(l) => (None, l.start.0),
-        None => (None, MortonCode::END),
-    }
-}
-
-/// The ranges where `current` differs from `previous` (both sorted and disjoint, as a
-/// [`Snapshot`](froctomap_core::Snapshot)'s leaves are), maximal per new state. Leaves
-/// equal in both are skipped pairwise, so consecutive snapshots of a mostly static scene
-/// compare at the speed of a linear scan; how either splits space into leaves does not
-/// matter.
-pub fn changes(previous: &[Leaf], current: &[Leaf]) -> Vec<Change> {
-    let mut out: Vec<Change> = Vec::new();
-    let (mut i, mut j, mut pos) = (0usize, 0usize, 0u64);
-    while pos < MortonCode::END {
-        // Fast path: the same leaf in both.
-        if let (Some(a), Some(b)) = (previous.get(i), current.get(j)) {
-            if a.start.0 == pos
-                && b.start.0 == pos
-                && a.depth == b.depth
-                && a.occupancy() == b.occupancy()
-            {
-                pos = a.end();
-                i += 1;
-                j += 1;
-                continue;
-            }
-        }
-        let (old, old_end) = state_at(previous, &mut i, pos);
-        let (new, new_end) = state_at(current, &mut j, pos);
-        let end = old_end.min(new_end);
-        if old != new {
-            match out.last_mut() {
-                Some(last) if last.end == pos && last.new == new => last.end = end,
-                _ => out.push(Change {
-                    start: pos,
-                    end,
-                    new,
-                }),
-            }
-        }
-        pos = end;
-    }
-    out
-}
 
 /// Closed runs packed as varints (gap since the previous run's end, then `len << 1 | state`):
 /// two to four bytes a run instead of twelve, since a long series with partial views gives
@@ -232,8 +169,12 @@ impl SeriesHistory {
     }
 
     /// Records the snapshot taken at `sample` (after the previous one) by the ranges where
-    /// it differs from the previous snapshot ([`changes`]); none when it is identical.
-    pub fn apply_changes(&mut self, sample: u32, changes: &[Change]) -> Result<(), TemporalError> {
+    /// it differs from the previous snapshot ([`froctomap_core::changes`]); none when it is identical.
+    pub fn apply_changes(
+        &mut self,
+        sample: u32,
+        changes: &[StateChange],
+    ) -> Result<(), TemporalError> {
         if self.last_sample.is_some_and(|last| sample <= last) {
             return Err(TemporalError::InvalidObservations {
                 reason: "snapshots must arrive in increasing sample order",
@@ -249,7 +190,7 @@ impl SeriesHistory {
         Ok(())
     }
 
-    fn apply(&mut self, sample: u32, change: Change) {
+    fn apply(&mut self, sample: u32, change: StateChange) {
         self.split_at(change.start);
         self.split_at(change.end);
         // A gap may only stretch over space that holds no other cell.
@@ -432,7 +373,7 @@ fn without_absent(run: Run, absent: &[u32]) -> Vec<(u32, u32, Occupancy)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use froctomap_core::{Snapshot, VoxelKey};
+    use froctomap_core::{changes, Leaf, Snapshot, VoxelKey};
     use proptest::prelude::*;
 
     fn leaf(x: u16, depth: u8, occupied: bool) -> Leaf {

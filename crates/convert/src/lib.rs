@@ -36,6 +36,7 @@ mod info;
 mod inputs;
 mod maps;
 mod progress;
+mod snapshot_changes;
 mod text;
 mod time;
 
@@ -43,13 +44,13 @@ pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
 pub use error::ConvertError;
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
 pub use froctomap_core::calendar::unix_seconds;
-pub use history::{changes, Change, SeriesHistory};
+pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
 pub use inputs::{collect_inputs, manifest_text, SeriesInput, TimeSource, MANIFEST_NAME};
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
-    ExportMode, ExportOptions, ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
-    MAX_EXPORTS,
+    write_owned_map, ExportMode, ExportOptions, ExportReport, LoadedMap, ResolvedSample, TimeQuery,
+    WrittenMap, MAX_EXPORTS,
 };
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;

@@ -192,9 +192,20 @@ pub fn probability_log_odds(p: f64) -> f32 {
 
 /// Writes a map to `path` in the format its extension (or `format`) names, atomically, in
 /// the canonical split ([`Snapshot::canonical`]). A `.bt` holds states only, so the map is
-/// reduced to maximum likelihood first.
+/// reduced to maximum likelihood first. [`write_owned_map`] does the same without copying
+/// the map.
 pub fn write_map(
     snapshot: &Snapshot,
+    path: &Path,
+    format: Option<&str>,
+    backend: Option<Backend>,
+) -> Result<WrittenMap, ConvertError> {
+    write_owned_map(snapshot.clone(), path, format, backend)
+}
+
+/// [`write_map`] of a map no longer needed, reduced and merged in place.
+pub fn write_owned_map(
+    snapshot: Snapshot,
     path: &Path,
     format: Option<&str>,
     backend: Option<Backend>,
@@ -205,9 +216,9 @@ pub fn write_map(
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
     let canonical = if chosen.name == "bt" {
-        snapshot.to_max_likelihood().into_canonical()
+        snapshot.into_max_likelihood().into_canonical()
     } else {
-        snapshot.canonical()
+        snapshot.into_canonical()
     };
     let format = registry
         .write_file(&canonical, path, options)

@@ -17,6 +17,7 @@
 
 mod atomic_file;
 pub mod calendar;
+mod change;
 mod error;
 mod key;
 mod leaf;
@@ -24,6 +25,7 @@ mod snapshot;
 mod time;
 
 pub use atomic_file::{write_atomically, AtomicWriteError};
+pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;
 pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};
 pub use leaf::{

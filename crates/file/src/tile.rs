@@ -349,7 +349,7 @@ pub(crate) enum WalkNeed {
     /// Only whether the cell is observed at this sample and its state there: masks are
     /// evaluated once per distinct mask, outlier lists only as far as the sample.
     StateAt(u32),
-    /// Only the model (for predictions): outliers are skipped undecoded.
+    /// Only the model (for predictions): masks and outliers are skipped undecoded.
     ModelOnly,
 }
 
@@ -357,7 +357,8 @@ pub(crate) enum WalkNeed {
 pub(crate) struct CellRef<'a> {
     pub(crate) start: MortonCode,
     pub(crate) depth: u8,
-    /// The cell's observation mask (shared by the tile), if it has one.
+    /// With [`WalkNeed::Everything`]: the cell's observation mask (shared by the tile), if
+    /// it has one (a query at one sample gets `observed` instead).
     pub(crate) mask: Option<&'a Arc<Toggles>>,
     /// The constant state, or `None` for a modelled cell.
     pub(crate) constant: Option<Occupancy>,
@@ -457,27 +458,39 @@ pub(crate) fn walk_payload(
         ));
     }
     let distinct = distinct as usize;
-    let mut mask_table = Vec::with_capacity(distinct);
+    let mut mask_table = Vec::new();
     let mut scratch = Vec::new();
-    for _ in 0..distinct {
-        masks.next_list_into(&mut scratch)?;
-        if scratch.is_empty() {
-            return Err(corrupt(
-                "tile masks",
-                "a mask under which a cell is never observed",
-            ));
-        }
-        let toggles =
-            Toggles::new(scratch.clone()).map_err(|e| corrupt("tile masks", e.to_string()))?;
-        mask_table.push(Arc::new(toggles));
-    }
-    // For a query at one sample: each distinct mask is evaluated once, not once per cell.
+    // For a query at one sample, only whether each distinct mask observes it: evaluated
+    // once per mask, not per cell, and without decoding the mask past the sample.
     let (sample_present, mask_observed): (bool, Vec<bool>) = match need {
         WalkNeed::StateAt(sample) => (
             sample < axis_len && !axis.is_missing(sample),
-            mask_table.iter().map(|m| m.parity_at(sample)).collect(),
+            (0..distinct)
+                .map(|_| masks.parity_at(sample))
+                .collect::<Result<_, _>>()?,
         ),
-        _ => (false, Vec::new()),
+        WalkNeed::ModelOnly => {
+            for _ in 0..distinct {
+                masks.skip_list()?;
+            }
+            (false, Vec::new())
+        }
+        WalkNeed::Everything => {
+            mask_table.reserve(distinct);
+            for _ in 0..distinct {
+                masks.next_list_into(&mut scratch)?;
+                if scratch.is_empty() {
+                    return Err(corrupt(
+                        "tile masks",
+                        "a mask under which a cell is never observed",
+                    ));
+                }
+                let toggles = Toggles::new(scratch.clone())
+                    .map_err(|e| corrupt("tile masks", e.to_string()))?;
+                mask_table.push(Arc::new(toggles));
+            }
+            (false, Vec::new())
+        }
     };
     let mut mask_refs = Cursor::new(mask_refs, "tile masks");
     let tile_end = code.0 + voxels_per_node(tile_depth);

@@ -76,6 +76,21 @@ pub fn walk_body<F: FnMut(Leaf) + ?Sized>(
     })
 }
 
+/// The `N` bytes of the node record at `pos` of a body, or how it is truncated.
+pub(crate) fn record_at<const N: usize>(
+    body: &[u8],
+    pos: usize,
+    body_offset: usize,
+) -> Result<[u8; N], CodecError> {
+    body.get(pos..pos + N)
+        .and_then(|b| <[u8; N]>::try_from(b).ok())
+        .ok_or(CodecError::Truncated {
+            offset: body_offset + pos,
+            needed: N,
+            available: body.len().saturating_sub(pos),
+        })
+}
+
 struct Walk<'a, 'f, F: FnMut(Leaf) + ?Sized> {
     body: &'a [u8],
     pos: usize,
@@ -89,15 +104,7 @@ struct Walk<'a, 'f, F: FnMut(Leaf) + ?Sized> {
 
 impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
     fn take<const N: usize>(&mut self) -> Result<[u8; N], CodecError> {
-        let bytes = self
-            .body
-            .get(self.pos..self.pos + N)
-            .and_then(|b| <[u8; N]>::try_from(b).ok())
-            .ok_or(CodecError::Truncated {
-                offset: self.body_offset + self.pos,
-                needed: N,
-                available: self.body.len().saturating_sub(self.pos),
-            })?;
+        let bytes = record_at(self.body, self.pos, self.body_offset)?;
         self.pos += N;
         Ok(bytes)
     }

@@ -48,6 +48,13 @@ pub enum CodecError {
         /// Offset of the offending node's data.
         offset: usize,
     },
+    /// A `.ot` leaf whose log-odds value is NaN, which no map can hold (reported by [`crate::diff`];
+    /// [`crate::scan`] passes values through and the map built from them rejects it).
+    #[error("corrupt tree data: a leaf's log-odds value is NaN, at offset {offset}")]
+    NotANumber {
+        /// Offset of the leaf's data.
+        offset: usize,
+    },
     /// A configured resource bound was hit.
     #[error("limit exceeded: the tree has more than {limit} nodes (raise the node limit if the file is genuine)")]
     TooManyNodes {

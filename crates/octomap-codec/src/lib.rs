@@ -7,7 +7,8 @@
 //! tree has, so the FFI crate runs it before handing untrusted bytes to the C++ library.
 //! It is also a reader in its own right: [`scan`] streams the leaves (coarse leaves as one
 //! item with their depth) in Morton order straight from the bit stream, [`scan_runs`] merges
-//! them into runs of equal state, [`decode`] collects them.
+//! them into runs of equal state, [`decode`] collects them, and [`diff`] reads two files side
+//! by side and streams only the ranges where the second differs from the first.
 //!
 //! **Writing.** [`encode_binary`] and [`encode_full`] (and their streaming forms
 //! [`BinaryEncoder`] and [`FullEncoder`], fed leaf by leaf in Morton order) write the files
@@ -29,12 +30,14 @@
 //! ```
 
 mod body;
+mod diff;
 mod encode;
 mod error;
 mod header;
 mod runs;
 
 pub use body::{walk_body, BodySummary, ReadLimits};
+pub use diff::{diff, TreeIndex};
 pub use encode::{encode_binary, encode_full, format_resolution, BinaryEncoder, FullEncoder};
 pub use error::{CodecError, EncodeError};
 pub use header::{
@@ -135,6 +138,17 @@ pub fn scan<F: FnMut(Leaf) + ?Sized>(
     limits: ReadLimits,
     on_leaf: &mut F,
 ) -> Result<ScanSummary, CodecError> {
+    scan_with(bytes, kind, |kind, body, body_offset| {
+        walk_body(kind, body, body_offset, limits, on_leaf)
+    })
+}
+
+/// The header checks and warnings of [`scan`] around a walk of the body.
+pub(crate) fn scan_with(
+    bytes: &[u8],
+    kind: Option<FileKind>,
+    walk: impl FnOnce(FileKind, &[u8], usize) -> Result<BodySummary, CodecError>,
+) -> Result<ScanSummary, CodecError> {
     if bytes.is_empty() {
         return Err(CodecError::Empty);
     }
@@ -163,7 +177,7 @@ pub fn scan<F: FnMut(Leaf) + ?Sized>(
         }
         (0, header.body_offset)
     } else {
-        let summary = walk_body(kind, body, header.body_offset, limits, on_leaf)?;
+        let summary = walk(kind, body, header.body_offset)?;
         if summary.node_count != u64::from(header.declared_size) {
             warnings.push(format!(
                 "header says `size {}` but the tree has {} nodes; the tree data is complete, so it is used (OctoMap loads it too but reports failure)",

@@ -1,0 +1,282 @@
+//! Each snapshot of a series as its changes from the one before, computed in parallel.
+//!
+//! Where the format can compare two files from their bytes (OctoMap's `.bt`/`.ot` through the
+//! native codec), consecutive files are compared without decoding either, which is most of
+//! the reading work of a build; other formats are read into leaves and compared with
+//! [`froctomap_core::changes`]. Either way the result is the same list of changes.
+
+use froctomap_core::{changes, Leaf, StateChange};
+use froctomap_formats::{DiffState, FormatRegistry, MapDiff, PreviousFile, ReadOptions};
+use rayon::prelude::*;
+use std::borrow::Cow;
+use std::path::Path;
+
+/// How the refusal of a file byte-identical to a refused one begins.
+const SAME_AS_REFUSED: &str = "byte-identical to a file refused before it:";
+
+/// A file accepted into the series, its changes from the file accepted before it.
+#[derive(Debug)]
+pub(crate) struct FileChanges {
+    /// Ranges whose state changed (empty for a file identical to its predecessor).
+    pub changes: Vec<StateChange>,
+    /// What the reader tolerated.
+    pub warnings: Vec<String>,
+}
+
+/// The last file accepted, carried from one batch to the next.
+#[derive(Default)]
+pub(crate) struct Accepted {
+    bytes: Vec<u8>,
+    /// Its leaves, when it had to be decoded.
+    leaves: Option<Vec<Leaf>>,
+    /// What its format's differ kept, when it was compared from the bytes.
+    state: Option<DiffState>,
+}
+
+/// One file after the parallel stage.
+enum FirstLook {
+    /// Byte-identical to the file before it.
+    Same,
+    /// Of a format that compares files from their bytes: compared in time order next.
+    Comparable,
+    /// Decoded (its format has no byte-level comparison).
+    Leaves(Vec<Leaf>, Vec<String>),
+}
+
+/// What is left to do for a file once its predecessor is known.
+enum Plan {
+    Done(FileChanges),
+    /// Compare the leaves with this accepted file's (`None`: the one carried from earlier
+    /// batches).
+    CompareWith(Option<usize>, Vec<Leaf>, Vec<String>),
+    Failed(String),
+}
+
+/// Turns batches of files into changes.
+pub(crate) struct ChangeReader<'a> {
+    pub registry: &'a FormatRegistry,
+    pub options: ReadOptions<'a>,
+    /// The series' resolution; files of another are refused.
+    pub resolution: Option<f64>,
+}
+
+impl ChangeReader<'_> {
+    /// For each file of a batch (in time order, with its bytes or why they could not be read)
+    /// its changes from the last file before it that was accepted, or why it is refused. A
+    /// file identical to its predecessor shares its fate. `carried` holds the last file
+    /// accepted by earlier batches and is updated.
+    ///
+    /// Files whose format compares files from their bytes are compared in time order, each
+    /// with the one before, reusing what the differ kept of that one; other files are decoded
+    /// and their leaves compared, in parallel.
+    pub fn batch(
+        &self,
+        paths: &[&Path],
+        raw: &[Result<Vec<u8>, String>],
+        carried: &mut Option<Accepted>,
+    ) -> Vec<Result<FileChanges, String>> {
+        let carried_bytes = carried.as_ref().map(|a| a.bytes.clone());
+        let looks: Vec<Result<FirstLook, String>> = (0..raw.len())
+            .into_par_iter()
+            .map(|k| {
+                let bytes = raw[k].as_ref().map_err(Clone::clone)?;
+                let before = match k {
+                    0 => carried_bytes.as_deref(),
+                    _ => raw[k - 1].as_deref().ok(),
+                };
+                if before == Some(bytes.as_slice()) {
+                    return Ok(FirstLook::Same);
+                }
+                match self.registry.format_of(paths[k], bytes, self.options) {
+                    Ok(format) if format.differ.is_some() => Ok(FirstLook::Comparable),
+                    _ => {
+                        let (leaves, warnings) = self.read_leaves(paths[k], bytes)?;
+                        Ok(FirstLook::Leaves(leaves, warnings))
+                    }
+                }
+            })
+            .collect();
+        // In time order: which accepted file each one follows, and the byte comparisons.
+        let mut plans: Vec<Plan> = Vec::with_capacity(looks.len());
+        let mut last: Option<usize> = None;
+        let mut states: Vec<Option<DiffState>> = Vec::with_capacity(looks.len());
+        let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
+        for (k, look) in looks.into_iter().enumerate() {
+            let mut state = None;
+            let plan = match look {
+                Err(reason) => Plan::Failed(reason),
+                Ok(FirstLook::Same) => match k.checked_sub(1).map(|j| &plans[j]) {
+                    Some(Plan::Failed(reason)) if reason.starts_with(SAME_AS_REFUSED) => {
+                        Plan::Failed(reason.clone())
+                    }
+                    Some(Plan::Failed(reason)) => {
+                        Plan::Failed(format!("{SAME_AS_REFUSED} {reason}"))
+                    }
+                    _ => {
+                        // The same bytes: what the differ kept of the predecessor holds.
+                        state = match k {
+                            0 => carried_state.take(),
+                            _ => states[k - 1].take(),
+                        };
+                        Plan::Done(FileChanges {
+                            changes: Vec::new(),
+                            warnings: Vec::new(),
+                        })
+                    }
+                },
+                Ok(FirstLook::Leaves(leaves, warnings)) => {
+                    Plan::CompareWith(last, leaves, warnings)
+                }
+                Ok(FirstLook::Comparable) => {
+                    let before = match last {
+                        Some(j) => raw[j].as_deref().ok().map(|bytes| PreviousFile {
+                            bytes,
+                            state: states[j].as_ref(),
+                        }),
+                        None => carried.as_ref().map(|a| PreviousFile {
+                            bytes: &a.bytes,
+                            state: carried_state.as_ref(),
+                        }),
+                    };
+                    let bytes = raw[k].as_deref().unwrap_or_default();
+                    match self.compare_bytes(paths[k], before, bytes) {
+                        Ok(Some((changes, diff))) => {
+                            state = diff.state;
+                            Plan::Done(FileChanges {
+                                changes,
+                                warnings: diff.warnings,
+                            })
+                        }
+                        // The file before is of another format.
+                        Ok(None) => match self.read_leaves(paths[k], bytes) {
+                            Ok((leaves, warnings)) => Plan::CompareWith(last, leaves, warnings),
+                            Err(reason) => Plan::Failed(reason),
+                        },
+                        Err(reason) => Plan::Failed(reason),
+                    }
+                }
+            };
+            if !matches!(plan, Plan::Failed(_)) {
+                last = Some(k);
+            }
+            plans.push(plan);
+            states.push(state);
+        }
+        let mut settled: Vec<Option<Result<FileChanges, String>>> = plans
+            .iter_mut()
+            .map(|plan| match plan {
+                Plan::CompareWith(..) => None,
+                settled => match std::mem::replace(settled, Plan::Failed(String::new())) {
+                    Plan::Done(done) => Some(Ok(done)),
+                    Plan::Failed(reason) => Some(Err(reason)),
+                    Plan::CompareWith(..) => None,
+                },
+            })
+            .collect();
+        let leaves_of = |j: Option<usize>| -> Option<&[Leaf]> {
+            match j {
+                Some(j) => match &plans[j] {
+                    Plan::CompareWith(_, leaves, _) => Some(leaves.as_slice()),
+                    _ => None,
+                },
+                None => carried.as_ref().and_then(|a| a.leaves.as_deref()),
+            }
+        };
+        let bytes_of = |j: Option<usize>| -> Option<&[u8]> {
+            match j {
+                Some(j) => raw[j].as_deref().ok(),
+                None => carried_bytes.as_deref(),
+            }
+        };
+        // Leaves compared with their predecessor's, in parallel.
+        let outcomes: Vec<Result<FileChanges, String>> = settled
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, settled)| match (settled.take(), &plans[k]) {
+                (Some(outcome), _) => outcome,
+                (None, Plan::Done(_) | Plan::Failed(_)) => Err("internal: settled twice".into()),
+                (None, Plan::CompareWith(j, leaves, warnings)) => {
+                    let before = self.leaves_before(paths[k], bytes_of(*j), leaves_of(*j))?;
+                    Ok(FileChanges {
+                        changes: changes(&before, leaves),
+                        warnings: warnings.clone(),
+                    })
+                }
+            })
+            .collect();
+        // Carry the last accepted file into the next batch.
+        if let Some(j) = last {
+            if let Ok(bytes) = &raw[j] {
+                let state = states[j].take();
+                let leaves = match plans.swap_remove(j) {
+                    Plan::CompareWith(_, leaves, _) => Some(leaves),
+                    _ => None,
+                };
+                *carried = Some(Accepted {
+                    bytes: bytes.clone(),
+                    leaves,
+                    state,
+                });
+            }
+        } else if let Some(accepted) = carried {
+            accepted.state = carried_state;
+        }
+        outcomes
+    }
+
+    /// Compares from the bytes; `Ok(None)` when the formats do not allow it. A file the
+    /// differ refuses is read to have the reader word the error.
+    fn compare_bytes(
+        &self,
+        path: &Path,
+        before: Option<PreviousFile<'_>>,
+        bytes: &[u8],
+    ) -> Result<Option<(Vec<StateChange>, MapDiff)>, String> {
+        let mut changes = Vec::new();
+        let compared = self
+            .registry
+            .diff_bytes(path, before, bytes, self.options, &mut |c| changes.push(c));
+        match compared {
+            Ok(Some(outcome)) => {
+                self.check_resolution(outcome.diff.resolution)?;
+                Ok(Some((changes, outcome.diff)))
+            }
+            Ok(None) => Ok(None),
+            Err(error) => match self.read_leaves(path, bytes) {
+                Err(reason) => Err(reason),
+                Ok(_) => Err(format!("read but not compared: {error}")),
+            },
+        }
+    }
+
+    fn leaves_before<'b>(
+        &self,
+        path: &Path,
+        bytes: Option<&[u8]>,
+        leaves: Option<&'b [Leaf]>,
+    ) -> Result<Cow<'b, [Leaf]>, String> {
+        Ok(match (leaves, bytes) {
+            (Some(leaves), _) => Cow::Borrowed(leaves),
+            (None, Some(bytes)) => Cow::Owned(self.read_leaves(path, bytes)?.0),
+            (None, None) => Cow::Borrowed(&[]),
+        })
+    }
+
+    fn read_leaves(&self, path: &Path, bytes: &[u8]) -> Result<(Vec<Leaf>, Vec<String>), String> {
+        let read = self
+            .registry
+            .read_bytes(path, bytes, self.options)
+            .map_err(|e| e.to_string())?;
+        self.check_resolution(read.map.snapshot.resolution())?;
+        Ok((read.map.snapshot.into_leaves(), read.map.warnings))
+    }
+
+    fn check_resolution(&self, resolution: f64) -> Result<(), String> {
+        match self.resolution {
+            Some(series) if series != resolution => Err(format!(
+                "resolution {resolution} m differs from the series' {series} m"
+            )),
+            _ => Ok(()),
+        }
+    }
+}
