@@ -491,8 +491,9 @@ pub fn build(
     // Tiles are fitted in parallel batches; a batch ends at a few tiles per thread or at a
     // bound on the runs it holds (cells' observations are unpacked here, and a long series
     // with partial views gives every cell many runs), whichever comes first. A thread of
-    // its own walks the cells and gathers the next batch while one is fitted.
-    const BATCH_RUNS: usize = 4 << 20;
+    // its own walks the cells and gathers the next batch while one is fitted, so up to three
+    // batches exist at once (4-week series: peak 401 MiB with 4 Mi runs, 300 with 1 Mi).
+    const BATCH_RUNS: usize = 1 << 20;
     type TileBatch = Vec<Vec<(MortonCode, u8, VoxelObservations)>>;
     std::thread::scope(|scope| -> Result<(), ConvertError> {
         let (sender, receiver) =
