@@ -199,9 +199,11 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
 
 /// Builds a FROctomap file from snapshots (sorted by time, distinct times).
 ///
-/// Reads the inputs in parallel batches and accumulates them in time order (memory grows
-/// with the cells and their changes, not with the number of snapshots), then fits a model
-/// per dynamic cell and writes the file tile by tile, atomically.
+/// Reads the inputs in batches, turns each into its changes from the one before (from the
+/// bytes where the format allows, see `FormatRegistry::diff_bytes`; else by decoding) and
+/// accumulates the changes in time order (memory grows with the cells and their changes,
+/// not with the number of snapshots), then fits a model per dynamic cell and writes the file
+/// tile by tile, atomically.
 pub fn build(
     inputs: &[SeriesInput],
     output: &Path,
