@@ -757,6 +757,43 @@ mod tests {
     use super::*;
 
     #[test]
+    fn changes_are_split_at_part_bounds_without_loss() {
+        let change = |start, end| StateChange {
+            start,
+            end,
+            new: Some(Occupancy::Occupied),
+        };
+        let changes = [change(0, 10), change(20, 40), change(50, 60)];
+        let bounds = [30u64, 55];
+        let parts = ranges(&bounds);
+        assert_eq!(parts, [(0, 30), (30, 55), (55, MortonCode::END)]);
+        let clipped: Vec<Vec<StateChange>> = parts
+            .iter()
+            .map(|&r| clip(&changes, r).into_owned())
+            .collect();
+        assert_eq!(clipped[0], [change(0, 10), change(20, 30)]);
+        assert_eq!(clipped[1], [change(30, 40), change(50, 55)]);
+        assert_eq!(clipped[2], [change(55, 60)]);
+        // Changes inside one part are passed on as they are.
+        assert!(matches!(clip(&changes[..1], parts[0]), Cow::Borrowed(_)));
+        // Bounds are tile starts, increasing, from the changes after the first snapshot.
+        let batch = vec![
+            (0, vec![change(0, 1 << 40)]),
+            (
+                1,
+                (0..100u64)
+                    .map(|i| change(i << 34, (i << 34) + 1))
+                    .collect(),
+            ),
+        ];
+        let bounds = split_points(&batch, 2, 10);
+        assert_eq!(bounds.len(), 1);
+        assert_eq!(bounds[0] % froctomap_core::voxels_per_node(10), 0);
+        assert!(bounds[0] > 40 << 34 && bounds[0] <= 50 << 34, "{bounds:?}");
+        assert!(split_points(&[], 2, 10).is_empty());
+    }
+
+    #[test]
     fn regular_axes_are_recognised_with_gaps() {
         let s = |v: i64| Timestamp::from_secs(v);
         let axis = axis_for_times(&[s(0), s(600), s(1800), s(2400)]).unwrap();
