@@ -1,11 +1,13 @@
 //! The changes between two files of one layout, from their bytes, without decoding either.
 //!
 //! Both bodies list the same tree positions in the same depth-first order, so one walk can
-//! read them side by side: where the two `.bt` child codes of a node agree on a leaf, the
-//! whole child is equal and nothing is read; only subtrees that are inner in either file are
-//! entered. Consecutive snapshots of a mapped building differ in a few places, so this costs
-//! a pass over the node records and emits a handful of ranges, where decoding both files into
-//! leaf lists and comparing those costs several times more.
+//! read them side by side: where the two records of a node agree that a child is a leaf, the
+//! child is equal and nothing is read; where both have a subtree, the previous file's bytes of
+//! it (its length comes from the previous file's [`TreeIndex`]) are compared with as many
+//! bytes of the current file, and equal bytes are the same subtree, skipped in both. Only
+//! subtrees that differ are entered. Consecutive snapshots of a mapped building differ in a
+//! few places, so a comparison costs a few `memcmp`s and the paths to the changes, where
+//! decoding both files into leaf lists and comparing those costs tens of times more.
 //!
 //! The current file is checked as [`scan`](crate::scan) checks it (truncation, depth, node
 //! limit, `size`, trailing bytes); the previous one is assumed to have been read before.
