@@ -46,9 +46,9 @@ enum FirstLook {
 /// What is left to do for a file once its predecessor is known.
 enum Plan {
     Done(FileChanges),
-    /// Compare the leaves with this accepted file's (`None`: the one carried from earlier
-    /// batches).
-    CompareWith(Option<usize>, Vec<Leaf>, Vec<String>),
+    /// Compare its decoded leaves with this accepted file's (`None`: the one carried from
+    /// earlier batches).
+    CompareWith(Option<usize>),
     Failed(String),
 }
 
@@ -75,13 +75,14 @@ impl ChangeReader<'_> {
         raw: &[Result<Vec<u8>, String>],
         carried: &mut Option<Accepted>,
     ) -> Vec<Result<FileChanges, String>> {
-        let carried_bytes = carried.as_ref().map(|a| a.bytes.clone());
+        let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
+        let carried_bytes = carried.as_ref().map(|a| a.bytes.as_slice());
         let looks: Vec<Result<FirstLook, String>> = (0..raw.len())
             .into_par_iter()
             .map(|k| {
                 let bytes = raw[k].as_ref().map_err(Clone::clone)?;
                 let before = match k {
-                    0 => carried_bytes.as_deref(),
+                    0 => carried_bytes,
                     _ => raw[k - 1].as_deref().ok(),
                 };
                 if before == Some(bytes.as_slice()) {
@@ -100,9 +101,11 @@ impl ChangeReader<'_> {
         let mut plans: Vec<Plan> = Vec::with_capacity(looks.len());
         let mut last: Option<usize> = None;
         let mut states: Vec<Option<DiffState>> = Vec::with_capacity(looks.len());
-        let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
+        // The leaves (and reader warnings) of the files that were decoded.
+        let mut decoded: Vec<Option<(Vec<Leaf>, Vec<String>)>> = Vec::with_capacity(looks.len());
         for (k, look) in looks.into_iter().enumerate() {
             let mut state = None;
+            let mut leaves = None;
             let plan = match look {
                 Err(reason) => Plan::Failed(reason),
                 Ok(FirstLook::Same) => match k.checked_sub(1).map(|j| &plans[j]) {
@@ -124,8 +127,9 @@ impl ChangeReader<'_> {
                         })
                     }
                 },
-                Ok(FirstLook::Leaves(leaves, warnings)) => {
-                    Plan::CompareWith(last, leaves, warnings)
+                Ok(FirstLook::Leaves(read, warnings)) => {
+                    leaves = Some((read, warnings));
+                    Plan::CompareWith(last)
                 }
                 Ok(FirstLook::Comparable) => {
                     let before = match last {
@@ -133,8 +137,8 @@ impl ChangeReader<'_> {
                             bytes,
                             state: states[j].as_ref(),
                         }),
-                        None => carried.as_ref().map(|a| PreviousFile {
-                            bytes: &a.bytes,
+                        None => carried_bytes.map(|bytes| PreviousFile {
+                            bytes,
                             state: carried_state.as_ref(),
                         }),
                     };
@@ -149,7 +153,10 @@ impl ChangeReader<'_> {
                         }
                         // The file before is of another format.
                         Ok(None) => match self.read_leaves(paths[k], bytes) {
-                            Ok((leaves, warnings)) => Plan::CompareWith(last, leaves, warnings),
+                            Ok(read) => {
+                                leaves = Some(read);
+                                Plan::CompareWith(last)
+                            }
                             Err(reason) => Plan::Failed(reason),
                         },
                         Err(reason) => Plan::Failed(reason),
@@ -161,42 +168,30 @@ impl ChangeReader<'_> {
             }
             plans.push(plan);
             states.push(state);
+            decoded.push(leaves);
         }
-        let mut settled: Vec<Option<Result<FileChanges, String>>> = plans
-            .iter_mut()
-            .map(|plan| match plan {
-                Plan::CompareWith(..) => None,
-                settled => match std::mem::replace(settled, Plan::Failed(String::new())) {
-                    Plan::Done(done) => Some(Ok(done)),
-                    Plan::Failed(reason) => Some(Err(reason)),
-                    Plan::CompareWith(..) => None,
-                },
-            })
-            .collect();
-        let leaves_of = |j: Option<usize>| -> Option<&[Leaf]> {
-            match j {
-                Some(j) => match &plans[j] {
-                    Plan::CompareWith(_, leaves, _) => Some(leaves.as_slice()),
-                    _ => None,
-                },
-                None => carried.as_ref().and_then(|a| a.leaves.as_deref()),
-            }
-        };
-        let bytes_of = |j: Option<usize>| -> Option<&[u8]> {
-            match j {
-                Some(j) => raw[j].as_deref().ok(),
-                None => carried_bytes.as_deref(),
-            }
-        };
         // Leaves compared with their predecessor's, in parallel.
-        let outcomes: Vec<Result<FileChanges, String>> = settled
-            .par_iter_mut()
+        let outcomes: Vec<Result<FileChanges, String>> = plans
+            .into_par_iter()
             .enumerate()
-            .map(|(k, settled)| match (settled.take(), &plans[k]) {
-                (Some(outcome), _) => outcome,
-                (None, Plan::Done(_) | Plan::Failed(_)) => Err("internal: settled twice".into()),
-                (None, Plan::CompareWith(j, leaves, warnings)) => {
-                    let before = self.leaves_before(paths[k], bytes_of(*j), leaves_of(*j))?;
+            .map(|(k, plan)| match plan {
+                Plan::Done(done) => Ok(done),
+                Plan::Failed(reason) => Err(reason),
+                Plan::CompareWith(j) => {
+                    let (leaves, warnings) = decoded[k]
+                        .as_ref()
+                        .ok_or("internal: a file to compare by its leaves was not decoded")?;
+                    let (before_bytes, before_leaves) = match j {
+                        Some(j) => (
+                            raw[j].as_deref().ok(),
+                            decoded[j].as_ref().map(|(l, _)| l.as_slice()),
+                        ),
+                        None => (
+                            carried_bytes,
+                            carried.as_ref().and_then(|a| a.leaves.as_deref()),
+                        ),
+                    };
+                    let before = self.leaves_before(paths[k], before_bytes, before_leaves)?;
                     Ok(FileChanges {
                         changes: changes(&before, leaves),
                         warnings: warnings.clone(),
@@ -205,21 +200,21 @@ impl ChangeReader<'_> {
             })
             .collect();
         // Carry the last accepted file into the next batch.
-        if let Some(j) = last {
-            if let Ok(bytes) = &raw[j] {
-                let state = states[j].take();
-                let leaves = match plans.swap_remove(j) {
-                    Plan::CompareWith(_, leaves, _) => Some(leaves),
-                    _ => None,
-                };
-                *carried = Some(Accepted {
-                    bytes: bytes.clone(),
-                    leaves,
-                    state,
-                });
+        match last {
+            Some(j) => {
+                if let Ok(bytes) = &raw[j] {
+                    *carried = Some(Accepted {
+                        bytes: bytes.clone(),
+                        leaves: decoded[j].take().map(|(leaves, _)| leaves),
+                        state: states[j].take(),
+                    });
+                }
             }
-        } else if let Some(accepted) = carried {
-            accepted.state = carried_state;
+            None => {
+                if let Some(accepted) = carried {
+                    accepted.state = carried_state;
+                }
+            }
         }
         outcomes
     }

@@ -458,40 +458,41 @@ pub(crate) fn walk_payload(
         ));
     }
     let distinct = distinct as usize;
-    let mut mask_table = Vec::new();
     let mut scratch = Vec::new();
     // For a query at one sample, only whether each distinct mask observes it: evaluated
     // once per mask, not per cell, and without decoding the mask past the sample.
-    let (sample_present, mask_observed): (bool, Vec<bool>) = match need {
-        WalkNeed::StateAt(sample) => (
-            sample < axis_len && !axis.is_missing(sample),
-            (0..distinct)
-                .map(|_| masks.parity_at(sample))
-                .collect::<Result<_, _>>()?,
-        ),
-        WalkNeed::ModelOnly => {
-            for _ in 0..distinct {
-                masks.skip_list()?;
-            }
-            (false, Vec::new())
-        }
-        WalkNeed::Everything => {
-            mask_table.reserve(distinct);
-            for _ in 0..distinct {
-                masks.next_list_into(&mut scratch)?;
-                if scratch.is_empty() {
-                    return Err(corrupt(
-                        "tile masks",
-                        "a mask under which a cell is never observed",
-                    ));
+    let (sample_present, mask_observed, mask_table): (bool, Vec<bool>, Vec<Arc<Toggles>>) =
+        match need {
+            WalkNeed::StateAt(sample) => (
+                sample < axis_len && !axis.is_missing(sample),
+                (0..distinct)
+                    .map(|_| masks.parity_at(sample))
+                    .collect::<Result<_, _>>()?,
+                Vec::new(),
+            ),
+            WalkNeed::ModelOnly => {
+                for _ in 0..distinct {
+                    masks.skip_list()?;
                 }
-                let toggles = Toggles::new(scratch.clone())
-                    .map_err(|e| corrupt("tile masks", e.to_string()))?;
-                mask_table.push(Arc::new(toggles));
+                (false, Vec::new(), Vec::new())
             }
-            (false, Vec::new())
-        }
-    };
+            WalkNeed::Everything => {
+                let mut mask_table = Vec::with_capacity(distinct);
+                for _ in 0..distinct {
+                    masks.next_list_into(&mut scratch)?;
+                    if scratch.is_empty() {
+                        return Err(corrupt(
+                            "tile masks",
+                            "a mask under which a cell is never observed",
+                        ));
+                    }
+                    let toggles = Toggles::new(scratch.clone())
+                        .map_err(|e| corrupt("tile masks", e.to_string()))?;
+                    mask_table.push(Arc::new(toggles));
+                }
+                (false, Vec::new(), mask_table)
+            }
+        };
     let mut mask_refs = Cursor::new(mask_refs, "tile masks");
     let tile_end = code.0 + voxels_per_node(tile_depth);
     let mut geometry = Cursor::new(geometry, "tile geometry");

@@ -244,9 +244,11 @@ fn diff_node<L: Layout, F: FnMut(StateChange) + ?Sized>(
             if let Some(&records) = old.subtree_records.get(i) {
                 let len = records as usize * L::RECORD;
                 let (from, to) = (i * L::RECORD, j * L::RECORD);
-                if old.body.get(from..from + len).is_some()
-                    && old.body.get(from..from + len) == new.body.get(to..to + len)
-                {
+                let same = matches!(
+                    (old.body.get(from..from + len), new.body.get(to..to + len)),
+                    (Some(a), Some(b)) if a == b
+                );
+                if same {
                     old.pos = from + len;
                     new.pos = to + len;
                     if let (Some(sizes), Some(same)) = (
