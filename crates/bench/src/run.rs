@@ -12,9 +12,8 @@ use crate::system::{self, peak_memory_bytes, tar_through, FONT};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{
-    build, collect_inputs, describe, evaluate, format_iso, observed_map, predicted_map,
-    unix_seconds, write_owned_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent,
-    TimeSource,
+    build, collect_inputs, describe, evaluate, format_iso, unix_seconds, write_observed_map,
+    write_predicted_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
 };
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
@@ -649,8 +648,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let retrieved = scratch.join("retrieved.bt");
     let retrieve_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
-        let map = observed_map(&reader, sample)?;
-        write_owned_map(map, &retrieved, None, None)?;
+        write_observed_map(&reader, sample, &retrieved, None, None)?;
         Ok(())
     })?;
     // The retrieved map must be the input snapshot (lossless).
@@ -665,8 +663,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let predicted = scratch.join("predicted.bt");
     let predict_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
-        let map = predicted_map(&reader, future)?;
-        write_owned_map(map, &predicted, None, None)?;
+        write_predicted_map(&reader, future, &predicted, None, None)?;
         Ok(())
     })?;
     let cli = system::find_cli(args.cli.as_deref());

@@ -7,11 +7,11 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, collect_inputs, describe, evaluate, export, format_iso, observed_map, parse_duration,
-    parse_time, predicted_map, resolve_observed, write_owned_map, BuildOptions, ClassCounts,
+    build, collect_inputs, describe, evaluate, export, format_iso, parse_duration, parse_time,
+    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, ClassCounts,
     EvalReport, ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
-use froctomap_file::{Codec, FroctReader};
+use froctomap_file::{Codec, FroctReader, ToggleLayout};
 use froctomap_formats::{FormatRegistry, ReadOptions};
 use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
 use serde_json::{Map, Value};
@@ -112,6 +112,11 @@ pub struct BuildArgs {
     /// zstd level for tiles (1-22; 0 stores tiles uncompressed).
     #[arg(long, default_value_t = 19, value_parser = clap::value_parser!(i8).range(0..=22))]
     zstd_level: i8,
+    /// Samples per block of stored toggles (format 1.1): a retrieval reads one block, so
+    /// smaller blocks make it faster and the file slightly larger. 0 stores whole toggle
+    /// lists (format 1.0, for readers that only know that version).
+    #[arg(long, default_value_t = 256, value_name = "SAMPLES")]
+    toggle_block: u32,
     /// Leave unreadable files and files of another resolution out (listed at the end)
     /// instead of stopping.
     #[arg(long)]
@@ -200,6 +205,10 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             Codec::Zstd {
                 level: args.zstd_level,
             }
+        },
+        toggles: match args.toggle_block {
+            0 => ToggleLayout::Whole,
+            samples => ToggleLayout::Blocked(samples),
         },
         skip_bad: args.skip_bad,
         input_format: args.input_format.clone(),
@@ -344,9 +353,9 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
             format_iso(when.time)
         ));
     }
-    let snapshot = observed_map(&reader, when.sample)?;
-    let written = write_owned_map(
-        snapshot,
+    let written = write_observed_map(
+        &reader,
+        when.sample,
         &args.output,
         args.format.map(MapFormatArg::name),
         Some(ui.backend),
@@ -389,9 +398,9 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
             )
         })?,
     };
-    let snapshot = predicted_map(&reader, t)?;
-    let written = write_owned_map(
-        snapshot,
+    let written = write_predicted_map(
+        &reader,
+        t,
         &args.output,
         args.format.map(MapFormatArg::name),
         Some(ui.backend),
@@ -587,8 +596,14 @@ pub fn froct_info(path: &Path, json: bool, count: bool) -> Result<()> {
         info.version
     );
     println!(
-        "resolution:      {} m, tiles of depth {} ({} tiles)",
-        info.resolution_m, info.tile_depth, info.tiles
+        "resolution:      {} m, tiles of depth {} ({} tiles), {}",
+        info.resolution_m,
+        info.tile_depth,
+        info.tiles,
+        info.toggle_block.map_or_else(
+            || "toggle lists whole".to_string(),
+            |samples| format!("toggle lists in blocks of {samples} samples")
+        )
     );
     let t = &info.time;
     println!(

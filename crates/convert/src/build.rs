@@ -9,7 +9,7 @@ use crate::time::format_iso;
 use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
-    WrittenFile,
+    TileLayout, ToggleLayout, WrittenFile,
 };
 use froctomap_formats::{Backend, FormatRegistry, ReadOptions};
 use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
@@ -38,6 +38,9 @@ pub struct BuildOptions {
     pub tile_depth: u8,
     /// Tile codec (default zstd level 19).
     pub codec: Codec,
+    /// How toggle lists are stored (default: blocks of 256 samples, format 1.1, so that a
+    /// query at one sample reads one block).
+    pub toggles: ToggleLayout,
     /// Leave unreadable files and files of another resolution out (listed in the report)
     /// instead of stopping.
     pub skip_bad: bool,
@@ -58,6 +61,7 @@ impl Default for BuildOptions {
             config: ModelConfig::default(),
             tile_depth: 10,
             codec: Codec::default(),
+            toggles: ToggleLayout::DEFAULT,
             skip_bad: false,
             input_format: None,
             backend: None,
@@ -458,7 +462,9 @@ pub fn build(
         prepared.encode_parameters(),
         options.codec,
     );
+    header.toggles = options.toggles;
     header.metadata = metadata(inputs, used, input_bytes, &options.metadata);
+    let layout = header.tile_layout();
     let mut writer = FroctWriter::create(output, &header)?;
     let cell_count: usize = histories.iter().map(SeriesHistory::cell_count).sum();
     progress.stage("modelling cells", cell_count as u64);
@@ -471,13 +477,7 @@ pub fn build(
         let encoded: Vec<Result<(EncodedTile, TileStats), ConvertError>> = tiles
             .par_iter()
             .map(|cells| {
-                let r = encode_cells(
-                    cells,
-                    &axis,
-                    prepared.as_ref(),
-                    options.tile_depth,
-                    options.codec,
-                );
+                let r = encode_cells(cells, &axis, prepared.as_ref(), &layout);
                 progress.advance(cells.len() as u64);
                 r
             })
@@ -693,8 +693,7 @@ fn encode_cells(
     cells: &[(MortonCode, u8, VoxelObservations)],
     axis: &TimeAxis,
     model: &dyn PreparedModel,
-    tile_depth: u8,
-    codec: Codec,
+    layout: &TileLayout,
 ) -> Result<(EncodedTile, TileStats), ConvertError> {
     let mut stats = TileStats::default();
     let mut out = Vec::with_capacity(cells.len());
@@ -747,7 +746,7 @@ fn encode_cells(
             content,
         });
     }
-    let tile = encode_tile(tile_depth, &out, model, codec)
+    let tile = encode_tile(layout, &out, model)
         .map_err(|e| ConvertError::Inputs(format!("internal: {e}")))?;
     Ok((tile, stats))
 }

@@ -58,6 +58,8 @@ pub struct FroctInfo {
     pub tile_depth: u8,
     /// Tiles stored.
     pub tiles: usize,
+    /// Samples per block of stored toggle lists (version 1.1), or `None` for whole lists.
+    pub toggle_block: Option<u32>,
     /// The time axis.
     pub time: AxisInfo,
     /// Model name.
@@ -126,6 +128,10 @@ pub fn describe(reader: &FroctReader, count_cells: bool) -> Result<FroctInfo, Co
         version: format!("{}.{}", header.version.0, header.version.1),
         resolution_m: header.resolution,
         tile_depth: header.tile_depth,
+        toggle_block: match header.toggles {
+            froctomap_file::ToggleLayout::Whole => None,
+            froctomap_file::ToggleLayout::Blocked(samples) => Some(samples),
+        },
         tiles: reader.tiles().len(),
         time: AxisInfo {
             kind: match axis.kind() {

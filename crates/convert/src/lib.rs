@@ -49,8 +49,8 @@ pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
 pub use inputs::{collect_inputs, manifest_text, SeriesInput, TimeSource, MANIFEST_NAME};
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
-    write_owned_map, ExportMode, ExportOptions, ExportReport, LoadedMap, ResolvedSample, TimeQuery,
-    WrittenMap, MAX_EXPORTS,
+    write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
+    ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap, MAX_EXPORTS,
 };
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;

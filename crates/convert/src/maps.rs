@@ -4,9 +4,12 @@ use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::progress::Progress;
 use crate::time::{check_range, format_compact, format_iso, parse_time};
-use froctomap_core::{defaults, log_odds, write_atomically, Leaf, Snapshot, Timestamp};
+use froctomap_core::{
+    defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
+};
 use froctomap_file::{Cell, FroctReader};
 use froctomap_formats::{Backend, FormatRegistry, MapFormat, WriteOptions};
+use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -229,6 +232,130 @@ pub fn write_owned_map(
     })
 }
 
+/// Writes the map as observed at `sample` to `path` (as [`write_owned_map`] of
+/// [`observed_map`] would). A native `.bt` output is built tile by tile in parallel straight
+/// from the cells' states, without the map in memory.
+pub fn write_observed_map(
+    reader: &FroctReader,
+    sample: u32,
+    path: &Path,
+    format: Option<&str>,
+    backend: Option<Backend>,
+) -> Result<WrittenMap, ConvertError> {
+    let options = WriteOptions { format, backend };
+    write_query(reader, StateQuery::Observed(sample), path, options, || {
+        observed_map(reader, sample)
+    })
+}
+
+/// Writes the map predicted for `t` to `path` (as [`write_owned_map`] of [`predicted_map`]
+/// would), a native `.bt` tile by tile as [`write_observed_map`] does.
+pub fn write_predicted_map(
+    reader: &FroctReader,
+    t: Timestamp,
+    path: &Path,
+    format: Option<&str>,
+    backend: Option<Backend>,
+) -> Result<WrittenMap, ConvertError> {
+    let seconds = t.secs_since(reader.header().axis.start());
+    let options = WriteOptions { format, backend };
+    write_query(
+        reader,
+        StateQuery::Predicted(seconds),
+        path,
+        options,
+        || predicted_map(reader, t),
+    )
+}
+
+/// The tiled `.bt` writer where it applies, else the map `whole` builds, written whole.
+fn write_query(
+    reader: &FroctReader,
+    query: StateQuery,
+    path: &Path,
+    options: WriteOptions<'_>,
+    whole: impl FnOnce() -> Result<Snapshot, ConvertError>,
+) -> Result<WrittenMap, ConvertError> {
+    match native_bt(path, options)? {
+        Some(chosen) => write_states_bt(reader, chosen, path, query),
+        None => write_owned_map(whole()?, path, options.format, options.backend),
+    }
+}
+
+/// The output format when it is froctomap's own `.bt` writer (which the tiled path
+/// reproduces byte for byte), else `None`.
+fn native_bt(path: &Path, options: WriteOptions<'_>) -> Result<Option<MapFormat>, ConvertError> {
+    let registry = FormatRegistry::with_default_formats();
+    let chosen = *registry
+        .output_format(path, options)
+        .map_err(ConvertError::Write)?;
+    Ok((chosen.name == "bt" && chosen.backend == Backend::Native).then_some(chosen))
+}
+
+/// Which states of the cells a `.bt` is written from.
+#[derive(Clone, Copy)]
+enum StateQuery {
+    /// As observed at a sample.
+    Observed(u32),
+    /// As predicted at this many seconds after the first sample.
+    Predicted(f64),
+}
+
+/// The canonical `.bt` of the cells' states: each tile's subtree built on its own thread
+/// ([`CanonicalBinaryBuilder`]), then joined under the root and written atomically.
+fn write_states_bt(
+    reader: &FroctReader,
+    format: MapFormat,
+    path: &Path,
+    query: StateQuery,
+) -> Result<WrittenMap, ConvertError> {
+    let inconsistent = |e: EncodeError| {
+        ConvertError::Time(format!(
+            "{}: inconsistent cells: {e}",
+            reader.path().display()
+        ))
+    };
+    let tile_depth = reader.header().tile_depth;
+    let parts = reader
+        .tiles()
+        .par_iter()
+        .enumerate()
+        .map(|(tile, entry)| {
+            let mut builder =
+                CanonicalBinaryBuilder::new(entry.code, tile_depth).map_err(inconsistent)?;
+            let mut refused = None;
+            let push = |start: MortonCode, depth: u8, state: Occupancy| {
+                if refused.is_none() {
+                    if let Err(e) = builder.push_state(start, depth, state.is_occupied()) {
+                        refused = Some(e);
+                    }
+                }
+            };
+            match query {
+                StateQuery::Observed(sample) => reader.visit_observed_states(tile, sample, push),
+                StateQuery::Predicted(seconds) => {
+                    reader.visit_predicted_states(tile, seconds, push)
+                }
+            }?;
+            match refused {
+                Some(e) => Err(inconsistent(e)),
+                None => Ok(builder.finish()),
+            }
+        })
+        .collect::<Result<Vec<_>, ConvertError>>()?;
+    let mut root = CanonicalBinaryBuilder::new(MortonCode(0), 0).map_err(inconsistent)?;
+    for part in parts {
+        root.push_part(part).map_err(inconsistent)?;
+    }
+    let whole = root.finish();
+    let leaves = usize::try_from(whole.leaves()).unwrap_or(usize::MAX);
+    let bytes = whole
+        .into_file(reader.header().resolution)
+        .map_err(inconsistent)?;
+    write_atomically(path, |out| out.write_all(&bytes))?;
+    Ok(WrittenMap { format, leaves })
+}
+
 /// What [`write_map`] wrote.
 #[derive(Clone, Copy, Debug)]
 pub struct WrittenMap {
@@ -333,16 +460,16 @@ pub fn export(
         .par_iter()
         .zip(samples.par_iter())
         .map(|(&t, sample)| {
-            let snapshot = match sample {
-                Some(s) => observed_map(reader, *s)?,
-                None => predicted_map(reader, t)?,
-            };
             let path = dir.join(format!(
                 "{}_{}.{extension}",
                 options.prefix,
                 format_compact(t)
             ));
-            write_map(&snapshot, &path, Some(&options.format), options.backend)?;
+            let (format, backend) = (Some(options.format.as_str()), options.backend);
+            match sample {
+                Some(s) => write_observed_map(reader, *s, &path, format, backend)?,
+                None => write_predicted_map(reader, t, &path, format, backend)?,
+            };
             let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
             progress.advance(1);
             Ok((SeriesInput { path, time: t }, bytes))

@@ -106,6 +106,30 @@ fn lossless_build_gives_back_every_input() {
             "{}",
             path.display()
         );
+        // The tiled writer, straight from the cells' states, writes the same bytes.
+        let tiled = dir.path().join("tiled.bt");
+        write_observed_map(&reader, when.sample, &tiled, None, None).unwrap();
+        assert_eq!(
+            std::fs::read(&tiled).unwrap(),
+            std::fs::read(path).unwrap(),
+            "tiled: {}",
+            path.display()
+        );
+    }
+    // Predictions (inside the span and a week later): the tiled `.bt` equals the `.bt` of
+    // the predicted map.
+    for t in [
+        series[3].1,
+        Timestamp::from_secs(series[11].1 .0 / 1_000_000_000 + 7 * 86_400),
+    ] {
+        let whole = dir.path().join("predicted-whole.bt");
+        let tiled = dir.path().join("predicted-tiled.bt");
+        write_map(&predicted_map(&reader, t).unwrap(), &whole, None, None).unwrap();
+        write_predicted_map(&reader, t, &tiled, None, None).unwrap();
+        assert_eq!(
+            std::fs::read(&whole).unwrap(),
+            std::fs::read(&tiled).unwrap()
+        );
     }
     println!("{report:#?}");
 }

@@ -102,7 +102,7 @@ fn write(
             .count();
         writer
             .write_tile(
-                &encode_tile(TILE_DEPTH, &cells[start..start + len], model, header.codec).unwrap(),
+                &encode_tile(&header.tile_layout(), &cells[start..start + len], model).unwrap(),
             )
             .unwrap();
         start += len;

@@ -10,33 +10,20 @@ fn main() {
         .nth(1)
         .expect("usage: stream_sizes FILE.froct");
     let reader = FroctReader::open(std::path::Path::new(&path)).unwrap();
-    let names = [
-        "geometry",
-        "depth",
-        "class",
-        "mask count",
-        "mask refs",
-        "mask counts",
-        "mask starts",
-        "mask lengths",
-        "models",
-        "outlier counts",
-        "outlier starts",
-        "outlier lengths",
-    ];
-    let mut raw = [0u64; 12];
-    let mut packed = [0u64; 12];
+    let mut rows: Vec<(&str, u64, u64)> = Vec::new();
     for i in 0..reader.tiles().len() {
-        let streams = reader.tile_streams(i).unwrap();
-        for (k, s) in streams.iter().enumerate() {
-            raw[k] += s.len() as u64;
-            packed[k] += zstd::bulk::compress(s, 19).unwrap().len() as u64;
+        for (k, (name, s)) in reader.tile_streams(i).unwrap().into_iter().enumerate() {
+            if rows.len() <= k {
+                rows.push((name, 0, 0));
+            }
+            rows[k].1 += s.len() as u64;
+            rows[k].2 += zstd::bulk::compress(&s, 19).unwrap().len() as u64;
         }
     }
     println!("| stream | raw bytes | zstd-19 alone |");
     println!("| --- | ---: | ---: |");
-    for k in 0..12 {
-        println!("| {} | {} | {} |", names[k], raw[k], packed[k]);
+    for (name, raw, packed) in rows {
+        println!("| {name} | {raw} | {packed} |");
     }
     println!("| file | | {} |", reader.file_len());
 }

@@ -84,32 +84,57 @@ impl<'a> Cursor<'a> {
         Ok(f64::from_le_bytes(self.array()?))
     }
 
-    #[inline]
+    #[inline(always)]
     pub(crate) fn varint(&mut self) -> Result<u64, FormatViolation> {
-        // Most values in tile streams fit one byte.
-        if let Some(&byte) = self.bytes.get(self.pos) {
-            if byte < 0x80 {
+        // Most values in tile streams fit one byte, nearly all others two: both decoded
+        // inline (the hot loops of a retrieval call this per cell and per toggle).
+        match self.bytes.get(self.pos..self.pos + 2) {
+            Some(&[low, _]) if low < 0x80 => {
                 self.pos += 1;
-                return Ok(u64::from(byte));
+                Ok(u64::from(low))
             }
+            Some(&[low, high]) if high < 0x80 && high != 0 => {
+                self.pos += 2;
+                Ok(u64::from(low & 0x7F) | u64::from(high) << 7)
+            }
+            _ => self.varint_slow(),
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn varint_slow(&mut self) -> Result<u64, FormatViolation> {
         let (value, used) = varint::read_u64(&self.bytes[self.pos..])
             .map_err(|e| corrupt(self.part, format!("{e} at offset {}", self.pos)))?;
         self.pos += used;
         Ok(value)
     }
 
-    /// Skips `count` varints without decoding them (each ends at a byte below 0x80).
+    /// Skips `count` varints without decoding them (each ends at a byte below 0x80),
+    /// counting ends eight bytes at a time.
     pub(crate) fn skip_varints(&mut self, count: u64) -> Result<(), FormatViolation> {
+        const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
         let mut left = count;
         let rest = &self.bytes[self.pos..];
         let mut used = 0usize;
         if left > 0 {
-            for (i, &b) in rest.iter().enumerate() {
+            let mut words = rest.chunks_exact(8);
+            for word in words.by_ref() {
+                let ends = u64::from(
+                    (!u64::from_le_bytes(word.try_into().unwrap_or([0x80; 8])) & HIGH_BITS)
+                        .count_ones(),
+                );
+                if ends >= left {
+                    break;
+                }
+                left -= ends;
+                used += 8;
+            }
+            for (i, &b) in rest[used..].iter().enumerate() {
                 if b < 0x80 {
                     left -= 1;
                     if left == 0 {
-                        used = i + 1;
+                        used += i + 1;
                         break;
                     }
                 }

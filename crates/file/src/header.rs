@@ -3,6 +3,8 @@
 use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
 use crate::limits::ReadLimits;
+use crate::tile::TileLayout;
+use crate::toggle_lists::ToggleLayout;
 use froctomap_core::{validate_resolution, Timestamp, TREE_DEPTH};
 use froctomap_temporal::{varint, AxisKind, ModelId, TimeAxis};
 use serde_json::{Map, Value};
@@ -14,7 +16,7 @@ pub const END_MAGIC: [u8; 8] = *b"FROCTEND";
 /// Major version written and understood.
 pub const MAJOR_VERSION: u16 = 1;
 /// Minor version written.
-pub const MINOR_VERSION: u16 = 0;
+pub const MINOR_VERSION: u16 = 1;
 /// Bytes before the header sections.
 pub const PREAMBLE_LEN: usize = 16;
 
@@ -23,6 +25,7 @@ pub(crate) const TAG_TIME_AXIS: u16 = 2;
 pub(crate) const TAG_MODEL: u16 = 3;
 pub(crate) const TAG_CODEC: u16 = 4;
 pub(crate) const TAG_METADATA: u16 = 5;
+pub(crate) const TAG_TOGGLE_BLOCKS: u16 = 6;
 const FLAG_CRITICAL: u16 = 1;
 
 /// How tile payloads are stored.
@@ -60,7 +63,10 @@ pub struct Header {
     pub codec: Codec,
     /// Free-form JSON metadata (creator, sources, tags).
     pub metadata: Map<String, Value>,
-    /// (major, minor) version of the file this header was read from, or to be written.
+    /// How tiles store toggle lists: [`ToggleLayout::Blocked`] needs version 1.1.
+    pub toggles: ToggleLayout,
+    /// (major, minor) version of the file this header was read from; a writer writes the
+    /// lowest version that expresses the file ([`Header::required_version`]).
     pub version: (u16, u16),
 }
 
@@ -82,7 +88,25 @@ impl Header {
             model_parameters,
             codec,
             metadata: Map::new(),
+            toggles: ToggleLayout::DEFAULT,
             version: (MAJOR_VERSION, MINOR_VERSION),
+        }
+    }
+
+    /// The version a writer puts in the preamble: 1.1 for blocked toggle lists, else 1.0.
+    pub fn required_version(&self) -> (u16, u16) {
+        match self.toggles {
+            ToggleLayout::Whole => (MAJOR_VERSION, 0),
+            ToggleLayout::Blocked(_) => (MAJOR_VERSION, 1),
+        }
+    }
+
+    /// What a tile encoder and decoder need of the header.
+    pub fn tile_layout(&self) -> TileLayout {
+        TileLayout {
+            tile_depth: self.tile_depth,
+            codec: self.codec,
+            toggles: self.toggles,
         }
     }
 
@@ -91,6 +115,9 @@ impl Header {
         validate_resolution(self.resolution).map_err(|e| e.to_string())?;
         if !(1..=TREE_DEPTH).contains(&self.tile_depth) {
             return Err(format!("tile depth {} is outside 1..=16", self.tile_depth));
+        }
+        if self.toggles == ToggleLayout::Blocked(0) {
+            return Err("toggle blocks must hold at least one sample".into());
         }
         Ok(())
     }
@@ -113,14 +140,18 @@ impl Header {
             Codec::Zstd { level } => [1, level.to_le_bytes()[0]],
         };
         push_section(&mut sections, TAG_CODEC, true, &codec);
+        if let ToggleLayout::Blocked(len) = self.toggles {
+            push_section(&mut sections, TAG_TOGGLE_BLOCKS, true, &len.to_le_bytes());
+        }
         if !self.metadata.is_empty() {
             let json = Value::Object(self.metadata.clone()).to_string();
             push_section(&mut sections, TAG_METADATA, false, json.as_bytes());
         }
         let mut out = Vec::with_capacity(PREAMBLE_LEN + sections.len() + 4);
         out.extend(MAGIC);
-        out.extend(MAJOR_VERSION.to_le_bytes());
-        out.extend(MINOR_VERSION.to_le_bytes());
+        let (major, minor) = self.required_version();
+        out.extend(major.to_le_bytes());
+        out.extend(minor.to_le_bytes());
         out.extend((sections.len() as u32).to_le_bytes());
         out.extend(sections);
         let crc = crc32c::crc32c(&out);
@@ -181,6 +212,7 @@ impl Header {
         let mut axis = None;
         let mut model = None;
         let mut codec = None;
+        let mut toggle_blocks = None;
         let mut metadata = Map::new();
         for section in Sections::new(sections, "header") {
             let section = section?;
@@ -214,16 +246,24 @@ impl Header {
                     set_once(&mut model, (id, parameters), "MODEL")?;
                 }
                 TAG_CODEC => {
-                    let codec_value = match c.u8()? {
-                        0 => Codec::Raw,
-                        1 => Codec::Zstd { level: c.i8()? },
-                        other => {
+                    // Both codecs carry the (informative) level byte.
+                    let codec_value = match (c.u8()?, c.i8()?) {
+                        (0, _) => Codec::Raw,
+                        (1, level) => Codec::Zstd { level },
+                        (other, _) => {
                             return Err(FormatViolation::UnsupportedFeature(format!(
                                 "tile codec {other}"
                             )))
                         }
                     };
                     set_once(&mut codec, codec_value, "CODEC")?;
+                }
+                TAG_TOGGLE_BLOCKS => {
+                    let len = c.u32()?;
+                    if len == 0 {
+                        return Err(corrupt("TOGGLE_BLOCKS section", "blocks of 0 samples"));
+                    }
+                    set_once(&mut toggle_blocks, len, "TOGGLE_BLOCKS")?;
                 }
                 TAG_METADATA => {
                     metadata = match serde_json::from_slice(section.payload) {
@@ -252,6 +292,7 @@ impl Header {
             model_parameters,
             codec: codec.ok_or_else(|| missing("CODEC"))?,
             metadata,
+            toggles: toggle_blocks.map_or(ToggleLayout::Whole, ToggleLayout::Blocked),
             version,
         })
     }
@@ -290,7 +331,14 @@ impl<'a> Sections<'a> {
         Self::with_known(
             bytes,
             part,
-            &[TAG_MAP, TAG_TIME_AXIS, TAG_MODEL, TAG_CODEC, TAG_METADATA],
+            &[
+                TAG_MAP,
+                TAG_TIME_AXIS,
+                TAG_MODEL,
+                TAG_CODEC,
+                TAG_METADATA,
+                TAG_TOGGLE_BLOCKS,
+            ],
         )
     }
 

@@ -4,7 +4,9 @@
 //! versioned, checksummed header (resolution, time axis, temporal model, codec, JSON
 //! metadata); then *tiles* — octree nodes at a fixed depth — each holding its *cells*
 //! (cubes of voxels that share their state at every sample) as zstd-compressed columnar
-//! streams; then an index of tiles (offset, length, crc32c, cell count, sample range) and a
+//! streams, their toggle lists (observation masks, outliers) cut into blocks of samples
+//! (version 1.1, [`ToggleLayout`]) so that the map at one sample decodes the cells and one
+//! block; then an index of tiles (offset, length, crc32c, cell count, sample range) and a
 //! fixed-size footer. A writer streams tiles out in one pass; a reader opens a file by
 //! reading only header, footer and index, and decodes any tile on its own.
 //!
@@ -37,7 +39,7 @@
 //! ];
 //! let header = Header::new(0.05, 10, axis, model.id(), prepared.encode_parameters(), Codec::default());
 //! let mut writer = FroctWriter::create(&path, &header)?;
-//! writer.write_tile(&encode_tile(10, &cells, prepared.as_ref(), header.codec)?)?;
+//! writer.write_tile(&encode_tile(&header.tile_layout(), &cells, prepared.as_ref())?)?;
 //! writer.finish(Default::default())?;
 //!
 //! let reader = FroctReader::open(&path)?;
@@ -55,6 +57,7 @@ mod limits;
 mod query;
 mod reader;
 mod tile;
+mod toggle_lists;
 mod writer;
 
 pub use error::{FileError, FormatViolation};
@@ -65,5 +68,8 @@ pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
 pub use limits::ReadLimits;
 pub use query::CellValue;
 pub use reader::FroctReader;
-pub use tile::{encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes};
+pub use tile::{
+    encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileLayout,
+};
+pub use toggle_lists::ToggleLayout;
 pub use writer::{FroctWriter, WrittenFile};

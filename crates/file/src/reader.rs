@@ -4,13 +4,29 @@ use crate::error::{corrupt, FileError, FormatViolation};
 use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
-use crate::tile::{decode_payload, decode_stored, walk_payload, Cell, CellRef, WalkNeed};
-use froctomap_core::{Leaf, MortonCode, VoxelKey};
+use crate::tile::{
+    decode_frame, decode_payload, frame_table, walk_payload, Cell, CellRef, TileParts, WalkNeed,
+};
+use crate::toggle_lists::ToggleLayout;
+use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
 use froctomap_temporal::{ModelRegistry, PreparedModel};
 use serde_json::{Map, Value};
+use std::cell::RefCell;
 use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
+
+/// Buffers a thread reuses from tile to tile: stored bytes, decoded parts, a zstd context.
+#[derive(Default)]
+struct TileScratch {
+    stored: Vec<u8>,
+    parts: Vec<Vec<u8>>,
+    zstd: Option<zstd::bulk::Decompressor<'static>>,
+}
+
+thread_local! {
+    static TILE_SCRATCH: RefCell<TileScratch> = RefCell::default();
+}
 
 /// An open FROctomap file. Opening reads only the header, the footer and the index; tiles
 /// are read with positioned reads when asked for, each on its own (a damaged tile does not
@@ -157,8 +173,27 @@ impl FroctReader {
         self.model.as_ref()
     }
 
-    /// A tile's payload: read, checksum verified, decompressed.
-    fn tile_payload(&self, tile: usize) -> Result<(TileEntry, Vec<u8>), FileError> {
+    /// Reads a tile, verifies its checksum, decodes the parts a walk with `need` reads
+    /// and hands them to `use_parts`. Buffers and the zstd context are reused per thread.
+    fn with_tile<R>(
+        &self,
+        tile: usize,
+        need: WalkNeed,
+        use_parts: impl FnOnce(&TileEntry, &TileParts<'_>) -> Result<R, FormatViolation>,
+    ) -> Result<R, FileError> {
+        let mut scratch = TILE_SCRATCH.with(|s| s.take());
+        let result = self.with_tile_in(&mut scratch, tile, need, use_parts);
+        TILE_SCRATCH.with(|s| s.replace(scratch));
+        result
+    }
+
+    fn with_tile_in<R>(
+        &self,
+        scratch: &mut TileScratch,
+        tile: usize,
+        need: WalkNeed,
+        use_parts: impl FnOnce(&TileEntry, &TileParts<'_>) -> Result<R, FormatViolation>,
+    ) -> Result<R, FileError> {
         let invalid = |violation| FileError::Invalid {
             path: self.path.clone(),
             violation,
@@ -167,18 +202,46 @@ impl FroctReader {
             .tiles
             .get(tile)
             .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
-        let mut stored = vec![0u8; entry.stored_len as usize];
+        let TileScratch {
+            stored,
+            parts,
+            zstd,
+        } = scratch;
+        stored.clear();
+        stored.resize(entry.stored_len as usize, 0);
         self.file
-            .read_exact_at(&mut stored, entry.offset)
+            .read_exact_at(stored, entry.offset)
             .map_err(|source| FileError::Io {
                 path: self.path.clone(),
                 source,
             })?;
-        if crc32c::crc32c(&stored) != entry.crc {
+        if crc32c::crc32c(stored) != entry.crc {
             return Err(invalid(FormatViolation::Checksum("tile")));
         }
-        let payload = decode_stored(&stored, entry.raw_len, self.header.codec).map_err(invalid)?;
-        Ok((entry, payload))
+        let layout = self.header.tile_layout();
+        let axis_len = self.header.axis.len();
+        let blocks = need.blocks(layout.toggles, axis_len);
+        let frames: Vec<(&[u8], u32)> = match layout.toggles {
+            ToggleLayout::Whole => vec![(&stored[..], entry.raw_len)],
+            ToggleLayout::Blocked(_) => {
+                let all = layout.toggles.blocks(axis_len) as usize + 1;
+                let table = frame_table(stored, all, entry.raw_len).map_err(invalid)?;
+                std::iter::once(table[0])
+                    .chain(blocks.clone().map(|b| table[b as usize + 1]))
+                    .collect()
+            }
+        };
+        if parts.len() < frames.len() {
+            parts.resize_with(frames.len(), Vec::new);
+        }
+        for ((frame, raw_len), out) in frames.iter().zip(parts.iter_mut()) {
+            decode_frame(frame, *raw_len, layout.codec, zstd, out).map_err(invalid)?;
+        }
+        let tile_parts = TileParts {
+            cells: &parts[0],
+            blocks: blocks.zip(parts[1..].iter().map(Vec::as_slice)).collect(),
+        };
+        use_parts(&entry, &tile_parts).map_err(invalid)
     }
 
     fn check_count(&self, entry: &TileEntry, count: usize) -> Result<(), FileError> {
@@ -193,17 +256,16 @@ impl FroctReader {
 
     /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
     pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
-        let (entry, payload) = self.tile_payload(tile)?;
-        let cells = decode_payload(
-            &payload,
-            entry.code,
-            self.header.tile_depth,
-            self.model.as_ref(),
-            &self.limits,
-        )
-        .map_err(|violation| FileError::Invalid {
-            path: self.path.clone(),
-            violation,
+        let layout = self.header.tile_layout();
+        let (entry, cells) = self.with_tile(tile, WalkNeed::Everything, |entry, parts| {
+            let cells = decode_payload(
+                parts,
+                entry.code,
+                &layout,
+                self.model.as_ref(),
+                &self.limits,
+            )?;
+            Ok((*entry, cells))
         })?;
         self.check_count(&entry, cells.len())?;
         Ok(cells)
@@ -214,21 +276,20 @@ impl FroctReader {
         &self,
         tile: usize,
         need: WalkNeed,
-        visit: &mut dyn FnMut(CellRef<'_>),
+        visit: impl FnMut(CellRef<'_>),
     ) -> Result<(), FileError> {
-        let (entry, payload) = self.tile_payload(tile)?;
-        let count = walk_payload(
-            &payload,
-            entry.code,
-            self.header.tile_depth,
-            self.model.as_ref(),
-            &self.limits,
-            need,
-            visit,
-        )
-        .map_err(|violation| FileError::Invalid {
-            path: self.path.clone(),
-            violation,
+        let layout = self.header.tile_layout();
+        let (entry, count) = self.with_tile(tile, need, |entry, parts| {
+            let count = walk_payload(
+                parts,
+                entry.code,
+                &layout,
+                self.model.as_ref(),
+                &self.limits,
+                need,
+                visit,
+            )?;
+            Ok((*entry, count))
         })?;
         self.check_count(&entry, count)
     }
@@ -242,18 +303,51 @@ impl FroctReader {
         sample: u32,
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
+        self.visit_observed_states(tile, sample, |start, depth, state| {
+            out.push(Leaf {
+                start,
+                depth,
+                log_odds: state.log_odds(),
+            });
+        })
+    }
+
+    /// Calls `visit(start, depth, state)` for each cell of a tile observed at `sample`, with
+    /// its state there (exact in lossless files), in Morton order.
+    pub fn visit_observed_states(
+        &self,
+        tile: usize,
+        sample: u32,
+        mut visit: impl FnMut(MortonCode, u8, Occupancy),
+    ) -> Result<(), FileError> {
         if self.tiles.get(tile).is_some_and(|t| !t.may_observe(sample)) {
             return Ok(());
         }
         let model = self.model.as_ref();
-        self.walk_tile(tile, WalkNeed::StateAt(sample), &mut |cell| {
+        self.walk_tile(tile, WalkNeed::StateAt(sample), |cell| {
             if cell.observed {
-                out.push(Leaf {
-                    start: cell.start,
-                    depth: cell.depth,
-                    log_odds: cell.state(model, sample).log_odds(),
-                });
+                visit(cell.start, cell.depth, cell.state(model, sample));
             }
+        })
+    }
+
+    /// Calls `visit(start, depth, state)` for every cell of a tile with its predicted state
+    /// at `seconds` since the first sample (occupied when `p > 0.5`), in Morton order.
+    pub fn visit_predicted_states(
+        &self,
+        tile: usize,
+        seconds: f64,
+        mut visit: impl FnMut(MortonCode, u8, Occupancy),
+    ) -> Result<(), FileError> {
+        let model = self.model.as_ref();
+        self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
+            let occupied = cell.probability(model, seconds) > 0.5;
+            let state = if occupied {
+                Occupancy::Occupied
+            } else {
+                Occupancy::Free
+            };
+            visit(cell.start, cell.depth, state);
         })
     }
 
@@ -267,7 +361,7 @@ impl FroctReader {
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
         let model = self.model.as_ref();
-        self.walk_tile(tile, WalkNeed::ModelOnly, &mut |cell| {
+        self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             out.push(Leaf {
                 start: cell.start,
                 depth: cell.depth,
@@ -276,12 +370,12 @@ impl FroctReader {
         })
     }
 
-    /// The raw streams of a tile's payload, in the order of FORMAT.md §5.2, for size analysis.
-    pub fn tile_streams(&self, tile: usize) -> Result<Vec<Vec<u8>>, FileError> {
-        let (_, payload) = self.tile_payload(tile)?;
-        crate::tile::split_streams(&payload).map_err(|violation| FileError::Invalid {
-            path: self.path.clone(),
-            violation,
+    /// The raw streams of a tile's payload by name, in the order of FORMAT.md §5.2 (a list
+    /// set's blocks of one kind joined), for size analysis.
+    pub fn tile_streams(&self, tile: usize) -> Result<Vec<(&'static str, Vec<u8>)>, FileError> {
+        let layout = self.header.tile_layout();
+        self.with_tile(tile, WalkNeed::Everything, |_, parts| {
+            crate::tile::split_streams(parts, &layout)
         })
     }
 

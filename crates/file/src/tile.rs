@@ -4,6 +4,7 @@ use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
 use crate::header::Codec;
 use crate::limits::ReadLimits;
+use crate::toggle_lists::{encode_lists, stream, ListBlock, ToggleLayout, ToggleListReader};
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_temporal::{varint, FittedVoxel, PreparedModel, TimeAxis, Toggles};
 use std::collections::HashMap;
@@ -175,15 +176,30 @@ pub struct EncodedTile {
     pub streams: StreamSizes,
 }
 
+/// How a file lays out its tiles: what a tile encoder and decoder need of the header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileLayout {
+    /// Depth of the tiles' nodes.
+    pub tile_depth: u8,
+    /// How tile payloads are stored.
+    pub codec: Codec,
+    /// How toggle lists are stored.
+    pub toggles: ToggleLayout,
+}
+
 /// Encodes the cells of one tile (sorted, non-overlapping, all inside the tile).
 ///
 /// Modelled cells are encoded with `model`, which must be the model the file header names.
 pub fn encode_tile(
-    tile_depth: u8,
+    layout: &TileLayout,
     cells: &[Cell],
     model: &dyn PreparedModel,
-    codec: Codec,
 ) -> Result<EncodedTile, String> {
+    let TileLayout {
+        tile_depth,
+        codec,
+        toggles: toggle_layout,
+    } = *layout;
     let first = cells.first().ok_or("a tile needs at least one cell")?;
     let code = first.start.node_start(tile_depth);
     let tile_end = code.0 + voxels_per_node(tile_depth);
@@ -195,7 +211,7 @@ pub fn encode_tile(
     let mut mask_ids: HashMap<&[u32], u64> = HashMap::new();
     let mut mask_refs = Vec::new();
     let mut models = Vec::new();
-    let mut outliers = ToggleColumns::default();
+    let mut outliers: Vec<&[u32]> = Vec::new();
     let mut previous_end = code.0;
     let mut span: Option<(u32, u32)> = None;
     for cell in cells {
@@ -238,7 +254,7 @@ pub fn encode_tile(
                 return Err("outliers beyond the time axis".into());
             }
             class |= CLASS_HAS_OUTLIERS;
-            outliers.push(toggles);
+            outliers.push(toggles.as_slice());
         }
         if let Some(mask) = &cell.mask {
             if mask.as_slice().last().is_some_and(|&t| t >= axis_len) {
@@ -259,37 +275,69 @@ pub fn encode_tile(
         span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
     }
     // The tile's distinct masks are stored once; masked cells refer to them by index.
-    let mut masks = ToggleColumns::default();
-    for mask in &mask_table {
-        masks.push(mask);
-    }
+    let mask_lists: Vec<&[u32]> = mask_table.iter().map(|m| m.as_slice()).collect();
+    let masks = encode_lists(&mask_lists, toggle_layout, axis_len);
+    let outliers = encode_lists(&outliers, toggle_layout, axis_len);
     let mut mask_count = Vec::new();
     varint::write_u64(&mut mask_count, mask_table.len() as u64);
-    let streams = [
-        &geometry,
-        &depths,
-        &classes,
-        &mask_count,
-        &mask_refs,
-        &masks.counts,
-        &masks.starts,
-        &masks.lengths,
-        &models,
-        &outliers.counts,
-        &outliers.starts,
-        &outliers.lengths,
-    ];
-    let mut payload = Vec::new();
-    varint::write_u64(&mut payload, cells.len() as u64);
-    for stream in streams {
-        varint::write_u64(&mut payload, stream.len() as u64);
-        payload.extend_from_slice(stream);
-    }
-    let raw_len = u32::try_from(payload.len()).map_err(|_| "tile payload exceeds 4 GiB")?;
-    let stored = match codec {
-        Codec::Raw => payload,
-        Codec::Zstd { level } => zstd::bulk::compress(&payload, i32::from(level))
-            .map_err(|e| format!("zstd compression failed: {e}"))?,
+    let sizes = StreamSizes {
+        geometry: geometry.len() as u64,
+        depth: depths.len() as u64,
+        class: classes.len() as u64,
+        masks: (mask_count.len() + mask_refs.len()) as u64 + total_len(&masks),
+        models: models.len() as u64,
+        outliers: total_len(&outliers),
+    };
+    let cell_streams = [&geometry, &depths, &classes, &mask_count, &mask_refs];
+    // Format 1.0: one payload, the lists between the cell streams. Format 1.1: a part with
+    // the cells, then one part per block with that block's lists (see `frame_table`).
+    let parts: Vec<Vec<u8>> = match toggle_layout {
+        ToggleLayout::Whole => {
+            let streams = cell_streams
+                .into_iter()
+                .chain(&masks[0])
+                .chain([&models])
+                .chain(&outliers[0]);
+            vec![length_prefixed(Some(cells.len()), streams)]
+        }
+        ToggleLayout::Blocked(_) => {
+            let cell_part =
+                length_prefixed(Some(cells.len()), cell_streams.into_iter().chain([&models]));
+            let blocks = masks
+                .iter()
+                .zip(&outliers)
+                .map(|(m, o)| length_prefixed(None, m.iter().chain(o)));
+            std::iter::once(cell_part).chain(blocks).collect()
+        }
+    };
+    let raw_len = u32::try_from(parts.iter().map(Vec::len).sum::<usize>())
+        .map_err(|_| "tile payload exceeds 4 GiB")?;
+    let compress = |part: Vec<u8>| match codec {
+        Codec::Raw => Ok(part),
+        Codec::Zstd { level } => zstd::bulk::compress(&part, i32::from(level))
+            .map_err(|e| format!("zstd compression failed: {e}")),
+    };
+    let stored = match toggle_layout {
+        ToggleLayout::Whole => compress(parts.into_iter().next().unwrap_or_default())?,
+        ToggleLayout::Blocked(_) => {
+            let raw_lens: Vec<usize> = parts.iter().map(Vec::len).collect();
+            let frames = parts
+                .into_iter()
+                .map(compress)
+                .collect::<Result<Vec<_>, String>>()?;
+            let mut stored = Vec::new();
+            varint::write_u64(&mut stored, frames.len() as u64);
+            for frame in &frames {
+                varint::write_u64(&mut stored, frame.len() as u64);
+            }
+            for len in raw_lens {
+                varint::write_u64(&mut stored, len as u64);
+            }
+            for frame in frames {
+                stored.extend(frame);
+            }
+            stored
+        }
     };
     let (first_sample, last_sample) = span.unwrap_or((0, 0));
     Ok(EncodedTile {
@@ -300,23 +348,92 @@ pub fn encode_tile(
         cell_count: u32::try_from(cells.len()).map_err(|_| "too many cells in a tile")?,
         first_sample,
         last_sample,
-        streams: StreamSizes {
-            geometry: geometry.len() as u64,
-            depth: depths.len() as u64,
-            class: classes.len() as u64,
-            masks: (mask_count.len() + mask_refs.len() + masks.len()) as u64,
-            models: models.len() as u64,
-            outliers: outliers.len() as u64,
-        },
+        streams: sizes,
     })
 }
 
-/// Turns stored tile bytes back into the payload.
-pub(crate) fn decode_stored(
+/// Streams, each with its length, after an optional leading count.
+fn length_prefixed<'s>(
+    count: Option<usize>,
+    streams: impl Iterator<Item = &'s Vec<u8>>,
+) -> Vec<u8> {
+    let mut out = Vec::new();
+    if let Some(count) = count {
+        varint::write_u64(&mut out, count as u64);
+    }
+    for stream in streams {
+        varint::write_u64(&mut out, stream.len() as u64);
+        out.extend_from_slice(stream);
+    }
+    out
+}
+
+fn total_len(blocks: &[Vec<Vec<u8>>]) -> u64 {
+    blocks.iter().flatten().map(|s| s.len() as u64).sum()
+}
+
+/// The frames of a format 1.1 tile's stored bytes: `varint F`, `F` stored lengths, `F` raw
+/// lengths (all varints), then the frames. Returns each frame's stored bytes and raw length;
+/// checks the count against `expected`, the lengths against the bytes and `raw_total`.
+pub(crate) fn frame_table(
+    stored: &[u8],
+    expected: usize,
+    raw_total: u32,
+) -> Result<Vec<(&[u8], u32)>, FormatViolation> {
+    // Each frame takes at least one byte of table and one of data: a hostile header asking
+    // for billions of blocks fails here, before anything is allocated for them.
+    if expected > stored.len() / 2 {
+        return Err(corrupt(
+            "tile frames",
+            format!("{expected} frames cannot fit in {} bytes", stored.len()),
+        ));
+    }
+    let mut c = Cursor::new(stored, "tile frames");
+    let count = c.varint()?;
+    if count != expected as u64 {
+        return Err(corrupt(
+            "tile frames",
+            format!("{count} frames where the time axis needs {expected}"),
+        ));
+    }
+    let mut stored_lens = Vec::with_capacity(expected);
+    for _ in 0..expected {
+        stored_lens.push(c.count("frame length", 1, u64::MAX)?);
+    }
+    let mut raw_lens = Vec::with_capacity(expected);
+    let mut raw_sum = 0u64;
+    for _ in 0..expected {
+        let raw = c.varint()?;
+        raw_sum = raw_sum.saturating_add(raw);
+        raw_lens.push(raw);
+    }
+    if raw_sum != u64::from(raw_total) {
+        return Err(corrupt(
+            "tile frames",
+            format!("frames hold {raw_sum} raw bytes, the index says {raw_total}"),
+        ));
+    }
+    let mut frames = Vec::with_capacity(expected);
+    for (len, raw) in stored_lens.into_iter().zip(raw_lens) {
+        // `raw ≤ raw_total`, a u32.
+        frames.push((c.take(len)?, raw as u32));
+    }
+    if !c.is_empty() {
+        return Err(corrupt("tile frames", "bytes after the last frame"));
+    }
+    Ok(frames)
+}
+
+/// Decodes one stored frame (a format 1.0 tile, or one part of a 1.1 tile) into `out`,
+/// reusing `out` and the zstd context across calls.
+pub(crate) fn decode_frame(
     stored: &[u8],
     raw_len: u32,
     codec: Codec,
-) -> Result<Vec<u8>, FormatViolation> {
+    zstd_context: &mut Option<zstd::bulk::Decompressor<'static>>,
+    out: &mut Vec<u8>,
+) -> Result<(), FormatViolation> {
+    out.clear();
     match codec {
         Codec::Raw => {
             if stored.len() != raw_len as usize {
@@ -325,20 +442,38 @@ pub(crate) fn decode_stored(
                     "stored length differs from the raw length of a raw tile",
                 ));
             }
-            Ok(stored.to_vec())
+            out.extend_from_slice(stored);
         }
         Codec::Zstd { .. } => {
-            let payload = zstd::bulk::decompress(stored, raw_len as usize)
+            let context = match zstd_context {
+                Some(context) => context,
+                None => zstd_context.insert(
+                    zstd::bulk::Decompressor::new()
+                        .map_err(|e| corrupt("tile", format!("zstd: {e}")))?,
+                ),
+            };
+            out.reserve(raw_len as usize);
+            let len = context
+                .decompress_to_buffer(stored, out)
                 .map_err(|e| corrupt("tile", format!("zstd: {e}")))?;
-            if payload.len() != raw_len as usize {
+            if len != raw_len as usize {
                 return Err(corrupt(
                     "tile",
-                    format!("decoded {} bytes, index says {raw_len}", payload.len()),
+                    format!("decoded {len} bytes, index says {raw_len}"),
                 ));
             }
-            Ok(payload)
         }
     }
+    Ok(())
+}
+
+/// A tile's decoded payload as a walk reads it.
+pub(crate) struct TileParts<'a> {
+    /// Format 1.0: the whole payload. Format 1.1: the cell part.
+    pub(crate) cells: &'a [u8],
+    /// Format 1.1: the decoded parts of the blocks the walk needs ([`WalkNeed::blocks`]),
+    /// with their indices, in block order.
+    pub(crate) blocks: Vec<(u32, &'a [u8])>,
 }
 
 /// What a payload walk needs of each cell's mask and outliers.
@@ -351,6 +486,22 @@ pub(crate) enum WalkNeed {
     StateAt(u32),
     /// Only the model (for predictions): masks and outliers are skipped undecoded.
     ModelOnly,
+}
+
+impl WalkNeed {
+    /// The toggle blocks (format 1.1) this walk reads: all, the one holding the sample, or
+    /// none.
+    pub(crate) fn blocks(self, toggles: ToggleLayout, axis_len: u32) -> std::ops::Range<u32> {
+        let count = toggles.blocks(axis_len);
+        match (self, toggles) {
+            (_, ToggleLayout::Whole) | (WalkNeed::ModelOnly, _) => 0..0,
+            (WalkNeed::Everything, _) => 0..count,
+            (WalkNeed::StateAt(sample), ToggleLayout::Blocked(len)) => {
+                let b = (sample / len.max(1)).min(count - 1);
+                b..b + 1
+            }
+        }
+    }
 }
 
 /// One cell as the payload walk sees it, borrowing from the tile instead of allocating.
@@ -409,17 +560,18 @@ fn occupancy(occupied: bool) -> Occupancy {
 /// `need` asks for. Validates the structure it reads; allocates per distinct mask and per
 /// modelled cell only.
 pub(crate) fn walk_payload(
-    payload: &[u8],
+    parts: &TileParts<'_>,
     code: MortonCode,
-    tile_depth: u8,
+    layout: &TileLayout,
     model: &dyn PreparedModel,
     limits: &ReadLimits,
     need: WalkNeed,
-    visit: &mut dyn FnMut(CellRef<'_>),
+    mut visit: impl FnMut(CellRef<'_>),
 ) -> Result<usize, FormatViolation> {
+    let tile_depth = layout.tile_depth;
     let axis = model.axis();
     let axis_len = axis.len();
-    let mut c = Cursor::new(payload, "tile");
+    let mut c = Cursor::new(parts.cells, "tile");
     let count = c.count("cells per tile", 1, limits.max_cells_per_tile)?;
     if count == 0 {
         return Err(corrupt("tile", "no cells"));
@@ -429,20 +581,43 @@ pub(crate) fn walk_payload(
     let classes = stream(&mut c)?;
     let mask_count = stream(&mut c)?;
     let mask_refs = stream(&mut c)?;
-    let mut masks = ToggleColumnReader::new(
-        [stream(&mut c)?, stream(&mut c)?, stream(&mut c)?],
-        axis_len,
-        "tile masks",
-    );
-    let models = stream(&mut c)?;
-    let mut outliers = ToggleColumnReader::new(
-        [stream(&mut c)?, stream(&mut c)?, stream(&mut c)?],
-        axis_len,
-        "tile outliers",
-    );
+    let (mask_blocks, models, outlier_blocks) = match layout.toggles {
+        ToggleLayout::Whole => {
+            let masks = ListBlock::take_whole(&mut c)?;
+            let models = stream(&mut c)?;
+            (vec![masks], models, vec![ListBlock::take_whole(&mut c)?])
+        }
+        ToggleLayout::Blocked(_) => {
+            let models = stream(&mut c)?;
+            let mut masks = Vec::with_capacity(parts.blocks.len());
+            let mut outliers = Vec::with_capacity(parts.blocks.len());
+            for &(b, part) in &parts.blocks {
+                let mut p = Cursor::new(part, "tile block");
+                masks.push(ListBlock::take_blocked(
+                    &mut p,
+                    layout.toggles,
+                    b,
+                    axis_len,
+                )?);
+                outliers.push(ListBlock::take_blocked(
+                    &mut p,
+                    layout.toggles,
+                    b,
+                    axis_len,
+                )?);
+                if !p.is_empty() {
+                    return Err(corrupt("tile block", "bytes after the last stream"));
+                }
+            }
+            (masks, models, outliers)
+        }
+    };
     if !c.is_empty() {
         return Err(corrupt("tile", "bytes after the last stream"));
     }
+    let mut masks = ToggleListReader::new(mask_blocks, layout.toggles, axis_len, "tile masks");
+    let mut outliers =
+        ToggleListReader::new(outlier_blocks, layout.toggles, axis_len, "tile outliers");
     if depths.len() != count || classes.len() != count {
         return Err(corrupt(
             "tile",
@@ -499,6 +674,7 @@ pub(crate) fn walk_payload(
     let mut model_pos = 0usize;
     let frequency_limit = model.frequency_limit();
     let mut previous_end = code.0;
+    let mut voxel: Option<FittedVoxel>;
     for (&depth, &class) in depths.iter().zip(classes) {
         let gap = geometry.varint()?;
         if !(tile_depth..=TREE_DEPTH).contains(&depth) {
@@ -509,7 +685,7 @@ pub(crate) fn walk_payload(
         }
         let start = previous_end
             .checked_add(gap)
-            .filter(|s| s % voxels_per_node(depth) == 0)
+            .filter(|s| s & (voxels_per_node(depth) - 1) == 0)
             .ok_or_else(|| corrupt("tile", "cell not aligned to its depth"))?;
         let end = start + voxels_per_node(depth);
         if end > tile_end {
@@ -536,11 +712,12 @@ pub(crate) fn walk_payload(
         };
         let observed = sample_present
             && mask_index.is_none_or(|i| mask_observed.get(i).copied().unwrap_or(false));
-        scratch.clear();
         let mut outlier_parity = false;
+        let mut has_list = false;
         if class & CLASS_HAS_OUTLIERS != 0 {
             match need {
                 WalkNeed::Everything => {
+                    has_list = true;
                     outliers.next_list_into(&mut scratch)?;
                     if scratch.is_empty() {
                         return Err(corrupt(
@@ -553,14 +730,17 @@ pub(crate) fn walk_payload(
                 WalkNeed::ModelOnly => outliers.skip_list()?,
             }
         }
-        let (constant, voxel) = match class & CLASS_KIND_MASK {
+        // Most cells are constant: they pass no model (a decoded one lives in `voxel`, kept
+        // outside the loop so that constant cells move nothing).
+        let (constant, model_ref) = match class & CLASS_KIND_MASK {
             CLASS_FREE => (Some(Occupancy::Free), None),
             CLASS_OCCUPIED => (Some(Occupancy::Occupied), None),
             CLASS_MODELLED => {
-                let (voxel, used) =
+                let (decoded, used) =
                     FittedVoxel::decode(&models[model_pos..], frequency_limit, axis_len, false)?;
                 model_pos += used;
-                (None, Some(voxel))
+                voxel = Some(decoded);
+                (None, voxel.as_ref())
             }
             _ => return Err(corrupt("tile", "invalid cell class 3")),
         };
@@ -569,8 +749,10 @@ pub(crate) fn walk_payload(
             depth,
             mask,
             constant,
-            model: voxel.as_ref(),
-            outliers: &scratch,
+            model: model_ref,
+            // Not `&scratch` for every cell: storing its cleared length and loading it back
+            // with the pointer stalled the loop (a store-to-load forwarding failure).
+            outliers: if has_list { &scratch } else { &[] },
             observed,
             outlier_parity,
         });
@@ -589,22 +771,22 @@ pub(crate) fn walk_payload(
 
 /// Parses a tile payload into its cells.
 pub(crate) fn decode_payload(
-    payload: &[u8],
+    parts: &TileParts<'_>,
     code: MortonCode,
-    tile_depth: u8,
+    layout: &TileLayout,
     model: &dyn PreparedModel,
     limits: &ReadLimits,
 ) -> Result<Vec<Cell>, FormatViolation> {
     let mut cells = Vec::new();
     let mut invalid = None;
     walk_payload(
-        payload,
+        parts,
         code,
-        tile_depth,
+        layout,
         model,
         limits,
         WalkNeed::Everything,
-        &mut |cell| {
+        |cell: CellRef<'_>| {
             let outliers = if cell.outliers.is_empty() {
                 None
             } else {
@@ -640,156 +822,50 @@ pub(crate) fn decode_payload(
     Ok(cells)
 }
 
-/// The streams of a payload, copied out.
-pub(crate) fn split_streams(payload: &[u8]) -> Result<Vec<Vec<u8>>, FormatViolation> {
-    let mut c = Cursor::new(payload, "tile");
+/// The streams of a tile by name, copied out (a list set's streams of one kind joined over
+/// the blocks), from parts holding every block.
+pub(crate) fn split_streams(
+    parts: &TileParts<'_>,
+    layout: &TileLayout,
+) -> Result<Vec<(&'static str, Vec<u8>)>, FormatViolation> {
+    const MASKS: [&str; 4] = ["mask parity", "mask counts", "mask starts", "mask lengths"];
+    const OUTLIERS: [&str; 4] = [
+        "outlier parity",
+        "outlier counts",
+        "outlier starts",
+        "outlier lengths",
+    ];
+    let mut c = Cursor::new(parts.cells, "tile");
     c.varint()?;
-    (0..STREAMS)
-        .map(|_| stream(&mut c).map(<[u8]>::to_vec))
-        .collect()
-}
-
-/// Streams in a tile payload (FORMAT.md §5.2).
-pub(crate) const STREAMS: usize = 12;
-
-/// Lists of toggles stored column-wise: each list's length, the gaps before toggles at even
-/// positions (where a run of the other state starts) and those before odd positions (one
-/// less than the run's length). Separating them lets zstd model each distribution on its
-/// own: run starts are spread out, run lengths are mostly tiny (a one-sample flicker is 0).
-#[derive(Default)]
-struct ToggleColumns {
-    counts: Vec<u8>,
-    starts: Vec<u8>,
-    lengths: Vec<u8>,
-}
-
-impl ToggleColumns {
-    fn push(&mut self, toggles: &Toggles) {
-        varint::write_u64(&mut self.counts, toggles.len() as u64);
-        let mut next = 0u32;
-        for (k, &t) in toggles.as_slice().iter().enumerate() {
-            let column = if k % 2 == 0 {
-                &mut self.starts
-            } else {
-                &mut self.lengths
-            };
-            varint::write_u32(column, t - next);
-            next = t.saturating_add(1);
-        }
+    let mut named: Vec<(&'static str, Vec<u8>)> = Vec::new();
+    let mut add = |name: &'static str, bytes: &[u8]| match named.iter_mut().find(|n| n.0 == name) {
+        Some(entry) => entry.1.extend_from_slice(bytes),
+        None => named.push((name, bytes.to_vec())),
+    };
+    for name in ["geometry", "depth", "class", "mask count", "mask refs"] {
+        add(name, stream(&mut c)?);
     }
-
-    fn len(&self) -> usize {
-        self.counts.len() + self.starts.len() + self.lengths.len()
-    }
-}
-
-/// Reads [`ToggleColumns`] back, validating every position against the axis.
-struct ToggleColumnReader<'a> {
-    counts: Cursor<'a>,
-    starts: Cursor<'a>,
-    lengths: Cursor<'a>,
-    axis_len: u32,
-    part: &'static str,
-}
-
-impl<'a> ToggleColumnReader<'a> {
-    fn new(columns: [&'a [u8]; 3], axis_len: u32, part: &'static str) -> Self {
-        let [counts, starts, lengths] = columns;
-        Self {
-            counts: Cursor::new(counts, part),
-            starts: Cursor::new(starts, part),
-            lengths: Cursor::new(lengths, part),
-            axis_len,
-            part,
-        }
-    }
-
-    /// Upper bound on the lists left (each takes at least one count byte).
-    fn max_lists(&self) -> usize {
-        self.counts.remaining()
-    }
-
-    /// Skips the next list undecoded.
-    fn skip_list(&mut self) -> Result<(), FormatViolation> {
-        let count = self.counts.varint()?;
-        let (even, odd) = (count.div_ceil(2), count / 2);
-        self.starts.skip_varints(even)?;
-        self.lengths.skip_varints(odd)
-    }
-
-    /// Reads the next list only as far as needed to tell whether an odd number of its
-    /// positions are `≤ sample`, skipping the rest undecoded: the fast path of a query at
-    /// one sample. Validates less than [`next_list_into`](Self::next_list_into) (positions
-    /// after `sample` are not range-checked), which only affects what a damaged file reads
-    /// as, never memory safety.
-    fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
-        let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
-        let count = self.counts.varint()?;
-        if count > left || count > u64::from(self.axis_len) {
-            return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
-        }
-        let mut next = 0u64;
-        let mut k = 0u64;
-        while k < count {
-            let column = if k % 2 == 0 {
-                &mut self.starts
-            } else {
-                &mut self.lengths
-            };
-            let position = next + column.varint()?;
-            if position > u64::from(sample) {
-                break;
+    match layout.toggles {
+        ToggleLayout::Whole => {
+            for name in &MASKS[1..] {
+                add(name, stream(&mut c)?);
             }
-            next = position + 1;
-            k += 1;
-        }
-        let parity = k % 2 == 1;
-        if k < count {
-            // The position just read (index k) was after `sample`; skip the others.
-            let rest = count - k - 1;
-            let (even, odd) = (
-                (rest + u64::from(k % 2 == 1)) / 2,
-                (rest + u64::from(k % 2 == 0)) / 2,
-            );
-            self.starts.skip_varints(even)?;
-            self.lengths.skip_varints(odd)?;
-        }
-        Ok(parity)
-    }
-
-    /// Reads the next list into `positions` (cleared first), reusing its allocation.
-    fn next_list_into(&mut self, positions: &mut Vec<u32>) -> Result<(), FormatViolation> {
-        positions.clear();
-        let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
-        let count = self.counts.varint()?;
-        if count > left || count > u64::from(self.axis_len) {
-            return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
-        }
-        positions.reserve(count as usize);
-        let mut next = 0u64;
-        for k in 0..count {
-            let column = if k % 2 == 0 {
-                &mut self.starts
-            } else {
-                &mut self.lengths
-            };
-            let position = next + column.varint()?;
-            if position >= u64::from(self.axis_len) {
-                return Err(corrupt(self.part, "toggle beyond the time axis"));
+            add("models", stream(&mut c)?);
+            for name in &OUTLIERS[1..] {
+                add(name, stream(&mut c)?);
             }
-            positions.push(position as u32);
-            next = position + 1;
         }
-        Ok(())
-    }
-
-    fn finish(&self) -> Result<(), FormatViolation> {
-        if self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty() {
-            Ok(())
-        } else {
-            Err(corrupt(self.part, "bytes no list uses"))
+        ToggleLayout::Blocked(_) => {
+            add("models", stream(&mut c)?);
+            for (_, part) in &parts.blocks {
+                let mut p = Cursor::new(part, "tile block");
+                for name in MASKS.iter().chain(&OUTLIERS) {
+                    add(name, stream(&mut p)?);
+                }
+            }
         }
     }
+    Ok(named)
 }
 
 fn flip(state: Occupancy) -> Occupancy {
@@ -797,12 +873,6 @@ fn flip(state: Occupancy) -> Occupancy {
         Occupancy::Free => Occupancy::Occupied,
         Occupancy::Occupied => Occupancy::Free,
     }
-}
-
-/// One length-prefixed stream of a tile payload.
-fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
-    let len = c.count("stream length", 1, u64::MAX)?;
-    c.take(len)
 }
 
 /// Helper for writers that build masks from observed runs: the mask toggles of a list of
@@ -850,4 +920,29 @@ fn all_missing(axis: &TimeAxis, first: u64, end: u64) -> bool {
     let from = missing.partition_point(|&m| u64::from(m) < first);
     let to = missing.partition_point(|&m| u64::from(m) < end);
     (to - from) as u64 == end - first
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_tables_are_checked_before_allocating() {
+        // A header asking for four billion blocks meets a small tile.
+        let err = frame_table(&[1, 2, 3, 4], u32::MAX as usize, 10).unwrap_err();
+        assert!(err.to_string().contains("cannot fit"), "{err}");
+        // Two frames of 1 and 2 stored bytes, 3 and 4 raw.
+        let stored = [2, 1, 2, 3, 4, 0xAA, 0xBB, 0xCC];
+        let frames = frame_table(&stored, 2, 7).unwrap();
+        assert_eq!(frames, vec![(&stored[5..6], 3), (&stored[6..8], 4)]);
+        assert!(frame_table(&stored, 3, 7).is_err(), "wrong frame count");
+        assert!(frame_table(&stored, 2, 8).is_err(), "raw total differs");
+        assert!(frame_table(&stored[..7], 2, 7).is_err(), "truncated frame");
+        let mut longer = stored.to_vec();
+        longer.push(0);
+        assert!(
+            frame_table(&longer, 2, 7).is_err(),
+            "bytes after the frames"
+        );
+    }
 }

@@ -1,4 +1,5 @@
-//! The golden file `fixtures/froct/golden-v1.0.froct`, written by version 1.0, must stay
+//! The golden files `fixtures/froct/golden-v1.0.froct` (whole toggle lists) and
+//! `golden-v1.1.froct` (toggle lists in blocks), each written by its version, must stay
 //! readable by every later version, with the same content.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -7,56 +8,78 @@ mod common;
 use common::*;
 use froctomap_file::{FroctReader, MAJOR_VERSION};
 
-/// The golden file is regenerated only on purpose: `FROCTOMAP_REGENERATE_GOLDEN=1 cargo test
-/// -p froctomap-file --test golden`. Otherwise the writer must reproduce it byte for byte.
+/// The golden files are regenerated only on purpose: `FROCTOMAP_REGENERATE_GOLDEN=1 cargo
+/// test -p froctomap-file --test golden`. Otherwise the writer must reproduce each, in its
+/// version's layout, byte for byte.
 #[test]
-fn writer_reproduces_the_golden_file() {
+fn writer_reproduces_the_golden_files() {
     let dir = tempfile::tempdir().unwrap();
-    let fresh = dir.path().join("golden.froct");
-    write_golden(&fresh);
-    let fresh = std::fs::read(&fresh).unwrap();
-    if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
-        // Atomically, so tests reading the golden file meanwhile never see half of it.
-        froctomap_core::write_atomically(&golden_path(), |out| out.write_all(&fresh)).unwrap();
+    for (name, toggles) in GOLDENS {
+        let fresh = dir.path().join(name);
+        write_golden(&fresh, toggles);
+        let fresh = std::fs::read(&fresh).unwrap();
+        if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
+            // Atomically, so tests reading the golden file meanwhile never see half of it.
+            froctomap_core::write_atomically(&golden_path_of(name), |out| out.write_all(&fresh))
+                .unwrap();
+        }
+        let committed = std::fs::read(golden_path_of(name)).expect("the golden file is committed");
+        assert!(
+            committed == fresh,
+            "the writer's output differs from fixtures/froct/{name}; if the format changed on \
+             purpose, bump the version, keep reading the old golden file, and add a new one"
+        );
     }
-    let committed = std::fs::read(golden_path()).expect("the golden file is committed");
-    assert!(
-        committed == fresh,
-        "the writer's output differs from fixtures/froct/golden-v1.0.froct; if the format \
-         changed on purpose, bump the version, keep reading the old golden file, and add a new one"
-    );
 }
 
 #[test]
-fn golden_file_reads_back_every_observed_state() {
-    let reader = FroctReader::open(&golden_path()).unwrap();
-    let header = reader.header();
-    assert_eq!(header.version, (MAJOR_VERSION, 0));
-    assert_eq!(header.axis, golden_axis());
-    assert_eq!(header.tile_depth, GOLDEN_TILE_DEPTH);
-    assert_eq!(header.metadata["creator"], "froctomap-file tests");
-    assert_eq!(reader.tiles().len(), 3);
-    let expected = golden_cells();
-    let mut decoded = Vec::new();
-    for tile in 0..reader.tiles().len() {
-        decoded.extend(reader.read_tile(tile).unwrap());
-    }
-    assert_eq!(decoded.len(), expected.len());
-    let axis = golden_axis();
-    for (cell, series) in decoded.iter().zip(&expected) {
-        assert_eq!((cell.start, cell.depth), (series.start, series.depth));
-        for sample in 0..axis.len() {
-            let truth = if axis.is_missing(sample) {
+fn golden_files_read_back_every_observed_state() {
+    for ((name, toggles), minor) in GOLDENS.into_iter().zip([0u16, 1]) {
+        let reader = FroctReader::open(&golden_path_of(name)).unwrap();
+        let header = reader.header();
+        assert_eq!(header.version, (MAJOR_VERSION, minor), "{name}");
+        assert_eq!(header.toggles, toggles, "{name}");
+        assert_eq!(header.axis, golden_axis());
+        assert_eq!(header.tile_depth, GOLDEN_TILE_DEPTH);
+        assert_eq!(header.metadata["creator"], "froctomap-file tests");
+        assert_eq!(reader.tiles().len(), 3);
+        let expected = golden_cells();
+        let mut decoded = Vec::new();
+        for tile in 0..reader.tiles().len() {
+            decoded.extend(reader.read_tile(tile).unwrap());
+        }
+        assert_eq!(decoded.len(), expected.len());
+        let axis = golden_axis();
+        let truth = |series: &SeriesCell, sample: u32| {
+            if axis.is_missing(sample) {
                 None
             } else {
                 series.observations.state_at(sample)
-            };
-            assert_eq!(
-                cell.state_at(&axis, reader.model(), sample),
-                truth,
-                "cell {:?} sample {sample}",
-                cell.start
-            );
+            }
+        };
+        for (cell, series) in decoded.iter().zip(&expected) {
+            assert_eq!((cell.start, cell.depth), (series.start, series.depth));
+            for sample in 0..axis.len() {
+                assert_eq!(
+                    cell.state_at(&axis, reader.model(), sample),
+                    truth(series, sample),
+                    "{name}: cell {:?} sample {sample}",
+                    cell.start
+                );
+            }
+        }
+        // The one-sample path (what `retrieve` uses) gives the same states.
+        for sample in 0..axis.len() {
+            let mut leaves = Vec::new();
+            for tile in 0..reader.tiles().len() {
+                reader.observed_leaves(tile, sample, &mut leaves).unwrap();
+            }
+            let expected_leaves: Vec<_> = expected
+                .iter()
+                .filter_map(|c| truth(c, sample).map(|s| (c.start, s)))
+                .collect();
+            let got: Vec<_> = leaves.iter().map(|l| (l.start, l.occupancy())).collect();
+            assert_eq!(got, expected_leaves, "{name}: sample {sample}");
         }
     }
 }

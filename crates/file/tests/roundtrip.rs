@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use froctomap_core::{MortonCode, Occupancy, Timestamp, VoxelKey};
-use froctomap_file::{Codec, FroctReader};
+use froctomap_file::{Codec, FroctReader, TileLayout, ToggleLayout};
 use froctomap_temporal::{ModelConfig, ObservationsBuilder, Order, OutlierMode, TimeAxis};
 use proptest::prelude::*;
 
@@ -113,12 +113,22 @@ fn series(axis: &TimeAxis, seed: u64) -> froctomap_temporal::VoxelObservations {
     b.finish()
 }
 
+/// Both toggle layouts; blocks from one sample (every block boundary) to past the axis.
+fn toggles_strategy() -> impl Strategy<Value = ToggleLayout> {
+    prop_oneof![
+        Just(ToggleLayout::Whole),
+        (1u32..24).prop_map(ToggleLayout::Blocked),
+        Just(ToggleLayout::DEFAULT),
+    ]
+}
+
 fn check(
     model: &str,
     outliers: OutlierMode,
     axis: TimeAxis,
     geometry: Vec<(MortonCode, u8)>,
     seed: u64,
+    toggles: ToggleLayout,
 ) {
     let cells: Vec<SeriesCell> = geometry
         .iter()
@@ -139,8 +149,11 @@ fn check(
         &axis,
         model,
         &config,
-        TILE_DEPTH,
-        Codec::Zstd { level: 3 },
+        TileLayout {
+            tile_depth: TILE_DEPTH,
+            codec: Codec::Zstd { level: 3 },
+            toggles,
+        },
         &cells,
     );
     let reader = FroctReader::open(&path).unwrap();
@@ -162,6 +175,33 @@ fn check(
             }
         }
     }
+    // A query at one sample (the retrieval path: masks and outliers read only up to the
+    // sample, in its block) agrees with the observations at every sample.
+    for sample in 0..axis.len() {
+        let mut leaves = Vec::new();
+        for tile in 0..reader.tiles().len() {
+            reader.observed_leaves(tile, sample, &mut leaves).unwrap();
+        }
+        let expected: Vec<(MortonCode, Option<Occupancy>)> = cells
+            .iter()
+            .filter_map(|c| {
+                let state = c.observations.state_at(sample);
+                state.map(|s| (c.start, Some(s)))
+            })
+            .collect();
+        let got: Vec<(MortonCode, Option<Occupancy>)> = leaves
+            .iter()
+            .map(|l| (l.start, Some(l.occupancy())))
+            .collect();
+        match outliers {
+            OutlierMode::Lossless => assert_eq!(got, expected, "sample {sample}"),
+            OutlierMode::Lossy => assert_eq!(
+                got.iter().map(|g| g.0).collect::<Vec<_>>(),
+                expected.iter().map(|e| e.0).collect::<Vec<_>>(),
+                "observed cells at {sample}"
+            ),
+        }
+    }
     // The whole-map view agrees with the cells.
     for sample in [0, axis.len() / 2, axis.len() - 1] {
         let snapshot = reader.snapshot_at_sample(sample).unwrap();
@@ -177,18 +217,18 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     #[test]
-    fn lossless_periods_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64) {
-        check("fremen-periods", OutlierMode::Lossless, axis, geometry, seed);
+    fn lossless_periods_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
+        check("fremen-periods", OutlierMode::Lossless, axis, geometry, seed, toggles);
     }
 
     #[test]
-    fn lossless_static_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64) {
-        check("static", OutlierMode::Lossless, axis, geometry, seed);
+    fn lossless_static_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
+        check("static", OutlierMode::Lossless, axis, geometry, seed, toggles);
     }
 
     #[test]
-    fn lossy_files_keep_geometry_and_masks(axis in axis_strategy(), geometry in cells_strategy(), seed: u64) {
-        check("fremen-periods", OutlierMode::Lossy, axis, geometry, seed);
+    fn lossy_files_keep_geometry_and_masks(axis in axis_strategy(), geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
+        check("fremen-periods", OutlierMode::Lossy, axis, geometry, seed, toggles);
     }
 }
 
@@ -196,8 +236,8 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
     #[test]
-    fn lossless_regular_fft_model_is_exact(n in 2u32..150, geometry in cells_strategy(), seed: u64) {
+    fn lossless_regular_fft_model_is_exact(n in 2u32..150, geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
         let axis = TimeAxis::regular(Timestamp::from_secs(0), 60_000_000_000, n, vec![]).unwrap();
-        check("fremen-regular", OutlierMode::Lossless, axis, geometry, seed);
+        check("fremen-regular", OutlierMode::Lossless, axis, geometry, seed, toggles);
     }
 }

@@ -90,9 +90,14 @@ fn header(first_line: &str, node_count: u64, resolution: f64) -> String {
     )
 }
 
+/// The header of a `.bt` file of `node_count` nodes.
+pub(crate) fn binary_header(node_count: u64, resolution: f64) -> String {
+    header(BINARY_FIRST_LINE, node_count, resolution)
+}
+
 /// Depth of the deepest node containing both codes (`a != b`): the depth at which their
 /// child indices first differ.
-fn divergence_depth(a: u64, b: u64) -> u8 {
+pub(crate) fn divergence_depth(a: u64, b: u64) -> u8 {
     let differing = a ^ b;
     if differing == 0 {
         return TREE_DEPTH - 1;
@@ -103,7 +108,7 @@ fn divergence_depth(a: u64, b: u64) -> u8 {
 }
 
 /// Index (0..8) of the child of the depth-`depth` node that contains `start`.
-fn child_index(start: u64, depth: u8) -> usize {
+pub(crate) fn child_index(start: u64, depth: u8) -> usize {
     ((start >> (3 * u32::from(TREE_DEPTH - 1 - depth))) & 7) as usize
 }
 
@@ -388,7 +393,7 @@ fn count_nodes(leaves: impl Iterator<Item = (u64, u8)>) -> u64 {
 /// (depth-first order is opening order); its codes are filled in as its children appear.
 fn render_binary(leaves: &[Packed], resolution: f64) -> (Vec<u8>, u64) {
     let nodes = count_nodes(leaves.iter().map(|l| (l.start(), l.depth())));
-    let header = header(BINARY_FIRST_LINE, nodes, resolution);
+    let header = binary_header(nodes, resolution);
     let inner_nodes = usize::try_from(nodes)
         .unwrap_or(usize::MAX)
         .saturating_sub(leaves.len());

@@ -83,4 +83,23 @@ pub enum EncodeError {
         /// Its depth.
         next_depth: u8,
     },
+    /// A leaf or part given to a [`CanonicalBinaryBuilder`](crate::CanonicalBinaryBuilder)
+    /// lies outside the node it builds.
+    #[error("the depth-{depth} node at key {node} lies outside the depth-{part_depth} node at key {part} being built")]
+    OutsidePart {
+        /// Minimum key of the offending node.
+        node: froctomap_core::VoxelKey,
+        /// Its depth.
+        depth: u8,
+        /// Minimum key of the node being built.
+        part: froctomap_core::VoxelKey,
+        /// Its depth.
+        part_depth: u8,
+    },
+    /// Only a part built from the root is a whole `.bt` file.
+    #[error("a .bt file is built from the root, not from a node of depth {depth}")]
+    NotTheRoot {
+        /// Depth of the part's node.
+        depth: u8,
+    },
 }

@@ -30,6 +30,7 @@
 //! ```
 
 mod body;
+mod canonical;
 mod diff;
 mod encode;
 mod error;
@@ -37,6 +38,7 @@ mod header;
 mod runs;
 
 pub use body::{walk_body, BodySummary, ReadLimits};
+pub use canonical::{BinaryPart, CanonicalBinaryBuilder};
 pub use diff::{diff, TreeIndex};
 pub use encode::{encode_binary, encode_full, format_resolution, BinaryEncoder, FullEncoder};
 pub use error::{CodecError, EncodeError};

@@ -3,7 +3,8 @@
 
 use froctomap_core::{MortonCode, Occupancy, Timestamp, VoxelKey};
 use froctomap_file::{
-    encode_tile, mask_from_ranges, Cell, CellContent, Codec, FroctWriter, Header,
+    encode_tile, mask_from_ranges, Cell, CellContent, Codec, FroctWriter, Header, TileLayout,
+    ToggleLayout,
 };
 use froctomap_temporal::{
     ModelConfig, ModelRegistry, OutlierMode, PreparedModel, TimeAxis, VoxelObservations,
@@ -38,10 +39,14 @@ pub fn write_file(
     axis: &TimeAxis,
     model_name: &str,
     config: &ModelConfig,
-    tile_depth: u8,
-    codec: Codec,
+    layout: TileLayout,
     cells: &[SeriesCell],
 ) -> Box<dyn PreparedModel> {
+    let TileLayout {
+        tile_depth,
+        codec,
+        toggles,
+    } = layout;
     let registry = ModelRegistry::with_default_models();
     let model = registry.by_name(model_name).unwrap().create();
     let prepared = model.prepare(axis, config).unwrap();
@@ -53,6 +58,7 @@ pub fn write_file(
         prepared.encode_parameters(),
         codec,
     );
+    header.toggles = toggles;
     header
         .metadata
         .insert("creator".into(), "froctomap-file tests".into());
@@ -69,10 +75,9 @@ pub fn write_file(
             .take_while(|c| c.start.node_start(tile_depth) == tile)
             .count();
         let encoded = encode_tile(
-            tile_depth,
+            &header.tile_layout(),
             &file_cells[start..start + len],
             prepared.as_ref(),
-            codec,
         )
         .unwrap();
         writer.write_tile(&encoded).unwrap();
@@ -189,19 +194,37 @@ pub fn golden_config() -> ModelConfig {
         .with_criterion(froctomap_temporal::OrderCriterion::Prediction)
 }
 
-/// Writes the golden file to `path`.
-pub fn write_golden(path: &Path) -> Box<dyn PreparedModel> {
+/// The golden files: one per format version, each written with that version's layout.
+pub const GOLDENS: [(&str, ToggleLayout); 2] = [
+    ("golden-v1.0.froct", ToggleLayout::Whole),
+    // Blocks of 16 samples: the 72-sample axis has five, the last one short.
+    ("golden-v1.1.froct", ToggleLayout::Blocked(16)),
+];
+
+/// Writes a golden file to `path`.
+pub fn write_golden(path: &Path, toggles: ToggleLayout) -> Box<dyn PreparedModel> {
     write_file(
         path,
         &golden_axis(),
         "fremen-periods",
         &golden_config(),
-        GOLDEN_TILE_DEPTH,
-        Codec::Zstd { level: 19 },
+        TileLayout {
+            tile_depth: GOLDEN_TILE_DEPTH,
+            codec: Codec::Zstd { level: 19 },
+            toggles,
+        },
         &golden_cells(),
     )
 }
 
+/// Path of a golden file by name.
+pub fn golden_path_of(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/froct")
+        .join(name)
+}
+
+/// The golden file of the current version.
 pub fn golden_path() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.0.froct")
+    golden_path_of(GOLDENS[1].0)
 }

@@ -1,0 +1,400 @@
+//! A tile's toggle lists (observation masks, outliers) as stored streams
+//! ([FORMAT.md §5.4](../../../docs/FORMAT.md)): whole lists in format 1.0, lists cut into
+//! blocks of samples in format 1.1 so that a query at one sample reads one block.
+
+use crate::cursor::Cursor;
+use crate::error::{corrupt, FormatViolation};
+use froctomap_temporal::varint;
+
+/// How a file stores toggle lists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToggleLayout {
+    /// Format 1.0: every list whole, in one set of toggle columns per tile.
+    Whole,
+    /// Format 1.1: the time axis cut into blocks of this many samples (at least 1); per block,
+    /// each list's parity at the block's start and its positions inside the block.
+    Blocked(u32),
+}
+
+impl ToggleLayout {
+    /// froctomap's default: blocks of 256 samples.
+    pub const DEFAULT: ToggleLayout = ToggleLayout::Blocked(256);
+
+    /// Number of blocks of an axis of `axis_len` samples (1 for the whole layout).
+    pub(crate) fn blocks(self, axis_len: u32) -> u32 {
+        match self {
+            ToggleLayout::Whole => 1,
+            ToggleLayout::Blocked(len) => axis_len.div_ceil(len.max(1)).max(1),
+        }
+    }
+
+    /// First sample and length of block `b`.
+    pub(crate) fn block_span(self, b: u32, axis_len: u32) -> (u32, u32) {
+        match self {
+            ToggleLayout::Whole => (0, axis_len),
+            ToggleLayout::Blocked(len) => {
+                let start = b.saturating_mul(len);
+                (start, len.min(axis_len.saturating_sub(start)))
+            }
+        }
+    }
+}
+
+/// Lists of toggles stored column-wise: each list's length, the gaps before toggles at even
+/// positions (where a run of the other state starts) and those before odd positions (one
+/// less than the run's length). Separating them lets zstd model each distribution on its
+/// own: run starts are spread out, run lengths are mostly tiny (a one-sample flicker is 0).
+#[derive(Default)]
+struct ToggleColumns {
+    counts: Vec<u8>,
+    starts: Vec<u8>,
+    lengths: Vec<u8>,
+}
+
+impl ToggleColumns {
+    /// Appends a list of positions, all `≥ origin`, gap-coded from `origin`.
+    fn push(&mut self, positions: &[u32], origin: u32) {
+        varint::write_u64(&mut self.counts, positions.len() as u64);
+        let mut next = origin;
+        for (k, &t) in positions.iter().enumerate() {
+            let column = if k % 2 == 0 {
+                &mut self.starts
+            } else {
+                &mut self.lengths
+            };
+            varint::write_u32(column, t - next);
+            next = t.saturating_add(1);
+        }
+    }
+}
+
+/// The streams of a set of toggle lists (each strictly increasing, below `axis_len`), per
+/// block: `[counts, starts, lengths]` for the one block of the whole layout, `[parity,
+/// counts, starts, lengths]` per block of the blocked one.
+pub(crate) fn encode_lists(
+    lists: &[&[u32]],
+    layout: ToggleLayout,
+    axis_len: u32,
+) -> Vec<Vec<Vec<u8>>> {
+    let blocks = layout.blocks(axis_len);
+    let mut columns: Vec<ToggleColumns> = (0..blocks).map(|_| ToggleColumns::default()).collect();
+    let mut parity = vec![vec![0u8; lists.len().div_ceil(8)]; blocks as usize];
+    for (l, list) in lists.iter().enumerate() {
+        let mut rest = *list;
+        for (b, column) in columns.iter_mut().enumerate() {
+            let (start, len) = layout.block_span(b as u32, axis_len);
+            if (list.len() - rest.len()) % 2 == 1 {
+                parity[b][l / 8] |= 1 << (l % 8);
+            }
+            let inside = rest.partition_point(|&t| t < start + len);
+            column.push(&rest[..inside], start);
+            rest = &rest[inside..];
+        }
+    }
+    columns
+        .into_iter()
+        .zip(parity)
+        .map(|(column, parity)| {
+            let mut streams = Vec::with_capacity(4);
+            if layout != ToggleLayout::Whole {
+                streams.push(parity);
+            }
+            streams.extend([column.counts, column.starts, column.lengths]);
+            streams
+        })
+        .collect()
+}
+
+/// One block's streams of a list set, as read from a tile: its first sample, its parity
+/// bitmap (empty in the whole layout) and its toggle columns.
+pub(crate) struct ListBlock<'a> {
+    pub(crate) start: u32,
+    pub(crate) parity: &'a [u8],
+    pub(crate) columns: [&'a [u8]; 3],
+}
+
+impl<'a> ListBlock<'a> {
+    /// The whole layout's single block, taken from the payload cursor.
+    pub(crate) fn take_whole(payload: &mut Cursor<'a>) -> Result<Self, FormatViolation> {
+        Ok(Self {
+            start: 0,
+            parity: &[],
+            columns: [stream(payload)?, stream(payload)?, stream(payload)?],
+        })
+    }
+
+    /// Block `b` of the blocked layout, taken from the cursor over the block's part.
+    pub(crate) fn take_blocked(
+        part: &mut Cursor<'a>,
+        layout: ToggleLayout,
+        b: u32,
+        axis_len: u32,
+    ) -> Result<Self, FormatViolation> {
+        Ok(Self {
+            start: layout.block_span(b, axis_len).0,
+            parity: stream(part)?,
+            columns: [stream(part)?, stream(part)?, stream(part)?],
+        })
+    }
+}
+
+/// One length-prefixed stream.
+pub(crate) fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
+    let len = c.count("stream length", 1, u64::MAX)?;
+    c.take(len)
+}
+
+/// Reads a tile's toggle lists in order from the blocks at hand: the single block of the
+/// whole layout, every block (to read lists whole), or the one block holding a queried
+/// sample.
+pub(crate) struct ToggleListReader<'a> {
+    layout: ToggleLayout,
+    blocks: Vec<(&'a [u8], u32, ToggleColumnReader<'a>)>,
+    /// Lists read so far.
+    read: usize,
+    part: &'static str,
+}
+
+impl<'a> ToggleListReader<'a> {
+    /// A reader over `blocks` (in block order) of an axis of `axis_len` samples.
+    pub(crate) fn new(
+        blocks: Vec<ListBlock<'a>>,
+        layout: ToggleLayout,
+        axis_len: u32,
+        part: &'static str,
+    ) -> Self {
+        let blocks = blocks
+            .into_iter()
+            .map(|block| {
+                let len = match layout {
+                    ToggleLayout::Whole => axis_len,
+                    ToggleLayout::Blocked(len) => len.min(axis_len.saturating_sub(block.start)),
+                };
+                let reader = ToggleColumnReader::new(block.columns, len, part);
+                (block.parity, block.start, reader)
+            })
+            .collect();
+        Self {
+            layout,
+            blocks,
+            read: 0,
+            part,
+        }
+    }
+
+    /// Upper bound on the lists the streams can hold.
+    pub(crate) fn max_lists(&self) -> usize {
+        match (self.layout, self.blocks.first()) {
+            (ToggleLayout::Whole, Some((_, _, reader))) => reader.max_lists(),
+            (ToggleLayout::Blocked(_), Some((parity, _, _))) => parity.len() * 8,
+            _ => usize::MAX,
+        }
+    }
+
+    fn parity_bit(&self, parity: &[u8], list: usize) -> Result<bool, FormatViolation> {
+        let byte = parity
+            .get(list / 8)
+            .ok_or_else(|| corrupt(self.part, "parity bitmap shorter than the lists"))?;
+        Ok(byte >> (list % 8) & 1 == 1)
+    }
+
+    /// Passes over the next list (undecoded in the whole layout, not read at all in the
+    /// blocked one).
+    pub(crate) fn skip_list(&mut self) -> Result<(), FormatViolation> {
+        if self.layout == ToggleLayout::Whole {
+            if let Some((_, _, reader)) = self.blocks.first_mut() {
+                reader.skip_list()?;
+            }
+        }
+        self.read += 1;
+        Ok(())
+    }
+
+    /// Whether an odd number of the next list's positions are `≤ sample`, from the first
+    /// block at hand (the one holding the sample).
+    #[inline]
+    pub(crate) fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
+        let list = self.read;
+        self.read += 1;
+        let Some((parity, start, reader)) = self.blocks.first_mut() else {
+            return Ok(false);
+        };
+        let within = reader.parity_at(sample.saturating_sub(*start))?;
+        if self.layout == ToggleLayout::Whole {
+            return Ok(within);
+        }
+        let parity = *parity;
+        Ok(self.parity_bit(parity, list)? ^ within)
+    }
+
+    /// Reads the next list whole into `positions` (cleared first), checking the blocked
+    /// layout's parity bits against the positions before each block.
+    pub(crate) fn next_list_into(
+        &mut self,
+        positions: &mut Vec<u32>,
+    ) -> Result<(), FormatViolation> {
+        positions.clear();
+        let list = self.read;
+        self.read += 1;
+        let mut scratch = Vec::new();
+        for b in 0..self.blocks.len() {
+            let parity = self.blocks[b].0;
+            if self.layout != ToggleLayout::Whole
+                && self.parity_bit(parity, list)? != (positions.len() % 2 == 1)
+            {
+                return Err(corrupt(
+                    self.part,
+                    "a block's parity bit disagrees with the toggles before it",
+                ));
+            }
+            let (_, start, reader) = &mut self.blocks[b];
+            reader.next_list_into(&mut scratch)?;
+            positions.extend(scratch.iter().map(|&t| *start + t));
+        }
+        Ok(())
+    }
+
+    /// Checks that the blocks at hand held exactly the lists read.
+    pub(crate) fn finish(&self) -> Result<(), FormatViolation> {
+        let bitmap_len = self.read.div_ceil(8);
+        for (parity, start, reader) in &self.blocks {
+            reader.finish()?;
+            if self.layout == ToggleLayout::Whole {
+                continue;
+            }
+            let padding_clear = parity
+                .last()
+                .is_none_or(|&last| self.read % 8 == 0 || last >> (self.read % 8) == 0);
+            if parity.len() != bitmap_len || !padding_clear {
+                return Err(corrupt(self.part, "parity bitmap does not fit the lists"));
+            }
+            if *start == 0 && parity.iter().any(|&b| b != 0) {
+                return Err(corrupt(
+                    self.part,
+                    "parity before the first sample must be even",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Reads [`ToggleColumns`] back, validating every position against the span they cover.
+pub(crate) struct ToggleColumnReader<'a> {
+    counts: Cursor<'a>,
+    starts: Cursor<'a>,
+    lengths: Cursor<'a>,
+    axis_len: u32,
+    part: &'static str,
+}
+
+impl<'a> ToggleColumnReader<'a> {
+    fn new(columns: [&'a [u8]; 3], axis_len: u32, part: &'static str) -> Self {
+        let [counts, starts, lengths] = columns;
+        Self {
+            counts: Cursor::new(counts, part),
+            starts: Cursor::new(starts, part),
+            lengths: Cursor::new(lengths, part),
+            axis_len,
+            part,
+        }
+    }
+
+    /// Upper bound on the lists left (each takes at least one count byte).
+    fn max_lists(&self) -> usize {
+        self.counts.remaining()
+    }
+
+    fn count(&mut self) -> Result<u64, FormatViolation> {
+        let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
+        let count = self.counts.varint()?;
+        if count > left || count > u64::from(self.axis_len) {
+            return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
+        }
+        Ok(count)
+    }
+
+    /// Skips the next list undecoded.
+    fn skip_list(&mut self) -> Result<(), FormatViolation> {
+        let count = self.counts.varint()?;
+        let (even, odd) = (count.div_ceil(2), count / 2);
+        self.starts.skip_varints(even)?;
+        self.lengths.skip_varints(odd)
+    }
+
+    /// Reads the next list only as far as needed to tell whether an odd number of its
+    /// positions are `≤ sample`, skipping the rest undecoded: the fast path of a query at
+    /// one sample. Validates less than [`next_list_into`](Self::next_list_into) (positions
+    /// after `sample` are not range-checked), which only affects what a damaged file reads
+    /// as, never memory safety.
+    #[inline]
+    fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
+        let count = self.count()?;
+        if count == 0 {
+            return Ok(false);
+        }
+        let sample = u64::from(sample);
+        // Positions come in (start, length) pairs from the two columns.
+        let mut next = 0u64;
+        let mut k = 0u64;
+        let after = loop {
+            let position = next + self.starts.varint()?;
+            if position > sample {
+                break 0;
+            }
+            k += 1;
+            if k == count {
+                return Ok(true);
+            }
+            let end = position + 1 + self.lengths.varint()?;
+            if end > sample {
+                break 1;
+            }
+            k += 1;
+            if k == count {
+                return Ok(false);
+            }
+            next = end + 1;
+        };
+        // The position just read (index k) was after `sample`; skip the others.
+        let rest = count - k - 1;
+        let (even, odd) = if after == 0 {
+            (rest / 2, rest.div_ceil(2))
+        } else {
+            (rest.div_ceil(2), rest / 2)
+        };
+        self.starts.skip_varints(even)?;
+        self.lengths.skip_varints(odd)?;
+        Ok(k % 2 == 1)
+    }
+
+    /// Reads the next list into `positions` (cleared first), reusing its allocation.
+    fn next_list_into(&mut self, positions: &mut Vec<u32>) -> Result<(), FormatViolation> {
+        positions.clear();
+        let count = self.count()?;
+        positions.reserve(count as usize);
+        let mut next = 0u64;
+        for k in 0..count {
+            let column = if k % 2 == 0 {
+                &mut self.starts
+            } else {
+                &mut self.lengths
+            };
+            let position = next + column.varint()?;
+            if position >= u64::from(self.axis_len) {
+                return Err(corrupt(self.part, "toggle beyond the time axis"));
+            }
+            positions.push(position as u32);
+            next = position + 1;
+        }
+        Ok(())
+    }
+
+    fn finish(&self) -> Result<(), FormatViolation> {
+        if self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty() {
+            Ok(())
+        } else {
+            Err(corrupt(self.part, "bytes no list uses"))
+        }
+    }
+}
