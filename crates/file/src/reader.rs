@@ -5,7 +5,8 @@ use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
 use crate::tile::{
-    decode_frame, decode_payload, frame_table, walk_payload, Cell, CellRef, TileParts, WalkNeed,
+    block_parts, decode_frame, decode_payload, frame_table, walk_payload, Cell, CellRef, TileParts,
+    WalkNeed,
 };
 use crate::toggle_lists::ToggleLayout;
 use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
@@ -221,25 +222,43 @@ impl FroctReader {
         let layout = self.header.tile_layout();
         let axis_len = self.header.axis.len();
         let blocks = need.blocks(layout.toggles, axis_len);
-        let frames: Vec<(&[u8], u32)> = match layout.toggles {
-            ToggleLayout::Whole => vec![(&stored[..], entry.raw_len)],
+        // The frames to decode (stored bytes, decoded length, blocks held), and the first
+        // block of the first block frame among them.
+        let (frames, first_block) = match layout.toggles {
+            ToggleLayout::Whole => (vec![(&stored[..], entry.raw_len, 0)], 0),
             ToggleLayout::Blocked(_) => {
-                let all = layout.toggles.blocks(axis_len) as usize + 1;
-                let table = frame_table(stored, all, entry.raw_len).map_err(invalid)?;
-                std::iter::once(table[0])
-                    .chain(blocks.clone().map(|b| table[b as usize + 1]))
-                    .collect()
+                let table = frame_table(stored, layout.toggles.blocks(axis_len), entry.raw_len)
+                    .map_err(invalid)?;
+                let (block_frames, first_block) = table.frames_of(&blocks);
+                let (cells, cells_len) = table.frames[0];
+                let frames: Vec<(&[u8], u32, usize)> = std::iter::once((cells, cells_len, 0))
+                    .chain(block_frames.map(|f| {
+                        let (bytes, len) = table.frames[f];
+                        (bytes, len, table.blocks_in(f))
+                    }))
+                    .collect();
+                (frames, first_block)
             }
         };
         if parts.len() < frames.len() {
             parts.resize_with(frames.len(), Vec::new);
         }
-        for ((frame, raw_len), out) in frames.iter().zip(parts.iter_mut()) {
+        for ((frame, raw_len, _), out) in frames.iter().zip(parts.iter_mut()) {
             decode_frame(frame, *raw_len, layout.codec, zstd, out).map_err(invalid)?;
         }
+        // Every block part of the decoded frames, numbered, then those the walk needs.
+        let mut numbered = Vec::new();
+        let mut next_block = first_block;
+        for (part, &(_, _, held)) in parts[1..frames.len()].iter().zip(&frames[1..]) {
+            for block in block_parts(part, held).map_err(invalid)? {
+                numbered.push((next_block, block));
+                next_block += 1;
+            }
+        }
+        numbered.retain(|(b, _)| blocks.contains(b));
         let tile_parts = TileParts {
             cells: &parts[0],
-            blocks: blocks.zip(parts[1..].iter().map(Vec::as_slice)).collect(),
+            blocks: numbered,
         };
         use_parts(&entry, &tile_parts).map_err(invalid)
     }

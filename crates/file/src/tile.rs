@@ -176,6 +176,11 @@ pub struct EncodedTile {
     pub streams: StreamSizes,
 }
 
+/// Raw bytes after which a frame of block parts is closed (format 1.1): frames of a few
+/// kilobytes cost zstd's tables many times over, frames of many blocks make a query at one
+/// sample decompress blocks it does not read.
+const BLOCK_FRAME_BYTES: usize = 32 * 1024;
+
 /// How a file lays out its tiles: what a tile encoder and decoder need of the header.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TileLayout {
@@ -320,8 +325,25 @@ pub fn encode_tile(
     let stored = match toggle_layout {
         ToggleLayout::Whole => compress(parts.into_iter().next().unwrap_or_default())?,
         ToggleLayout::Blocked(_) => {
-            let raw_lens: Vec<usize> = parts.iter().map(Vec::len).collect();
-            let frames = parts
+            // Consecutive block parts share a frame until it holds BLOCK_FRAME_BYTES: small
+            // tiles then pay zstd's per-frame tables once, large ones keep a frame per block.
+            let mut parts = parts.into_iter();
+            let mut raw_parts = vec![parts.next().unwrap_or_default()];
+            let mut block_counts = Vec::new();
+            for part in parts {
+                match (raw_parts.last_mut(), block_counts.last_mut()) {
+                    (Some(open), Some(count)) if open.len() < BLOCK_FRAME_BYTES => {
+                        open.extend_from_slice(&part);
+                        *count += 1;
+                    }
+                    _ => {
+                        raw_parts.push(part);
+                        block_counts.push(1u64);
+                    }
+                }
+            }
+            let raw_lens: Vec<usize> = raw_parts.iter().map(Vec::len).collect();
+            let frames = raw_parts
                 .into_iter()
                 .map(compress)
                 .collect::<Result<Vec<_>, String>>()?;
@@ -332,6 +354,9 @@ pub fn encode_tile(
             }
             for len in raw_lens {
                 varint::write_u64(&mut stored, len as u64);
+            }
+            for count in block_counts {
+                varint::write_u64(&mut stored, count);
             }
             for frame in frames {
                 stored.extend(frame);
@@ -372,37 +397,73 @@ fn total_len(blocks: &[Vec<Vec<u8>>]) -> u64 {
     blocks.iter().flatten().map(|s| s.len() as u64).sum()
 }
 
+/// The frames of a format 1.1 tile ([`frame_table`]).
+#[derive(Debug, PartialEq, Eq)]
+pub(crate) struct FrameTable<'a> {
+    /// Each frame's stored bytes and raw length; frame 0 is the cell part.
+    pub(crate) frames: Vec<(&'a [u8], u32)>,
+    /// `block_ends[i]`: one past the last block held by frame `i + 1`.
+    pub(crate) block_ends: Vec<u32>,
+}
+
+impl FrameTable<'_> {
+    /// Blocks held by frame `frame` (≥ 1).
+    pub(crate) fn blocks_in(&self, frame: usize) -> usize {
+        let end = self.block_ends.get(frame - 1).copied().unwrap_or(0);
+        let start = if frame >= 2 {
+            self.block_ends.get(frame - 2).copied().unwrap_or(0)
+        } else {
+            0
+        };
+        end.saturating_sub(start) as usize
+    }
+
+    /// The frames (indices ≥ 1) holding the blocks `blocks`, and the first block of the first.
+    pub(crate) fn frames_of(&self, blocks: &std::ops::Range<u32>) -> (std::ops::Range<usize>, u32) {
+        if blocks.is_empty() {
+            return (1..1, 0);
+        }
+        let first = self.block_ends.partition_point(|&end| end <= blocks.start);
+        let last = self.block_ends.partition_point(|&end| end < blocks.end);
+        let first_block = if first == 0 {
+            0
+        } else {
+            self.block_ends[first - 1]
+        };
+        (first + 1..last + 2, first_block)
+    }
+}
+
 /// The frames of a format 1.1 tile's stored bytes: `varint F`, `F` stored lengths, `F` raw
-/// lengths (all varints), then the frames. Returns each frame's stored bytes and raw length;
-/// checks the count against `expected`, the lengths against the bytes and `raw_total`.
+/// lengths, `F − 1` block counts (all varints), then the frames: the cell part, then frames
+/// of consecutive block parts. Checks the counts against the `blocks` the axis has and the
+/// lengths against the bytes and `raw_total`.
 pub(crate) fn frame_table(
     stored: &[u8],
-    expected: usize,
+    blocks: u32,
     raw_total: u32,
-) -> Result<Vec<(&[u8], u32)>, FormatViolation> {
-    // Each frame takes at least one byte of table and one of data: a hostile header asking
-    // for billions of blocks fails here, before anything is allocated for them.
-    if expected > stored.len() / 2 {
-        return Err(corrupt(
-            "tile frames",
-            format!("{expected} frames cannot fit in {} bytes", stored.len()),
-        ));
-    }
+) -> Result<FrameTable<'_>, FormatViolation> {
     let mut c = Cursor::new(stored, "tile frames");
     let count = c.varint()?;
-    if count != expected as u64 {
+    // Each frame takes at least three bytes of table: a hostile count fails here, before
+    // anything is allocated for it.
+    if count < 2 || count > u64::from(blocks) + 1 || count > (stored.len() / 3) as u64 {
         return Err(corrupt(
             "tile frames",
-            format!("{count} frames where the time axis needs {expected}"),
+            format!(
+                "{count} frames for {blocks} blocks in {} bytes",
+                stored.len()
+            ),
         ));
     }
-    let mut stored_lens = Vec::with_capacity(expected);
-    for _ in 0..expected {
+    let count = count as usize;
+    let mut stored_lens = Vec::with_capacity(count);
+    for _ in 0..count {
         stored_lens.push(c.count("frame length", 1, u64::MAX)?);
     }
-    let mut raw_lens = Vec::with_capacity(expected);
+    let mut raw_lens = Vec::with_capacity(count);
     let mut raw_sum = 0u64;
-    for _ in 0..expected {
+    for _ in 0..count {
         let raw = c.varint()?;
         raw_sum = raw_sum.saturating_add(raw);
         raw_lens.push(raw);
@@ -413,7 +474,23 @@ pub(crate) fn frame_table(
             format!("frames hold {raw_sum} raw bytes, the index says {raw_total}"),
         ));
     }
-    let mut frames = Vec::with_capacity(expected);
+    let mut block_ends = Vec::with_capacity(count - 1);
+    let mut end = 0u64;
+    for _ in 1..count {
+        let held = c.varint()?;
+        end = end.saturating_add(held);
+        if held == 0 || end > u64::from(blocks) {
+            return Err(corrupt("tile frames", "block counts do not fit the axis"));
+        }
+        block_ends.push(end as u32);
+    }
+    if end != u64::from(blocks) {
+        return Err(corrupt(
+            "tile frames",
+            format!("frames hold {end} blocks where the axis has {blocks}"),
+        ));
+    }
+    let mut frames = Vec::with_capacity(count);
     for (len, raw) in stored_lens.into_iter().zip(raw_lens) {
         // `raw ≤ raw_total`, a u32.
         frames.push((c.take(len)?, raw as u32));
@@ -421,7 +498,25 @@ pub(crate) fn frame_table(
     if !c.is_empty() {
         return Err(corrupt("tile frames", "bytes after the last frame"));
     }
-    Ok(frames)
+    Ok(FrameTable { frames, block_ends })
+}
+
+/// The block parts a decoded frame holds, in order: each is eight length-prefixed streams.
+pub(crate) fn block_parts(frame: &[u8], count: usize) -> Result<Vec<&[u8]>, FormatViolation> {
+    let mut c = Cursor::new(frame, "tile block");
+    let mut parts = Vec::with_capacity(count.min(frame.len()));
+    for _ in 0..count {
+        let before = c.remaining();
+        for _ in 0..8 {
+            stream(&mut c)?;
+        }
+        let start = frame.len() - before;
+        parts.push(&frame[start..frame.len() - c.remaining()]);
+    }
+    if !c.is_empty() {
+        return Err(corrupt("tile block", "bytes after the last block"));
+    }
+    Ok(parts)
 }
 
 /// Decodes one stored frame (a format 1.0 tile, or one part of a 1.1 tile) into `out`,
@@ -525,6 +620,7 @@ pub(crate) struct CellRef<'a> {
 
 impl CellRef<'_> {
     /// With [`WalkNeed::StateAt`]: the state at the sample (meaningful when observed).
+    #[inline]
     pub(crate) fn state(&self, model: &dyn PreparedModel, sample: u32) -> Occupancy {
         let base = match (self.constant, self.model) {
             (Some(state), _) => state,
@@ -539,6 +635,7 @@ impl CellRef<'_> {
     }
 
     /// Occupancy probability at any instant.
+    #[inline]
     pub(crate) fn probability(&self, model: &dyn PreparedModel, seconds: f64) -> f64 {
         match (self.constant, self.model) {
             (Some(state), _) => f64::from(u8::from(state.is_occupied())),
@@ -929,20 +1026,42 @@ mod tests {
     #[test]
     fn frame_tables_are_checked_before_allocating() {
         // A header asking for four billion blocks meets a small tile.
-        let err = frame_table(&[1, 2, 3, 4], u32::MAX as usize, 10).unwrap_err();
-        assert!(err.to_string().contains("cannot fit"), "{err}");
-        // Two frames of 1 and 2 stored bytes, 3 and 4 raw.
-        let stored = [2, 1, 2, 3, 4, 0xAA, 0xBB, 0xCC];
-        let frames = frame_table(&stored, 2, 7).unwrap();
-        assert_eq!(frames, vec![(&stored[5..6], 3), (&stored[6..8], 4)]);
-        assert!(frame_table(&stored, 3, 7).is_err(), "wrong frame count");
+        let err = frame_table(&[0x80, 0x80, 0x80, 0x80, 0x10, 1, 2], u32::MAX, 10).unwrap_err();
+        assert!(err.to_string().contains("frames for"), "{err}");
+        // The cell part (1 stored byte, 3 raw) and one frame of 2 blocks (2 bytes, 4 raw).
+        let stored = [2, 1, 2, 3, 4, 2, 0xAA, 0xBB, 0xCC];
+        let table = frame_table(&stored, 2, 7).unwrap();
+        assert_eq!(table.frames, vec![(&stored[6..7], 3), (&stored[7..9], 4)]);
+        assert_eq!(table.frames_of(&(1..2)), (1..2, 0));
+        assert!(
+            frame_table(&stored, 3, 7).is_err(),
+            "frames hold fewer blocks"
+        );
+        assert!(
+            frame_table(&stored, 1, 7).is_err(),
+            "frames hold more blocks"
+        );
         assert!(frame_table(&stored, 2, 8).is_err(), "raw total differs");
-        assert!(frame_table(&stored[..7], 2, 7).is_err(), "truncated frame");
+        assert!(frame_table(&stored[..8], 2, 7).is_err(), "truncated frame");
         let mut longer = stored.to_vec();
         longer.push(0);
         assert!(
             frame_table(&longer, 2, 7).is_err(),
             "bytes after the frames"
         );
+    }
+
+    #[test]
+    fn blocks_map_to_the_frames_holding_them() {
+        let table = FrameTable {
+            frames: Vec::new(),
+            block_ends: vec![3, 4, 9],
+        };
+        assert_eq!(table.frames_of(&(0..1)), (1..2, 0));
+        assert_eq!(table.frames_of(&(2..3)), (1..2, 0));
+        assert_eq!(table.frames_of(&(3..4)), (2..3, 3));
+        assert_eq!(table.frames_of(&(8..9)), (3..4, 4));
+        assert_eq!(table.frames_of(&(0..9)), (1..4, 0));
+        assert_eq!(table.frames_of(&(0..0)), (1..1, 0));
     }
 }

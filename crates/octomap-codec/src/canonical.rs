@@ -157,13 +157,33 @@ impl CanonicalBinaryBuilder {
         depth: u8,
         occupied: bool,
     ) -> Result<(), EncodeError> {
+        let code = if occupied { OCCUPIED } else { FREE };
+        // Most leaves follow a sibling: same parent, already open, nothing to close or open.
+        // The checks are those of `place` for that case (a child of an open node, aligned,
+        // after the previous item, lies inside this builder's node).
+        if let Some(parent) = self.open.last() {
+            let parent_depth = self.depth + self.open.len() as u8 - 1;
+            if depth == parent_depth + 1
+                && depth <= TREE_DEPTH
+                && start.0 >= self.next_free
+                && start.0 & !(voxels_per_node(parent_depth) - 1) == parent.start
+                && start.0 & (voxels_per_node(depth) - 1) == 0
+            {
+                self.next_free = start.0 + voxels_per_node(depth);
+                self.previous_start = Some(start.0);
+                self.nodes += 1;
+                self.leaves += 1;
+                self.add_child(start.0, depth, code);
+                return Ok(());
+            }
+        }
         if self.place(start.0, depth)? {
             self.whole = Some(PartContent::Leaf { occupied });
             return Ok(());
         }
         self.nodes += 1;
         self.leaves += 1;
-        self.add_child(start.0, depth, if occupied { OCCUPIED } else { FREE });
+        self.add_child(start.0, depth, code);
         Ok(())
     }
 
