@@ -501,13 +501,18 @@ pub(crate) fn frame_table(
     Ok(FrameTable { frames, block_ends })
 }
 
-/// The block parts a decoded frame holds, in order: each is eight length-prefixed streams.
+/// Streams in a block part: parity, lists, counts, starts and lengths of the masks, then of
+/// the outliers.
+const BLOCK_PART_STREAMS: usize = 10;
+
+/// The block parts a decoded frame holds, in order: each is [`BLOCK_PART_STREAMS`]
+/// length-prefixed streams.
 pub(crate) fn block_parts(frame: &[u8], count: usize) -> Result<Vec<&[u8]>, FormatViolation> {
     let mut c = Cursor::new(frame, "tile block");
     let mut parts = Vec::with_capacity(count.min(frame.len()));
     for _ in 0..count {
         let before = c.remaining();
-        for _ in 0..8 {
+        for _ in 0..BLOCK_PART_STREAMS {
             stream(&mut c)?;
         }
         let start = frame.len() - before;
@@ -925,9 +930,17 @@ pub(crate) fn split_streams(
     parts: &TileParts<'_>,
     layout: &TileLayout,
 ) -> Result<Vec<(&'static str, Vec<u8>)>, FormatViolation> {
-    const MASKS: [&str; 4] = ["mask parity", "mask counts", "mask starts", "mask lengths"];
-    const OUTLIERS: [&str; 4] = [
+    // Per list set: parity and lists (blocked layout only), counts, starts, lengths.
+    const MASKS: [&str; 5] = [
+        "mask parity",
+        "mask lists",
+        "mask counts",
+        "mask starts",
+        "mask lengths",
+    ];
+    const OUTLIERS: [&str; 5] = [
         "outlier parity",
+        "outlier lists",
         "outlier counts",
         "outlier starts",
         "outlier lengths",
@@ -944,11 +957,11 @@ pub(crate) fn split_streams(
     }
     match layout.toggles {
         ToggleLayout::Whole => {
-            for name in &MASKS[1..] {
+            for name in &MASKS[2..] {
                 add(name, stream(&mut c)?);
             }
             add("models", stream(&mut c)?);
-            for name in &OUTLIERS[1..] {
+            for name in &OUTLIERS[2..] {
                 add(name, stream(&mut c)?);
             }
         }

@@ -44,16 +44,45 @@ impl ToggleLayout {
 /// positions (where a run of the other state starts) and those before odd positions (one
 /// less than the run's length). Separating them lets zstd model each distribution on its
 /// own: run starts are spread out, run lengths are mostly tiny (a one-sample flicker is 0).
+///
+///
+/// Sparse columns (the blocked layout) give counts only for the lists with positions, and a
+/// *lists* bitmap marking them (bit `l mod 8` of byte `⌊l/8⌋`): most lists have no toggle in
+/// a given block.
 #[derive(Default)]
 struct ToggleColumns {
+    sparse: bool,
+    /// Lists pushed so far.
+    lists: u64,
+    present: Vec<u8>,
     counts: Vec<u8>,
     starts: Vec<u8>,
     lengths: Vec<u8>,
 }
 
 impl ToggleColumns {
+    fn sparse() -> Self {
+        Self {
+            sparse: true,
+            ..Self::default()
+        }
+    }
+
     /// Appends a list of positions, all `≥ origin`, gap-coded from `origin`.
     fn push(&mut self, positions: &[u32], origin: u32) {
+        let index = self.lists;
+        self.lists += 1;
+        if self.sparse {
+            if index % 8 == 0 {
+                self.present.push(0);
+            }
+            if positions.is_empty() {
+                return;
+            }
+            if let Some(byte) = self.present.last_mut() {
+                *byte |= 1 << (index % 8);
+            }
+        }
         varint::write_u64(&mut self.counts, positions.len() as u64);
         let mut next = origin;
         for (k, &t) in positions.iter().enumerate() {
@@ -70,14 +99,19 @@ impl ToggleColumns {
 
 /// The streams of a set of toggle lists (each strictly increasing, below `axis_len`), per
 /// block: `[counts, starts, lengths]` for the one block of the whole layout, `[parity,
-/// counts, starts, lengths]` per block of the blocked one.
+/// lists, counts, starts, lengths]` (sparse columns) per block of the blocked one.
 pub(crate) fn encode_lists(
     lists: &[&[u32]],
     layout: ToggleLayout,
     axis_len: u32,
 ) -> Vec<Vec<Vec<u8>>> {
     let blocks = layout.blocks(axis_len);
-    let mut columns: Vec<ToggleColumns> = (0..blocks).map(|_| ToggleColumns::default()).collect();
+    let mut columns: Vec<ToggleColumns> = (0..blocks)
+        .map(|_| match layout {
+            ToggleLayout::Whole => ToggleColumns::default(),
+            ToggleLayout::Blocked(_) => ToggleColumns::sparse(),
+        })
+        .collect();
     let mut parity = vec![vec![0u8; lists.len().div_ceil(8)]; blocks as usize];
     for (l, list) in lists.iter().enumerate() {
         let mut rest = *list;
@@ -95,9 +129,9 @@ pub(crate) fn encode_lists(
         .into_iter()
         .zip(parity)
         .map(|(column, parity)| {
-            let mut streams = Vec::with_capacity(4);
+            let mut streams = Vec::with_capacity(5);
             if layout != ToggleLayout::Whole {
-                streams.push(parity);
+                streams.extend([parity, column.present]);
             }
             streams.extend([column.counts, column.starts, column.lengths]);
             streams
@@ -110,6 +144,8 @@ pub(crate) fn encode_lists(
 pub(crate) struct ListBlock<'a> {
     pub(crate) start: u32,
     pub(crate) parity: &'a [u8],
+    /// The sparse columns' lists stream (blocked layout only).
+    pub(crate) present: Option<&'a [u8]>,
     pub(crate) columns: [&'a [u8]; 3],
 }
 
@@ -119,6 +155,7 @@ impl<'a> ListBlock<'a> {
         Ok(Self {
             start: 0,
             parity: &[],
+            present: None,
             columns: [stream(payload)?, stream(payload)?, stream(payload)?],
         })
     }
@@ -133,6 +170,7 @@ impl<'a> ListBlock<'a> {
         Ok(Self {
             start: layout.block_span(b, axis_len).0,
             parity: stream(part)?,
+            present: Some(stream(part)?),
             columns: [stream(part)?, stream(part)?, stream(part)?],
         })
     }
@@ -170,7 +208,7 @@ impl<'a> ToggleListReader<'a> {
                     ToggleLayout::Whole => axis_len,
                     ToggleLayout::Blocked(len) => len.min(axis_len.saturating_sub(block.start)),
                 };
-                let reader = ToggleColumnReader::new(block.columns, len, part);
+                let reader = ToggleColumnReader::new(block.columns, block.present, len, part);
                 (block.parity, block.start, reader)
             })
             .collect();
@@ -281,6 +319,9 @@ impl<'a> ToggleListReader<'a> {
 
 /// Reads [`ToggleColumns`] back, validating every position against the span they cover.
 pub(crate) struct ToggleColumnReader<'a> {
+    /// Sparse columns: the lists bitmap and the index of the next list.
+    present: Option<&'a [u8]>,
+    index: u64,
     counts: Cursor<'a>,
     starts: Cursor<'a>,
     lengths: Cursor<'a>,
@@ -289,9 +330,16 @@ pub(crate) struct ToggleColumnReader<'a> {
 }
 
 impl<'a> ToggleColumnReader<'a> {
-    fn new(columns: [&'a [u8]; 3], axis_len: u32, part: &'static str) -> Self {
+    fn new(
+        columns: [&'a [u8]; 3],
+        present: Option<&'a [u8]>,
+        axis_len: u32,
+        part: &'static str,
+    ) -> Self {
         let [counts, starts, lengths] = columns;
         Self {
+            present,
+            index: 0,
             counts: Cursor::new(counts, part),
             starts: Cursor::new(starts, part),
             lengths: Cursor::new(lengths, part),
@@ -305,18 +353,33 @@ impl<'a> ToggleColumnReader<'a> {
         self.counts.remaining()
     }
 
+    #[inline]
     fn count(&mut self) -> Result<u64, FormatViolation> {
+        if let Some(present) = self.present {
+            let index = self.index;
+            self.index += 1;
+            let byte = usize::try_from(index / 8)
+                .ok()
+                .and_then(|i| present.get(i))
+                .ok_or_else(|| corrupt(self.part, "lists bitmap shorter than the lists"))?;
+            if byte >> (index % 8) & 1 == 0 {
+                return Ok(0);
+            }
+        }
         let left = (self.starts.remaining() + self.lengths.remaining()) as u64;
         let count = self.counts.varint()?;
         if count > left || count > u64::from(self.axis_len) {
             return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
+        }
+        if count == 0 && self.present.is_some() {
+            return Err(corrupt(self.part, "a listed list without toggles"));
         }
         Ok(count)
     }
 
     /// Skips the next list undecoded.
     fn skip_list(&mut self) -> Result<(), FormatViolation> {
-        let count = self.counts.varint()?;
+        let count = self.count()?;
         let (even, odd) = (count.div_ceil(2), count / 2);
         self.starts.skip_varints(even)?;
         self.lengths.skip_varints(odd)
@@ -391,7 +454,16 @@ impl<'a> ToggleColumnReader<'a> {
     }
 
     fn finish(&self) -> Result<(), FormatViolation> {
-        if self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty() {
+        // The lists bitmap has one bit per list read, unused high bits clear.
+        let lists_done = self.present.is_none_or(|bits| {
+            let used = self.index % 8;
+            bits.len() as u64 == self.index.div_ceil(8)
+                && bits
+                    .last()
+                    .is_none_or(|&last| used == 0 || last >> used == 0)
+        });
+        if lists_done && self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty()
+        {
             Ok(())
         } else {
             Err(corrupt(self.part, "bytes no list uses"))
