@@ -12,7 +12,8 @@ pub enum ToggleLayout {
     /// Format 1.0: every list whole, in one set of toggle columns per tile.
     Whole,
     /// Format 1.1: the time axis cut into blocks of this many samples (at least 1); per block,
-    /// each list's parity at the block's start and its positions inside the block.
+    /// each list's parity at the block's start, whether it has positions inside the block,
+    /// and those positions.
     Blocked(u32),
 }
 
@@ -44,7 +45,6 @@ impl ToggleLayout {
 /// positions (where a run of the other state starts) and those before odd positions (one
 /// less than the run's length). Separating them lets zstd model each distribution on its
 /// own: run starts are spread out, run lengths are mostly tiny (a one-sample flicker is 0).
-///
 ///
 /// Sparse columns (the blocked layout) give counts only for the lists with positions, and a
 /// *lists* bitmap marking them (bit `l mod 8` of byte `⌊l/8⌋`): most lists have no toggle in
@@ -140,7 +140,8 @@ pub(crate) fn encode_lists(
 }
 
 /// One block's streams of a list set, as read from a tile: its first sample, its parity
-/// bitmap (empty in the whole layout) and its toggle columns.
+/// bitmap (empty in the whole layout), its lists bitmap (blocked layout) and its toggle
+/// columns.
 pub(crate) struct ListBlock<'a> {
     pub(crate) start: u32,
     pub(crate) parity: &'a [u8],
