@@ -141,12 +141,17 @@ fn collect_tiles(
     for tile_leaves in per_tile {
         leaves.extend_from_slice(&tile_leaves);
     }
-    Snapshot::from_leaves(reader.header().resolution, leaves).map_err(|e| {
-        ConvertError::Time(format!(
-            "{}: inconsistent cells: {e}",
-            reader.path().display()
-        ))
-    })
+    Snapshot::from_leaves(reader.header().resolution, leaves)
+        .map_err(|e| inconsistent_cells(reader, e))
+}
+
+/// A file whose cells do not make a map (overlapping, out of order): only a damaged or
+/// foreign writer's file gets past the reader's checks this way.
+fn inconsistent_cells(reader: &FroctReader, e: impl std::fmt::Display) -> ConvertError {
+    ConvertError::Time(format!(
+        "{}: inconsistent cells: {e}",
+        reader.path().display()
+    ))
 }
 
 /// Every cell of a file, decoded once (in parallel) for repeated queries over all cells.
@@ -309,12 +314,7 @@ fn write_states_bt(
     path: &Path,
     query: StateQuery,
 ) -> Result<WrittenMap, ConvertError> {
-    let inconsistent = |e: EncodeError| {
-        ConvertError::Time(format!(
-            "{}: inconsistent cells: {e}",
-            reader.path().display()
-        ))
-    };
+    let inconsistent = |e: EncodeError| inconsistent_cells(reader, e);
     let tile_depth = reader.header().tile_depth;
     let parts = reader
         .tiles()

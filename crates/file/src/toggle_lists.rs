@@ -177,6 +177,22 @@ impl<'a> ListBlock<'a> {
     }
 }
 
+/// Bit `index` of a bitmap (bit `index mod 8` of byte `⌊index/8⌋`), `None` past its end.
+#[inline]
+fn bit(bitmap: &[u8], index: u64) -> Option<bool> {
+    let byte = bitmap.get(usize::try_from(index / 8).ok()?)?;
+    Some(byte >> (index % 8) & 1 == 1)
+}
+
+/// `true` when a bitmap holds exactly `count` bits: `⌈count/8⌉` bytes, unused high bits 0.
+fn holds_exactly(bitmap: &[u8], count: u64) -> bool {
+    let used = count % 8;
+    bitmap.len() as u64 == count.div_ceil(8)
+        && bitmap
+            .last()
+            .is_none_or(|&last| used == 0 || last >> used == 0)
+}
+
 /// One length-prefixed stream.
 pub(crate) fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
     let len = c.count("stream length", 1, u64::MAX)?;
@@ -231,10 +247,8 @@ impl<'a> ToggleListReader<'a> {
     }
 
     fn parity_bit(&self, parity: &[u8], list: usize) -> Result<bool, FormatViolation> {
-        let byte = parity
-            .get(list / 8)
-            .ok_or_else(|| corrupt(self.part, "parity bitmap shorter than the lists"))?;
-        Ok(byte >> (list % 8) & 1 == 1)
+        bit(parity, list as u64)
+            .ok_or_else(|| corrupt(self.part, "parity bitmap shorter than the lists"))
     }
 
     /// Passes over the next list (undecoded in the whole layout, not read at all in the
@@ -295,16 +309,12 @@ impl<'a> ToggleListReader<'a> {
 
     /// Checks that the blocks at hand held exactly the lists read.
     pub(crate) fn finish(&self) -> Result<(), FormatViolation> {
-        let bitmap_len = self.read.div_ceil(8);
         for (parity, start, reader) in &self.blocks {
             reader.finish()?;
             if self.layout == ToggleLayout::Whole {
                 continue;
             }
-            let padding_clear = parity
-                .last()
-                .is_none_or(|&last| self.read % 8 == 0 || last >> (self.read % 8) == 0);
-            if parity.len() != bitmap_len || !padding_clear {
+            if !holds_exactly(parity, self.read as u64) {
                 return Err(corrupt(self.part, "parity bitmap does not fit the lists"));
             }
             if *start == 0 && parity.iter().any(|&b| b != 0) {
@@ -359,11 +369,9 @@ impl<'a> ToggleColumnReader<'a> {
         if let Some(present) = self.present {
             let index = self.index;
             self.index += 1;
-            let byte = usize::try_from(index / 8)
-                .ok()
-                .and_then(|i| present.get(i))
+            let listed = bit(present, index)
                 .ok_or_else(|| corrupt(self.part, "lists bitmap shorter than the lists"))?;
-            if byte >> (index % 8) & 1 == 0 {
+            if !listed {
                 return Ok(0);
             }
         }
@@ -455,14 +463,9 @@ impl<'a> ToggleColumnReader<'a> {
     }
 
     fn finish(&self) -> Result<(), FormatViolation> {
-        // The lists bitmap has one bit per list read, unused high bits clear.
-        let lists_done = self.present.is_none_or(|bits| {
-            let used = self.index % 8;
-            bits.len() as u64 == self.index.div_ceil(8)
-                && bits
-                    .last()
-                    .is_none_or(|&last| used == 0 || last >> used == 0)
-        });
+        let lists_done = self
+            .present
+            .is_none_or(|bits| holds_exactly(bits, self.index));
         if lists_done && self.counts.is_empty() && self.starts.is_empty() && self.lengths.is_empty()
         {
             Ok(())

@@ -13,7 +13,7 @@
 //! it closes; a node whose eight children closed as equal leaves is removed again (its
 //! children left nothing after its record) and becomes a leaf of its parent.
 
-use crate::encode::{binary_header, child_index, divergence_depth};
+use crate::encode::{binary_header, check_node, child_index, divergence_depth};
 use crate::error::EncodeError;
 use froctomap_core::{validate_resolution, voxels_per_node, MortonCode, TREE_DEPTH};
 
@@ -346,16 +346,6 @@ impl CanonicalBinaryBuilder {
             content: self.whole.unwrap_or(PartContent::Empty),
         }
     }
-}
-
-fn check_node(start: u64, depth: u8) -> Result<(), EncodeError> {
-    if depth > TREE_DEPTH {
-        return Err(froctomap_core::MapError::DepthOutOfRange { depth }.into());
-    }
-    if start >= MortonCode::END || start & (voxels_per_node(depth) - 1) != 0 {
-        return Err(froctomap_core::MapError::MisalignedLeaf { code: start, depth }.into());
-    }
-    Ok(())
 }
 
 #[cfg(test)]

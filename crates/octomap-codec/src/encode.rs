@@ -112,6 +112,18 @@ pub(crate) fn child_index(start: u64, depth: u8) -> usize {
     ((start >> (3 * u32::from(TREE_DEPTH - 1 - depth))) & 7) as usize
 }
 
+/// Checks that `(start, depth)` names a node of the octree: depth at most 16, `start` inside
+/// the key space and aligned to the node's size.
+pub(crate) fn check_node(start: u64, depth: u8) -> Result<(), EncodeError> {
+    if depth > TREE_DEPTH {
+        return Err(MapError::DepthOutOfRange { depth }.into());
+    }
+    if start >= MortonCode::END || start & (voxels_per_node(depth) - 1) != 0 {
+        return Err(MapError::MisalignedLeaf { code: start, depth }.into());
+    }
+    Ok(())
+}
+
 /// Checks what a streaming encoder is given: valid leaves, strictly increasing, no overlap.
 #[derive(Clone, Debug, Default)]
 struct OrderCheck {
@@ -121,16 +133,7 @@ struct OrderCheck {
 
 impl OrderCheck {
     fn check(&mut self, leaf: &Leaf) -> Result<(), EncodeError> {
-        if leaf.depth > TREE_DEPTH {
-            return Err(MapError::DepthOutOfRange { depth: leaf.depth }.into());
-        }
-        if leaf.start.0 >= MortonCode::END || leaf.start.node_start(leaf.depth) != leaf.start {
-            return Err(MapError::MisalignedLeaf {
-                code: leaf.start.0,
-                depth: leaf.depth,
-            }
-            .into());
-        }
+        check_node(leaf.start.0, leaf.depth)?;
         if leaf.log_odds.is_nan() {
             return Err(MapError::NanLogOdds {
                 key: leaf.min_key(),
