@@ -43,6 +43,12 @@ pub fn occupied_log_odds() -> f32 {
 }
 
 /// The binary state of known space.
+///
+/// ```
+/// use froctomap_core::Occupancy;
+/// assert_eq!(Occupancy::from(true), Occupancy::Occupied);
+/// assert_eq!(!Occupancy::Occupied, Occupancy::Free);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Occupancy {
     /// Observed empty.
@@ -54,11 +60,7 @@ pub enum Occupancy {
 impl Occupancy {
     /// The state OctoMap assigns a log-odds value (`isNodeOccupied`: at or above threshold 0).
     pub fn from_log_odds(log_odds: f32) -> Self {
-        if log_odds >= 0.0 {
-            Occupancy::Occupied
-        } else {
-            Occupancy::Free
-        }
+        Occupancy::from(log_odds >= 0.0)
     }
 
     /// The log-odds value a `.bt` file gives this state when read.
@@ -72,6 +74,29 @@ impl Occupancy {
     /// `true` for [`Occupancy::Occupied`].
     pub fn is_occupied(self) -> bool {
         self == Occupancy::Occupied
+    }
+}
+
+impl From<bool> for Occupancy {
+    /// `true` is [`Occupancy::Occupied`], `false` [`Occupancy::Free`].
+    fn from(occupied: bool) -> Self {
+        if occupied {
+            Occupancy::Occupied
+        } else {
+            Occupancy::Free
+        }
+    }
+}
+
+impl std::ops::Not for Occupancy {
+    type Output = Occupancy;
+
+    /// The other state.
+    fn not(self) -> Occupancy {
+        match self {
+            Occupancy::Free => Occupancy::Occupied,
+            Occupancy::Occupied => Occupancy::Free,
+        }
     }
 }
 
