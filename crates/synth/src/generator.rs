@@ -1056,9 +1056,9 @@ mod tests {
                 }],
             )
             .unwrap();
-            let started = std::time::Instant::now();
+            // A generator that walked the leaf's 2^48 voxels would never return; how long
+            // the coarse case takes is measured by `cargo bench -p froctomap-synth`.
             let generator = Generator::new(&root, spec.clone(), None).unwrap();
-            assert!(started.elapsed().as_secs() < 20);
             assert!(!generator.warnings().is_empty());
             assert!(generator.elements().is_empty());
             // No elements and no noise (no surface, or one too large): the map as it was.

@@ -277,11 +277,7 @@ mod tests {
         for x in 0..12 {
             for y in 0..9 {
                 for z in 0..7 {
-                    let state = if z == 1 || x == 11 {
-                        Occupancy::Occupied
-                    } else {
-                        Occupancy::Free
-                    };
+                    let state = Occupancy::from(z == 1 || x == 11);
                     voxels.push((
                         VoxelKey::new(32760 + x, 32760 + y, 32760 + z).morton(),
                         state,

@@ -59,11 +59,7 @@ fn geb079_series_with_real_doors() {
             continue;
         };
         let frame = generator.frame(f.index).unwrap();
-        let want = if open {
-            Occupancy::Free
-        } else {
-            Occupancy::Occupied
-        };
+        let want = Occupancy::from(!open);
         assert!(door0
             .voxels
             .iter()

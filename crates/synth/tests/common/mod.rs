@@ -48,11 +48,7 @@ pub fn office() -> Snapshot {
                 let corridor_wall = y == 20 && !(doorway && z <= 20);
                 let room_wall = x == 50 && y > 20;
                 let solid = z == 0 || z == nz - 1 || outer || corridor_wall || room_wall;
-                let state = if solid {
-                    Occupancy::Occupied
-                } else {
-                    Occupancy::Free
-                };
+                let state = Occupancy::from(solid);
                 voxels.push((
                     VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(),
                     state,
