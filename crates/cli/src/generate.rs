@@ -1,13 +1,13 @@
 //! `froctomap generate`: a realistic, deterministic series of OctoMap snapshots from a real
 //! base map (the sample data of the demo, the tests and the benchmarks).
 
-use crate::commands::Ui;
 use crate::progress::Bars;
+use crate::ui::Ui;
 use anyhow::{Context, Result};
 use clap::Args;
 use froctomap_convert::group_thousands;
 use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
-use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_formats::ReadOptions;
 use froctomap_synth::{frames_for, write_series, Generator, SeriesSpec, WriteSeriesOptions};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -90,7 +90,9 @@ fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
 
 pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     let spec = spec(args)?;
-    let base = FormatRegistry::with_default_formats()
+    let base = ui
+        .context
+        .formats()
         .read_file(
             &args.base,
             ReadOptions {
