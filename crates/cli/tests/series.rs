@@ -327,7 +327,10 @@ fn errors_are_clear() {
         "-o",
         s(&dir.path().join("many")),
     ]);
-    assert!(e.contains("more than the limit") && e.contains("--every"), "{e}");
+    assert!(
+        e.contains("more than the limit") && e.contains("--every"),
+        "{e}"
+    );
     // A broken input names the file; the CLI adds the option that leaves it out.
     let bytes = std::fs::read(&files[1]).unwrap();
     std::fs::write(&files[1], &bytes[..bytes.len() / 2]).unwrap();
