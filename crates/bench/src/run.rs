@@ -13,8 +13,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, format_iso, unix_seconds, write_observed_map,
-    write_predicted_map, BuildOptions, Context, EvalReport, LoadedMap, SeriesInput, Silent,
-    TimeSource,
+    write_predicted_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
 };
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
@@ -110,7 +109,7 @@ pub struct BuildChildArgs {
 
 /// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
 pub fn build_child(args: &BuildChildArgs) -> Result<()> {
-    let context = Context::with_default_plugins();
+    let context = froctomap_convert::Context::with_default_plugins();
     let inputs = collect_inputs(
         &context,
         std::slice::from_ref(&args.input),
@@ -251,7 +250,7 @@ fn method(report: &EvalReport, name: &str) -> (Errors, Errors) {
 fn evaluate_file(path: &Path, truths: &[SeriesInput]) -> Result<EvalReport> {
     let reader = FroctReader::open(path)?;
     let map = LoadedMap::load(&reader)?;
-    let context = Context::with_default_plugins();
+    let context = froctomap_convert::Context::with_default_plugins();
     Ok(evaluate(
         &context,
         &map,
@@ -586,7 +585,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
 
     // Sizes.
     let lossless_reader = FroctReader::open(&lossless)?;
-    let context = Context::with_default_plugins();
+    let context = froctomap_convert::Context::with_default_plugins();
     let info = describe(&context, &lossless_reader, false)?;
     let raw_state_bytes = info.voxels.total() as f64 * f64::from(info.time.samples) / 8.0;
     let vs_states = |bytes: u64| crate::report::ratio(raw_state_bytes, bytes as f64);
