@@ -3,13 +3,12 @@
 use crate::ui::Ui;
 use anyhow::Result;
 use froctomap_convert::{describe, group_thousands, ClassCounts};
-use froctomap_file::FroctReader;
 use serde_json::Value;
 use std::path::Path;
 
 /// The FROctomap file at `path` described on standard output (as JSON with `json`).
 pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
-    let reader = FroctReader::open(path)?;
+    let reader = ui.context.open_froct(path)?;
     let info = describe(ui.context, &reader, count)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&info)?);

@@ -13,7 +13,7 @@ use froctomap_convert::{
     resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
     ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
-use froctomap_file::{Codec, FroctReader, ToggleLayout};
+use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
 use serde_json::{Map, Value};
@@ -305,7 +305,15 @@ pub struct RetrieveArgs {
     /// (`index:42`). Between snapshots, the last earlier one is used.
     #[arg(long, value_name = "TIME")]
     time: String,
-    /// The map to write (.bt or .ot).
+    #[command(flatten)]
+    output: MapOutput,
+}
+
+/// Where a map goes and in which format (shared by `retrieve` and `predict`).
+#[derive(Args)]
+pub struct MapOutput {
+    /// The map to write; its extension names the format unless --format does (.bt: the
+    /// states; .ot: log-odds, for `predict` those of p(t)).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
     /// Output format instead of the one the extension names (see `froctomap formats`).
@@ -313,8 +321,17 @@ pub struct RetrieveArgs {
     format: Option<String>,
 }
 
+impl MapOutput {
+    fn options(&self, ui: &Ui) -> WriteOptions<'_> {
+        WriteOptions {
+            format: self.format.as_deref(),
+            backend: Some(ui.backend),
+        }
+    }
+}
+
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let query: TimeQuery = args.time.parse()?;
     let when = resolve_observed(&reader, query)?;
     if !when.exact {
@@ -324,19 +341,17 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
             format_iso(when.time)
         ));
     }
+    let output = &args.output.output;
     let written = write_observed_map(
         ui.context,
         &reader,
         when.sample,
-        &args.output,
-        WriteOptions {
-            format: args.format.as_deref(),
-            backend: Some(ui.backend),
-        },
+        output,
+        args.output.options(ui),
     )?;
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
-        args.output.display(),
+        output.display(),
         written.format.name,
         format_iso(when.time),
         when.sample,
@@ -352,16 +367,12 @@ pub struct PredictArgs {
     /// When: Unix seconds or ISO 8601, past or future.
     #[arg(long, value_name = "TIME")]
     time: String,
-    /// The map to write: .ot carries p(t) as log-odds, .bt the thresholded states.
-    #[arg(short, long, value_name = "FILE")]
-    output: PathBuf,
-    /// Output format instead of the one the extension names (see `froctomap formats`).
-    #[arg(long, value_parser = writable_format())]
-    format: Option<String>,
+    #[command(flatten)]
+    output: MapOutput,
 }
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let t = match args.time.parse::<TimeQuery>()? {
         TimeQuery::Instant(t) => t,
         TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
@@ -372,16 +383,8 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
             )
         })?,
     };
-    let written = write_predicted_map(
-        ui.context,
-        &reader,
-        t,
-        &args.output,
-        WriteOptions {
-            format: args.format.as_deref(),
-            backend: Some(ui.backend),
-        },
-    )?;
+    let output = &args.output.output;
+    let written = write_predicted_map(ui.context, &reader, t, output, args.output.options(ui))?;
     let axis = &reader.header().axis;
     let relation = if t > axis.end() {
         format!(
@@ -398,7 +401,7 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     };
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
-        args.output.display(),
+        output.display(),
         written.format.name,
         format_iso(t),
         group_thousands(written.leaves as u64)
@@ -442,7 +445,7 @@ pub struct ExportArgs {
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let options = ExportOptions {
         from: parse_time(&args.from)?,
         to: parse_time(&args.to)?,
@@ -482,7 +485,7 @@ pub struct EvalArgs {
 }
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let truths: Vec<SeriesInput> = collect_inputs(ui.context, &args.against, args.times.source()?)?;
     let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);

@@ -3,8 +3,11 @@
 //! as Symphonia hands its probe to callers, so a format or model registered by the program
 //! reaches every path.
 
+use crate::error::ConvertError;
+use froctomap_file::{FroctReader, ReadLimits};
 use froctomap_formats::{Confidence, FormatRegistry, SeriesFormat};
 use froctomap_temporal::ModelRegistry;
+use std::path::Path;
 
 /// Resource bounds of a conversion: checked before the work they bound is started, so a
 /// hostile or mistyped input fails cleanly instead of exhausting memory or disk.
@@ -15,6 +18,8 @@ pub struct Limits {
     pub max_map_file_bytes: u64,
     /// Most maps one export may write (a guard against a mistyped interval).
     pub max_exports: u64,
+    /// What a FROctomap file may make its reader allocate ([`Context::open_froct`]).
+    pub froct: ReadLimits,
 }
 
 impl Default for Limits {
@@ -23,6 +28,7 @@ impl Default for Limits {
             // Far above any OctoMap scan seen (a building floor at 5 cm is tens of MB).
             max_map_file_bytes: 4 << 30,
             max_exports: 1_000_000,
+            froct: ReadLimits::default(),
         }
     }
 }
@@ -99,6 +105,16 @@ impl Context {
     /// The resource bounds.
     pub fn limits(&self) -> &Limits {
         &self.limits
+    }
+
+    /// Opens a FROctomap file with this context's models (so a model the program registered
+    /// decodes its cells) and read limits.
+    pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
+        Ok(FroctReader::open_with_limits(
+            path,
+            self.limits.froct,
+            &self.models,
+        )?)
     }
 }
 
