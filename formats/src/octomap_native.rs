@@ -29,10 +29,9 @@ pub const BINARY: MapFormat = MapFormat {
     reader: Some(|| Box::new(NativeReader(FileKind::Binary))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Binary))),
     differ: Some(|| Box::new(NativeDiffer(FileKind::Binary))),
-    capabilities: Capabilities {
-        states_only: true,
-        writes_canonical_binary: true,
-    },
+    capabilities: Capabilities::NONE
+        .with_states_only()
+        .with_canonical_binary_writer(),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written in Rust.

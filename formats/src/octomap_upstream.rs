@@ -21,10 +21,7 @@ pub const BINARY: MapFormat = MapFormat {
     differ: None,
     // The bytes are the same as the native writer's, but choosing this backend means
     // asking for liboctomap's writer, so froctomap does not write the file itself.
-    capabilities: Capabilities {
-        states_only: true,
-        writes_canonical_binary: false,
-    },
+    capabilities: Capabilities::NONE.with_states_only(),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written by liboctomap.

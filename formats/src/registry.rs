@@ -125,7 +125,14 @@ pub struct MapFormat {
 
 /// Properties of a format that change how callers prepare or produce its files: data on the
 /// descriptor, so that code never branches on a format's name.
+///
+/// ```
+/// use froctomap_formats::Capabilities;
+/// let states = Capabilities::NONE.with_states_only();
+/// assert!(states.states_only && !states.writes_canonical_binary);
+/// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct Capabilities {
     /// The format stores occupancy states only, no probabilities (OctoMap's `.bt`): a map is
     /// reduced to maximum likelihood before it is written, so that nodes merge as the stored
@@ -144,6 +151,19 @@ impl Capabilities {
         states_only: false,
         writes_canonical_binary: false,
     };
+
+    /// These capabilities and [`states_only`](Self::states_only) (for plugins outside this
+    /// crate, which cannot name every field of a non-exhaustive struct).
+    pub const fn with_states_only(mut self) -> Self {
+        self.states_only = true;
+        self
+    }
+
+    /// These capabilities and [`writes_canonical_binary`](Self::writes_canonical_binary).
+    pub const fn with_canonical_binary_writer(mut self) -> Self {
+        self.writes_canonical_binary = true;
+        self
+    }
 }
 
 /// A format of files that hold a series of timed maps rather than one map (froctomap's own
