@@ -14,6 +14,19 @@ cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo test --workspace --locked "$@"
 
+# The library crates build and test without liboctomap: the C++ backend is an opt-in
+# feature that only the CLI, the benchmark and the interop tests turn on.
+libraries=(-p froctomap-core -p froctomap-octomap-codec -p froctomap-formats -p froctomap-temporal
+           -p froctomap-file -p froctomap-convert -p froctomap-synth)
+for library in "${libraries[@]}"; do
+  [[ $library == -p ]] && continue
+  if cargo tree --locked -p "$library" -e normal,dev | grep -q froctomap-octomap-ffi; then
+    echo "$library depends on liboctomap without the octomap-upstream feature" >&2
+    exit 1
+  fi
+done
+cargo test --locked "${libraries[@]}"
+
 # The fuzz crate is its own workspace (cargo-fuzz layout); it must keep building, and each
 # target runs briefly from the fixtures so a crash cannot hide.
 cargo build --locked --manifest-path fuzz/Cargo.toml

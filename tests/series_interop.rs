@@ -6,11 +6,11 @@
 
 use froctomap_convert::{
     build, collect_inputs, export, observed_map, predicted_map, resolve_observed, write_map,
-    BuildOptions, ExportMode, ExportOptions, Silent, TimeQuery, TimeSource,
+    BuildOptions, Context, ExportMode, ExportOptions, Silent, TimeQuery, TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
-use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
 use froctomap_octomap_ffi::OcTree;
 use froctomap_synth::{write_series, Generator, SeriesSpec, WriteSeriesOptions};
 use froctomap_test_support::{convert_octree, geb079, leaf_tuples, python_leaves, scratch};
@@ -48,16 +48,16 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
     };
     write_series(&generator, &series_dir, &options, &|_, _| {}).unwrap();
 
-    let registry = FormatRegistry::with_default_formats();
+    let context = Context::with_default_plugins();
     let inputs = collect_inputs(
+        &context,
         std::slice::from_ref(&series_dir),
         TimeSource::Auto,
-        &registry,
     )
     .unwrap();
     assert_eq!(inputs.len(), 18);
     let froct = dir.path().join("series.froct");
-    let report = build(&inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
+    let report = build(&context, &inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
     assert!(!report.regular_axis, "jittered times");
     assert!(
         report.cells.dynamic > 1000 && report.cells.unknown_sometimes > 1000,
@@ -71,10 +71,10 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
         assert!(when.exact);
         let out = dir.path().join("retrieved.bt");
         write_map(
+            &context,
             &observed_map(&reader, when.sample).unwrap(),
             &out,
-            None,
-            None,
+            WriteOptions::default(),
         )
         .unwrap();
         assert!(
@@ -93,7 +93,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
         let predicted = predicted_map(&reader, t).unwrap();
         for ext in ["bt", "ot"] {
             let path = dir.path().join(format!("{name}.{ext}"));
-            write_map(&predicted, &path, None, None).unwrap();
+            write_map(&context, &predicted, &path, WriteOptions::default()).unwrap();
             convert_octree(&path, &dir.path().join(format!("{name}_upstream.ot")));
             let (resolution, leaves) = python_leaves(&path, ext);
             assert_eq!(resolution, 0.08);
@@ -107,6 +107,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
     // Export: complete files plus a manifest; every file is read by both clients.
     let export_dir = dir.path().join("export");
     let exported = export(
+        &context,
         &reader,
         &export_dir,
         &ExportOptions {

@@ -27,6 +27,16 @@ pub enum FormatError {
         /// What was found instead.
         reason: String,
     },
+    /// The file holds a series of maps (a registered [`crate::SeriesFormat`]), not one map.
+    #[error("{}: a {description} ({format}), not a single map", path.display())]
+    SeriesNotMap {
+        /// The file.
+        path: PathBuf,
+        /// Name of its series format.
+        format: &'static str,
+        /// What that format is.
+        description: &'static str,
+    },
     /// The content was recognised (or forced) but is malformed.
     #[error("{}: {source}", path.display())]
     Decode {
@@ -49,7 +59,7 @@ pub enum FormatError {
         #[source]
         source: PluginError,
     },
-    /// `--format` named no registered format.
+    /// A format name that no registered format has.
     #[error("unknown map format `{name}` (known: {known})")]
     UnknownFormat {
         /// The name given.
@@ -58,7 +68,7 @@ pub enum FormatError {
         known: String,
     },
     /// The output format could not be chosen from the file name.
-    #[error("{}: cannot tell the output format from the extension (known: {known}); name the file accordingly or pass --format", path.display())]
+    #[error("{}: cannot tell the output format from the extension (known: {known})", path.display())]
     UnknownExtension {
         /// The destination.
         path: PathBuf,

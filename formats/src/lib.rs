@@ -10,7 +10,12 @@
 //! it to skip decoding what did not change.
 //!
 //! Adding a format is one module defining a `MapFormat` constant plus one line in
-//! [`register_default_formats`]. A format may have several implementations (backends) under
+//! [`register_default_formats`] (or, for a format of one program, one
+//! [`FormatRegistry::register`] call on the registry that program hands to the converters).
+//! What callers may rely on beyond reading and writing is data on the descriptor
+//! ([`Capabilities`]), never a check of its name. Files that hold a *series* of maps are
+//! recognised by the same probe through [`SeriesFormat`] descriptors
+//! ([`FormatRegistry::identify`]). A format may have several implementations (backends) under
 //! one name: OctoMap's `.bt`/`.ot` are read and written by the native Rust codec
 //! ([`octomap_native`], the default) or by the upstream C++ library (`octomap_upstream`,
 //! chosen with [`Backend::Octomap`] in [`ReadOptions`]/[`WriteOptions`]).
@@ -34,8 +39,9 @@ mod registry;
 
 pub use error::{FormatError, PluginError};
 pub use registry::{
-    Backend, Confidence, DiffOutcome, DiffState, FormatRegistry, MapDiff, MapDiffer, MapFormat,
-    MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome, WriteOptions,
+    Backend, Capabilities, Confidence, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff,
+    MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,
+    SeriesFormat, WriteOptions, PROBE_BYTES,
 };
 
 /// Registers every format enabled at compile time, preferred backends first: the native

@@ -9,7 +9,8 @@
 
 use crate::error::PluginError;
 use crate::registry::{
-    Backend, Confidence, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap,
+    Backend, Capabilities, Confidence, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter,
+    PreviousFile, ReadMap,
 };
 use froctomap_core::{validate_resolution, MapError, Snapshot, StateChange};
 use froctomap_octomap_codec::{
@@ -28,6 +29,9 @@ pub const BINARY: MapFormat = MapFormat {
     reader: Some(|| Box::new(NativeReader(FileKind::Binary))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Binary))),
     differ: Some(|| Box::new(NativeDiffer(FileKind::Binary))),
+    capabilities: Capabilities::NONE
+        .with_states_only()
+        .with_canonical_binary_writer(),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written in Rust.
@@ -40,6 +44,7 @@ pub const FULL: MapFormat = MapFormat {
     reader: Some(|| Box::new(NativeReader(FileKind::Full))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Full))),
     differ: Some(|| Box::new(NativeDiffer(FileKind::Full))),
+    capabilities: Capabilities::NONE,
 };
 
 /// Recognises a `.bt` by its first line, or weakly by the pre-1.4 headerless layout.

@@ -2,7 +2,7 @@
 
 use crate::error::PluginError;
 use crate::octomap_native::{probe_binary, probe_full};
-use crate::registry::{Backend, MapFormat, MapReader, MapWriter, ReadMap};
+use crate::registry::{Backend, Capabilities, MapFormat, MapReader, MapWriter, ReadMap};
 use froctomap_core::Snapshot;
 use froctomap_octomap_codec::FileKind;
 use froctomap_octomap_ffi::{LoadedTree, OcTree};
@@ -19,6 +19,9 @@ pub const BINARY: MapFormat = MapFormat {
     reader: Some(|| Box::new(UpstreamReader(FileKind::Binary))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Binary))),
     differ: None,
+    // The bytes are the same as the native writer's, but choosing this backend means
+    // asking for liboctomap's writer, so froctomap does not write the file itself.
+    capabilities: Capabilities::NONE.with_states_only(),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written by liboctomap.
@@ -32,6 +35,7 @@ pub const FULL: MapFormat = MapFormat {
     reader: Some(|| Box::new(UpstreamReader(FileKind::Full))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Full))),
     differ: None,
+    capabilities: Capabilities::NONE,
 };
 
 struct UpstreamReader(FileKind);

@@ -82,6 +82,7 @@ pub trait MapWriter: Send + Sync {
 
 /// Which implementation stands behind a format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum Backend {
     /// The upstream OctoMap C++ library.
     Octomap,
@@ -118,7 +119,82 @@ pub struct MapFormat {
     pub writer: Option<fn() -> Box<dyn MapWriter>>,
     /// Creates a differ, if two files of the format can be compared without decoding them.
     pub differ: Option<fn() -> Box<dyn MapDiffer>>,
+    /// What callers may rely on beyond reading and writing (consulted instead of names).
+    pub capabilities: Capabilities,
 }
+
+/// Properties of a format that change how callers prepare or produce its files: data on the
+/// descriptor, so that code never branches on a format's name.
+///
+/// ```
+/// use froctomap_formats::Capabilities;
+/// let states = Capabilities::NONE.with_states_only();
+/// assert!(states.states_only && !states.writes_canonical_binary);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Capabilities {
+    /// The format stores occupancy states only, no probabilities (OctoMap's `.bt`): a map is
+    /// reduced to maximum likelihood before it is written, so that nodes merge as the stored
+    /// states allow.
+    pub states_only: bool,
+    /// The writer's bytes are exactly the canonical OctoMap binary of the map's states as
+    /// `froctomap_octomap_codec::CanonicalBinaryBuilder` assembles it, so a caller may build
+    /// the file itself from parts (tile by tile, in parallel) instead of handing the writer a
+    /// whole map in memory.
+    pub writes_canonical_binary: bool,
+}
+
+impl Capabilities {
+    /// Nothing beyond reading and writing.
+    pub const NONE: Capabilities = Capabilities {
+        states_only: false,
+        writes_canonical_binary: false,
+    };
+
+    /// These capabilities and [`states_only`](Self::states_only) (for plugins outside this
+    /// crate, which cannot name every field of a non-exhaustive struct).
+    pub const fn with_states_only(mut self) -> Self {
+        self.states_only = true;
+        self
+    }
+
+    /// These capabilities and [`writes_canonical_binary`](Self::writes_canonical_binary).
+    pub const fn with_canonical_binary_writer(mut self) -> Self {
+        self.writes_canonical_binary = true;
+        self
+    }
+}
+
+/// A format of files that hold a series of timed maps rather than one map (froctomap's own
+/// `.froct`; later recordings such as ROS bags). The registry only recognises such files, so
+/// that one probe tells a caller what any file is; opening them is the business of the crate
+/// that registered the descriptor.
+#[derive(Clone, Copy, Debug)]
+pub struct SeriesFormat {
+    /// Short name (e.g. `froct`).
+    pub name: &'static str,
+    /// One line for listings.
+    pub description: &'static str,
+    /// File extensions, lower case, without dot.
+    pub extensions: &'static [&'static str],
+    /// Recognises the format from the first bytes of a file.
+    pub probe: fn(&[u8]) -> Confidence,
+}
+
+/// What the registry's probe found a file to be.
+#[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
+pub enum Identified<'a> {
+    /// One map, readable through the registry.
+    Map(&'a MapFormat),
+    /// A series of maps, of a format registered with [`FormatRegistry::register_series`].
+    Series(&'a SeriesFormat),
+}
+
+/// How many bytes of a file [`FormatRegistry::identify_file`] reads: every probe needs at
+/// most the first line of a header.
+pub const PROBE_BYTES: u64 = 4096;
 
 impl std::fmt::Debug for MapFormat {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -192,6 +268,7 @@ pub struct DiffOutcome {
 #[derive(Clone, Debug, Default)]
 pub struct FormatRegistry {
     formats: Vec<MapFormat>,
+    series: Vec<SeriesFormat>,
 }
 
 impl FormatRegistry {
@@ -215,6 +292,58 @@ impl FormatRegistry {
     /// Every registered format, in registration order.
     pub fn formats(&self) -> &[MapFormat] {
         &self.formats
+    }
+
+    /// Adds a format of series files, so that [`identify`](Self::identify) recognises them.
+    pub fn register_series(&mut self, format: SeriesFormat) {
+        self.series.push(format);
+    }
+
+    /// Every registered series format, in registration order.
+    pub fn series_formats(&self) -> &[SeriesFormat] {
+        &self.series
+    }
+
+    /// What `bytes` (the start of a file) are: the most confident of the readable map
+    /// formats and the series formats (map formats win ties).
+    ///
+    /// ```
+    /// use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
+    /// let mut registry = FormatRegistry::with_default_formats();
+    /// registry.register_series(SeriesFormat {
+    ///     name: "demo",
+    ///     description: "a demo series",
+    ///     extensions: &["demo"],
+    ///     probe: |bytes| if bytes.starts_with(b"DEMO") { Confidence::Certain } else { Confidence::No },
+    /// });
+    /// assert!(matches!(registry.identify(b"DEMO..."), Some(Identified::Series(f)) if f.name == "demo"));
+    /// assert!(matches!(registry.identify(b"# Octomap OcTree binary file\n"), Some(Identified::Map(_))));
+    /// ```
+    pub fn identify(&self, bytes: &[u8]) -> Option<Identified<'_>> {
+        let map = self
+            .probe_with(bytes, None)
+            .map(|f| (Identified::Map(f), (f.probe)(bytes)));
+        let mut best = map;
+        for format in &self.series {
+            let confidence = (format.probe)(bytes);
+            if confidence > Confidence::No && best.as_ref().is_none_or(|(_, c)| confidence > *c) {
+                best = Some((Identified::Series(format), confidence));
+            }
+        }
+        best.map(|(identified, _)| identified)
+    }
+
+    /// [`identify`](Self::identify) on the first [`PROBE_BYTES`] of a file.
+    pub fn identify_file(&self, path: &Path) -> Result<Option<Identified<'_>>, FormatError> {
+        use std::io::Read;
+        let mut head = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
+            .map_err(|source| FormatError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(self.identify(&head))
     }
 
     /// Formats of the preferred backend first, then the rest, each in registration order.
@@ -259,6 +388,18 @@ impl FormatRegistry {
             }
         }
         best.map(|(format, _)| format)
+    }
+
+    /// Names of the formats that can be written, each once (several backends may share a
+    /// name), in registration order: the values a `--format` option accepts.
+    pub fn writable_names(&self) -> Vec<&'static str> {
+        let mut names: Vec<&'static str> = Vec::new();
+        for format in self.formats.iter().filter(|f| f.writer.is_some()) {
+            if !names.contains(&format.name) {
+                names.push(format.name);
+            }
+        }
+        names
     }
 
     /// Registered names, each once (several backends may share a name), in order.
@@ -307,13 +448,26 @@ impl FormatRegistry {
     ) -> Result<MapFormat, FormatError> {
         Ok(match options.format {
             Some(name) => *self.by_name(name, options.backend)?,
-            None => *self.probe_with(bytes, options.backend).ok_or_else(|| {
-                FormatError::Unrecognized {
-                    path: path.to_path_buf(),
-                    reason: describe_start(bytes),
-                }
-            })?,
+            None => match self.probe_with(bytes, options.backend) {
+                Some(format) => *format,
+                None => return Err(self.not_a_map(path, bytes)),
+            },
         })
+    }
+
+    /// Why `bytes` cannot be read as a map: a series file, or nothing known.
+    fn not_a_map(&self, path: &Path, bytes: &[u8]) -> FormatError {
+        match self.identify(bytes) {
+            Some(Identified::Series(series)) => FormatError::SeriesNotMap {
+                path: path.to_path_buf(),
+                format: series.name,
+                description: series.description,
+            },
+            _ => FormatError::Unrecognized {
+                path: path.to_path_buf(),
+                reason: describe_start(bytes),
+            },
+        }
     }
 
     /// The warning due when the content's format contradicts the file name.

@@ -6,9 +6,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use froctomap_convert::{
-    observed_map, predicted_map, write_observed_map, write_owned_map, write_predicted_map,
+    observed_map, predicted_map, write_observed_map, write_owned_map, write_predicted_map, Context,
 };
 use froctomap_file::FroctReader;
+use froctomap_formats::WriteOptions;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -34,6 +35,7 @@ fn main() {
         args.next()
             .expect("usage: retrieve_paths FILE.froct [SAMPLE]"),
     );
+    let context = Context::with_default_plugins();
     let reader = FroctReader::open(&path).unwrap();
     let axis = reader.header().axis.clone();
     let sample: u32 = args
@@ -43,15 +45,27 @@ fn main() {
     let (whole, tiled) = (dir.path().join("whole.bt"), dir.path().join("tiled.bt"));
     let future = axis.end();
     for s in [0, sample, axis.len() - 1] {
-        write_owned_map(observed_map(&reader, s).unwrap(), &whole, None, None).unwrap();
-        write_observed_map(&reader, s, &tiled, None, None).unwrap();
+        write_owned_map(
+            &context,
+            observed_map(&reader, s).unwrap(),
+            &whole,
+            WriteOptions::default(),
+        )
+        .unwrap();
+        write_observed_map(&context, &reader, s, &tiled, WriteOptions::default()).unwrap();
         assert_eq!(
             std::fs::read(&whole).unwrap(),
             std::fs::read(&tiled).unwrap()
         );
     }
-    write_owned_map(predicted_map(&reader, future).unwrap(), &whole, None, None).unwrap();
-    write_predicted_map(&reader, future, &tiled, None, None).unwrap();
+    write_owned_map(
+        &context,
+        predicted_map(&reader, future).unwrap(),
+        &whole,
+        WriteOptions::default(),
+    )
+    .unwrap();
+    write_predicted_map(&context, &reader, future, &tiled, WriteOptions::default()).unwrap();
     assert_eq!(
         std::fs::read(&whole).unwrap(),
         std::fs::read(&tiled).unwrap()
@@ -62,17 +76,17 @@ fn main() {
     );
     let retrieve_whole = median_ms(|| {
         let map = observed_map(&reader, sample).unwrap();
-        write_owned_map(map, &whole, None, None).unwrap();
+        write_owned_map(&context, map, &whole, WriteOptions::default()).unwrap();
     });
     let retrieve_tiled = median_ms(|| {
-        write_observed_map(&reader, sample, &tiled, None, None).unwrap();
+        write_observed_map(&context, &reader, sample, &tiled, WriteOptions::default()).unwrap();
     });
     let predict_whole = median_ms(|| {
         let map = predicted_map(&reader, future).unwrap();
-        write_owned_map(map, &whole, None, None).unwrap();
+        write_owned_map(&context, map, &whole, WriteOptions::default()).unwrap();
     });
     let predict_tiled = median_ms(|| {
-        write_predicted_map(&reader, future, &tiled, None, None).unwrap();
+        write_predicted_map(&context, &reader, future, &tiled, WriteOptions::default()).unwrap();
     });
     println!("| path | retrieve (sample {sample}) | predict |");
     println!("| --- | ---: | ---: |");

@@ -4,7 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{parse_duration, parse_time};
 use froctomap_formats::{FormatRegistry, ReadOptions};
-use froctomap_synth::{frames_for, write_series, Generator, SeriesSpec, WriteSeriesOptions};
+use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -110,47 +110,31 @@ pub fn step_seconds(step: &str) -> Result<f64> {
 }
 
 fn spec_from_args(args: &GenerateArgs) -> Result<SeriesSpec> {
-    let mut spec = match &args.spec {
-        Some(path) => serde_json::from_str(
-            &std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?,
-        )
-        .with_context(|| format!("{}: not a SeriesSpec", path.display()))?,
+    let scenario = match &args.spec {
+        Some(path) => SeriesSpec::from_json_file(path)?,
         None => SeriesSpec::default(),
     };
-    spec.step_secs = step_seconds(&args.step)?;
-    spec.count = args
-        .count
-        .unwrap_or_else(|| frames_for(args.days, spec.step_secs));
-    if let Some(start) = &args.start {
-        spec.start = parse_time(start)?;
-    }
-    spec.seed = args.seed;
-    spec.jitter_secs = args.jitter;
-    spec.missed_frames = args.missed;
-    spec.door_file = if args.no_real_doors {
-        None
-    } else {
-        Some(door_file(args.real_doors.as_deref())?)
+    let overrides = SpecOverrides {
+        step_secs: Some(step_seconds(&args.step)?),
+        days: Some(args.days),
+        count: args.count,
+        start: args.start.as_deref().map(parse_time).transpose()?,
+        seed: Some(args.seed),
+        jitter_secs: Some(args.jitter),
+        missed_frames: Some(args.missed),
+        door_file: Some(if args.no_real_doors {
+            None
+        } else {
+            Some(door_file(args.real_doors.as_deref())?)
+        }),
+        doors: args.doors,
+        people: args.people,
+        objects: args.objects,
+        machines: args.machines,
+        surface_noise: args.noise,
+        partial_probability: args.partial,
     };
-    for (field, value) in [
-        (&mut spec.doors, args.doors),
-        (&mut spec.people, args.people),
-        (&mut spec.objects, args.objects),
-        (&mut spec.machines, args.machines),
-    ] {
-        if let Some(v) = value {
-            *field = v;
-        }
-    }
-    if let Some(v) = args.noise {
-        spec.surface_noise = v;
-    }
-    if let Some(v) = args.partial {
-        spec.partial_probability = v;
-    }
-    spec.validate()?;
-    Ok(spec)
+    Ok(overrides.apply(scenario)?)
 }
 
 /// Writes the series and prints what was placed and written.

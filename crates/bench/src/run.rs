@@ -17,7 +17,7 @@ use froctomap_convert::{
 };
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
-use froctomap_formats::{Backend, FormatRegistry, ReadOptions};
+use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
 use froctomap_synth::{DoorDriver, ElementKind, Generator, SeriesSpec};
 use froctomap_temporal::{ModelConfig, Order, OutlierMode};
 use rayon::prelude::*;
@@ -109,11 +109,11 @@ pub struct BuildChildArgs {
 
 /// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
 pub fn build_child(args: &BuildChildArgs) -> Result<()> {
-    let registry = FormatRegistry::with_default_formats();
+    let context = froctomap_convert::Context::with_default_plugins();
     let inputs = collect_inputs(
+        &context,
         std::slice::from_ref(&args.input),
         TimeSource::Auto,
-        &registry,
     )?;
     let config = ModelConfig::default()
         .with_order(match args.order {
@@ -138,7 +138,7 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
         ..BuildOptions::default()
     };
     let started = Instant::now();
-    let report = build(&inputs, &args.output, &options, &Silent)?;
+    let report = build(&context, &inputs, &args.output, &options, &Silent)?;
     let seconds = started.elapsed().as_secs_f64();
     let value = serde_json::json!({
         "report": report,
@@ -250,7 +250,14 @@ fn method(report: &EvalReport, name: &str) -> (Errors, Errors) {
 fn evaluate_file(path: &Path, truths: &[SeriesInput]) -> Result<EvalReport> {
     let reader = FroctReader::open(path)?;
     let map = LoadedMap::load(&reader)?;
-    Ok(evaluate(&map, truths, ReadOptions::default(), &Silent)?)
+    let context = froctomap_convert::Context::with_default_plugins();
+    Ok(evaluate(
+        &context,
+        &map,
+        truths,
+        ReadOptions::default(),
+        &Silent,
+    )?)
 }
 
 /// The cell holding `voxel` in a file.
@@ -578,7 +585,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
 
     // Sizes.
     let lossless_reader = FroctReader::open(&lossless)?;
-    let info = describe(&lossless_reader, false)?;
+    let context = froctomap_convert::Context::with_default_plugins();
+    let info = describe(&context, &lossless_reader, false)?;
     let raw_state_bytes = info.voxels.total() as f64 * f64::from(info.time.samples) / 8.0;
     let vs_states = |bytes: u64| crate::report::ratio(raw_state_bytes, bytes as f64);
     let mut storage = vec![
@@ -633,7 +641,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         .axis
         .index_of(mid.time)
         .context("the middle snapshot is not on the file's axis")?;
-    let registry = FormatRegistry::with_default_formats();
+    let registry = context.formats();
     let cpp_read_one_seconds = timed(args.repeats, || {
         let bytes = std::fs::read(&mid.path)?;
         std::hint::black_box(froctomap_octomap_ffi::OcTree::read_binary(&bytes)?);
@@ -648,7 +656,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let retrieved = scratch.join("retrieved.bt");
     let retrieve_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
-        write_observed_map(&reader, sample, &retrieved, None, None)?;
+        write_observed_map(
+            &context,
+            &reader,
+            sample,
+            &retrieved,
+            WriteOptions::default(),
+        )?;
         Ok(())
     })?;
     // The retrieved map must be the input snapshot (lossless).
@@ -663,7 +677,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let predicted = scratch.join("predicted.bt");
     let predict_seconds = timed(args.repeats, || {
         let reader = FroctReader::open(&lossless)?;
-        write_predicted_map(&reader, future, &predicted, None, None)?;
+        write_predicted_map(
+            &context,
+            &reader,
+            future,
+            &predicted,
+            WriteOptions::default(),
+        )?;
         Ok(())
     })?;
     let cli = system::find_cli(args.cli.as_deref());

@@ -1,36 +1,13 @@
 //! The subcommands: thin layers over the library crates.
 
+use crate::ui::Ui;
 use anyhow::Result;
 use clap::Args;
-use froctomap_convert::group_thousands;
+use froctomap_convert::{group_thousands, FROCT};
 use froctomap_core::{BoundingBox, Snapshot};
-use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
+use froctomap_formats::{Identified, ReadOptions, WriteOptions};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-
-/// Settings shared by all commands.
-pub struct Ui {
-    /// Suppress warnings and summaries.
-    pub quiet: bool,
-    /// Preferred implementation of formats that have several (`--backend`).
-    pub backend: Backend,
-}
-
-impl Ui {
-    pub(crate) fn warn(&self, path: &Path, warnings: &[String]) {
-        if !self.quiet {
-            for warning in warnings {
-                eprintln!("warning: {}: {warning}", path.display());
-            }
-        }
-    }
-
-    pub(crate) fn note(&self, message: &str) {
-        if !self.quiet {
-            eprintln!("{message}");
-        }
-    }
-}
 
 #[derive(Args)]
 pub struct InfoArgs {
@@ -83,10 +60,14 @@ impl From<BoundingBox> for Bounds {
 }
 
 pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
-    if args.input_format.is_none() && crate::series::is_froct(&args.file) {
-        return crate::series::froct_info(&args.file, args.json, args.count);
+    let registry = ui.context.formats();
+    if args.input_format.is_none() {
+        if let Some(Identified::Series(format)) = registry.identify_file(&args.file)? {
+            if format.name == FROCT.name {
+                return crate::froct_info::froct_info(ui, &args.file, args.json, args.count);
+            }
+        }
     }
-    let registry = FormatRegistry::with_default_formats();
     let read = registry.read_file(
         &args.file,
         ReadOptions {
@@ -173,7 +154,7 @@ pub struct ConvertArgs {
 }
 
 pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
-    let registry = FormatRegistry::with_default_formats();
+    let registry = ui.context.formats();
     // Resolve the output format first so a bad output name fails before any work.
     registry.output_format(
         &args.output,
@@ -217,8 +198,8 @@ fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapsho
     )
 }
 
-pub fn formats() -> Result<()> {
-    let registry = FormatRegistry::with_default_formats();
+pub fn formats(ui: &Ui) -> Result<()> {
+    let registry = ui.context.formats();
     println!(
         "{:<6} {:<8} {:<12} {:<6} description",
         "name", "backend", "extensions", "modes"
@@ -237,6 +218,17 @@ pub fn formats() -> Result<()> {
             format.backend.name(),
             extensions.join(","),
             modes,
+            format.description
+        );
+    }
+    for format in registry.series_formats() {
+        let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
+        println!(
+            "{:<6} {:<8} {:<12} {:<6} {}",
+            format.name,
+            "-",
+            extensions.join(","),
+            "series",
             format.description
         );
     }

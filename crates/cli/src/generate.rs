@@ -1,14 +1,14 @@
 //! `froctomap generate`: a realistic, deterministic series of OctoMap snapshots from a real
 //! base map (the sample data of the demo, the tests and the benchmarks).
 
-use crate::commands::Ui;
 use crate::progress::Bars;
-use anyhow::{Context, Result};
+use crate::ui::Ui;
+use anyhow::Result;
 use clap::Args;
 use froctomap_convert::group_thousands;
 use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
-use froctomap_formats::{FormatRegistry, ReadOptions};
-use froctomap_synth::{frames_for, write_series, Generator, SeriesSpec, WriteSeriesOptions};
+use froctomap_formats::ReadOptions;
+use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -60,37 +60,30 @@ pub struct GenerateArgs {
 }
 
 fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
-    let mut spec = match &args.spec {
-        Some(path) => serde_json::from_str(
-            &std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?,
-        )
-        .with_context(|| format!("{}: not a scenario", path.display()))?,
+    let scenario = match &args.spec {
+        Some(path) => SeriesSpec::from_json_file(path)?,
         None => SeriesSpec::default(),
     };
-    spec.step_secs = parse_duration(&args.step)? as f64 / 1e9;
-    spec.count = frames_for(args.days, spec.step_secs);
-    if let Some(start) = &args.start {
-        spec.start = parse_time(start)?;
-    }
-    spec.seed = args.seed;
-    spec.jitter_secs = args.jitter;
-    spec.missed_frames = args.missed;
-    if args.real_doors.is_some() {
-        spec.door_file.clone_from(&args.real_doors);
-    }
-    if let Some(noise) = args.noise {
-        spec.surface_noise = noise;
-    }
-    if let Some(partial) = args.partial {
-        spec.partial_probability = partial;
-    }
-    spec.validate()?;
-    Ok(spec)
+    let overrides = SpecOverrides {
+        step_secs: Some(parse_duration(&args.step)? as f64 / 1e9),
+        days: Some(args.days),
+        start: args.start.as_deref().map(parse_time).transpose()?,
+        seed: Some(args.seed),
+        jitter_secs: Some(args.jitter),
+        missed_frames: Some(args.missed),
+        door_file: args.real_doors.clone().map(Some),
+        surface_noise: args.noise,
+        partial_probability: args.partial,
+        ..SpecOverrides::default()
+    };
+    Ok(overrides.apply(scenario)?)
 }
 
 pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     let spec = spec(args)?;
-    let base = FormatRegistry::with_default_formats()
+    let base = ui
+        .context
+        .formats()
         .read_file(
             &args.base,
             ReadOptions {

@@ -1,9 +1,13 @@
 //! `froctomap`: the command-line front end of the froctomap libraries.
 
 mod commands;
+mod errors;
+mod froct_info;
 mod generate;
+mod plugins;
 mod progress;
 mod series;
+mod ui;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use froctomap_formats::Backend;
@@ -118,14 +122,16 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let ui = commands::Ui {
+    let ui = ui::Ui {
         quiet: cli.quiet,
         backend: cli.backend.into(),
+        context: plugins::context(),
     };
+    let skips_bad_files = matches!(cli.command, Command::Build(_));
     let result = match cli.command {
         Command::Info(args) => commands::info(&ui, &args),
         Command::Convert(args) => commands::convert(&ui, &args),
-        Command::Formats => commands::formats(),
+        Command::Formats => commands::formats(&ui),
         Command::Build(args) => series::build_command(&ui, &args),
         Command::Retrieve(args) => series::retrieve_command(&ui, &args),
         Command::Predict(args) => series::predict_command(&ui, &args),
@@ -137,6 +143,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("error: {error:#}");
+            if let Some(hint) = errors::hint(&error, skips_bad_files) {
+                eprintln!("hint: {hint}");
+            }
             ExitCode::FAILURE
         }
     }

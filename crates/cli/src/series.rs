@@ -1,21 +1,23 @@
 //! The spatio-temporal commands: build, retrieve, predict, export, eval, and `info` for
 //! FROctomap files. Each is a thin layer over `froctomap-convert`.
 
-use crate::commands::Ui;
+use crate::froct_info::class_counts;
+use crate::plugins::writable_format;
 use crate::progress::{peak_memory_bytes, Bars};
+use crate::ui::Ui;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, collect_inputs, describe, evaluate, export, format_iso, parse_duration, parse_time,
-    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, ClassCounts,
-    EvalReport, ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, collect_inputs, evaluate, export, format_iso, parse_duration, parse_time,
+    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
-use froctomap_file::{Codec, FroctReader, ToggleLayout};
-use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_file::{Codec, ToggleLayout};
+use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
 use serde_json::{Map, Value};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// How the inputs of a series get their times (shared by `build` and `eval`).
@@ -163,27 +165,13 @@ fn model_config(args: &BuildArgs) -> Result<ModelConfig> {
     Ok(config)
 }
 
-/// `N (a static free, b static occupied, c dynamic, d sometimes unknown)`.
-fn class_counts(c: &ClassCounts) -> String {
-    let n = group_thousands;
-    format!(
-        "{} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
-        n(c.total()),
-        n(c.static_free),
-        n(c.static_occupied),
-        n(c.dynamic),
-        n(c.unknown_sometimes)
-    )
-}
-
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    let registry = FormatRegistry::with_default_formats();
-    let inputs = collect_inputs(&args.inputs, args.times.source()?, &registry)?;
+    let inputs = collect_inputs(ui.context, &args.inputs, args.times.source()?)?;
     let mut metadata = Map::new();
     let mut tags = Map::new();
     for tag in &args.tag {
@@ -228,7 +216,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             .map_or_else(String::new, |i| format_iso(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = build(&inputs, &args.output, &options, &bars)?;
+    let report = build(ui.context, &inputs, &args.output, &options, &bars)?;
     drop(bars);
     let peak = peak_memory_bytes();
     if args.json {
@@ -309,23 +297,6 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     Ok(())
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum MapFormatArg {
-    /// OctoMap binary: states only.
-    Bt,
-    /// OctoMap full: log-odds per node.
-    Ot,
-}
-
-impl MapFormatArg {
-    fn name(self) -> &'static str {
-        match self {
-            MapFormatArg::Bt => "bt",
-            MapFormatArg::Ot => "ot",
-        }
-    }
-}
-
 #[derive(Args)]
 pub struct RetrieveArgs {
     /// The FROctomap file.
@@ -334,16 +305,33 @@ pub struct RetrieveArgs {
     /// (`index:42`). Between snapshots, the last earlier one is used.
     #[arg(long, value_name = "TIME")]
     time: String,
-    /// The map to write (.bt or .ot).
+    #[command(flatten)]
+    output: MapOutput,
+}
+
+/// Where a map goes and in which format (shared by `retrieve` and `predict`).
+#[derive(Args)]
+pub struct MapOutput {
+    /// The map to write; its extension names the format unless --format does (.bt: the
+    /// states; .ot: log-odds, for `predict` those of p(t)).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Output format instead of the one the extension names.
-    #[arg(long, value_enum)]
-    format: Option<MapFormatArg>,
+    /// Output format instead of the one the extension names (see `froctomap formats`).
+    #[arg(long, value_parser = writable_format())]
+    format: Option<String>,
+}
+
+impl MapOutput {
+    fn options(&self, ui: &Ui) -> WriteOptions<'_> {
+        WriteOptions {
+            format: self.format.as_deref(),
+            backend: Some(ui.backend),
+        }
+    }
 }
 
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let query: TimeQuery = args.time.parse()?;
     let when = resolve_observed(&reader, query)?;
     if !when.exact {
@@ -353,16 +341,17 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
             format_iso(when.time)
         ));
     }
+    let output = &args.output.output;
     let written = write_observed_map(
+        ui.context,
         &reader,
         when.sample,
-        &args.output,
-        args.format.map(MapFormatArg::name),
-        Some(ui.backend),
+        output,
+        args.output.options(ui),
     )?;
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
-        args.output.display(),
+        output.display(),
         written.format.name,
         format_iso(when.time),
         when.sample,
@@ -378,16 +367,12 @@ pub struct PredictArgs {
     /// When: Unix seconds or ISO 8601, past or future.
     #[arg(long, value_name = "TIME")]
     time: String,
-    /// The map to write: .ot carries p(t) as log-odds, .bt the thresholded states.
-    #[arg(short, long, value_name = "FILE")]
-    output: PathBuf,
-    /// Output format instead of the one the extension names.
-    #[arg(long, value_enum)]
-    format: Option<MapFormatArg>,
+    #[command(flatten)]
+    output: MapOutput,
 }
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let t = match args.time.parse::<TimeQuery>()? {
         TimeQuery::Instant(t) => t,
         TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
@@ -398,13 +383,8 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
             )
         })?,
     };
-    let written = write_predicted_map(
-        &reader,
-        t,
-        &args.output,
-        args.format.map(MapFormatArg::name),
-        Some(ui.backend),
-    )?;
+    let output = &args.output.output;
+    let written = write_predicted_map(ui.context, &reader, t, output, args.output.options(ui))?;
     let axis = &reader.header().axis;
     let relation = if t > axis.end() {
         format!(
@@ -421,7 +401,7 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     };
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
-        args.output.display(),
+        output.display(),
         written.format.name,
         format_iso(t),
         group_thousands(written.leaves as u64)
@@ -456,16 +436,16 @@ pub struct ExportArgs {
     /// Predicted or retrieved maps.
     #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
     mode: ExportModeArg,
-    /// Map format.
-    #[arg(long, value_enum, default_value_t = MapFormatArg::Bt)]
-    format: MapFormatArg,
+    /// Map format (see `froctomap formats`).
+    #[arg(long, value_parser = writable_format(), default_value = "bt")]
+    format: String,
     /// File name prefix.
     #[arg(long, default_value = "map")]
     prefix: String,
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
+    let reader = ui.context.open_froct(&args.file)?;
     let options = ExportOptions {
         from: parse_time(&args.from)?,
         to: parse_time(&args.to)?,
@@ -474,12 +454,12 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
             ExportModeArg::Predict => ExportMode::Predict,
             ExportModeArg::Retrieve => ExportMode::Retrieve,
         },
-        format: args.format.name().to_string(),
+        format: args.format.clone(),
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
     };
     let bars = Bars::new(ui.quiet);
-    let report = export(&reader, &args.output, &options, &bars)?;
+    let report = export(ui.context, &reader, &args.output, &options, &bars)?;
     drop(bars);
     ui.note(&format!(
         "wrote {} maps ({} bytes) and {}",
@@ -505,12 +485,12 @@ pub struct EvalArgs {
 }
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
-    let reader = FroctReader::open(&args.file)?;
-    let registry = FormatRegistry::with_default_formats();
-    let truths: Vec<SeriesInput> = collect_inputs(&args.against, args.times.source()?, &registry)?;
+    let reader = ui.context.open_froct(&args.file)?;
+    let truths: Vec<SeriesInput> = collect_inputs(ui.context, &args.against, args.times.source()?)?;
     let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
+        ui.context,
         &map,
         &truths,
         ReadOptions {
@@ -569,94 +549,4 @@ fn print_eval(report: &EvalReport) {
             group_thousands(report.unmodelled_voxels)
         );
     }
-}
-
-/// `true` when the file starts with the FROctomap magic.
-pub fn is_froct(path: &Path) -> bool {
-    use std::io::Read;
-    let mut magic = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
-        && magic == froctomap_file::MAGIC
-}
-
-pub fn froct_info(path: &Path, json: bool, count: bool) -> Result<()> {
-    let reader = FroctReader::open(path)?;
-    let info = describe(&reader, count)?;
-    if json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
-        return Ok(());
-    }
-    let n = group_thousands;
-    println!(
-        "file:            {} ({} bytes, FROctomap {})",
-        info.file.display(),
-        n(info.size.file),
-        info.version
-    );
-    println!(
-        "resolution:      {} m, tiles of depth {} ({} tiles), {}",
-        info.resolution_m,
-        info.tile_depth,
-        info.tiles,
-        info.toggle_block.map_or_else(
-            || "toggle lists whole".to_string(),
-            |samples| format!("toggle lists in blocks of {samples} samples")
-        )
-    );
-    let t = &info.time;
-    println!(
-        "time:            {} .. {} ({:.1} days), {} samples{}{}",
-        t.start,
-        t.end,
-        t.span_seconds / 86_400.0,
-        n(u64::from(t.samples)),
-        t.step_seconds
-            .map_or_else(|| ", irregular".to_string(), |s| format!(" every {s} s")),
-        if t.missing > 0 {
-            format!(", {} missing", t.missing)
-        } else {
-            String::new()
-        }
-    );
-    println!("model:           {} ({})", info.model, info.outliers);
-    println!("cells:           {}", class_counts(&info.cells));
-    println!("voxels:          {}", class_counts(&info.voxels));
-    println!(
-        "size:            header {} + tiles {} + index {} bytes",
-        n(info.size.header),
-        n(info.size.tiles),
-        n(info.size.index)
-    );
-    if let Value::Object(streams) = &info.size.raw_streams {
-        let parts: Vec<String> = streams
-            .iter()
-            .map(|(k, v)| format!("{k} {}", n(v.as_u64().unwrap_or(0))))
-            .collect();
-        println!("raw streams:     {}", parts.join(", "));
-    }
-    if let (Some(files), Some(bytes), Some(ratio)) =
-        (info.input_files, info.input_bytes, info.ratio_vs_inputs)
-    {
-        println!(
-            "compression:     {ratio:.1}x vs the {} input files ({} bytes)",
-            n(files),
-            n(bytes)
-        );
-    }
-    println!(
-        "vs raw states:   {:.1}x (1 bit per voxel per sample)",
-        info.ratio_vs_raw_states
-    );
-    if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
-        println!(
-            "created:         {} by {creator}",
-            info.metadata
-                .get("created")
-                .and_then(Value::as_str)
-                .unwrap_or("?")
-        );
-    }
-    Ok(())
 }

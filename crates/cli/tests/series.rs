@@ -300,6 +300,45 @@ fn errors_are_clear() {
         s(&dir.path().join("x.bt")),
     ]);
     assert!(e.contains("not a FROctomap file"), "{e}");
+    // Output formats are the registry's writable ones, listed when another is given.
+    let out = froctomap(&[
+        "retrieve",
+        s(&map),
+        "--time",
+        "index:0",
+        "--format",
+        "png",
+        "-o",
+        s(&dir.path().join("x.png")),
+    ]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("png"), "{e}");
+    assert!(e.contains("[possible values: bt, ot]"), "{e}");
+    // Too many maps: the limit, and the option that gets past it.
+    let e = err(&[
+        "export",
+        s(&map),
+        "--from",
+        "2016-01-04",
+        "--to",
+        "2016-02-04",
+        "--every",
+        "1",
+        "-o",
+        s(&dir.path().join("many")),
+    ]);
+    assert!(
+        e.contains("more than the limit") && e.contains("--every"),
+        "{e}"
+    );
+    // A broken input names the file; the CLI adds the option that leaves it out.
+    let bytes = std::fs::read(&files[1]).unwrap();
+    std::fs::write(&files[1], &bytes[..bytes.len() / 2]).unwrap();
+    let e = err(&["build", s(dir.path()), "-o", s(&dir.path().join("b.froct"))]);
+    assert!(
+        e.contains(s(&files[1])) && e.contains("hint: use --skip-bad"),
+        "{e}"
+    );
     // A damaged FROctomap file.
     let mut bytes = std::fs::read(&map).unwrap();
     let n = bytes.len();

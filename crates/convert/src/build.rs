@@ -1,21 +1,20 @@
 //! `build`: a series of maps → one FROctomap file, streaming, with bounded memory.
 
-use crate::error::ConvertError;
+use crate::context::Context;
+use crate::error::{ConvertError, SnapshotError};
 use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
-use crate::snapshot_changes::{Accepted, ChangeReader};
+use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use crate::time::format_iso;
 use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
     TileLayout, ToggleLayout, WrittenFile,
 };
-use froctomap_formats::{Backend, FormatRegistry, ReadOptions};
+use froctomap_formats::{Backend, ReadOptions, PROBE_BYTES};
 use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
-use froctomap_temporal::{
-    ModelConfig, ModelRegistry, OutlierMode, PreparedModel, TimeAxis, VoxelObservations,
-};
+use froctomap_temporal::{ModelConfig, OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::{json, Map, Value};
@@ -148,11 +147,8 @@ pub struct BuildReport {
 /// The time axis of sorted, distinct instants: a regular grid (with missing samples) when
 /// the instants lie on one with at most as many gaps as snapshots, else an explicit list.
 pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
-    let first = *times
-        .first()
-        .ok_or_else(|| ConvertError::Inputs("no input files".into()))?;
-    let invalid =
-        |e: froctomap_temporal::TemporalError| ConvertError::Inputs(format!("time axis: {e}"));
+    let first = *times.first().ok_or(ConvertError::NoInputs)?;
+    let invalid = ConvertError::TimeAxis;
     if times.len() == 1 {
         return TimeAxis::regular(first, 1_000_000_000, 1, Vec::new()).map_err(invalid);
     }
@@ -175,6 +171,15 @@ pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
     TimeAxis::explicit(times.to_vec()).map_err(invalid)
 }
 
+/// An input file's bytes, refused above `limit` bytes before reading them.
+pub(crate) fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, SnapshotError> {
+    let bytes = std::fs::metadata(path).map_err(SnapshotError::Io)?.len();
+    if bytes > limit {
+        return Err(SnapshotError::TooLarge { bytes, limit });
+    }
+    std::fs::read(path).map_err(SnapshotError::Io)
+}
+
 fn gcd(a: i64, b: i64) -> i64 {
     if b == 0 {
         a.abs()
@@ -184,14 +189,14 @@ fn gcd(a: i64, b: i64) -> i64 {
 }
 
 /// A file's resolution from its first bytes, when its format is OctoMap's.
-fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
+fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
     use std::io::Read;
-    let mut head = Vec::with_capacity(4096);
+    let mut head = Vec::with_capacity(PROBE_BYTES as usize);
     std::fs::File::open(path)
-        .and_then(|f| f.take(4096).read_to_end(&mut head))
-        .map_err(|e| format!("cannot read: {e}"))?;
+        .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
+        .map_err(SnapshotError::Io)?;
     if head.is_empty() {
-        return Err("the file is empty".into());
+        return Err(SnapshotError::Empty);
     }
     let kind = detect_kind(&head).unwrap_or(FileKind::Binary);
     match parse_header(&head, kind) {
@@ -207,25 +212,29 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, String> {
 /// bytes where the format allows, see `FormatRegistry::diff_bytes`; else by decoding) and
 /// accumulates the changes in time order (memory grows with the cells and their changes,
 /// not with the number of snapshots), then fits a model per dynamic cell and writes the file
-/// tile by tile, atomically.
+/// tile by tile, atomically. Input formats and the model are looked up in `context`.
+///
+/// Inputs are map files with their times ([`collect_inputs`](crate::collect_inputs)); other
+/// kinds of sources of timed snapshots (recordings such as ROS bags) are to be expanded into
+/// such a series before they reach `build`, which then needs no case of its own for them.
 pub fn build(
+    context: &Context,
     inputs: &[SeriesInput],
     output: &Path,
     options: &BuildOptions,
     progress: &dyn Progress,
 ) -> Result<BuildReport, ConvertError> {
     let started = Instant::now();
-    let registry = FormatRegistry::with_default_formats();
-    let models = ModelRegistry::with_default_models();
+    let registry = context.formats();
+    let models = context.models();
     let model = models
         .by_name(&options.model)
         .ok_or_else(|| {
             let known: Vec<&str> = models.iter().map(|d| d.name).collect();
-            ConvertError::Inputs(format!(
-                "unknown model `{}` (known: {})",
-                options.model,
-                known.join(", ")
-            ))
+            ConvertError::UnknownModel {
+                name: options.model.clone(),
+                known: known.join(", "),
+            }
         })?
         .create();
     let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
@@ -235,7 +244,7 @@ pub fn build(
 
     // Pass 1: headers only, to fail fast on unreadable files and mixed resolutions.
     progress.stage("checking inputs", inputs.len() as u64);
-    let resolutions: Vec<Result<Option<f64>, String>> = inputs
+    let resolutions: Vec<Result<Option<f64>, SnapshotError>> = inputs
         .par_iter()
         .map(|input| {
             let r = header_resolution(&input.path);
@@ -249,14 +258,14 @@ pub fn build(
     for (i, r) in resolutions.into_iter().enumerate() {
         match r {
             Err(reason) if options.skip_bad => {
-                skipped.push((inputs[i].path.clone(), reason));
+                skipped.push((inputs[i].path.clone(), reason.to_string()));
                 usable[i] = false;
             }
             Err(reason) => {
-                return Err(ConvertError::Inputs(format!(
-                    "{}: {reason} (use --skip-bad to leave it out)",
-                    inputs[i].path.display()
-                )))
+                return Err(ConvertError::Snapshot {
+                    path: inputs[i].path.clone(),
+                    source: Arc::new(reason),
+                })
             }
             Ok(Some(res)) => match series_resolution {
                 None => series_resolution = Some((res, i)),
@@ -310,11 +319,10 @@ pub fn build(
                     let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
                         .filter(|&i| usable[i])
                         .collect();
-                    let raw: Vec<Result<Vec<u8>, String>> = chunk
+                    let limit = context.limits().max_map_file_bytes;
+                    let raw: Vec<Result<Vec<u8>, Refusal>> = chunk
                         .par_iter()
-                        .map(|&i| {
-                            std::fs::read(&inputs[i].path).map_err(|e| format!("cannot read: {e}"))
-                        })
+                        .map(|&i| read_input(&inputs[i].path, limit).map_err(Arc::new))
                         .collect();
                     // When the series' resolution is not known from the headers, the first file sets it.
                     if resolution.is_none() {
@@ -327,7 +335,7 @@ pub fn build(
                         }
                     }
                     let reader = ChangeReader {
-                        registry: &registry,
+                        registry,
                         options: read_options,
                         resolution,
                     };
@@ -337,12 +345,9 @@ pub fn build(
                     let mut accepted = Vec::with_capacity(outcomes.len());
                     for (k, outcome) in outcomes.into_iter().enumerate() {
                         let input = &inputs[chunk[k]];
-                        let sample = axis.index_of(input.time).ok_or_else(|| {
-                            ConvertError::Inputs(format!(
-                                "{}: time not on the axis",
-                                input.path.display()
-                            ))
-                        })?;
+                        let sample = axis
+                            .index_of(input.time)
+                            .ok_or_else(|| ConvertError::internal("a time not on the axis"))?;
                         match outcome {
                             Ok(read) => {
                                 warnings.extend(
@@ -353,27 +358,25 @@ pub fn build(
                                 accepted.push((sample, read.changes));
                             }
                             Err(reason) if options.skip_bad => {
-                                skipped.push((input.path.clone(), reason));
+                                skipped.push((input.path.clone(), reason.to_string()));
                                 absent.push(sample);
                                 progress.advance(1);
                             }
-                            Err(reason) if reason.starts_with("resolution") => {
-                                return Err(ConvertError::Inputs(format!(
-                                    "{}: {reason} (first file {}); use --skip-bad to leave it out",
-                                    input.path.display(),
-                                    first_path.as_deref().unwrap_or(Path::new("?")).display()
-                                )));
-                            }
                             Err(reason) => {
-                                let message =
-                                    if reason.starts_with(&input.path.display().to_string()) {
-                                        reason
-                                    } else {
-                                        format!("{}: {reason}", input.path.display())
-                                    };
-                                return Err(ConvertError::Inputs(format!(
-                                    "{message} (use --skip-bad to leave it out)"
-                                )));
+                                return Err(match (reason.resolution_mismatch(), &first_path) {
+                                    (Some((series, found)), Some(first)) => {
+                                        ConvertError::MixedResolution {
+                                            first: first.clone(),
+                                            first_resolution: series,
+                                            second: input.path.clone(),
+                                            second_resolution: found,
+                                        }
+                                    }
+                                    _ => ConvertError::Snapshot {
+                                        path: input.path.clone(),
+                                        source: reason,
+                                    },
+                                });
                             }
                         }
                     }
@@ -416,9 +419,9 @@ pub fn build(
             let mut busy = 0.0f64;
             for (sender, worker) in workers {
                 drop(sender);
-                let (history, seconds) = worker.join().map_err(|_| {
-                    ConvertError::Inputs("internal error: an accumulating thread panicked".into())
-                })??;
+                let (history, seconds) = worker
+                    .join()
+                    .map_err(|_| ConvertError::internal("an accumulating thread panicked"))??;
                 histories.push(history);
                 busy = busy.max(seconds);
             }
@@ -434,8 +437,8 @@ pub fn build(
     }
     absent.sort_unstable();
     absent.dedup();
-    let resolution = resolution.ok_or_else(|| {
-        ConvertError::NothingToBuild(format!("all {} inputs were left out", inputs.len()))
+    let resolution = resolution.ok_or(ConvertError::NothingToBuild {
+        inputs: inputs.len(),
     })?;
     let read_seconds = started.elapsed().as_secs_f64();
     let changed_voxels = histories.iter().map(SeriesHistory::changed_voxels).sum();
@@ -445,7 +448,7 @@ pub fn build(
     let (axis, prepared) = match axis.step_ns() {
         Some(step) if absent.len() > axis.missing().len() => {
             let regular = TimeAxis::regular(axis.start(), step, axis.len(), absent.clone())
-                .map_err(|e| ConvertError::NothingToBuild(format!("time axis: {e}")))?;
+                .map_err(ConvertError::TimeAxis)?;
             let prepared = model.prepare(&regular, &options.config)?;
             (regular, prepared)
         }
@@ -746,8 +749,10 @@ fn encode_cells(
             content,
         });
     }
-    let tile = encode_tile(layout, &out, model)
-        .map_err(|e| ConvertError::Inputs(format!("internal: {e}")))?;
+    let tile = encode_tile(layout, &out, model).map_err(|e| ConvertError::Internal {
+        what: "a tile could not be encoded",
+        source: Some(e.into()),
+    })?;
     Ok((tile, stats))
 }
 

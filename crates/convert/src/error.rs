@@ -1,16 +1,96 @@
-//! Errors of the converters.
+//! Errors of the converters: one variant per kind of failure, so that callers route by
+//! variant (a front end adds its own hints, e.g. the option that skips bad files) and never
+//! by message text.
 
-use crate::time::format_iso;
+use crate::time::{format_iso, TimeError};
 use froctomap_core::Timestamp;
 use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A cause kept as its typed value behind a trait object (a fault of a lower layer whose
+/// type is that layer's business).
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// Why a conversion failed. Messages name the files involved.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConvertError {
-    /// The command-line inputs do not describe a series.
-    #[error("{0}")]
-    Inputs(String),
+    /// No input files were given, or none was found.
+    #[error("no input files")]
+    NoInputs,
+    /// An input that is neither a file, a directory nor a pattern that matches.
+    #[error("{}: no such file or directory", path.display())]
+    NotFound {
+        /// The input as given.
+        path: PathBuf,
+    },
+    /// A glob pattern that does not parse.
+    #[error("bad pattern {pattern:?}: {source}")]
+    BadPattern {
+        /// The pattern.
+        pattern: String,
+        /// What is wrong with it.
+        #[source]
+        source: glob::PatternError,
+    },
+    /// A glob pattern that matches no files.
+    #[error("the pattern {pattern:?} matches no files")]
+    NoMatch {
+        /// The pattern.
+        pattern: String,
+    },
+    /// A directory without a manifest or map files.
+    #[error("{}: no {manifest} or map files ({extensions}) in this directory", dir.display())]
+    NoMapFiles {
+        /// The directory.
+        dir: PathBuf,
+        /// The manifest name looked for.
+        manifest: &'static str,
+        /// The extensions of the registered formats, dotted.
+        extensions: String,
+    },
+    /// A directory or manifest that cannot be read.
+    #[error("{}: {source}", path.display())]
+    Unlistable {
+        /// The directory or manifest.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A manifest line that is not `path,time`.
+    #[error("{}:{line}: {problem}", manifest.display())]
+    ManifestLine {
+        /// The manifest.
+        manifest: PathBuf,
+        /// Line number, from 1.
+        line: usize,
+        /// What is wrong.
+        #[source]
+        problem: ManifestProblem,
+    },
+    /// A manifest without entries.
+    #[error("{}: the manifest lists no files", manifest.display())]
+    EmptyManifest {
+        /// The manifest.
+        manifest: PathBuf,
+    },
+    /// Files whose times are neither in a manifest nor in their names.
+    #[error("no time in the name of {} file(s): {}{}; give a manifest (path,time) or a start time and step", files.len(), shown(files), if files.len() > 5 { ", ..." } else { "" })]
+    NoTimes {
+        /// The files.
+        files: Vec<PathBuf>,
+    },
+    /// A time that cannot be used for a file (outside the supported range, or past what a
+    /// start and step can reach).
+    #[error("{}: {source}", path.display())]
+    InputTime {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with its time.
+        #[source]
+        source: TimeError,
+    },
     /// Two files claim the same time.
     #[error("{} and {} have the same time {}", first.display(), second.display(), format_iso(*time))]
     DuplicateTime {
@@ -22,7 +102,7 @@ pub enum ConvertError {
         time: Timestamp,
     },
     /// Snapshots of different resolutions.
-    #[error("{} has resolution {second_resolution} m but {} has {first_resolution} m; a series must have one resolution (use --skip-bad to leave such files out)", second.display(), first.display())]
+    #[error("{} has resolution {second_resolution} m but {} has {first_resolution} m; a series must have one resolution", second.display(), first.display())]
     MixedResolution {
         /// A file with the series' resolution.
         first: PathBuf,
@@ -33,8 +113,17 @@ pub enum ConvertError {
         /// That one.
         second_resolution: f64,
     },
-    /// A map file could not be read.
-    #[error("{0} (use --skip-bad to leave unreadable files out)")]
+    /// A snapshot of a series could not be used.
+    #[error("{}", snapshot_message(path, source))]
+    Snapshot {
+        /// The file.
+        path: PathBuf,
+        /// Why (shared: a file byte-identical to a refused one is refused for its reason).
+        #[source]
+        source: Arc<SnapshotError>,
+    },
+    /// A map file (e.g. a ground truth) could not be read.
+    #[error(transparent)]
     Read(froctomap_formats::FormatError),
     /// A map could not be written.
     #[error(transparent)]
@@ -42,16 +131,209 @@ pub enum ConvertError {
     /// A FROctomap file could not be read or written.
     #[error(transparent)]
     File(#[from] froctomap_file::FileError),
+    /// No registered temporal model has this name.
+    #[error("unknown model `{name}` (known: {known})")]
+    UnknownModel {
+        /// The name given.
+        name: String,
+        /// The registered names.
+        known: String,
+    },
     /// The temporal model refused its configuration or data.
     #[error("temporal model: {0}")]
     Model(#[from] froctomap_temporal::TemporalError),
-    /// A requested time cannot be served.
-    #[error("{0}")]
-    Time(String),
+    /// The snapshots' times make no time axis.
+    #[error("time axis: {0}")]
+    TimeAxis(#[source] froctomap_temporal::TemporalError),
+    /// A time given by the user could not be read.
+    #[error(transparent)]
+    BadTime(#[from] TimeError),
+    /// `index:` without a number.
+    #[error("{text:?}: `index:` needs a sample number")]
+    BadSampleIndex {
+        /// What was given.
+        text: String,
+    },
+    /// A sample index past the end of the file's time axis.
+    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", format_iso(*start), format_iso(*end))]
+    SampleBeyondAxis {
+        /// The sample asked for.
+        sample: u32,
+        /// Samples of the axis.
+        samples: u32,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
+    /// A sample of the axis at which no snapshot was stored.
+    #[error("sample {sample} ({}) has no snapshot", format_iso(*time))]
+    NoSnapshotAtSample {
+        /// The sample.
+        sample: u32,
+        /// Its time.
+        time: Timestamp,
+    },
+    /// An instant before the first snapshot, where nothing was observed.
+    #[error("{} is before the first snapshot; the file covers {} .. {}", format_iso(*time), format_iso(*start), format_iso(*end))]
+    BeforeFirstSnapshot {
+        /// The instant asked for.
+        time: Timestamp,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
+    /// An export range that ends before it starts.
+    #[error("the range ends at {} before it starts at {}", format_iso(*to), format_iso(*from))]
+    EmptyRange {
+        /// First instant.
+        from: Timestamp,
+        /// Last instant.
+        to: Timestamp,
+    },
+    /// An interval between exported maps that is not positive.
+    #[error("the interval between maps must be positive")]
+    NonPositiveInterval,
+    /// More maps requested than [`Limits::max_exports`](crate::Limits).
+    #[error("{count} maps requested, more than the limit of {limit}")]
+    TooManyMaps {
+        /// Maps the range and interval give.
+        count: i128,
+        /// The limit.
+        limit: u64,
+    },
+    /// Cells of a FROctomap file that do not make a map (overlapping, out of order): only a
+    /// damaged or foreign writer's file gets past the reader's checks this way.
+    #[error("{}: inconsistent cells: {source}", path.display())]
+    InconsistentCells {
+        /// The FROctomap file.
+        path: PathBuf,
+        /// What the map builder refused.
+        #[source]
+        source: Cause,
+    },
     /// Writing an output failed.
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),
     /// Every input was unreadable or skipped.
-    #[error("no readable snapshots: {0}")]
-    NothingToBuild(String),
+    #[error("no readable snapshots: all {inputs} inputs were left out")]
+    NothingToBuild {
+        /// Inputs given.
+        inputs: usize,
+    },
+    /// A fault of froctomap itself, not of the inputs (please report it).
+    #[error("internal error: {what}")]
+    Internal {
+        /// What went wrong.
+        what: &'static str,
+        /// The cause, where there is one.
+        #[source]
+        source: Option<Cause>,
+    },
+}
+
+impl ConvertError {
+    /// An internal fault without a cause.
+    pub(crate) fn internal(what: &'static str) -> Self {
+        Self::Internal { what, source: None }
+    }
+
+    /// `true` when leaving the files concerned out of a series would get past this error
+    /// (what a front end's "skip bad files" option does).
+    pub fn is_skippable(&self) -> bool {
+        matches!(
+            self,
+            Self::Snapshot { .. } | Self::MixedResolution { .. } | Self::Read(_)
+        )
+    }
+}
+
+/// Why one snapshot of a series was refused.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SnapshotError {
+    /// The file could not be read.
+    #[error("cannot read: {0}")]
+    Io(#[source] std::io::Error),
+    /// The file is empty.
+    #[error("the file is empty")]
+    Empty,
+    /// The file is larger than [`Limits::max_map_file_bytes`](crate::Limits).
+    #[error("{bytes} bytes, more than the limit of {limit} bytes for one map")]
+    TooLarge {
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// No format reads it, or its format refused it (the message names the file).
+    #[error(transparent)]
+    Format(froctomap_formats::FormatError),
+    /// Its format's reader accepts it but its byte-level comparison refused it.
+    #[error("read but not compared: {0}")]
+    NotCompared(#[source] froctomap_formats::FormatError),
+    /// Its resolution is not the series'.
+    #[error("resolution {found} m differs from the series' {series} m")]
+    Resolution {
+        /// The file's resolution.
+        found: f64,
+        /// The series' resolution.
+        series: f64,
+    },
+    /// Byte-identical to a file refused before it, and so refused for the same reason.
+    #[error("byte-identical to a file refused before it: {0}")]
+    SameAsRefused(#[source] Arc<SnapshotError>),
+    /// A fault of froctomap itself.
+    #[error("internal error: {0}")]
+    Internal(&'static str),
+}
+
+impl SnapshotError {
+    /// `true` when the message names the file already.
+    fn names_file(&self) -> bool {
+        match self {
+            Self::Format(_) => true,
+            // It names the earlier file, if any.
+            _ => false,
+        }
+    }
+
+    /// The series' and the file's resolutions, when that is why the file was refused.
+    pub fn resolution_mismatch(&self) -> Option<(f64, f64)> {
+        match self {
+            Self::Resolution { found, series } => Some((*series, *found)),
+            Self::SameAsRefused(earlier) => earlier.resolution_mismatch(),
+            _ => None,
+        }
+    }
+}
+
+fn snapshot_message(path: &std::path::Path, error: &SnapshotError) -> String {
+    if error.names_file() {
+        error.to_string()
+    } else {
+        format!("{}: {error}", path.display())
+    }
+}
+
+/// What is wrong with a manifest line.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ManifestProblem {
+    /// No comma.
+    #[error("expected `path,time`")]
+    NotPathTime,
+    /// The time does not parse.
+    #[error(transparent)]
+    Time(#[from] TimeError),
+}
+
+fn shown(files: &[PathBuf]) -> String {
+    let names: Vec<String> = files
+        .iter()
+        .take(5)
+        .map(|p| p.display().to_string())
+        .collect();
+    names.join(", ")
 }

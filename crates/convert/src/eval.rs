@@ -16,13 +16,14 @@
 //! * `static mean`: each voxel's mean occupancy over its observations, `> 0.5`.
 //! * `last seen`: each voxel's latest observed state strictly before the time.
 
+use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
 use crate::maps::LoadedMap;
 use crate::progress::Progress;
 use froctomap_core::{Occupancy, Snapshot, Timestamp};
 use froctomap_file::{Cell, CellContent};
-use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_formats::ReadOptions;
 use froctomap_temporal::{PreparedModel, TimeAxis};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -217,8 +218,10 @@ fn tally(
     out
 }
 
-/// Compares a file with ground-truth maps (any readable map files with their times).
+/// Compares a file with ground-truth maps (map files of any format of `context`, with their
+/// times).
 pub fn evaluate(
+    context: &Context,
     map: &LoadedMap<'_>,
     truths: &[SeriesInput],
     read: ReadOptions<'_>,
@@ -228,13 +231,18 @@ pub fn evaluate(
     let axis = &reader.header().axis;
     let resolution = reader.header().resolution;
     let cells: Vec<&Cell> = map.cells().collect();
-    let registry = FormatRegistry::with_default_formats();
+    let registry = context.formats();
     progress.stage("evaluating", truths.len() as u64);
     let tallies: Vec<(bool, Tally)> = truths
         .par_iter()
         .map(|truth| {
+            let bytes = crate::build::read_input(&truth.path, context.limits().max_map_file_bytes)
+                .map_err(|e| ConvertError::Snapshot {
+                    path: truth.path.clone(),
+                    source: std::sync::Arc::new(e),
+                })?;
             let read = registry
-                .read_file(&truth.path, read)
+                .read_bytes(&truth.path, &bytes, read)
                 .map_err(ConvertError::Read)?;
             let snapshot = read.map.snapshot;
             if snapshot.resolution() != resolution {

@@ -1,11 +1,12 @@
 //! `info` for FROctomap files: what a file holds and what it costs.
 
 use crate::build::ClassCounts;
+use crate::context::Context;
 use crate::error::ConvertError;
 use crate::time::format_iso;
 use froctomap_core::{voxels_per_node, Occupancy};
 use froctomap_file::{CellContent, FroctReader};
-use froctomap_temporal::{AxisKind, ModelRegistry};
+use froctomap_temporal::AxisKind;
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::{Map, Value};
@@ -98,7 +99,11 @@ fn counts_from_summary(summary: &Map<String, Value>, key: &str) -> Option<ClassC
 
 /// Describes a file from its header and index (and its tiles, when the index carries no
 /// summary, or when `count_cells` asks for an exact recount).
-pub fn describe(reader: &FroctReader, count_cells: bool) -> Result<FroctInfo, ConvertError> {
+pub fn describe(
+    context: &Context,
+    reader: &FroctReader,
+    count_cells: bool,
+) -> Result<FroctInfo, ConvertError> {
     let header = reader.header();
     let axis = &header.axis;
     let summary = reader.summary();
@@ -117,12 +122,10 @@ pub fn describe(reader: &FroctReader, count_cells: bool) -> Result<FroctInfo, Co
             .map_or(0, |t| t.offset + u64::from(t.stored_len));
     let input_bytes = header.metadata.get("input_bytes").and_then(Value::as_u64);
     let raw_bits = voxels.total() as f64 * f64::from(axis.len());
-    let model = ModelRegistry::with_default_models()
-        .by_id(header.model_id)
-        .map_or_else(
-            || format!("unknown model {}", header.model_id),
-            |d| d.name.to_string(),
-        );
+    let model = context.models().by_id(header.model_id).map_or_else(
+        || format!("unknown model {}", header.model_id),
+        |d| d.name.to_string(),
+    );
     Ok(FroctInfo {
         file: reader.path().to_path_buf(),
         version: format!("{}.{}", header.version.0, header.version.1),

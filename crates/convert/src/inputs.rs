@@ -1,9 +1,9 @@
 //! Which files make a series, and at what time each snapshot was taken.
 
-use crate::error::ConvertError;
-use crate::time::{check_range, parse_time, time_from_file_name};
+use crate::context::Context;
+use crate::error::{ConvertError, ManifestProblem};
+use crate::time::{check_range, parse_time, time_from_file_name, TimeError};
 use froctomap_core::{calendar, Timestamp};
-use froctomap_formats::FormatRegistry;
 use std::path::{Path, PathBuf};
 
 /// One snapshot file of a series.
@@ -49,12 +49,20 @@ struct Candidate {
 /// manifest CSV (`path,time` lines; paths relative to the manifest; times in Unix seconds or
 /// ISO 8601; a header line is optional) or a single file. Duplicate times are an error naming
 /// both files.
+///
+/// Directories are listed by the extensions of `context`'s map formats, so a format the
+/// caller registered is picked up too.
+///
+/// A later kind of *source* (a recording such as a ROS bag, holding many timed snapshots in
+/// one file) plugs in here: recognised by the registry's probe as a
+/// [`SeriesFormat`](froctomap_formats::SeriesFormat), expanded into its timed snapshots.
 pub fn collect_inputs(
+    context: &Context,
     inputs: &[PathBuf],
     times: TimeSource,
-    registry: &FormatRegistry,
 ) -> Result<Vec<SeriesInput>, ConvertError> {
-    let extensions: Vec<&str> = registry
+    let extensions: Vec<&str> = context
+        .formats()
         .formats()
         .iter()
         .flat_map(|f| f.extensions.iter().copied())
@@ -63,16 +71,18 @@ pub fn collect_inputs(
     for input in inputs {
         let text = input.to_string_lossy();
         if text.contains(['*', '?', '[']) && !input.exists() {
-            let paths = glob::glob(&text)
-                .map_err(|e| ConvertError::Inputs(format!("bad pattern {text:?}: {e}")))?;
+            let paths = glob::glob(&text).map_err(|source| ConvertError::BadPattern {
+                pattern: text.to_string(),
+                source,
+            })?;
             let mut matched: Vec<PathBuf> = paths
                 .filter_map(Result::ok)
                 .filter(|p| p.is_file())
                 .collect();
             if matched.is_empty() {
-                return Err(ConvertError::Inputs(format!(
-                    "the pattern {text:?} matches no files"
-                )));
+                return Err(ConvertError::NoMatch {
+                    pattern: text.to_string(),
+                });
             }
             matched.sort();
             candidates.extend(matched.into_iter().map(|path| Candidate {
@@ -86,12 +96,11 @@ pub fn collect_inputs(
             } else {
                 let mut files = list_map_files(input, &extensions)?;
                 if files.is_empty() {
-                    return Err(ConvertError::Inputs(format!(
-                        "{}: no {} or map files (.{}) in this directory",
-                        input.display(),
-                        MANIFEST_NAME,
-                        extensions.join(", .")
-                    )));
+                    return Err(ConvertError::NoMapFiles {
+                        dir: input.clone(),
+                        manifest: MANIFEST_NAME,
+                        extensions: format!(".{}", extensions.join(", .")),
+                    });
                 }
                 files.sort();
                 candidates.extend(files.into_iter().map(|path| Candidate {
@@ -110,14 +119,13 @@ pub fn collect_inputs(
                 manifest_time: None,
             });
         } else {
-            return Err(ConvertError::Inputs(format!(
-                "{}: no such file or directory",
-                input.display()
-            )));
+            return Err(ConvertError::NotFound {
+                path: input.clone(),
+            });
         }
     }
     if candidates.is_empty() {
-        return Err(ConvertError::Inputs("no input files".into()));
+        return Err(ConvertError::NoInputs);
     }
     let mut series = assign_times(candidates, times)?;
     series.sort_by(|a, b| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
@@ -144,11 +152,14 @@ fn assign_times(
                     .checked_mul(step_ns)
                     .and_then(|offset| start.0.checked_add(offset))
                     .map(Timestamp)
-                    .ok_or_else(|| {
-                        ConvertError::Inputs("--start/--step run past the year 2262".into())
+                    .ok_or_else(|| ConvertError::InputTime {
+                        path: c.path.clone(),
+                        source: TimeError {
+                            input: format!("start + {i} steps"),
+                            reason: "runs past the year 2262".into(),
+                        },
                     })?;
-                check_range(&c.path.to_string_lossy(), t)
-                    .map_err(|e| ConvertError::Inputs(e.to_string()))?;
+                check_range(&c.path.to_string_lossy(), t)?;
                 Ok(SeriesInput {
                     path: c.path,
                     time: t,
@@ -172,17 +183,7 @@ fn assign_times(
                 }
             }
             if !unnamed.is_empty() {
-                let shown: Vec<String> = unnamed
-                    .iter()
-                    .take(5)
-                    .map(|p| p.display().to_string())
-                    .collect();
-                return Err(ConvertError::Inputs(format!(
-                    "no time in the name of {} file(s): {}{}; give a manifest (path,time) or --start/--step",
-                    unnamed.len(),
-                    shown.join(", "),
-                    if unnamed.len() > 5 { ", ..." } else { "" }
-                )));
+                return Err(ConvertError::NoTimes { files: unnamed });
             }
             Ok(out)
         }
@@ -190,7 +191,10 @@ fn assign_times(
 }
 
 fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, ConvertError> {
-    let io = |e: std::io::Error| ConvertError::Inputs(format!("{}: {e}", dir.display()));
+    let io = |source| ConvertError::Unlistable {
+        path: dir.to_path_buf(),
+        source,
+    };
     let mut files = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {
         let path = entry.map_err(io)?.path();
@@ -207,8 +211,10 @@ fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, Conve
 
 /// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
 fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
-    let text = std::fs::read_to_string(manifest)
-        .map_err(|e| ConvertError::Inputs(format!("{}: {e}", manifest.display())))?;
+    let text = std::fs::read_to_string(manifest).map_err(|source| ConvertError::Unlistable {
+        path: manifest.to_path_buf(),
+        source,
+    })?;
     let base = manifest.parent().unwrap_or(Path::new("."));
     let mut out = Vec::new();
     for (number, line) in text.lines().enumerate() {
@@ -219,13 +225,15 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         {
             continue;
         }
-        let bad = |reason: String| {
-            ConvertError::Inputs(format!("{}:{}: {reason}", manifest.display(), number + 1))
+        let bad = |problem| ConvertError::ManifestLine {
+            manifest: manifest.to_path_buf(),
+            line: number + 1,
+            problem,
         };
         let (path, time) = line
             .rsplit_once(',')
-            .ok_or_else(|| bad("expected `path,time`".into()))?;
-        let time = parse_time(time).map_err(|e| bad(e.to_string()))?;
+            .ok_or_else(|| bad(ManifestProblem::NotPathTime))?;
+        let time = parse_time(time).map_err(|e| bad(e.into()))?;
         let path = PathBuf::from(path.trim().trim_matches('"'));
         let path = if path.is_absolute() {
             path
@@ -238,10 +246,9 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         });
     }
     if out.is_empty() {
-        return Err(ConvertError::Inputs(format!(
-            "{}: the manifest lists no files",
-            manifest.display()
-        )));
+        return Err(ConvertError::EmptyManifest {
+            manifest: manifest.to_path_buf(),
+        });
     }
     Ok(out)
 }

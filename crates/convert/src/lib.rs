@@ -11,24 +11,31 @@
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
 //!   last-seen baselines; [`describe`] summarises a file.
 //!
+//! Every entry point takes a [`Context`]: the registries of map formats and temporal models
+//! and the limits a program chose, built once (binaries and tests start from
+//! [`Context::with_default_plugins`]) and handed in, so that a format or model the program
+//! registers reaches every path. Progress is reported per call.
+//!
 //! ```no_run
 //! use froctomap_convert::*;
-//! use froctomap_formats::FormatRegistry;
+//! use froctomap_formats::WriteOptions;
 //! use std::path::{Path, PathBuf};
 //!
-//! let registry = FormatRegistry::with_default_formats();
-//! let series = collect_inputs(&[PathBuf::from("maps/")], TimeSource::Auto, &registry)?;
-//! let report = build(&series, Path::new("office.froct"), &BuildOptions::default(), &Silent)?;
+//! let context = Context::with_default_plugins();
+//! let series = collect_inputs(&context, &[PathBuf::from("maps/")], TimeSource::Auto)?;
+//! let report = build(&context, &series, Path::new("office.froct"), &BuildOptions::default(), &Silent)?;
 //! println!("{} snapshots → {} bytes", report.used, report.file_bytes);
 //!
 //! let reader = froctomap_file::FroctReader::open(Path::new("office.froct"))?;
 //! let when = resolve_observed(&reader, "2016-01-05T12:00:00Z".parse()?)?;
-//! write_map(&observed_map(&reader, when.sample)?, Path::new("noon.bt"), None, None)?;
-//! write_map(&predicted_map(&reader, parse_time("2016-02-01T12:00:00Z")?)?, Path::new("future.ot"), None, None)?;
+//! write_map(&context, &observed_map(&reader, when.sample)?, Path::new("noon.bt"), WriteOptions::default())?;
+//! let later = predicted_map(&reader, parse_time("2016-02-01T12:00:00Z")?)?;
+//! write_map(&context, &later, Path::new("future.ot"), WriteOptions::default())?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 mod build;
+mod context;
 mod error;
 mod eval;
 mod history;
@@ -41,7 +48,8 @@ mod text;
 mod time;
 
 pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
-pub use error::ConvertError;
+pub use context::{Context, Limits, FROCT};
+pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
 pub use froctomap_core::calendar::unix_seconds;
 pub use history::SeriesHistory;
@@ -50,7 +58,7 @@ pub use inputs::{collect_inputs, manifest_text, SeriesInput, TimeSource, MANIFES
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
     write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
-    ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap, MAX_EXPORTS,
+    ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
 };
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;

@@ -1,14 +1,15 @@
 //! Maps out of a FROctomap file: retrieved (as observed), predicted (any instant), exported.
 
+use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::progress::Progress;
-use crate::time::{check_range, format_compact, format_iso, parse_time};
+use crate::time::{check_range, format_compact, parse_time};
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
 use froctomap_file::{Cell, FroctReader};
-use froctomap_formats::{Backend, FormatRegistry, MapFormat, WriteOptions};
+use froctomap_formats::{Backend, MapFormat, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -29,12 +30,12 @@ impl std::str::FromStr for TimeQuery {
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         if let Some(index) = text.trim().strip_prefix("index:") {
             return index.trim().parse().map(TimeQuery::Sample).map_err(|_| {
-                ConvertError::Time(format!("{text:?}: `index:` needs a sample number"))
+                ConvertError::BadSampleIndex {
+                    text: text.to_string(),
+                }
             });
         }
-        parse_time(text)
-            .map(TimeQuery::Instant)
-            .map_err(|e| ConvertError::Time(e.to_string()))
+        Ok(TimeQuery::Instant(parse_time(text)?))
     }
 }
 
@@ -57,21 +58,16 @@ pub fn resolve_observed(
     query: TimeQuery,
 ) -> Result<ResolvedSample, ConvertError> {
     let axis = &reader.header().axis;
-    let span = || format!("{} .. {}", format_iso(axis.start()), format_iso(axis.end()));
     match query {
         TimeQuery::Sample(sample) => {
-            let time = axis.time(sample).ok_or_else(|| {
-                ConvertError::Time(format!(
-                    "sample {sample} is beyond the {} samples of the file ({})",
-                    axis.len(),
-                    span()
-                ))
+            let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
+                sample,
+                samples: axis.len(),
+                start: axis.start(),
+                end: axis.end(),
             })?;
             if axis.is_missing(sample) {
-                return Err(ConvertError::Time(format!(
-                    "sample {sample} ({}) has no snapshot",
-                    format_iso(time)
-                )));
+                return Err(ConvertError::NoSnapshotAtSample { sample, time });
             }
             Ok(ResolvedSample {
                 sample,
@@ -87,13 +83,13 @@ pub fn resolve_observed(
                     exact: true,
                 });
             }
-            let sample = axis.last_at_or_before(t).ok_or_else(|| {
-                ConvertError::Time(format!(
-                    "{} is before the first snapshot; the file covers {}",
-                    format_iso(t),
-                    span()
-                ))
-            })?;
+            let sample = axis
+                .last_at_or_before(t)
+                .ok_or(ConvertError::BeforeFirstSnapshot {
+                    time: t,
+                    start: axis.start(),
+                    end: axis.end(),
+                })?;
             let time = axis.time(sample).unwrap_or(t);
             Ok(ResolvedSample {
                 sample,
@@ -147,11 +143,14 @@ fn collect_tiles(
 
 /// A file whose cells do not make a map (overlapping, out of order): only a damaged or
 /// foreign writer's file gets past the reader's checks this way.
-fn inconsistent_cells(reader: &FroctReader, e: impl std::fmt::Display) -> ConvertError {
-    ConvertError::Time(format!(
-        "{}: inconsistent cells: {e}",
-        reader.path().display()
-    ))
+fn inconsistent_cells(
+    reader: &FroctReader,
+    e: impl std::error::Error + Send + Sync + 'static,
+) -> ConvertError {
+    ConvertError::InconsistentCells {
+        path: reader.path().to_path_buf(),
+        source: Box::new(e),
+    }
 }
 
 /// Every cell of a file, decoded once (in parallel) for repeated queries over all cells.
@@ -198,32 +197,34 @@ pub fn probability_log_odds(p: f64) -> f32 {
     }
 }
 
-/// Writes a map to `path` in the format its extension (or `format`) names, atomically, in
-/// the canonical split ([`Snapshot::canonical`]). A `.bt` holds states only, so the map is
+/// Writes a map to `path` in the format of `context` that its extension (or
+/// `options.format`) names, atomically, in the canonical split ([`Snapshot::canonical`]). A
+/// format that stores states only (`.bt`, [`Capabilities::states_only`]) gets the map
 /// reduced to maximum likelihood first. [`write_owned_map`] does the same without copying
 /// the map.
+///
+/// [`Capabilities::states_only`]: froctomap_formats::Capabilities::states_only
 pub fn write_map(
+    context: &Context,
     snapshot: &Snapshot,
     path: &Path,
-    format: Option<&str>,
-    backend: Option<Backend>,
+    options: WriteOptions<'_>,
 ) -> Result<WrittenMap, ConvertError> {
-    write_owned_map(snapshot.clone(), path, format, backend)
+    write_owned_map(context, snapshot.clone(), path, options)
 }
 
 /// [`write_map`] of a map no longer needed, reduced and merged in place.
 pub fn write_owned_map(
+    context: &Context,
     snapshot: Snapshot,
     path: &Path,
-    format: Option<&str>,
-    backend: Option<Backend>,
+    options: WriteOptions<'_>,
 ) -> Result<WrittenMap, ConvertError> {
-    let registry = FormatRegistry::with_default_formats();
-    let options = WriteOptions { format, backend };
+    let registry = context.formats();
     let chosen = *registry
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
-    let canonical = if chosen.name == "bt" {
+    let canonical = if chosen.capabilities.states_only {
         snapshot.into_max_likelihood().into_canonical()
     } else {
         snapshot.into_canonical()
@@ -238,33 +239,40 @@ pub fn write_owned_map(
 }
 
 /// Writes the map as observed at `sample` to `path` (as [`write_owned_map`] of
-/// [`observed_map`] would). A native `.bt` output is built tile by tile in parallel straight
-/// from the cells' states, without the map in memory.
+/// [`observed_map`] would). An output format whose writer gives the canonical OctoMap
+/// binary ([`Capabilities::writes_canonical_binary`], the native `.bt`) is built tile by
+/// tile in parallel straight from the cells' states, without the map in memory.
+///
+/// [`Capabilities::writes_canonical_binary`]: froctomap_formats::Capabilities::writes_canonical_binary
 pub fn write_observed_map(
+    context: &Context,
     reader: &FroctReader,
     sample: u32,
     path: &Path,
-    format: Option<&str>,
-    backend: Option<Backend>,
+    options: WriteOptions<'_>,
 ) -> Result<WrittenMap, ConvertError> {
-    let options = WriteOptions { format, backend };
-    write_query(reader, StateQuery::Observed(sample), path, options, || {
-        observed_map(reader, sample)
-    })
+    write_query(
+        context,
+        reader,
+        StateQuery::Observed(sample),
+        path,
+        options,
+        || observed_map(reader, sample),
+    )
 }
 
 /// Writes the map predicted for `t` to `path` (as [`write_owned_map`] of [`predicted_map`]
 /// would), a native `.bt` tile by tile as [`write_observed_map`] does.
 pub fn write_predicted_map(
+    context: &Context,
     reader: &FroctReader,
     t: Timestamp,
     path: &Path,
-    format: Option<&str>,
-    backend: Option<Backend>,
+    options: WriteOptions<'_>,
 ) -> Result<WrittenMap, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
-    let options = WriteOptions { format, backend };
     write_query(
+        context,
         reader,
         StateQuery::Predicted(seconds),
         path,
@@ -273,28 +281,25 @@ pub fn write_predicted_map(
     )
 }
 
-/// The tiled `.bt` writer where it applies, else the map `whole` builds, written whole.
+/// The tiled canonical-binary writer where the output format allows it, else the map
+/// `whole` builds, written whole.
 fn write_query(
+    context: &Context,
     reader: &FroctReader,
     query: StateQuery,
     path: &Path,
     options: WriteOptions<'_>,
     whole: impl FnOnce() -> Result<Snapshot, ConvertError>,
 ) -> Result<WrittenMap, ConvertError> {
-    match native_bt(path, options)? {
-        Some(chosen) => write_states_bt(reader, chosen, path, query),
-        None => write_owned_map(whole()?, path, options.format, options.backend),
-    }
-}
-
-/// The output format when it is froctomap's own `.bt` writer (which the tiled path
-/// reproduces byte for byte), else `None`.
-fn native_bt(path: &Path, options: WriteOptions<'_>) -> Result<Option<MapFormat>, ConvertError> {
-    let registry = FormatRegistry::with_default_formats();
-    let chosen = *registry
+    let chosen = *context
+        .formats()
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
-    Ok((chosen.name == "bt" && chosen.backend == Backend::Native).then_some(chosen))
+    if chosen.capabilities.writes_canonical_binary {
+        write_states_bt(reader, chosen, path, query)
+    } else {
+        write_owned_map(context, whole()?, path, options)
+    }
 }
 
 /// Which states of the cells a `.bt` is written from.
@@ -386,16 +391,13 @@ pub struct ExportOptions {
     pub every_ns: i64,
     /// Predicted or retrieved maps.
     pub mode: ExportMode,
-    /// Output format name (`bt` or `ot`).
+    /// Output format name (a writable format of the context, e.g. `bt` or `ot`).
     pub format: String,
     /// Preferred writer implementation.
     pub backend: Option<Backend>,
     /// File name prefix.
     pub prefix: String,
 }
-
-/// Most maps one export may write (a guard against a mistyped interval).
-pub const MAX_EXPORTS: u64 = 1_000_000;
 
 /// What `export` wrote.
 #[derive(Clone, Debug)]
@@ -409,32 +411,32 @@ pub struct ExportReport {
 }
 
 /// Writes one map per instant of `from..=to` (every `every_ns`) into `dir`, each atomically,
-/// then a manifest. A failure leaves only complete files behind.
+/// then a manifest. A failure leaves only complete files behind. At most
+/// [`Limits::max_exports`](crate::Limits) maps are written.
 pub fn export(
+    context: &Context,
     reader: &FroctReader,
     dir: &Path,
     options: &ExportOptions,
     progress: &dyn Progress,
 ) -> Result<ExportReport, ConvertError> {
-    for (what, t) in [("--from", options.from), ("--to", options.to)] {
-        check_range(what, t).map_err(|e| ConvertError::Time(e.to_string()))?;
+    for (what, t) in [("from", options.from), ("to", options.to)] {
+        check_range(what, t)?;
     }
     if options.to < options.from {
-        return Err(ConvertError::Time(format!(
-            "--to {} is before --from {}",
-            format_iso(options.to),
-            format_iso(options.from)
-        )));
+        return Err(ConvertError::EmptyRange {
+            from: options.from,
+            to: options.to,
+        });
     }
     if options.every_ns <= 0 {
-        return Err(ConvertError::Time("--every must be positive".into()));
+        return Err(ConvertError::NonPositiveInterval);
     }
     let count =
         (i128::from(options.to.0) - i128::from(options.from.0)) / i128::from(options.every_ns) + 1;
-    if count > i128::from(MAX_EXPORTS) {
-        return Err(ConvertError::Time(format!(
-            "{count} maps requested, more than the limit of {MAX_EXPORTS}; use a longer --every"
-        )));
+    let limit = context.limits().max_exports;
+    if count > i128::from(limit) {
+        return Err(ConvertError::TooManyMaps { count, limit });
     }
     let times: Vec<Timestamp> = (0..count as i64)
         .map(|i| Timestamp(options.from.0 + i * options.every_ns))
@@ -450,8 +452,8 @@ pub fn export(
         path: dir.to_path_buf(),
         source,
     })?;
-    let registry = FormatRegistry::with_default_formats();
-    let format = registry
+    let format = context
+        .formats()
         .by_name(&options.format, options.backend)
         .map_err(ConvertError::Write)?;
     let extension = format.extensions.first().copied().unwrap_or(format.name);
@@ -465,10 +467,13 @@ pub fn export(
                 options.prefix,
                 format_compact(t)
             ));
-            let (format, backend) = (Some(options.format.as_str()), options.backend);
+            let write = WriteOptions {
+                format: Some(options.format.as_str()),
+                backend: options.backend,
+            };
             match sample {
-                Some(s) => write_observed_map(reader, *s, &path, format, backend)?,
-                None => write_predicted_map(reader, t, &path, format, backend)?,
+                Some(s) => write_observed_map(context, reader, *s, &path, write)?,
+                None => write_predicted_map(context, reader, t, &path, write)?,
             };
             let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
             progress.advance(1);

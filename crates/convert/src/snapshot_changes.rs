@@ -5,14 +5,16 @@
 //! the reading work of a build; other formats are read into leaves and compared with
 //! [`froctomap_core::changes`]. Either way the result is the same list of changes.
 
+use crate::error::SnapshotError;
 use froctomap_core::{changes, Leaf, StateChange};
 use froctomap_formats::{DiffState, FormatRegistry, MapDiff, PreviousFile, ReadOptions};
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::path::Path;
+use std::sync::Arc;
 
-/// How the refusal of a file byte-identical to a refused one begins.
-const SAME_AS_REFUSED: &str = "byte-identical to a file refused before it:";
+/// Why a file was refused, shared with the files byte-identical to it.
+pub(crate) type Refusal = Arc<SnapshotError>;
 
 /// A file accepted into the series, its changes from the file accepted before it.
 #[derive(Debug)]
@@ -49,7 +51,7 @@ enum Plan {
     /// Compare its decoded leaves with this accepted file's (`None`: the one carried from
     /// earlier batches).
     CompareWith(Option<usize>),
-    Failed(String),
+    Failed(Refusal),
 }
 
 /// Turns batches of files into changes.
@@ -72,12 +74,12 @@ impl ChangeReader<'_> {
     pub fn batch(
         &self,
         paths: &[&Path],
-        raw: &[Result<Vec<u8>, String>],
+        raw: &[Result<Vec<u8>, Refusal>],
         carried: &mut Option<Accepted>,
-    ) -> Vec<Result<FileChanges, String>> {
+    ) -> Vec<Result<FileChanges, Refusal>> {
         let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
         let carried_bytes = carried.as_ref().map(|a| a.bytes.as_slice());
-        let looks: Vec<Result<FirstLook, String>> = (0..raw.len())
+        let looks: Vec<Result<FirstLook, Refusal>> = (0..raw.len())
             .into_par_iter()
             .map(|k| {
                 let bytes = raw[k].as_ref().map_err(Clone::clone)?;
@@ -91,7 +93,8 @@ impl ChangeReader<'_> {
                 match self.registry.format_of(paths[k], bytes, self.options) {
                     Ok(format) if format.differ.is_some() => Ok(FirstLook::Comparable),
                     _ => {
-                        let (leaves, warnings) = self.read_leaves(paths[k], bytes)?;
+                        let (leaves, warnings) =
+                            self.read_leaves(paths[k], bytes).map_err(Arc::new)?;
                         Ok(FirstLook::Leaves(leaves, warnings))
                     }
                 }
@@ -109,12 +112,10 @@ impl ChangeReader<'_> {
             let plan = match look {
                 Err(reason) => Plan::Failed(reason),
                 Ok(FirstLook::Same) => match k.checked_sub(1).map(|j| &plans[j]) {
-                    Some(Plan::Failed(reason)) if reason.starts_with(SAME_AS_REFUSED) => {
-                        Plan::Failed(reason.clone())
-                    }
-                    Some(Plan::Failed(reason)) => {
-                        Plan::Failed(format!("{SAME_AS_REFUSED} {reason}"))
-                    }
+                    Some(Plan::Failed(reason)) => match reason.as_ref() {
+                        SnapshotError::SameAsRefused(_) => Plan::Failed(reason.clone()),
+                        _ => Plan::Failed(Arc::new(SnapshotError::SameAsRefused(reason.clone()))),
+                    },
                     _ => {
                         // The same bytes: what the differ kept of the predecessor holds.
                         state = match k {
@@ -157,9 +158,9 @@ impl ChangeReader<'_> {
                                 leaves = Some(read);
                                 Plan::CompareWith(last)
                             }
-                            Err(reason) => Plan::Failed(reason),
+                            Err(reason) => Plan::Failed(Arc::new(reason)),
                         },
-                        Err(reason) => Plan::Failed(reason),
+                        Err(reason) => Plan::Failed(Arc::new(reason)),
                     }
                 }
             };
@@ -171,16 +172,18 @@ impl ChangeReader<'_> {
             decoded.push(leaves);
         }
         // Leaves compared with their predecessor's, in parallel.
-        let outcomes: Vec<Result<FileChanges, String>> = plans
+        let outcomes: Vec<Result<FileChanges, Refusal>> = plans
             .into_par_iter()
             .enumerate()
             .map(|(k, plan)| match plan {
                 Plan::Done(done) => Ok(done),
                 Plan::Failed(reason) => Err(reason),
                 Plan::CompareWith(j) => {
-                    let (leaves, warnings) = decoded[k]
-                        .as_ref()
-                        .ok_or("internal: a file to compare by its leaves was not decoded")?;
+                    let (leaves, warnings) = decoded[k].as_ref().ok_or_else(|| {
+                        Arc::new(SnapshotError::Internal(
+                            "a file to compare by its leaves was not decoded",
+                        ))
+                    })?;
                     let (before_bytes, before_leaves) = match j {
                         Some(j) => (
                             raw[j].as_deref().ok(),
@@ -191,7 +194,9 @@ impl ChangeReader<'_> {
                             carried.as_ref().and_then(|a| a.leaves.as_deref()),
                         ),
                     };
-                    let before = self.leaves_before(paths[k], before_bytes, before_leaves)?;
+                    let before = self
+                        .leaves_before(paths[k], before_bytes, before_leaves)
+                        .map_err(Arc::new)?;
                     Ok(FileChanges {
                         changes: changes(&before, leaves),
                         warnings: warnings.clone(),
@@ -226,7 +231,7 @@ impl ChangeReader<'_> {
         path: &Path,
         before: Option<PreviousFile<'_>>,
         bytes: &[u8],
-    ) -> Result<Option<(Vec<StateChange>, MapDiff)>, String> {
+    ) -> Result<Option<(Vec<StateChange>, MapDiff)>, SnapshotError> {
         let mut changes = Vec::new();
         let compared = self
             .registry
@@ -239,7 +244,7 @@ impl ChangeReader<'_> {
             Ok(None) => Ok(None),
             Err(error) => match self.read_leaves(path, bytes) {
                 Err(reason) => Err(reason),
-                Ok(_) => Err(format!("read but not compared: {error}")),
+                Ok(_) => Err(SnapshotError::NotCompared(error)),
             },
         }
     }
@@ -249,7 +254,7 @@ impl ChangeReader<'_> {
         path: &Path,
         bytes: Option<&[u8]>,
         leaves: Option<&'b [Leaf]>,
-    ) -> Result<Cow<'b, [Leaf]>, String> {
+    ) -> Result<Cow<'b, [Leaf]>, SnapshotError> {
         Ok(match (leaves, bytes) {
             (Some(leaves), _) => Cow::Borrowed(leaves),
             (None, Some(bytes)) => Cow::Owned(self.read_leaves(path, bytes)?.0),
@@ -257,20 +262,25 @@ impl ChangeReader<'_> {
         })
     }
 
-    fn read_leaves(&self, path: &Path, bytes: &[u8]) -> Result<(Vec<Leaf>, Vec<String>), String> {
+    fn read_leaves(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+    ) -> Result<(Vec<Leaf>, Vec<String>), SnapshotError> {
         let read = self
             .registry
             .read_bytes(path, bytes, self.options)
-            .map_err(|e| e.to_string())?;
+            .map_err(SnapshotError::Format)?;
         self.check_resolution(read.map.snapshot.resolution())?;
         Ok((read.map.snapshot.into_leaves(), read.map.warnings))
     }
 
-    fn check_resolution(&self, resolution: f64) -> Result<(), String> {
+    fn check_resolution(&self, resolution: f64) -> Result<(), SnapshotError> {
         match self.resolution {
-            Some(series) if series != resolution => Err(format!(
-                "resolution {resolution} m differs from the series' {series} m"
-            )),
+            Some(series) if series != resolution => Err(SnapshotError::Resolution {
+                found: resolution,
+                series,
+            }),
             _ => Ok(()),
         }
     }

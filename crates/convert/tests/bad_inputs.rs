@@ -4,8 +4,15 @@
 
 use froctomap_convert::*;
 use froctomap_core::{Leaf, Snapshot, Timestamp, VoxelKey};
-use froctomap_formats::{FormatRegistry, WriteOptions};
+use froctomap_formats::WriteOptions;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// The context every test hands to the converters.
+fn context() -> &'static Context {
+    static CONTEXT: OnceLock<Context> = OnceLock::new();
+    CONTEXT.get_or_init(Context::with_default_plugins)
+}
 
 fn small(resolution: f64, occupied: bool) -> Snapshot {
     let leaves = (0..20u16)
@@ -21,7 +28,8 @@ fn small(resolution: f64, occupied: bool) -> Snapshot {
 
 fn write(dir: &Path, name: &str, snapshot: &Snapshot) -> PathBuf {
     let path = dir.join(name);
-    FormatRegistry::with_default_formats()
+    context()
+        .formats()
         .write_file(snapshot, &path, WriteOptions::default())
         .unwrap();
     path
@@ -40,15 +48,12 @@ fn series(dir: &Path, n: u32) -> Vec<PathBuf> {
 }
 
 fn inputs(dir: &Path) -> Result<Vec<SeriesInput>, ConvertError> {
-    collect_inputs(
-        &[dir.to_path_buf()],
-        TimeSource::Auto,
-        &FormatRegistry::with_default_formats(),
-    )
+    collect_inputs(context(), &[dir.to_path_buf()], TimeSource::Auto)
 }
 
 fn build_dir(dir: &Path, options: &BuildOptions) -> Result<BuildReport, ConvertError> {
     build(
+        context(),
         &inputs(dir)?,
         &dir.join("out").with_extension("froct"),
         options,
@@ -110,13 +115,16 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
     let files = series(dir.path(), 4);
     let bytes = std::fs::read(&files[2]).unwrap();
     std::fs::write(&files[2], &bytes[..bytes.len() - 2]).unwrap();
-    let err = build_dir(dir.path(), &BuildOptions::default())
-        .unwrap_err()
-        .to_string();
+    let err = build_dir(dir.path(), &BuildOptions::default()).unwrap_err();
+    // Skippable: leaving the file out gets past it (the CLI suggests `--skip-bad`).
     assert!(
-        err.contains("map_1451866800.bt")
-            && err.contains("truncated")
-            && err.contains("--skip-bad"),
+        matches!(&err, ConvertError::Snapshot { path, .. } if path == &files[2])
+            && err.is_skippable(),
+        "{err:?}"
+    );
+    let err = err.to_string();
+    assert!(
+        err.contains("map_1451866800.bt") && err.contains("truncated"),
         "{err}"
     );
     let report = build_dir(
@@ -154,41 +162,35 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
 fn names_without_times_and_missing_inputs_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), "kitchen.bt", &small(0.1, true));
-    let err = inputs(dir.path()).unwrap_err().to_string();
+    let err = inputs(dir.path()).unwrap_err();
+    assert!(matches!(&err, ConvertError::NoTimes { files } if files.len() == 1));
+    let err = err.to_string();
     assert!(
         err.contains("no time in the name")
             && err.contains("kitchen.bt")
-            && err.contains("--start/--step"),
+            && err.contains("start time and step"),
         "{err}"
     );
     let with_step = collect_inputs(
+        context(),
         &[dir.path().join("kitchen.bt")],
         TimeSource::StartStep {
             start: Timestamp::from_secs(1_451_865_600),
             step_ns: 600_000_000_000,
         },
-        &FormatRegistry::with_default_formats(),
     )
     .unwrap();
     assert_eq!(with_step[0].time, Timestamp::from_secs(1_451_865_600));
-    let err = collect_inputs(
-        &[dir.path().join("nope")],
-        TimeSource::Auto,
-        &FormatRegistry::with_default_formats(),
-    )
-    .unwrap_err()
-    .to_string();
+    let err = collect_inputs(context(), &[dir.path().join("nope")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("nope") && err.contains("no such file"),
         "{err}"
     );
-    let err = collect_inputs(
-        &[dir.path().join("*.ot")],
-        TimeSource::Auto,
-        &FormatRegistry::with_default_formats(),
-    )
-    .unwrap_err()
-    .to_string();
+    let err = collect_inputs(context(), &[dir.path().join("*.ot")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("matches no files"), "{err}");
 }
 
@@ -197,6 +199,7 @@ fn unwritable_output_is_reported_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     series(dir.path(), 2);
     let err = build(
+        context(),
         &inputs(dir.path()).unwrap(),
         Path::new("/nonexistent-dir/out.froct"),
         &BuildOptions::default(),

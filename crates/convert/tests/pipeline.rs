@@ -5,7 +5,10 @@
 use froctomap_convert::*;
 use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
 use froctomap_file::FroctReader;
-use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
+use froctomap_formats::{
+    octomap_native, Backend, FormatRegistry, MapFormat, ReadOptions, WriteOptions,
+};
+use froctomap_temporal::ModelRegistry;
 use std::path::{Path, PathBuf};
 
 const GEB079: &str = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt";
@@ -60,7 +63,8 @@ fn frame(base: &Snapshot, i: u32) -> Snapshot {
 
 fn write_series(dir: &Path, frames: u32) -> Vec<(PathBuf, Timestamp, Snapshot)> {
     let base = base();
-    let registry = FormatRegistry::with_default_formats();
+    let context = Context::with_default_plugins();
+    let registry = context.formats();
     (0..frames)
         .map(|i| {
             // Irregular times: ten minutes apart with up to a minute of jitter.
@@ -80,11 +84,11 @@ fn write_series(dir: &Path, frames: u32) -> Vec<(PathBuf, Timestamp, Snapshot)> 
 fn lossless_build_gives_back_every_input() {
     let dir = tempfile::tempdir().unwrap();
     let series = write_series(dir.path(), 12);
-    let registry = FormatRegistry::with_default_formats();
-    let inputs = collect_inputs(&[dir.path().to_path_buf()], TimeSource::Auto, &registry).unwrap();
+    let context = Context::with_default_plugins();
+    let inputs = collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap();
     assert_eq!(inputs.len(), 12);
     let out = dir.path().join("series.froct");
-    let report = build(&inputs, &out, &BuildOptions::default(), &Silent).unwrap();
+    let report = build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap();
     assert_eq!(report.used, 12);
     assert!(!report.regular_axis, "jittered times make an explicit axis");
     assert!(
@@ -99,7 +103,7 @@ fn lossless_build_gives_back_every_input() {
         assert!(got.same_voxel_states(truth), "{}", path.display());
         // Written back, the file is byte-identical to the input.
         let back = dir.path().join("back.bt");
-        write_map(&got, &back, None, None).unwrap();
+        write_map(&context, &got, &back, WriteOptions::default()).unwrap();
         assert_eq!(
             std::fs::read(&back).unwrap(),
             std::fs::read(path).unwrap(),
@@ -108,7 +112,14 @@ fn lossless_build_gives_back_every_input() {
         );
         // The tiled writer, straight from the cells' states, writes the same bytes.
         let tiled = dir.path().join("tiled.bt");
-        write_observed_map(&reader, when.sample, &tiled, None, None).unwrap();
+        write_observed_map(
+            &context,
+            &reader,
+            when.sample,
+            &tiled,
+            WriteOptions::default(),
+        )
+        .unwrap();
         assert_eq!(
             std::fs::read(&tiled).unwrap(),
             std::fs::read(path).unwrap(),
@@ -124,8 +135,14 @@ fn lossless_build_gives_back_every_input() {
     ] {
         let whole = dir.path().join("predicted-whole.bt");
         let tiled = dir.path().join("predicted-tiled.bt");
-        write_map(&predicted_map(&reader, t).unwrap(), &whole, None, None).unwrap();
-        write_predicted_map(&reader, t, &tiled, None, None).unwrap();
+        write_map(
+            &context,
+            &predicted_map(&reader, t).unwrap(),
+            &whole,
+            WriteOptions::default(),
+        )
+        .unwrap();
+        write_predicted_map(&context, &reader, t, &tiled, WriteOptions::default()).unwrap();
         assert_eq!(
             std::fs::read(&whole).unwrap(),
             std::fs::read(&tiled).unwrap()
@@ -138,10 +155,11 @@ fn lossless_build_gives_back_every_input() {
 fn predictions_exports_and_evaluation() {
     let dir = tempfile::tempdir().unwrap();
     let series = write_series(dir.path(), 9);
-    let registry = FormatRegistry::with_default_formats();
-    let inputs = collect_inputs(&[dir.path().to_path_buf()], TimeSource::Auto, &registry).unwrap();
+    let context = Context::with_default_plugins();
+    let registry = context.formats();
+    let inputs = collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap();
     let out = dir.path().join("series.froct");
-    build(&inputs, &out, &BuildOptions::default(), &Silent).unwrap();
+    build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap();
     let reader = FroctReader::open(&out).unwrap();
     let map = LoadedMap::load(&reader).unwrap();
 
@@ -151,8 +169,8 @@ fn predictions_exports_and_evaluation() {
     assert!(predicted.leaves().len() > 100_000);
     let ot = dir.path().join("later.ot");
     let bt = dir.path().join("later.bt");
-    write_map(&predicted, &ot, None, None).unwrap();
-    write_map(&predicted, &bt, None, None).unwrap();
+    write_map(&context, &predicted, &ot, WriteOptions::default()).unwrap();
+    write_map(&context, &predicted, &bt, WriteOptions::default()).unwrap();
     let read_ot = registry
         .read_file(&ot, ReadOptions::default())
         .unwrap()
@@ -195,7 +213,7 @@ fn predictions_exports_and_evaluation() {
         backend: None,
         prefix: "map".into(),
     };
-    let report = export(&reader, &export_dir, &options, &Silent).unwrap();
+    let report = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     assert_eq!(report.files.len(), 5);
     for file in &report.files {
         let when = resolve_observed(&reader, TimeQuery::Instant(file.time)).unwrap();
@@ -208,9 +226,9 @@ fn predictions_exports_and_evaluation() {
         assert!(got.same_voxel_states(expected));
     }
     let again = collect_inputs(
+        &context,
         std::slice::from_ref(&export_dir),
         TimeSource::Auto,
-        &registry,
     )
     .unwrap();
     assert_eq!(again.len(), 5);
@@ -218,13 +236,14 @@ fn predictions_exports_and_evaluation() {
         every_ns: 1,
         ..options.clone()
     };
-    assert!(export(&reader, &export_dir, &too_many, &Silent)
-        .unwrap_err()
-        .to_string()
-        .contains("limit"));
+    let err = export(&context, &reader, &export_dir, &too_many, &Silent).unwrap_err();
+    assert!(
+        matches!(err, ConvertError::TooManyMaps { limit, .. } if limit == context.limits().max_exports),
+        "{err:?}"
+    );
 
     // Evaluation against the inputs themselves: the stored states are exact.
-    let report = evaluate(&map, &inputs, ReadOptions::default(), &Silent).unwrap();
+    let report = evaluate(&context, &map, &inputs, ReadOptions::default(), &Silent).unwrap();
     assert_eq!((report.inside, report.outside), (9, 0));
     let stored = report
         .reconstruction
@@ -248,15 +267,17 @@ fn predictions_exports_and_evaluation() {
     assert_eq!(report.unmodelled_voxels, 0);
 }
 
-/// Builds compared from the bytes (native codec) and from decoded leaves (upstream library,
-/// which has no byte-level comparison) give the same file contents, whatever the batch size,
-/// through a series mixing `.bt` and `.ot`, repeating a file byte for byte, and skipping
-/// a broken file followed by an identical copy of it.
+/// Builds compared from the bytes (the native differ) and from decoded leaves (the same
+/// formats registered without differs; with the `octomap-upstream` feature also the C++
+/// library) give the same file contents, whatever the batch size, through a series mixing
+/// `.bt` and `.ot`, repeating a file byte for byte, and skipping a broken file followed by an
+/// identical copy of it.
 #[test]
 fn byte_level_and_leaf_level_comparison_build_the_same_cells() {
     let dir = tempfile::tempdir().unwrap();
     let series = write_series(dir.path(), 12);
-    let registry = FormatRegistry::with_default_formats();
+    let context = Context::with_default_plugins();
+    let registry = context.formats();
     let mut truths: Vec<Option<Snapshot>> = series.iter().map(|s| Some(s.2.clone())).collect();
     // Frames 2 and 8 as .ot (the .bt removed), the .bt of frame 9 repeated by frame 10,
     // and frame 5 truncated, then frame 6 a copy of the broken frame 5.
@@ -274,10 +295,10 @@ fn byte_level_and_leaf_level_comparison_build_the_same_cells() {
     std::fs::write(&series[6].0, &broken[..broken.len() / 2]).unwrap();
     truths[5] = None;
     truths[6] = None;
-    let inputs = collect_inputs(&[dir.path().to_path_buf()], TimeSource::Auto, &registry).unwrap();
+    let inputs = collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap();
     assert_eq!(inputs.len(), 12);
 
-    let build_with = |backend, batch| {
+    let build_with = |context: &Context, backend, batch| {
         let out = dir.path().join(format!("{backend:?}-{batch}.froct"));
         let options = BuildOptions {
             backend: Some(backend),
@@ -285,23 +306,45 @@ fn byte_level_and_leaf_level_comparison_build_the_same_cells() {
             skip_bad: true,
             ..Default::default()
         };
-        let report = build(&inputs, &out, &options, &Silent).unwrap();
+        let report = build(context, &inputs, &out, &options, &Silent).unwrap();
         assert_eq!((report.used, report.skipped.len()), (10, 2), "{report:?}");
         (report, FroctReader::open(&out).unwrap())
     };
-    let (reference, upstream) = build_with(Backend::Octomap, 64);
+    // The reference decodes every file: the same formats, handed to `build` without their
+    // byte-level differs.
+    let mut decoding = FormatRegistry::new();
+    for format in context.formats().formats() {
+        decoding.register(MapFormat {
+            differ: None,
+            ..*format
+        });
+    }
+    let decoding = Context::new(decoding, ModelRegistry::with_default_models());
+    let (reference, decoded) = build_with(&decoding, Backend::Native, 64);
+    // With the C++ backend (no differ either) the cells are the same too.
+    #[cfg(feature = "octomap-upstream")]
+    {
+        let (report, cpp) = build_with(&context, Backend::Octomap, 64);
+        assert_eq!(report.cells, reference.cells);
+        for tile in 0..cpp.tiles().len() {
+            assert_eq!(
+                cpp.read_tile(tile).unwrap(),
+                decoded.read_tile(tile).unwrap()
+            );
+        }
+    }
     for batch in [1, 3, 64] {
-        let (report, native) = build_with(Backend::Native, batch);
+        let (report, native) = build_with(&context, Backend::Native, batch);
         assert_eq!(
             (report.cells, report.toggles, report.changed_voxels),
             (reference.cells, reference.toggles, reference.changed_voxels),
             "batch {batch}"
         );
-        assert_eq!(native.tiles().len(), upstream.tiles().len());
+        assert_eq!(native.tiles().len(), decoded.tiles().len());
         for tile in 0..native.tiles().len() {
             assert_eq!(
                 native.read_tile(tile).unwrap(),
-                upstream.read_tile(tile).unwrap(),
+                decoded.read_tile(tile).unwrap(),
                 "batch {batch}, tile {tile}"
             );
         }
@@ -313,4 +356,82 @@ fn byte_level_and_leaf_level_comparison_build_the_same_cells() {
             }
         }
     }
+}
+
+/// A format the caller registers reaches every path: directories are listed by its
+/// extension, `build` reads it, `export` writes it (here the native `.bt` codec under
+/// another name and extension).
+#[test]
+fn a_format_registered_by_the_caller_is_used_by_build_and_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let renamed = MapFormat {
+        name: "tree",
+        description: "a program's own name for OctoMap binary",
+        extensions: &["tree"],
+        ..octomap_native::BINARY
+    };
+    let mut formats = FormatRegistry::new();
+    formats.register(renamed);
+    let context = Context::new(formats, ModelRegistry::with_default_models());
+    let series = write_series(dir.path(), 3);
+    let inputs_dir = dir.path().join("renamed");
+    std::fs::create_dir(&inputs_dir).unwrap();
+    for (path, _, _) in &series {
+        let name = path.with_extension("tree");
+        std::fs::copy(path, inputs_dir.join(name.file_name().unwrap())).unwrap();
+    }
+    let inputs = collect_inputs(&context, &[inputs_dir], TimeSource::Auto).unwrap();
+    assert_eq!(inputs.len(), 3);
+    let out = dir.path().join("renamed.froct");
+    let report = build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap();
+    assert_eq!(report.used, 3);
+    let reader = FroctReader::open(&out).unwrap();
+    let export_dir = dir.path().join("exported");
+    let options = ExportOptions {
+        from: reader.header().axis.start(),
+        to: reader.header().axis.start(),
+        every_ns: 1,
+        mode: ExportMode::Retrieve,
+        format: "tree".into(),
+        backend: None,
+        prefix: "map".into(),
+    };
+    let exported = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
+    let file = &exported.files[0].path;
+    assert_eq!(file.extension().unwrap(), "tree");
+    assert_eq!(
+        std::fs::read(file).unwrap(),
+        std::fs::read(&series[0].0).unwrap()
+    );
+    // The default formats do not know the name.
+    let default = Context::with_default_plugins();
+    let err = export(&default, &reader, &export_dir, &options, &Silent).unwrap_err();
+    assert!(
+        err.to_string().contains("unknown map format `tree`"),
+        "{err}"
+    );
+}
+
+/// The context's limits bound what a build reads and how many maps an export writes.
+#[test]
+fn limits_of_the_context_are_enforced() {
+    let dir = tempfile::tempdir().unwrap();
+    let series = write_series(dir.path(), 2);
+    let mut limits = Limits::default();
+    limits.max_map_file_bytes = 1000;
+    let context = Context::with_default_plugins().with_limits(limits);
+    let inputs = collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap();
+    let out = dir.path().join("small.froct");
+    let err = build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap_err();
+    match &err {
+        ConvertError::Snapshot { path, source } => {
+            assert_eq!(path, &series[0].0);
+            assert!(matches!(
+                **source,
+                SnapshotError::TooLarge { limit: 1000, .. }
+            ));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(err.to_string().contains("limit of 1000 bytes"), "{err}");
 }

@@ -18,7 +18,7 @@
 //! C++ library sees it.
 
 use crate::error::CodecError;
-use crate::header::FileKind;
+use crate::kind::FileKind;
 use froctomap_core::{free_log_odds, occupied_log_odds, Leaf, MortonCode, TREE_DEPTH};
 
 /// Resource bounds for reading untrusted files.

@@ -14,7 +14,8 @@
 
 use crate::body::{record_at, BodySummary, ReadLimits};
 use crate::error::CodecError;
-use crate::header::{detect_kind, parse_header, FileKind};
+use crate::header::{detect_kind, parse_header};
+use crate::kind::FileKind;
 use crate::{scan_with, ScanSummary};
 use froctomap_core::{voxels_per_node, Occupancy, StateChange, TREE_DEPTH};
 

@@ -18,7 +18,8 @@
 //! (see [`format_resolution`]).
 
 use crate::error::EncodeError;
-use crate::header::{BINARY_FIRST_LINE, FULL_FIRST_LINE, OCTREE_ID};
+use crate::header::OCTREE_ID;
+use crate::kind::{BINARY_FIRST_LINE, FULL_FIRST_LINE};
 use froctomap_core::{
     validate_resolution, voxels_per_node, Leaf, MapError, MortonCode, Occupancy, Snapshot,
     TREE_DEPTH,

@@ -1,6 +1,6 @@
 //! Why an OctoMap byte stream was rejected.
 
-use crate::header::FileKind;
+use crate::kind::FileKind;
 
 /// A `.bt`/`.ot` stream that cannot be read. Offsets count bytes from the start of the file.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

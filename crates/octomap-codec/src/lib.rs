@@ -35,6 +35,7 @@ mod diff;
 mod encode;
 mod error;
 mod header;
+mod kind;
 mod runs;
 
 pub use body::{walk_body, BodySummary, ReadLimits};
@@ -43,9 +44,9 @@ pub use diff::{diff, TreeIndex};
 pub use encode::{encode_binary, encode_full, format_resolution, BinaryEncoder, FullEncoder};
 pub use error::{CodecError, EncodeError};
 pub use header::{
-    detect_kind, looks_like_legacy_binary, parse_header, FileKind, Header, HeaderLayout,
-    BINARY_FIRST_LINE, FULL_FIRST_LINE, OCTREE_ID,
+    detect_kind, looks_like_legacy_binary, parse_header, Header, HeaderLayout, OCTREE_ID,
 };
+pub use kind::{FileKind, BINARY_FIRST_LINE, FULL_FIRST_LINE};
 pub use runs::{merge_runs, scan_runs, RunMerger, VoxelRun};
 
 use froctomap_core::Leaf;

@@ -58,6 +58,15 @@ pub enum SynthError {
     /// Writing a frame through the format registry failed.
     #[error(transparent)]
     Format(#[from] FormatError),
+    /// A scenario file that is not a serialised [`SeriesSpec`](crate::SeriesSpec).
+    #[error("{}: not a scenario: {source}", path.display())]
+    SpecJson {
+        /// The file.
+        path: PathBuf,
+        /// What the JSON parser refused.
+        #[source]
+        source: serde_json::Error,
+    },
     /// A file or directory could not be created or written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -1,0 +1,61 @@
+//! What to try after an error: the command-line options that get past it, which the
+//! libraries cannot name.
+
+use froctomap_convert::ConvertError;
+use froctomap_formats::FormatError;
+
+/// A hint for `error`, from the first typed cause that has one. `skips_bad_files`: the
+/// command has `--skip-bad`.
+pub fn hint(error: &anyhow::Error, skips_bad_files: bool) -> Option<&'static str> {
+    error.chain().find_map(|cause| {
+        if let Some(error) = cause.downcast_ref::<ConvertError>() {
+            return convert_hint(error, skips_bad_files);
+        }
+        match cause.downcast_ref::<FormatError>() {
+            Some(FormatError::UnknownExtension { .. }) => {
+                Some("name the file accordingly or pass --format")
+            }
+            _ => None,
+        }
+    })
+}
+
+fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static str> {
+    match error {
+        e if skips_bad_files && e.is_skippable() => {
+            Some("use --skip-bad to leave such files out (they are listed at the end)")
+        }
+        ConvertError::NoTimes { .. } => {
+            Some("give the times with --start and --step, or name the files by their times")
+        }
+        ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
+        ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
+        ConvertError::NonPositiveInterval => Some("--every must be positive"),
+        ConvertError::Write(FormatError::UnknownExtension { .. }) => {
+            Some("name the file accordingly or pass --format")
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    #[test]
+    fn skip_bad_is_suggested_only_where_it_exists() {
+        let mixed = || {
+            anyhow::Error::new(ConvertError::MixedResolution {
+                first: PathBuf::from("a.bt"),
+                first_resolution: 0.1,
+                second: PathBuf::from("b.bt"),
+                second_resolution: 0.05,
+            })
+        };
+        assert!(hint(&mixed(), true).is_some_and(|h| h.contains("--skip-bad")));
+        assert_eq!(hint(&mixed(), false), None);
+        let many = anyhow::Error::new(ConvertError::TooManyMaps { count: 5, limit: 1 });
+        assert_eq!(hint(&many, false), Some("use a longer --every"));
+    }
+}

@@ -1,0 +1,101 @@
+//! `info` of a FROctomap file: its header, axis, model, cell classes and sizes.
+
+use crate::ui::Ui;
+use anyhow::Result;
+use froctomap_convert::{describe, group_thousands, ClassCounts};
+use serde_json::Value;
+use std::path::Path;
+
+/// The FROctomap file at `path` described on standard output (as JSON with `json`).
+pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
+    let reader = ui.context.open_froct(path)?;
+    let info = describe(ui.context, &reader, count)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+        return Ok(());
+    }
+    let n = group_thousands;
+    println!(
+        "file:            {} ({} bytes, FROctomap {})",
+        info.file.display(),
+        n(info.size.file),
+        info.version
+    );
+    println!(
+        "resolution:      {} m, tiles of depth {} ({} tiles), {}",
+        info.resolution_m,
+        info.tile_depth,
+        info.tiles,
+        info.toggle_block.map_or_else(
+            || "toggle lists whole".to_string(),
+            |samples| format!("toggle lists in blocks of {samples} samples")
+        )
+    );
+    let t = &info.time;
+    println!(
+        "time:            {} .. {} ({:.1} days), {} samples{}{}",
+        t.start,
+        t.end,
+        t.span_seconds / 86_400.0,
+        n(u64::from(t.samples)),
+        t.step_seconds
+            .map_or_else(|| ", irregular".to_string(), |s| format!(" every {s} s")),
+        if t.missing > 0 {
+            format!(", {} missing", t.missing)
+        } else {
+            String::new()
+        }
+    );
+    println!("model:           {} ({})", info.model, info.outliers);
+    println!("cells:           {}", class_counts(&info.cells));
+    println!("voxels:          {}", class_counts(&info.voxels));
+    println!(
+        "size:            header {} + tiles {} + index {} bytes",
+        n(info.size.header),
+        n(info.size.tiles),
+        n(info.size.index)
+    );
+    if let Value::Object(streams) = &info.size.raw_streams {
+        let parts: Vec<String> = streams
+            .iter()
+            .map(|(k, v)| format!("{k} {}", n(v.as_u64().unwrap_or(0))))
+            .collect();
+        println!("raw streams:     {}", parts.join(", "));
+    }
+    if let (Some(files), Some(bytes), Some(ratio)) =
+        (info.input_files, info.input_bytes, info.ratio_vs_inputs)
+    {
+        println!(
+            "compression:     {ratio:.1}x vs the {} input files ({} bytes)",
+            n(files),
+            n(bytes)
+        );
+    }
+    println!(
+        "vs raw states:   {:.1}x (1 bit per voxel per sample)",
+        info.ratio_vs_raw_states
+    );
+    if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
+        println!(
+            "created:         {} by {creator}",
+            info.metadata
+                .get("created")
+                .and_then(Value::as_str)
+                .unwrap_or("?")
+        );
+    }
+    Ok(())
+}
+
+/// `N (a static free, b static occupied, c dynamic, d sometimes unknown)`.
+pub(crate) fn class_counts(c: &ClassCounts) -> String {
+    let n = group_thousands;
+    format!(
+        "{} ({} static free, {} static occupied, {} dynamic, {} sometimes unknown)",
+        n(c.total()),
+        n(c.static_free),
+        n(c.static_occupied),
+        n(c.dynamic),
+        n(c.unknown_sometimes)
+    )
+}

@@ -1,0 +1,17 @@
+//! The plugins of this program, registered once and handed to every command.
+
+use froctomap_convert::Context;
+use std::sync::OnceLock;
+
+/// The formats, models and limits every command uses (the option parsers too, so that the
+/// values they accept are the registered ones).
+pub fn context() -> &'static Context {
+    static CONTEXT: OnceLock<Context> = OnceLock::new();
+    CONTEXT.get_or_init(Context::with_default_plugins)
+}
+
+/// A parser of `--format` values that accepts the writable formats' names and lists them
+/// in the help and in its error.
+pub fn writable_format() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(context().formats().writable_names())
+}

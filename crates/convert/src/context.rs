@@ -1,0 +1,157 @@
+//! What every conversion consults and a program may extend: the registries of plugins and
+//! the limits on what is read. Built once by a program (or test) and handed to each call,
+//! as Symphonia hands its probe to callers, so a format or model registered by the program
+//! reaches every path.
+
+use crate::error::ConvertError;
+use froctomap_file::{FroctReader, ReadLimits};
+use froctomap_formats::{Confidence, FormatRegistry, SeriesFormat};
+use froctomap_temporal::ModelRegistry;
+use std::path::Path;
+
+/// Resource bounds of a conversion: checked before the work they bound is started, so a
+/// hostile or mistyped input fails cleanly instead of exhausting memory or disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Limits {
+    /// Largest map file read whole into memory (an input snapshot or ground truth), bytes.
+    pub max_map_file_bytes: u64,
+    /// Most maps one export may write (a guard against a mistyped interval).
+    pub max_exports: u64,
+    /// What a FROctomap file may make its reader allocate ([`Context::open_froct`]).
+    pub froct: ReadLimits,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            // Far above any OctoMap scan seen (a building floor at 5 cm is tens of MB).
+            max_map_file_bytes: 4 << 30,
+            max_exports: 1_000_000,
+            froct: ReadLimits::default(),
+        }
+    }
+}
+
+/// Registries and limits handed to the converters ([`build`](crate::build),
+/// [`export`](crate::export), [`evaluate`](crate::evaluate), [`collect_inputs`](crate::collect_inputs), the map writers).
+/// Library code never builds default registries itself.
+///
+/// ```
+/// use froctomap_convert::{Context, Limits};
+/// use froctomap_formats::{octomap_native, MapFormat};
+///
+/// // A program's own format: the native `.bt` codec under another name and extension.
+/// let mut context = Context::with_default_plugins();
+/// context.formats_mut().register(MapFormat { name: "tree", extensions: &["tree"], ..octomap_native::BINARY });
+/// assert!(context.formats().by_name("tree", None).is_ok());
+///
+/// let mut limits = Limits::default();
+/// limits.max_exports = 100;
+/// let context = context.with_limits(limits);
+/// assert_eq!(context.limits().max_exports, 100);
+/// ```
+#[derive(Clone, Debug)]
+pub struct Context {
+    formats: FormatRegistry,
+    models: ModelRegistry,
+    limits: Limits,
+}
+
+impl Context {
+    /// A context of these registries, with default limits.
+    pub fn new(formats: FormatRegistry, models: ModelRegistry) -> Self {
+        Self {
+            formats,
+            models,
+            limits: Limits::default(),
+        }
+    }
+
+    /// Every map format and temporal model enabled at compile time, plus the `.froct` series
+    /// format ([`FROCT`]), with default limits: what binaries, tests and examples start from.
+    pub fn with_default_plugins() -> Self {
+        let mut formats = FormatRegistry::with_default_formats();
+        formats.register_series(FROCT);
+        Self::new(formats, ModelRegistry::with_default_models())
+    }
+
+    /// The same context with other limits.
+    pub fn with_limits(mut self, limits: Limits) -> Self {
+        self.limits = limits;
+        self
+    }
+
+    /// The map formats.
+    pub fn formats(&self) -> &FormatRegistry {
+        &self.formats
+    }
+
+    /// The map formats, to register more.
+    pub fn formats_mut(&mut self) -> &mut FormatRegistry {
+        &mut self.formats
+    }
+
+    /// The temporal models.
+    pub fn models(&self) -> &ModelRegistry {
+        &self.models
+    }
+
+    /// The temporal models, to register more.
+    pub fn models_mut(&mut self) -> &mut ModelRegistry {
+        &mut self.models
+    }
+
+    /// The resource bounds.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// Opens a FROctomap file with this context's models (so a model the program registered
+    /// decodes its cells) and read limits.
+    pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
+        Ok(FroctReader::open_with_limits(
+            path,
+            self.limits.froct,
+            &self.models,
+        )?)
+    }
+}
+
+/// froctomap's own series file, as the format registry's probe recognises it (by its magic,
+/// see `docs/FORMAT.md`).
+pub const FROCT: SeriesFormat = SeriesFormat {
+    name: "froct",
+    description: "FROctomap spatio-temporal series file",
+    extensions: &["froct"],
+    probe: probe_froct,
+};
+
+fn probe_froct(bytes: &[u8]) -> Confidence {
+    if bytes.starts_with(&froctomap_file::MAGIC) {
+        Confidence::Certain
+    } else {
+        Confidence::No
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_formats::Identified;
+
+    #[test]
+    fn froct_files_are_identified_by_the_registry_probe() {
+        let context = Context::with_default_plugins();
+        let mut head = froctomap_file::MAGIC.to_vec();
+        head.extend_from_slice(b"rest of a header");
+        assert!(matches!(
+            context.formats().identify(&head),
+            Some(Identified::Series(f)) if f.name == FROCT.name
+        ));
+        // Without the descriptor the same bytes are nothing known.
+        let bare = Context::new(FormatRegistry::with_default_formats(), ModelRegistry::new());
+        assert!(bare.formats().identify(&head).is_none());
+        assert!(context.formats().identify(&head[..4]).is_none());
+    }
+}
