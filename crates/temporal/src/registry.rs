@@ -1,8 +1,9 @@
 //! Models as data: a registry resolving file-recorded ids and command-line names.
 
-use crate::{ModelId, PreparedModel, TemporalError, TemporalModel, TimeAxis};
+use crate::{ModelId, OptionDescriptor, PreparedModel, TemporalError, TemporalModel, TimeAxis};
 
-/// Describes one model: its stable id and name, a one-line description, and a factory.
+/// Describes one model: its stable id and name, a one-line description, its options, and a
+/// factory.
 #[derive(Debug, Clone, Copy)]
 pub struct ModelDescriptor {
     /// Stable id recorded in files.
@@ -11,6 +12,9 @@ pub struct ModelDescriptor {
     pub name: &'static str,
     /// One line for `--help` and listings.
     pub description: &'static str,
+    /// The options the model accepts in [`ModelConfig::options`](crate::ModelConfig), with
+    /// their defaults.
+    pub options: &'static [OptionDescriptor],
     /// Creates the model.
     pub factory: fn() -> Box<dyn TemporalModel>,
 }
@@ -31,7 +35,8 @@ impl ModelDescriptor {
 /// assert_eq!(fremen.id, ModelId::FREMEN_PERIODS);
 /// assert_eq!(registry.by_id(ModelId(0)).unwrap().name, "static");
 /// assert!(registry.by_id(ModelId(999)).is_none());
-/// assert_eq!(registry.iter().count(), 3);
+/// assert_eq!(registry.iter().count(), 4);
+/// assert!(fremen.options.iter().any(|o| o.key == "order" && o.default == "auto"));
 /// ```
 #[derive(Debug, Clone, Default)]
 pub struct ModelRegistry {

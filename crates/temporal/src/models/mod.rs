@@ -2,6 +2,7 @@
 
 pub mod fremen_periods;
 pub mod fremen_regular;
+pub mod markov;
 pub mod static_mean;
 
 pub use fremen_periods::{FremenPeriods, PreparedFremenPeriods};
@@ -16,6 +17,7 @@ pub const DEFAULT_MODELS: &[ModelDescriptor] = &[
     static_mean::DESCRIPTOR,
     fremen_regular::DESCRIPTOR,
     fremen_periods::DESCRIPTOR,
+    markov::DESCRIPTOR,
 ];
 
 /// One spectral coefficient `γ = (1/N) Σ_observed (s_i − mean)·e^{−j·2π·t_i/P}` of a voxel.
