@@ -906,10 +906,9 @@ pub(crate) fn decode_payload(
                 (Some(state), _, Some(exceptions)) => {
                     CellContent::ConstantExcept { state, exceptions }
                 }
-                (None, Some(parameters), toggles) => CellContent::Modelled(FittedVoxel::new(
-                    parameters,
-                    toggles.unwrap_or_default(),
-                )),
+                (None, Some(parameters), toggles) => {
+                    CellContent::Modelled(FittedVoxel::new(parameters, toggles.unwrap_or_default()))
+                }
                 (None, None, _) => return,
             };
             cells.push(Cell {
