@@ -187,10 +187,7 @@ fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig>
         }
         config.options.set(key, value);
     }
-    descriptor
-        .create()
-        .check_options(&config.options)
-        .with_context(|| format!("--model {}", descriptor.name))?;
+    descriptor.create().check_options(&config.options)?;
     Ok(config)
 }
 
