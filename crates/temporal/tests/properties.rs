@@ -398,7 +398,7 @@ proptest! {
                 let prepared = model.prepare(&axis, &config_for(d, Order::Fixed(2), mode))?;
                 if let Ok(len) = prepared.parameters_len(&bytes) {
                     prop_assert!(prepared.describe(&bytes[..len]).is_ok());
-                    for t in [-1.0, 0.0, 50.5, 1e6, f64::NAN] {
+                    for t in [-1.0, 0.0, 50.5, 1e6, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
                         let p = prepared.probability(&bytes[..len], t);
                         prop_assert!((0.0..=1.0).contains(&p));
                     }

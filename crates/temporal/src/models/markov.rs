@@ -163,11 +163,15 @@ impl PreparedMarkov {
     fn relaxed(&self, chain: &Chain, seconds: f64) -> f64 {
         let pi = chain.stationary();
         let since = seconds - self.axis.sample_seconds(chain.last_sample);
-        if !(since > 0.0) {
-            return pi; // also a NaN time
+        // A non-finite time gives the mean, as for every model.
+        if !since.is_finite() || since <= 0.0 {
+            return pi;
         }
         let last = f64::from(u8::from(chain.last_occupied));
-        let memory = (-f64::from(chain.rate) * since).exp();
+        let memory = match chain.rate {
+            0.0 => 1.0,
+            rate => (-f64::from(rate) * since).exp(),
+        };
         (pi + (last - pi) * memory).clamp(0.0, 1.0)
     }
 }
