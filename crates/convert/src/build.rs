@@ -32,7 +32,7 @@ pub struct BuildOptions {
     /// Temporal model name (see `froctomap_temporal::ModelRegistry`). Default `fremen-periods`,
     /// which works on any time axis.
     pub model: String,
-    /// Model settings: order, lossless/lossy, periods.
+    /// Model settings: lossless/lossy, and the model's own options (see its descriptor).
     pub config: ModelConfig,
     /// Depth of the tiles of the output (default 10: cubes of 64 voxels per edge).
     pub tile_depth: u8,

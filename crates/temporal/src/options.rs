@@ -114,7 +114,7 @@ impl ModelOptions {
 }
 
 /// The error for a value a model does not accept.
-pub fn invalid(
+pub(crate) fn invalid(
     model: &'static str,
     option: &OptionDescriptor,
     value: &str,

@@ -1,4 +1,7 @@
-//! The built-in models. Adding a model: one module here plus one line in [`DEFAULT_MODELS`].
+//! The built-in models. Adding a model: one module here (its [`ModelDescriptor`] with id,
+//! name, description and options, a [`TemporalModel`](crate::TemporalModel) and a
+//! [`PreparedModel`](crate::PreparedModel) that owns its voxel bytes; see [`markov`] for a
+//! small complete one), its `pub mod` line, and one line in [`DEFAULT_MODELS`].
 
 pub mod fremen_periods;
 pub mod fremen_regular;

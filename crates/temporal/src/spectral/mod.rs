@@ -147,7 +147,7 @@ impl SpectralParameters {
         out
     }
 
-    /// Decodes exactly `bytes` (any frequency accepted).
+    /// Decodes exactly `bytes` (frequencies are not checked against a model).
     pub fn decode(bytes: &[u8]) -> Result<Self, TemporalError> {
         if parameters_len(bytes, u32::MAX)? != bytes.len() {
             return Err(TemporalError::Malformed(
