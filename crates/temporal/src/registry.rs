@@ -145,6 +145,27 @@ mod tests {
             assert_eq!(model.id(), d.id);
             assert_eq!(model.name(), d.name);
         }
+        // Every declared default is a value the model accepts, and gives its default config.
+        let axis = TimeAxis::regular(froctomap_core::Timestamp(0), 1, 10, vec![]).unwrap();
+        for d in registry.iter() {
+            let mut explicit = crate::ModelOptions::new();
+            for option in d.options {
+                explicit.set(option.key, option.default);
+            }
+            let model = d.create();
+            assert_eq!(model.check_options(&explicit), Ok(()), "{}", d.name);
+            let config = crate::ModelConfig {
+                options: explicit,
+                ..Default::default()
+            };
+            let (Ok(a), Ok(b)) = (
+                model.prepare(&axis, &config),
+                model.prepare(&axis, &Default::default()),
+            ) else {
+                panic!("{}", d.name);
+            };
+            assert_eq!(a.encode_parameters(), b.encode_parameters());
+        }
         let mut again = registry.clone();
         assert!(again.register(crate::models::DEFAULT_MODELS[0]).is_err());
     }
