@@ -336,6 +336,10 @@ pub mod rows {
     pub const BUILD_FFI: &str = "build lossless (C++ reader, --backend octomap)";
     /// The model of the lossless file.
     pub const MODEL_LOSSLESS: &str = "model (lossless file, auto order)";
+    /// The two-state Markov model (a lossy file built with `--model markov`).
+    pub const MARKOV: &str = "markov model (lossy file)";
+    /// Its build.
+    pub const MARKOV_BUILD: &str = "build lossy, markov model";
     /// Static-mean baseline.
     pub const STATIC_MEAN: &str = "static mean";
     /// Last-seen baseline.

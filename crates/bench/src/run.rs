@@ -93,7 +93,10 @@ pub struct BuildChildArgs {
     /// The file to write.
     #[arg(long)]
     output: PathBuf,
-    /// Fixed order (default: auto up to --max-order).
+    /// Temporal model (a registered name).
+    #[arg(long, default_value = "fremen-periods")]
+    model: String,
+    /// Fixed order (default: auto up to --max-order), for models with orders.
     #[arg(long)]
     order: Option<u8>,
     /// Highest auto order.
@@ -115,20 +118,30 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
         std::slice::from_ref(&args.input),
         TimeSource::Auto,
     )?;
-    let config = ModelConfig::default()
-        .with_order(match args.order {
+    let model = context
+        .models()
+        .by_name(&args.model)
+        .with_context(|| format!("unknown model {}", args.model))?;
+    let config = ModelConfig::default().with_outliers(if args.lossy {
+        OutlierMode::Lossy
+    } else {
+        OutlierMode::Lossless
+    });
+    // Models without orders (e.g. markov) take their defaults.
+    let config = if model.options.iter().any(|o| o.key == "order") {
+        match args.order {
             Some(n) => Order::Fixed(n),
             None => Order::Auto {
                 max: args.max_order,
             },
-        })
-        .with_outliers(if args.lossy {
-            OutlierMode::Lossy
-        } else {
-            OutlierMode::Lossless
-        });
-    config.validate()?;
+        }
+        .apply(config)
+    } else {
+        config
+    };
+    model.create().check_options(&config.options)?;
     let options = BuildOptions {
+        model: model.name.to_string(),
         config,
         backend: Some(if args.cpp_reader {
             Backend::Octomap
@@ -149,16 +162,38 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
     Ok(())
 }
 
+/// The model of a child build: a registered name, and the order for models with orders.
+struct ChildModel<'a> {
+    name: &'a str,
+    order: Option<u8>,
+    max_order: u8,
+}
+
+impl ChildModel<'_> {
+    /// The default model (FreMEn at candidate periods).
+    fn fremen(order: Option<u8>, max_order: u8) -> Self {
+        ChildModel {
+            name: "fremen-periods",
+            order,
+            max_order,
+        }
+    }
+}
+
 /// Runs `build-child` as a process and reads its report.
 fn spawn_build(
     name: &str,
     input: &Path,
     output: &Path,
-    order: Option<u8>,
-    max_order: u8,
+    model: &ChildModel<'_>,
     lossy: bool,
     cpp_reader: bool,
 ) -> Result<BuildRow> {
+    let ChildModel {
+        name: model_name,
+        order,
+        max_order,
+    } = *model;
     let exe = std::env::current_exe().context("cannot find this executable")?;
     let mut command = Command::new(exe);
     command
@@ -167,6 +202,8 @@ fn spawn_build(
         .arg(input)
         .arg("--output")
         .arg(output)
+        .arg("--model")
+        .arg(model_name)
         .arg("--max-order")
         .arg(max_order.to_string());
     if let Some(n) = order {
@@ -507,8 +544,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         rows::BUILD_NATIVE,
         &train_manifest,
         &lossless,
-        None,
-        args.max_order,
+        &ChildModel::fremen(None, args.max_order),
         false,
         false,
     )?);
@@ -518,8 +554,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             rows::BUILD_FFI,
             &train_manifest,
             &root.join("lossless-cpp.froct"),
-            None,
-            args.max_order,
+            &ChildModel::fremen(None, args.max_order),
             false,
             true,
         )?);
@@ -532,13 +567,28 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &rows::lossy(n),
             &train_manifest,
             &path,
-            Some(n),
-            args.max_order,
+            &ChildModel::fremen(Some(n), args.max_order),
             true,
             false,
         )?);
         lossy_files.push((n, path));
     }
+    // A second, non-spectral model for the accuracy table (lossy: the model alone is what
+    // is compared, and it is the quick build).
+    note("building lossy, markov");
+    let markov = root.join("markov.froct");
+    builds.push(spawn_build(
+        rows::MARKOV_BUILD,
+        &train_manifest,
+        &markov,
+        &ChildModel {
+            name: "markov",
+            order: None,
+            max_order: args.max_order,
+        },
+        true,
+        false,
+    )?);
     let short_frames =
         froctomap_synth::frames_for(short_days, step).min(train.len() as u64) as usize;
     let short_manifest = dataset::prefix_manifest(train, &root, short_frames)?;
@@ -549,8 +599,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &format!("build lossless, first {short_frames} snapshots"),
         &short_manifest,
         &root.join("short.froct"),
-        None,
-        args.max_order,
+        &ChildModel::fremen(None, args.max_order),
         false,
         false,
     )?;
@@ -758,6 +807,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
             prediction: p,
         });
     }
+    let (r, p) = method(&evaluate_file(&markov, &truths)?, "model");
+    accuracy.push(AccuracyRow {
+        name: rows::MARKOV.into(),
+        order: None,
+        reconstruction: r,
+        prediction: p,
+    });
 
     // Plots.
     note("plotting");
@@ -841,6 +897,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     {
         voxel_files.push((format!("p(t), lossy file (order {n})"), path.clone()));
     }
+    voxel_files.push(("p(t), markov (lossy file)".to_string(), markov.clone()));
     let voxel_title = plot_voxel(&generator, &voxel_files, train, &written.heldout, &args.out)?;
 
     let mut results = Results {

@@ -2,7 +2,7 @@
 //! FROctomap files. Each is a thin layer over `froctomap-convert`.
 
 use crate::froct_info::class_counts;
-use crate::plugins::writable_format;
+use crate::plugins::{context, writable_format};
 use crate::progress::{peak_memory_bytes, Bars};
 use crate::ui::Ui;
 use anyhow::{Context, Result};
@@ -15,7 +15,7 @@ use froctomap_convert::{
 };
 use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
-use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
+use froctomap_temporal::{ModelConfig, ModelRegistry, OutlierMode};
 use serde_json::{Map, Value};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -48,32 +48,35 @@ impl TimeArgs {
     }
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum ModelArg {
-    /// FreMEn at a candidate period set (one week / k, plus --periods); any time axis.
-    FremenPeriods,
-    /// FreMEn over every DFT bin; regularly spaced snapshots only.
-    FremenRegular,
-    /// The mean only: the baseline.
-    Static,
-}
-
-impl ModelArg {
-    fn name(self) -> &'static str {
-        match self {
-            ModelArg::FremenPeriods => "fremen-periods",
-            ModelArg::FremenRegular => "fremen-regular",
-            ModelArg::Static => "static",
-        }
+/// `--model`: a name of the registry's models.
+fn model_name(name: &str) -> Result<String, String> {
+    let registry = context().models();
+    match registry.by_name(name) {
+        Some(descriptor) => Ok(descriptor.name.to_string()),
+        None => Err(format!(
+            "unknown model (registered: {})",
+            registry
+                .iter()
+                .map(|d| d.name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
     }
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum CriterionArg {
-    /// The order that predicts held-out samples best (the file predicts well).
-    Prediction,
-    /// The order with the smallest encoding (lossless only; the file is smallest).
-    Size,
+/// `--help` for `--model`: every registered model with its description and options.
+fn models_help() -> String {
+    let mut help = String::from(
+        "Temporal model of dynamic voxels, and the options each accepts \
+         (--model-option KEY=VALUE; default in brackets):\n",
+    );
+    for d in context().models().iter() {
+        help.push_str(&format!("\n{}: {}\n", d.name, d.description));
+        for o in d.options {
+            help.push_str(&format!("    {} [{}]: {}\n", o.key, o.default, o.help));
+        }
+    }
+    help
 }
 
 #[derive(Args)]
@@ -87,25 +90,33 @@ pub struct BuildArgs {
     output: PathBuf,
     #[command(flatten)]
     times: TimeArgs,
-    /// Temporal model of dynamic voxels.
-    #[arg(long, value_enum, default_value_t = ModelArg::FremenPeriods)]
-    model: ModelArg,
-    /// Spectral components per voxel: a number, or `auto` to choose per voxel up to --max-order.
-    #[arg(long, default_value = "auto", value_name = "N|auto")]
-    order: String,
-    /// Highest order `--order auto` tries.
-    #[arg(long, default_value_t = 5)]
-    max_order: u8,
-    /// How `--order auto` chooses.
-    #[arg(long, value_enum, default_value_t = CriterionArg::Prediction)]
-    criterion: CriterionArg,
+    /// Temporal model of dynamic voxels (`--help` lists the models and their options).
+    #[arg(long, default_value = "fremen-periods", value_name = "NAME",
+          value_parser = model_name, long_help = models_help())]
+    model: String,
+    /// A model option (repeatable; `--help` on --model lists them).
+    #[arg(long, value_name = "KEY=VALUE")]
+    model_option: Vec<String>,
+    /// Shorthand for `--model-option order=…`: spectral components per voxel, a number, or
+    /// `auto` to choose per voxel up to --max-order (the default).
+    #[arg(long, value_name = "N|auto")]
+    order: Option<String>,
+    /// Shorthand for `--model-option max-order=…`: highest order `--order auto` tries [5].
+    #[arg(long, value_name = "N")]
+    max_order: Option<u8>,
+    /// Shorthand for `--model-option criterion=…`: how `--order auto` chooses,
+    /// `prediction` (the order that predicts held-out samples best; the default) or `size`
+    /// (the smallest encoding, lossless only).
+    #[arg(long, value_name = "prediction|size")]
+    criterion: Option<String>,
     /// Keep every observed state exactly (the default).
     #[arg(long, conflicts_with = "lossy")]
     lossless: bool,
     /// Keep only the models: much smaller, states approximate (the error is reported).
     #[arg(long)]
     lossy: bool,
-    /// Extra candidate periods, in seconds or with units (e.g. 1d,8h,45min).
+    /// Shorthand for `--model-option periods=…`: extra candidate periods, in seconds or with
+    /// units (e.g. 1d,8h,45min).
     #[arg(long, value_delimiter = ',', value_name = "DURATION")]
     periods: Vec<String>,
     /// Tile depth: tiles are cubes of 2^(16 - depth) voxels per edge.
@@ -134,34 +145,51 @@ pub struct BuildArgs {
     json: bool,
 }
 
-fn model_config(args: &BuildArgs) -> Result<ModelConfig> {
-    let order = match args.order.as_str() {
-        "auto" => Order::Auto {
-            max: args.max_order,
-        },
-        n => Order::Fixed(
-            n.parse()
-                .with_context(|| format!("--order {n:?}: expected a number 0-255 or `auto`"))?,
-        ),
-    };
+fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig> {
+    let descriptor = models
+        .by_name(&args.model)
+        .with_context(|| format!("--model {}: not a registered model", args.model))?;
+    let mut config = ModelConfig::default().with_outliers(if args.lossy {
+        OutlierMode::Lossy
+    } else {
+        OutlierMode::Lossless
+    });
+    for assignment in &args.model_option {
+        config
+            .options
+            .set_assignment(assignment)
+            .context("--model-option")?;
+    }
     let periods = args
         .periods
         .iter()
-        .map(|p| parse_duration(p).map(|ns| ns as f64 / 1e9))
+        .map(|p| parse_duration(p).map(|ns| (ns as f64 / 1e9).to_string()))
         .collect::<Result<Vec<_>, _>>()?;
-    let config = ModelConfig::default()
-        .with_order(order)
-        .with_outliers(if args.lossy {
-            OutlierMode::Lossy
-        } else {
-            OutlierMode::Lossless
-        })
-        .with_criterion(match args.criterion {
-            CriterionArg::Prediction => OrderCriterion::Prediction,
-            CriterionArg::Size => OrderCriterion::SmallestFile,
-        })
-        .with_periods(periods);
-    config.validate()?;
+    let shorthands = [
+        ("--order", "order", args.order.clone()),
+        (
+            "--max-order",
+            "max-order",
+            args.max_order.map(|n| n.to_string()),
+        ),
+        ("--criterion", "criterion", args.criterion.clone()),
+        (
+            "--periods",
+            "periods",
+            (!periods.is_empty()).then(|| periods.join(",")),
+        ),
+    ];
+    for (flag, key, value) in shorthands {
+        let Some(value) = value else { continue };
+        if !descriptor.options.iter().any(|o| o.key == key) {
+            anyhow::bail!(
+                "{flag}: model {} has no option {key} (see --help on --model)",
+                descriptor.name
+            );
+        }
+        config.options.set(key, value);
+    }
+    descriptor.create().check_options(&config.options)?;
     Ok(config)
 }
 
@@ -184,8 +212,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         metadata.insert("tags".into(), Value::Object(tags));
     }
     let options = BuildOptions {
-        model: args.model.name().to_string(),
-        config: model_config(args)?,
+        model: args.model.clone(),
+        config: model_config(args, context().models())?,
         tile_depth: args.tile_depth,
         codec: if args.zstd_level == 0 {
             Codec::Raw

@@ -253,6 +253,62 @@ fn every_toggle_layout_retrieves_every_snapshot_exactly() {
     }
 }
 
+/// Every registered model builds a lossless file that retrieves every input exactly; model
+/// options are checked against the chosen model.
+#[test]
+fn models_come_from_the_registry() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("inputs");
+    std::fs::create_dir(&inputs).unwrap();
+    let files = write_series(&inputs, 8);
+    let help = ok(&["build", "--help"]);
+    for model in ["static", "fremen-regular", "fremen-periods", "markov"] {
+        assert!(help.contains(&format!("{model}: ")), "{help}");
+        let map = dir.path().join(format!("{model}.froct"));
+        ok(&[
+            "build",
+            "--quiet",
+            "--model",
+            model,
+            s(&inputs),
+            "-o",
+            s(&map),
+        ]);
+        assert!(ok(&["info", s(&map)]).contains(&format!("model:           {model} (lossless)")));
+        for (i, file) in files.iter().enumerate() {
+            let out = dir.path().join(format!("{model}-{i}.bt"));
+            let index = format!("index:{i}");
+            ok(&["retrieve", s(&map), "--time", &index, "-o", s(&out)]);
+            assert_eq!(
+                std::fs::read(&out).unwrap(),
+                std::fs::read(file).unwrap(),
+                "{model} {i}"
+            );
+        }
+    }
+    let map = dir.path().join("options.froct");
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", "--quiet", s(&inputs), "-o", s(&map)];
+        args.extend_from_slice(extra);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |args: Vec<String>| froctomap(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        run(build(&["--model-option", "order=2", "--criterion", "size"]))
+            .status
+            .success()
+    );
+    let e = run(build(&["--model", "markov", "--order", "3"]));
+    assert!(
+        String::from_utf8_lossy(&e.stderr).contains("--order: model markov has no option order")
+    );
+    let e = run(build(&["--model-option", "colour=red"]));
+    assert!(String::from_utf8_lossy(&e.stderr).contains("has no option \"colour\""));
+    let e = run(build(&["--model", "hmm"]));
+    assert!(String::from_utf8_lossy(&e.stderr)
+        .contains("registered: static, fremen-regular, fremen-periods, markov"));
+}
+
 #[test]
 fn errors_are_clear() {
     let dir = tempfile::tempdir().unwrap();

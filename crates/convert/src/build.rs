@@ -31,7 +31,7 @@ pub struct BuildOptions {
     /// Temporal model name (see `froctomap_temporal::ModelRegistry`). Default `fremen-periods`,
     /// which works on any time axis.
     pub model: String,
-    /// Model settings: order, lossless/lossy, periods.
+    /// Model settings: lossless/lossy, and the model's own options (see its descriptor).
     pub config: ModelConfig,
     /// Depth of the tiles of the output (default 10: cubes of 64 voxels per edge).
     pub tile_depth: u8,
@@ -725,16 +725,14 @@ fn encode_cells(
                 stats.toggles += fitted.toggles().len() as u64;
                 stats.model_errors += fitted.model_errors().unwrap_or(0);
                 let lossless = model.outlier_mode() == OutlierMode::Lossless;
-                if lossless && fitted.order() == 0 && outside_clamping(fitted.mean()) {
-                    // A mean no map can express (beyond the clamping bounds) adds nothing to
-                    // the constant state; only the exceptions matter. (Lossy files keep the
-                    // mean: without exceptions it is all they know of the changes.)
+                let parameters = fitted.parameters();
+                let mean = model.mean(parameters);
+                if lossless && model.is_constant(parameters) && outside_clamping(mean) {
+                    // A constant p no map can express (beyond the clamping bounds) adds
+                    // nothing to the constant state; only the exceptions matter. (Lossy files
+                    // keep the mean: without exceptions it is all they know of the changes.)
                     CellContent::ConstantExcept {
-                        state: if fitted.mean() > 0.5 {
-                            Occupancy::Occupied
-                        } else {
-                            Occupancy::Free
-                        },
+                        state: Occupancy::from(mean > 0.5),
                         exceptions: fitted.toggles().clone(),
                     }
                 } else {

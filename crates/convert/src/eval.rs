@@ -117,11 +117,15 @@ fn last_observed(cell: &Cell, axis: &TimeAxis, mut k: u32) -> Option<u32> {
     }
 }
 
-fn mean_state(cell: &Cell) -> Occupancy {
+fn mean_state(cell: &Cell, model: &dyn PreparedModel) -> Occupancy {
     match &cell.content {
         CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
         CellContent::Modelled(voxel) => {
-            Occupancy::from_log_odds(if voxel.mean() > 0.5 { 1.0 } else { -1.0 })
+            Occupancy::from_log_odds(if model.mean(voxel.parameters()) > 0.5 {
+                1.0
+            } else {
+                -1.0
+            })
         }
     }
 }
@@ -143,7 +147,7 @@ fn verdicts(
     let seconds = t.secs_since(axis.start());
     let predicted = match &cell.content {
         CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
-        CellContent::Modelled(voxel) => model.predicted_state(voxel, seconds),
+        CellContent::Modelled(voxel) => model.predicted_state(voxel.parameters(), seconds),
     };
     let at_or_before = axis.last_at_or_before(t);
     let stored = if inside {
@@ -161,7 +165,12 @@ fn verdicts(
         .and_then(|k| last_observed(cell, axis, k))
         .and_then(|k| cell.state_at(axis, model, k));
     Verdicts {
-        states: [Some(predicted), stored, Some(mean_state(cell)), last_seen],
+        states: [
+            Some(predicted),
+            stored,
+            Some(mean_state(cell, model)),
+            last_seen,
+        ],
         dynamic: !matches!(cell.content, CellContent::Constant(_)),
         ever_occupied: !matches!(cell.content, CellContent::Constant(Occupancy::Free)),
     }

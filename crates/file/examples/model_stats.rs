@@ -1,4 +1,5 @@
-//! Histogram of model orders and toggle counts of the modelled cells of a file.
+//! Histogram of model orders (periodic terms) and toggle counts of the modelled cells of a
+//! file.
 //!
 //! `cargo run --release -p froctomap-file --example model_stats -- FILE.froct`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -18,10 +19,11 @@ fn main() {
         for cell in reader.read_tile(i).unwrap() {
             if let CellContent::Modelled(v) = &cell.content {
                 cells += 1;
-                orders[v.order().min(7)] += 1;
+                let description = reader.model().describe(v.parameters()).unwrap();
+                orders[description.periodic.len().min(7)] += 1;
                 let t = v.toggles().len();
                 toggles[(usize::BITS - t.leading_zeros()) as usize % 8] += 1;
-                if v.mean() < 0.05 || v.mean() > 0.95 {
+                if description.mean < 0.05 || description.mean > 0.95 {
                     extreme_mean += 1;
                 }
             }

@@ -97,7 +97,7 @@ impl Cell {
                     0.0
                 }
             }
-            CellContent::Modelled(voxel) => model.probability(voxel, seconds),
+            CellContent::Modelled(voxel) => model.probability(voxel.parameters(), seconds),
         }
     }
 
@@ -250,7 +250,8 @@ pub fn encode_tile(
                 (state_class(state), Some(exceptions))
             }
             CellContent::Modelled(voxel) => {
-                voxel.encode(false, &mut models);
+                // The model's parameter bytes, verbatim; the toggles go to the outlier lists.
+                models.extend_from_slice(voxel.parameters());
                 (CLASS_MODELLED, Some(voxel.toggles()))
             }
         };
@@ -613,8 +614,8 @@ pub(crate) struct CellRef<'a> {
     pub(crate) mask: Option<&'a Arc<Toggles>>,
     /// The constant state, or `None` for a modelled cell.
     pub(crate) constant: Option<Occupancy>,
-    /// A modelled cell's parameters (without outliers).
-    pub(crate) model: Option<&'a FittedVoxel>,
+    /// A modelled cell's parameter bytes (without outliers), for the file's model.
+    pub(crate) model: Option<&'a [u8]>,
     /// With [`WalkNeed::Everything`]: the cell's outlier (or exception) toggles.
     pub(crate) outliers: &'a [u32],
     /// With [`WalkNeed::StateAt`]: whether the cell is observed at the sample, and whether
@@ -629,7 +630,9 @@ impl CellRef<'_> {
     pub(crate) fn state(&self, model: &dyn PreparedModel, sample: u32) -> Occupancy {
         let base = match (self.constant, self.model) {
             (Some(state), _) => state,
-            (None, Some(voxel)) => occupancy(model.probability_at_sample(voxel, sample) > 0.5),
+            (None, Some(parameters)) => {
+                occupancy(model.probability_at_sample(parameters, sample) > 0.5)
+            }
             (None, None) => Occupancy::Free,
         };
         if self.outlier_parity {
@@ -644,7 +647,7 @@ impl CellRef<'_> {
     pub(crate) fn probability(&self, model: &dyn PreparedModel, seconds: f64) -> f64 {
         match (self.constant, self.model) {
             (Some(state), _) => f64::from(u8::from(state.is_occupied())),
-            (None, Some(voxel)) => model.probability(voxel, seconds),
+            (None, Some(parameters)) => model.probability(parameters, seconds),
             (None, None) => 0.0,
         }
     }
@@ -774,9 +777,7 @@ pub(crate) fn walk_payload(
     let tile_end = code.0 + voxels_per_node(tile_depth);
     let mut geometry = Cursor::new(geometry, "tile geometry");
     let mut model_pos = 0usize;
-    let frequency_limit = model.frequency_limit();
     let mut previous_end = code.0;
-    let mut voxel: Option<FittedVoxel>;
     for (&depth, &class) in depths.iter().zip(classes) {
         let gap = geometry.varint()?;
         if !(tile_depth..=TREE_DEPTH).contains(&depth) {
@@ -832,17 +833,17 @@ pub(crate) fn walk_payload(
                 WalkNeed::ModelOnly => outliers.skip_list()?,
             }
         }
-        // Most cells are constant: they pass no model (a decoded one lives in `voxel`, kept
-        // outside the loop so that constant cells move nothing).
+        // A modelled cell passes its parameter bytes in place: the model delimits and
+        // validates them, and evaluates them without decoding.
         let (constant, model_ref) = match class & CLASS_KIND_MASK {
             CLASS_FREE => (Some(Occupancy::Free), None),
             CLASS_OCCUPIED => (Some(Occupancy::Occupied), None),
             CLASS_MODELLED => {
-                let (decoded, used) =
-                    FittedVoxel::decode(&models[model_pos..], frequency_limit, axis_len, false)?;
+                let rest = models.get(model_pos..).unwrap_or_default();
+                let used = model.parameters_len(rest)?;
+                let parameters = rest.get(..used).unwrap_or_default();
                 model_pos += used;
-                voxel = Some(decoded);
-                (None, voxel.as_ref())
+                (None, Some(parameters))
             }
             _ => return Err(corrupt("tile", "invalid cell class 3")),
         };
@@ -905,8 +906,8 @@ pub(crate) fn decode_payload(
                 (Some(state), _, Some(exceptions)) => {
                     CellContent::ConstantExcept { state, exceptions }
                 }
-                (None, Some(voxel), toggles) => {
-                    CellContent::Modelled(voxel.clone().with_toggles(toggles.unwrap_or_default()))
+                (None, Some(parameters), toggles) => {
+                    CellContent::Modelled(FittedVoxel::new(parameters, toggles.unwrap_or_default()))
                 }
                 (None, None, _) => return,
             };

@@ -7,7 +7,9 @@ mod common;
 use common::*;
 use froctomap_core::{MortonCode, Occupancy, Timestamp, VoxelKey};
 use froctomap_file::{Codec, FroctReader, TileLayout, ToggleLayout};
-use froctomap_temporal::{ModelConfig, ObservationsBuilder, Order, OutlierMode, TimeAxis};
+use froctomap_temporal::{
+    ModelConfig, ModelRegistry, ObservationsBuilder, Order, OutlierMode, TimeAxis,
+};
 use proptest::prelude::*;
 
 const TILE_DEPTH: u8 = 13;
@@ -141,9 +143,15 @@ fn check(
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("series.froct");
-    let config = ModelConfig::default()
-        .with_outliers(outliers)
-        .with_order(Order::Auto { max: 3 });
+    let config = ModelConfig::default().with_outliers(outliers);
+    let declares_order = ModelRegistry::with_default_models()
+        .by_name(model)
+        .is_some_and(|d| d.options.iter().any(|o| o.key == "order"));
+    let config = if declares_order {
+        Order::Auto { max: 3 }.apply(config)
+    } else {
+        config
+    };
     write_file(
         &path,
         &axis,
@@ -224,6 +232,11 @@ proptest! {
     #[test]
     fn lossless_static_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
         check("static", OutlierMode::Lossless, axis, geometry, seed, toggles);
+    }
+
+    #[test]
+    fn lossless_markov_model_is_exact(axis in axis_strategy(), geometry in cells_strategy(), seed: u64, toggles in toggles_strategy()) {
+        check("markov", OutlierMode::Lossless, axis, geometry, seed, toggles);
     }
 
     #[test]

@@ -56,6 +56,29 @@ pub enum TemporalError {
         /// The largest accepted value.
         limit: u64,
     },
+    /// A model option that is not `key=value` text.
+    #[error("model option {0:?} is not KEY=VALUE")]
+    MalformedOption(String),
+    /// An option the chosen model does not declare.
+    #[error("model {model} has no option {key:?}")]
+    UnknownOption {
+        /// Name of the model.
+        model: &'static str,
+        /// The key given.
+        key: String,
+    },
+    /// An option value the model does not accept.
+    #[error("model {model}: option {key}={value:?} is invalid (expected {expected})")]
+    InvalidOption {
+        /// Name of the model.
+        model: &'static str,
+        /// The option's key.
+        key: &'static str,
+        /// The value given.
+        value: String,
+        /// What the model accepts.
+        expected: &'static str,
+    },
     /// No registered model has this id.
     #[error("unknown temporal model id {0}")]
     UnknownModel(ModelId),

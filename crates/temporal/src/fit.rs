@@ -1,7 +1,9 @@
 //! The fitting pipeline shared by every spectral model: mean, component choice, order choice,
 //! and the outlier set computed from the *quantised* parameters.
 
-use crate::fitted::{params_len, quantise_phase, quantise_unit, Component, Evaluable};
+use crate::spectral::{
+    encoded_len, quantise_phase, quantise_unit, Component, Evaluable, SpectralParameters,
+};
 use crate::toggles::ToggleBuilder;
 use crate::{FittedVoxel, Order, OutlierMode, VoxelObservations};
 
@@ -60,19 +62,6 @@ pub(crate) struct FitSettings {
     pub holdout_fraction: f64,
 }
 
-/// The canonical probability (unclamped): `((mean + v₀) + v₁) + …` with
-/// `v_c = ac·cos θ_c − as·sin θ_c`, where `angle(c)` gives `(cos θ_c, sin θ_c)`.
-pub(crate) fn canonical_sum(
-    voxel: &FittedVoxel,
-    mut angle: impl FnMut(&Component) -> (f64, f64),
-) -> f64 {
-    let mut p = voxel.mean();
-    for c in voxel.components() {
-        p += Evaluable::new(c).value(angle(c));
-    }
-    p
-}
-
 fn quantise(cands: &[Candidate]) -> Vec<Component> {
     cands
         .iter()
@@ -93,7 +82,8 @@ pub(crate) fn fit_voxel<S: Spectral>(
 ) -> FittedVoxel {
     let n = obs.observed_count();
     if n == 0 {
-        return FittedVoxel::new(0, Vec::new(), Default::default()).with_model_errors(0);
+        return FittedVoxel::new(&SpectralParameters::default().encode(), Default::default())
+            .with_model_errors(0);
     }
     let mean = obs.occupied_count() as f64 / n as f64;
     let mean_q = quantise_unit(mean);
@@ -327,7 +317,7 @@ fn finish<S: Spectral>(
     let mut best_size = usize::MAX;
     for (k, tracker) in trackers.iter().enumerate() {
         let m = lo + k;
-        let size = params_len(comps.get(..m).unwrap_or(&comps)) + tracker.encoded_len();
+        let size = encoded_len(comps.get(..m).unwrap_or(&comps)) + tracker.encoded_len();
         if size < best_size {
             best_size = size;
             best = k;
@@ -337,7 +327,11 @@ fn finish<S: Spectral>(
     let tracker = trackers.swap_remove(best);
     let errors = tracker.disagreements();
     comps.truncate(m);
-    FittedVoxel::new(mean_q, comps, tracker.finish()).with_model_errors(errors)
+    let parameters = SpectralParameters {
+        mean_q,
+        components: comps,
+    };
+    FittedVoxel::new(&parameters.encode(), tracker.finish()).with_model_errors(errors)
 }
 
 /// Keeps the `max` largest by `key` (strongest first; ties to the lower frequency).

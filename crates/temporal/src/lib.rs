@@ -1,5 +1,5 @@
-//! Temporal models of voxel occupancy for froctomap: FreMEn and a static baseline, behind one
-//! plugin trait, with lossless outlier sets.
+//! Temporal models of voxel occupancy for froctomap: FreMEn, a two-state Markov chain and a
+//! static baseline, behind one plugin trait, with lossless outlier sets.
 //!
 //! # The method
 //!
@@ -36,27 +36,39 @@
 //!   on any machine will, so lossless means bit-exact everywhere.
 //! - **Model order per voxel.** [`Order::Fixed`] or [`Order::Auto`]: the best held-out
 //!   prediction (default, also in lossless files) or the smallest encoded voxel
-//!   ([`OrderCriterion`]); see [`Order`].
+//!   ([`OrderCriterion`]); see [`Order`]. Options `order`, `max-order`, `criterion`.
 //!
 //! # Plugins
 //!
 //! A [`TemporalModel`] is selected by a stable [`ModelId`] recorded in files, resolved through
-//! a [`ModelRegistry`] of [`ModelDescriptor`]s. `prepare` does the per-axis work shared by all
-//! voxels of a map (unit-root tables and FFT plan, prefix sums of cos/sin per period) and
-//! returns a [`PreparedModel`] that fits, evaluates, encodes and decodes voxels. Model-global
-//! parameters (e.g. the period list) are written once with
+//! a [`ModelRegistry`] of [`ModelDescriptor`]s (id, name, description, [`OptionDescriptor`]s,
+//! factory). A [`ModelConfig`] is the outlier mode plus the model's own options as
+//! `key=value` text ([`ModelOptions`]), which the model parses and validates. `prepare` does
+//! the per-axis work shared by all voxels of a map (unit-root tables and FFT plan, prefix
+//! sums of cos/sin per period) and returns a [`PreparedModel`] that fits voxels and
+//! evaluates them. Model-global parameters (e.g. the period list) are written once with
 //! [`PreparedModel::encode_parameters`] and read back with
 //! [`TemporalModel::prepare_from_parameters`].
 //!
-//! | id | name | `Component::frequency` means | parameters after the header |
-//! |---|---|---|---|
-//! | 0 | `static` | (no components) | — |
-//! | 1 | `fremen-regular` | DFT bin `k`, period `len·step/k` | — |
-//! | 2 | `fremen-periods` | index into the period list | `varint K`, `K × f64 LE` seconds |
+//! A voxel's parameters are bytes the model owns ([`FittedVoxel::parameters`]): containers
+//! store them verbatim, delimit (and validate) them with [`PreparedModel::parameters_len`],
+//! and evaluate them in place ([`PreparedModel::probability`],
+//! [`PreparedModel::probability_at_sample`], [`PreparedModel::mean`], …) without decoding.
+//!
+//! | id | name | voxel parameters | parameters after the header | options |
+//! |---|---|---|---|---|
+//! | 0 | `static` | spectral, no components | — | — |
+//! | 1 | `fremen-regular` | spectral, frequency = DFT bin `k`, period `len·step/k` | — | `order`, `max-order`, `criterion`, `min-cycles`, `holdout-fraction` |
+//! | 2 | `fremen-periods` | spectral, frequency = index into the period list | `varint K`, `K × f64 LE` seconds | the above plus `periods`, `base-period`, `harmonics` |
+//! | 3 | `markov` | `u16 LE` π, varint `2·last sample + last state`, `f32 LE` rate λ ([`models::markov`]) | — | — |
 //!
 //! Parameter header (all models): `u8 version = 1`, `u8 outlier mode` (0 lossless, 1 lossy).
 //!
 //! # Voxel encoding
+//!
+//! A voxel is its parameters, then (lossless only) its toggles: varint count, then varint
+//! `first`, varint `next − previous − 1`, … ([`Toggles::encode`]). The spectral parameters
+//! of models 0-2 ([`SpectralParameters`]):
 //!
 //! | field | encoding |
 //! |---|---|
@@ -64,7 +76,6 @@
 //! | component count `m` | varint (≤ 255) |
 //! | `m ×` frequency | varint (meaning per model, see above) |
 //! | `m ×` amplitude, phase | `u16 LE` each: `A = q / 65535`, `φ = 2π·q / 65536` |
-//! | toggles (lossless only) | varint count, then varint `first`, varint `next − previous − 1`, … |
 //!
 //! Components are stored strongest first and `p` is summed in stored order, so the first `m'`
 //! components are the order-`m'` model. Quantisation moves `p` by at most
@@ -91,7 +102,7 @@
 //!
 //! let registry = ModelRegistry::with_default_models();
 //! let model = registry.by_name("fremen-periods").unwrap().create();
-//! let prepared = model.prepare(&axis, &ModelConfig::default().with_order(Order::Fixed(5)))?;
+//! let prepared = model.prepare(&axis, &ModelConfig::default().with_option("order", 5))?;
 //! let voxel = prepared.fit(&obs)?;
 //!
 //! // Encode, then decode as a reader would from the file header and voxel bytes.
@@ -105,8 +116,8 @@
 //! }
 //! // Prediction: next Monday 12:00 is likely occupied, next Sunday 12:00 is not.
 //! let monday_noon = (21.0 * 86_400.0) + 12.0 * 3600.0;
-//! assert!(reader.probability(&decoded, monday_noon) > 0.5);
-//! assert!(reader.probability(&decoded, monday_noon + 6.0 * 86_400.0) < 0.5);
+//! assert!(reader.probability(decoded.parameters(), monday_noon) > 0.5);
+//! assert!(reader.probability(decoded.parameters(), monday_noon + 6.0 * 86_400.0) < 0.5);
 //! # Ok::<(), TemporalError>(())
 //! ```
 
@@ -117,17 +128,22 @@ mod fitted;
 mod model;
 pub mod models;
 mod observations;
+mod options;
 mod registry;
+pub mod spectral;
 mod toggles;
 pub mod trig;
 pub mod varint;
 
 pub use axis::{AxisKind, TimeAxis};
 pub use error::TemporalError;
-pub use fitted::{Component, FittedVoxel, MAX_COMPONENTS};
+pub use fitted::FittedVoxel;
 pub use model::{
-    ModelConfig, ModelId, Order, OrderCriterion, OutlierMode, PreparedModel, TemporalModel,
+    ModelConfig, ModelId, OutlierMode, PeriodicTerm, PreparedModel, TemporalModel, VoxelDescription,
 };
 pub use observations::{ObservationsBuilder, Run, VoxelObservations};
+pub use options::{ModelOptions, OptionDescriptor};
 pub use registry::{ModelDescriptor, ModelRegistry};
+pub use spectral::options::{Order, OrderCriterion, SpectralOptions};
+pub use spectral::{Component, SpectralParameters, MAX_COMPONENTS};
 pub use toggles::{ToggleBuilder, Toggles, MAX_TOGGLES};

@@ -1,8 +1,9 @@
 //! Models as data: a registry resolving file-recorded ids and command-line names.
 
-use crate::{ModelId, PreparedModel, TemporalError, TemporalModel, TimeAxis};
+use crate::{ModelId, OptionDescriptor, PreparedModel, TemporalError, TemporalModel, TimeAxis};
 
-/// Describes one model: its stable id and name, a one-line description, and a factory.
+/// Describes one model: its stable id and name, a one-line description, its options, and a
+/// factory.
 #[derive(Debug, Clone, Copy)]
 pub struct ModelDescriptor {
     /// Stable id recorded in files.
@@ -11,6 +12,9 @@ pub struct ModelDescriptor {
     pub name: &'static str,
     /// One line for `--help` and listings.
     pub description: &'static str,
+    /// The options the model accepts in [`ModelConfig::options`](crate::ModelConfig), with
+    /// their defaults.
+    pub options: &'static [OptionDescriptor],
     /// Creates the model.
     pub factory: fn() -> Box<dyn TemporalModel>,
 }
@@ -31,7 +35,8 @@ impl ModelDescriptor {
 /// assert_eq!(fremen.id, ModelId::FREMEN_PERIODS);
 /// assert_eq!(registry.by_id(ModelId(0)).unwrap().name, "static");
 /// assert!(registry.by_id(ModelId(999)).is_none());
-/// assert_eq!(registry.iter().count(), 3);
+/// assert_eq!(registry.iter().count(), 4);
+/// assert!(fremen.options.iter().any(|o| o.key == "order" && o.default == "auto"));
 /// ```
 #[derive(Debug, Clone, Default)]
 pub struct ModelRegistry {
@@ -139,6 +144,27 @@ mod tests {
             let model = d.create();
             assert_eq!(model.id(), d.id);
             assert_eq!(model.name(), d.name);
+        }
+        // Every declared default is a value the model accepts, and gives its default config.
+        let axis = TimeAxis::regular(froctomap_core::Timestamp(0), 1, 10, vec![]).unwrap();
+        for d in registry.iter() {
+            let mut explicit = crate::ModelOptions::new();
+            for option in d.options {
+                explicit.set(option.key, option.default);
+            }
+            let model = d.create();
+            assert_eq!(model.check_options(&explicit), Ok(()), "{}", d.name);
+            let config = crate::ModelConfig {
+                options: explicit,
+                ..Default::default()
+            };
+            let (Ok(a), Ok(b)) = (
+                model.prepare(&axis, &config),
+                model.prepare(&axis, &Default::default()),
+            ) else {
+                panic!("{}", d.name);
+            };
+            assert_eq!(a.encode_parameters(), b.encode_parameters());
         }
         let mut again = registry.clone();
         assert!(again.register(crate::models::DEFAULT_MODELS[0]).is_err());

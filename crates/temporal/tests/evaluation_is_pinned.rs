@@ -28,9 +28,9 @@ fn deterministic_trig_bits() {
 
 #[test]
 fn probability_at_samples_bits() {
-    let voxel = FittedVoxel::new(
-        12345,
-        vec![
+    let parameters = SpectralParameters {
+        mean_q: 12345,
+        components: vec![
             Component {
                 frequency: 3,
                 amplitude_q: 30000,
@@ -42,8 +42,8 @@ fn probability_at_samples_bits() {
                 phase_q: 60000,
             },
         ],
-        Toggles::empty(),
-    );
+    }
+    .encode();
     // One week of minutes.
     let axis = TimeAxis::regular(Timestamp(0), 60_000_000_000, 10_080, vec![]).unwrap();
     let pins = [
@@ -64,7 +64,7 @@ fn probability_at_samples_bits() {
         // FNV-1a over the bit patterns of p at every sample.
         let mut hash = 0xcbf29ce484222325u64;
         for i in 0..axis.len() {
-            hash ^= model.probability_at_sample(&voxel, i).to_bits();
+            hash ^= model.probability_at_sample(&parameters, i).to_bits();
             hash = hash.wrapping_mul(0x100000001b3);
         }
         assert_eq!(hash, pin, "model {}", model.id());

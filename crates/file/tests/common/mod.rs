@@ -188,10 +188,10 @@ pub fn golden_cells() -> Vec<SeriesCell> {
 
 /// Every setting spelled out, so a change of defaults does not change the golden file.
 pub fn golden_config() -> ModelConfig {
-    ModelConfig::default()
+    froctomap_temporal::Order::Auto { max: 3 }
+        .apply(ModelConfig::default())
         .with_outliers(OutlierMode::Lossless)
-        .with_order(froctomap_temporal::Order::Auto { max: 3 })
-        .with_criterion(froctomap_temporal::OrderCriterion::Prediction)
+        .with_option("criterion", "prediction")
 }
 
 /// The golden files: one per format version, each written with that version's layout.

@@ -1,13 +1,18 @@
 //! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
 
 use super::SpectralLine;
-use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
+use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::spectral::options::{
+    SpectralOptions, BASE_PERIOD, CRITERION, HARMONICS, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES,
+    ORDER, PERIODS,
+};
+use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::trig::cos_sin_turns;
 use crate::varint::{self, Reader};
 use crate::{
-    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, OutlierMode, PreparedModel,
-    TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions, OutlierMode,
+    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription, VoxelObservations,
 };
 use std::sync::OnceLock;
 
@@ -16,6 +21,16 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
     id: ModelId::FREMEN_PERIODS,
     name: "fremen-periods",
     description: "FreMEn at candidate periods (one week / k plus user periods), any time axis",
+    options: &[
+        ORDER,
+        MAX_ORDER,
+        CRITERION,
+        PERIODS,
+        BASE_PERIOD,
+        HARMONICS,
+        MIN_CYCLES,
+        HOLDOUT_FRACTION,
+    ],
     factory: || Box::new(FremenPeriods),
 };
 
@@ -51,12 +66,13 @@ pub const MAX_TABLE_BYTES: u64 = 4 << 30;
 ///     let hour = (ts.as_secs_f64() / 3600.0) as i64 % 24;
 ///     b.push(i as u32, Some(if (9..17).contains(&hour) { Occupied } else { Free }))?;
 /// }
-/// let model = FremenPeriods.prepare(&axis, &ModelConfig::default().with_order(Order::Fixed(1)))?;
+/// let model = FremenPeriods.prepare(&axis, &ModelConfig::default().with_option("order", 1))?;
 /// let voxel = model.fit(&b.finish())?;
 /// // The strongest component is the daily one: week / 7.
 /// let day = 15.0 * 86_400.0 + 13.0 * 3600.0; // a future day, 13:00
-/// assert!(model.probability(&voxel, day) > 0.5);
-/// assert!(model.probability(&voxel, day + 12.0 * 3600.0) < 0.5);
+/// assert!(model.probability(voxel.parameters(), day) > 0.5);
+/// assert!(model.probability(voxel.parameters(), day + 12.0 * 3600.0) < 0.5);
+/// assert_eq!(model.describe(voxel.parameters())?.periodic[0].period_seconds, 86_400.0);
 /// # Ok::<(), TemporalError>(())
 /// ```
 #[derive(Debug, Clone, Copy, Default)]
@@ -69,19 +85,19 @@ impl FremenPeriods {
         axis: &TimeAxis,
         config: &ModelConfig,
     ) -> Result<PreparedFremenPeriods, TemporalError> {
-        config.validate()?;
-        let mut periods: Vec<f64> = (1..=config.harmonics)
-            .map(|k| config.base_period / f64::from(k))
-            .chain(config.periods.iter().copied())
+        let options = SpectralOptions::parse(DESCRIPTOR.name, DESCRIPTOR.options, &config.options)?;
+        let mut periods: Vec<f64> = (1..=options.harmonics)
+            .map(|k| options.base_period / f64::from(k))
+            .chain(options.periods.iter().copied())
             .collect();
         periods.sort_by(|a, b| b.total_cmp(a));
         periods.dedup_by(|b, a| (*a - *b).abs() <= 1e-9 * a.abs());
         let span = axis.span_seconds();
-        periods.retain(|p| p * config.min_cycles <= span);
+        periods.retain(|p| p * options.min_cycles <= span);
         Ok(PreparedFremenPeriods::new(
             axis,
             periods,
-            config,
+            &options,
             config.outliers,
         ))
     }
@@ -94,6 +110,10 @@ impl TemporalModel for FremenPeriods {
 
     fn name(&self) -> &'static str {
         DESCRIPTOR.name
+    }
+
+    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
+        SpectralOptions::parse(DESCRIPTOR.name, DESCRIPTOR.options, options).map(drop)
     }
 
     fn prepare(
@@ -111,7 +131,7 @@ impl TemporalModel for FremenPeriods {
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
         let mut r = Reader::new(parameters);
         let mode = read_parameters_header(&mut r)?;
-        let count = r.count("period count", ModelConfig::MAX_PERIODS as u64, 8)?;
+        let count = r.count("period count", SpectralOptions::MAX_PERIODS as u64, 8)?;
         let mut periods = Vec::with_capacity(count);
         for _ in 0..count {
             let p = r.f64_le("period")?;
@@ -124,7 +144,7 @@ impl TemporalModel for FremenPeriods {
         Ok(Box::new(PreparedFremenPeriods::new(
             axis,
             periods,
-            &ModelConfig::default(),
+            &SpectralOptions::default(),
             mode,
         )))
     }
@@ -152,7 +172,12 @@ pub struct PreparedFremenPeriods {
 const MAX_ANGLE_TABLE_BYTES: u64 = 64 << 20;
 
 impl PreparedFremenPeriods {
-    fn new(axis: &TimeAxis, periods: Vec<f64>, config: &ModelConfig, mode: OutlierMode) -> Self {
+    fn new(
+        axis: &TimeAxis,
+        periods: Vec<f64>,
+        config: &SpectralOptions,
+        mode: OutlierMode,
+    ) -> Self {
         Self {
             axis: axis.clone(),
             frequencies: periods.iter().map(|p| 1.0 / p).collect(),
@@ -402,39 +427,42 @@ impl PreparedModel for PreparedFremenPeriods {
         Ok(fit_voxel(self, &self.settings, obs))
     }
 
-    fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
+    fn parameters_len(&self, bytes: &[u8]) -> Result<usize, TemporalError> {
+        spectral::parameters_len(bytes, self.periods.len() as u32)
+    }
+
+    fn probability(&self, parameters: &[u8], seconds_since_axis_start: f64) -> f64 {
         let t = seconds_since_axis_start;
         if !t.is_finite() {
-            return voxel.mean();
+            return SpectralView::new(parameters).mean();
         }
-        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency(c.frequency))).clamp(0.0, 1.0)
+        canonical_sum(parameters, |c| {
+            cos_sin_turns(t * self.frequency(c.frequency))
+        })
+        .clamp(0.0, 1.0)
     }
 
-    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
+    fn probability_at_sample(&self, parameters: &[u8], sample: u32) -> f64 {
         // Exactly the evaluator's computation for this sample.
         let t = self.axis.sample_seconds(sample);
-        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency(c.frequency))).clamp(0.0, 1.0)
+        canonical_sum(parameters, |c| {
+            cos_sin_turns(t * self.frequency(c.frequency))
+        })
+        .clamp(0.0, 1.0)
     }
 
-    fn period_seconds(&self, component: &Component) -> Option<f64> {
-        self.periods.get(component.frequency as usize).copied()
+    fn mean(&self, parameters: &[u8]) -> f64 {
+        SpectralView::new(parameters).mean()
     }
 
-    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
-        voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
+    fn is_constant(&self, parameters: &[u8]) -> bool {
+        SpectralView::new(parameters).is_empty()
     }
 
-    fn frequency_limit(&self) -> u32 {
-        self.periods.len() as u32
-    }
-
-    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
-        FittedVoxel::decode(
-            bytes,
-            self.frequency_limit(),
-            self.axis.len(),
-            self.settings.mode == OutlierMode::Lossless,
-        )
+    fn describe(&self, parameters: &[u8]) -> Result<VoxelDescription, TemporalError> {
+        spectral::describe(parameters, self.periods.len() as u32, |j| {
+            self.periods.get(j as usize).copied()
+        })
     }
 
     /// Header, then `varint K` and the `K` periods as f64 LE seconds.
@@ -458,7 +486,7 @@ mod tests {
     fn period_set_is_deduplicated_sorted_and_spanned() {
         // 3 weeks of hourly samples.
         let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, 21 * 24, vec![]).unwrap();
-        let config = ModelConfig::default().with_periods(vec![86_400.0, 3600.0 * 5.0, 1e9]);
+        let config = ModelConfig::default().with_option("periods", "86400,18000,1e9");
         let model = FremenPeriods.prepare_periods(&axis, &config).unwrap();
         let p = model.periods();
         assert!(p.windows(2).all(|w| w[0] > w[1]));

@@ -1,13 +1,18 @@
 //! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
 
 use super::SpectralLine;
-use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
+use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::spectral::options::{
+    SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER,
+};
+use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::trig::cos_sin_turns;
 use crate::varint::Reader;
 use crate::{
-    AxisKind, Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, OutlierMode,
-    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+    AxisKind, Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions,
+    OutlierMode, PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription,
+    VoxelObservations,
 };
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
@@ -18,6 +23,7 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
     id: ModelId::FREMEN_REGULAR,
     name: "fremen-regular",
     description: "FreMEn over all DFT bins of a regular time axis (real FFT per voxel)",
+    options: &[ORDER, MAX_ORDER, CRITERION, MIN_CYCLES, HOLDOUT_FRACTION],
     factory: || Box::new(FremenRegular),
 };
 
@@ -43,11 +49,12 @@ const MAX_ROOT_TABLE: u32 = 1 << 22;
 ///     b.push(i, Some(if (9..17).contains(&hour) { Occupied } else { Free }))?;
 /// }
 /// let obs = b.finish();
-/// let model = FremenRegular.prepare(&axis, &ModelConfig::default().with_order(Order::Fixed(1)))?;
+/// let model = FremenRegular.prepare(&axis, &ModelConfig::default().with_option("order", 1))?;
 /// let voxel = model.fit(&obs)?;
-/// assert_eq!(voxel.components()[0].frequency, 8); // one cycle per day
-/// assert!(model.probability(&voxel, 13.0 * 3600.0) > 0.5);
-/// assert!(model.probability(&voxel, 1.0 * 3600.0) < 0.5);
+/// let parameters = SpectralParameters::decode(voxel.parameters())?;
+/// assert_eq!(parameters.components[0].frequency, 8); // one cycle per day
+/// assert!(model.probability(voxel.parameters(), 13.0 * 3600.0) > 0.5);
+/// assert!(model.probability(voxel.parameters(), 1.0 * 3600.0) < 0.5);
 /// for (i, s) in obs.iter() {
 ///     assert_eq!(model.state_at_sample(&voxel, i), s); // lossless
 /// }
@@ -63,8 +70,8 @@ impl FremenRegular {
         axis: &TimeAxis,
         config: &ModelConfig,
     ) -> Result<PreparedFremenRegular, TemporalError> {
-        config.validate()?;
-        PreparedFremenRegular::new(axis, config, config.outliers)
+        let options = SpectralOptions::parse(DESCRIPTOR.name, DESCRIPTOR.options, &config.options)?;
+        PreparedFremenRegular::new(axis, &options, config.outliers)
     }
 }
 
@@ -75,6 +82,10 @@ impl TemporalModel for FremenRegular {
 
     fn name(&self) -> &'static str {
         DESCRIPTOR.name
+    }
+
+    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
+        SpectralOptions::parse(DESCRIPTOR.name, DESCRIPTOR.options, options).map(drop)
     }
 
     fn prepare(
@@ -95,7 +106,7 @@ impl TemporalModel for FremenRegular {
         expect_end(&r)?;
         Ok(Box::new(PreparedFremenRegular::new(
             axis,
-            &ModelConfig::default(),
+            &SpectralOptions::default(),
             mode,
         )?))
     }
@@ -132,7 +143,7 @@ fn root(n: u32, r: u64) -> (f64, f64) {
 impl PreparedFremenRegular {
     fn new(
         axis: &TimeAxis,
-        config: &ModelConfig,
+        config: &SpectralOptions,
         mode: OutlierMode,
     ) -> Result<Self, TemporalError> {
         let (AxisKind::Regular, Some(step_ns)) = (axis.kind(), axis.step_ns()) else {
@@ -233,6 +244,11 @@ impl PreparedFremenRegular {
             Some(v) => *v,
             None => root(self.n, r),
         }
+    }
+
+    /// One past the largest valid DFT bin: `n/2 + 1`.
+    pub fn frequency_limit(&self) -> u32 {
+        self.n / 2 + 1
     }
 
     /// Turns per second of bin `k`.
@@ -347,44 +363,43 @@ impl PreparedModel for PreparedFremenRegular {
         Ok(fit_voxel(self, &self.settings, obs))
     }
 
-    fn probability(&self, voxel: &FittedVoxel, seconds_since_axis_start: f64) -> f64 {
-        let t = seconds_since_axis_start;
-        if !t.is_finite() {
-            return voxel.mean();
-        }
-        canonical_sum(voxel, |c| cos_sin_turns(t * self.frequency_hz(c.frequency))).clamp(0.0, 1.0)
+    fn parameters_len(&self, bytes: &[u8]) -> Result<usize, TemporalError> {
+        spectral::parameters_len(bytes, self.frequency_limit())
     }
 
-    fn probability_at_sample(&self, voxel: &FittedVoxel, sample: u32) -> f64 {
+    fn probability(&self, parameters: &[u8], seconds_since_axis_start: f64) -> f64 {
+        let t = seconds_since_axis_start;
+        if !t.is_finite() {
+            return SpectralView::new(parameters).mean();
+        }
+        canonical_sum(parameters, |c| {
+            cos_sin_turns(t * self.frequency_hz(c.frequency))
+        })
+        .clamp(0.0, 1.0)
+    }
+
+    fn probability_at_sample(&self, parameters: &[u8], sample: u32) -> f64 {
         let n = u64::from(self.n.max(1));
         // The same residue the incremental evaluator reaches, so the same table entry.
-        canonical_sum(voxel, |c| {
+        canonical_sum(parameters, |c| {
             let r = (u64::from(c.frequency) % n) * u64::from(sample) % n;
             self.root_at(r)
         })
         .clamp(0.0, 1.0)
     }
 
-    fn period_seconds(&self, component: &Component) -> Option<f64> {
-        (component.frequency > 0 && component.frequency <= self.n / 2)
-            .then(|| self.base_seconds / f64::from(component.frequency))
+    fn mean(&self, parameters: &[u8]) -> f64 {
+        SpectralView::new(parameters).mean()
     }
 
-    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
-        voxel.encode(self.settings.mode == OutlierMode::Lossless, out);
+    fn is_constant(&self, parameters: &[u8]) -> bool {
+        SpectralView::new(parameters).is_empty()
     }
 
-    fn frequency_limit(&self) -> u32 {
-        self.n / 2 + 1
-    }
-
-    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
-        FittedVoxel::decode(
-            bytes,
-            self.frequency_limit(),
-            self.axis.len(),
-            self.settings.mode == OutlierMode::Lossless,
-        )
+    fn describe(&self, parameters: &[u8]) -> Result<VoxelDescription, TemporalError> {
+        spectral::describe(parameters, self.frequency_limit(), |k| {
+            (k > 0).then(|| self.base_seconds / f64::from(k))
+        })
     }
 
     fn encode_parameters(&self) -> Vec<u8> {
@@ -397,19 +412,19 @@ impl PreparedModel for PreparedFremenRegular {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{ObservationsBuilder, Order};
+    use crate::{ObservationsBuilder, SpectralParameters};
     use froctomap_core::{Occupancy, Timestamp};
 
-    fn prepared(n: u32, order: Order) -> PreparedFremenRegular {
+    fn prepared(n: u32, order: u8) -> PreparedFremenRegular {
         let axis = TimeAxis::regular(Timestamp(0), 1_000_000_000, n, vec![]).unwrap();
         FremenRegular
-            .prepare_regular(&axis, &ModelConfig::default().with_order(order))
+            .prepare_regular(&axis, &ModelConfig::default().with_option("order", order))
             .unwrap()
     }
 
     #[test]
     fn nyquist_line_counts_once() {
-        let model = prepared(64, Order::Fixed(1));
+        let model = prepared(64, 1);
         let mut b = ObservationsBuilder::new();
         for i in 0..64 {
             b.push(
@@ -423,10 +438,13 @@ mod tests {
             .unwrap();
         }
         let voxel = model.fit(&b.finish()).unwrap();
-        assert_eq!(voxel.components()[0].frequency, 32);
-        assert!((voxel.components()[0].amplitude() - 0.5).abs() < 1e-4);
-        assert!(model.probability_at_sample(&voxel, 10) > 0.999);
-        assert!(model.probability_at_sample(&voxel, 11) < 0.001);
+        let components = SpectralParameters::decode(voxel.parameters())
+            .unwrap()
+            .components;
+        assert_eq!(components[0].frequency, 32);
+        assert!((components[0].amplitude() - 0.5).abs() < 1e-4);
+        assert!(model.probability_at_sample(voxel.parameters(), 10) > 0.999);
+        assert!(model.probability_at_sample(voxel.parameters(), 11) < 0.001);
         assert_eq!(voxel.model_errors(), Some(0));
     }
 
@@ -434,7 +452,7 @@ mod tests {
     fn short_observed_span_excludes_long_periods() {
         // A voxel seen only during samples 100..160 of 1000: periods above 40 samples
         // (bins below 25) are not usable with min_cycles 1.5.
-        let model = prepared(1000, Order::Fixed(3));
+        let model = prepared(1000, 3);
         let mut b = ObservationsBuilder::new();
         for i in 100..160 {
             b.push(
@@ -448,8 +466,11 @@ mod tests {
             .unwrap();
         }
         let voxel = model.fit(&b.finish()).unwrap();
-        assert!(!voxel.components().is_empty());
-        for c in voxel.components() {
+        let components = SpectralParameters::decode(voxel.parameters())
+            .unwrap()
+            .components;
+        assert!(!components.is_empty());
+        for c in components {
             assert!(
                 1000.0 / f64::from(c.frequency) * 1.5 <= 59.0,
                 "bin {}",
@@ -460,7 +481,7 @@ mod tests {
 
     #[test]
     fn sample_and_time_evaluation_agree() {
-        let model = prepared(500, Order::Fixed(4));
+        let model = prepared(500, 4);
         let mut b = ObservationsBuilder::new();
         for i in 0..500u32 {
             b.push(
@@ -475,8 +496,8 @@ mod tests {
         }
         let voxel = model.fit(&b.finish()).unwrap();
         for i in (0..500).step_by(7) {
-            let a = model.probability_at_sample(&voxel, i);
-            let b = model.probability(&voxel, f64::from(i));
+            let a = model.probability_at_sample(voxel.parameters(), i);
+            let b = model.probability(voxel.parameters(), f64::from(i));
             assert!((a - b).abs() < 1e-9);
         }
     }

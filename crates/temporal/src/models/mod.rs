@@ -1,7 +1,11 @@
-//! The built-in models. Adding a model: one module here plus one line in [`DEFAULT_MODELS`].
+//! The built-in models. Adding a model: one module here (its [`ModelDescriptor`] with id,
+//! name, description and options, a [`TemporalModel`](crate::TemporalModel) and a
+//! [`PreparedModel`](crate::PreparedModel) that owns its voxel bytes; see [`markov`] for a
+//! small complete one), its `pub mod` line, and one line in [`DEFAULT_MODELS`].
 
 pub mod fremen_periods;
 pub mod fremen_regular;
+pub mod markov;
 pub mod static_mean;
 
 pub use fremen_periods::{FremenPeriods, PreparedFremenPeriods};
@@ -16,6 +20,7 @@ pub const DEFAULT_MODELS: &[ModelDescriptor] = &[
     static_mean::DESCRIPTOR,
     fremen_regular::DESCRIPTOR,
     fremen_periods::DESCRIPTOR,
+    markov::DESCRIPTOR,
 ];
 
 /// One spectral coefficient `γ = (1/N) Σ_observed (s_i − mean)·e^{−j·2π·t_i/P}` of a voxel.

@@ -1,11 +1,13 @@
 //! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
 
-use crate::fit::{canonical_sum, fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
+use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::varint::Reader;
 use crate::{
-    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, Order, OutlierMode,
-    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelObservations,
+    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions, Order,
+    OutlierMode, PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription,
+    VoxelObservations,
 };
 
 /// Registration of [`StaticMean`].
@@ -13,10 +15,11 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
     id: ModelId::STATIC,
     name: "static",
     description: "mean occupancy only (the baseline); exact states via the outlier set",
+    options: &[],
     factory: || Box::new(StaticMean),
 };
 
-/// The static model: mean only. Works on any axis; ignores the order.
+/// The static model: mean only. Works on any axis; has no options.
 ///
 /// ```
 /// use froctomap_core::{Occupancy::*, Timestamp};
@@ -25,7 +28,7 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
 /// let model = StaticMean.prepare(&axis, &ModelConfig::default())?;
 /// let obs = VoxelObservations::from_runs([(0, 7, Free), (7, 3, Occupied)])?;
 /// let voxel = model.fit(&obs)?;
-/// assert!((model.probability(&voxel, 1e9) - 0.3).abs() < 1e-4);
+/// assert!((model.probability(voxel.parameters(), 1e9) - 0.3).abs() < 1e-4);
 /// assert_eq!(voxel.model_errors(), Some(3)); // the thresholded mean says "free" everywhere
 /// assert_eq!(model.state_at_sample(&voxel, 8), Occupied); // ...but the toggles fix it
 /// # Ok::<(), TemporalError>(())
@@ -42,12 +45,16 @@ impl TemporalModel for StaticMean {
         DESCRIPTOR.name
     }
 
+    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
+        options.check_keys(DESCRIPTOR.name, DESCRIPTOR.options)
+    }
+
     fn prepare(
         &self,
         axis: &TimeAxis,
         config: &ModelConfig,
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
-        config.validate()?;
+        self.check_options(&config.options)?;
         Ok(Box::new(PreparedStaticMean {
             axis: axis.clone(),
             mode: config.outliers,
@@ -127,34 +134,29 @@ impl PreparedModel for PreparedStaticMean {
         Ok(fit_voxel(self, &settings, obs))
     }
 
-    fn probability(&self, voxel: &FittedVoxel, _seconds_since_axis_start: f64) -> f64 {
-        voxel.mean()
+    fn parameters_len(&self, bytes: &[u8]) -> Result<usize, TemporalError> {
+        // No components: frequency limit 0 rejects any.
+        spectral::parameters_len(bytes, 0)
     }
 
-    fn probability_at_sample(&self, voxel: &FittedVoxel, _sample: u32) -> f64 {
-        canonical_sum(voxel, |_| (0.0, 0.0)).clamp(0.0, 1.0)
+    fn probability(&self, parameters: &[u8], _seconds_since_axis_start: f64) -> f64 {
+        SpectralView::new(parameters).mean()
     }
 
-    fn period_seconds(&self, _component: &Component) -> Option<f64> {
-        None
+    fn probability_at_sample(&self, parameters: &[u8], _sample: u32) -> f64 {
+        canonical_sum(parameters, |_| (0.0, 0.0)).clamp(0.0, 1.0)
     }
 
-    fn encode_voxel(&self, voxel: &FittedVoxel, out: &mut Vec<u8>) {
-        voxel.encode(self.mode == OutlierMode::Lossless, out);
+    fn mean(&self, parameters: &[u8]) -> f64 {
+        SpectralView::new(parameters).mean()
     }
 
-    fn frequency_limit(&self) -> u32 {
-        0
+    fn is_constant(&self, _parameters: &[u8]) -> bool {
+        true
     }
 
-    fn decode_voxel(&self, bytes: &[u8]) -> Result<(FittedVoxel, usize), TemporalError> {
-        // The static model has no components: frequency limit 0 rejects any.
-        FittedVoxel::decode(
-            bytes,
-            self.frequency_limit(),
-            self.axis.len(),
-            self.mode == OutlierMode::Lossless,
-        )
+    fn describe(&self, parameters: &[u8]) -> Result<VoxelDescription, TemporalError> {
+        spectral::describe(parameters, 0, |_| None)
     }
 
     fn encode_parameters(&self) -> Vec<u8> {

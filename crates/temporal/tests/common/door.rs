@@ -129,7 +129,7 @@ pub fn score(
     let mut sq = 0.0;
     let mut wrong = 0usize;
     for &(t, s) in week {
-        let p = model.probability(voxel, t);
+        let p = model.probability(voxel.parameters(), t);
         let target = if s { 1.0 } else { 0.0 };
         sq += (p - target) * (p - target);
         if (p > 0.5) != s {
@@ -149,18 +149,21 @@ pub struct Row {
     pub scores: Vec<Score>,
 }
 
-/// Fits `model` at `order` (lossy; the outliers do not affect prediction) and scores it.
+/// Fits `model` at `order` (`None`: a model without orders; lossy, since the outliers do
+/// not affect prediction) and scores it.
 pub fn evaluate(
     label: String,
     model: &dyn TemporalModel,
     axis: &TimeAxis,
     obs: &VoxelObservations,
-    order: Order,
+    order: Option<Order>,
     weeks: &[Vec<(f64, bool)>],
 ) -> Result<Row, Box<dyn Error>> {
-    let config = ModelConfig::default()
-        .with_order(order)
-        .with_outliers(OutlierMode::Lossy);
+    let config = ModelConfig::default().with_outliers(OutlierMode::Lossy);
+    let config = match order {
+        Some(order) => order.apply(config),
+        None => config,
+    };
     let prepared = model.prepare(axis, &config)?;
     let voxel = prepared.fit(obs)?;
     let scores = weeks
@@ -179,7 +182,7 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
         &StaticMean,
         &door.regular_axis,
         &door.regular_obs,
-        Order::Fixed(0),
+        None,
         &door.weeks,
     )?];
     for n in 1..=5 {
@@ -188,7 +191,7 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
             &FremenRegular,
             &door.regular_axis,
             &door.regular_obs,
-            Order::Fixed(n),
+            Some(Order::Fixed(n)),
             &door.weeks,
         )?);
     }
@@ -197,7 +200,7 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
         &FremenRegular,
         &door.regular_axis,
         &door.regular_obs,
-        Order::Auto { max: 5 },
+        Some(Order::Auto { max: 5 }),
         &door.weeks,
     )?);
     for n in 1..=5 {
@@ -206,7 +209,7 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
             &FremenPeriods,
             &door.explicit_axis,
             &door.explicit_obs,
-            Order::Fixed(n),
+            Some(Order::Fixed(n)),
             &door.weeks,
         )?);
     }
@@ -215,7 +218,7 @@ pub fn evaluate_all(door: &Door) -> Result<Vec<Row>, Box<dyn Error>> {
         &FremenPeriods,
         &door.explicit_axis,
         &door.explicit_obs,
-        Order::Auto { max: 5 },
+        Some(Order::Auto { max: 5 }),
         &door.weeks,
     )?);
     Ok(rows)
@@ -262,18 +265,24 @@ pub fn encodings(door: &Door) -> Result<Vec<Encoding>, Box<dyn Error>> {
             ]
         };
         for &order in orders {
-            let prepared = model.prepare(axis, &ModelConfig::default().with_order(order))?;
+            let config = if name == "static" {
+                ModelConfig::default() // the mean only: no order option
+            } else {
+                order.apply(ModelConfig::default())
+            };
+            let prepared = model.prepare(axis, &config)?;
             let voxel = prepared.fit(obs)?;
             let mut bytes = Vec::new();
             prepared.encode_voxel(&voxel, &mut bytes);
-            let periods = voxel
-                .components()
+            let periods: Vec<f64> = prepared
+                .describe(voxel.parameters())?
+                .periodic
                 .iter()
-                .map(|c| prepared.period_seconds(c).unwrap_or(f64::NAN))
+                .map(|c| c.period_seconds)
                 .collect();
             out.push(Encoding {
                 label: format!("{name} {order:?}"),
-                order: voxel.order(),
+                order: periods.len(),
                 bytes: bytes.len(),
                 toggles: voxel.toggles().len(),
                 model_errors: voxel.model_errors().unwrap_or(0),
