@@ -53,23 +53,25 @@ mod cursor;
 mod error;
 mod header;
 mod index;
+mod layout;
 mod limits;
 mod query;
 mod reader;
+mod source;
 mod tile;
 mod toggle_lists;
 mod writer;
 
-pub use error::{FileError, FormatViolation};
+pub use error::{FileError, FormatViolation, HeaderError, TileEncodeError};
 pub use header::{
-    encode_axis, Codec, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN,
+    encode_axis, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN,
 };
 pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
+pub use layout::{Codec, TileLayout};
 pub use limits::ReadLimits;
 pub use query::CellValue;
 pub use reader::FroctReader;
-pub use tile::{
-    encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileLayout,
-};
+pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
+pub use tile::{encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes};
 pub use toggle_lists::ToggleLayout;
 pub use writer::{FroctWriter, WrittenFile};
