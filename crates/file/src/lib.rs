@@ -10,6 +10,11 @@
 //! fixed-size footer. A writer streams tiles out in one pass; a reader opens a file by
 //! reading only header, footer and index, and decodes any tile on its own.
 //!
+//! A reader reads its bytes from a [`ByteSource`]: a file ([`FroctReader::open`]), memory
+//! ([`FroctReader::from_bytes`]) or anything that serves byte ranges
+//! ([`FroctReader::from_source`]). A writer takes only [`EncodedTile`]s made by
+//! [`encode_tile`] and seals them itself (checksums of the bytes it writes).
+//!
 //! Cells that never changed cost a class byte. Cells that changed carry a temporal model
 //! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
 //! is reproduced exactly. Unknown stays unknown: each cell has an observation mask unless it
