@@ -9,6 +9,7 @@
 use std::fs::File;
 use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Bytes a reader can fetch by range. Reads may come from several threads at once.
 ///
@@ -26,6 +27,28 @@ pub trait ByteSource: Send + Sync {
     /// What errors name the bytes by: a file's path, a URL, a label.
     fn name(&self) -> &Path;
 }
+
+/// A shared source (one connection behind several readers) and a boxed one (chosen at run
+/// time) serve as what they hold.
+macro_rules! forward_byte_source {
+    ($($holder:ident),*) => {$(
+        impl<S: ByteSource + ?Sized> ByteSource for $holder<S> {
+            fn read_exact_at(&self, offset: u64, buf: &mut [u8]) -> io::Result<()> {
+                (**self).read_exact_at(offset, buf)
+            }
+
+            fn size(&self) -> u64 {
+                (**self).size()
+            }
+
+            fn name(&self) -> &Path {
+                (**self).name()
+            }
+        }
+    )*};
+}
+
+forward_byte_source!(Arc, Box);
 
 /// A file on disk, read with positioned reads.
 #[derive(Debug)]
