@@ -1,10 +1,13 @@
-//! Bounds-checked little-endian reading of byte slices.
+//! Bounds-checked reading of a part of a file: [`varint::Reader`] with the container's
+//! errors (naming the part and the offset) and the few reads a tile adds (slices, skipping
+//! varints, a faster varint for the hot loops).
 
 use crate::error::{corrupt, FormatViolation};
-use froctomap_temporal::varint;
+use froctomap_temporal::{varint, TemporalError};
 
-/// Reads values from a byte slice; every read checks the remaining length, so hostile input
-/// can only produce an error, never a panic or an out-of-bounds read.
+/// Reads values from one part of a file; every read checks the remaining length, so hostile
+/// input can only produce an error, never a panic or an out-of-bounds read. Argument orders
+/// follow [`varint::Reader`], which does the decoding.
 pub(crate) struct Cursor<'a> {
     bytes: &'a [u8],
     pos: usize,
@@ -29,59 +32,80 @@ impl<'a> Cursor<'a> {
         self.remaining() == 0
     }
 
+    fn rest(&self) -> &'a [u8] {
+        &self.bytes[self.pos..]
+    }
+
+    /// Runs one read of a [`varint::Reader`] over the rest of the part and moves past what
+    /// it consumed.
+    fn read<T>(
+        &mut self,
+        read: impl FnOnce(&mut varint::Reader<'a>) -> Result<T, TemporalError>,
+    ) -> Result<T, FormatViolation> {
+        let mut reader = varint::Reader::new(self.rest());
+        let value = read(&mut reader).map_err(|e| self.violation(e))?;
+        self.pos += reader.position();
+        Ok(value)
+    }
+
+    fn violation(&self, error: TemporalError) -> FormatViolation {
+        match error {
+            TemporalError::LimitExceeded { what, value, limit } => {
+                FormatViolation::Limit { what, value, limit }
+            }
+            other => corrupt(self.part, format!("{other} at offset {}", self.pos)),
+        }
+    }
+
     pub(crate) fn take(&mut self, len: usize) -> Result<&'a [u8], FormatViolation> {
-        let end = self
-            .pos
-            .checked_add(len)
-            .filter(|&end| end <= self.bytes.len())
-            .ok_or_else(|| {
-                corrupt(
-                    self.part,
-                    format!(
-                        "truncated: {len} bytes needed at offset {}, {} left",
-                        self.pos,
-                        self.remaining()
-                    ),
-                )
-            })?;
-        let slice = &self.bytes[self.pos..end];
-        self.pos = end;
+        let slice = self.rest().get(..len).ok_or_else(|| {
+            corrupt(
+                self.part,
+                format!(
+                    "truncated: {len} bytes needed at offset {}, {} left",
+                    self.pos,
+                    self.remaining()
+                ),
+            )
+        })?;
+        self.pos += len;
         Ok(slice)
     }
 
     fn array<const N: usize>(&mut self) -> Result<[u8; N], FormatViolation> {
-        let slice = self.take(N)?;
-        let mut out = [0u8; N];
-        out.copy_from_slice(slice);
-        Ok(out)
+        let part = self.part;
+        self.read(|r| r.array::<N>(part))
     }
 
     pub(crate) fn u8(&mut self) -> Result<u8, FormatViolation> {
-        Ok(self.array::<1>()?[0])
-    }
-
-    pub(crate) fn u16(&mut self) -> Result<u16, FormatViolation> {
-        Ok(u16::from_le_bytes(self.array()?))
+        let part = self.part;
+        self.read(|r| r.u8(part))
     }
 
     pub(crate) fn i8(&mut self) -> Result<i8, FormatViolation> {
-        Ok(i8::from_le_bytes(self.array()?))
+        self.array().map(i8::from_le_bytes)
+    }
+
+    pub(crate) fn u16(&mut self) -> Result<u16, FormatViolation> {
+        let part = self.part;
+        self.read(|r| r.u16_le(part))
     }
 
     pub(crate) fn u32(&mut self) -> Result<u32, FormatViolation> {
-        Ok(u32::from_le_bytes(self.array()?))
+        self.array().map(u32::from_le_bytes)
     }
 
     pub(crate) fn u64(&mut self) -> Result<u64, FormatViolation> {
-        Ok(u64::from_le_bytes(self.array()?))
+        self.array().map(u64::from_le_bytes)
     }
 
     pub(crate) fn i64(&mut self) -> Result<i64, FormatViolation> {
-        Ok(i64::from_le_bytes(self.array()?))
+        self.array().map(i64::from_le_bytes)
     }
 
     pub(crate) fn f64(&mut self) -> Result<f64, FormatViolation> {
-        Ok(f64::from_le_bytes(self.array()?))
+        let part = self.part;
+        self.read(|r| r.f64_le(part))
     }
 
     #[inline(always)]
@@ -104,10 +128,7 @@ impl<'a> Cursor<'a> {
     #[cold]
     #[inline(never)]
     fn varint_slow(&mut self) -> Result<u64, FormatViolation> {
-        let (value, used) = varint::read_u64(&self.bytes[self.pos..])
-            .map_err(|e| corrupt(self.part, format!("{e} at offset {}", self.pos)))?;
-        self.pos += used;
-        Ok(value)
+        self.read(varint::Reader::u64)
     }
 
     /// Skips `count` varints without decoding them (each ends at a byte below 0x80),
@@ -115,7 +136,7 @@ impl<'a> Cursor<'a> {
     pub(crate) fn skip_varints(&mut self, count: u64) -> Result<(), FormatViolation> {
         const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
         let mut left = count;
-        let rest = &self.bytes[self.pos..];
+        let rest = self.rest();
         let mut used = 0usize;
         if left > 0 {
             let mut words = rest.chunks_exact(8);
@@ -150,24 +171,24 @@ impl<'a> Cursor<'a> {
         Ok(())
     }
 
-    /// A count of items that each take at least `min_item_bytes`, checked against the bytes
-    /// left (so no allocation can exceed the input) and against `limit`.
+    /// A varint count of items that each take at least `min_item_bytes`, checked against
+    /// `limit` and the bytes left (so no allocation can exceed the input).
     pub(crate) fn count(
         &mut self,
         what: &'static str,
-        min_item_bytes: usize,
         limit: u64,
+        min_item_bytes: usize,
     ) -> Result<usize, FormatViolation> {
-        let value = self.varint()?;
-        self.check_count(what, value, min_item_bytes, limit)
+        self.read(|r| r.count(what, limit, min_item_bytes))
     }
 
+    /// The checks of [`count`](Self::count) for a count stored as a fixed-width integer.
     pub(crate) fn check_count(
         &self,
         what: &'static str,
         value: u64,
-        min_item_bytes: usize,
         limit: u64,
+        min_item_bytes: usize,
     ) -> Result<usize, FormatViolation> {
         if value > limit {
             return Err(FormatViolation::Limit { what, value, limit });

@@ -1,5 +1,6 @@
 //! Errors of reading and writing FROctomap files.
 
+use froctomap_core::MapError;
 use froctomap_temporal::TemporalError;
 use std::path::PathBuf;
 
@@ -77,9 +78,52 @@ pub enum FileError {
         #[source]
         violation: FormatViolation,
     },
-    /// The caller asked for something impossible (e.g. tiles out of order).
-    #[error("{0}")]
-    Usage(String),
+    /// The header handed to a writer holds a value no file may hold.
+    #[error("{}: {source}", path.display())]
+    Header {
+        /// The file being written.
+        path: PathBuf,
+        /// What is wrong with the header.
+        #[source]
+        source: HeaderError,
+    },
+    /// A tile was asked for that the file does not have.
+    #[error("{}: no tile {tile} (the file has {tiles})", path.display())]
+    NoTile {
+        /// The file.
+        path: PathBuf,
+        /// The tile asked for.
+        tile: usize,
+        /// Tiles in the file.
+        tiles: usize,
+    },
+    /// Tiles were handed to a writer out of Morton order.
+    #[error("{}: tiles must be written in increasing Morton order ({code:#x} after {previous:#x})", path.display())]
+    TileOrder {
+        /// The file being written.
+        path: PathBuf,
+        /// Morton code of the tile handed in.
+        code: u64,
+        /// Morton code of the tile before it.
+        previous: u64,
+    },
+    /// A stored tile too large for the index's 32-bit lengths.
+    #[error("{}: a stored tile of {len} bytes exceeds 4 GiB", path.display())]
+    TileTooLarge {
+        /// The file being written.
+        path: PathBuf,
+        /// Its stored length.
+        len: usize,
+    },
+    /// The cells of a file's tiles do not form one map (they overlap).
+    #[error("{}: cells overlap", path.display())]
+    Overlap {
+        /// The file.
+        path: PathBuf,
+        /// What the map found.
+        #[source]
+        source: MapError,
+    },
 }
 
 impl FileError {
@@ -90,4 +134,64 @@ impl FileError {
             _ => None,
         }
     }
+}
+
+/// Why a header cannot be written ([`Header::validate`](crate::Header::validate)).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum HeaderError {
+    /// The voxel edge length is not a positive finite number.
+    #[error("invalid resolution")]
+    Resolution(#[source] MapError),
+    /// Tiles must be octree nodes of depth 1 to 16.
+    #[error("tile depth {0} is outside 1..=16")]
+    TileDepth(u8),
+    /// Toggle blocks of zero samples.
+    #[error("toggle blocks must hold at least one sample")]
+    EmptyToggleBlocks,
+}
+
+/// Why cells cannot be encoded as a tile ([`encode_tile`](crate::encode_tile)).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TileEncodeError {
+    /// A tile holds at least one cell.
+    #[error("a tile needs at least one cell")]
+    NoCells,
+    /// A cell deeper than the tree, shallower than the tile, or not aligned to its depth.
+    #[error("cell {start:#x} at depth {depth} is not a valid cell of a depth-{tile_depth} tile")]
+    InvalidCell {
+        /// Morton code of the cell's first voxel.
+        start: u64,
+        /// The cell's depth.
+        depth: u8,
+        /// The tiles' depth.
+        tile_depth: u8,
+    },
+    /// Cells must be sorted, disjoint and inside the tile of the first.
+    #[error("cell {start:#x} is out of order, overlapping or outside its tile")]
+    OutOfPlace {
+        /// Morton code of the cell's first voxel.
+        start: u64,
+    },
+    /// A toggle list (an observation mask, outliers or exceptions) reaches past the axis.
+    #[error("cell {start:#x}: {list} beyond the time axis")]
+    BeyondAxis {
+        /// Morton code of the cell's first voxel.
+        start: u64,
+        /// Which list.
+        list: &'static str,
+    },
+    /// A cell whose mask never observes it has nothing to store.
+    #[error("cell {start:#x} is never observed (a cell must be observed at least once)")]
+    NeverObserved {
+        /// Morton code of the cell's first voxel.
+        start: u64,
+    },
+    /// More than the index's 32-bit counts and lengths can describe.
+    #[error("{0} exceeds what a tile can hold (4 GiB, 2^32 cells)")]
+    TooLarge(&'static str),
+    /// The compressor failed.
+    #[error("zstd compression failed")]
+    Compression(#[source] std::io::Error),
 }

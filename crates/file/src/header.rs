@@ -1,9 +1,9 @@
 //! Preamble, header sections and the time axis ([FORMAT.md §2–4](../../../docs/FORMAT.md)).
 
 use crate::cursor::Cursor;
-use crate::error::{corrupt, FormatViolation};
+use crate::error::{corrupt, FormatViolation, HeaderError};
+use crate::layout::{Codec, TileLayout};
 use crate::limits::ReadLimits;
-use crate::tile::TileLayout;
 use crate::toggle_lists::ToggleLayout;
 use froctomap_core::{validate_resolution, Timestamp, TREE_DEPTH};
 use froctomap_temporal::{varint, AxisKind, ModelId, TimeAxis};
@@ -27,24 +27,6 @@ pub(crate) const TAG_CODEC: u16 = 4;
 pub(crate) const TAG_METADATA: u16 = 5;
 pub(crate) const TAG_TOGGLE_BLOCKS: u16 = 6;
 const FLAG_CRITICAL: u16 = 1;
-
-/// How tile payloads are stored.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Codec {
-    /// Uncompressed.
-    Raw,
-    /// One zstd frame per tile, at the given compression level.
-    Zstd {
-        /// Compression level (informative for readers).
-        level: i8,
-    },
-}
-
-impl Default for Codec {
-    fn default() -> Self {
-        Codec::Zstd { level: 19 }
-    }
-}
 
 /// Everything a reader needs before touching a tile.
 #[derive(Clone, Debug, PartialEq)]
@@ -111,13 +93,13 @@ impl Header {
     }
 
     /// Checks the values a writer must not put in a file.
-    pub fn validate(&self) -> Result<(), String> {
-        validate_resolution(self.resolution).map_err(|e| e.to_string())?;
+    pub fn validate(&self) -> Result<(), HeaderError> {
+        validate_resolution(self.resolution).map_err(HeaderError::Resolution)?;
         if !(1..=TREE_DEPTH).contains(&self.tile_depth) {
-            return Err(format!("tile depth {} is outside 1..=16", self.tile_depth));
+            return Err(HeaderError::TileDepth(self.tile_depth));
         }
         if self.toggles == ToggleLayout::Blocked(0) {
-            return Err("toggle blocks must hold at least one sample".into());
+            return Err(HeaderError::EmptyToggleBlocks);
         }
         Ok(())
     }
@@ -239,8 +221,8 @@ impl Header {
                     let id = ModelId(c.u16()?);
                     let n = c.count(
                         "model parameter length",
-                        1,
                         limits.max_model_parameter_bytes,
+                        1,
                     )?;
                     let parameters = c.take(n)?.to_vec();
                     set_once(&mut model, (id, parameters), "MODEL")?;
@@ -441,7 +423,7 @@ fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, Form
             let start = Timestamp(c.i64()?);
             let step = c.i64()?;
             let count = c.u32()?;
-            let missing_count = c.count("missing sample count", 1, u64::from(count))?;
+            let missing_count = c.count("missing sample count", u64::from(count), 1)?;
             let mut missing = Vec::with_capacity(missing_count);
             let mut next = 0u64;
             for _ in 0..missing_count {
@@ -462,7 +444,7 @@ fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, Form
             if count == 0 {
                 return Err(corrupt("TIME_AXIS section", "empty axis"));
             }
-            let count = c.check_count("sample count", count - 1, 1, limits.max_samples)? + 1;
+            let count = c.check_count("sample count", count - 1, limits.max_samples, 1)? + 1;
             let mut times = Vec::with_capacity(count);
             let mut t = i128::from(c.i64()?);
             times.push(Timestamp(t as i64));

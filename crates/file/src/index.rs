@@ -74,7 +74,7 @@ pub(crate) fn decode_index(
 ) -> Result<(Vec<TileEntry>, Map<String, Value>), FormatViolation> {
     let mut c = Cursor::new(bytes, "index");
     let count = u64::from(c.u32()?);
-    let count = c.check_count("tile count", count, TILE_ENTRY_LEN, limits.max_tiles)?;
+    let count = c.check_count("tile count", count, limits.max_tiles, TILE_ENTRY_LEN)?;
     let tile_size = voxels_per_node(tile_depth);
     let mut entries: Vec<TileEntry> = Vec::with_capacity(count);
     let mut next_free = data.start;

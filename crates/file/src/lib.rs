@@ -10,6 +10,11 @@
 //! fixed-size footer. A writer streams tiles out in one pass; a reader opens a file by
 //! reading only header, footer and index, and decodes any tile on its own.
 //!
+//! A reader reads its bytes from a [`ByteSource`]: a file ([`FroctReader::open`]), memory
+//! ([`FroctReader::from_bytes`]) or anything that serves byte ranges
+//! ([`FroctReader::from_source`]). A writer takes only [`EncodedTile`]s made by
+//! [`encode_tile`] and seals them itself (checksums of the bytes it writes).
+//!
 //! Cells that never changed cost a class byte. Cells that changed carry a temporal model
 //! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
 //! is reproduced exactly. Unknown stays unknown: each cell has an observation mask unless it
@@ -53,23 +58,25 @@ mod cursor;
 mod error;
 mod header;
 mod index;
+mod layout;
 mod limits;
 mod query;
 mod reader;
+mod source;
 mod tile;
 mod toggle_lists;
 mod writer;
 
-pub use error::{FileError, FormatViolation};
+pub use error::{FileError, FormatViolation, HeaderError, TileEncodeError};
 pub use header::{
-    encode_axis, Codec, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN,
+    encode_axis, Header, END_MAGIC, MAGIC, MAJOR_VERSION, MINOR_VERSION, PREAMBLE_LEN,
 };
 pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
+pub use layout::{Codec, TileLayout};
 pub use limits::ReadLimits;
 pub use query::CellValue;
 pub use reader::FroctReader;
-pub use tile::{
-    encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileLayout,
-};
+pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
+pub use tile::{encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes};
 pub use toggle_lists::ToggleLayout;
 pub use writer::{FroctWriter, WrittenFile};

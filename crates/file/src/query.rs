@@ -98,7 +98,11 @@ impl FroctReader {
         for tile in 0..self.tiles().len() {
             self.observed_leaves(tile, sample, &mut leaves)?;
         }
-        Snapshot::from_leaves(self.header().resolution, leaves)
-            .map_err(|e| FileError::Usage(format!("{}: cells overlap: {e}", self.path().display())))
+        Snapshot::from_leaves(self.header().resolution, leaves).map_err(|source| {
+            FileError::Overlap {
+                path: self.path().to_path_buf(),
+                source,
+            }
+        })
     }
 }

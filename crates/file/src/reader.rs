@@ -4,6 +4,7 @@ use crate::error::{corrupt, FileError, FormatViolation};
 use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
+use crate::source::{ByteSource, FileSource, MemorySource};
 use crate::tile::{
     block_parts, decode_frame, decode_payload, frame_table, walk_payload, Cell, CellRef, TileParts,
     WalkNeed,
@@ -13,8 +14,6 @@ use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
 use froctomap_temporal::{ModelRegistry, PreparedModel};
 use serde_json::{Map, Value};
 use std::cell::RefCell;
-use std::fs::File;
-use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
 /// Buffers a thread reuses from tile to tile: stored bytes, decoded parts, a zstd context.
@@ -32,9 +31,14 @@ thread_local! {
 /// An open FROctomap file. Opening reads only the header, the footer and the index; tiles
 /// are read with positioned reads when asked for, each on its own (a damaged tile does not
 /// affect the others). The reader is `Sync`: tiles can be decoded from several threads.
+///
+/// The bytes come from a [`ByteSource`]: a file ([`open`](Self::open)), memory
+/// ([`from_bytes`](Self::from_bytes)) or any source that serves byte ranges
+/// ([`from_source`](Self::from_source)).
 pub struct FroctReader {
+    /// The source's name, for errors.
     path: PathBuf,
-    file: File,
+    source: Box<dyn ByteSource>,
     file_len: u64,
     header: Header,
     tiles: Vec<TileEntry>,
@@ -68,16 +72,55 @@ impl FroctReader {
         limits: ReadLimits,
         models: &ModelRegistry,
     ) -> Result<Self, FileError> {
-        let io = |source| FileError::Io {
+        let source = FileSource::open(path).map_err(|source| FileError::Io {
             path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_source(source, limits, models)
+    }
+
+    /// Reads a file held in memory (named `memory` in errors; see [`MemorySource`] to name
+    /// it), with the default [`ReadLimits`] and models.
+    ///
+    /// ```
+    /// # use froctomap_file::FroctReader;
+    /// # let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+    /// #     .join("../../fixtures/froct/golden-v1.1.froct");
+    /// let bytes: Vec<u8> = std::fs::read(&path)?;
+    /// let reader = FroctReader::from_bytes(bytes.clone())?;
+    /// assert_eq!(reader.file_len(), bytes.len() as u64);
+    /// assert!(!reader.read_tile(0)?.is_empty());
+    ///
+    /// // Damage is reported under the source's name.
+    /// let err = FroctReader::from_bytes(bytes[..100].to_vec()).unwrap_err();
+    /// assert!(err.to_string().starts_with("memory: "), "{err}");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn from_bytes(bytes: impl AsRef<[u8]> + Send + Sync + 'static) -> Result<Self, FileError> {
+        Self::from_source(
+            MemorySource::new(bytes),
+            ReadLimits::default(),
+            &ModelRegistry::with_default_models(),
+        )
+    }
+
+    /// Opens the file `source` serves: reads its preamble, header, footer and index (each
+    /// checked against `limits` before it is read), and prepares its model from `models`.
+    pub fn from_source(
+        source: impl ByteSource + 'static,
+        limits: ReadLimits,
+        models: &ModelRegistry,
+    ) -> Result<Self, FileError> {
+        let path = source.name().to_path_buf();
+        let io = |source| FileError::Io {
+            path: path.clone(),
             source,
         };
         let invalid = |violation| FileError::Invalid {
-            path: path.to_path_buf(),
+            path: path.clone(),
             violation,
         };
-        let file = File::open(path).map_err(io)?;
-        let file_len = file.metadata().map_err(io)?.len();
+        let file_len = source.size();
         let min_len = (PREAMBLE_LEN + 4 + FOOTER_LEN) as u64;
         if file_len < min_len {
             let violation = if file_len == 0 {
@@ -90,13 +133,14 @@ impl FroctReader {
             };
             return Err(invalid(violation));
         }
+        // Every length read here was checked against the limits and the file's length.
         let read = |offset: u64, len: usize| -> Result<Vec<u8>, FileError> {
             let mut buf = vec![0u8; len];
-            file.read_exact_at(&mut buf, offset).map_err(io)?;
+            source.read_exact_at(offset, &mut buf).map_err(io)?;
             Ok(buf)
         };
         let mut preamble = [0u8; PREAMBLE_LEN];
-        file.read_exact_at(&mut preamble, 0).map_err(io)?;
+        source.read_exact_at(0, &mut preamble).map_err(io)?;
         let (_, header_len) = Header::decode_preamble(&preamble, &limits).map_err(invalid)?;
         let data_start = (PREAMBLE_LEN + header_len + 4) as u64;
         if data_start + FOOTER_LEN as u64 > file_len {
@@ -112,7 +156,8 @@ impl FroctReader {
         )
         .map_err(invalid)?;
         let mut footer_bytes = [0u8; FOOTER_LEN];
-        file.read_exact_at(&mut footer_bytes, file_len - FOOTER_LEN as u64)
+        source
+            .read_exact_at(file_len - FOOTER_LEN as u64, &mut footer_bytes)
             .map_err(io)?;
         let footer =
             decode_footer(&footer_bytes, file_len, data_start, &limits).map_err(invalid)?;
@@ -133,8 +178,8 @@ impl FroctReader {
             .prepare_from_parameters(header.model_id, &header.axis, &header.model_parameters)
             .map_err(|e| invalid(FormatViolation::Model(e)))?;
         Ok(Self {
-            path: path.to_path_buf(),
-            file,
+            path,
+            source: Box::new(source),
             file_len,
             header,
             tiles,
@@ -144,7 +189,7 @@ impl FroctReader {
         })
     }
 
-    /// The file's path.
+    /// The file's path (the source's name for other sources).
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -199,10 +244,11 @@ impl FroctReader {
             path: self.path.clone(),
             violation,
         };
-        let entry = *self
-            .tiles
-            .get(tile)
-            .ok_or_else(|| FileError::Usage(format!("no tile {tile}")))?;
+        let entry = *self.tiles.get(tile).ok_or_else(|| FileError::NoTile {
+            path: self.path.clone(),
+            tile,
+            tiles: self.tiles.len(),
+        })?;
         let TileScratch {
             stored,
             parts,
@@ -210,8 +256,8 @@ impl FroctReader {
         } = scratch;
         stored.clear();
         stored.resize(entry.stored_len as usize, 0);
-        self.file
-            .read_exact_at(stored, entry.offset)
+        self.source
+            .read_exact_at(entry.offset, stored)
             .map_err(|source| FileError::Io {
                 path: self.path.clone(),
                 source,
@@ -251,11 +297,12 @@ impl FroctReader {
         let mut next_block = first_block;
         for (part, &(_, _, held)) in parts[1..frames.len()].iter().zip(&frames[1..]) {
             for block in block_parts(part, held).map_err(invalid)? {
-                numbered.push((next_block, block));
+                if blocks.contains(&next_block) {
+                    numbered.push((next_block, block));
+                }
                 next_block += 1;
             }
         }
-        numbered.retain(|(b, _)| blocks.contains(b));
         let tile_parts = TileParts {
             cells: &parts[0],
             blocks: numbered,
@@ -361,12 +408,7 @@ impl FroctReader {
         let model = self.model.as_ref();
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             let occupied = cell.probability(model, seconds) > 0.5;
-            let state = if occupied {
-                Occupancy::Occupied
-            } else {
-                Occupancy::Free
-            };
-            visit(cell.start, cell.depth, state);
+            visit(cell.start, cell.depth, Occupancy::from(occupied));
         })
     }
 
@@ -394,7 +436,7 @@ impl FroctReader {
     pub fn tile_streams(&self, tile: usize) -> Result<Vec<(&'static str, Vec<u8>)>, FileError> {
         let layout = self.header.tile_layout();
         self.with_tile(tile, WalkNeed::Everything, |_, parts| {
-            crate::tile::split_streams(parts, &layout)
+            parts.named_streams(layout.toggles)
         })
     }
 

@@ -97,14 +97,38 @@ impl ToggleColumns {
     }
 }
 
-/// The streams of a set of toggle lists (each strictly increasing, below `axis_len`), per
-/// block: `[counts, starts, lengths]` for the one block of the whole layout, `[parity,
-/// lists, counts, starts, lengths]` (sparse columns) per block of the blocked one.
+/// The columns of one block of a set of toggle lists. [`ToggleLayout::Whole`] has no
+/// parity or lists bitmap: those columns stay empty and are not stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Column {
+    /// Each list's parity at the block's start (a bitmap).
+    Parity,
+    /// Which lists have positions in the block (a bitmap).
+    Lists,
+    /// The number of positions of each (listed) list.
+    Counts,
+    /// Gaps before the toggles at even positions.
+    Starts,
+    /// Gaps before the toggles at odd positions.
+    Lengths,
+}
+
+/// One block's encoded columns, by [`Column`].
+pub(crate) struct ListColumns([Vec<u8>; 5]);
+
+impl ListColumns {
+    pub(crate) fn get(&self, column: Column) -> &[u8] {
+        &self.0[column as usize]
+    }
+}
+
+/// The columns of a set of toggle lists (each strictly increasing, below `axis_len`), per
+/// block: the one block of the whole layout, or each block of the blocked one.
 pub(crate) fn encode_lists(
     lists: &[&[u32]],
     layout: ToggleLayout,
     axis_len: u32,
-) -> Vec<Vec<Vec<u8>>> {
+) -> Vec<ListColumns> {
     let blocks = layout.blocks(axis_len);
     let mut columns: Vec<ToggleColumns> = (0..blocks)
         .map(|_| match layout {
@@ -112,13 +136,19 @@ pub(crate) fn encode_lists(
             ToggleLayout::Blocked(_) => ToggleColumns::sparse(),
         })
         .collect();
-    let mut parity = vec![vec![0u8; lists.len().div_ceil(8)]; blocks as usize];
+    let parity_len = match layout {
+        ToggleLayout::Whole => 0,
+        ToggleLayout::Blocked(_) => lists.len().div_ceil(8),
+    };
+    let mut parity = vec![vec![0u8; parity_len]; blocks as usize];
     for (l, list) in lists.iter().enumerate() {
         let mut rest = *list;
         for (b, column) in columns.iter_mut().enumerate() {
             let (start, len) = layout.block_span(b as u32, axis_len);
             if (list.len() - rest.len()) % 2 == 1 {
-                parity[b][l / 8] |= 1 << (l % 8);
+                if let Some(byte) = parity[b].get_mut(l / 8) {
+                    *byte |= 1 << (l % 8);
+                }
             }
             let inside = rest.partition_point(|&t| t < start + len);
             column.push(&rest[..inside], start);
@@ -129,12 +159,13 @@ pub(crate) fn encode_lists(
         .into_iter()
         .zip(parity)
         .map(|(column, parity)| {
-            let mut streams = Vec::with_capacity(5);
-            if layout != ToggleLayout::Whole {
-                streams.extend([parity, column.present]);
-            }
-            streams.extend([column.counts, column.starts, column.lengths]);
-            streams
+            ListColumns([
+                parity,
+                column.present,
+                column.counts,
+                column.starts,
+                column.lengths,
+            ])
         })
         .collect()
 }
@@ -148,33 +179,6 @@ pub(crate) struct ListBlock<'a> {
     /// The sparse columns' lists stream (blocked layout only).
     pub(crate) present: Option<&'a [u8]>,
     pub(crate) columns: [&'a [u8]; 3],
-}
-
-impl<'a> ListBlock<'a> {
-    /// The whole layout's single block, taken from the payload cursor.
-    pub(crate) fn take_whole(payload: &mut Cursor<'a>) -> Result<Self, FormatViolation> {
-        Ok(Self {
-            start: 0,
-            parity: &[],
-            present: None,
-            columns: [stream(payload)?, stream(payload)?, stream(payload)?],
-        })
-    }
-
-    /// Block `b` of the blocked layout, taken from the cursor over the block's part.
-    pub(crate) fn take_blocked(
-        part: &mut Cursor<'a>,
-        layout: ToggleLayout,
-        b: u32,
-        axis_len: u32,
-    ) -> Result<Self, FormatViolation> {
-        Ok(Self {
-            start: layout.block_span(b, axis_len).0,
-            parity: stream(part)?,
-            present: Some(stream(part)?),
-            columns: [stream(part)?, stream(part)?, stream(part)?],
-        })
-    }
 }
 
 /// Bit `index` of a bitmap (bit `index mod 8` of byte `⌊index/8⌋`), `None` past its end.
@@ -191,12 +195,6 @@ fn holds_exactly(bitmap: &[u8], count: u64) -> bool {
         && bitmap
             .last()
             .is_none_or(|&last| used == 0 || last >> used == 0)
-}
-
-/// One length-prefixed stream.
-pub(crate) fn stream<'a>(c: &mut Cursor<'a>) -> Result<&'a [u8], FormatViolation> {
-    let len = c.count("stream length", 1, u64::MAX)?;
-    c.take(len)
 }
 
 /// Reads a tile's toggle lists in order from the blocks at hand: the single block of the

@@ -3,6 +3,8 @@
 use crate::error::FileError;
 use crate::header::Header;
 use crate::index::{encode_footer, encode_index, TileEntry};
+#[cfg(doc)]
+use crate::tile::encode_tile;
 use crate::tile::{EncodedTile, StreamSizes};
 use serde_json::{Map, Value};
 use std::io::{BufWriter, Write};
@@ -10,7 +12,10 @@ use std::path::{Path, PathBuf};
 use tempfile::NamedTempFile;
 
 /// Writes a FROctomap file: header first, then tiles in increasing Morton order as they are
-/// encoded, then index and footer on [`FroctWriter::finish`]. The file is written to a
+/// encoded, then index and footer on [`FroctWriter::finish`]. The writer seals each tile
+/// itself: the index entry's checksum and stored length are computed from the bytes it
+/// writes, and the decoded length comes from the [`EncodedTile`] that [`encode_tile`]
+/// (its only maker) measured. The file is written to a
 /// temporary name beside the destination and renamed only when complete, so an interrupted
 /// or failed write leaves nothing behind (and never damages an existing file).
 pub struct FroctWriter {
@@ -46,7 +51,10 @@ pub struct WrittenFile {
 impl FroctWriter {
     /// Starts a file at `path` (created atomically on [`finish`](Self::finish)).
     pub fn create(path: &Path, header: &Header) -> Result<Self, FileError> {
-        header.validate().map_err(FileError::Usage)?;
+        header.validate().map_err(|source| FileError::Header {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let io = |source| FileError::Io {
             path: path.to_path_buf(),
             source,
@@ -77,39 +85,37 @@ impl FroctWriter {
 
     /// Appends a tile; tiles must come in strictly increasing Morton order.
     pub fn write_tile(&mut self, tile: &EncodedTile) -> Result<(), FileError> {
-        if self
-            .entries
-            .last()
-            .is_some_and(|last| last.code >= tile.code)
-        {
-            return Err(FileError::Usage(format!(
-                "tiles must be written in increasing Morton order ({:#x} after {:#x})",
-                tile.code.0,
-                self.entries.last().map_or(0, |e| e.code.0)
-            )));
-        }
-        let stored_len = u32::try_from(tile.stored.len())
-            .map_err(|_| FileError::Usage("a stored tile exceeds 4 GiB".into()))?;
-        self.out
-            .write_all(&tile.stored)
-            .map_err(|source| FileError::Io {
+        if let Some(last) = self.entries.last().filter(|last| last.code >= tile.code()) {
+            return Err(FileError::TileOrder {
                 path: self.path.clone(),
-                source,
-            })?;
+                code: tile.code().0,
+                previous: last.code.0,
+            });
+        }
+        let stored = tile.stored();
+        let stored_len = u32::try_from(stored.len()).map_err(|_| FileError::TileTooLarge {
+            path: self.path.clone(),
+            len: stored.len(),
+        })?;
+        self.out.write_all(stored).map_err(|source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        let (first_sample, last_sample) = tile.sample_span();
         self.entries.push(TileEntry {
-            code: tile.code,
+            code: tile.code(),
             offset: self.offset,
             stored_len,
-            raw_len: tile.raw_len,
-            crc: tile.crc,
-            cell_count: tile.cell_count,
-            first_sample: tile.first_sample,
-            last_sample: tile.last_sample,
+            raw_len: tile.raw_len(),
+            crc: crc32c::crc32c(stored),
+            cell_count: tile.cell_count(),
+            first_sample,
+            last_sample,
         });
         self.offset += u64::from(stored_len);
         self.stored_bytes += u64::from(stored_len);
-        self.streams.add(&tile.streams);
-        self.cells += u64::from(tile.cell_count);
+        self.streams.add(tile.streams());
+        self.cells += u64::from(tile.cell_count());
         Ok(())
     }
 

@@ -5,14 +5,23 @@
 mod common;
 
 use common::*;
-use froctomap_file::{FileError, FormatViolation, FroctReader};
+use froctomap_file::{FileError, FormatViolation, FroctReader, MemorySource, ReadLimits};
+use froctomap_temporal::ModelRegistry;
 use proptest::prelude::*;
+use std::sync::OnceLock;
 
+/// Reads damaged bytes from memory, named as a file would be in errors.
 fn open_bytes(bytes: &[u8]) -> Result<FroctReader, FileError> {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("damaged.froct");
-    std::fs::write(&path, bytes).unwrap();
-    FroctReader::open(&path)
+    FroctReader::from_source(
+        MemorySource::new(bytes.to_vec()).named("damaged.froct"),
+        ReadLimits::default(),
+        &ModelRegistry::with_default_models(),
+    )
+}
+
+fn golden_bytes() -> &'static [u8] {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| std::fs::read(golden_path()).unwrap())
 }
 
 /// Opens and decodes everything; returns which tiles failed.
@@ -25,7 +34,7 @@ fn read_all(bytes: &[u8]) -> Result<Vec<bool>, FileError> {
 
 #[test]
 fn every_truncation_point_is_a_typed_error() {
-    let bytes = std::fs::read(golden_path()).unwrap();
+    let bytes = golden_bytes().to_vec();
     for len in 0..bytes.len() {
         match open_bytes(&bytes[..len]) {
             Err(FileError::Invalid { violation, path }) => {
@@ -58,7 +67,7 @@ fn empty_and_foreign_files_are_named_as_such() {
 
 #[test]
 fn a_newer_major_version_is_refused_and_a_newer_minor_is_read() {
-    let bytes = std::fs::read(golden_path()).unwrap();
+    let bytes = golden_bytes().to_vec();
     // Patch the version and fix the header crc, as a newer writer would have produced it.
     let patched = |major: u16, minor: u16| {
         let mut b = bytes.clone();
@@ -84,8 +93,8 @@ fn a_newer_major_version_is_refused_and_a_newer_minor_is_read() {
 
 #[test]
 fn a_flipped_bit_in_one_tile_leaves_the_others_readable() {
-    let bytes = std::fs::read(golden_path()).unwrap();
-    let reader = FroctReader::open(&golden_path()).unwrap();
+    let bytes = golden_bytes().to_vec();
+    let reader = open_bytes(&bytes).unwrap();
     let tiles = reader.tiles().to_vec();
     for (damaged_tile, entry) in tiles.iter().enumerate() {
         for offset in entry.offset..entry.offset + u64::from(entry.stored_len) {
@@ -105,8 +114,8 @@ fn a_flipped_bit_in_one_tile_leaves_the_others_readable() {
 
 #[test]
 fn checksum_errors_are_distinguished() {
-    let bytes = std::fs::read(golden_path()).unwrap();
-    let reader = FroctReader::open(&golden_path()).unwrap();
+    let bytes = golden_bytes().to_vec();
+    let reader = open_bytes(&bytes).unwrap();
     let entry = reader.tiles()[1];
     let mut damaged = bytes.clone();
     damaged[entry.offset as usize + 1] ^= 1;
@@ -171,39 +180,138 @@ fn limits_are_checked_before_allocating() {
     );
 }
 
+/// What opening and reading bytes that differ from the golden file at `changed` offsets
+/// must report: every byte is covered by a checksum (or a magic number or version checked
+/// before it), so each kind of damage has its own error.
+fn expected_damage(
+    changed: &[usize],
+    len: usize,
+) -> Result<Vec<bool>, fn(&FormatViolation) -> bool> {
+    let reader = open_bytes(golden_bytes()).unwrap();
+    let header_end = reader.tiles()[0].offset as usize;
+    let index_start = len - froctomap_file::FOOTER_LEN - index_len(golden_bytes());
+    let hit = |range: std::ops::Range<usize>| changed.iter().any(|i| range.contains(i));
+    if hit(0..8) {
+        return Err(|v| {
+            matches!(
+                v,
+                FormatViolation::Corrupt {
+                    what: "preamble",
+                    ..
+                }
+            )
+        });
+    }
+    if hit(8..10) {
+        return Err(|v| matches!(v, FormatViolation::UnsupportedVersion { .. }));
+    }
+    if hit(12..16) {
+        // The header length: too long for the limits or the file, or a header whose
+        // checksum is then read from elsewhere.
+        return Err(|v| {
+            matches!(
+                v,
+                FormatViolation::Limit {
+                    what: "header length",
+                    ..
+                } | FormatViolation::Corrupt { what: "header", .. }
+                    | FormatViolation::Checksum("header")
+            )
+        });
+    }
+    if hit(10..12) || hit(16..header_end) {
+        return Err(|v| matches!(v, FormatViolation::Checksum("header")));
+    }
+    if hit(len - 8..len) {
+        return Err(|v| matches!(v, FormatViolation::Corrupt { what: "footer", .. }));
+    }
+    if hit(len - froctomap_file::FOOTER_LEN..len - 8) {
+        return Err(|v| matches!(v, FormatViolation::Checksum("footer")));
+    }
+    if hit(index_start..len) {
+        return Err(|v| matches!(v, FormatViolation::Checksum("index")));
+    }
+    Ok(reader
+        .tiles()
+        .iter()
+        .map(|t| hit(t.offset as usize..(t.offset + u64::from(t.stored_len)) as usize))
+        .collect())
+}
+
+/// The index length the footer gives.
+fn index_len(bytes: &[u8]) -> usize {
+    let footer = bytes.len() - froctomap_file::FOOTER_LEN;
+    u64::from_le_bytes(bytes[footer + 8..footer + 16].try_into().unwrap()) as usize
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
 
-    /// Any flipped bits anywhere: opening and reading every tile ends in values or errors.
+    /// Up to three flipped bits anywhere (crc32c detects every such error in messages of
+    /// any length a file has): opening fails with the error of the part hit first, or the
+    /// damaged tiles, and only they, fail their checksum.
     #[test]
-    fn random_bit_flips_never_panic(flips in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..8), 1..5)) {
-        let mut bytes = std::fs::read(golden_path()).unwrap();
+    fn random_bit_flips_are_reported_by_the_part_they_hit(flips in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..8), 1..4)) {
+        let golden = golden_bytes();
+        let mut bytes = golden.to_vec();
         for (index, bit) in flips {
             let i = index.index(bytes.len());
             bytes[i] ^= 1 << bit;
         }
-        let _ = read_all(&bytes);
+        let changed: Vec<usize> = (0..bytes.len()).filter(|&i| bytes[i] != golden[i]).collect();
+        match (expected_damage(&changed, bytes.len()), open_bytes(&bytes)) {
+            (Err(expected), Err(err)) => {
+                prop_assert!(err.violation().is_some_and(expected), "{changed:?}: {err}");
+            }
+            (Ok(damaged), Ok(reader)) => {
+                for (tile, damaged) in damaged.into_iter().enumerate() {
+                    match reader.read_tile(tile) {
+                        Err(err) => prop_assert!(
+                            damaged && matches!(err.violation(), Some(FormatViolation::Checksum("tile"))),
+                            "{changed:?}: tile {tile}: {err}"
+                        ),
+                        Ok(_) => prop_assert!(!damaged, "{changed:?}: tile {tile} read"),
+                    }
+                }
+            }
+            (Err(_), Ok(_)) => prop_assert!(false, "{changed:?}: damaged file opened"),
+            (Ok(_), Err(err)) => prop_assert!(false, "{changed:?}: {err}"),
+        }
     }
 }
 
 /// The golden series stored raw (no zstd), so that damage reaches the tile parser instead
 /// of the decompressor, in each toggle layout.
 fn raw_golden(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("raw.froct");
-    write_file(
-        &path,
-        &golden_axis(),
-        "fremen-periods",
-        &golden_config(),
-        froctomap_file::TileLayout {
-            tile_depth: GOLDEN_TILE_DEPTH,
-            codec: froctomap_file::Codec::Raw,
-            toggles,
-        },
-        &golden_cells(),
-    );
-    std::fs::read(&path).unwrap()
+    static RAW: OnceLock<[Vec<u8>; 2]> = OnceLock::new();
+    let [whole, blocked] = RAW.get_or_init(|| {
+        [
+            froctomap_file::ToggleLayout::Whole,
+            froctomap_file::ToggleLayout::Blocked(16),
+        ]
+        .map(|toggles| {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("raw.froct");
+            write_file(
+                &path,
+                &golden_axis(),
+                "fremen-periods",
+                &golden_config(),
+                froctomap_file::TileLayout {
+                    tile_depth: GOLDEN_TILE_DEPTH,
+                    codec: froctomap_file::Codec::Raw,
+                    toggles,
+                },
+                &golden_cells(),
+            );
+            std::fs::read(&path).unwrap()
+        })
+    });
+    match toggles {
+        froctomap_file::ToggleLayout::Whole => whole.clone(),
+        froctomap_file::ToggleLayout::Blocked(16) => blocked.clone(),
+        other => panic!("no raw golden file in layout {other:?}"),
+    }
 }
 
 /// Recomputes every tile checksum, the index checksum and the footer checksum, so that a

@@ -6,7 +6,34 @@
 mod common;
 
 use common::*;
-use froctomap_file::{FroctReader, MAJOR_VERSION};
+use froctomap_file::{ByteSource, FroctReader, MemorySource, ReadLimits, MAJOR_VERSION};
+use std::ops::Range;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// Bytes in memory that record the ranges a reader asks for.
+struct RecordingSource {
+    bytes: MemorySource<Vec<u8>>,
+    reads: Arc<Mutex<Vec<Range<u64>>>>,
+}
+
+impl ByteSource for RecordingSource {
+    fn read_exact_at(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+        self.reads
+            .lock()
+            .unwrap()
+            .push(offset..offset + buf.len() as u64);
+        self.bytes.read_exact_at(offset, buf)
+    }
+
+    fn size(&self) -> u64 {
+        self.bytes.size()
+    }
+
+    fn name(&self) -> &Path {
+        self.bytes.name()
+    }
+}
 
 /// The golden files are regenerated only on purpose: `FROCTOMAP_REGENERATE_GOLDEN=1 cargo
 /// test -p froctomap-file --test golden`. Otherwise the writer must reproduce each, in its
@@ -86,11 +113,30 @@ fn golden_files_read_back_every_observed_state() {
 
 #[test]
 fn region_queries_read_only_what_they_need() {
-    let reader = FroctReader::open(&golden_path()).unwrap();
+    let reads = Arc::new(Mutex::new(Vec::new()));
+    let source = RecordingSource {
+        bytes: MemorySource::new(std::fs::read(golden_path()).unwrap()),
+        reads: Arc::clone(&reads),
+    };
+    let models = froctomap_temporal::ModelRegistry::with_default_models();
+    let reader = FroctReader::from_source(source, ReadLimits::default(), &models).unwrap();
+    let take_reads = || std::mem::take(&mut *reads.lock().unwrap());
+    assert!(
+        !take_reads().is_empty(),
+        "opening reads header, footer and index"
+    );
     let o = 32768u16;
     let door = froctomap_core::VoxelKey::new(o + 4, o, o);
-    // One tile holds the door; the box around it touches no other tile.
-    assert_eq!(reader.tiles_in_box(door, door).len(), 1);
+    // One tile holds the door; the box around it touches no other tile, and a query reads
+    // that tile's bytes and nothing else.
+    let tiles = reader.tiles_in_box(door, door);
+    assert_eq!(tiles.len(), 1);
+    assert!(reader.tiles().len() > 1);
+    let entry = reader.tiles()[tiles[0]];
+    let door_tile = entry.offset..entry.offset + u64::from(entry.stored_len);
+    reader.region_states(door, door, 3).unwrap();
+    reader.region_probabilities(door, door, 1800.0).unwrap();
+    assert_eq!(take_reads(), vec![door_tile.clone(), door_tile]);
     let axis = golden_axis();
     for sample in [3u32, 12, 40] {
         let states = reader.region_states(door, door, sample).unwrap();
@@ -117,7 +163,9 @@ fn region_queries_read_only_what_they_need() {
         let p = reader.region_probabilities(door, door, seconds).unwrap();
         assert!(!p.is_empty() && p.iter().all(|c| (0.0..=1.0).contains(&c.value)));
     }
-    // A box far away touches nothing.
+    // A box far away touches nothing and reads nothing.
+    take_reads();
     let far = froctomap_core::VoxelKey::new(100, 100, 100);
     assert!(reader.region_states(far, far, 0).unwrap().is_empty());
+    assert_eq!(take_reads(), vec![]);
 }
