@@ -107,10 +107,16 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     bars.stage("writing snapshots", generator.frames().count() as u64);
     // `write_series` reports totals done so far; the bar wants increments.
     let done_so_far = AtomicU64::new(0);
-    let manifest = write_series(&generator, &args.output, &options, &|done, _total| {
-        let before = done_so_far.fetch_max(done, Ordering::Relaxed);
-        bars.advance(done.saturating_sub(before));
-    })?;
+    let manifest = write_series(
+        ui.context.formats(),
+        &generator,
+        &args.output,
+        &options,
+        &|done, _total| {
+            let before = done_so_far.fetch_max(done, Ordering::Relaxed);
+            bars.advance(done.saturating_sub(before));
+        },
+    )?;
     drop(bars);
     let n = group_thousands;
     let frames = manifest.entries.len() as u64;
