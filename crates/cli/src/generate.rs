@@ -6,7 +6,8 @@ use crate::ui::Ui;
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::group_thousands;
-use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
+use froctomap_convert::{parse_duration, parse_time, Progress};
+use froctomap_core::calendar::iso8601;
 use froctomap_formats::ReadOptions;
 use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
 use std::path::PathBuf;
@@ -129,8 +130,8 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     if let (Some(first), Some(last)) = (manifest.entries.first(), manifest.entries.last()) {
         println!(
             "time:      {} .. {}",
-            format_iso(first.time),
-            format_iso(last.time)
+            iso8601(first.time),
+            iso8601(last.time)
         );
     }
     let summary = generator.change_summary();

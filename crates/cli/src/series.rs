@@ -9,10 +9,11 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, collect_inputs, evaluate, export, format_iso, parse_duration, parse_time,
-    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, collect_inputs, evaluate, export, parse_duration, parse_time, resolve_observed,
+    write_observed_map, write_predicted_map, BuildOptions, EvalReport, ExportMode, ExportOptions,
+    LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
+use froctomap_core::calendar::iso8601;
 use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
@@ -208,12 +209,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         "building {} from {} snapshots ({} .. {})",
         args.output.display(),
         inputs.len(),
-        inputs
-            .first()
-            .map_or_else(String::new, |i| format_iso(i.time)),
-        inputs
-            .last()
-            .map_or_else(String::new, |i| format_iso(i.time)),
+        inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
+        inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
     let report = build(ui.context, &inputs, &args.output, &options, &bars)?;
@@ -338,7 +335,7 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         ui.note(&format!(
             "no snapshot at {}; using the last one before it, at {}",
             args.time,
-            format_iso(when.time)
+            iso8601(when.time)
         ));
     }
     let output = &args.output.output;
@@ -353,7 +350,7 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         "{} ({}): map observed at {} (sample {}), {} leaves",
         output.display(),
         written.format.name,
-        format_iso(when.time),
+        iso8601(when.time),
         when.sample,
         group_thousands(written.leaves as u64)
     ));
@@ -403,7 +400,7 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
         "{} ({}): map predicted for {} ({relation}), {} leaves",
         output.display(),
         written.format.name,
-        format_iso(t),
+        iso8601(t),
         group_thousands(written.leaves as u64)
     ));
     Ok(())

@@ -6,7 +6,7 @@ use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
-use crate::time::format_iso;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
@@ -656,7 +656,7 @@ fn metadata(
     );
     meta.insert(
         "created".into(),
-        Value::from(format_iso(Timestamp(now.0 - now.0 % 1_000_000_000))),
+        Value::from(iso8601(Timestamp(now.0 - now.0 % 1_000_000_000))),
     );
     if let Some(dir) = inputs.first().and_then(|i| i.path.parent()) {
         meta.insert("source".into(), Value::from(dir.display().to_string()));

@@ -2,7 +2,8 @@
 //! variant (a front end adds its own hints, e.g. the option that skips bad files) and never
 //! by message text.
 
-use crate::time::{format_iso, TimeError};
+use crate::time::TimeError;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -92,7 +93,7 @@ pub enum ConvertError {
         source: TimeError,
     },
     /// Two files claim the same time.
-    #[error("{} and {} have the same time {}", first.display(), second.display(), format_iso(*time))]
+    #[error("{} and {} have the same time {}", first.display(), second.display(), iso8601(*time))]
     DuplicateTime {
         /// One file.
         first: PathBuf,
@@ -155,7 +156,7 @@ pub enum ConvertError {
         text: String,
     },
     /// A sample index past the end of the file's time axis.
-    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", format_iso(*start), format_iso(*end))]
+    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", iso8601(*start), iso8601(*end))]
     SampleBeyondAxis {
         /// The sample asked for.
         sample: u32,
@@ -167,7 +168,7 @@ pub enum ConvertError {
         end: Timestamp,
     },
     /// A sample of the axis at which no snapshot was stored.
-    #[error("sample {sample} ({}) has no snapshot", format_iso(*time))]
+    #[error("sample {sample} ({}) has no snapshot", iso8601(*time))]
     NoSnapshotAtSample {
         /// The sample.
         sample: u32,
@@ -175,7 +176,7 @@ pub enum ConvertError {
         time: Timestamp,
     },
     /// An instant before the first snapshot, where nothing was observed.
-    #[error("{} is before the first snapshot; the file covers {} .. {}", format_iso(*time), format_iso(*start), format_iso(*end))]
+    #[error("{} is before the first snapshot; the file covers {} .. {}", iso8601(*time), iso8601(*start), iso8601(*end))]
     BeforeFirstSnapshot {
         /// The instant asked for.
         time: Timestamp,
@@ -185,7 +186,7 @@ pub enum ConvertError {
         end: Timestamp,
     },
     /// An export range that ends before it starts.
-    #[error("the range ends at {} before it starts at {}", format_iso(*to), format_iso(*from))]
+    #[error("the range ends at {} before it starts at {}", iso8601(*to), iso8601(*from))]
     EmptyRange {
         /// First instant.
         from: Timestamp,

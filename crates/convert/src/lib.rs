@@ -63,6 +63,5 @@ pub use maps::{
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;
 pub use time::{
-    check_range, format_compact, format_iso, parse_duration, parse_time, time_from_file_name,
-    TimeError, EARLIEST, LATEST,
+    check_range, parse_duration, parse_time, time_from_file_name, TimeError, EARLIEST, LATEST,
 };

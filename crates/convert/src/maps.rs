@@ -4,7 +4,8 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::progress::Progress;
-use crate::time::{check_range, format_compact, parse_time};
+use crate::time::{check_range, parse_time};
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
@@ -465,7 +466,7 @@ pub fn export(
             let path = dir.join(format!(
                 "{}_{}.{extension}",
                 options.prefix,
-                format_compact(t)
+                iso8601_basic(t)
             ));
             let write = WriteOptions {
                 format: Some(options.format.as_str()),

@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use froctomap_convert::*;
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
 use froctomap_file::FroctReader;
 use froctomap_formats::{
@@ -70,7 +71,7 @@ fn write_series(dir: &Path, frames: u32) -> Vec<(PathBuf, Timestamp, Snapshot)> 
             // Irregular times: ten minutes apart with up to a minute of jitter.
             let t =
                 Timestamp::from_secs(1_451_865_600 + i64::from(i) * 600 + i64::from(i * 37 % 61));
-            let path = dir.join(format!("scan_{}.bt", format_compact(t)));
+            let path = dir.join(format!("scan_{}.bt", iso8601_basic(t)));
             let snapshot = frame(&base, i);
             registry
                 .write_file(&snapshot, &path, WriteOptions::default())

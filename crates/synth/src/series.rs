@@ -6,9 +6,10 @@
 //! frames complete and renamed into place only when all of them are on disk, so a
 //! `manifest.csv` always describes a complete series.
 
-use crate::calendar::{basic_utc, parse_unix_secs, unix_secs_text};
+use crate::calendar::{parse_unix_secs, unix_secs_text};
 use crate::error::SynthError;
 use crate::generator::{FrameInfo, FrameStats, Generator};
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{write_atomically, Timestamp};
 use froctomap_formats::{FormatRegistry, WriteOptions};
 use rayon::prelude::*;
@@ -135,7 +136,7 @@ impl SeriesManifest {
 /// Expands the file-name pattern for one frame.
 fn file_name(pattern: &str, frame: FrameInfo, width: usize, ext: &str) -> String {
     pattern
-        .replace("{time}", &basic_utc(frame.time))
+        .replace("{time}", &iso8601_basic(frame.time))
         .replace("{index}", &format!("{:0width$}", frame.index))
         .replace("{ext}", ext)
 }

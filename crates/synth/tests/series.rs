@@ -4,9 +4,9 @@
 
 mod common;
 
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_formats::{FormatRegistry, ReadOptions};
-use froctomap_synth::calendar::basic_utc;
 use froctomap_synth::{
     write_series, Generator, SeriesManifest, SeriesSpec, SynthError, WriteSeriesOptions,
     MANIFEST_NAME,
@@ -59,7 +59,7 @@ fn twenty_frames_round_trip_through_the_registry() {
         assert_eq!(entry.time, frame.time);
         assert_eq!(
             entry.path.to_str().unwrap(),
-            format!("frame_{}.bt", basic_utc(frame.time))
+            format!("frame_{}.bt", iso8601_basic(frame.time))
         );
         let path = out.join(&entry.path);
         assert_eq!(std::fs::metadata(&path).unwrap().len(), entry.bytes);
