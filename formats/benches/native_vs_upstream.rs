@@ -211,10 +211,7 @@ fn perturbed(base: &Snapshot, seed: u64) -> Snapshot {
         }
         let mut leaf = *leaf;
         if rng.chance(30) {
-            leaf.log_odds = match leaf.occupancy() {
-                Occupancy::Occupied => Occupancy::Free.log_odds(),
-                Occupancy::Free => Occupancy::Occupied.log_odds(),
-            };
+            leaf.log_odds = (!leaf.occupancy()).log_odds();
         }
         if leaf.depth < 16 && rng.chance(10) {
             let size = froctomap_core::voxels_per_node(leaf.depth + 1);

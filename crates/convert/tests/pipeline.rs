@@ -45,11 +45,7 @@ fn frame(base: &Snapshot, i: u32) -> Snapshot {
             return None;
         }
         let state = if door(&k) {
-            if door_open {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }
+            Occupancy::from(!door_open)
         } else if boxed(&k) && box_present {
             Occupancy::Occupied
         } else {

@@ -177,7 +177,7 @@ fn check_pattern(pattern: &str) -> Result<(), SynthError> {
 /// use froctomap_formats::FormatRegistry;
 /// use froctomap_synth::{write_series, Generator, SeriesSpec, WriteSeriesOptions};
 /// # let voxels = (0..16u16).flat_map(|x| (0..16u16).flat_map(move |y| (0..8u16).map(move |z| {
-/// #     let state = if z == 0 { Occupancy::Occupied } else { Occupancy::Free };
+/// #     let state = Occupancy::from(z == 0);
 /// #     (VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(), state)
 /// # })));
 /// # let base = Snapshot::from_voxel_states(0.1, voxels)?;
