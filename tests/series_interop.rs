@@ -119,6 +119,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
             format: "bt".into(),
             backend: None,
             prefix: "map".into(),
+            overwrite: false,
         },
         &Silent,
     )

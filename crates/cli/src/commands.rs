@@ -3,7 +3,7 @@
 use crate::ui::Ui;
 use anyhow::Result;
 use clap::Args;
-use froctomap_convert::{group_thousands, FROCT};
+use froctomap_convert::{group_thousands, refuse_overwriting_input, FROCT};
 use froctomap_core::{BoundingBox, Snapshot};
 use froctomap_formats::{Identified, ReadOptions, WriteOptions};
 use serde::Serialize;
@@ -154,6 +154,7 @@ pub struct ConvertArgs {
 }
 
 pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
+    refuse_overwriting_input(&args.output, [args.input.as_path()])?;
     let registry = ui.context.formats();
     // Resolve the output format first so a bad output name fails before any work.
     registry.output_format(

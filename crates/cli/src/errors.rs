@@ -31,6 +31,9 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
         ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
         ConvertError::NonPositiveInterval => Some("--every must be positive"),
+        ConvertError::DirectoryNotEmpty { .. } => {
+            Some("choose a new directory, or pass --overwrite to replace its files")
+        }
         ConvertError::Write(FormatError::UnknownExtension { .. }) => {
             Some("name the file accordingly or pass --format")
         }

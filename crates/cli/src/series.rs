@@ -439,6 +439,9 @@ pub struct ExportArgs {
     /// File name prefix.
     #[arg(long, default_value = "map")]
     prefix: String,
+    /// Write into a directory that already holds files, replacing those of the same names.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
@@ -454,6 +457,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         format: args.format.clone(),
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
+        overwrite: args.overwrite,
     };
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;

@@ -347,3 +347,82 @@ fn errors_are_clear() {
     let e = err(&["info", s(&map)]);
     assert!(e.contains("room.froct") && e.contains("end magic"), "{e}");
 }
+
+#[test]
+fn outputs_never_replace_their_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("inputs");
+    std::fs::create_dir(&inputs).unwrap();
+    let files = write_series(&inputs, 3);
+    let first = std::fs::read(&files[0]).unwrap();
+    let destroys = |args: &[&str]| {
+        let e = err(args);
+        assert!(e.contains("would destroy the input"), "{args:?}: {e}");
+    };
+    destroys(&["build", s(&files[0]), s(&files[1]), "-o", s(&files[0])]);
+    destroys(&["convert", s(&files[0]), s(&files[0])]);
+    // The same file through a symbolic and a hard link.
+    let soft = dir.path().join("soft.bt");
+    std::os::unix::fs::symlink(&files[0], &soft).unwrap();
+    destroys(&["build", s(&inputs), "-o", s(&soft)]);
+    let hard = dir.path().join("hard.bt");
+    std::fs::hard_link(&files[1], &hard).unwrap();
+    destroys(&["convert", s(&files[1]), s(&hard)]);
+    assert_eq!(std::fs::read(&files[0]).unwrap(), first);
+
+    let map = dir.path().join("room.froct");
+    ok(&["build", "--quiet", s(&inputs), "-o", s(&map)]);
+    let archive = std::fs::read(&map).unwrap();
+    let map_link = dir.path().join("room-link.froct");
+    std::fs::hard_link(&map, &map_link).unwrap();
+    for output in [&map, &map_link] {
+        destroys(&[
+            "retrieve",
+            s(&map),
+            "--time",
+            "index:0",
+            "--format",
+            "bt",
+            "-o",
+            s(output),
+        ]);
+        destroys(&[
+            "predict",
+            s(&map),
+            "--time",
+            "index:0",
+            "--format",
+            "bt",
+            "-o",
+            s(output),
+        ]);
+    }
+    assert_eq!(std::fs::read(&map).unwrap(), archive);
+
+    // An export goes into a new or empty directory unless told to overwrite.
+    let export = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "export",
+            s(&map),
+            "--from",
+            "1451865600",
+            "--to",
+            "1451866800",
+            "--every",
+            "10min",
+            "-o",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |args: Vec<String>| froctomap(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let refused = run(export(&inputs, &[]));
+    assert_eq!(refused.status.code(), Some(1));
+    let e = String::from_utf8(refused.stderr).unwrap();
+    assert!(e.contains("not empty") && e.contains("--overwrite"), "{e}");
+    assert!(!inputs.join("manifest.csv").exists());
+    assert!(run(export(&inputs, &["--overwrite"])).status.success());
+    assert!(inputs.join("manifest.csv").exists());
+    assert!(run(export(&dir.path().join("new"), &[])).status.success());
+}

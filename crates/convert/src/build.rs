@@ -4,6 +4,7 @@ use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
 use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
+use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use froctomap_core::calendar::iso8601;
@@ -225,6 +226,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildReport, ConvertError> {
     let started = Instant::now();
+    refuse_overwriting_input(output, inputs.iter().map(|i| i.path.as_path()))?;
     let registry = context.formats();
     let models = context.models();
     let model = models

@@ -217,6 +217,21 @@ pub enum ConvertError {
     /// Writing an output failed.
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),
+    /// An output that is one of the inputs (also through a link): writing it would destroy
+    /// the input.
+    #[error("{}: this output is the input {}; writing it would destroy the input", output.display(), input.display())]
+    OutputIsInput {
+        /// The output as given.
+        output: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+    },
+    /// An export directory that already holds files, which the export would replace.
+    #[error("{}: the directory is not empty", dir.display())]
+    DirectoryNotEmpty {
+        /// The directory.
+        dir: PathBuf,
+    },
     /// Every input was unreadable or skipped.
     #[error("no readable snapshots: all {inputs} inputs were left out")]
     NothingToBuild {

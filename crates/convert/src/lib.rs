@@ -42,6 +42,7 @@ mod history;
 mod info;
 mod inputs;
 mod maps;
+mod outputs;
 mod progress;
 mod snapshot_changes;
 mod text;
@@ -60,6 +61,7 @@ pub use maps::{
     write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
     ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
 };
+pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;
 pub use time::{

@@ -209,6 +209,7 @@ fn predictions_exports_and_evaluation() {
         format: "bt".into(),
         backend: None,
         prefix: "map".into(),
+        overwrite: false,
     };
     let report = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     assert_eq!(report.files.len(), 5);
@@ -392,6 +393,7 @@ fn a_format_registered_by_the_caller_is_used_by_build_and_export() {
         format: "tree".into(),
         backend: None,
         prefix: "map".into(),
+        overwrite: false,
     };
     let exported = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     let file = &exported.files[0].path;
