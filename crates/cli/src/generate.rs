@@ -121,34 +121,34 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     drop(bars);
     let n = group_thousands;
     let frames = manifest.entries.len() as u64;
-    println!(
+    outln!(
         "wrote {} snapshots ({} bytes) and {}",
         n(frames),
         n(manifest.total_bytes),
         manifest.manifest_path().display()
-    );
+    )?;
     if let (Some(first), Some(last)) = (manifest.entries.first(), manifest.entries.last()) {
-        println!(
+        outln!(
             "time:      {} .. {}",
             iso8601(first.time),
             iso8601(last.time)
-        );
+        )?;
     }
     let summary = generator.change_summary();
     for kind in &summary.kinds {
-        println!(
+        outln!(
             "{:<10} {} placed, {} voxels, {} voxel-changes",
             kind.kind.name(),
             kind.placed,
             n(kind.voxels),
             n(manifest.changes.of(kind.kind))
-        );
+        )?;
     }
-    println!(
+    outln!(
         "{:<10} {} surface voxels, {} flips",
         "noise",
         n(summary.noise_candidates),
         n(manifest.changes.noise)
-    );
+    )?;
     Ok(())
 }

@@ -225,15 +225,15 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        outln!("{}", serde_json::to_string_pretty(&value)?)?;
     } else {
         let n = group_thousands;
-        println!(
+        outln!(
             "wrote {} ({} bytes)",
             report.output.display(),
             n(report.file_bytes)
-        );
-        println!(
+        )?;
+        outln!(
             "snapshots:   {} used of {} ({} samples, {} axis)",
             report.used,
             report.inputs,
@@ -243,36 +243,36 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             } else {
                 "explicit"
             }
-        );
-        println!("cells:       {}", class_counts(&report.cells));
-        println!(
+        )?;
+        outln!("cells:       {}", class_counts(&report.cells))?;
+        outln!(
             "voxels:      {} ({} dynamic)",
             n(report.voxels.total()),
             n(report.voxels.dynamic)
-        );
-        println!(
+        )?;
+        outln!(
             "size:        {} bytes from {} input bytes: {:.1}x smaller",
             n(report.file_bytes),
             n(report.input_bytes),
             report.input_bytes as f64 / report.file_bytes.max(1) as f64
-        );
+        )?;
         if args.lossy {
-            println!(
+            outln!(
                 "model error: {} observed cell-samples differ from the input (lossy)",
                 n(report.model_errors)
-            );
+            )?;
         } else {
-            println!(
+            outln!(
                 "outliers:    {} toggles stored (lossless)",
                 n(report.toggles)
-            );
+            )?;
         }
-        println!(
+        outln!(
             "time:        {:.1} s reading, {:.1} s modelling{}",
             report.read_seconds,
             report.model_seconds,
             peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
-        );
+        )?;
     }
     if !report.warnings.is_empty() && !ui.quiet {
         for (path, warning) in report.warnings.iter().take(10) {
@@ -502,19 +502,19 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     )?;
     drop(bars);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print_eval(&report);
+        print_eval(&report)?;
     }
     Ok(())
 }
 
-fn print_eval(report: &EvalReport) {
+fn print_eval(report: &EvalReport) -> std::io::Result<()> {
     let cell = |rate: &froctomap_convert::Rate| {
         rate.percent()
             .map_or_else(|| "-".to_string(), |p| format!("{p:.2} %"))
     };
-    println!("error rates (wrong voxels / compared voxels):\n");
+    outln!("error rates (wrong voxels / compared voxels):\n")?;
     for (title, rows, n) in [
         (
             "reconstruction (inside the modelled span)",
@@ -527,27 +527,28 @@ fn print_eval(report: &EvalReport) {
             report.outside,
         ),
     ] {
-        println!("{title}: {n} ground-truth maps");
+        outln!("{title}: {n} ground-truth maps")?;
         if n == 0 {
-            println!();
+            outln!()?;
             continue;
         }
-        println!("| method | all voxels | non-empty | dynamic |");
-        println!("| --- | ---: | ---: | ---: |");
+        outln!("| method | all voxels | non-empty | dynamic |")?;
+        outln!("| --- | ---: | ---: | ---: |")?;
         for (method, rates) in rows.iter() {
-            println!(
+            outln!(
                 "| {method} | {} | {} | {} |",
                 cell(&rates.all),
                 cell(&rates.non_empty),
                 cell(&rates.dynamic)
-            );
+            )?;
         }
-        println!();
+        outln!()?;
     }
     if report.unmodelled_voxels > 0 {
-        println!(
+        outln!(
             "{} ground-truth voxels were never observed in the file's data (not compared)",
             group_thousands(report.unmodelled_voxels)
-        );
+        )?;
     }
+    Ok(())
 }

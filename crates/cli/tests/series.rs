@@ -299,7 +299,7 @@ fn errors_are_clear() {
         "-o",
         s(&dir.path().join("x.bt")),
     ]);
-    assert!(e.contains("not a FROctomap file"), "{e}");
+    assert!(e.contains("not a FROctomap series file"), "{e}");
     // Output formats are the registry's writable ones, listed when another is given.
     let out = froctomap(&[
         "retrieve",
@@ -425,4 +425,65 @@ fn outputs_never_replace_their_inputs() {
     assert!(run(export(&inputs, &["--overwrite"])).status.success());
     assert!(inputs.join("manifest.csv").exists());
     assert!(run(export(&dir.path().join("new"), &[])).status.success());
+}
+
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 1);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(["info", s(&files[0])])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the first line is written (`froctomap info x | head -0`).
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert_eq!(stderr, "");
+}
+
+#[test]
+fn each_error_is_said_once_and_map_files_are_not_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 2);
+    let missing = dir.path().join("missing.froct");
+    let e = err(&["info", s(&missing)]);
+    assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    let map = dir.path().join("room.froct");
+    ok(&["build", "--quiet", s(dir.path()), "-o", s(&map)]);
+    let truncated = dir.path().join("truncated.froct");
+    let bytes = std::fs::read(&map).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let e = err(&["info", s(&truncated)]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert_eq!(e.matches("corrupt").count(), 1, "{e}");
+
+    let out = dir.path().join("x.bt");
+    let out = s(&out);
+    for args in [
+        vec!["retrieve", s(&files[0]), "--time", "index:0", "-o", out],
+        vec!["predict", s(&files[0]), "--time", "0", "-o", out],
+        vec![
+            "export",
+            s(&files[0]),
+            "--from",
+            "0",
+            "--to",
+            "0",
+            "--every",
+            "1",
+            "-o",
+            out,
+        ],
+    ] {
+        let e = err(&args);
+        assert!(
+            e.contains("this is a map file (format `bt`)"),
+            "{args:?}: {e}"
+        );
+        assert!(e.contains("build a .froct from it first"), "{e}");
+    }
 }

@@ -129,6 +129,14 @@ pub enum ConvertError {
     /// A map could not be written.
     #[error(transparent)]
     Write(froctomap_formats::FormatError),
+    /// A single map where a series file is needed.
+    #[error("{}: this is a map file (format `{format}`), not a FROctomap series file; build a .froct from it first", path.display())]
+    MapNotSeries {
+        /// The file.
+        path: PathBuf,
+        /// Name of the map format it is in.
+        format: &'static str,
+    },
     /// A FROctomap file could not be read or written.
     #[error(transparent)]
     File(#[from] froctomap_file::FileError),
