@@ -13,12 +13,13 @@ mod commands;
 mod errors;
 mod froct_info;
 mod generate;
+mod manual;
 mod plugins;
 mod progress;
 mod series;
 mod ui;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
 use froctomap_formats::Backend;
 use std::process::ExitCode;
 
@@ -127,6 +128,18 @@ enum Command {
     ///
     /// Example: froctomap generate --days 3 --step 30min -o series/
     Generate(generate::GenerateArgs),
+    /// Print the completion script of a shell.
+    ///
+    /// Example: froctomap completions bash > ~/.local/share/bash-completion/completions/froctomap
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the manual page (roff).
+    ///
+    /// Example: froctomap man > froctomap.1 && man ./froctomap.1
+    Man,
 }
 
 fn main() -> ExitCode {
@@ -147,6 +160,8 @@ fn main() -> ExitCode {
         Command::Export(args) => series::export_command(&ui, &args),
         Command::Eval(args) => series::eval_command(&ui, &args),
         Command::Generate(args) => generate::generate_command(&ui, &args),
+        Command::Completions { shell } => manual::completions(Cli::command(), shell),
+        Command::Man => manual::man(Cli::command()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

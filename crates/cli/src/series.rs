@@ -9,11 +9,12 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, collect_inputs, evaluate, export, parse_duration, parse_time, resolve_observed,
-    write_observed_map, write_predicted_map, BuildOptions, EvalReport, ExportMode, ExportOptions,
-    LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, check_range, collect_inputs, evaluate, export, parse_duration, parse_time,
+    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, Order, OrderCriterion, OutlierMode};
@@ -130,6 +131,11 @@ pub struct BuildArgs {
     /// A key=value tag stored in the file's metadata (repeatable).
     #[arg(long, value_name = "KEY=VALUE")]
     tag: Vec<String>,
+    /// Creation time stored in the file (Unix seconds or ISO 8601) instead of now, for
+    /// reproducible files; SOURCE_DATE_EPOCH (Unix seconds) does the same when this is not
+    /// given.
+    #[arg(long, value_name = "TIME")]
+    created: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -164,6 +170,23 @@ fn model_config(args: &BuildArgs) -> Result<ModelConfig> {
         .with_periods(periods);
     config.validate()?;
     Ok(config)
+}
+
+/// `--created`, else SOURCE_DATE_EPOCH (reproducible-builds.org: whole Unix seconds).
+fn creation_time(args: &BuildArgs) -> Result<Option<Timestamp>> {
+    if let Some(text) = &args.created {
+        return Ok(Some(parse_time(text).context("--created")?));
+    }
+    let Some(epoch) = std::env::var_os("SOURCE_DATE_EPOCH") else {
+        return Ok(None);
+    };
+    let seconds = epoch
+        .to_str()
+        .and_then(|text| text.trim().parse::<i64>().ok())
+        .with_context(|| format!("SOURCE_DATE_EPOCH={epoch:?} is not a whole number of seconds"))?;
+    let created = Timestamp::from_secs(seconds);
+    check_range("SOURCE_DATE_EPOCH", created)?;
+    Ok(Some(created))
 }
 
 fn mib(bytes: u64) -> String {
@@ -203,6 +226,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
+        created: creation_time(args)?,
         ..BuildOptions::default()
     };
     ui.note(&format!(

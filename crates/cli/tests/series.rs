@@ -487,3 +487,64 @@ fn each_error_is_said_once_and_map_files_are_not_series() {
         assert!(e.contains("build a .froct from it first"), "{e}");
     }
 }
+
+#[test]
+fn completions_and_manual_page_come_from_the_command_line() {
+    let bash = ok(&["completions", "bash"]);
+    assert!(bash.contains("_froctomap()"), "{bash}");
+    assert!(bash.contains("retrieve") && bash.contains("--toggle-block"));
+    let zsh = ok(&["completions", "zsh"]);
+    assert!(zsh.starts_with("#compdef froctomap"), "{zsh}");
+    // An unknown shell is a usage error (clap's status 2) naming the known ones.
+    let unknown = froctomap(&["completions", "tcsh"]);
+    assert_eq!(unknown.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&unknown.stderr).contains("zsh"));
+    let page = ok(&["man"]);
+    assert!(page.contains(".TH froctomap 1"), "{page}");
+    assert!(page.contains("retrieve") && page.contains("completions"));
+}
+
+#[test]
+fn a_fixed_creation_time_makes_builds_reproducible() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("inputs");
+    std::fs::create_dir(&inputs).unwrap();
+    write_series(&inputs, 3);
+    let build = |name: &str, created: Option<&str>, epoch: Option<&str>| {
+        let out = dir.path().join(name);
+        let mut command = Command::new(env!("CARGO_BIN_EXE_froctomap"));
+        command.args(["build", "--quiet", s(&inputs), "-o", s(&out)]);
+        if let Some(time) = created {
+            command.args(["--created", time]);
+        }
+        command.env_remove("SOURCE_DATE_EPOCH");
+        if let Some(epoch) = epoch {
+            command.env("SOURCE_DATE_EPOCH", epoch);
+        }
+        let run = command.output().unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let info = ok(&["info", "--json", s(&out)]);
+        (std::fs::read(&out).unwrap(), info)
+    };
+    let (flag, info) = build("a.froct", Some("2020-01-01T00:00:00Z"), None);
+    assert!(info.contains("2020-01-01T00:00:00Z"), "{info}");
+    let (epoch, _) = build("b.froct", None, Some("1577836800"));
+    assert_eq!(flag, epoch);
+    // The flag wins over the environment.
+    let (both, _) = build("c.froct", Some("1577836800"), Some("1"));
+    assert_eq!(flag, both);
+    let e = {
+        let out = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(["build", s(&inputs), "-o", s(&dir.path().join("d.froct"))])
+            .env("SOURCE_DATE_EPOCH", "yesterday")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        String::from_utf8(out.stderr).unwrap()
+    };
+    assert!(e.contains("SOURCE_DATE_EPOCH"), "{e}");
+}

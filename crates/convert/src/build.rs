@@ -52,6 +52,10 @@ pub struct BuildOptions {
     pub metadata: Map<String, Value>,
     /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
     pub batch: usize,
+    /// Creation time stored in the metadata (`created`), to the second; `None`: now. A fixed
+    /// time makes the file reproducible (the build's timings are then not stored either): the
+    /// same inputs and options give the same bytes.
+    pub created: Option<Timestamp>,
 }
 
 impl Default for BuildOptions {
@@ -67,6 +71,7 @@ impl Default for BuildOptions {
             backend: None,
             metadata: Map::new(),
             batch: 8 * rayon::current_num_threads().max(1),
+            created: None,
         }
     }
 }
@@ -468,7 +473,7 @@ pub fn build(
         options.codec,
     );
     header.toggles = options.toggles;
-    header.metadata = metadata(inputs, used, input_bytes, &options.metadata);
+    header.metadata = metadata(inputs, used, input_bytes, options);
     let layout = header.tile_layout();
     let mut writer = FroctWriter::create(output, &header)?;
     let cell_count: usize = histories.iter().map(SeriesHistory::cell_count).sum();
@@ -562,9 +567,14 @@ pub fn build(
         "read_seconds": read_seconds,
         "model_seconds": model_seconds,
     });
-    let Value::Object(summary) = summary else {
+    let Value::Object(mut summary) = summary else {
         unreachable!("json! of an object literal")
     };
+    if options.created.is_some() {
+        // A reproducible file: no wall-clock measurement in it (the report keeps them).
+        summary.remove("read_seconds");
+        summary.remove("model_seconds");
+    }
     let written: WrittenFile = writer.finish(summary)?;
     Ok(BuildReport {
         output: output.to_path_buf(),
@@ -645,12 +655,14 @@ fn metadata(
     inputs: &[SeriesInput],
     used: usize,
     input_bytes: u64,
-    extra: &Map<String, Value>,
+    options: &BuildOptions,
 ) -> Map<String, Value> {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
-        .unwrap_or_default();
+    let now = options.created.unwrap_or_else(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
+            .unwrap_or_default()
+    });
     let mut meta = Map::new();
     meta.insert(
         "creator".into(),
@@ -665,7 +677,7 @@ fn metadata(
     }
     meta.insert("sources".into(), Value::from(used));
     meta.insert("input_bytes".into(), Value::from(input_bytes));
-    for (k, v) in extra {
+    for (k, v) in &options.metadata {
         meta.insert(k.clone(), v.clone());
     }
     meta
