@@ -1,6 +1,6 @@
 //! The subcommands: thin layers over the library crates.
 
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::{group_thousands, refuse_overwriting_input, FROCT};
@@ -107,7 +107,7 @@ fn print_info(info: &MapInfo) -> std::io::Result<()> {
     let n = group_thousands;
     outln!(
         "file:            {} ({} bytes)",
-        info.file.display(),
+        escaped(info.file.display()),
         n(info.file_bytes)
     )?;
     outln!(
@@ -199,8 +199,8 @@ pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
 fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapshot) -> String {
     format!(
         "{} ({from}) -> {} ({to}): {} leaves",
-        input.display(),
-        output.display(),
+        escaped(input.display()),
+        escaped(output.display()),
         group_thousands(snapshot.leaves().len() as u64)
     )
 }

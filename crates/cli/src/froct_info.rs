@@ -1,6 +1,6 @@
 //! `info` of a FROctomap file: its header, axis, model, cell classes and sizes.
 
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use froctomap_convert::{describe, group_thousands, ClassCounts};
 use serde_json::Value;
@@ -17,7 +17,7 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
     let n = group_thousands;
     outln!(
         "file:            {} ({} bytes, FROctomap {})",
-        info.file.display(),
+        escaped(info.file.display()),
         n(info.size.file),
         info.version
     )?;
@@ -46,7 +46,11 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
             String::new()
         }
     )?;
-    outln!("model:           {} ({})", info.model, info.outliers)?;
+    outln!(
+        "model:           {} ({})",
+        escaped(&info.model),
+        escaped(info.outliers)
+    )?;
     outln!("cells:           {}", class_counts(&info.cells))?;
     outln!("voxels:          {}", class_counts(&info.voxels))?;
     outln!(
@@ -58,7 +62,7 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
     if let Value::Object(streams) = &info.size.raw_streams {
         let parts: Vec<String> = streams
             .iter()
-            .map(|(k, v)| format!("{k} {}", n(v.as_u64().unwrap_or(0))))
+            .map(|(k, v)| format!("{} {}", escaped(k), n(v.as_u64().unwrap_or(0))))
             .collect();
         outln!("raw streams:     {}", parts.join(", "))?;
     }
@@ -76,12 +80,11 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
         info.ratio_vs_raw_states
     )?;
     if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
+        let created = info.metadata.get("created").and_then(Value::as_str);
         outln!(
-            "created:         {} by {creator}",
-            info.metadata
-                .get("created")
-                .and_then(Value::as_str)
-                .unwrap_or("?")
+            "created:         {} by {}",
+            escaped(created.unwrap_or("?")),
+            escaped(creator)
         )?;
     }
     Ok(())

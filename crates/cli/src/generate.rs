@@ -2,7 +2,7 @@
 //! base map (the sample data of the demo, the tests and the benchmarks).
 
 use crate::progress::Bars;
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::group_thousands;
@@ -125,7 +125,7 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
         "wrote {} snapshots ({} bytes) and {}",
         n(frames),
         n(manifest.total_bytes),
-        manifest.manifest_path().display()
+        escaped(manifest.manifest_path().display())
     )?;
     if let (Some(first), Some(last)) = (manifest.entries.first(), manifest.entries.last()) {
         outln!(

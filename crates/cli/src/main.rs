@@ -168,7 +168,7 @@ fn main() -> ExitCode {
         // The reader of our output has gone (`| head`): nothing more to say to anyone.
         Err(error) if is_broken_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("error: {}", errors::message(&error));
+            eprintln!("error: {}", ui::escaped(errors::message(&error)));
             if let Some(hint) = errors::hint(&error, skips_bad_files) {
                 eprintln!("hint: {hint}");
             }

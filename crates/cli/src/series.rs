@@ -4,7 +4,7 @@
 use crate::froct_info::class_counts;
 use crate::plugins::writable_format;
 use crate::progress::{peak_memory_bytes, Bars};
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
@@ -231,7 +231,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     };
     ui.note(&format!(
         "building {} from {} snapshots ({} .. {})",
-        args.output.display(),
+        escaped(args.output.display()),
         inputs.len(),
         inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
@@ -254,7 +254,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         let n = group_thousands;
         outln!(
             "wrote {} ({} bytes)",
-            report.output.display(),
+            escaped(report.output.display()),
             n(report.file_bytes)
         )?;
         outln!(
@@ -300,7 +300,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     }
     if !report.warnings.is_empty() && !ui.quiet {
         for (path, warning) in report.warnings.iter().take(10) {
-            eprintln!("warning: {}: {warning}", path.display());
+            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
         }
         if report.warnings.len() > 10 {
             eprintln!(
@@ -312,7 +312,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     if !report.skipped.is_empty() {
         eprintln!("skipped {} file(s):", report.skipped.len());
         for (path, reason) in &report.skipped {
-            eprintln!("  {}: {reason}", path.display());
+            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
         }
     }
     Ok(())
@@ -372,7 +372,7 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     )?;
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
-        output.display(),
+        escaped(output.display()),
         written.format.name,
         iso8601(when.time),
         when.sample,
@@ -422,7 +422,7 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     };
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
-        output.display(),
+        escaped(output.display()),
         written.format.name,
         iso8601(t),
         group_thousands(written.leaves as u64)
@@ -490,7 +490,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         "wrote {} maps ({} bytes) and {}",
         report.files.len(),
         group_thousands(report.bytes),
-        report.manifest.display()
+        escaped(report.manifest.display())
     ));
     Ok(())
 }

@@ -548,3 +548,48 @@ fn a_fixed_creation_time_makes_builds_reproducible() {
     };
     assert!(e.contains("SOURCE_DATE_EPOCH"), "{e}");
 }
+
+#[test]
+fn names_and_metadata_from_files_cannot_drive_the_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 3);
+    // A snapshot whose name carries an escape sequence and a forged line.
+    let hostile = dir.path().join("room\u{1b}[2J\nerror: forged.bt");
+    std::fs::copy(&files[0], &hostile).unwrap();
+    let info = ok(&["info", s(&hostile)]);
+    assert!(!info.contains('\u{1b}'), "{info}");
+    assert!(info.contains("room\\u{1b}[2J\\nerror: forged.bt"), "{info}");
+    let e = err(&["retrieve", s(&hostile), "--time", "0", "-o", "x.bt"]);
+    assert!(!e.contains('\u{1b}') && e.lines().count() == 1, "{e}");
+
+    // A file whose metadata was written by someone else's tool.
+    let context = froctomap_convert::Context::with_default_plugins();
+    let inputs =
+        froctomap_convert::collect_inputs(&context, &files, froctomap_convert::TimeSource::Auto)
+            .unwrap();
+    let mut options = froctomap_convert::BuildOptions::default();
+    options.metadata.insert(
+        "creator".into(),
+        serde_json::Value::from("evil\u{1b}]0;title\u{7}\nfile: forged"),
+    );
+    let map = dir.path().join("room.froct");
+    froctomap_convert::build(
+        &context,
+        &inputs,
+        &map,
+        &options,
+        &froctomap_convert::Silent,
+    )
+    .unwrap();
+    let info = ok(&["info", s(&map)]);
+    assert!(
+        !info.contains('\u{1b}') && !info.contains('\u{7}'),
+        "{info}"
+    );
+    let file_lines = info.lines().filter(|l| l.starts_with("file:")).count();
+    assert_eq!(file_lines, 1, "{info}");
+    assert!(
+        info.contains("by evil\\u{1b}]0;title\\u{7}\\nfile: forged"),
+        "{info}"
+    );
+}

@@ -90,17 +90,28 @@ pub struct ClassCounts {
 }
 
 impl ClassCounts {
-    /// Adds another count.
+    /// Adds another count (saturating: counts read from a file may be anything).
     pub fn add(&mut self, other: &ClassCounts) {
-        self.static_free += other.static_free;
-        self.static_occupied += other.static_occupied;
-        self.dynamic += other.dynamic;
-        self.unknown_sometimes += other.unknown_sometimes;
+        self.static_free = self.static_free.saturating_add(other.static_free);
+        self.static_occupied = self.static_occupied.saturating_add(other.static_occupied);
+        self.dynamic = self.dynamic.saturating_add(other.dynamic);
+        self.unknown_sometimes = self
+            .unknown_sometimes
+            .saturating_add(other.unknown_sometimes);
     }
 
-    /// All cells (or voxels).
+    /// All cells (or voxels), saturating at `u64::MAX` rather than wrapping when the counts
+    /// come from a hostile file's summary.
+    ///
+    /// ```
+    /// use froctomap_convert::ClassCounts;
+    /// let forged = ClassCounts { static_free: u64::MAX, dynamic: 2, ..ClassCounts::default() };
+    /// assert_eq!(forged.total(), u64::MAX);
+    /// ```
     pub fn total(&self) -> u64 {
-        self.static_free + self.static_occupied + self.dynamic
+        self.static_free
+            .saturating_add(self.static_occupied)
+            .saturating_add(self.dynamic)
     }
 }
 
