@@ -9,7 +9,7 @@
 //! `FROCTOMAP_BENCH_REPEATS` (repetitions on geb079, default 15).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use froctomap_core::{Leaf, Occupancy, Snapshot, StateChange};
+use froctomap_core::{Leaf, Snapshot, StateChange};
 use froctomap_formats::{Backend, FormatRegistry, MapFormat, ReadOptions};
 use froctomap_octomap_codec::{
     diff, encode_binary, encode_full, scan, FileKind, ReadLimits, TreeIndex,
