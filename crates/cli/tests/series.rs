@@ -593,3 +593,51 @@ fn names_and_metadata_from_files_cannot_drive_the_terminal() {
         "{info}"
     );
 }
+
+#[test]
+fn fifos_are_refused_before_opening_and_link_loops_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 2);
+    let fifo = dir.path().join("room_1451866800.bt");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let manifest_fifo = dir.path().join("list.csv");
+    assert!(Command::new("mkfifo")
+        .arg(&manifest_fifo)
+        .status()
+        .unwrap()
+        .success());
+    let manifest = dir.path().join("rows.csv");
+    std::fs::write(
+        &manifest,
+        format!("{},1451865600\n{},1451866800\n", s(&files[0]), s(&fifo)),
+    )
+    .unwrap();
+    let out = dir.path().join("x.froct");
+    // Each of these would wait forever on the FIFO if it were opened.
+    for args in [
+        vec!["info", s(&fifo)],
+        vec!["convert", s(&fifo), "x.ot"],
+        vec!["build", s(&fifo), s(&files[0]), "-o", s(&out)],
+        vec!["build", s(&manifest), "-o", s(&out)],
+        vec!["build", s(&manifest_fifo), "-o", s(&out)],
+        vec!["retrieve", s(&fifo), "--time", "0", "-o", "x.bt"],
+    ] {
+        let e = err(&args);
+        assert!(e.contains("a FIFO, not a regular file"), "{args:?}: {e}");
+    }
+    // Listing a directory takes its regular files only, as a plain glob does.
+    ok(&["build", "--quiet", s(dir.path()), "-o", s(&out)]);
+    std::fs::remove_file(&fifo).unwrap();
+
+    // `**` over two links to an ancestor: ends, with each real file once.
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    std::os::unix::fs::symlink("..", sub.join("up")).unwrap();
+    std::os::unix::fs::symlink("../sub", sub.join("again")).unwrap();
+    std::fs::copy(&files[1], sub.join("room_1451866800.bt")).unwrap();
+    let pattern = format!("{}/**/*.bt", dir.path().display());
+    ok(&["build", "--quiet", &pattern, "-o", s(&out)]);
+    let info = ok(&["info", "--json", s(&out)]);
+    assert!(info.contains("\"samples\": 3"), "{info}");
+}

@@ -13,7 +13,7 @@ use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
     TileLayout, ToggleLayout, WrittenFile,
 };
-use froctomap_formats::{Backend, ReadOptions, PROBE_BYTES};
+use froctomap_formats::{Backend, FormatError, ReadOptions, PROBE_BYTES};
 use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
 use froctomap_temporal::{ModelConfig, OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
 use rayon::prelude::*;
@@ -190,11 +190,24 @@ pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
 
 /// An input file's bytes, refused above `limit` bytes before reading them.
 pub(crate) fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, SnapshotError> {
-    let bytes = std::fs::metadata(path).map_err(SnapshotError::Io)?.len();
+    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
+    refuse_special(path, &metadata)?;
+    let bytes = metadata.len();
     if bytes > limit {
         return Err(SnapshotError::TooLarge { bytes, limit });
     }
     std::fs::read(path).map_err(SnapshotError::Io)
+}
+
+/// A FIFO or device is refused before it is opened (reading one may never end).
+fn refuse_special(path: &Path, metadata: &std::fs::Metadata) -> Result<(), SnapshotError> {
+    match froctomap_formats::special_kind(metadata.file_type()) {
+        None => Ok(()),
+        Some(kind) => Err(SnapshotError::Format(FormatError::NotAFile {
+            path: path.to_path_buf(),
+            kind,
+        })),
+    }
 }
 
 fn gcd(a: i64, b: i64) -> i64 {
@@ -208,6 +221,8 @@ fn gcd(a: i64, b: i64) -> i64 {
 /// A file's resolution from its first bytes, when its format is OctoMap's.
 fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
     use std::io::Read;
+    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
+    refuse_special(path, &metadata)?;
     let mut head = Vec::with_capacity(PROBE_BYTES as usize);
     std::fs::File::open(path)
         .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))

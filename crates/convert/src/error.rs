@@ -25,6 +25,15 @@ pub enum ConvertError {
         /// The input as given.
         path: PathBuf,
     },
+    /// A FIFO, device, socket (or, where a file is needed, a directory) given as a map file
+    /// or manifest: refused before opening, since reading a FIFO waits for a writer forever.
+    #[error("{}: {kind}, not a regular file; map files and manifests must be regular files", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is instead (`"a FIFO"`…).
+        kind: &'static str,
+    },
     /// A glob pattern that does not parse.
     #[error("bad pattern {pattern:?}: {source}")]
     BadPattern {

@@ -38,6 +38,7 @@ mod build;
 mod context;
 mod error;
 mod eval;
+mod glob_walk;
 mod history;
 mod info;
 mod inputs;
