@@ -65,12 +65,19 @@ fn write_series(dir: &Path, n: u32) -> Vec<PathBuf> {
         .collect()
 }
 
-#[test]
-fn build_info_retrieve_predict_export_eval() {
+/// A scratch directory with `n` frames in its `inputs/` subdirectory (so that outputs
+/// written beside them are not inputs).
+fn series_in_subdir(n: u32) -> (tempfile::TempDir, PathBuf, Vec<PathBuf>) {
     let dir = tempfile::tempdir().unwrap();
     let inputs = dir.path().join("inputs");
     std::fs::create_dir(&inputs).unwrap();
-    let files = write_series(&inputs, 8);
+    let files = write_series(&inputs, n);
+    (dir, inputs, files)
+}
+
+#[test]
+fn build_info_retrieve_predict_export_eval() {
+    let (dir, inputs, files) = series_in_subdir(8);
     let map = dir.path().join("room.froct");
 
     let built = ok(&["build", s(&inputs), "-o", s(&map)]);
@@ -208,10 +215,7 @@ fn build_info_retrieve_predict_export_eval() {
 /// library's writer alike.
 #[test]
 fn every_toggle_layout_retrieves_every_snapshot_exactly() {
-    let dir = tempfile::tempdir().unwrap();
-    let inputs = dir.path().join("inputs");
-    std::fs::create_dir(&inputs).unwrap();
-    let files = write_series(&inputs, 8);
+    let (dir, inputs, files) = series_in_subdir(8);
     for (block, version) in [
         ("0", "FROctomap 1.0"),
         ("3", "FROctomap 1.1"),
@@ -350,10 +354,7 @@ fn errors_are_clear() {
 
 #[test]
 fn outputs_never_replace_their_inputs() {
-    let dir = tempfile::tempdir().unwrap();
-    let inputs = dir.path().join("inputs");
-    std::fs::create_dir(&inputs).unwrap();
-    let files = write_series(&inputs, 3);
+    let (dir, inputs, files) = series_in_subdir(3);
     let first = std::fs::read(&files[0]).unwrap();
     let destroys = |args: &[&str]| {
         let e = err(args);
@@ -506,10 +507,7 @@ fn completions_and_manual_page_come_from_the_command_line() {
 
 #[test]
 fn a_fixed_creation_time_makes_builds_reproducible() {
-    let dir = tempfile::tempdir().unwrap();
-    let inputs = dir.path().join("inputs");
-    std::fs::create_dir(&inputs).unwrap();
-    write_series(&inputs, 3);
+    let (dir, inputs, _) = series_in_subdir(3);
     let build = |name: &str, created: Option<&str>, epoch: Option<&str>| {
         let out = dir.path().join(name);
         let mut command = Command::new(env!("CARGO_BIN_EXE_froctomap"));
