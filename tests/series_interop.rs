@@ -25,7 +25,8 @@ fn upstream_leaves(path: &Path) -> Vec<froctomap_test_support::LeafTuple> {
 fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
     let dir = scratch();
     let series_dir = dir.path().join("series");
-    let base = FormatRegistry::with_default_formats()
+    let formats = FormatRegistry::with_default_formats();
+    let base = formats
         .read_file(&geb079(), ReadOptions::default())
         .unwrap()
         .map
@@ -46,7 +47,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
         file_pattern: "frame_{time}.{ext}".into(),
         threads: 0,
     };
-    write_series(&generator, &series_dir, &options, &|_, _| {}).unwrap();
+    write_series(&formats, &generator, &series_dir, &options, &|_, _| {}).unwrap();
 
     let context = Context::with_default_plugins();
     let inputs = collect_inputs(
@@ -118,6 +119,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
             format: "bt".into(),
             backend: None,
             prefix: "map".into(),
+            overwrite: false,
         },
         &Silent,
     )

@@ -9,7 +9,7 @@
 //! `FROCTOMAP_BENCH_REPEATS` (repetitions on geb079, default 15).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use froctomap_core::{Leaf, Occupancy, Snapshot, StateChange};
+use froctomap_core::{Leaf, Snapshot, StateChange};
 use froctomap_formats::{Backend, FormatRegistry, MapFormat, ReadOptions};
 use froctomap_octomap_codec::{
     diff, encode_binary, encode_full, scan, FileKind, ReadLimits, TreeIndex,
@@ -211,10 +211,7 @@ fn perturbed(base: &Snapshot, seed: u64) -> Snapshot {
         }
         let mut leaf = *leaf;
         if rng.chance(30) {
-            leaf.log_odds = match leaf.occupancy() {
-                Occupancy::Occupied => Occupancy::Free.log_odds(),
-                Occupancy::Free => Occupancy::Occupied.log_odds(),
-            };
+            leaf.log_odds = (!leaf.occupancy()).log_odds();
         }
         if leaf.depth < 16 && rng.chance(10) {
             let size = froctomap_core::voxels_per_node(leaf.depth + 1);

@@ -19,6 +19,15 @@ pub enum FormatError {
         #[source]
         source: std::io::Error,
     },
+    /// A FIFO, device, socket or directory where a map file is expected: refused before
+    /// opening (reading a FIFO would wait for a writer forever).
+    #[error("{}: {kind}, not a regular file; map files must be regular files", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is instead (`"a FIFO"`, `"a directory"`…).
+        kind: &'static str,
+    },
     /// No registered format recognises the content.
     #[error("{}: not a map file of any known format ({reason})", path.display())]
     Unrecognized {

@@ -32,12 +32,14 @@
 //! ```
 
 mod error;
+mod file_kind;
 pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
 pub mod octomap_upstream;
 mod registry;
 
 pub use error::{FormatError, PluginError};
+pub use file_kind::special_kind;
 pub use registry::{
     Backend, Capabilities, Confidence, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff,
     MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,

@@ -1,6 +1,7 @@
 //! Map formats as data, and the registry that picks one for a file.
 
 use crate::error::{FormatError, PluginError};
+use crate::file_kind::check_regular_file;
 use froctomap_core::{write_atomically, Snapshot, StateChange};
 use std::io::Write;
 use std::path::Path;
@@ -336,6 +337,7 @@ impl FormatRegistry {
     /// [`identify`](Self::identify) on the first [`PROBE_BYTES`] of a file.
     pub fn identify_file(&self, path: &Path) -> Result<Option<Identified<'_>>, FormatError> {
         use std::io::Read;
+        check_regular_file(path)?;
         let mut head = Vec::new();
         std::fs::File::open(path)
             .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
@@ -576,6 +578,7 @@ impl FormatRegistry {
         path: &Path,
         options: ReadOptions<'_>,
     ) -> Result<ReadOutcome, FormatError> {
+        check_regular_file(path)?;
         let bytes = std::fs::read(path).map_err(|source| FormatError::Io {
             path: path.to_path_buf(),
             source,

@@ -72,7 +72,7 @@ pub fn write(
     let name = |dir: &Path, prefix: &str, t: Timestamp| {
         dir.join(format!(
             "{prefix}_{}.bt",
-            froctomap_convert::format_compact(t)
+            froctomap_core::calendar::iso8601_basic(t)
         ))
     };
     let train: Vec<SeriesInput> = frames

@@ -141,7 +141,8 @@ fn spec_from_args(args: &GenerateArgs) -> Result<SeriesSpec> {
 pub fn generate(args: &GenerateArgs) -> Result<()> {
     let spec = spec_from_args(args)?;
     let started = Instant::now();
-    let base = FormatRegistry::with_default_formats()
+    let formats = FormatRegistry::with_default_formats();
+    let base = formats
         .read_file(&args.base, ReadOptions::default())
         .with_context(|| format!("reading the base map {}", args.base.display()))?
         .map
@@ -164,7 +165,7 @@ pub fn generate(args: &GenerateArgs) -> Result<()> {
         ..WriteSeriesOptions::default()
     };
     let last = std::sync::Mutex::new(Instant::now());
-    let manifest = write_series(&generator, &args.out, &options, &|done, total| {
+    let manifest = write_series(&formats, &generator, &args.out, &options, &|done, total| {
         if let Ok(mut last) = last.lock() {
             if last.elapsed().as_secs_f64() >= 5.0 || done == total {
                 eprintln!("  {done}/{total} frames written");

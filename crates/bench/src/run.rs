@@ -12,9 +12,10 @@ use crate::system::{self, peak_memory_bytes, tar_through, FONT};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{
-    build, collect_inputs, describe, evaluate, format_iso, unix_seconds, write_observed_map,
+    build, collect_inputs, describe, evaluate, unix_seconds, write_observed_map,
     write_predicted_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
 };
+use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
 use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
@@ -424,7 +425,7 @@ fn plot_voxel(
         "{} voxel at ({:.2}, {:.2}, {:.2}) m: {driver}",
         door.kind, c[0], c[1], c[2]
     );
-    let x_label = format!("days since {}", format_iso(from));
+    let x_label = format!("days since {}", iso8601(from));
     plots::voxel(
         &out.join("voxel_pt.png"),
         &VoxelPlot {
@@ -911,12 +912,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
             heldout_days,
             train_frames: train.len(),
             heldout_frames: written.heldout.len(),
-            first: train
-                .first()
-                .map_or_else(String::new, |s| format_iso(s.time)),
-            last: train
-                .last()
-                .map_or_else(String::new, |s| format_iso(s.time)),
+            first: train.first().map_or_else(String::new, |s| iso8601(s.time)),
+            last: train.last().map_or_else(String::new, |s| iso8601(s.time)),
             bt_bytes,
             base_leaves: base.leaves().len(),
             voxels: info.voxels.total(),

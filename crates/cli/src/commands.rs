@@ -1,9 +1,9 @@
 //! The subcommands: thin layers over the library crates.
 
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
-use froctomap_convert::{group_thousands, FROCT};
+use froctomap_convert::{group_thousands, refuse_overwriting_input, FROCT};
 use froctomap_core::{BoundingBox, Snapshot};
 use froctomap_formats::{Identified, ReadOptions, WriteOptions};
 use serde::Serialize;
@@ -95,48 +95,54 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
         warnings: read.map.warnings.clone(),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
+        outln!("{}", serde_json::to_string_pretty(&info)?)?;
     } else {
         ui.warn(&args.file, &info.warnings);
-        print_info(&info);
+        print_info(&info)?;
     }
     Ok(())
 }
 
-fn print_info(info: &MapInfo) {
+fn print_info(info: &MapInfo) -> std::io::Result<()> {
     let n = group_thousands;
-    println!(
+    outln!(
         "file:            {} ({} bytes)",
-        info.file.display(),
+        escaped(info.file.display()),
         n(info.file_bytes)
-    );
-    println!(
+    )?;
+    outln!(
         "format:          {} ({})",
-        info.format, info.format_description
-    );
-    println!("resolution:      {} m", info.resolution_m);
-    println!("nodes:           {}", n(info.nodes));
-    println!(
+        info.format,
+        info.format_description
+    )?;
+    outln!("resolution:      {} m", info.resolution_m)?;
+    outln!("nodes:           {}", n(info.nodes))?;
+    outln!(
         "leaves:          {} (occupied {}, free {})",
         n(info.leaves),
         n(info.occupied_leaves),
         n(info.free_leaves)
-    );
-    println!(
+    )?;
+    outln!(
         "known voxels:    {} (occupied {}, free {})",
         n(info.voxels),
         n(info.occupied_voxels),
         n(info.free_voxels)
-    );
+    )?;
     let show = |label: &str, bounds: &Option<Bounds>| match bounds {
-        Some(b) => println!(
+        Some(b) => outln!(
             "{label}x [{:.3}, {:.3}]  y [{:.3}, {:.3}]  z [{:.3}, {:.3}] m",
-            b.min[0], b.max[0], b.min[1], b.max[1], b.min[2], b.max[2]
+            b.min[0],
+            b.max[0],
+            b.min[1],
+            b.max[1],
+            b.min[2],
+            b.max[2]
         ),
-        None => println!("{label}none"),
+        None => outln!("{label}none"),
     };
-    show("known bounds:    ", &info.known_bounds_m);
-    show("occupied bounds: ", &info.occupied_bounds_m);
+    show("known bounds:    ", &info.known_bounds_m)?;
+    show("occupied bounds: ", &info.occupied_bounds_m)
 }
 
 #[derive(Args)]
@@ -154,6 +160,7 @@ pub struct ConvertArgs {
 }
 
 pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
+    refuse_overwriting_input(&args.output, [args.input.as_path()])?;
     let registry = ui.context.formats();
     // Resolve the output format first so a bad output name fails before any work.
     registry.output_format(
@@ -192,18 +199,21 @@ pub fn convert(ui: &Ui, args: &ConvertArgs) -> Result<()> {
 fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapshot) -> String {
     format!(
         "{} ({from}) -> {} ({to}): {} leaves",
-        input.display(),
-        output.display(),
+        escaped(input.display()),
+        escaped(output.display()),
         group_thousands(snapshot.leaves().len() as u64)
     )
 }
 
 pub fn formats(ui: &Ui) -> Result<()> {
     let registry = ui.context.formats();
-    println!(
+    outln!(
         "{:<6} {:<8} {:<12} {:<6} description",
-        "name", "backend", "extensions", "modes"
-    );
+        "name",
+        "backend",
+        "extensions",
+        "modes"
+    )?;
     for format in registry.formats() {
         let modes = match (format.reader.is_some(), format.writer.is_some()) {
             (true, true) => "rw",
@@ -212,25 +222,25 @@ pub fn formats(ui: &Ui) -> Result<()> {
             (false, false) => "-",
         };
         let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
-        println!(
+        outln!(
             "{:<6} {:<8} {:<12} {:<6} {}",
             format.name,
             format.backend.name(),
             extensions.join(","),
             modes,
             format.description
-        );
+        )?;
     }
     for format in registry.series_formats() {
         let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
-        println!(
+        outln!(
             "{:<6} {:<8} {:<12} {:<6} {}",
             format.name,
             "-",
             extensions.join(","),
             "series",
             format.description
-        );
+        )?;
     }
     Ok(())
 }

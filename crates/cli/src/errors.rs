@@ -3,6 +3,22 @@
 
 use froctomap_convert::ConvertError;
 use froctomap_formats::FormatError;
+use std::fmt::Write as _;
+
+/// The error and its causes on one line, each text once: a cause whose text its parent's
+/// message already includes (a `{source}` in the parent's format) is not repeated.
+pub fn message(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in error.chain() {
+        let part = cause.to_string();
+        if text.is_empty() {
+            text = part;
+        } else if !text.contains(&part) {
+            let _ = write!(text, ": {part}");
+        }
+    }
+    text
+}
 
 /// A hint for `error`, from the first typed cause that has one. `skips_bad_files`: the
 /// command has `--skip-bad`.
@@ -31,6 +47,9 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
         ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
         ConvertError::NonPositiveInterval => Some("--every must be positive"),
+        ConvertError::DirectoryNotEmpty { .. } => {
+            Some("choose a new directory, or pass --overwrite to replace its files")
+        }
         ConvertError::Write(FormatError::UnknownExtension { .. }) => {
             Some("name the file accordingly or pass --format")
         }
@@ -42,6 +61,26 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
 mod tests {
     use super::*;
     use std::path::PathBuf;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("{path}: {source}")]
+    struct Repeats {
+        path: &'static str,
+        #[source]
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn each_cause_is_printed_once() {
+        let io = || std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let repeating = anyhow::Error::new(Repeats {
+            path: "a.froct",
+            source: io(),
+        });
+        assert_eq!(message(&repeating), "a.froct: no such file");
+        let layered = anyhow::Error::new(io()).context("reading the base map");
+        assert_eq!(message(&layered), "reading the base map: no such file");
+    }
 
     #[test]
     fn skip_bad_is_suggested_only_where_it_exists() {

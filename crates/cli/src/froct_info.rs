@@ -1,6 +1,6 @@
 //! `info` of a FROctomap file: its header, axis, model, cell classes and sizes.
 
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use froctomap_convert::{describe, group_thousands, ClassCounts};
 use serde_json::Value;
@@ -11,17 +11,17 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
     let reader = ui.context.open_froct(path)?;
     let info = describe(ui.context, &reader, count)?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
+        outln!("{}", serde_json::to_string_pretty(&info)?)?;
         return Ok(());
     }
     let n = group_thousands;
-    println!(
+    outln!(
         "file:            {} ({} bytes, FROctomap {})",
-        info.file.display(),
+        escaped(info.file.display()),
         n(info.size.file),
         info.version
-    );
-    println!(
+    )?;
+    outln!(
         "resolution:      {} m, tiles of depth {} ({} tiles), {}",
         info.resolution_m,
         info.tile_depth,
@@ -30,9 +30,9 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
             || "toggle lists whole".to_string(),
             |samples| format!("toggle lists in blocks of {samples} samples")
         )
-    );
+    )?;
     let t = &info.time;
-    println!(
+    outln!(
         "time:            {} .. {} ({:.1} days), {} samples{}{}",
         t.start,
         t.end,
@@ -45,44 +45,47 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
         } else {
             String::new()
         }
-    );
-    println!("model:           {} ({})", info.model, info.outliers);
-    println!("cells:           {}", class_counts(&info.cells));
-    println!("voxels:          {}", class_counts(&info.voxels));
-    println!(
+    )?;
+    outln!(
+        "model:           {} ({})",
+        escaped(&info.model),
+        escaped(info.outliers)
+    )?;
+    outln!("cells:           {}", class_counts(&info.cells))?;
+    outln!("voxels:          {}", class_counts(&info.voxels))?;
+    outln!(
         "size:            header {} + tiles {} + index {} bytes",
         n(info.size.header),
         n(info.size.tiles),
         n(info.size.index)
-    );
+    )?;
     if let Value::Object(streams) = &info.size.raw_streams {
         let parts: Vec<String> = streams
             .iter()
-            .map(|(k, v)| format!("{k} {}", n(v.as_u64().unwrap_or(0))))
+            .map(|(k, v)| format!("{} {}", escaped(k), n(v.as_u64().unwrap_or(0))))
             .collect();
-        println!("raw streams:     {}", parts.join(", "));
+        outln!("raw streams:     {}", parts.join(", "))?;
     }
     if let (Some(files), Some(bytes), Some(ratio)) =
         (info.input_files, info.input_bytes, info.ratio_vs_inputs)
     {
-        println!(
+        outln!(
             "compression:     {ratio:.1}x vs the {} input files ({} bytes)",
             n(files),
             n(bytes)
-        );
+        )?;
     }
-    println!(
+    outln!(
         "vs raw states:   {:.1}x (1 bit per voxel per sample)",
         info.ratio_vs_raw_states
-    );
+    )?;
     if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
-        println!(
-            "created:         {} by {creator}",
-            info.metadata
-                .get("created")
-                .and_then(Value::as_str)
-                .unwrap_or("?")
-        );
+        let created = info.metadata.get("created").and_then(Value::as_str);
+        outln!(
+            "created:         {} by {}",
+            escaped(created.unwrap_or("?")),
+            escaped(creator)
+        )?;
     }
     Ok(())
 }

@@ -2,11 +2,12 @@
 //! base map (the sample data of the demo, the tests and the benchmarks).
 
 use crate::progress::Bars;
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::group_thousands;
-use froctomap_convert::{format_iso, parse_duration, parse_time, Progress};
+use froctomap_convert::{parse_duration, parse_time, Progress};
+use froctomap_core::calendar::iso8601;
 use froctomap_formats::ReadOptions;
 use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
 use std::path::PathBuf;
@@ -107,41 +108,47 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     bars.stage("writing snapshots", generator.frames().count() as u64);
     // `write_series` reports totals done so far; the bar wants increments.
     let done_so_far = AtomicU64::new(0);
-    let manifest = write_series(&generator, &args.output, &options, &|done, _total| {
-        let before = done_so_far.fetch_max(done, Ordering::Relaxed);
-        bars.advance(done.saturating_sub(before));
-    })?;
+    let manifest = write_series(
+        ui.context.formats(),
+        &generator,
+        &args.output,
+        &options,
+        &|done, _total| {
+            let before = done_so_far.fetch_max(done, Ordering::Relaxed);
+            bars.advance(done.saturating_sub(before));
+        },
+    )?;
     drop(bars);
     let n = group_thousands;
     let frames = manifest.entries.len() as u64;
-    println!(
+    outln!(
         "wrote {} snapshots ({} bytes) and {}",
         n(frames),
         n(manifest.total_bytes),
-        manifest.manifest_path().display()
-    );
+        escaped(manifest.manifest_path().display())
+    )?;
     if let (Some(first), Some(last)) = (manifest.entries.first(), manifest.entries.last()) {
-        println!(
+        outln!(
             "time:      {} .. {}",
-            format_iso(first.time),
-            format_iso(last.time)
-        );
+            iso8601(first.time),
+            iso8601(last.time)
+        )?;
     }
     let summary = generator.change_summary();
     for kind in &summary.kinds {
-        println!(
+        outln!(
             "{:<10} {} placed, {} voxels, {} voxel-changes",
             kind.kind.name(),
             kind.placed,
             n(kind.voxels),
             n(manifest.changes.of(kind.kind))
-        );
+        )?;
     }
-    println!(
+    outln!(
         "{:<10} {} surface voxels, {} flips",
         "noise",
         n(summary.noise_candidates),
         n(manifest.changes.noise)
-    );
+    )?;
     Ok(())
 }

@@ -1,15 +1,25 @@
 //! `froctomap`: the command-line front end of the froctomap libraries.
 
+/// `println!` that returns the write's error instead of panicking, so that a closed pipe
+/// (`froctomap info x | head -1`) ends the command quietly (see `main`).
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod commands;
 mod errors;
 mod froct_info;
 mod generate;
+mod manual;
 mod plugins;
 mod progress;
 mod series;
 mod ui;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
 use froctomap_formats::Backend;
 use std::process::ExitCode;
 
@@ -118,6 +128,18 @@ enum Command {
     ///
     /// Example: froctomap generate --days 3 --step 30min -o series/
     Generate(generate::GenerateArgs),
+    /// Print the completion script of a shell.
+    ///
+    /// Example: froctomap completions bash > ~/.local/share/bash-completion/completions/froctomap
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the manual page (roff).
+    ///
+    /// Example: froctomap man > froctomap.1 && man ./froctomap.1
+    Man,
 }
 
 fn main() -> ExitCode {
@@ -138,15 +160,27 @@ fn main() -> ExitCode {
         Command::Export(args) => series::export_command(&ui, &args),
         Command::Eval(args) => series::eval_command(&ui, &args),
         Command::Generate(args) => generate::generate_command(&ui, &args),
+        Command::Completions { shell } => manual::completions(Cli::command(), shell),
+        Command::Man => manual::man(Cli::command()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader of our output has gone (`| head`): nothing more to say to anyone.
+        Err(error) if is_broken_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("error: {error:#}");
+            eprintln!("error: {}", ui::escaped(errors::message(&error)));
             if let Some(hint) = errors::hint(&error, skips_bad_files) {
                 eprintln!("hint: {hint}");
             }
             ExitCode::FAILURE
         }
     }
+}
+
+fn is_broken_pipe(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }

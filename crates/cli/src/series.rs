@@ -4,15 +4,17 @@
 use crate::froct_info::class_counts;
 use crate::plugins::{context, writable_format};
 use crate::progress::{peak_memory_bytes, Bars};
-use crate::ui::Ui;
+use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, collect_inputs, evaluate, export, format_iso, parse_duration, parse_time,
+    build, check_range, collect_inputs, evaluate, export, parse_duration, parse_time,
     resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
     ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
+use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, ModelRegistry, OutlierMode};
@@ -140,6 +142,11 @@ pub struct BuildArgs {
     /// A key=value tag stored in the file's metadata (repeatable).
     #[arg(long, value_name = "KEY=VALUE")]
     tag: Vec<String>,
+    /// Creation time stored in the file (Unix seconds or ISO 8601) instead of now, for
+    /// reproducible files; SOURCE_DATE_EPOCH (Unix seconds) does the same when this is not
+    /// given.
+    #[arg(long, value_name = "TIME")]
+    created: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -193,6 +200,23 @@ fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig>
     Ok(config)
 }
 
+/// `--created`, else SOURCE_DATE_EPOCH (reproducible-builds.org: whole Unix seconds).
+fn creation_time(args: &BuildArgs) -> Result<Option<Timestamp>> {
+    if let Some(text) = &args.created {
+        return Ok(Some(parse_time(text).context("--created")?));
+    }
+    let Some(epoch) = std::env::var_os("SOURCE_DATE_EPOCH") else {
+        return Ok(None);
+    };
+    let seconds = epoch
+        .to_str()
+        .and_then(|text| text.trim().parse::<i64>().ok())
+        .with_context(|| format!("SOURCE_DATE_EPOCH={epoch:?} is not a whole number of seconds"))?;
+    let created = Timestamp::from_secs(seconds);
+    check_range("SOURCE_DATE_EPOCH", created)?;
+    Ok(Some(created))
+}
+
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
@@ -230,18 +254,15 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
+        created: creation_time(args)?,
         ..BuildOptions::default()
     };
     ui.note(&format!(
         "building {} from {} snapshots ({} .. {})",
-        args.output.display(),
+        escaped(args.output.display()),
         inputs.len(),
-        inputs
-            .first()
-            .map_or_else(String::new, |i| format_iso(i.time)),
-        inputs
-            .last()
-            .map_or_else(String::new, |i| format_iso(i.time)),
+        inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
+        inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
     let report = build(ui.context, &inputs, &args.output, &options, &bars)?;
@@ -256,15 +277,15 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        outln!("{}", serde_json::to_string_pretty(&value)?)?;
     } else {
         let n = group_thousands;
-        println!(
+        outln!(
             "wrote {} ({} bytes)",
-            report.output.display(),
+            escaped(report.output.display()),
             n(report.file_bytes)
-        );
-        println!(
+        )?;
+        outln!(
             "snapshots:   {} used of {} ({} samples, {} axis)",
             report.used,
             report.inputs,
@@ -274,40 +295,40 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             } else {
                 "explicit"
             }
-        );
-        println!("cells:       {}", class_counts(&report.cells));
-        println!(
+        )?;
+        outln!("cells:       {}", class_counts(&report.cells))?;
+        outln!(
             "voxels:      {} ({} dynamic)",
             n(report.voxels.total()),
             n(report.voxels.dynamic)
-        );
-        println!(
+        )?;
+        outln!(
             "size:        {} bytes from {} input bytes: {:.1}x smaller",
             n(report.file_bytes),
             n(report.input_bytes),
             report.input_bytes as f64 / report.file_bytes.max(1) as f64
-        );
+        )?;
         if args.lossy {
-            println!(
+            outln!(
                 "model error: {} observed cell-samples differ from the input (lossy)",
                 n(report.model_errors)
-            );
+            )?;
         } else {
-            println!(
+            outln!(
                 "outliers:    {} toggles stored (lossless)",
                 n(report.toggles)
-            );
+            )?;
         }
-        println!(
+        outln!(
             "time:        {:.1} s reading, {:.1} s modelling{}",
             report.read_seconds,
             report.model_seconds,
             peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
-        );
+        )?;
     }
     if !report.warnings.is_empty() && !ui.quiet {
         for (path, warning) in report.warnings.iter().take(10) {
-            eprintln!("warning: {}: {warning}", path.display());
+            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
         }
         if report.warnings.len() > 10 {
             eprintln!(
@@ -319,7 +340,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     if !report.skipped.is_empty() {
         eprintln!("skipped {} file(s):", report.skipped.len());
         for (path, reason) in &report.skipped {
-            eprintln!("  {}: {reason}", path.display());
+            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
         }
     }
     Ok(())
@@ -366,7 +387,7 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         ui.note(&format!(
             "no snapshot at {}; using the last one before it, at {}",
             args.time,
-            format_iso(when.time)
+            iso8601(when.time)
         ));
     }
     let output = &args.output.output;
@@ -379,9 +400,9 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     )?;
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
-        output.display(),
+        escaped(output.display()),
         written.format.name,
-        format_iso(when.time),
+        iso8601(when.time),
         when.sample,
         group_thousands(written.leaves as u64)
     ));
@@ -429,9 +450,9 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     };
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
-        output.display(),
+        escaped(output.display()),
         written.format.name,
-        format_iso(t),
+        iso8601(t),
         group_thousands(written.leaves as u64)
     ));
     Ok(())
@@ -470,6 +491,9 @@ pub struct ExportArgs {
     /// File name prefix.
     #[arg(long, default_value = "map")]
     prefix: String,
+    /// Write into a directory that already holds files, replacing those of the same names.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
@@ -485,6 +509,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         format: args.format.clone(),
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
+        overwrite: args.overwrite,
     };
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;
@@ -493,7 +518,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         "wrote {} maps ({} bytes) and {}",
         report.files.len(),
         group_thousands(report.bytes),
-        report.manifest.display()
+        escaped(report.manifest.display())
     ));
     Ok(())
 }
@@ -529,19 +554,19 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     )?;
     drop(bars);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        print_eval(&report);
+        print_eval(&report)?;
     }
     Ok(())
 }
 
-fn print_eval(report: &EvalReport) {
+fn print_eval(report: &EvalReport) -> std::io::Result<()> {
     let cell = |rate: &froctomap_convert::Rate| {
         rate.percent()
             .map_or_else(|| "-".to_string(), |p| format!("{p:.2} %"))
     };
-    println!("error rates (wrong voxels / compared voxels):\n");
+    outln!("error rates (wrong voxels / compared voxels):\n")?;
     for (title, rows, n) in [
         (
             "reconstruction (inside the modelled span)",
@@ -554,27 +579,28 @@ fn print_eval(report: &EvalReport) {
             report.outside,
         ),
     ] {
-        println!("{title}: {n} ground-truth maps");
+        outln!("{title}: {n} ground-truth maps")?;
         if n == 0 {
-            println!();
+            outln!()?;
             continue;
         }
-        println!("| method | all voxels | non-empty | dynamic |");
-        println!("| --- | ---: | ---: | ---: |");
+        outln!("| method | all voxels | non-empty | dynamic |")?;
+        outln!("| --- | ---: | ---: | ---: |")?;
         for (method, rates) in rows.iter() {
-            println!(
+            outln!(
                 "| {method} | {} | {} | {} |",
                 cell(&rates.all),
                 cell(&rates.non_empty),
                 cell(&rates.dynamic)
-            );
+            )?;
         }
-        println!();
+        outln!()?;
     }
     if report.unmodelled_voxels > 0 {
-        println!(
+        outln!(
             "{} ground-truth voxels were never observed in the file's data (not compared)",
             group_thousands(report.unmodelled_voxels)
-        );
+        )?;
     }
+    Ok(())
 }

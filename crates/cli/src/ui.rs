@@ -14,11 +14,33 @@ pub struct Ui {
     pub context: &'static Context,
 }
 
+/// `text` with control characters (and bidirectional overrides) escaped as `\u{1b}`, `\n`…,
+/// so that a file name or a metadata value read from a file cannot move the cursor,
+/// recolour the terminal or forge lines. Everything the CLI prints that it did not write
+/// itself goes through here.
+pub fn escaped(text: impl std::fmt::Display) -> String {
+    let text = text.to_string();
+    let unsafe_char =
+        |c: char| c.is_control() || matches!(c, '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}');
+    if !text.chars().any(unsafe_char) {
+        return text;
+    }
+    let mut shown = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if unsafe_char(c) {
+            shown.extend(c.escape_default());
+        } else {
+            shown.push(c);
+        }
+    }
+    shown
+}
+
 impl Ui {
     pub(crate) fn warn(&self, path: &Path, warnings: &[String]) {
         if !self.quiet {
             for warning in warnings {
-                eprintln!("warning: {}: {warning}", path.display());
+                eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
             }
         }
     }
@@ -27,5 +49,21 @@ impl Ui {
         if !self.quiet {
             eprintln!("{message}");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::escaped;
+
+    #[test]
+    fn control_characters_are_shown_escaped() {
+        assert_eq!(escaped("room_12.bt"), "room_12.bt");
+        assert_eq!(escaped("crème brûlée"), "crème brûlée");
+        assert_eq!(
+            escaped("a\u{1b}[2J\nerror: forged\r\u{7}"),
+            "a\\u{1b}[2J\\nerror: forged\\r\\u{7}"
+        );
+        assert_eq!(escaped("txt.\u{202E}tb"), "txt.\\u{202e}tb");
     }
 }

@@ -65,12 +65,19 @@ fn write_series(dir: &Path, n: u32) -> Vec<PathBuf> {
         .collect()
 }
 
-#[test]
-fn build_info_retrieve_predict_export_eval() {
+/// A scratch directory with `n` frames in its `inputs/` subdirectory (so that outputs
+/// written beside them are not inputs).
+fn series_in_subdir(n: u32) -> (tempfile::TempDir, PathBuf, Vec<PathBuf>) {
     let dir = tempfile::tempdir().unwrap();
     let inputs = dir.path().join("inputs");
     std::fs::create_dir(&inputs).unwrap();
-    let files = write_series(&inputs, 8);
+    let files = write_series(&inputs, n);
+    (dir, inputs, files)
+}
+
+#[test]
+fn build_info_retrieve_predict_export_eval() {
+    let (dir, inputs, files) = series_in_subdir(8);
     let map = dir.path().join("room.froct");
 
     let built = ok(&["build", s(&inputs), "-o", s(&map)]);
@@ -208,10 +215,7 @@ fn build_info_retrieve_predict_export_eval() {
 /// library's writer alike.
 #[test]
 fn every_toggle_layout_retrieves_every_snapshot_exactly() {
-    let dir = tempfile::tempdir().unwrap();
-    let inputs = dir.path().join("inputs");
-    std::fs::create_dir(&inputs).unwrap();
-    let files = write_series(&inputs, 8);
+    let (dir, inputs, files) = series_in_subdir(8);
     for (block, version) in [
         ("0", "FROctomap 1.0"),
         ("3", "FROctomap 1.1"),
@@ -355,7 +359,7 @@ fn errors_are_clear() {
         "-o",
         s(&dir.path().join("x.bt")),
     ]);
-    assert!(e.contains("not a FROctomap file"), "{e}");
+    assert!(e.contains("not a FROctomap series file"), "{e}");
     // Output formats are the registry's writable ones, listed when another is given.
     let out = froctomap(&[
         "retrieve",
@@ -402,4 +406,292 @@ fn errors_are_clear() {
     std::fs::write(&map, &bytes).unwrap();
     let e = err(&["info", s(&map)]);
     assert!(e.contains("room.froct") && e.contains("end magic"), "{e}");
+}
+
+#[test]
+fn outputs_never_replace_their_inputs() {
+    let (dir, inputs, files) = series_in_subdir(3);
+    let first = std::fs::read(&files[0]).unwrap();
+    let destroys = |args: &[&str]| {
+        let e = err(args);
+        assert!(e.contains("would destroy the input"), "{args:?}: {e}");
+    };
+    destroys(&["build", s(&files[0]), s(&files[1]), "-o", s(&files[0])]);
+    destroys(&["convert", s(&files[0]), s(&files[0])]);
+    // The same file through a symbolic and a hard link.
+    let soft = dir.path().join("soft.bt");
+    std::os::unix::fs::symlink(&files[0], &soft).unwrap();
+    destroys(&["build", s(&inputs), "-o", s(&soft)]);
+    let hard = dir.path().join("hard.bt");
+    std::fs::hard_link(&files[1], &hard).unwrap();
+    destroys(&["convert", s(&files[1]), s(&hard)]);
+    assert_eq!(std::fs::read(&files[0]).unwrap(), first);
+
+    let map = dir.path().join("room.froct");
+    ok(&["build", "--quiet", s(&inputs), "-o", s(&map)]);
+    let archive = std::fs::read(&map).unwrap();
+    let map_link = dir.path().join("room-link.froct");
+    std::fs::hard_link(&map, &map_link).unwrap();
+    for output in [&map, &map_link] {
+        destroys(&[
+            "retrieve",
+            s(&map),
+            "--time",
+            "index:0",
+            "--format",
+            "bt",
+            "-o",
+            s(output),
+        ]);
+        destroys(&[
+            "predict",
+            s(&map),
+            "--time",
+            "index:0",
+            "--format",
+            "bt",
+            "-o",
+            s(output),
+        ]);
+    }
+    assert_eq!(std::fs::read(&map).unwrap(), archive);
+
+    // An export goes into a new or empty directory unless told to overwrite.
+    let export = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "export",
+            s(&map),
+            "--from",
+            "1451865600",
+            "--to",
+            "1451866800",
+            "--every",
+            "10min",
+            "-o",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |args: Vec<String>| froctomap(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let refused = run(export(&inputs, &[]));
+    assert_eq!(refused.status.code(), Some(1));
+    let e = String::from_utf8(refused.stderr).unwrap();
+    assert!(e.contains("not empty") && e.contains("--overwrite"), "{e}");
+    assert!(!inputs.join("manifest.csv").exists());
+    assert!(run(export(&inputs, &["--overwrite"])).status.success());
+    assert!(inputs.join("manifest.csv").exists());
+    assert!(run(export(&dir.path().join("new"), &[])).status.success());
+}
+
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 1);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(["info", s(&files[0])])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the first line is written (`froctomap info x | head -0`).
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert_eq!(stderr, "");
+}
+
+#[test]
+fn each_error_is_said_once_and_map_files_are_not_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 2);
+    let missing = dir.path().join("missing.froct");
+    let e = err(&["info", s(&missing)]);
+    assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    let map = dir.path().join("room.froct");
+    ok(&["build", "--quiet", s(dir.path()), "-o", s(&map)]);
+    let truncated = dir.path().join("truncated.froct");
+    let bytes = std::fs::read(&map).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let e = err(&["info", s(&truncated)]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert_eq!(e.matches("corrupt").count(), 1, "{e}");
+
+    let out = dir.path().join("x.bt");
+    let out = s(&out);
+    for args in [
+        vec!["retrieve", s(&files[0]), "--time", "index:0", "-o", out],
+        vec!["predict", s(&files[0]), "--time", "0", "-o", out],
+        vec![
+            "export",
+            s(&files[0]),
+            "--from",
+            "0",
+            "--to",
+            "0",
+            "--every",
+            "1",
+            "-o",
+            out,
+        ],
+    ] {
+        let e = err(&args);
+        assert!(
+            e.contains("this is a map file (format `bt`)"),
+            "{args:?}: {e}"
+        );
+        assert!(e.contains("build a .froct from it first"), "{e}");
+    }
+}
+
+#[test]
+fn completions_and_manual_page_come_from_the_command_line() {
+    let bash = ok(&["completions", "bash"]);
+    assert!(bash.contains("_froctomap()"), "{bash}");
+    assert!(bash.contains("retrieve") && bash.contains("--toggle-block"));
+    let zsh = ok(&["completions", "zsh"]);
+    assert!(zsh.starts_with("#compdef froctomap"), "{zsh}");
+    // An unknown shell is a usage error (clap's status 2) naming the known ones.
+    let unknown = froctomap(&["completions", "tcsh"]);
+    assert_eq!(unknown.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&unknown.stderr).contains("zsh"));
+    let page = ok(&["man"]);
+    assert!(page.contains(".TH froctomap 1"), "{page}");
+    assert!(page.contains("retrieve") && page.contains("completions"));
+}
+
+#[test]
+fn a_fixed_creation_time_makes_builds_reproducible() {
+    let (dir, inputs, _) = series_in_subdir(3);
+    let build = |name: &str, created: Option<&str>, epoch: Option<&str>| {
+        let out = dir.path().join(name);
+        let mut command = Command::new(env!("CARGO_BIN_EXE_froctomap"));
+        command.args(["build", "--quiet", s(&inputs), "-o", s(&out)]);
+        if let Some(time) = created {
+            command.args(["--created", time]);
+        }
+        command.env_remove("SOURCE_DATE_EPOCH");
+        if let Some(epoch) = epoch {
+            command.env("SOURCE_DATE_EPOCH", epoch);
+        }
+        let run = command.output().unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let info = ok(&["info", "--json", s(&out)]);
+        (std::fs::read(&out).unwrap(), info)
+    };
+    let (flag, info) = build("a.froct", Some("2020-01-01T00:00:00Z"), None);
+    assert!(info.contains("2020-01-01T00:00:00Z"), "{info}");
+    let (epoch, _) = build("b.froct", None, Some("1577836800"));
+    assert_eq!(flag, epoch);
+    // The flag wins over the environment.
+    let (both, _) = build("c.froct", Some("1577836800"), Some("1"));
+    assert_eq!(flag, both);
+    let e = {
+        let out = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(["build", s(&inputs), "-o", s(&dir.path().join("d.froct"))])
+            .env("SOURCE_DATE_EPOCH", "yesterday")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        String::from_utf8(out.stderr).unwrap()
+    };
+    assert!(e.contains("SOURCE_DATE_EPOCH"), "{e}");
+}
+
+#[test]
+fn names_and_metadata_from_files_cannot_drive_the_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 3);
+    // A snapshot whose name carries an escape sequence and a forged line.
+    let hostile = dir.path().join("room\u{1b}[2J\nerror: forged.bt");
+    std::fs::copy(&files[0], &hostile).unwrap();
+    let info = ok(&["info", s(&hostile)]);
+    assert!(!info.contains('\u{1b}'), "{info}");
+    assert!(info.contains("room\\u{1b}[2J\\nerror: forged.bt"), "{info}");
+    let e = err(&["retrieve", s(&hostile), "--time", "0", "-o", "x.bt"]);
+    assert!(!e.contains('\u{1b}') && e.lines().count() == 1, "{e}");
+
+    // A file whose metadata was written by someone else's tool.
+    let context = froctomap_convert::Context::with_default_plugins();
+    let inputs =
+        froctomap_convert::collect_inputs(&context, &files, froctomap_convert::TimeSource::Auto)
+            .unwrap();
+    let mut options = froctomap_convert::BuildOptions::default();
+    options.metadata.insert(
+        "creator".into(),
+        serde_json::Value::from("evil\u{1b}]0;title\u{7}\nfile: forged"),
+    );
+    let map = dir.path().join("room.froct");
+    froctomap_convert::build(
+        &context,
+        &inputs,
+        &map,
+        &options,
+        &froctomap_convert::Silent,
+    )
+    .unwrap();
+    let info = ok(&["info", s(&map)]);
+    assert!(
+        !info.contains('\u{1b}') && !info.contains('\u{7}'),
+        "{info}"
+    );
+    let file_lines = info.lines().filter(|l| l.starts_with("file:")).count();
+    assert_eq!(file_lines, 1, "{info}");
+    assert!(
+        info.contains("by evil\\u{1b}]0;title\\u{7}\\nfile: forged"),
+        "{info}"
+    );
+}
+
+#[test]
+fn fifos_are_refused_before_opening_and_link_loops_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_series(dir.path(), 2);
+    let fifo = dir.path().join("room_1451866800.bt");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let manifest_fifo = dir.path().join("list.csv");
+    assert!(Command::new("mkfifo")
+        .arg(&manifest_fifo)
+        .status()
+        .unwrap()
+        .success());
+    let manifest = dir.path().join("rows.csv");
+    std::fs::write(
+        &manifest,
+        format!("{},1451865600\n{},1451866800\n", s(&files[0]), s(&fifo)),
+    )
+    .unwrap();
+    let out = dir.path().join("x.froct");
+    // Each of these would wait forever on the FIFO if it were opened.
+    for args in [
+        vec!["info", s(&fifo)],
+        vec!["convert", s(&fifo), "x.ot"],
+        vec!["build", s(&fifo), s(&files[0]), "-o", s(&out)],
+        vec!["build", s(&manifest), "-o", s(&out)],
+        vec!["build", s(&manifest_fifo), "-o", s(&out)],
+        vec!["retrieve", s(&fifo), "--time", "0", "-o", "x.bt"],
+    ] {
+        let e = err(&args);
+        assert!(e.contains("a FIFO, not a regular file"), "{args:?}: {e}");
+    }
+    // Listing a directory takes its regular files only, as a plain glob does.
+    ok(&["build", "--quiet", s(dir.path()), "-o", s(&out)]);
+    std::fs::remove_file(&fifo).unwrap();
+
+    // `**` over two links to an ancestor: ends, with each real file once.
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    std::os::unix::fs::symlink("..", sub.join("up")).unwrap();
+    std::os::unix::fs::symlink("../sub", sub.join("again")).unwrap();
+    std::fs::copy(&files[1], sub.join("room_1451866800.bt")).unwrap();
+    let pattern = format!("{}/**/*.bt", dir.path().display());
+    ok(&["build", "--quiet", &pattern, "-o", s(&out)]);
+    let info = ok(&["info", "--json", s(&out)]);
+    assert!(info.contains("\"samples\": 3"), "{info}");
 }

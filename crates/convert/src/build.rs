@@ -4,15 +4,16 @@ use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
 use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
+use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
-use crate::time::format_iso;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
 use froctomap_file::{
     encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
     TileLayout, ToggleLayout, WrittenFile,
 };
-use froctomap_formats::{Backend, ReadOptions, PROBE_BYTES};
+use froctomap_formats::{Backend, FormatError, ReadOptions, PROBE_BYTES};
 use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
 use froctomap_temporal::{ModelConfig, OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
 use rayon::prelude::*;
@@ -51,6 +52,10 @@ pub struct BuildOptions {
     pub metadata: Map<String, Value>,
     /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
     pub batch: usize,
+    /// Creation time stored in the metadata (`created`), to the second; `None`: now. A fixed
+    /// time makes the file reproducible (the build's timings are then not stored either): the
+    /// same inputs and options give the same bytes.
+    pub created: Option<Timestamp>,
 }
 
 impl Default for BuildOptions {
@@ -66,6 +71,7 @@ impl Default for BuildOptions {
             backend: None,
             metadata: Map::new(),
             batch: 8 * rayon::current_num_threads().max(1),
+            created: None,
         }
     }
 }
@@ -84,17 +90,28 @@ pub struct ClassCounts {
 }
 
 impl ClassCounts {
-    /// Adds another count.
+    /// Adds another count (saturating: counts read from a file may be anything).
     pub fn add(&mut self, other: &ClassCounts) {
-        self.static_free += other.static_free;
-        self.static_occupied += other.static_occupied;
-        self.dynamic += other.dynamic;
-        self.unknown_sometimes += other.unknown_sometimes;
+        self.static_free = self.static_free.saturating_add(other.static_free);
+        self.static_occupied = self.static_occupied.saturating_add(other.static_occupied);
+        self.dynamic = self.dynamic.saturating_add(other.dynamic);
+        self.unknown_sometimes = self
+            .unknown_sometimes
+            .saturating_add(other.unknown_sometimes);
     }
 
-    /// All cells (or voxels).
+    /// All cells (or voxels), saturating at `u64::MAX` rather than wrapping when the counts
+    /// come from a hostile file's summary.
+    ///
+    /// ```
+    /// use froctomap_convert::ClassCounts;
+    /// let forged = ClassCounts { static_free: u64::MAX, dynamic: 2, ..ClassCounts::default() };
+    /// assert_eq!(forged.total(), u64::MAX);
+    /// ```
     pub fn total(&self) -> u64 {
-        self.static_free + self.static_occupied + self.dynamic
+        self.static_free
+            .saturating_add(self.static_occupied)
+            .saturating_add(self.dynamic)
     }
 }
 
@@ -173,11 +190,24 @@ pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
 
 /// An input file's bytes, refused above `limit` bytes before reading them.
 pub(crate) fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, SnapshotError> {
-    let bytes = std::fs::metadata(path).map_err(SnapshotError::Io)?.len();
+    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
+    refuse_special(path, &metadata)?;
+    let bytes = metadata.len();
     if bytes > limit {
         return Err(SnapshotError::TooLarge { bytes, limit });
     }
     std::fs::read(path).map_err(SnapshotError::Io)
+}
+
+/// A FIFO or device is refused before it is opened (reading one may never end).
+fn refuse_special(path: &Path, metadata: &std::fs::Metadata) -> Result<(), SnapshotError> {
+    match froctomap_formats::special_kind(metadata.file_type()) {
+        None => Ok(()),
+        Some(kind) => Err(SnapshotError::Format(FormatError::NotAFile {
+            path: path.to_path_buf(),
+            kind,
+        })),
+    }
 }
 
 fn gcd(a: i64, b: i64) -> i64 {
@@ -191,6 +221,8 @@ fn gcd(a: i64, b: i64) -> i64 {
 /// A file's resolution from its first bytes, when its format is OctoMap's.
 fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
     use std::io::Read;
+    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
+    refuse_special(path, &metadata)?;
     let mut head = Vec::with_capacity(PROBE_BYTES as usize);
     std::fs::File::open(path)
         .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
@@ -225,6 +257,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildReport, ConvertError> {
     let started = Instant::now();
+    refuse_overwriting_input(output, inputs.iter().map(|i| i.path.as_path()))?;
     let registry = context.formats();
     let models = context.models();
     let model = models
@@ -466,7 +499,7 @@ pub fn build(
         options.codec,
     );
     header.toggles = options.toggles;
-    header.metadata = metadata(inputs, used, input_bytes, &options.metadata);
+    header.metadata = metadata(inputs, used, input_bytes, options);
     let layout = header.tile_layout();
     let mut writer = FroctWriter::create(output, &header)?;
     let cell_count: usize = histories.iter().map(SeriesHistory::cell_count).sum();
@@ -560,9 +593,14 @@ pub fn build(
         "read_seconds": read_seconds,
         "model_seconds": model_seconds,
     });
-    let Value::Object(summary) = summary else {
+    let Value::Object(mut summary) = summary else {
         unreachable!("json! of an object literal")
     };
+    if options.created.is_some() {
+        // A reproducible file: no wall-clock measurement in it (the report keeps them).
+        summary.remove("read_seconds");
+        summary.remove("model_seconds");
+    }
     let written: WrittenFile = writer.finish(summary)?;
     Ok(BuildReport {
         output: output.to_path_buf(),
@@ -643,12 +681,14 @@ fn metadata(
     inputs: &[SeriesInput],
     used: usize,
     input_bytes: u64,
-    extra: &Map<String, Value>,
+    options: &BuildOptions,
 ) -> Map<String, Value> {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
-        .unwrap_or_default();
+    let now = options.created.unwrap_or_else(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
+            .unwrap_or_default()
+    });
     let mut meta = Map::new();
     meta.insert(
         "creator".into(),
@@ -656,14 +696,14 @@ fn metadata(
     );
     meta.insert(
         "created".into(),
-        Value::from(format_iso(Timestamp(now.0 - now.0 % 1_000_000_000))),
+        Value::from(iso8601(Timestamp(now.0 - now.0 % 1_000_000_000))),
     );
     if let Some(dir) = inputs.first().and_then(|i| i.path.parent()) {
         meta.insert("source".into(), Value::from(dir.display().to_string()));
     }
     meta.insert("sources".into(), Value::from(used));
     meta.insert("input_bytes".into(), Value::from(input_bytes));
-    for (k, v) in extra {
+    for (k, v) in &options.metadata {
         meta.insert(k.clone(), v.clone());
     }
     meta

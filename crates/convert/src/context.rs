@@ -5,7 +5,7 @@
 
 use crate::error::ConvertError;
 use froctomap_file::{FroctReader, ReadLimits};
-use froctomap_formats::{Confidence, FormatRegistry, SeriesFormat};
+use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
 use froctomap_temporal::ModelRegistry;
 use std::path::Path;
 
@@ -109,12 +109,24 @@ impl Context {
 
     /// Opens a FROctomap file with this context's models (so a model the program registered
     /// decodes its cells) and read limits.
+    /// A map file of a registered format (a `.bt` snapshot, say) is refused as such rather
+    /// than as a damaged series file.
     pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
-        Ok(FroctReader::open_with_limits(
-            path,
-            self.limits.froct,
-            &self.models,
-        )?)
+        if let Some(kind) = crate::inputs::special_kind(path) {
+            return Err(ConvertError::NotAFile {
+                path: path.to_path_buf(),
+                kind,
+            });
+        }
+        FroctReader::open_with_limits(path, self.limits.froct, &self.models).map_err(|error| {
+            match self.formats.identify_file(path) {
+                Ok(Some(Identified::Map(format))) => ConvertError::MapNotSeries {
+                    path: path.to_path_buf(),
+                    format: format.name,
+                },
+                _ => ConvertError::File(error),
+            }
+        })
     }
 }
 
@@ -138,7 +150,6 @@ fn probe_froct(bytes: &[u8]) -> Confidence {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use froctomap_formats::Identified;
 
     #[test]
     fn froct_files_are_identified_by_the_registry_probe() {

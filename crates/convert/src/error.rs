@@ -2,7 +2,8 @@
 //! variant (a front end adds its own hints, e.g. the option that skips bad files) and never
 //! by message text.
 
-use crate::time::{format_iso, TimeError};
+use crate::time::TimeError;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -23,6 +24,15 @@ pub enum ConvertError {
     NotFound {
         /// The input as given.
         path: PathBuf,
+    },
+    /// A FIFO, device, socket (or, where a file is needed, a directory) given as a map file
+    /// or manifest: refused before opening, since reading a FIFO waits for a writer forever.
+    #[error("{}: {kind}, not a regular file; map files and manifests must be regular files", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is instead (`"a FIFO"`…).
+        kind: &'static str,
     },
     /// A glob pattern that does not parse.
     #[error("bad pattern {pattern:?}: {source}")]
@@ -92,7 +102,7 @@ pub enum ConvertError {
         source: TimeError,
     },
     /// Two files claim the same time.
-    #[error("{} and {} have the same time {}", first.display(), second.display(), format_iso(*time))]
+    #[error("{} and {} have the same time {}", first.display(), second.display(), iso8601(*time))]
     DuplicateTime {
         /// One file.
         first: PathBuf,
@@ -128,6 +138,14 @@ pub enum ConvertError {
     /// A map could not be written.
     #[error(transparent)]
     Write(froctomap_formats::FormatError),
+    /// A single map where a series file is needed.
+    #[error("{}: this is a map file (format `{format}`), not a FROctomap series file; build a .froct from it first", path.display())]
+    MapNotSeries {
+        /// The file.
+        path: PathBuf,
+        /// Name of the map format it is in.
+        format: &'static str,
+    },
     /// A FROctomap file could not be read or written.
     #[error(transparent)]
     File(#[from] froctomap_file::FileError),
@@ -155,7 +173,7 @@ pub enum ConvertError {
         text: String,
     },
     /// A sample index past the end of the file's time axis.
-    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", format_iso(*start), format_iso(*end))]
+    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", iso8601(*start), iso8601(*end))]
     SampleBeyondAxis {
         /// The sample asked for.
         sample: u32,
@@ -167,7 +185,7 @@ pub enum ConvertError {
         end: Timestamp,
     },
     /// A sample of the axis at which no snapshot was stored.
-    #[error("sample {sample} ({}) has no snapshot", format_iso(*time))]
+    #[error("sample {sample} ({}) has no snapshot", iso8601(*time))]
     NoSnapshotAtSample {
         /// The sample.
         sample: u32,
@@ -175,7 +193,7 @@ pub enum ConvertError {
         time: Timestamp,
     },
     /// An instant before the first snapshot, where nothing was observed.
-    #[error("{} is before the first snapshot; the file covers {} .. {}", format_iso(*time), format_iso(*start), format_iso(*end))]
+    #[error("{} is before the first snapshot; the file covers {} .. {}", iso8601(*time), iso8601(*start), iso8601(*end))]
     BeforeFirstSnapshot {
         /// The instant asked for.
         time: Timestamp,
@@ -185,7 +203,7 @@ pub enum ConvertError {
         end: Timestamp,
     },
     /// An export range that ends before it starts.
-    #[error("the range ends at {} before it starts at {}", format_iso(*to), format_iso(*from))]
+    #[error("the range ends at {} before it starts at {}", iso8601(*to), iso8601(*from))]
     EmptyRange {
         /// First instant.
         from: Timestamp,
@@ -216,6 +234,21 @@ pub enum ConvertError {
     /// Writing an output failed.
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),
+    /// An output that is one of the inputs (also through a link): writing it would destroy
+    /// the input.
+    #[error("{}: this output is the input {}; writing it would destroy the input", output.display(), input.display())]
+    OutputIsInput {
+        /// The output as given.
+        output: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+    },
+    /// An export directory that already holds files, which the export would replace.
+    #[error("{}: the directory is not empty", dir.display())]
+    DirectoryNotEmpty {
+        /// The directory.
+        dir: PathBuf,
+    },
     /// Every input was unreadable or skipped.
     #[error("no readable snapshots: all {inputs} inputs were left out")]
     NothingToBuild {

@@ -46,11 +46,7 @@ impl PackedRuns {
             let first = end + gap;
             let len = (packed >> 1) as u32;
             end = first + len;
-            let state = if packed & 1 == 1 {
-                Occupancy::Occupied
-            } else {
-                Occupancy::Free
-            };
+            let state = Occupancy::from(packed & 1 == 1);
             Some(Run { first, len, state })
         })
     }

@@ -3,7 +3,7 @@
 use crate::build::ClassCounts;
 use crate::context::Context;
 use crate::error::ConvertError;
-use crate::time::format_iso;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::{voxels_per_node, Occupancy};
 use froctomap_file::{CellContent, FroctReader};
 use froctomap_temporal::AxisKind;
@@ -141,8 +141,8 @@ pub fn describe(
                 AxisKind::Regular => "regular",
                 AxisKind::Explicit => "explicit",
             },
-            start: format_iso(axis.start()),
-            end: format_iso(axis.end()),
+            start: iso8601(axis.start()),
+            end: iso8601(axis.end()),
             samples: axis.len(),
             missing: axis.missing().len(),
             step_seconds: axis.step_ns().map(|s| s as f64 / 1e9),

@@ -2,6 +2,7 @@
 
 use crate::context::Context;
 use crate::error::{ConvertError, ManifestProblem};
+use crate::glob_walk::recursive_matches;
 use crate::time::{check_range, parse_time, time_from_file_name, TimeError};
 use froctomap_core::{calendar, Timestamp};
 use std::path::{Path, PathBuf};
@@ -51,7 +52,9 @@ struct Candidate {
 /// both files.
 ///
 /// Directories are listed by the extensions of `context`'s map formats, so a format the
-/// caller registered is picked up too.
+/// caller registered is picked up too. A `**` pattern does not enter directories reached
+/// through symbolic links (a link to an ancestor would make the walk endless). A FIFO,
+/// device or socket among the inputs or a manifest's rows is refused before it is opened.
 ///
 /// A later kind of *source* (a recording such as a ROS bag, holding many timed snapshots in
 /// one file) plugs in here: recognised by the registry's probe as a
@@ -71,14 +74,18 @@ pub fn collect_inputs(
     for input in inputs {
         let text = input.to_string_lossy();
         if text.contains(['*', '?', '[']) && !input.exists() {
-            let paths = glob::glob(&text).map_err(|source| ConvertError::BadPattern {
-                pattern: text.to_string(),
-                source,
-            })?;
-            let mut matched: Vec<PathBuf> = paths
-                .filter_map(Result::ok)
-                .filter(|p| p.is_file())
-                .collect();
+            let mut matched = if text.contains("**") {
+                recursive_matches(&text)?
+            } else {
+                let paths = glob::glob(&text).map_err(|source| ConvertError::BadPattern {
+                    pattern: text.to_string(),
+                    source,
+                })?;
+                paths
+                    .filter_map(Result::ok)
+                    .filter(|p| p.is_file())
+                    .collect()
+            };
             if matched.is_empty() {
                 return Err(ConvertError::NoMatch {
                     pattern: text.to_string(),
@@ -108,6 +115,11 @@ pub fn collect_inputs(
                     manifest_time: None,
                 }));
             }
+        } else if let Some(kind) = special_kind(input) {
+            return Err(ConvertError::NotAFile {
+                path: input.clone(),
+                kind,
+            });
         } else if input
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
@@ -126,6 +138,16 @@ pub fn collect_inputs(
     }
     if candidates.is_empty() {
         return Err(ConvertError::NoInputs);
+    }
+    // Manifest rows too: a FIFO among them would stall the build.
+    if let Some((path, kind)) = candidates
+        .iter()
+        .find_map(|c| special_kind(&c.path).map(|kind| (&c.path, kind)))
+    {
+        return Err(ConvertError::NotAFile {
+            path: path.clone(),
+            kind,
+        });
     }
     let mut series = assign_times(candidates, times)?;
     series.sort_by(|a, b| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
@@ -190,6 +212,12 @@ fn assign_times(
     }
 }
 
+/// What `path` is when it exists but is not a regular file (symbolic links followed).
+pub(crate) fn special_kind(path: &Path) -> Option<&'static str> {
+    let metadata = std::fs::metadata(path).ok()?;
+    froctomap_formats::special_kind(metadata.file_type())
+}
+
 fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, ConvertError> {
     let io = |source| ConvertError::Unlistable {
         path: dir.to_path_buf(),
@@ -211,6 +239,12 @@ fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, Conve
 
 /// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
 fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
+    if let Some(kind) = special_kind(manifest) {
+        return Err(ConvertError::NotAFile {
+            path: manifest.to_path_buf(),
+            kind,
+        });
+    }
     let text = std::fs::read_to_string(manifest).map_err(|source| ConvertError::Unlistable {
         path: manifest.to_path_buf(),
         source,

@@ -38,10 +38,12 @@ mod build;
 mod context;
 mod error;
 mod eval;
+mod glob_walk;
 mod history;
 mod info;
 mod inputs;
 mod maps;
+mod outputs;
 mod progress;
 mod snapshot_changes;
 mod text;
@@ -60,9 +62,9 @@ pub use maps::{
     write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
     ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
 };
+pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;
 pub use time::{
-    check_range, format_compact, format_iso, parse_duration, parse_time, time_from_file_name,
-    TimeError, EARLIEST, LATEST,
+    check_range, parse_duration, parse_time, time_from_file_name, TimeError, EARLIEST, LATEST,
 };

@@ -3,8 +3,10 @@
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
+use crate::outputs::{refuse_non_empty_dir, refuse_overwriting_input};
 use crate::progress::Progress;
-use crate::time::{check_range, format_compact, parse_time};
+use crate::time::{check_range, parse_time};
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
@@ -291,6 +293,7 @@ fn write_query(
     options: WriteOptions<'_>,
     whole: impl FnOnce() -> Result<Snapshot, ConvertError>,
 ) -> Result<WrittenMap, ConvertError> {
+    refuse_overwriting_input(path, [reader.path()])?;
     let chosen = *context
         .formats()
         .output_format(path, options)
@@ -397,6 +400,9 @@ pub struct ExportOptions {
     pub backend: Option<Backend>,
     /// File name prefix.
     pub prefix: String,
+    /// Write into a directory that already holds files (replacing those of the same names);
+    /// otherwise such a directory is refused.
+    pub overwrite: bool,
 }
 
 /// What `export` wrote.
@@ -410,8 +416,8 @@ pub struct ExportReport {
     pub bytes: u64,
 }
 
-/// Writes one map per instant of `from..=to` (every `every_ns`) into `dir`, each atomically,
-/// then a manifest. A failure leaves only complete files behind. At most
+/// Writes one map per instant of `from..=to` (every `every_ns`) into `dir` (missing or empty,
+/// unless [`ExportOptions::overwrite`]), each atomically, then a manifest. A failure leaves only complete files behind. At most
 /// [`Limits::max_exports`](crate::Limits) maps are written.
 pub fn export(
     context: &Context,
@@ -448,14 +454,15 @@ pub fn export(
             .map(|&t| resolve_observed(reader, TimeQuery::Instant(t)).map(|r| Some(r.sample)))
             .collect::<Result<_, _>>()?,
     };
-    std::fs::create_dir_all(dir).map_err(|source| froctomap_core::AtomicWriteError {
-        path: dir.to_path_buf(),
-        source,
-    })?;
     let format = context
         .formats()
         .by_name(&options.format, options.backend)
         .map_err(ConvertError::Write)?;
+    refuse_non_empty_dir(dir, options.overwrite)?;
+    std::fs::create_dir_all(dir).map_err(|source| froctomap_core::AtomicWriteError {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let extension = format.extensions.first().copied().unwrap_or(format.name);
     progress.stage("exporting maps", times.len() as u64);
     let files: Vec<(SeriesInput, u64)> = times
@@ -465,7 +472,7 @@ pub fn export(
             let path = dir.join(format!(
                 "{}_{}.{extension}",
                 options.prefix,
-                format_compact(t)
+                iso8601_basic(t)
             ));
             let write = WriteOptions {
                 format: Some(options.format.as_str()),

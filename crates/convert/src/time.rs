@@ -7,17 +7,6 @@ pub const EARLIEST: Timestamp = Timestamp(0);
 /// Latest instant froctomap accepts: 2200-01-01T00:00:00Z.
 pub const LATEST: Timestamp = Timestamp(7_258_118_400 * 1_000_000_000);
 
-/// Formats an instant as ISO 8601 UTC (`2016-01-04T08:30:00Z`, with fractional seconds only
-/// when present).
-pub fn format_iso(t: Timestamp) -> String {
-    calendar::iso8601(t)
-}
-
-/// Compact ISO 8601 for file names: `20160104T083000Z` (fraction as `.123` when present).
-pub fn format_compact(t: Timestamp) -> String {
-    calendar::iso8601_basic(t)
-}
-
 /// Why a time could not be understood.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 #[error("cannot read {input:?} as a time: {reason}")]
@@ -42,7 +31,7 @@ pub fn check_range(input: &str, t: Timestamp) -> Result<Timestamp, TimeError> {
             input,
             format!(
                 "{} is outside the supported range 1970-01-01 .. 2200-01-01",
-                format_iso(t)
+                calendar::iso8601(t)
             ),
         ));
     }
@@ -235,14 +224,15 @@ pub fn parse_duration(input: &str) -> Result<i64, TimeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use froctomap_core::calendar::{iso8601, iso8601_basic};
     use proptest::prelude::*;
 
     proptest! {
         #[test]
         fn iso_round_trips(secs in 0i64..7_258_118_399, nanos in 0i64..1_000_000_000) {
             let t = Timestamp(secs * 1_000_000_000 + nanos);
-            prop_assert_eq!(parse_time(&format_iso(t)), Ok(t));
-            prop_assert_eq!(time_from_file_name(&format!("frame_{}.bt", format_compact(t))), Some(t));
+            prop_assert_eq!(parse_time(&iso8601(t)), Ok(t));
+            prop_assert_eq!(time_from_file_name(&format!("frame_{}.bt", iso8601_basic(t))), Some(t));
         }
 
         #[test]
@@ -273,13 +263,10 @@ mod tests {
     #[test]
     fn known_dates() {
         assert_eq!(
-            format_iso(Timestamp::from_secs(1_451_865_600)),
+            iso8601(Timestamp::from_secs(1_451_865_600)),
             "2016-01-04T00:00:00Z"
         );
-        assert_eq!(
-            format_iso(Timestamp(1_500_000_000)),
-            "1970-01-01T00:00:01.5Z"
-        );
+        assert_eq!(iso8601(Timestamp(1_500_000_000)), "1970-01-01T00:00:01.5Z");
         assert_eq!(
             parse_time("2000-02-29").unwrap(),
             Timestamp::from_secs(951_782_400)

@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use froctomap_convert::*;
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
 use froctomap_file::FroctReader;
 use froctomap_formats::{
@@ -44,11 +45,7 @@ fn frame(base: &Snapshot, i: u32) -> Snapshot {
             return None;
         }
         let state = if door(&k) {
-            if door_open {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }
+            Occupancy::from(!door_open)
         } else if boxed(&k) && box_present {
             Occupancy::Occupied
         } else {
@@ -70,7 +67,7 @@ fn write_series(dir: &Path, frames: u32) -> Vec<(PathBuf, Timestamp, Snapshot)> 
             // Irregular times: ten minutes apart with up to a minute of jitter.
             let t =
                 Timestamp::from_secs(1_451_865_600 + i64::from(i) * 600 + i64::from(i * 37 % 61));
-            let path = dir.join(format!("scan_{}.bt", format_compact(t)));
+            let path = dir.join(format!("scan_{}.bt", iso8601_basic(t)));
             let snapshot = frame(&base, i);
             registry
                 .write_file(&snapshot, &path, WriteOptions::default())
@@ -212,6 +209,7 @@ fn predictions_exports_and_evaluation() {
         format: "bt".into(),
         backend: None,
         prefix: "map".into(),
+        overwrite: false,
     };
     let report = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     assert_eq!(report.files.len(), 5);
@@ -395,6 +393,7 @@ fn a_format_registered_by_the_caller_is_used_by_build_and_export() {
         format: "tree".into(),
         backend: None,
         prefix: "map".into(),
+        overwrite: false,
     };
     let exported = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     let file = &exported.files[0].path;

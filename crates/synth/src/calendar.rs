@@ -53,23 +53,6 @@ pub fn is_weekday(day: i64) -> bool {
 
 pub use froctomap_core::calendar::{civil_from_days, days_from_civil};
 
-/// ISO 8601 *basic* form for file names: `20160104T083000Z`, with a fraction of a second only
-/// when the instant has one (`20160104T083000.25Z`).
-///
-/// ```
-/// use froctomap_synth::calendar::{basic_utc, parse_utc};
-/// let t = parse_utc("2016-01-04T08:30:00Z").unwrap();
-/// assert_eq!(basic_utc(t), "20160104T083000Z");
-/// ```
-pub fn basic_utc(t: Timestamp) -> String {
-    froctomap_core::calendar::iso8601_basic(t)
-}
-
-/// ISO 8601 extended form: `2016-01-04T08:30:00Z` (fraction only when present).
-pub fn format_utc(t: Timestamp) -> String {
-    froctomap_core::calendar::iso8601(t)
-}
-
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fffffffff]Z` (a space may replace the `T`; the `Z` may be
 /// omitted, the time is UTC either way) or a date alone, `YYYY-MM-DD` (midnight).
 ///
@@ -106,6 +89,7 @@ pub fn parse_unix_secs(text: &str) -> Option<Timestamp> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use froctomap_core::calendar::{iso8601, iso8601_basic};
 
     #[test]
     fn civil_round_trip_and_known_dates() {
@@ -125,15 +109,15 @@ mod tests {
     #[test]
     fn text_forms() {
         let t = Timestamp(1_451_896_200_000_000_000); // 2016-01-04 08:30:00
-        assert_eq!(basic_utc(t), "20160104T083000Z");
-        assert_eq!(format_utc(t), "2016-01-04T08:30:00Z");
+        assert_eq!(iso8601_basic(t), "20160104T083000Z");
+        assert_eq!(iso8601(t), "2016-01-04T08:30:00Z");
         assert_eq!(parse_utc("2016-01-04T08:30:00Z"), Some(t));
         assert_eq!(parse_utc("2016-01-04 08:30"), Some(t));
         let frac = Timestamp(t.0 + 120_000_000);
-        assert_eq!(basic_utc(frac), "20160104T083000.12Z");
-        assert_eq!(parse_utc(&format_utc(frac)), Some(frac));
+        assert_eq!(iso8601_basic(frac), "20160104T083000.12Z");
+        assert_eq!(parse_utc(&iso8601(frac)), Some(frac));
         let before = Timestamp(-1_500_000_000);
-        assert_eq!(format_utc(before), "1969-12-31T23:59:58.5Z");
+        assert_eq!(iso8601(before), "1969-12-31T23:59:58.5Z");
         assert_eq!(unix_secs_text(before), "-1.5");
         assert_eq!(parse_unix_secs("-1.5"), Some(before));
         assert_eq!(unix_secs_text(Timestamp(5)), "0.000000005");

@@ -160,7 +160,7 @@ impl fmt::Display for ChangeSummary {
 /// #     let mut voxels = Vec::new();
 /// #     for x in 0..60u16 { for y in 0..40u16 { for z in 0..26u16 {
 /// #         let wall = x == 0 || x == 59 || y == 0 || y == 39 || (x == 30 && !(16..26).contains(&y));
-/// #         let state = if z == 0 || z == 25 || wall { Occupancy::Occupied } else { Occupancy::Free };
+/// #         let state = Occupancy::from(z == 0 || z == 25 || wall);
 /// #         voxels.push((VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(), state));
 /// #     }}}
 /// #     Snapshot::from_voxel_states(0.1, voxels).unwrap()
@@ -514,7 +514,7 @@ impl Generator {
                     i += 1;
                 }
                 (_, Some((n, base))) => {
-                    overrides.push((n, flip(base)));
+                    overrides.push((n, !base));
                     j += 1;
                 }
                 (None, None) => break,
@@ -759,13 +759,6 @@ impl Generator {
                 * self.spec.partial_probability,
             base_known_voxels: stats.free_voxels + stats.occupied_voxels,
         }
-    }
-}
-
-fn flip(state: Occupancy) -> Occupancy {
-    match state {
-        Occupancy::Free => Occupancy::Occupied,
-        Occupancy::Occupied => Occupancy::Free,
     }
 }
 

@@ -53,7 +53,7 @@
 //! let mut voxels = Vec::new();
 //! for x in 0..40u16 { for y in 0..30u16 { for z in 0..26u16 {
 //!     let solid = z == 0 || z == 25 || x == 0 || x == 39 || y == 0 || y == 29;
-//!     let state = if solid { Occupancy::Occupied } else { Occupancy::Free };
+//!     let state = Occupancy::from(solid);
 //!     voxels.push((VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(), state));
 //! }}}
 //! let base = Snapshot::from_voxel_states(0.1, voxels)?;

@@ -6,9 +6,10 @@
 //! frames complete and renamed into place only when all of them are on disk, so a
 //! `manifest.csv` always describes a complete series.
 
-use crate::calendar::{basic_utc, parse_unix_secs, unix_secs_text};
+use crate::calendar::{parse_unix_secs, unix_secs_text};
 use crate::error::SynthError;
 use crate::generator::{FrameInfo, FrameStats, Generator};
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{write_atomically, Timestamp};
 use froctomap_formats::{FormatRegistry, WriteOptions};
 use rayon::prelude::*;
@@ -135,7 +136,7 @@ impl SeriesManifest {
 /// Expands the file-name pattern for one frame.
 fn file_name(pattern: &str, frame: FrameInfo, width: usize, ext: &str) -> String {
     pattern
-        .replace("{time}", &basic_utc(frame.time))
+        .replace("{time}", &iso8601_basic(frame.time))
         .replace("{index}", &format!("{:0width$}", frame.index))
         .replace("{ext}", ext)
 }
@@ -167,21 +168,23 @@ fn check_pattern(pattern: &str) -> Result<(), SynthError> {
     Ok(())
 }
 
-/// Writes every present frame of `generator` into `dir` (created if needed) through the
-/// format registry, and `dir/manifest.csv`. `progress(done, total)` is called from the
+/// Writes every present frame of `generator` into `dir` (created if needed) in the format of
+/// `formats` named by `options.format`, and `dir/manifest.csv`. `progress(done, total)` is called from the
 /// calling thread after each batch. Existing files of the same names are replaced.
 ///
 /// ```
 /// # use froctomap_core::{Occupancy, Snapshot, VoxelKey};
+/// use froctomap_formats::FormatRegistry;
 /// use froctomap_synth::{write_series, Generator, SeriesSpec, WriteSeriesOptions};
 /// # let voxels = (0..16u16).flat_map(|x| (0..16u16).flat_map(move |y| (0..8u16).map(move |z| {
-/// #     let state = if z == 0 { Occupancy::Occupied } else { Occupancy::Free };
+/// #     let state = Occupancy::from(z == 0);
 /// #     (VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(), state)
 /// # })));
 /// # let base = Snapshot::from_voxel_states(0.1, voxels)?;
 /// let generator = Generator::new(&base, SeriesSpec { count: 3, ..SeriesSpec::default() }, None)?;
 /// let dir = tempfile::tempdir()?;
-/// let manifest = write_series(&generator, dir.path(), &WriteSeriesOptions::default(), &|_, _| {})?;
+/// let formats = FormatRegistry::with_default_formats();
+/// let manifest = write_series(&formats, &generator, dir.path(), &WriteSeriesOptions::default(), &|_, _| {})?;
 /// assert_eq!(manifest.entries.len(), 3);
 /// assert_eq!(manifest.entries[0].path.to_str(), Some("frame_20160104T000000Z.bt"));
 /// let csv = std::fs::read_to_string(dir.path().join("manifest.csv"))?;
@@ -189,14 +192,14 @@ fn check_pattern(pattern: &str) -> Result<(), SynthError> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn write_series(
+    formats: &FormatRegistry,
     generator: &Generator,
     dir: &Path,
     options: &WriteSeriesOptions,
     progress: &dyn Fn(u64, u64),
 ) -> Result<SeriesManifest, SynthError> {
     check_pattern(&options.file_pattern)?;
-    let registry = FormatRegistry::with_default_formats();
-    let format = *registry.by_name(&options.format, None)?;
+    let format = *formats.by_name(&options.format, None)?;
     if format.writer.is_none() {
         return Err(SynthError::Format(
             froctomap_formats::FormatError::Unsupported {
@@ -250,7 +253,7 @@ pub fn write_series(
                             let name = file_name(&options.file_pattern, frame, width, ext);
                             let path = dir.join(&name);
                             let (snapshot, stats) = generator.frame_with_stats(frame.index)?;
-                            registry.write_file(&snapshot, &path, write_options)?;
+                            formats.write_file(&snapshot, &path, write_options)?;
                             let bytes = std::fs::metadata(&path)
                                 .map_err(|source| SynthError::Io {
                                     path: path.clone(),

@@ -1,7 +1,8 @@
 //! What series to generate: timing, size and the intensity of every kind of change.
 
-use crate::calendar::{format_utc, parse_utc, DAY_SECS};
+use crate::calendar::{parse_utc, DAY_SECS};
 use crate::error::SynthError;
+use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -296,7 +297,7 @@ mod utc_text {
     use serde::{Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(t: &Timestamp, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&format_utc(*t))
+        s.serialize_str(&iso8601(*t))
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Timestamp, D::Error> {

@@ -4,14 +4,18 @@
 
 mod common;
 
+use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_formats::{FormatRegistry, ReadOptions};
-use froctomap_synth::calendar::basic_utc;
 use froctomap_synth::{
     write_series, Generator, SeriesManifest, SeriesSpec, SynthError, WriteSeriesOptions,
     MANIFEST_NAME,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
+
+fn formats() -> FormatRegistry {
+    FormatRegistry::with_default_formats()
+}
 
 #[test]
 fn twenty_frames_round_trip_through_the_registry() {
@@ -34,7 +38,7 @@ fn twenty_frames_round_trip_through_the_registry() {
         threads: 2,
         ..WriteSeriesOptions::default()
     };
-    let manifest = write_series(&generator, &out, &options, &|done, total| {
+    let manifest = write_series(&formats(), &generator, &out, &options, &|done, total| {
         calls.fetch_add(1, Ordering::Relaxed);
         assert!(done <= total);
     })
@@ -55,7 +59,7 @@ fn twenty_frames_round_trip_through_the_registry() {
         assert_eq!(entry.time, frame.time);
         assert_eq!(
             entry.path.to_str().unwrap(),
-            format!("frame_{}.bt", basic_utc(frame.time))
+            format!("frame_{}.bt", iso8601_basic(frame.time))
         );
         let path = out.join(&entry.path);
         assert_eq!(std::fs::metadata(&path).unwrap().len(), entry.bytes);
@@ -111,14 +115,15 @@ fn bad_options_fail_before_writing() {
         ..WriteSeriesOptions::default()
     };
     assert!(matches!(
-        write_series(&generator, dir.path(), &bad_pattern, &|_, _| {}),
+        write_series(&formats(), &generator, dir.path(), &bad_pattern, &|_, _| {}),
         Err(SynthError::InvalidPattern { .. })
     ));
     let bad_format = WriteSeriesOptions {
         format: "png".into(),
         ..WriteSeriesOptions::default()
     };
-    let err = write_series(&generator, dir.path(), &bad_format, &|_, _| {}).unwrap_err();
+    let err =
+        write_series(&formats(), &generator, dir.path(), &bad_format, &|_, _| {}).unwrap_err();
     assert!(
         err.to_string().contains("unknown map format `png`"),
         "{err}"
@@ -130,7 +135,7 @@ fn bad_options_fail_before_writing() {
         file_pattern: "{index}.{ext}".into(),
         threads: 1,
     };
-    let manifest = write_series(&generator, dir.path(), &ot, &|_, _| {}).unwrap();
+    let manifest = write_series(&formats(), &generator, dir.path(), &ot, &|_, _| {}).unwrap();
     assert_eq!(manifest.entries[2].path.to_str(), Some("2.ot"));
     let read = FormatRegistry::with_default_formats()
         .read_file(&dir.path().join("2.ot"), ReadOptions::default())
