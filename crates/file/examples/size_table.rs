@@ -62,15 +62,7 @@ fn dynamic_series(seed: u64, noise: u32) -> VoxelObservations {
         if noise > 0 && next() % 1008 < u64::from(noise) {
             open = !open;
         }
-        b.push(
-            i,
-            Some(if open {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }),
-        )
-        .unwrap();
+        b.push(i, Some(Occupancy::from(!open))).unwrap();
     }
     b.finish()
 }
@@ -132,11 +124,7 @@ fn main() {
                 start: voxel(i),
                 depth: 16,
                 mask: None,
-                content: CellContent::Constant(if state() % 10 < 3 {
-                    Occupancy::Occupied
-                } else {
-                    Occupancy::Free
-                }),
+                content: CellContent::Constant(Occupancy::from(state() % 10 < 3)),
             })
             .collect()
     };

@@ -34,7 +34,7 @@
 //! // A door voxel that opens and closes, and a wall voxel that never changes.
 //! let mut door = ObservationsBuilder::new();
 //! for (i, open) in [false, true, true, false, false, true].into_iter().enumerate() {
-//!     door.push(i as u32, Some(if open { Occupancy::Free } else { Occupancy::Occupied }))?;
+//!     door.push(i as u32, Some(Occupancy::from(!open)))?;
 //! }
 //! let cells = vec![
 //!     Cell { start: VoxelKey::new(32768, 32768, 32768).morton(), depth: 16, mask: None,

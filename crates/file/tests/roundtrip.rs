@@ -85,11 +85,7 @@ fn axis_strategy() -> impl Strategy<Value = TimeAxis> {
 fn series(axis: &TimeAxis, seed: u64) -> froctomap_temporal::VoxelObservations {
     let mut rng = seed | 1;
     let mut b = ObservationsBuilder::new();
-    let mut state = Some(if seed % 2 == 0 {
-        Occupancy::Free
-    } else {
-        Occupancy::Occupied
-    });
+    let mut state = Some(Occupancy::from(seed % 2 != 0));
     let volatility = seed % 5;
     for i in 0..axis.len() {
         rng ^= rng << 13;

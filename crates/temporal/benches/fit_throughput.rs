@@ -38,11 +38,7 @@ impl Rng {
 }
 
 fn state(b: bool) -> Occupancy {
-    if b {
-        Occupancy::Occupied
-    } else {
-        Occupancy::Free
-    }
+    Occupancy::from(b)
 }
 
 /// One voxel: `kind` 0 constant, 1 few changes, 2 periodic.

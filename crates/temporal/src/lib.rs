@@ -96,7 +96,7 @@
 //!     let (day, slot) = (i / 144, i % 144);
 //!     let state = (day % 7 < 5 && (48..108).contains(&slot)) ^ (i % 97 == 0); // with noise
 //!     let known = day != 3;
-//!     b.push(i, known.then_some(if state { Occupancy::Occupied } else { Occupancy::Free }))?;
+//!     b.push(i, known.then_some(Occupancy::from(state)))?;
 //! }
 //! let obs = b.finish();
 //!

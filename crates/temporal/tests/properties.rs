@@ -45,11 +45,7 @@ fn series(max_len: usize) -> impl Strategy<Value = Vec<Option<bool>>> {
 }
 
 fn occupancy(b: bool) -> Occupancy {
-    if b {
-        Occupancy::Occupied
-    } else {
-        Occupancy::Free
-    }
+    Occupancy::from(b)
 }
 
 fn observations(samples: &[Option<bool>]) -> VoxelObservations {

@@ -120,35 +120,11 @@ pub fn golden_cells() -> Vec<SeriesCell> {
     let all = |state: Occupancy| golden_obs((0..72).map(move |i| (i, Some(state))));
     let door = golden_obs((0..72).map(|i| {
         let hour = i % 24;
-        (
-            i,
-            Some(if (8..18).contains(&hour) {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }),
-        )
+        (i, Some(Occupancy::from(!(8..18).contains(&hour))))
     }));
-    let noisy = golden_obs((0..72).map(|i| {
-        (
-            i,
-            Some(if i % 7 == 3 || i % 11 == 5 {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }),
-        )
-    }));
-    let late = golden_obs((24..72).map(|i| {
-        (
-            i,
-            Some(if i % 24 < 12 {
-                Occupancy::Free
-            } else {
-                Occupancy::Occupied
-            }),
-        )
-    }));
+    let noisy =
+        golden_obs((0..72).map(|i| (i, Some(Occupancy::from(!(i % 7 == 3 || i % 11 == 5))))));
+    let late = golden_obs((24..72).map(|i| (i, Some(Occupancy::from(i % 24 >= 12)))));
     let gaps = golden_obs((0..72).map(|i| (i, (i % 10 < 6).then_some(Occupancy::Free))));
     let mut cells = vec![
         SeriesCell {

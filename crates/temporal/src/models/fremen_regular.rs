@@ -427,15 +427,7 @@ mod tests {
         let model = prepared(64, 1);
         let mut b = ObservationsBuilder::new();
         for i in 0..64 {
-            b.push(
-                i,
-                Some(if i % 2 == 0 {
-                    Occupancy::Occupied
-                } else {
-                    Occupancy::Free
-                }),
-            )
-            .unwrap();
+            b.push(i, Some(Occupancy::from(i % 2 == 0))).unwrap();
         }
         let voxel = model.fit(&b.finish()).unwrap();
         let components = SpectralParameters::decode(voxel.parameters())
@@ -455,15 +447,7 @@ mod tests {
         let model = prepared(1000, 3);
         let mut b = ObservationsBuilder::new();
         for i in 100..160 {
-            b.push(
-                i,
-                Some(if i < 130 {
-                    Occupancy::Occupied
-                } else {
-                    Occupancy::Free
-                }),
-            )
-            .unwrap();
+            b.push(i, Some(Occupancy::from(i < 130))).unwrap();
         }
         let voxel = model.fit(&b.finish()).unwrap();
         let components = SpectralParameters::decode(voxel.parameters())
@@ -484,15 +468,7 @@ mod tests {
         let model = prepared(500, 4);
         let mut b = ObservationsBuilder::new();
         for i in 0..500u32 {
-            b.push(
-                i,
-                Some(if (i * i) % 7 < 3 {
-                    Occupancy::Occupied
-                } else {
-                    Occupancy::Free
-                }),
-            )
-            .unwrap();
+            b.push(i, Some(Occupancy::from((i * i) % 7 < 3))).unwrap();
         }
         let voxel = model.fit(&b.finish()).unwrap();
         for i in (0..500).step_by(7) {

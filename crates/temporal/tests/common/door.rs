@@ -42,11 +42,7 @@ fn parse_state(s: &str) -> Result<bool, Box<dyn Error>> {
 }
 
 fn occupancy(b: bool) -> Occupancy {
-    if b {
-        Occupancy::Occupied
-    } else {
-        Occupancy::Free
-    }
+    Occupancy::from(b)
 }
 
 /// Loads the training data and held-out weeks `1..=4`.
