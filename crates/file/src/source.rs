@@ -16,6 +16,42 @@ use std::sync::Arc;
 /// Every length and offset a reader asks for has been checked against [`size`](Self::size)
 /// and the [`ReadLimits`](crate::ReadLimits) first, so a source need not guard against
 /// hostile sizes itself.
+///
+/// A remote store plugs in by answering range requests; here one that fetches from an
+/// in-memory "server" and counts the requests:
+///
+/// ```
+/// use froctomap_file::{ByteSource, FroctReader, ReadLimits};
+/// use froctomap_temporal::ModelRegistry;
+/// use std::path::Path;
+/// use std::sync::atomic::{AtomicUsize, Ordering};
+///
+/// struct Remote { object: Vec<u8>, requests: AtomicUsize }
+///
+/// impl ByteSource for Remote {
+///     fn read_exact_at(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+///         self.requests.fetch_add(1, Ordering::Relaxed); // one `Range: bytes=…` request
+///         let range = self.object.get(offset as usize..offset as usize + buf.len());
+///         buf.copy_from_slice(range.ok_or(std::io::ErrorKind::UnexpectedEof)?);
+///         Ok(())
+///     }
+///     fn size(&self) -> u64 { self.object.len() as u64 } // from a HEAD request
+///     fn name(&self) -> &Path { Path::new("https://maps.example/office.froct") }
+/// }
+///
+/// # let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.1.froct");
+/// let remote = std::sync::Arc::new(Remote {
+///     object: std::fs::read(&path)?,
+///     requests: AtomicUsize::new(0),
+/// });
+/// let models = ModelRegistry::with_default_models();
+/// let reader = FroctReader::from_source(remote.clone(), ReadLimits::default(), &models)?;
+/// // Opening asks for the preamble, the header, the footer and the index.
+/// assert_eq!(remote.requests.load(Ordering::Relaxed), 4);
+/// reader.read_tile(0)?; // then one range per tile
+/// assert_eq!(remote.requests.load(Ordering::Relaxed), 5);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub trait ByteSource: Send + Sync {
     /// Fills `buf` with the bytes at `offset..offset + buf.len()`, or fails (with
     /// [`io::ErrorKind::UnexpectedEof`] when the range runs past the end).
