@@ -1,7 +1,9 @@
 //! The plugin interface: model ids, configuration, and the two traits every model implements.
 
 use crate::varint::Reader;
-use crate::{FittedVoxel, ModelOptions, TemporalError, TimeAxis, Toggles, VoxelObservations};
+use crate::{
+    FittedVoxel, ModelDescriptor, ModelOptions, TemporalError, TimeAxis, Toggles, VoxelObservations,
+};
 use froctomap_core::Occupancy;
 use std::fmt;
 
@@ -125,15 +127,27 @@ pub struct PeriodicTerm {
 
 /// A kind of temporal model; registered in a [`ModelRegistry`](crate::ModelRegistry).
 pub trait TemporalModel: Send + Sync {
+    /// The model's registration: id, name, description and options, as data.
+    fn descriptor(&self) -> &'static ModelDescriptor;
+
     /// Stable id recorded in files.
-    fn id(&self) -> ModelId;
+    fn id(&self) -> ModelId {
+        self.descriptor().id
+    }
 
     /// Stable name (used on command lines).
-    fn name(&self) -> &'static str;
+    fn name(&self) -> &'static str {
+        self.descriptor().name
+    }
 
     /// Parses and validates the model's options (unknown keys and bad values are errors),
-    /// as [`prepare`](Self::prepare) does, without preparing.
-    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError>;
+    /// as [`prepare`](Self::prepare) does, without preparing. The default accepts exactly
+    /// the keys the descriptor declares; models whose options have values to check override
+    /// it.
+    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
+        let descriptor = self.descriptor();
+        options.check_keys(descriptor.name, descriptor.options)
+    }
 
     /// Does the per-axis work shared by all voxels (tables, FFT plans) for fitting and
     /// evaluating voxels on `axis`.
@@ -266,6 +280,15 @@ pub(crate) fn expect_end(r: &Reader<'_>) -> Result<(), TemporalError> {
             "model parameters (trailing bytes)",
         ))
     }
+}
+
+/// Reads a parameter block that is the common header alone (models without global
+/// parameters): the outlier mode.
+pub(crate) fn read_header_only_parameters(parameters: &[u8]) -> Result<OutlierMode, TemporalError> {
+    let mut r = Reader::new(parameters);
+    let mode = read_parameters_header(&mut r)?;
+    expect_end(&r)?;
+    Ok(mode)
 }
 
 /// Reads the common parameter header.

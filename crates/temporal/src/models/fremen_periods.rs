@@ -104,12 +104,8 @@ impl FremenPeriods {
 }
 
 impl TemporalModel for FremenPeriods {
-    fn id(&self) -> ModelId {
-        ModelId::FREMEN_PERIODS
-    }
-
-    fn name(&self) -> &'static str {
-        DESCRIPTOR.name
+    fn descriptor(&self) -> &'static ModelDescriptor {
+        &DESCRIPTOR
     }
 
     fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {

@@ -2,13 +2,12 @@
 
 use super::SpectralLine;
 use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
-use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER,
 };
 use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::trig::cos_sin_turns;
-use crate::varint::Reader;
 use crate::{
     AxisKind, Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions,
     OutlierMode, PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription,
@@ -76,12 +75,8 @@ impl FremenRegular {
 }
 
 impl TemporalModel for FremenRegular {
-    fn id(&self) -> ModelId {
-        ModelId::FREMEN_REGULAR
-    }
-
-    fn name(&self) -> &'static str {
-        DESCRIPTOR.name
+    fn descriptor(&self) -> &'static ModelDescriptor {
+        &DESCRIPTOR
     }
 
     fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
@@ -101,9 +96,7 @@ impl TemporalModel for FremenRegular {
         axis: &TimeAxis,
         parameters: &[u8],
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
-        let mut r = Reader::new(parameters);
-        let mode = read_parameters_header(&mut r)?;
-        expect_end(&r)?;
+        let mode = read_header_only_parameters(parameters)?;
         Ok(Box::new(PreparedFremenRegular::new(
             axis,
             &SpectralOptions::default(),

@@ -2,13 +2,13 @@
 //! state and relaxes to its stationary occupancy. Not spectral: it proves that a model owns
 //! its voxel bytes, its options and its evaluation.
 
-use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::{quantise_unit, unit};
 use crate::toggles::ToggleBuilder;
 use crate::varint::{self, Reader};
 use crate::{
-    FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions, OutlierMode, PreparedModel,
-    TemporalError, TemporalModel, TimeAxis, VoxelDescription, VoxelObservations,
+    FittedVoxel, ModelConfig, ModelDescriptor, ModelId, OutlierMode, PreparedModel, TemporalError,
+    TemporalModel, TimeAxis, VoxelDescription, VoxelObservations,
 };
 
 /// Registration of [`Markov`].
@@ -56,16 +56,8 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
 pub struct Markov;
 
 impl TemporalModel for Markov {
-    fn id(&self) -> ModelId {
-        DESCRIPTOR.id
-    }
-
-    fn name(&self) -> &'static str {
-        DESCRIPTOR.name
-    }
-
-    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
-        options.check_keys(DESCRIPTOR.name, DESCRIPTOR.options)
+    fn descriptor(&self) -> &'static ModelDescriptor {
+        &DESCRIPTOR
     }
 
     fn prepare(
@@ -85,9 +77,7 @@ impl TemporalModel for Markov {
         axis: &TimeAxis,
         parameters: &[u8],
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
-        let mut r = Reader::new(parameters);
-        let mode = read_parameters_header(&mut r)?;
-        expect_end(&r)?;
+        let mode = read_header_only_parameters(parameters)?;
         Ok(Box::new(PreparedMarkov {
             axis: axis.clone(),
             mode,

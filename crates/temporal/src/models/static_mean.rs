@@ -1,13 +1,11 @@
 //! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
 
 use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
-use crate::model::{expect_end, read_parameters_header, write_parameters_header};
+use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::{self, canonical_sum, SpectralView};
-use crate::varint::Reader;
 use crate::{
-    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, ModelOptions, Order,
-    OutlierMode, PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription,
-    VoxelObservations,
+    Component, FittedVoxel, ModelConfig, ModelDescriptor, ModelId, Order, OutlierMode,
+    PreparedModel, TemporalError, TemporalModel, TimeAxis, VoxelDescription, VoxelObservations,
 };
 
 /// Registration of [`StaticMean`].
@@ -37,16 +35,8 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
 pub struct StaticMean;
 
 impl TemporalModel for StaticMean {
-    fn id(&self) -> ModelId {
-        ModelId::STATIC
-    }
-
-    fn name(&self) -> &'static str {
-        DESCRIPTOR.name
-    }
-
-    fn check_options(&self, options: &ModelOptions) -> Result<(), TemporalError> {
-        options.check_keys(DESCRIPTOR.name, DESCRIPTOR.options)
+    fn descriptor(&self) -> &'static ModelDescriptor {
+        &DESCRIPTOR
     }
 
     fn prepare(
@@ -66,9 +56,7 @@ impl TemporalModel for StaticMean {
         axis: &TimeAxis,
         parameters: &[u8],
     ) -> Result<Box<dyn PreparedModel>, TemporalError> {
-        let mut r = Reader::new(parameters);
-        let mode = read_parameters_header(&mut r)?;
-        expect_end(&r)?;
+        let mode = read_header_only_parameters(parameters)?;
         Ok(Box::new(PreparedStaticMean {
             axis: axis.clone(),
             mode,

@@ -220,16 +220,8 @@ impl SpectralOptions {
 mod tests {
     use super::*;
 
-    const ALL: &[OptionDescriptor] = &[
-        ORDER,
-        MAX_ORDER,
-        CRITERION,
-        PERIODS,
-        BASE_PERIOD,
-        HARMONICS,
-        MIN_CYCLES,
-        HOLDOUT_FRACTION,
-    ];
+    // Every spectral option: the ones `fremen-periods` declares.
+    const ALL: &[OptionDescriptor] = crate::models::fremen_periods::DESCRIPTOR.options;
 
     fn parse(pairs: &[(&str, &str)]) -> Result<SpectralOptions, TemporalError> {
         let mut options = ModelOptions::new();
