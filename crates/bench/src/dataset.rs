@@ -32,7 +32,7 @@ impl SeriesDirs {
 /// Name of the file recording which spec a series directory holds.
 const SPEC_FILE: &str = "spec.json";
 
-/// What [`write`] wrote.
+/// What [`write`](fn@write) wrote.
 #[derive(Clone, Debug)]
 pub struct Written {
     /// Training snapshots, in time order.

@@ -31,7 +31,7 @@ use std::time::Instant;
 /// Options of `run`.
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Training span: ci (2 days, 1 held out), week, 4weeks, <n>weeks, <n>d, or days.
+    /// Training span: ci (2 days, 1 held out), week, 4weeks, `<n>weeks`, `<n>d`, or days.
     #[arg(long, default_value = "ci")]
     size: String,
     /// Time between snapshots (e.g. 10min, 600, 1h).

@@ -54,7 +54,7 @@ impl OutlierMode {
 }
 
 /// Settings of a model: the outlier mode every model has, and the model's own options as
-/// text, which the model parses when it is prepared ([`OptionDescriptor`]s on its
+/// text, which the model parses when it is prepared ([`OptionDescriptor`](crate::OptionDescriptor)s on its
 /// [`ModelDescriptor`](crate::ModelDescriptor) list them with their defaults).
 ///
 /// ```
