@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, check_range, collect_inputs, evaluate, export, parse_duration, parse_time,
-    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, check_range, collect_inputs, collect_inputs_explained, evaluate, export, parse_duration,
+    parse_time, resolve_observed, write_observed_map, write_predicted_map, BuildOptions,
+    EvalReport, ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -87,9 +87,9 @@ pub struct BuildArgs {
     /// manifest CSV files (`path,time`), or single files.
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
-    /// The FROctomap file to write.
-    #[arg(short, long, value_name = "FILE")]
-    output: PathBuf,
+    /// The FROctomap file to write (not needed with --dry-run).
+    #[arg(short, long, value_name = "FILE", required_unless_present = "dry_run")]
+    output: Option<PathBuf>,
     #[command(flatten)]
     times: TimeArgs,
     /// Temporal model of dynamic voxels (`--help` lists the models and their options).
@@ -150,6 +150,10 @@ pub struct BuildArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// List each input with its time and where the time came from, then stop without
+    /// writing anything.
+    #[arg(long)]
+    dry_run: bool,
 }
 
 fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig> {
@@ -223,7 +227,23 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    let inputs = collect_inputs(ui.context, &args.inputs, args.times.source()?)?;
+    let collected = collect_inputs_explained(ui.context, &args.inputs, args.times.source()?)?;
+    if args.dry_run {
+        for (input, origin) in collected.series.iter().zip(&collected.origins) {
+            outln!(
+                "{}  {:<12}  {}",
+                iso8601(input.time),
+                origin.to_string(),
+                escaped(input.path.display())
+            )?;
+        }
+        return Ok(());
+    }
+    let inputs = collected.series;
+    let output = args
+        .output
+        .as_deref()
+        .context("--output is required to build")?;
     let mut metadata = Map::new();
     let mut tags = Map::new();
     for tag in &args.tag {
@@ -259,13 +279,13 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     };
     ui.note(&format!(
         "building {} from {} snapshots ({} .. {})",
-        escaped(args.output.display()),
+        escaped(output.display()),
         inputs.len(),
         inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = build(ui.context, &inputs, &args.output, &options, &bars)?;
+    let report = build(ui.context, &inputs, output, &options, &bars)?;
     drop(bars);
     let peak = peak_memory_bytes();
     if args.json {

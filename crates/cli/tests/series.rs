@@ -695,3 +695,80 @@ fn fifos_are_refused_before_opening_and_link_loops_end() {
     let info = ok(&["info", "--json", s(&out)]);
     assert!(info.contains("\"samples\": 3"), "{info}");
 }
+
+#[test]
+fn dry_run_lists_times_and_their_sources_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for (i, name) in ["2024-03-01-10-15-00.bt", "2024-03-01_10-25-00.bt"]
+        .iter()
+        .enumerate()
+    {
+        registry
+            .write_file(
+                &frame(i as u32),
+                &dir.path().join(name),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let out = ok(&["build", s(dir.path()), "--dry-run"]);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    assert!(
+        lines[0].starts_with("2024-03-01T10:15:00Z  file name"),
+        "{out}"
+    );
+    assert!(
+        lines[1].starts_with("2024-03-01T10:25:00Z  file name"),
+        "{out}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+
+    // Numbered files: natural order under --start/--step, refused without.
+    let numbered = tempfile::tempdir().unwrap();
+    for i in [1u32, 2, 10, 12] {
+        registry
+            .write_file(
+                &frame(i),
+                &numbered.path().join(format!("map_{i}.bt")),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let out = ok(&[
+        "build",
+        s(numbered.path()),
+        "--start",
+        "2024-03-01T00:00:00Z",
+        "--step",
+        "1min",
+        "--dry-run",
+    ]);
+    let order: Vec<&str> = out.lines().map(|l| l.rsplit('/').next().unwrap()).collect();
+    assert_eq!(
+        order,
+        ["map_1.bt", "map_2.bt", "map_10.bt", "map_12.bt"],
+        "{out}"
+    );
+    assert!(
+        out.lines()
+            .nth(3)
+            .unwrap()
+            .starts_with("2024-03-01T00:03:00Z  start + step"),
+        "{out}"
+    );
+    let padded = tempfile::tempdir().unwrap();
+    registry
+        .write_file(
+            &frame(0),
+            &padded.path().join("map_0000000041.bt"),
+            WriteOptions::default(),
+        )
+        .unwrap();
+    let message = err(&["build", s(padded.path()), "--dry-run"]);
+    assert!(
+        message.contains("before 1990") && message.contains("--start"),
+        "{message}"
+    );
+}

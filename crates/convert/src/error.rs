@@ -101,6 +101,14 @@ pub enum ConvertError {
         #[source]
         source: TimeError,
     },
+    /// A file name that reads as a time before 1990: a frame number, not a time.
+    #[error("{}: the name reads as {}, before 1990; this looks like a frame number, not a time", path.display(), iso8601(*time))]
+    EarlyNameTime {
+        /// The file.
+        path: PathBuf,
+        /// The time its name reads as.
+        time: Timestamp,
+    },
     /// Two files claim the same time.
     #[error("{} and {} have the same time {}", first.display(), second.display(), iso8601(*time))]
     DuplicateTime {

@@ -3,8 +3,9 @@
 use crate::context::Context;
 use crate::error::{ConvertError, ManifestProblem};
 use crate::glob_walk::recursive_matches;
-use crate::time::{check_range, parse_time, time_from_file_name, TimeError};
+use crate::time::{check_range, parse_time, time_from_file_name, TimeError, EARLIEST_IN_NAME};
 use froctomap_core::{calendar, Timestamp};
+use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
 /// One snapshot file of a series.
@@ -32,6 +33,38 @@ pub enum TimeSource {
         /// Nanoseconds between files.
         step_ns: i64,
     },
+}
+
+/// Where one input's time came from (shown by `build --dry-run`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum TimeOrigin {
+    /// A manifest row.
+    Manifest,
+    /// The file's name.
+    FileName,
+    /// `start + i · step` by the file's place in the list.
+    StartStep,
+}
+
+impl std::fmt::Display for TimeOrigin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Manifest => "manifest",
+            Self::FileName => "file name",
+            Self::StartStep => "start + step",
+        })
+    }
+}
+
+/// The files of a series with their times, sorted by time, and where each time came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct CollectedInputs {
+    /// The snapshots, sorted by time.
+    pub series: Vec<SeriesInput>,
+    /// Where each snapshot's time came from (same order as `series`).
+    pub origins: Vec<TimeOrigin>,
 }
 
 /// The name of a manifest inside a series directory.
@@ -64,6 +97,20 @@ pub fn collect_inputs(
     inputs: &[PathBuf],
     times: TimeSource,
 ) -> Result<Vec<SeriesInput>, ConvertError> {
+    Ok(collect_inputs_explained(context, inputs, times)?.series)
+}
+
+/// [`collect_inputs`], also saying where each time came from.
+///
+/// Directories and glob matches are listed in natural order (`map_2` before `map_10`: runs
+/// of digits compare as numbers), which is the order `start + i · step` follows. A time read
+/// from a name before [`EARLIEST_IN_NAME`] (1990) is refused as a frame number
+/// ([`ConvertError::EarlyNameTime`]).
+pub fn collect_inputs_explained(
+    context: &Context,
+    inputs: &[PathBuf],
+    times: TimeSource,
+) -> Result<CollectedInputs, ConvertError> {
     let extensions: Vec<&str> = context
         .formats()
         .formats()
@@ -91,7 +138,7 @@ pub fn collect_inputs(
                     pattern: text.to_string(),
                 });
             }
-            matched.sort();
+            matched.sort_by(|a, b| natural_cmp(a, b));
             candidates.extend(matched.into_iter().map(|path| Candidate {
                 path,
                 manifest_time: None,
@@ -109,7 +156,7 @@ pub fn collect_inputs(
                         extensions: format!(".{}", extensions.join(", .")),
                     });
                 }
-                files.sort();
+                files.sort_by(|a, b| natural_cmp(a, b));
                 candidates.extend(files.into_iter().map(|path| Candidate {
                     path,
                     manifest_time: None,
@@ -149,22 +196,54 @@ pub fn collect_inputs(
             kind,
         });
     }
-    let mut series = assign_times(candidates, times)?;
-    series.sort_by(|a, b| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
-    if let Some(pair) = series.windows(2).find(|w| w[0].time == w[1].time) {
+    let mut timed = assign_times(candidates, times)?;
+    timed.sort_by(|(a, _), (b, _)| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
+    if let Some(pair) = timed.windows(2).find(|w| w[0].0.time == w[1].0.time) {
         return Err(ConvertError::DuplicateTime {
-            first: pair[0].path.clone(),
-            second: pair[1].path.clone(),
-            time: pair[0].time,
+            first: pair[0].0.path.clone(),
+            second: pair[1].0.path.clone(),
+            time: pair[0].0.time,
         });
     }
-    Ok(series)
+    let (series, origins) = timed.into_iter().unzip();
+    Ok(CollectedInputs { series, origins })
+}
+
+/// Orders names as people number them: runs of digits compare by value (`map_2` before
+/// `map_10`), everything else by character; equal values with different zero padding, and
+/// then the plain text, break ties so the order is total.
+pub fn natural_cmp(a: &Path, b: &Path) -> Ordering {
+    let (a, b) = (a.to_string_lossy(), b.to_string_lossy());
+    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    while let (Some(&p), Some(&q)) = (x.first(), y.first()) {
+        if p.is_ascii_digit() && q.is_ascii_digit() {
+            let run = |s: &[u8]| s.iter().take_while(|c| c.is_ascii_digit()).count();
+            let (m, n) = (run(x), run(y));
+            let strip = |s: &[u8]| {
+                let zeros = s.iter().take_while(|&&c| c == b'0').count();
+                s[zeros..].to_vec()
+            };
+            let (u, v) = (strip(&x[..m]), strip(&y[..n]));
+            let by_value = u.len().cmp(&v.len()).then_with(|| u.cmp(&v));
+            if by_value != Ordering::Equal {
+                return by_value;
+            }
+            x = &x[m..];
+            y = &y[n..];
+        } else if p != q {
+            return p.cmp(&q);
+        } else {
+            x = &x[1..];
+            y = &y[1..];
+        }
+    }
+    x.len().cmp(&y.len()).then_with(|| a.cmp(&b))
 }
 
 fn assign_times(
     candidates: Vec<Candidate>,
     times: TimeSource,
-) -> Result<Vec<SeriesInput>, ConvertError> {
+) -> Result<Vec<(SeriesInput, TimeOrigin)>, ConvertError> {
     match times {
         TimeSource::StartStep { start, step_ns } => candidates
             .into_iter()
@@ -182,10 +261,13 @@ fn assign_times(
                         },
                     })?;
                 check_range(&c.path.to_string_lossy(), t)?;
-                Ok(SeriesInput {
-                    path: c.path,
-                    time: t,
-                })
+                Ok((
+                    SeriesInput {
+                        path: c.path,
+                        time: t,
+                    },
+                    TimeOrigin::StartStep,
+                ))
             })
             .collect(),
         TimeSource::Auto | TimeSource::FileNames => {
@@ -193,15 +275,26 @@ fn assign_times(
             let mut out = Vec::with_capacity(candidates.len());
             let mut unnamed = Vec::new();
             for c in candidates {
+                let from_manifest = c.manifest_time.filter(|_| use_manifest);
                 let from_name = || {
                     c.path
                         .file_name()
                         .and_then(|n| n.to_str())
                         .and_then(time_from_file_name)
                 };
-                match c.manifest_time.filter(|_| use_manifest).or_else(from_name) {
-                    Some(time) => out.push(SeriesInput { path: c.path, time }),
-                    None => unnamed.push(c.path),
+                match from_manifest {
+                    Some(time) => {
+                        out.push((SeriesInput { path: c.path, time }, TimeOrigin::Manifest))
+                    }
+                    None => match from_name() {
+                        Some(time) if time < EARLIEST_IN_NAME => {
+                            return Err(ConvertError::EarlyNameTime { path: c.path, time })
+                        }
+                        Some(time) => {
+                            out.push((SeriesInput { path: c.path, time }, TimeOrigin::FileName))
+                        }
+                        None => unnamed.push(c.path),
+                    },
                 }
             }
             if !unnamed.is_empty() {
@@ -299,4 +392,102 @@ pub fn manifest_text(dir: &Path, entries: &[SeriesInput]) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(dir: &Path, names: &[&str]) {
+        for name in names {
+            std::fs::write(dir.join(name), b"").unwrap();
+        }
+    }
+
+    #[test]
+    fn numbered_names_sort_naturally() {
+        let mut names: Vec<PathBuf> = ["map_10.bt", "map_2.bt", "map_1.bt", "map_02.bt", "a.bt"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        names.sort_by(|a, b| natural_cmp(a, b));
+        let names: Vec<_> = names.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(
+            names,
+            ["a.bt", "map_1.bt", "map_02.bt", "map_2.bt", "map_10.bt"]
+        );
+    }
+
+    #[test]
+    fn start_and_step_follow_natural_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let names: Vec<String> = (1..=12).map(|i| format!("map_{i}.bt")).collect();
+        touch(
+            dir.path(),
+            &names.iter().map(String::as_str).collect::<Vec<_>>(),
+        );
+        let collected = collect_inputs_explained(
+            &Context::with_default_plugins(),
+            &[dir.path().to_path_buf()],
+            TimeSource::StartStep {
+                start: Timestamp::from_secs(1_700_000_000),
+                step_ns: 1_000_000_000,
+            },
+        )
+        .unwrap();
+        for (i, input) in collected.series.iter().enumerate() {
+            assert_eq!(input.path, dir.path().join(format!("map_{}.bt", i + 1)));
+            assert_eq!(input.time, Timestamp::from_secs(1_700_000_000 + i as i64));
+        }
+        assert!(collected
+            .origins
+            .iter()
+            .all(|&o| o == TimeOrigin::StartStep));
+    }
+
+    #[test]
+    fn frame_numbers_are_not_taken_for_1970_times() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["map_0000000041.bt", "map_0000000042.bt"]);
+        let context = Context::with_default_plugins();
+        let err =
+            collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap_err();
+        assert!(matches!(err, ConvertError::EarlyNameTime { .. }), "{err}");
+        assert!(err.to_string().contains("before 1990"), "{err}");
+        // The same files with explicit times are fine.
+        let ok = collect_inputs(
+            &context,
+            &[dir.path().to_path_buf()],
+            TimeSource::StartStep {
+                start: Timestamp::from_secs(1_700_000_000),
+                step_ns: 60_000_000_000,
+            },
+        )
+        .unwrap();
+        assert_eq!(ok.len(), 2);
+    }
+
+    #[test]
+    fn origins_say_where_times_came_from() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "scan_2024-03-01-10-15-00.bt"]);
+        std::fs::write(dir.path().join("list.csv"), "path,time\na.bt,1700000000\n").unwrap();
+        let collected = collect_inputs_explained(
+            &Context::with_default_plugins(),
+            &[
+                dir.path().join("list.csv"),
+                dir.path().join("scan_2024-03-01-10-15-00.bt"),
+            ],
+            TimeSource::Auto,
+        )
+        .unwrap();
+        assert_eq!(
+            collected.origins,
+            [TimeOrigin::Manifest, TimeOrigin::FileName]
+        );
+        assert_eq!(
+            collected.series[1].time,
+            Timestamp::from_secs(1_709_288_100)
+        );
+    }
 }

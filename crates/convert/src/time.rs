@@ -7,6 +7,11 @@ pub const EARLIEST: Timestamp = Timestamp(0);
 /// Latest instant froctomap accepts: 2200-01-01T00:00:00Z.
 pub const LATEST: Timestamp = Timestamp(7_258_118_400 * 1_000_000_000);
 
+/// Earliest time read from a file name: 1990-01-01T00:00:00Z. A name that reads as an
+/// earlier time is almost always a frame number (`map_0000000041.bt` would be 41 s after
+/// 1970), so such names are refused rather than given a silently wrong time.
+pub const EARLIEST_IN_NAME: Timestamp = Timestamp(631_152_000 * 1_000_000_000);
+
 /// Why a time could not be understood.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 #[error("cannot read {input:?} as a time: {reason}")]
@@ -95,7 +100,9 @@ fn parse_iso(text: &str) -> Result<Timestamp, String> {
 /// Finds an instant in a file name: an ISO 8601 date-time (`frame_2016-01-04T08-30-00Z.bt`,
 /// `20160104T083000Z`, `2016-01-04_08:30:00`) or a run of Unix time digits (10 digits =
 /// seconds, 13 = milliseconds, 16 = microseconds, 19 = nanoseconds; seconds may carry a
-/// fraction: `scan_1451865600.250.bt`). Returns `None` when the name holds no time.
+/// fraction: `scan_1451865600.250.bt`). Returns `None` when the name holds no time. A time
+/// before [`EARLIEST_IN_NAME`] is returned as read: [`collect_inputs`](crate::collect_inputs)
+/// refuses it.
 ///
 /// ```
 /// use froctomap_convert::time_from_file_name;
@@ -104,6 +111,7 @@ fn parse_iso(text: &str) -> Result<Timestamp, String> {
 /// assert_eq!(time_from_file_name("map_1451865600123.bt"), Some(Timestamp(1_451_865_600_123_000_000)));
 /// assert_eq!(time_from_file_name("frame_20160104T000000Z.bt"), Some(Timestamp::from_secs(1_451_865_600)));
 /// assert_eq!(time_from_file_name("office-2016-01-04T00-00-00.ot"), Some(Timestamp::from_secs(1_451_865_600)));
+/// assert_eq!(time_from_file_name("2024-03-01-10-15-00.bt"), Some(Timestamp::from_secs(1_709_288_100)));
 /// assert_eq!(time_from_file_name("map_0042.bt"), None);
 /// ```
 pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
@@ -113,10 +121,14 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
         if start > 0 && bytes[start - 1].is_ascii_digit() {
             continue;
         }
-        if let Some((t, rest)) = name.get(start..).and_then(calendar::parse_iso8601_prefix) {
-            let consumed = name.len() - start - rest.len();
+        let Some(candidate) = name.get(start..).map(rosbag_separator_as_t) else {
+            continue;
+        };
+        if let Some((t, rest)) = calendar::parse_iso8601_prefix(&candidate) {
+            // The rewrite keeps lengths, so `rest` maps back onto `name`.
+            let consumed = candidate.len() - rest.len();
             // A bare 8-digit date could be anything; require a time part or separators.
-            let text = &name[start..start + consumed];
+            let text = &candidate[..consumed];
             if (text.contains('T')
                 || text.contains('t')
                 || text.contains('-')
@@ -179,6 +191,24 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
         }
     }
     None
+}
+
+/// Rosbag-style names separate date and time with `-` (`2024-03-01-10-15-00`), which ISO
+/// 8601 reads as a date followed by junk: the separator is read as `T` so the time of day
+/// is not silently dropped.
+fn rosbag_separator_as_t(text: &str) -> std::borrow::Cow<'_, str> {
+    let b = text.as_bytes();
+    let date = b.len() > 11
+        && b[..4].iter().all(u8::is_ascii_digit)
+        && b[4] == b'-'
+        && b[5..7].iter().all(u8::is_ascii_digit)
+        && b[7] == b'-'
+        && b[8..10].iter().all(u8::is_ascii_digit);
+    if date && b[10] == b'-' && b[11].is_ascii_digit() {
+        std::borrow::Cow::Owned(format!("{}T{}", &text[..10], &text[11..]))
+    } else {
+        std::borrow::Cow::Borrowed(text)
+    }
 }
 
 /// Parses a duration: a number with unit `ns`, `ms`, `s`, `min`/`m`, `h`, `d`, `w`
@@ -279,6 +309,26 @@ mod tests {
             parse_time("20160104T083000Z").unwrap(),
             Timestamp::from_secs(1_451_896_200)
         );
+    }
+
+    #[test]
+    fn rosbag_names_keep_their_time_of_day() {
+        let ten_fifteen = Some(Timestamp::from_secs(1_709_288_100));
+        assert_eq!(time_from_file_name("2024-03-01-10-15-00.bt"), ten_fifteen);
+        assert_eq!(
+            time_from_file_name("run_2024-03-01-10-15-00.bt"),
+            ten_fifteen
+        );
+        assert_eq!(time_from_file_name("2024-03-01_10-15-00.bt"), ten_fifteen);
+        assert_eq!(time_from_file_name("2024-03-01_10:15:00.bt"), ten_fifteen);
+        // A date alone still reads as midnight.
+        assert_eq!(
+            time_from_file_name("map-2024-03-01.bt"),
+            Some(Timestamp::from_secs(1_709_251_200))
+        );
+        // Frame numbers read as 1970 times here; collect_inputs refuses them.
+        let frame = time_from_file_name("map_0000000041.bt").unwrap();
+        assert!(frame < EARLIEST_IN_NAME);
     }
 
     #[test]
