@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, check_range, collect_inputs, collect_inputs_explained, evaluate, export, parse_duration,
-    parse_time, resolve_observed, write_observed_map, write_predicted_map, BuildOptions,
-    EvalReport, ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
+    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -38,10 +38,10 @@ pub struct TimeArgs {
 }
 
 impl TimeArgs {
-    fn source(&self) -> Result<TimeSource> {
+    fn source(&self, ui: &Ui) -> Result<TimeSource> {
         Ok(match (&self.start, &self.step) {
             (Some(start), Some(step)) => TimeSource::StartStep {
-                start: parse_time(start)?,
+                start: ui.time(start, "--start")?,
                 step_ns: parse_duration(step)?,
             },
             _ if self.times_from_names => TimeSource::FileNames,
@@ -205,9 +205,9 @@ fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig>
 }
 
 /// `--created`, else SOURCE_DATE_EPOCH (reproducible-builds.org: whole Unix seconds).
-fn creation_time(args: &BuildArgs) -> Result<Option<Timestamp>> {
+fn creation_time(ui: &Ui, args: &BuildArgs) -> Result<Option<Timestamp>> {
     if let Some(text) = &args.created {
-        return Ok(Some(parse_time(text).context("--created")?));
+        return Ok(Some(ui.time(text, "--created")?));
     }
     let Some(epoch) = std::env::var_os("SOURCE_DATE_EPOCH") else {
         return Ok(None);
@@ -227,7 +227,9 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    let collected = collect_inputs_explained(ui.context, &args.inputs, args.times.source()?)?;
+    let collected =
+        collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
+    ui.read_zoneless(collected.zoneless);
     if args.dry_run {
         for (input, origin) in collected.series.iter().zip(&collected.origins) {
             outln!(
@@ -274,7 +276,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
-        created: creation_time(args)?,
+        created: creation_time(ui, args)?,
         ..BuildOptions::default()
     };
     ui.note(&format!(
@@ -401,7 +403,7 @@ impl MapOutput {
 
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let query: TimeQuery = args.time.parse()?;
+    let query = ui.time_query(&args.time)?;
     let when = resolve_observed(&reader, query)?;
     if !when.exact {
         ui.note(&format!(
@@ -442,7 +444,7 @@ pub struct PredictArgs {
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let t = match args.time.parse::<TimeQuery>()? {
+    let t = match ui.time_query(&args.time)? {
         TimeQuery::Instant(t) => t,
         TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
             format!(
@@ -519,8 +521,8 @@ pub struct ExportArgs {
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
     let options = ExportOptions {
-        from: parse_time(&args.from)?,
-        to: parse_time(&args.to)?,
+        from: ui.time(&args.from, "--from")?,
+        to: ui.time(&args.to, "--to")?,
         every_ns: parse_duration(&args.every)?,
         mode: match args.mode {
             ExportModeArg::Predict => ExportMode::Predict,
@@ -559,7 +561,10 @@ pub struct EvalArgs {
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let truths: Vec<SeriesInput> = collect_inputs(ui.context, &args.against, args.times.source()?)?;
+    let collected =
+        collect_inputs_explained(ui.context, &args.against, args.times.source(ui)?, &ui.zone)?;
+    ui.read_zoneless(collected.zoneless);
+    let truths: Vec<SeriesInput> = collected.series;
     let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(

@@ -772,3 +772,59 @@ fn dry_run_lists_times_and_their_sources_without_writing() {
         "{message}"
     );
 }
+
+#[test]
+fn zoneless_times_are_utc_said_once_or_read_in_tz() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for name in ["2024-03-01-10-15-00.bt", "2024-03-01-10-25-00.bt"] {
+        registry
+            .write_file(&frame(0), &dir.path().join(name), WriteOptions::default())
+            .unwrap();
+    }
+    let notice = "times without a zone are read as UTC";
+    let out = froctomap(&["build", s(dir.path()), "--dry-run"]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.matches(notice).count(), 1, "{stderr}");
+    let quiet = froctomap(&["build", s(dir.path()), "--dry-run", "-q"]);
+    assert!(quiet.stderr.is_empty());
+    let shifted = froctomap(&["build", s(dir.path()), "--dry-run", "--tz", "+01:00"]);
+    assert!(!String::from_utf8_lossy(&shifted.stderr).contains(notice));
+    let shifted = String::from_utf8(shifted.stdout).unwrap();
+    assert!(shifted.starts_with("2024-03-01T09:15:00Z"), "{shifted}");
+    let bad = froctomap(&["build", s(dir.path()), "--dry-run", "--tz", "Mars/Olympus"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("not a time zone"));
+
+    // Times on the command line: one notice, and none for Unix seconds or with --tz.
+    let out = dir.path().join("s.froct");
+    ok(&["build", s(dir.path()), "-o", s(&out), "-q"]);
+    let at = dir.path().join("at.bt");
+    let run = froctomap(&[
+        "retrieve",
+        s(&out),
+        "--time",
+        "2024-03-01T10:20:00",
+        "-o",
+        s(&at),
+    ]);
+    assert_eq!(
+        String::from_utf8_lossy(&run.stderr).matches(notice).count(),
+        1
+    );
+    let run = froctomap(&["retrieve", s(&out), "--time", "1709288400", "-o", s(&at)]);
+    assert!(!String::from_utf8_lossy(&run.stderr).contains(notice));
+    // 11:20 at +01:00 is 10:20Z: the first snapshot (10:15) is the last one before it.
+    let run = froctomap(&[
+        "retrieve",
+        s(&out),
+        "--time",
+        "2024-03-01T11:20:00",
+        "--tz",
+        "+01:00",
+        "-o",
+        s(&at),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("at 2024-03-01T10:15:00Z"), "{stderr}");
+}

@@ -3,7 +3,9 @@
 use crate::context::Context;
 use crate::error::{ConvertError, ManifestProblem};
 use crate::glob_walk::recursive_matches;
-use crate::time::{check_range, parse_time, time_from_file_name, TimeError, EARLIEST_IN_NAME};
+use crate::time::{
+    check_range, read_time, read_time_from_file_name, TimeError, Zone, EARLIEST_IN_NAME,
+};
 use froctomap_core::{calendar, Timestamp};
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
@@ -65,6 +67,8 @@ pub struct CollectedInputs {
     pub series: Vec<SeriesInput>,
     /// Where each snapshot's time came from (same order as `series`).
     pub origins: Vec<TimeOrigin>,
+    /// Some time (in a name or a manifest) had no zone and was read in the given [`Zone`].
+    pub zoneless: bool,
 }
 
 /// The name of a manifest inside a series directory.
@@ -74,6 +78,8 @@ pub const MANIFEST_NAME: &str = "manifest.csv";
 struct Candidate {
     path: PathBuf,
     manifest_time: Option<Timestamp>,
+    /// The manifest's time had no zone.
+    manifest_zoneless: bool,
 }
 
 /// Expands command-line inputs into the files of a series with their times, sorted by time.
@@ -97,7 +103,7 @@ pub fn collect_inputs(
     inputs: &[PathBuf],
     times: TimeSource,
 ) -> Result<Vec<SeriesInput>, ConvertError> {
-    Ok(collect_inputs_explained(context, inputs, times)?.series)
+    Ok(collect_inputs_explained(context, inputs, times, &Zone::utc())?.series)
 }
 
 /// [`collect_inputs`], also saying where each time came from.
@@ -105,11 +111,13 @@ pub fn collect_inputs(
 /// Directories and glob matches are listed in natural order (`map_2` before `map_10`: runs
 /// of digits compare as numbers), which is the order `start + i · step` follows. A time read
 /// from a name before [`EARLIEST_IN_NAME`] (1990) is refused as a frame number
-/// ([`ConvertError::EarlyNameTime`]).
+/// ([`ConvertError::EarlyNameTime`]). Times without a zone, in names and manifests, are
+/// read in `zone`.
 pub fn collect_inputs_explained(
     context: &Context,
     inputs: &[PathBuf],
     times: TimeSource,
+    zone: &Zone,
 ) -> Result<CollectedInputs, ConvertError> {
     let extensions: Vec<&str> = context
         .formats()
@@ -142,11 +150,12 @@ pub fn collect_inputs_explained(
             candidates.extend(matched.into_iter().map(|path| Candidate {
                 path,
                 manifest_time: None,
+                manifest_zoneless: false,
             }));
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
             if manifest.is_file() {
-                candidates.extend(read_manifest(&manifest)?);
+                candidates.extend(read_manifest(&manifest, zone)?);
             } else {
                 let mut files = list_map_files(input, &extensions)?;
                 if files.is_empty() {
@@ -160,6 +169,7 @@ pub fn collect_inputs_explained(
                 candidates.extend(files.into_iter().map(|path| Candidate {
                     path,
                     manifest_time: None,
+                    manifest_zoneless: false,
                 }));
             }
         } else if let Some(kind) = special_kind(input) {
@@ -171,11 +181,12 @@ pub fn collect_inputs_explained(
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
         {
-            candidates.extend(read_manifest(input)?);
+            candidates.extend(read_manifest(input, zone)?);
         } else if input.is_file() {
             candidates.push(Candidate {
                 path: input.clone(),
                 manifest_time: None,
+                manifest_zoneless: false,
             });
         } else {
             return Err(ConvertError::NotFound {
@@ -196,7 +207,8 @@ pub fn collect_inputs_explained(
             kind,
         });
     }
-    let mut timed = assign_times(candidates, times)?;
+    let zoneless = candidates.iter().any(|c| c.manifest_zoneless);
+    let (mut timed, names_zoneless) = assign_times(candidates, times, zone)?;
     timed.sort_by(|(a, _), (b, _)| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
     if let Some(pair) = timed.windows(2).find(|w| w[0].0.time == w[1].0.time) {
         return Err(ConvertError::DuplicateTime {
@@ -206,7 +218,11 @@ pub fn collect_inputs_explained(
         });
     }
     let (series, origins) = timed.into_iter().unzip();
-    Ok(CollectedInputs { series, origins })
+    Ok(CollectedInputs {
+        series,
+        origins,
+        zoneless: zoneless || names_zoneless,
+    })
 }
 
 /// Orders names as people number them: runs of digits compare by value (`map_2` before
@@ -240,10 +256,12 @@ pub fn natural_cmp(a: &Path, b: &Path) -> Ordering {
     x.len().cmp(&y.len()).then_with(|| a.cmp(&b))
 }
 
+/// The times of `candidates`, and whether a name's time had no zone.
 fn assign_times(
     candidates: Vec<Candidate>,
     times: TimeSource,
-) -> Result<Vec<(SeriesInput, TimeOrigin)>, ConvertError> {
+    zone: &Zone,
+) -> Result<(Vec<(SeriesInput, TimeOrigin)>, bool), ConvertError> {
     match times {
         TimeSource::StartStep { start, step_ns } => candidates
             .into_iter()
@@ -269,29 +287,39 @@ fn assign_times(
                     TimeOrigin::StartStep,
                 ))
             })
-            .collect(),
+            .collect::<Result<_, _>>()
+            .map(|timed| (timed, false)),
         TimeSource::Auto | TimeSource::FileNames => {
             let use_manifest = times == TimeSource::Auto;
             let mut out = Vec::with_capacity(candidates.len());
             let mut unnamed = Vec::new();
+            let mut zoneless = false;
             for c in candidates {
                 let from_manifest = c.manifest_time.filter(|_| use_manifest);
                 let from_name = || {
                     c.path
                         .file_name()
                         .and_then(|n| n.to_str())
-                        .and_then(time_from_file_name)
+                        .and_then(|name| read_time_from_file_name(name, zone))
                 };
                 match from_manifest {
                     Some(time) => {
                         out.push((SeriesInput { path: c.path, time }, TimeOrigin::Manifest))
                     }
                     None => match from_name() {
-                        Some(time) if time < EARLIEST_IN_NAME => {
-                            return Err(ConvertError::EarlyNameTime { path: c.path, time })
+                        Some(read) if read.time < EARLIEST_IN_NAME => {
+                            return Err(ConvertError::EarlyNameTime {
+                                path: c.path,
+                                time: read.time,
+                            })
                         }
-                        Some(time) => {
-                            out.push((SeriesInput { path: c.path, time }, TimeOrigin::FileName))
+                        Some(read) => {
+                            zoneless |= read.zoneless;
+                            let input = SeriesInput {
+                                path: c.path,
+                                time: read.time,
+                            };
+                            out.push((input, TimeOrigin::FileName))
                         }
                         None => unnamed.push(c.path),
                     },
@@ -300,7 +328,7 @@ fn assign_times(
             if !unnamed.is_empty() {
                 return Err(ConvertError::NoTimes { files: unnamed });
             }
-            Ok(out)
+            Ok((out, zoneless))
         }
     }
 }
@@ -331,7 +359,7 @@ fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, Conve
 }
 
 /// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
-fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
+fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, ConvertError> {
     if let Some(kind) = special_kind(manifest) {
         return Err(ConvertError::NotAFile {
             path: manifest.to_path_buf(),
@@ -360,7 +388,7 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         let (path, time) = line
             .rsplit_once(',')
             .ok_or_else(|| bad(ManifestProblem::NotPathTime))?;
-        let time = parse_time(time).map_err(|e| bad(e.into()))?;
+        let read = read_time(time, zone).map_err(|e| bad(e.into()))?;
         let path = PathBuf::from(path.trim().trim_matches('"'));
         let path = if path.is_absolute() {
             path
@@ -369,7 +397,8 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         };
         out.push(Candidate {
             path,
-            manifest_time: Some(time),
+            manifest_time: Some(read.time),
+            manifest_zoneless: read.zoneless,
         });
     }
     if out.is_empty() {
@@ -433,6 +462,7 @@ mod tests {
                 start: Timestamp::from_secs(1_700_000_000),
                 step_ns: 1_000_000_000,
             },
+            &Zone::utc(),
         )
         .unwrap();
         for (i, input) in collected.series.iter().enumerate() {
@@ -479,8 +509,10 @@ mod tests {
                 dir.path().join("scan_2024-03-01-10-15-00.bt"),
             ],
             TimeSource::Auto,
+            &Zone::utc(),
         )
         .unwrap();
+        assert!(collected.zoneless);
         assert_eq!(
             collected.origins,
             [TimeOrigin::Manifest, TimeOrigin::FileName]
@@ -489,5 +521,46 @@ mod tests {
             collected.series[1].time,
             Timestamp::from_secs(1_709_288_100)
         );
+    }
+}
+
+#[cfg(test)]
+mod zone_tests {
+    use super::*;
+
+    #[test]
+    fn zoneless_names_and_manifest_times_are_read_in_the_given_zone() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("2024-03-01-10-15-00.bt"), b"").unwrap();
+        std::fs::write(dir.path().join("b.bt"), b"").unwrap();
+        std::fs::write(dir.path().join("m.csv"), "b.bt,2024-03-01T12:00:00\n").unwrap();
+        let inputs = [
+            dir.path().join("2024-03-01-10-15-00.bt"),
+            dir.path().join("m.csv"),
+        ];
+        let context = Context::with_default_plugins();
+        let plus_one = Zone::named("+01:00").unwrap();
+        let collected =
+            collect_inputs_explained(&context, &inputs, TimeSource::Auto, &plus_one).unwrap();
+        assert!(collected.zoneless);
+        assert_eq!(
+            collected.series[0].time,
+            Timestamp::from_secs(1_709_288_100 - 3600)
+        );
+        assert_eq!(
+            collected.series[1].time,
+            Timestamp::from_secs(1_709_294_400 - 3600)
+        );
+        // Unix digits in names carry no zone question.
+        std::fs::write(dir.path().join("map_1709288100.bt"), b"").unwrap();
+        let unix = collect_inputs_explained(
+            &context,
+            &[dir.path().join("map_1709288100.bt")],
+            TimeSource::Auto,
+            &plus_one,
+        )
+        .unwrap();
+        assert!(!unix.zoneless);
+        assert_eq!(unix.series[0].time, Timestamp::from_secs(1_709_288_100));
     }
 }

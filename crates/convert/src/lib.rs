@@ -69,6 +69,6 @@ pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;
 pub use time::{
-    check_range, parse_duration, parse_time, time_from_file_name, TimeError, EARLIEST,
-    EARLIEST_IN_NAME, LATEST,
+    check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
+    time_from_file_name, ReadTime, TimeError, Zone, EARLIEST, EARLIEST_IN_NAME, LATEST,
 };

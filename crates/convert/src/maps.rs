@@ -5,7 +5,7 @@ use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::outputs::{refuse_non_empty_dir, refuse_overwriting_input};
 use crate::progress::Progress;
-use crate::time::{check_range, parse_time};
+use crate::time::{check_range, parse_time, read_time, Zone};
 use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
@@ -38,6 +38,18 @@ impl std::str::FromStr for TimeQuery {
             });
         }
         Ok(TimeQuery::Instant(parse_time(text)?))
+    }
+}
+
+impl TimeQuery {
+    /// [`str::parse`], reading a time without zone in `zone`; the flag says whether it had
+    /// none.
+    pub fn read(text: &str, zone: &Zone) -> Result<(Self, bool), ConvertError> {
+        if text.trim().starts_with("index:") {
+            return text.parse().map(|query| (query, false));
+        }
+        let read = read_time(text, zone)?;
+        Ok((TimeQuery::Instant(read.time), read.zoneless))
     }
 }
 

@@ -29,6 +29,110 @@ fn error(input: &str, reason: impl Into<String>) -> TimeError {
     }
 }
 
+/// The zone in which a time without one (`2016-01-04 08:30`, a name like
+/// `2024-03-01-10-15-00.bt`) is read: UTC unless the user says otherwise. Unix seconds and
+/// times with `Z` or an offset are never affected.
+///
+/// ```
+/// use froctomap_convert::{read_time, Zone};
+/// use froctomap_core::Timestamp;
+/// let paris_winter = Zone::named("+01:00").unwrap();
+/// let read = read_time("2016-01-04T01:00:00", &paris_winter).unwrap();
+/// assert_eq!(read.time, Timestamp::from_secs(1_451_865_600));
+/// assert!(read.zoneless);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Zone(jiff::tz::TimeZone);
+
+impl Default for Zone {
+    fn default() -> Self {
+        Self::utc()
+    }
+}
+
+impl Zone {
+    /// Coordinated Universal Time (the default).
+    pub fn utc() -> Self {
+        Self(jiff::tz::TimeZone::UTC)
+    }
+
+    /// `UTC`, `local` (the system's zone), a fixed offset (`+01:00`, `-0530`, `+02`) or an
+    /// IANA name from the system's time zone database (`Europe/Berlin`).
+    pub fn named(text: &str) -> Result<Self, TimeError> {
+        let text = text.trim();
+        if text.eq_ignore_ascii_case("utc") || text == "Z" {
+            return Ok(Self::utc());
+        }
+        if text.eq_ignore_ascii_case("local") {
+            return jiff::tz::TimeZone::try_system()
+                .map(Self)
+                .map_err(|e| error(text, format!("the system time zone is unknown: {e}")));
+        }
+        if let Some(seconds) = fixed_offset_seconds(text) {
+            return jiff::tz::Offset::from_seconds(seconds)
+                .map(|offset| Self(jiff::tz::TimeZone::fixed(offset)))
+                .map_err(|e| error(text, e.to_string()));
+        }
+        jiff::tz::TimeZone::get(text).map(Self).map_err(|_| {
+            error(
+                text,
+                "not a time zone (use UTC, local, an offset like +01:00, or a name like Europe/Berlin)",
+            )
+        })
+    }
+
+    /// Whether this is UTC, the reading of zone-less times when nothing is said.
+    pub fn is_utc(&self) -> bool {
+        self.0 == jiff::tz::TimeZone::UTC
+    }
+
+    /// The instant of a wall-clock time in this zone (`wall` is that time read as UTC).
+    /// A time skipped or repeated by a daylight-saving change takes the earlier offset.
+    fn instant(&self, input: &str, wall: Timestamp) -> Result<Timestamp, TimeError> {
+        if self.is_utc() {
+            return Ok(wall);
+        }
+        let out_of_range = || error(input, "is outside the supported range");
+        let utc =
+            jiff::Timestamp::from_nanosecond(i128::from(wall.0)).map_err(|_| out_of_range())?;
+        let civil = jiff::tz::TimeZone::UTC.to_datetime(utc);
+        let local = self
+            .0
+            .to_ambiguous_timestamp(civil)
+            .compatible()
+            .map_err(|_| out_of_range())?;
+        i64::try_from(local.as_nanosecond())
+            .map(Timestamp)
+            .map_err(|_| out_of_range())
+    }
+}
+
+/// `+01:00`, `-0530` or `+02` as seconds east of UTC.
+fn fixed_offset_seconds(text: &str) -> Option<i32> {
+    let sign = match text.as_bytes().first()? {
+        b'+' => 1,
+        b'-' => -1,
+        _ => return None,
+    };
+    let digits: String = text[1..].chars().filter(|&c| c != ':').collect();
+    if !digits.bytes().all(|b| b.is_ascii_digit()) || !matches!(digits.len(), 2 | 4) {
+        return None;
+    }
+    let hours: i32 = digits[..2].parse().ok()?;
+    let minutes: i32 = digits.get(2..).map_or(Some(0), |m| m.parse().ok())?;
+    (hours <= 23 && minutes <= 59).then_some(sign * (hours * 3600 + minutes * 60))
+}
+
+/// A time read from text, and whether the text lacked a zone (and the reader's [`Zone`]
+/// was applied): the front end says once that such times are read as UTC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadTime {
+    /// The instant.
+    pub time: Timestamp,
+    /// The text was a wall-clock time without `Z` or an offset.
+    pub zoneless: bool,
+}
+
 /// Checks that an instant is in the range froctomap accepts (1970 to 2200).
 pub fn check_range(input: &str, t: Timestamp) -> Result<Timestamp, TimeError> {
     if t < EARLIEST || t > LATEST {
@@ -56,10 +160,16 @@ pub fn check_range(input: &str, t: Timestamp) -> Result<Timestamp, TimeError> {
 /// assert!(parse_time("99999999999999").is_err()); // year 5138
 /// ```
 pub fn parse_time(input: &str) -> Result<Timestamp, TimeError> {
+    read_time(input, &Zone::utc()).map(|read| read.time)
+}
+
+/// [`parse_time`] reading a time without zone in `zone`, and saying whether it had none.
+pub fn read_time(input: &str, zone: &Zone) -> Result<ReadTime, TimeError> {
     let text = input.trim();
     if text.is_empty() {
         return Err(error(input, "empty"));
     }
+    let mut zoneless = false;
     let t = if text
         .bytes()
         .all(|b| b.is_ascii_digit() || b == b'.' || b == b'-' || b == b'+')
@@ -82,19 +192,29 @@ pub fn parse_time(input: &str) -> Result<Timestamp, TimeError> {
             None => return Err(error(input, "not a number of seconds")),
         }
     } else {
-        parse_iso(text).map_err(|reason| error(input, reason))?
+        let (wall, zoned) = parse_iso(text).map_err(|reason| error(input, reason))?;
+        zoneless = !zoned;
+        if zoned {
+            wall
+        } else {
+            zone.instant(input, wall)?
+        }
     };
-    check_range(input, t)
+    Ok(ReadTime {
+        time: check_range(input, t)?,
+        zoneless,
+    })
 }
 
-/// Parses the ISO 8601 forms froctomap accepts; the error says what is wrong.
-fn parse_iso(text: &str) -> Result<Timestamp, String> {
-    let (t, rest) =
-        calendar::parse_iso8601_prefix(text).ok_or("not Unix seconds or an ISO 8601 date/time")?;
+/// Parses the ISO 8601 forms froctomap accepts, and whether a zone was given; the error
+/// says what is wrong.
+fn parse_iso(text: &str) -> Result<(Timestamp, bool), String> {
+    let (t, rest, zoned) = calendar::parse_iso8601_prefix_zoned(text)
+        .ok_or("not Unix seconds or an ISO 8601 date/time")?;
     if !rest.is_empty() {
         return Err(format!("unexpected {rest:?} after the time"));
     }
-    Ok(t)
+    Ok((t, zoned))
 }
 
 /// Finds an instant in a file name: an ISO 8601 date-time (`frame_2016-01-04T08-30-00Z.bt`,
@@ -115,6 +235,12 @@ fn parse_iso(text: &str) -> Result<Timestamp, String> {
 /// assert_eq!(time_from_file_name("map_0042.bt"), None);
 /// ```
 pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
+    read_time_from_file_name(name, &Zone::utc()).map(|read| read.time)
+}
+
+/// [`time_from_file_name`] reading a date-time without zone in `zone`, and saying whether
+/// it had none (Unix digits never lack one).
+pub fn read_time_from_file_name(name: &str, zone: &Zone) -> Option<ReadTime> {
     let bytes = name.as_bytes();
     // ISO first: a date with a time part wins over a bare digit run.
     for start in 0..bytes.len() {
@@ -124,7 +250,7 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
         let Some(candidate) = name.get(start..).map(rosbag_separator_as_t) else {
             continue;
         };
-        if let Some((t, rest)) = calendar::parse_iso8601_prefix(&candidate) {
+        if let Some((t, rest, zoned)) = calendar::parse_iso8601_prefix_zoned(&candidate) {
             // The rewrite keeps lengths, so `rest` maps back onto `name`.
             let consumed = candidate.len() - rest.len();
             // A bare 8-digit date could be anything; require a time part or separators.
@@ -134,9 +260,14 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
                 || text.contains('-')
                 || text.contains('_'))
                 && !rest.as_bytes().first().is_some_and(u8::is_ascii_digit)
-                && check_range(name, t).is_ok()
             {
-                return Some(t);
+                let t = if zoned { Ok(t) } else { zone.instant(name, t) };
+                if let Ok(t) = t.and_then(|t| check_range(name, t)) {
+                    return Some(ReadTime {
+                        time: t,
+                        zoneless: !zoned,
+                    });
+                }
             }
         }
     }
@@ -186,7 +317,10 @@ pub fn time_from_file_name(name: &str) -> Option<Timestamp> {
         };
         if let Some(t) = nanos.map(Timestamp) {
             if check_range(name, t).is_ok() {
-                return Some(t);
+                return Some(ReadTime {
+                    time: t,
+                    zoneless: false,
+                });
             }
         }
     }
@@ -329,6 +463,29 @@ mod tests {
         // Frame numbers read as 1970 times here; collect_inputs refuses them.
         let frame = time_from_file_name("map_0000000041.bt").unwrap();
         assert!(frame < EARLIEST_IN_NAME);
+    }
+
+    #[test]
+    fn zones_apply_only_to_zoneless_times() {
+        let plus_one = Zone::named("+01:00").unwrap();
+        let midnight_utc = Timestamp::from_secs(1_451_865_600);
+        let read = read_time("2016-01-04T01:00:00", &plus_one).unwrap();
+        assert_eq!((read.time, read.zoneless), (midnight_utc, true));
+        let read = read_time("2016-01-04T00:00:00Z", &plus_one).unwrap();
+        assert_eq!((read.time, read.zoneless), (midnight_utc, false));
+        let read = read_time("1451865600", &plus_one).unwrap();
+        assert_eq!((read.time, read.zoneless), (midnight_utc, false));
+        assert!(read_time("2016-01-04", &Zone::utc()).unwrap().zoneless);
+        assert_eq!(Zone::named("utc").unwrap(), Zone::utc());
+        assert_eq!(
+            Zone::named("-0530").unwrap(),
+            Zone::named("-05:30").unwrap()
+        );
+        assert!(Zone::named("+25:00").is_err());
+        assert!(Zone::named("Mars/Olympus_Mons").is_err());
+        assert!(Zone::named("local").is_ok());
+        let read = read_time_from_file_name("2016-01-04-01-00-00.bt", &plus_one).unwrap();
+        assert_eq!((read.time, read.zoneless), (midnight_utc, true));
     }
 
     #[test]
