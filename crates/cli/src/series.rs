@@ -35,10 +35,17 @@ pub struct TimeArgs {
     /// Take times from the file names even where a manifest gives them.
     #[arg(long, conflicts_with = "start")]
     times_from_names: bool,
+    /// A file of times, one per line (Unix seconds or ISO 8601), for the files in the order
+    /// given (directories and globs in natural order: map_2 before map_10).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["start", "times_from_names"])]
+    times_file: Option<PathBuf>,
 }
 
 impl TimeArgs {
     fn source(&self, ui: &Ui) -> Result<TimeSource> {
+        if let Some(list) = &self.times_file {
+            return Ok(TimeSource::TimesFile(list.clone()));
+        }
         Ok(match (&self.start, &self.step) {
             (Some(start), Some(step)) => TimeSource::StartStep {
                 start: ui.time(start, "--start")?,
@@ -230,6 +237,9 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let collected =
         collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
+    for warning in &collected.warnings {
+        ui.note(&format!("warning: {}", escaped(warning)));
+    }
     if args.dry_run {
         for (input, origin) in collected.series.iter().zip(&collected.origins) {
             outln!(
@@ -564,6 +574,9 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let collected =
         collect_inputs_explained(ui.context, &args.against, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
+    for warning in &collected.warnings {
+        ui.note(&format!("warning: {}", escaped(warning)));
+    }
     let truths: Vec<SeriesInput> = collected.series;
     let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);

@@ -828,3 +828,45 @@ fn zoneless_times_are_utc_said_once_or_read_in_tz() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("at 2024-03-01T10:15:00Z"), "{stderr}");
 }
+
+#[test]
+fn times_files_and_manifests_that_leave_files_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for i in [1u32, 2, 10] {
+        registry
+            .write_file(
+                &frame(i),
+                &dir.path().join(format!("map_{i}.bt")),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let stamps = dir.path().join("stamps.txt");
+    std::fs::write(&stamps, "1700000000\n1700000060\n1700000120\n").unwrap();
+    let out = ok(&[
+        "build",
+        s(dir.path()),
+        "--times-file",
+        s(&stamps),
+        "--dry-run",
+    ]);
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(
+        lines[2].starts_with("2023-11-14T22:15:20Z  times file") && lines[2].ends_with("map_10.bt"),
+        "{out}"
+    );
+
+    std::fs::write(
+        dir.path().join("manifest.csv"),
+        "file,stamp\nmap_1.bt,1700000000\n",
+    )
+    .unwrap();
+    let run = froctomap(&["build", s(dir.path()), "--dry-run"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("warning:") && stderr.contains("does not list 2 map file(s)"),
+        "{stderr}"
+    );
+    assert_eq!(String::from_utf8_lossy(&run.stdout).lines().count(), 1);
+}

@@ -79,6 +79,16 @@ pub enum ConvertError {
         #[source]
         problem: ManifestProblem,
     },
+    /// A list of times (`--times-file`) whose length is not the number of files.
+    #[error("{}: {times} time(s) for {files} file(s); give one time per file, in file order", list.display())]
+    TimesCount {
+        /// The list of times.
+        list: PathBuf,
+        /// Times it gives.
+        times: usize,
+        /// Files found.
+        files: usize,
+    },
     /// A manifest without entries.
     #[error("{}: the manifest lists no files", manifest.display())]
     EmptyManifest {
@@ -368,6 +378,20 @@ pub enum ManifestProblem {
     /// The time does not parse.
     #[error(transparent)]
     Time(#[from] TimeError),
+    /// A header row without a column of this kind.
+    #[error("the header names no {wanted} column (expected one of {names})")]
+    MissingColumn {
+        /// `path` or `time`.
+        wanted: &'static str,
+        /// The names recognised for it.
+        names: &'static str,
+    },
+    /// A row with fewer fields than the header's path and time columns need.
+    #[error("expected a field in column {column}")]
+    MissingField {
+        /// The column, from 1.
+        column: usize,
+    },
 }
 
 fn shown(files: &[PathBuf]) -> String {

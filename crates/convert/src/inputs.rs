@@ -20,14 +20,14 @@ pub struct SeriesInput {
 }
 
 /// Where snapshot times come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
 pub enum TimeSource {
     /// Manifests give times; plain files take theirs from their names.
     #[default]
     Auto,
     /// Every file's name holds its time (manifest times are ignored).
     FileNames,
-    /// The files, in the order given (directories and globs sorted by name), are taken at
+    /// The files, in the order given (directories and globs in natural order), are taken at
     /// `start + i · step`.
     StartStep {
         /// Time of the first file.
@@ -35,6 +35,10 @@ pub enum TimeSource {
         /// Nanoseconds between files.
         step_ns: i64,
     },
+    /// The files, in the order given (directories and globs in natural order), take the
+    /// times of this file one by one: one time per line (Unix seconds or ISO 8601), `#`
+    /// comments allowed. Its count must be the number of files.
+    TimesFile(PathBuf),
 }
 
 /// Where one input's time came from (shown by `build --dry-run`).
@@ -47,6 +51,8 @@ pub enum TimeOrigin {
     FileName,
     /// `start + i · step` by the file's place in the list.
     StartStep,
+    /// A list of times, by the file's place in the list.
+    TimesFile,
 }
 
 impl std::fmt::Display for TimeOrigin {
@@ -55,6 +61,7 @@ impl std::fmt::Display for TimeOrigin {
             Self::Manifest => "manifest",
             Self::FileName => "file name",
             Self::StartStep => "start + step",
+            Self::TimesFile => "times file",
         })
     }
 }
@@ -69,6 +76,22 @@ pub struct CollectedInputs {
     pub origins: Vec<TimeOrigin>,
     /// Some time (in a name or a manifest) had no zone and was read in the given [`Zone`].
     pub zoneless: bool,
+    /// Things the caller should pass on to the user.
+    pub warnings: Vec<InputWarning>,
+}
+
+/// Something odd about the inputs that does not stop a build.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum InputWarning {
+    /// A series directory's manifest leaves out map files that lie beside it.
+    #[error("{} does not list {} map file(s) beside it: {}{}", manifest.display(), files.len(), files.iter().take(5).map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "), if files.len() > 5 { ", ..." } else { "" })]
+    Unlisted {
+        /// The manifest.
+        manifest: PathBuf,
+        /// The map files it does not list.
+        files: Vec<PathBuf>,
+    },
 }
 
 /// The name of a manifest inside a series directory.
@@ -126,6 +149,7 @@ pub fn collect_inputs_explained(
         .flat_map(|f| f.extensions.iter().copied())
         .collect();
     let mut candidates = Vec::new();
+    let mut warnings = Vec::new();
     for input in inputs {
         let text = input.to_string_lossy();
         if text.contains(['*', '?', '[']) && !input.exists() {
@@ -155,7 +179,15 @@ pub fn collect_inputs_explained(
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
             if manifest.is_file() {
-                candidates.extend(read_manifest(&manifest, zone)?);
+                let listed = read_manifest(&manifest, zone)?;
+                let unlisted = unlisted_files(input, &extensions, &listed)?;
+                if !unlisted.is_empty() {
+                    warnings.push(InputWarning::Unlisted {
+                        manifest,
+                        files: unlisted,
+                    });
+                }
+                candidates.extend(listed);
             } else {
                 let mut files = list_map_files(input, &extensions)?;
                 if files.is_empty() {
@@ -222,6 +254,7 @@ pub fn collect_inputs_explained(
         series,
         origins,
         zoneless: zoneless || names_zoneless,
+        warnings,
     })
 }
 
@@ -289,6 +322,25 @@ fn assign_times(
             })
             .collect::<Result<_, _>>()
             .map(|timed| (timed, false)),
+        TimeSource::TimesFile(list) => {
+            let (listed, zoneless) = read_times_file(&list, zone)?;
+            if listed.len() != candidates.len() {
+                return Err(ConvertError::TimesCount {
+                    list,
+                    times: listed.len(),
+                    files: candidates.len(),
+                });
+            }
+            let timed = candidates
+                .into_iter()
+                .zip(listed)
+                .map(|(c, time)| {
+                    let input = SeriesInput { path: c.path, time };
+                    (input, TimeOrigin::TimesFile)
+                })
+                .collect();
+            Ok((timed, zoneless))
+        }
         TimeSource::Auto | TimeSource::FileNames => {
             let use_manifest = times == TimeSource::Auto;
             let mut out = Vec::with_capacity(candidates.len());
@@ -358,7 +410,66 @@ fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, Conve
     Ok(files)
 }
 
-/// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
+/// The map files in `dir` that `listed` (its manifest's rows) leaves out.
+fn unlisted_files(
+    dir: &Path,
+    extensions: &[&str],
+    listed: &[Candidate],
+) -> Result<Vec<PathBuf>, ConvertError> {
+    let canonical = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let listed: std::collections::HashSet<PathBuf> =
+        listed.iter().map(|c| canonical(&c.path)).collect();
+    let mut files: Vec<PathBuf> = list_map_files(dir, extensions)?
+        .into_iter()
+        .filter(|f| !listed.contains(&canonical(f)))
+        .collect();
+    files.sort_by(|a, b| natural_cmp(a, b));
+    Ok(files)
+}
+
+/// The times of a `--times-file`, and whether one had no zone.
+fn read_times_file(list: &Path, zone: &Zone) -> Result<(Vec<Timestamp>, bool), ConvertError> {
+    if let Some(kind) = special_kind(list) {
+        return Err(ConvertError::NotAFile {
+            path: list.to_path_buf(),
+            kind,
+        });
+    }
+    let text = std::fs::read_to_string(list).map_err(|source| ConvertError::Unlistable {
+        path: list.to_path_buf(),
+        source,
+    })?;
+    let mut zoneless = false;
+    let mut times = Vec::new();
+    for (number, line) in data_lines(&text) {
+        let read = read_time(line, zone).map_err(|e| ConvertError::ManifestLine {
+            manifest: list.to_path_buf(),
+            line: number,
+            problem: e.into(),
+        })?;
+        zoneless |= read.zoneless;
+        times.push(read.time);
+    }
+    Ok((times, zoneless))
+}
+
+/// Names a header may give the path column.
+const PATH_COLUMNS: &[&str] = &["path", "file", "filename", "file_name"];
+/// Names a header may give the time column.
+const TIME_COLUMNS: &[&str] = &["time", "stamp", "t", "timestamp", "unix_time"];
+
+/// Where the path and time are in a manifest's rows.
+enum Columns {
+    /// `path,time`: the time after the last comma, so paths may hold commas.
+    PathThenTime,
+    /// Named by a header, in any order, other columns ignored.
+    Named { path: usize, time: usize },
+}
+
+/// Reads a manifest: a `path,time` row per file; `#` comments, a UTF-8 byte order mark and
+/// CRLF line ends allowed. A first row whose last field is not a time is a header: its
+/// columns are then found by name (`path`/`file`, `time`/`stamp`/`t`/`unix_time`) in any
+/// order, and other columns are ignored.
 fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, ConvertError> {
     if let Some(kind) = special_kind(manifest) {
         return Err(ConvertError::NotAFile {
@@ -372,22 +483,37 @@ fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, Convert
     })?;
     let base = manifest.parent().unwrap_or(Path::new("."));
     let mut out = Vec::new();
-    for (number, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty()
-            || line.starts_with('#')
-            || (number == 0 && line.eq_ignore_ascii_case("path,time"))
-        {
-            continue;
-        }
+    let mut columns: Option<Columns> = None;
+    for (number, line) in data_lines(&text) {
         let bad = |problem| ConvertError::ManifestLine {
             manifest: manifest.to_path_buf(),
-            line: number + 1,
+            line: number,
             problem,
         };
-        let (path, time) = line
-            .rsplit_once(',')
-            .ok_or_else(|| bad(ManifestProblem::NotPathTime))?;
+        if columns.is_none() {
+            let header = header_columns(line).map_err(bad)?;
+            let is_header = header.is_some();
+            columns = Some(header.unwrap_or(Columns::PathThenTime));
+            if is_header {
+                continue;
+            }
+        }
+        let Some(layout) = &columns else { continue };
+        let (path, time) = match *layout {
+            Columns::PathThenTime => line
+                .rsplit_once(',')
+                .ok_or_else(|| bad(ManifestProblem::NotPathTime))?,
+            Columns::Named { path, time } => {
+                let fields: Vec<&str> = line.split(',').collect();
+                let field = |column: usize| {
+                    fields
+                        .get(column)
+                        .copied()
+                        .ok_or_else(|| bad(ManifestProblem::MissingField { column: column + 1 }))
+                };
+                (field(path)?, field(time)?)
+            }
+        };
         let read = read_time(time, zone).map_err(|e| bad(e.into()))?;
         let path = PathBuf::from(path.trim().trim_matches('"'));
         let path = if path.is_absolute() {
@@ -407,6 +533,53 @@ fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, Convert
         });
     }
     Ok(out)
+}
+
+/// The non-blank, non-comment lines of a text file with their numbers (from 1), a byte
+/// order mark and `\r` line ends removed.
+fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.lines()
+        .enumerate()
+        .map(|(i, line)| (i + 1, line.trim()))
+        .filter(|(_, line)| !line.is_empty() && !line.starts_with('#'))
+}
+
+/// The columns a first row names, or `None` when it is data (its last field is a time, or
+/// it names no known column).
+fn header_columns(line: &str) -> Result<Option<Columns>, ManifestProblem> {
+    let last = line.rsplit(',').next().unwrap_or(line);
+    if crate::time::parse_time(last).is_ok() {
+        return Ok(None);
+    }
+    let names: Vec<String> = line
+        .split(',')
+        .map(|name| name.trim().trim_matches('"').to_ascii_lowercase())
+        .collect();
+    let find = |wanted: &'static str, known: &[&str]| {
+        names
+            .iter()
+            .position(|name| known.contains(&name.as_str()))
+            .ok_or(ManifestProblem::MissingColumn {
+                wanted,
+                names: if wanted == "path" {
+                    "path, file"
+                } else {
+                    "time, stamp, t, unix_time"
+                },
+            })
+    };
+    let (path, time) = (find("path", PATH_COLUMNS), find("time", TIME_COLUMNS));
+    if path.is_err() && time.is_err() {
+        // No known name: a data row with a bad time, which the caller reports as such.
+        return Ok(None);
+    }
+    let (path, time) = (path?, time?);
+    Ok(Some(if names.len() == 2 && path == 0 && time == 1 {
+        Columns::PathThenTime
+    } else {
+        Columns::Named { path, time }
+    }))
 }
 
 /// Writes a manifest (`path,time` with Unix seconds) for files relative to `dir`.
@@ -562,5 +735,153 @@ mod zone_tests {
         .unwrap();
         assert!(!unix.zoneless);
         assert_eq!(unix.series[0].time, Timestamp::from_secs(1_709_288_100));
+    }
+}
+
+#[cfg(test)]
+mod manifest_tests {
+    use super::*;
+
+    fn series(dir: &Path, inputs: &[PathBuf], times: TimeSource) -> CollectedInputs {
+        collect_inputs_explained(
+            &Context::with_default_plugins(),
+            inputs,
+            times,
+            &Zone::utc(),
+        )
+        .unwrap_or_else(|e| panic!("{e} in {}", dir.display()))
+    }
+
+    fn touch(dir: &Path, names: &[&str]) {
+        for name in names {
+            std::fs::write(dir.join(name), b"").unwrap();
+        }
+    }
+
+    #[test]
+    fn headers_name_their_columns_in_any_order() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "b.bt"]);
+        let expected = [
+            (dir.path().join("a.bt"), Timestamp::from_secs(1_700_000_000)),
+            (dir.path().join("b.bt"), Timestamp::from_secs(1_700_000_600)),
+        ];
+        for text in [
+            "file,stamp\na.bt,1700000000\nb.bt,1700000600\n",
+            "path,unix_time\na.bt,1700000000\nb.bt,1700000600\n",
+            "\u{feff}stamp,note,File\r\n1700000000,first,a.bt\r\n1700000600,,b.bt\r\n",
+            "# made by hand\n\nt,path\n1700000000,a.bt\n2023-11-14T22:23:20Z,b.bt\n",
+            "a.bt,1700000000\r\nb.bt,1700000600\r\n",
+        ] {
+            let manifest = dir.path().join("list.csv");
+            std::fs::write(&manifest, text).unwrap();
+            let got = series(dir.path(), &[manifest], TimeSource::Auto);
+            let got: Vec<_> = got.series.into_iter().map(|i| (i.path, i.time)).collect();
+            assert_eq!(got, expected, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn bad_manifests_say_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt"]);
+        let manifest = dir.path().join("list.csv");
+        let context = Context::with_default_plugins();
+        let read = |text: &str| {
+            std::fs::write(&manifest, text).unwrap();
+            collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
+                .unwrap_err()
+                .to_string()
+        };
+        let err = read("file,note\na.bt,x\n");
+        assert!(
+            err.contains(":1:") && err.contains("no time column"),
+            "{err}"
+        );
+        let err = read("a.bt,yesterday\n");
+        assert!(err.contains(":1:") && err.contains("yesterday"), "{err}");
+        let err = read("note,time,path\nx,1700000000\n");
+        assert!(err.contains(":2:") && err.contains("column 3"), "{err}");
+    }
+
+    #[test]
+    fn a_times_file_times_the_files_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["map_1.bt", "map_2.bt", "map_10.bt"]);
+        let list = dir.path().join("stamps.txt");
+        std::fs::write(
+            &list,
+            "# stamps\n1700000000\n1700000060\r\n2023-11-14T22:15:20Z\n",
+        )
+        .unwrap();
+        let got = series(
+            dir.path(),
+            &[dir.path().to_path_buf()],
+            TimeSource::TimesFile(list.clone()),
+        );
+        let names: Vec<_> = got
+            .series
+            .iter()
+            .map(|i| {
+                (
+                    i.path.file_name().unwrap().to_str().unwrap(),
+                    i.time.0 / 1_000_000_000,
+                )
+            })
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("map_1.bt", 1_700_000_000),
+                ("map_2.bt", 1_700_000_060),
+                ("map_10.bt", 1_700_000_120)
+            ]
+        );
+        assert!(got.origins.iter().all(|&o| o == TimeOrigin::TimesFile));
+        std::fs::write(&list, "1700000000\n").unwrap();
+        let err = collect_inputs(
+            &Context::with_default_plugins(),
+            &[dir.path().to_path_buf()],
+            TimeSource::TimesFile(list),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ConvertError::TimesCount {
+                    times: 1,
+                    files: 3,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_manifest_that_leaves_out_map_files_is_reported() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "b.bt", "c.ot", "notes.txt"]);
+        std::fs::write(
+            dir.path().join(MANIFEST_NAME),
+            "path,time\n./a.bt,1700000000\n",
+        )
+        .unwrap();
+        let got = series(dir.path(), &[dir.path().to_path_buf()], TimeSource::Auto);
+        assert_eq!(got.series.len(), 1);
+        assert_eq!(
+            got.warnings,
+            [InputWarning::Unlisted {
+                manifest: dir.path().join(MANIFEST_NAME),
+                files: vec![dir.path().join("b.bt"), dir.path().join("c.ot")],
+            }]
+        );
+        std::fs::write(
+            dir.path().join(MANIFEST_NAME),
+            "path,time\na.bt,1700000000\nb.bt,1700000001\nc.ot,1700000002\n",
+        )
+        .unwrap();
+        let got = series(dir.path(), &[dir.path().to_path_buf()], TimeSource::Auto);
+        assert!(got.warnings.is_empty());
     }
 }

@@ -58,7 +58,7 @@ pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
 pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, natural_cmp, CollectedInputs,
-    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
+    InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
 };
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
