@@ -10,8 +10,8 @@ use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
-    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, Pick, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -382,10 +382,15 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
 pub struct RetrieveArgs {
     /// The FROctomap file.
     file: PathBuf,
-    /// When: Unix seconds, ISO 8601 (`2016-01-04T08:30:00Z`), or a sample index
-    /// (`index:42`). Between snapshots, the last earlier one is used.
+    /// When: Unix seconds, ISO 8601 (`2016-01-04T08:30:00Z`), a sample index (`index:42`,
+    /// `index:-1` or `last` for the last). Between snapshots, the last earlier one is used
+    /// (see --nearest).
     #[arg(long, value_name = "TIME")]
     time: String,
+    /// Between snapshots, take the closest one, earlier or later (before the first, the
+    /// first).
+    #[arg(long)]
+    nearest: bool,
     #[command(flatten)]
     output: MapOutput,
 }
@@ -414,13 +419,34 @@ impl MapOutput {
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
     let query = ui.time_query(&args.time)?;
-    let when = resolve_observed(&reader, query)?;
-    if !when.exact {
-        ui.note(&format!(
-            "no snapshot at {}; using the last one before it, at {}",
-            args.time,
-            iso8601(when.time)
-        ));
+    let pick = if args.nearest {
+        Pick::Nearest
+    } else {
+        Pick::AtOrBefore
+    };
+    let when = resolve_observed_with(&reader, query, pick)?;
+    let axis = &reader.header().axis;
+    if let TimeQuery::Instant(t) = query {
+        if t > axis.end() || t < axis.start() {
+            ui.note(&format!(
+                "warning: {} is outside the file's span {} .. {}; this is the {} snapshot as observed, not a prediction (see `froctomap predict`)",
+                iso8601(t),
+                iso8601(axis.start()),
+                iso8601(axis.end()),
+                if t > axis.end() { "last" } else { "first" }
+            ));
+        } else if !when.exact {
+            ui.note(&format!(
+                "no snapshot at {}; using the {}, at {}",
+                escaped(&args.time),
+                if args.nearest {
+                    "nearest one"
+                } else {
+                    "last one before it"
+                },
+                iso8601(when.time)
+            ));
+        }
     }
     let output = &args.output.output;
     let written = write_observed_map(
@@ -454,13 +480,22 @@ pub struct PredictArgs {
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let t = match ui.time_query(&args.time)? {
-        TimeQuery::Instant(t) => t,
-        TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
+    let axis = &reader.header().axis;
+    let sample = match ui.time_query(&args.time)? {
+        TimeQuery::Instant(t) => Ok(t),
+        TimeQuery::Sample(s) => Err(Some(s)),
+        TimeQuery::FromEnd(back) => Err(axis.len().checked_sub(back)),
+    };
+    let t = match sample {
+        Ok(t) => t,
+        Err(sample) => sample.and_then(|s| axis.time(s)).with_context(|| {
             format!(
-                "sample {s} is beyond the {} samples of {}",
-                reader.header().axis.len(),
-                args.file.display()
+                "{}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
+                escaped(&args.time),
+                escaped(args.file.display()),
+                axis.len(),
+                axis.len().saturating_sub(1),
+                axis.len()
             )
         })?,
     };
@@ -505,7 +540,8 @@ pub struct ExportArgs {
     /// First instant (Unix seconds or ISO 8601).
     #[arg(long, value_name = "TIME")]
     from: String,
-    /// Last instant (inclusive).
+    /// Last instant, inclusive: a map is written at --to itself when it lies on the grid
+    /// --from + i × --every (later grid points are not).
     #[arg(long, value_name = "TIME")]
     to: String,
     /// Interval between maps (e.g. 1h, 10min, 600).
@@ -514,7 +550,8 @@ pub struct ExportArgs {
     /// Directory for the maps and manifest.csv (created if missing).
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
-    /// Predicted or retrieved maps.
+    /// Predicted maps (one per instant) or retrieved snapshots (each snapshot seen at the
+    /// instants once, named and listed at its own time).
     #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
     mode: ExportModeArg,
     /// Map format (see `froctomap formats`).

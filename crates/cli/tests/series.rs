@@ -870,3 +870,93 @@ fn times_files_and_manifests_that_leave_files_out() {
     );
     assert_eq!(String::from_utf8_lossy(&run.stdout).lines().count(), 1);
 }
+
+#[test]
+fn retrieve_nearest_last_and_out_of_span_say_what_they_do() {
+    let (dir, inputs, _files) = series_in_subdir(8);
+    let froct = dir.path().join("s.froct");
+    ok(&["build", s(&inputs), "-o", s(&froct), "-q"]);
+    let at = dir.path().join("at.bt");
+    let retrieve = |extra: &[&str]| {
+        let mut args = vec!["retrieve", s(&froct), "-o", s(&at)];
+        args.extend_from_slice(extra);
+        let out = froctomap(&args);
+        (out.status.code(), String::from_utf8(out.stderr).unwrap())
+    };
+    // 16 min after the first snapshot: the 10-min one before it, or the 20-min one nearest.
+    let (_, before) = retrieve(&["--time", "1451866560"]);
+    assert!(
+        before.contains("last one before it, at 2016-01-04T00:10:00Z"),
+        "{before}"
+    );
+    let (_, nearest) = retrieve(&["--time", "1451866560", "--nearest"]);
+    assert!(
+        nearest.contains("nearest one, at 2016-01-04T00:20:00Z"),
+        "{nearest}"
+    );
+    assert!(nearest.contains("(sample 2)"), "{nearest}");
+    // A year later: the last snapshot, said loudly.
+    let (code, late) = retrieve(&["--time", "2017-01-04T00:00:00Z"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        late.contains("warning: 2017-01-04T00:00:00Z is outside the file's span"),
+        "{late}"
+    );
+    assert!(late.contains("the last snapshot as observed"), "{late}");
+    // Before the first with --nearest: the first, with the same warning.
+    let (code, early) = retrieve(&["--time", "2015-01-04T00:00:00Z", "--nearest"]);
+    assert_eq!(code, Some(0), "{early}");
+    assert!(
+        early.contains("the first snapshot as observed") && early.contains("(sample 0)"),
+        "{early}"
+    );
+    for last in ["last", "index:-1"] {
+        let (_, said) = retrieve(&["--time", last]);
+        assert!(
+            said.contains("observed at 2016-01-04T01:10:00Z (sample 7)"),
+            "{said}"
+        );
+    }
+    let (code, beyond) = retrieve(&["--time", "index:8"]);
+    assert_eq!(code, Some(1));
+    assert!(
+        beyond.contains("valid: index:0 .. index:7, or index:-1 .. index:-8"),
+        "{beyond}"
+    );
+    let (_, before_start) = retrieve(&["--time", "index:-9"]);
+    assert!(
+        before_start.contains("valid: index:-1 .. index:-8"),
+        "{before_start}"
+    );
+    let (_, zero) = retrieve(&["--time", "index:-0"]);
+    assert!(zero.contains("`last` the last"), "{zero}");
+
+    // Export of retrievals: each snapshot once, at its own time.
+    let out = dir.path().join("out");
+    ok(&[
+        "export",
+        s(&froct),
+        "--mode",
+        "retrieve",
+        "--from",
+        "1451865600",
+        "--to",
+        "1451869800",
+        "--every",
+        "5min",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    let manifest = std::fs::read_to_string(out.join("manifest.csv")).unwrap();
+    let times: Vec<&str> = manifest
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap())
+        .collect();
+    let expected: Vec<String> = (0..8)
+        .map(|i| (1_451_865_600 + i * 600).to_string())
+        .collect();
+    assert_eq!(times, expected, "{manifest}");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 9);
+}

@@ -185,16 +185,28 @@ pub enum ConvertError {
     #[error(transparent)]
     BadTime(#[from] TimeError),
     /// `index:` without a number.
-    #[error("{text:?}: `index:` needs a sample number")]
+    #[error("{text:?}: `index:` needs a sample number (index:0 is the first, index:-1 or `last` the last)")]
     BadSampleIndex {
         /// What was given.
         text: String,
     },
     /// A sample index past the end of the file's time axis.
-    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", iso8601(*start), iso8601(*end))]
+    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {}); valid: index:0 .. index:{}, or index:-1 .. index:-{samples}", iso8601(*start), iso8601(*end), samples.saturating_sub(1))]
     SampleBeyondAxis {
         /// The sample asked for.
         sample: u32,
+        /// Samples of the axis.
+        samples: u32,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
+    /// A sample counted from the end (`index:-N`) before the start of the axis.
+    #[error("index:-{back} is before the first of the {samples} samples of the file ({} .. {}); valid: index:-1 .. index:-{samples}, or index:0 .. index:{}", iso8601(*start), iso8601(*end), samples.saturating_sub(1))]
+    SampleBeforeAxis {
+        /// How many samples back from the end (1 = the last).
+        back: u32,
         /// Samples of the axis.
         samples: u32,
         /// First instant of the file.

@@ -61,9 +61,10 @@ pub use inputs::{
     InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
 };
 pub use maps::{
-    export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
-    write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
-    ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
+    export, observed_map, predicted_map, probability_log_odds, resolve_observed,
+    resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,
+    ExportMode, ExportOptions, ExportReport, LoadedMap, Pick, ResolvedSample, TimeQuery,
+    WrittenMap,
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
