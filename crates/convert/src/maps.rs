@@ -13,6 +13,7 @@ use froctomap_core::{
 use froctomap_file::{Cell, FroctReader};
 use froctomap_formats::{Backend, MapFormat, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
+use froctomap_temporal::TimeAxis;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -108,86 +109,84 @@ pub fn resolve_observed_with(
     pick: Pick,
 ) -> Result<ResolvedSample, ConvertError> {
     let axis = &reader.header().axis;
-    let sample = match query {
-        TimeQuery::Sample(sample) => Some(sample),
-        TimeQuery::FromEnd(back) => Some(axis.len().checked_sub(back).ok_or(
-            ConvertError::SampleBeforeAxis {
-                back,
-                samples: axis.len(),
-                start: axis.start(),
-                end: axis.end(),
-            },
-        )?),
-        TimeQuery::Instant(_) => None,
+    let t = match query {
+        TimeQuery::Instant(t) => t,
+        TimeQuery::Sample(sample) => return stored_sample(axis, sample),
+        TimeQuery::FromEnd(back) => {
+            let sample = axis
+                .len()
+                .checked_sub(back)
+                .ok_or(ConvertError::SampleBeforeAxis {
+                    back,
+                    samples: axis.len(),
+                    start: axis.start(),
+                    end: axis.end(),
+                })?;
+            return stored_sample(axis, sample);
+        }
     };
-    match (sample, query) {
-        (Some(sample), _) => {
-            let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
-                sample,
-                samples: axis.len(),
-                start: axis.start(),
-                end: axis.end(),
-            })?;
-            if axis.is_missing(sample) {
-                return Err(ConvertError::NoSnapshotAtSample { sample, time });
-            }
-            Ok(ResolvedSample {
-                sample,
-                time,
-                exact: true,
-            })
-        }
-        (None, query) => {
-            let t = match query {
-                TimeQuery::Instant(t) => t,
-                _ => axis.end(),
-            };
-            if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
-                return Ok(ResolvedSample {
-                    sample,
-                    time: t,
-                    exact: true,
-                });
-            }
-            let before = axis.last_at_or_before(t);
-            let after = || {
-                let mut i = before.map_or(0, |b| b.saturating_add(1));
-                while i < axis.len() && axis.is_missing(i) {
-                    i += 1;
-                }
-                (i < axis.len()).then_some(i)
-            };
-            let sample = match (pick, before) {
-                (Pick::AtOrBefore, before) => before,
-                (Pick::Nearest, None) => after(),
-                (Pick::Nearest, Some(before)) => Some(match after() {
-                    Some(after) => {
-                        let distance = |s: u32| {
-                            axis.time(s)
-                                .map(|u| (i128::from(u.0) - i128::from(t.0)).abs())
-                        };
-                        if distance(after) < distance(before) {
-                            after
-                        } else {
-                            before
-                        }
-                    }
-                    None => before,
-                }),
-            }
-            .ok_or(ConvertError::BeforeFirstSnapshot {
-                time: t,
-                start: axis.start(),
-                end: axis.end(),
-            })?;
-            let time = axis.time(sample).unwrap_or(t);
-            Ok(ResolvedSample {
-                sample,
-                time,
-                exact: false,
-            })
-        }
+    if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
+        return Ok(ResolvedSample {
+            sample,
+            time: t,
+            exact: true,
+        });
     }
+    let before = axis.last_at_or_before(t);
+    let after = || {
+        let mut i = before.map_or(0, |b| b.saturating_add(1));
+        while i < axis.len() && axis.is_missing(i) {
+            i += 1;
+        }
+        (i < axis.len()).then_some(i)
+    };
+    let sample = match (pick, before) {
+        (Pick::AtOrBefore, before) => before,
+        (Pick::Nearest, None) => after(),
+        (Pick::Nearest, Some(before)) => Some(match after() {
+            Some(after) => {
+                let distance = |s: u32| {
+                    axis.time(s)
+                        .map(|u| (i128::from(u.0) - i128::from(t.0)).abs())
+                };
+                if distance(after) < distance(before) {
+                    after
+                } else {
+                    before
+                }
+            }
+            None => before,
+        }),
+    }
+    .ok_or(ConvertError::BeforeFirstSnapshot {
+        time: t,
+        start: axis.start(),
+        end: axis.end(),
+    })?;
+    let time = axis.time(sample).unwrap_or(t);
+    Ok(ResolvedSample {
+        sample,
+        time,
+        exact: false,
+    })
+}
+
+/// A sample asked for by index: it must lie on the axis and hold a snapshot.
+fn stored_sample(axis: &TimeAxis, sample: u32) -> Result<ResolvedSample, ConvertError> {
+    let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
+        sample,
+        samples: axis.len(),
+        start: axis.start(),
+        end: axis.end(),
+    })?;
+    if axis.is_missing(sample) {
+        return Err(ConvertError::NoSnapshotAtSample { sample, time });
+    }
+    Ok(ResolvedSample {
+        sample,
+        time,
+        exact: true,
+    })
 }
 
 /// The map as observed at a sample (exact in lossless files): one leaf per observed cell,
