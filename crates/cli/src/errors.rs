@@ -41,7 +41,7 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         e if skips_bad_files && e.is_skippable() => {
             Some("use --skip-bad to leave such files out (they are listed at the end)")
         }
-        ConvertError::NoTimes { .. } => {
+        ConvertError::NoTimes { .. } | ConvertError::EarlyNameTime { .. } => {
             Some("give the times with --start and --step, or name the files by their times")
         }
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),

@@ -6,7 +6,7 @@ use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::group_thousands;
-use froctomap_convert::{parse_duration, parse_time, Progress};
+use froctomap_convert::{parse_duration, Progress};
 use froctomap_core::calendar::iso8601;
 use froctomap_formats::ReadOptions;
 use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
@@ -60,7 +60,7 @@ pub struct GenerateArgs {
     format: String,
 }
 
-fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
+fn spec(ui: &Ui, args: &GenerateArgs) -> Result<SeriesSpec> {
     let scenario = match &args.spec {
         Some(path) => SeriesSpec::from_json_file(path)?,
         None => SeriesSpec::default(),
@@ -68,7 +68,11 @@ fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
     let overrides = SpecOverrides {
         step_secs: Some(parse_duration(&args.step)? as f64 / 1e9),
         days: Some(args.days),
-        start: args.start.as_deref().map(parse_time).transpose()?,
+        start: args
+            .start
+            .as_deref()
+            .map(|text| ui.time(text, "--start"))
+            .transpose()?,
         seed: Some(args.seed),
         jitter_secs: Some(args.jitter),
         missed_frames: Some(args.missed),
@@ -81,7 +85,7 @@ fn spec(args: &GenerateArgs) -> Result<SeriesSpec> {
 }
 
 pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
-    let spec = spec(args)?;
+    let spec = spec(ui, args)?;
     let base = ui
         .context
         .formats()

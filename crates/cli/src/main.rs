@@ -48,6 +48,12 @@ struct Cli {
     #[arg(long, global = true, value_enum, default_value_t = BackendArg::Native)]
     backend: BackendArg,
 
+    /// Time zone of times given without one (in file names, manifests, --start, --time,
+    /// --from/--to): UTC (the default), local, an offset like +01:00, or a name like
+    /// Europe/Berlin. Unix seconds and times with Z or an offset are not affected.
+    #[arg(long, global = true, value_name = "ZONE|local")]
+    tz: Option<String>,
+
     #[command(subcommand)]
     command: Command,
 }
@@ -144,10 +150,21 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
+        None => froctomap_convert::Zone::utc(),
+        Some(Ok(zone)) => zone,
+        Some(Err(error)) => {
+            eprintln!("error: --tz: {}", ui::escaped(error));
+            return ExitCode::from(2);
+        }
+    };
     let ui = ui::Ui {
         quiet: cli.quiet,
         backend: cli.backend.into(),
         context: plugins::context(),
+        zone,
+        zone_given: cli.tz.is_some(),
+        told_zoneless: std::cell::Cell::new(false),
     };
     let skips_bad_files = matches!(cli.command, Command::Build(_));
     let result = match cli.command {

@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::group_thousands;
 use froctomap_convert::{
-    build, check_range, collect_inputs, evaluate, export, parse_duration, parse_time,
-    resolve_observed, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, SeriesInput, TimeQuery, TimeSource,
+    build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
+    resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
+    ExportMode, ExportOptions, LoadedMap, Pick, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -35,13 +35,20 @@ pub struct TimeArgs {
     /// Take times from the file names even where a manifest gives them.
     #[arg(long, conflicts_with = "start")]
     times_from_names: bool,
+    /// A file of times, one per line (Unix seconds or ISO 8601), for the files in the order
+    /// given (directories and globs in natural order: map_2 before map_10).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["start", "times_from_names"])]
+    times_file: Option<PathBuf>,
 }
 
 impl TimeArgs {
-    fn source(&self) -> Result<TimeSource> {
+    fn source(&self, ui: &Ui) -> Result<TimeSource> {
+        if let Some(list) = &self.times_file {
+            return Ok(TimeSource::TimesFile(list.clone()));
+        }
         Ok(match (&self.start, &self.step) {
             (Some(start), Some(step)) => TimeSource::StartStep {
-                start: parse_time(start)?,
+                start: ui.time(start, "--start")?,
                 step_ns: parse_duration(step)?,
             },
             _ if self.times_from_names => TimeSource::FileNames,
@@ -87,9 +94,9 @@ pub struct BuildArgs {
     /// manifest CSV files (`path,time`), or single files.
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
-    /// The FROctomap file to write.
-    #[arg(short, long, value_name = "FILE")]
-    output: PathBuf,
+    /// The FROctomap file to write (not needed with --dry-run).
+    #[arg(short, long, value_name = "FILE", required_unless_present = "dry_run")]
+    output: Option<PathBuf>,
     #[command(flatten)]
     times: TimeArgs,
     /// Temporal model of dynamic voxels (`--help` lists the models and their options).
@@ -150,6 +157,10 @@ pub struct BuildArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// List each input with its time and where the time came from, then stop without
+    /// writing anything.
+    #[arg(long)]
+    dry_run: bool,
 }
 
 fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig> {
@@ -201,9 +212,9 @@ fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig>
 }
 
 /// `--created`, else SOURCE_DATE_EPOCH (reproducible-builds.org: whole Unix seconds).
-fn creation_time(args: &BuildArgs) -> Result<Option<Timestamp>> {
+fn creation_time(ui: &Ui, args: &BuildArgs) -> Result<Option<Timestamp>> {
     if let Some(text) = &args.created {
-        return Ok(Some(parse_time(text).context("--created")?));
+        return Ok(Some(ui.time(text, "--created")?));
     }
     let Some(epoch) = std::env::var_os("SOURCE_DATE_EPOCH") else {
         return Ok(None);
@@ -223,7 +234,28 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    let inputs = collect_inputs(ui.context, &args.inputs, args.times.source()?)?;
+    let collected =
+        collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
+    ui.read_zoneless(collected.zoneless);
+    for warning in &collected.warnings {
+        ui.note(&format!("warning: {}", escaped(warning)));
+    }
+    if args.dry_run {
+        for (input, origin) in collected.series.iter().zip(&collected.origins) {
+            outln!(
+                "{}  {:<12}  {}",
+                iso8601(input.time),
+                origin.to_string(),
+                escaped(input.path.display())
+            )?;
+        }
+        return Ok(());
+    }
+    let inputs = collected.series;
+    let output = args
+        .output
+        .as_deref()
+        .context("--output is required to build")?;
     let mut metadata = Map::new();
     let mut tags = Map::new();
     for tag in &args.tag {
@@ -254,18 +286,18 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
-        created: creation_time(args)?,
+        created: creation_time(ui, args)?,
         ..BuildOptions::default()
     };
     ui.note(&format!(
         "building {} from {} snapshots ({} .. {})",
-        escaped(args.output.display()),
+        escaped(output.display()),
         inputs.len(),
         inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = build(ui.context, &inputs, &args.output, &options, &bars)?;
+    let report = build(ui.context, &inputs, output, &options, &bars)?;
     drop(bars);
     let peak = peak_memory_bytes();
     if args.json {
@@ -350,10 +382,15 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
 pub struct RetrieveArgs {
     /// The FROctomap file.
     file: PathBuf,
-    /// When: Unix seconds, ISO 8601 (`2016-01-04T08:30:00Z`), or a sample index
-    /// (`index:42`). Between snapshots, the last earlier one is used.
+    /// When: Unix seconds, ISO 8601 (`2016-01-04T08:30:00Z`), a sample index (`index:42`,
+    /// `index:-1` or `last` for the last). Between snapshots, the last earlier one is used
+    /// (see --nearest).
     #[arg(long, value_name = "TIME")]
     time: String,
+    /// Between snapshots, take the closest one, earlier or later (before the first, the
+    /// first).
+    #[arg(long)]
+    nearest: bool,
     #[command(flatten)]
     output: MapOutput,
 }
@@ -381,14 +418,35 @@ impl MapOutput {
 
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let query: TimeQuery = args.time.parse()?;
-    let when = resolve_observed(&reader, query)?;
-    if !when.exact {
-        ui.note(&format!(
-            "no snapshot at {}; using the last one before it, at {}",
-            args.time,
-            iso8601(when.time)
-        ));
+    let query = ui.time_query(&args.time)?;
+    let pick = if args.nearest {
+        Pick::Nearest
+    } else {
+        Pick::AtOrBefore
+    };
+    let when = resolve_observed_with(&reader, query, pick)?;
+    let axis = &reader.header().axis;
+    if let TimeQuery::Instant(t) = query {
+        if t > axis.end() || t < axis.start() {
+            ui.note(&format!(
+                "warning: {} is outside the file's span {} .. {}; this is the {} snapshot as observed, not a prediction (see `froctomap predict`)",
+                iso8601(t),
+                iso8601(axis.start()),
+                iso8601(axis.end()),
+                if t > axis.end() { "last" } else { "first" }
+            ));
+        } else if !when.exact {
+            ui.note(&format!(
+                "no snapshot at {}; using the {}, at {}",
+                escaped(&args.time),
+                if args.nearest {
+                    "nearest one"
+                } else {
+                    "last one before it"
+                },
+                iso8601(when.time)
+            ));
+        }
     }
     let output = &args.output.output;
     let written = write_observed_map(
@@ -422,13 +480,22 @@ pub struct PredictArgs {
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let t = match args.time.parse::<TimeQuery>()? {
-        TimeQuery::Instant(t) => t,
-        TimeQuery::Sample(s) => reader.header().axis.time(s).with_context(|| {
+    let axis = &reader.header().axis;
+    let sample = match ui.time_query(&args.time)? {
+        TimeQuery::Instant(t) => Ok(t),
+        TimeQuery::Sample(s) => Err(Some(s)),
+        TimeQuery::FromEnd(back) => Err(axis.len().checked_sub(back)),
+    };
+    let t = match sample {
+        Ok(t) => t,
+        Err(sample) => sample.and_then(|s| axis.time(s)).with_context(|| {
             format!(
-                "sample {s} is beyond the {} samples of {}",
-                reader.header().axis.len(),
-                args.file.display()
+                "{}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
+                escaped(&args.time),
+                escaped(args.file.display()),
+                axis.len(),
+                axis.len().saturating_sub(1),
+                axis.len()
             )
         })?,
     };
@@ -473,7 +540,8 @@ pub struct ExportArgs {
     /// First instant (Unix seconds or ISO 8601).
     #[arg(long, value_name = "TIME")]
     from: String,
-    /// Last instant (inclusive).
+    /// Last instant, inclusive: a map is written at --to itself when it lies on the grid
+    /// --from + i × --every (later grid points are not).
     #[arg(long, value_name = "TIME")]
     to: String,
     /// Interval between maps (e.g. 1h, 10min, 600).
@@ -482,7 +550,8 @@ pub struct ExportArgs {
     /// Directory for the maps and manifest.csv (created if missing).
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
-    /// Predicted or retrieved maps.
+    /// Predicted maps (one per instant) or retrieved snapshots (each snapshot seen at the
+    /// instants once, named and listed at its own time).
     #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
     mode: ExportModeArg,
     /// Map format (see `froctomap formats`).
@@ -499,8 +568,8 @@ pub struct ExportArgs {
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
     let options = ExportOptions {
-        from: parse_time(&args.from)?,
-        to: parse_time(&args.to)?,
+        from: ui.time(&args.from, "--from")?,
+        to: ui.time(&args.to, "--to")?,
         every_ns: parse_duration(&args.every)?,
         mode: match args.mode {
             ExportModeArg::Predict => ExportMode::Predict,
@@ -539,7 +608,13 @@ pub struct EvalArgs {
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    let truths: Vec<SeriesInput> = collect_inputs(ui.context, &args.against, args.times.source()?)?;
+    let collected =
+        collect_inputs_explained(ui.context, &args.against, args.times.source(ui)?, &ui.zone)?;
+    ui.read_zoneless(collected.zoneless);
+    for warning in &collected.warnings {
+        ui.note(&format!("warning: {}", escaped(warning)));
+    }
+    let truths: Vec<SeriesInput> = collected.series;
     let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(

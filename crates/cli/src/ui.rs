@@ -1,7 +1,10 @@
 //! What every command is handed: the user's settings and the program's plugins.
 
-use froctomap_convert::Context;
+use anyhow::Context as _;
+use froctomap_convert::{read_time, Context, TimeQuery, Zone};
+use froctomap_core::Timestamp;
 use froctomap_formats::Backend;
+use std::cell::Cell;
 use std::path::Path;
 
 /// Settings shared by all commands.
@@ -12,6 +15,12 @@ pub struct Ui {
     pub backend: Backend,
     /// The registered formats and models, and the limits.
     pub context: &'static Context,
+    /// Where times without a zone are read (`--tz`; UTC when not given).
+    pub zone: Zone,
+    /// `--tz` was given, so reading zone-less times in `zone` needs no notice.
+    pub zone_given: bool,
+    /// The notice that zone-less times are UTC was printed.
+    pub told_zoneless: Cell<bool>,
 }
 
 /// `text` with control characters (and bidirectional overrides) escaped as `\u{1b}`, `\n`…,
@@ -49,6 +58,30 @@ impl Ui {
         if !self.quiet {
             eprintln!("{message}");
         }
+    }
+
+    /// Says once per run, unless `--tz` was given, that a time without a zone was read as
+    /// UTC: a wall-clock time taken for UTC is off by hours without any other sign.
+    pub(crate) fn read_zoneless(&self, zoneless: bool) {
+        if zoneless && !self.zone_given && !self.told_zoneless.replace(true) {
+            self.note(
+                "note: times without a zone are read as UTC (--tz ZONE or --tz local to change)",
+            );
+        }
+    }
+
+    /// A time given by the user for `option`, read in `--tz`.
+    pub(crate) fn time(&self, text: &str, option: &str) -> anyhow::Result<Timestamp> {
+        let read = read_time(text, &self.zone).with_context(|| option.to_string())?;
+        self.read_zoneless(read.zoneless);
+        Ok(read.time)
+    }
+
+    /// A `--time` query (an instant or `index:N`), read in `--tz`.
+    pub(crate) fn time_query(&self, text: &str) -> anyhow::Result<TimeQuery> {
+        let (query, zoneless) = TimeQuery::read(text, &self.zone)?;
+        self.read_zoneless(zoneless);
+        Ok(query)
     }
 }
 

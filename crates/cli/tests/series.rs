@@ -695,3 +695,268 @@ fn fifos_are_refused_before_opening_and_link_loops_end() {
     let info = ok(&["info", "--json", s(&out)]);
     assert!(info.contains("\"samples\": 3"), "{info}");
 }
+
+#[test]
+fn dry_run_lists_times_and_their_sources_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for (i, name) in ["2024-03-01-10-15-00.bt", "2024-03-01_10-25-00.bt"]
+        .iter()
+        .enumerate()
+    {
+        registry
+            .write_file(
+                &frame(i as u32),
+                &dir.path().join(name),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let out = ok(&["build", s(dir.path()), "--dry-run"]);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    assert!(
+        lines[0].starts_with("2024-03-01T10:15:00Z  file name"),
+        "{out}"
+    );
+    assert!(
+        lines[1].starts_with("2024-03-01T10:25:00Z  file name"),
+        "{out}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+
+    // Numbered files: natural order under --start/--step, refused without.
+    let numbered = tempfile::tempdir().unwrap();
+    for i in [1u32, 2, 10, 12] {
+        registry
+            .write_file(
+                &frame(i),
+                &numbered.path().join(format!("map_{i}.bt")),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let out = ok(&[
+        "build",
+        s(numbered.path()),
+        "--start",
+        "2024-03-01T00:00:00Z",
+        "--step",
+        "1min",
+        "--dry-run",
+    ]);
+    let order: Vec<&str> = out.lines().map(|l| l.rsplit('/').next().unwrap()).collect();
+    assert_eq!(
+        order,
+        ["map_1.bt", "map_2.bt", "map_10.bt", "map_12.bt"],
+        "{out}"
+    );
+    assert!(
+        out.lines()
+            .nth(3)
+            .unwrap()
+            .starts_with("2024-03-01T00:03:00Z  start + step"),
+        "{out}"
+    );
+    let padded = tempfile::tempdir().unwrap();
+    registry
+        .write_file(
+            &frame(0),
+            &padded.path().join("map_0000000041.bt"),
+            WriteOptions::default(),
+        )
+        .unwrap();
+    let message = err(&["build", s(padded.path()), "--dry-run"]);
+    assert!(
+        message.contains("before 1990") && message.contains("--start"),
+        "{message}"
+    );
+}
+
+#[test]
+fn zoneless_times_are_utc_said_once_or_read_in_tz() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for name in ["2024-03-01-10-15-00.bt", "2024-03-01-10-25-00.bt"] {
+        registry
+            .write_file(&frame(0), &dir.path().join(name), WriteOptions::default())
+            .unwrap();
+    }
+    let notice = "times without a zone are read as UTC";
+    let out = froctomap(&["build", s(dir.path()), "--dry-run"]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.matches(notice).count(), 1, "{stderr}");
+    let quiet = froctomap(&["build", s(dir.path()), "--dry-run", "-q"]);
+    assert!(quiet.stderr.is_empty());
+    let shifted = froctomap(&["build", s(dir.path()), "--dry-run", "--tz", "+01:00"]);
+    assert!(!String::from_utf8_lossy(&shifted.stderr).contains(notice));
+    let shifted = String::from_utf8(shifted.stdout).unwrap();
+    assert!(shifted.starts_with("2024-03-01T09:15:00Z"), "{shifted}");
+    let bad = froctomap(&["build", s(dir.path()), "--dry-run", "--tz", "Mars/Olympus"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("not a time zone"));
+
+    // Times on the command line: one notice, and none for Unix seconds or with --tz.
+    let out = dir.path().join("s.froct");
+    ok(&["build", s(dir.path()), "-o", s(&out), "-q"]);
+    let at = dir.path().join("at.bt");
+    let run = froctomap(&[
+        "retrieve",
+        s(&out),
+        "--time",
+        "2024-03-01T10:20:00",
+        "-o",
+        s(&at),
+    ]);
+    assert_eq!(
+        String::from_utf8_lossy(&run.stderr).matches(notice).count(),
+        1
+    );
+    let run = froctomap(&["retrieve", s(&out), "--time", "1709288400", "-o", s(&at)]);
+    assert!(!String::from_utf8_lossy(&run.stderr).contains(notice));
+    // 11:20 at +01:00 is 10:20Z: the first snapshot (10:15) is the last one before it.
+    let run = froctomap(&[
+        "retrieve",
+        s(&out),
+        "--time",
+        "2024-03-01T11:20:00",
+        "--tz",
+        "+01:00",
+        "-o",
+        s(&at),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("at 2024-03-01T10:15:00Z"), "{stderr}");
+}
+
+#[test]
+fn times_files_and_manifests_that_leave_files_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    for i in [1u32, 2, 10] {
+        registry
+            .write_file(
+                &frame(i),
+                &dir.path().join(format!("map_{i}.bt")),
+                WriteOptions::default(),
+            )
+            .unwrap();
+    }
+    let stamps = dir.path().join("stamps.txt");
+    std::fs::write(&stamps, "1700000000\n1700000060\n1700000120\n").unwrap();
+    let out = ok(&[
+        "build",
+        s(dir.path()),
+        "--times-file",
+        s(&stamps),
+        "--dry-run",
+    ]);
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(
+        lines[2].starts_with("2023-11-14T22:15:20Z  times file") && lines[2].ends_with("map_10.bt"),
+        "{out}"
+    );
+
+    std::fs::write(
+        dir.path().join("manifest.csv"),
+        "file,stamp\nmap_1.bt,1700000000\n",
+    )
+    .unwrap();
+    let run = froctomap(&["build", s(dir.path()), "--dry-run"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("warning:") && stderr.contains("does not list 2 map file(s)"),
+        "{stderr}"
+    );
+    assert_eq!(String::from_utf8_lossy(&run.stdout).lines().count(), 1);
+}
+
+#[test]
+fn retrieve_nearest_last_and_out_of_span_say_what_they_do() {
+    let (dir, inputs, _files) = series_in_subdir(8);
+    let froct = dir.path().join("s.froct");
+    ok(&["build", s(&inputs), "-o", s(&froct), "-q"]);
+    let at = dir.path().join("at.bt");
+    let retrieve = |extra: &[&str]| {
+        let mut args = vec!["retrieve", s(&froct), "-o", s(&at)];
+        args.extend_from_slice(extra);
+        let out = froctomap(&args);
+        (out.status.code(), String::from_utf8(out.stderr).unwrap())
+    };
+    // 16 min after the first snapshot: the 10-min one before it, or the 20-min one nearest.
+    let (_, before) = retrieve(&["--time", "1451866560"]);
+    assert!(
+        before.contains("last one before it, at 2016-01-04T00:10:00Z"),
+        "{before}"
+    );
+    let (_, nearest) = retrieve(&["--time", "1451866560", "--nearest"]);
+    assert!(
+        nearest.contains("nearest one, at 2016-01-04T00:20:00Z"),
+        "{nearest}"
+    );
+    assert!(nearest.contains("(sample 2)"), "{nearest}");
+    // A year later: the last snapshot, said loudly.
+    let (code, late) = retrieve(&["--time", "2017-01-04T00:00:00Z"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        late.contains("warning: 2017-01-04T00:00:00Z is outside the file's span"),
+        "{late}"
+    );
+    assert!(late.contains("the last snapshot as observed"), "{late}");
+    // Before the first with --nearest: the first, with the same warning.
+    let (code, early) = retrieve(&["--time", "2015-01-04T00:00:00Z", "--nearest"]);
+    assert_eq!(code, Some(0), "{early}");
+    assert!(
+        early.contains("the first snapshot as observed") && early.contains("(sample 0)"),
+        "{early}"
+    );
+    for last in ["last", "index:-1"] {
+        let (_, said) = retrieve(&["--time", last]);
+        assert!(
+            said.contains("observed at 2016-01-04T01:10:00Z (sample 7)"),
+            "{said}"
+        );
+    }
+    let (code, beyond) = retrieve(&["--time", "index:8"]);
+    assert_eq!(code, Some(1));
+    assert!(
+        beyond.contains("valid: index:0 .. index:7, or index:-1 .. index:-8"),
+        "{beyond}"
+    );
+    let (_, before_start) = retrieve(&["--time", "index:-9"]);
+    assert!(
+        before_start.contains("valid: index:-1 .. index:-8"),
+        "{before_start}"
+    );
+    let (_, zero) = retrieve(&["--time", "index:-0"]);
+    assert!(zero.contains("`last` the last"), "{zero}");
+
+    // Export of retrievals: each snapshot once, at its own time.
+    let out = dir.path().join("out");
+    ok(&[
+        "export",
+        s(&froct),
+        "--mode",
+        "retrieve",
+        "--from",
+        "1451865600",
+        "--to",
+        "1451869800",
+        "--every",
+        "5min",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    let manifest = std::fs::read_to_string(out.join("manifest.csv")).unwrap();
+    let times: Vec<&str> = manifest
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap())
+        .collect();
+    let expected: Vec<String> = (0..8)
+        .map(|i| (1_451_865_600 + i * 600).to_string())
+        .collect();
+    assert_eq!(times, expected, "{manifest}");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 9);
+}

@@ -79,6 +79,16 @@ pub enum ConvertError {
         #[source]
         problem: ManifestProblem,
     },
+    /// A list of times (`--times-file`) whose length is not the number of files.
+    #[error("{}: {times} time(s) for {files} file(s); give one time per file, in file order", list.display())]
+    TimesCount {
+        /// The list of times.
+        list: PathBuf,
+        /// Times it gives.
+        times: usize,
+        /// Files found.
+        files: usize,
+    },
     /// A manifest without entries.
     #[error("{}: the manifest lists no files", manifest.display())]
     EmptyManifest {
@@ -100,6 +110,14 @@ pub enum ConvertError {
         /// What is wrong with its time.
         #[source]
         source: TimeError,
+    },
+    /// A file name that reads as a time before 1990: a frame number, not a time.
+    #[error("{}: the name reads as {}, before 1990; this looks like a frame number, not a time", path.display(), iso8601(*time))]
+    EarlyNameTime {
+        /// The file.
+        path: PathBuf,
+        /// The time its name reads as.
+        time: Timestamp,
     },
     /// Two files claim the same time.
     #[error("{} and {} have the same time {}", first.display(), second.display(), iso8601(*time))]
@@ -167,16 +185,28 @@ pub enum ConvertError {
     #[error(transparent)]
     BadTime(#[from] TimeError),
     /// `index:` without a number.
-    #[error("{text:?}: `index:` needs a sample number")]
+    #[error("{text:?}: `index:` needs a sample number (index:0 is the first, index:-1 or `last` the last)")]
     BadSampleIndex {
         /// What was given.
         text: String,
     },
     /// A sample index past the end of the file's time axis.
-    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {})", iso8601(*start), iso8601(*end))]
+    #[error("sample {sample} is beyond the {samples} samples of the file ({} .. {}); valid: index:0 .. index:{}, or index:-1 .. index:-{samples}", iso8601(*start), iso8601(*end), samples.saturating_sub(1))]
     SampleBeyondAxis {
         /// The sample asked for.
         sample: u32,
+        /// Samples of the axis.
+        samples: u32,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
+    /// A sample counted from the end (`index:-N`) before the start of the axis.
+    #[error("index:-{back} is before the first of the {samples} samples of the file ({} .. {}); valid: index:-1 .. index:-{samples}, or index:0 .. index:{}", iso8601(*start), iso8601(*end), samples.saturating_sub(1))]
+    SampleBeforeAxis {
+        /// How many samples back from the end (1 = the last).
+        back: u32,
         /// Samples of the axis.
         samples: u32,
         /// First instant of the file.
@@ -360,6 +390,20 @@ pub enum ManifestProblem {
     /// The time does not parse.
     #[error(transparent)]
     Time(#[from] TimeError),
+    /// A header row without a column of this kind.
+    #[error("the header names no {wanted} column (expected one of {names})")]
+    MissingColumn {
+        /// `path` or `time`.
+        wanted: &'static str,
+        /// The names recognised for it.
+        names: &'static str,
+    },
+    /// A row with fewer fields than the header's path and time columns need.
+    #[error("expected a field in column {column}")]
+    MissingField {
+        /// The column, from 1.
+        column: usize,
+    },
 }
 
 fn shown(files: &[PathBuf]) -> String {

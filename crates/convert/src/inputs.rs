@@ -3,8 +3,11 @@
 use crate::context::Context;
 use crate::error::{ConvertError, ManifestProblem};
 use crate::glob_walk::recursive_matches;
-use crate::time::{check_range, parse_time, time_from_file_name, TimeError};
+use crate::time::{
+    check_range, read_time, read_time_from_file_name, TimeError, Zone, EARLIEST_IN_NAME,
+};
 use froctomap_core::{calendar, Timestamp};
+use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
 /// One snapshot file of a series.
@@ -17,20 +20,77 @@ pub struct SeriesInput {
 }
 
 /// Where snapshot times come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
 pub enum TimeSource {
     /// Manifests give times; plain files take theirs from their names.
     #[default]
     Auto,
     /// Every file's name holds its time (manifest times are ignored).
     FileNames,
-    /// The files, in the order given (directories and globs sorted by name), are taken at
+    /// The files, in the order given (directories and globs in natural order), are taken at
     /// `start + i · step`.
     StartStep {
         /// Time of the first file.
         start: Timestamp,
         /// Nanoseconds between files.
         step_ns: i64,
+    },
+    /// The files, in the order given (directories and globs in natural order), take the
+    /// times of this file one by one: one time per line (Unix seconds or ISO 8601), `#`
+    /// comments allowed. Its count must be the number of files.
+    TimesFile(PathBuf),
+}
+
+/// Where one input's time came from (shown by `build --dry-run`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum TimeOrigin {
+    /// A manifest row.
+    Manifest,
+    /// The file's name.
+    FileName,
+    /// `start + i · step` by the file's place in the list.
+    StartStep,
+    /// A list of times, by the file's place in the list.
+    TimesFile,
+}
+
+impl std::fmt::Display for TimeOrigin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Manifest => "manifest",
+            Self::FileName => "file name",
+            Self::StartStep => "start + step",
+            Self::TimesFile => "times file",
+        })
+    }
+}
+
+/// The files of a series with their times, sorted by time, and where each time came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct CollectedInputs {
+    /// The snapshots, sorted by time.
+    pub series: Vec<SeriesInput>,
+    /// Where each snapshot's time came from (same order as `series`).
+    pub origins: Vec<TimeOrigin>,
+    /// Some time (in a name or a manifest) had no zone and was read in the given [`Zone`].
+    pub zoneless: bool,
+    /// Things the caller should pass on to the user.
+    pub warnings: Vec<InputWarning>,
+}
+
+/// Something odd about the inputs that does not stop a build.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum InputWarning {
+    /// A series directory's manifest leaves out map files that lie beside it.
+    #[error("{} does not list {} map file(s) beside it: {}{}", manifest.display(), files.len(), files.iter().take(5).map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "), if files.len() > 5 { ", ..." } else { "" })]
+    Unlisted {
+        /// The manifest.
+        manifest: PathBuf,
+        /// The map files it does not list.
+        files: Vec<PathBuf>,
     },
 }
 
@@ -41,6 +101,8 @@ pub const MANIFEST_NAME: &str = "manifest.csv";
 struct Candidate {
     path: PathBuf,
     manifest_time: Option<Timestamp>,
+    /// The manifest's time had no zone.
+    manifest_zoneless: bool,
 }
 
 /// Expands command-line inputs into the files of a series with their times, sorted by time.
@@ -64,6 +126,22 @@ pub fn collect_inputs(
     inputs: &[PathBuf],
     times: TimeSource,
 ) -> Result<Vec<SeriesInput>, ConvertError> {
+    Ok(collect_inputs_explained(context, inputs, times, &Zone::utc())?.series)
+}
+
+/// [`collect_inputs`], also saying where each time came from.
+///
+/// Directories and glob matches are listed in natural order (`map_2` before `map_10`: runs
+/// of digits compare as numbers), which is the order `start + i · step` follows. A time read
+/// from a name before [`EARLIEST_IN_NAME`] (1990) is refused as a frame number
+/// ([`ConvertError::EarlyNameTime`]). Times without a zone, in names and manifests, are
+/// read in `zone`.
+pub fn collect_inputs_explained(
+    context: &Context,
+    inputs: &[PathBuf],
+    times: TimeSource,
+    zone: &Zone,
+) -> Result<CollectedInputs, ConvertError> {
     let extensions: Vec<&str> = context
         .formats()
         .formats()
@@ -71,6 +149,7 @@ pub fn collect_inputs(
         .flat_map(|f| f.extensions.iter().copied())
         .collect();
     let mut candidates = Vec::new();
+    let mut warnings = Vec::new();
     for input in inputs {
         let text = input.to_string_lossy();
         if text.contains(['*', '?', '[']) && !input.exists() {
@@ -91,15 +170,24 @@ pub fn collect_inputs(
                     pattern: text.to_string(),
                 });
             }
-            matched.sort();
+            matched.sort_by(|a, b| natural_cmp(a, b));
             candidates.extend(matched.into_iter().map(|path| Candidate {
                 path,
                 manifest_time: None,
+                manifest_zoneless: false,
             }));
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
             if manifest.is_file() {
-                candidates.extend(read_manifest(&manifest)?);
+                let listed = read_manifest(&manifest, zone)?;
+                let unlisted = unlisted_files(input, &extensions, &listed)?;
+                if !unlisted.is_empty() {
+                    warnings.push(InputWarning::Unlisted {
+                        manifest,
+                        files: unlisted,
+                    });
+                }
+                candidates.extend(listed);
             } else {
                 let mut files = list_map_files(input, &extensions)?;
                 if files.is_empty() {
@@ -109,10 +197,11 @@ pub fn collect_inputs(
                         extensions: format!(".{}", extensions.join(", .")),
                     });
                 }
-                files.sort();
+                files.sort_by(|a, b| natural_cmp(a, b));
                 candidates.extend(files.into_iter().map(|path| Candidate {
                     path,
                     manifest_time: None,
+                    manifest_zoneless: false,
                 }));
             }
         } else if let Some(kind) = special_kind(input) {
@@ -124,11 +213,12 @@ pub fn collect_inputs(
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
         {
-            candidates.extend(read_manifest(input)?);
+            candidates.extend(read_manifest(input, zone)?);
         } else if input.is_file() {
             candidates.push(Candidate {
                 path: input.clone(),
                 manifest_time: None,
+                manifest_zoneless: false,
             });
         } else {
             return Err(ConvertError::NotFound {
@@ -149,22 +239,62 @@ pub fn collect_inputs(
             kind,
         });
     }
-    let mut series = assign_times(candidates, times)?;
-    series.sort_by(|a, b| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
-    if let Some(pair) = series.windows(2).find(|w| w[0].time == w[1].time) {
+    let zoneless = candidates.iter().any(|c| c.manifest_zoneless);
+    let (mut timed, names_zoneless) = assign_times(candidates, times, zone)?;
+    timed.sort_by(|(a, _), (b, _)| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
+    if let Some(pair) = timed.windows(2).find(|w| w[0].0.time == w[1].0.time) {
         return Err(ConvertError::DuplicateTime {
-            first: pair[0].path.clone(),
-            second: pair[1].path.clone(),
-            time: pair[0].time,
+            first: pair[0].0.path.clone(),
+            second: pair[1].0.path.clone(),
+            time: pair[0].0.time,
         });
     }
-    Ok(series)
+    let (series, origins) = timed.into_iter().unzip();
+    Ok(CollectedInputs {
+        series,
+        origins,
+        zoneless: zoneless || names_zoneless,
+        warnings,
+    })
 }
 
+/// Orders names as people number them: runs of digits compare by value (`map_2` before
+/// `map_10`), everything else by character; equal values with different zero padding, and
+/// then the plain text, break ties so the order is total.
+pub fn natural_cmp(a: &Path, b: &Path) -> Ordering {
+    let (a, b) = (a.to_string_lossy(), b.to_string_lossy());
+    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    while let (Some(&p), Some(&q)) = (x.first(), y.first()) {
+        if p.is_ascii_digit() && q.is_ascii_digit() {
+            let run = |s: &[u8]| s.iter().take_while(|c| c.is_ascii_digit()).count();
+            let (m, n) = (run(x), run(y));
+            let strip = |s: &[u8]| {
+                let zeros = s.iter().take_while(|&&c| c == b'0').count();
+                s[zeros..].to_vec()
+            };
+            let (u, v) = (strip(&x[..m]), strip(&y[..n]));
+            let by_value = u.len().cmp(&v.len()).then_with(|| u.cmp(&v));
+            if by_value != Ordering::Equal {
+                return by_value;
+            }
+            x = &x[m..];
+            y = &y[n..];
+        } else if p != q {
+            return p.cmp(&q);
+        } else {
+            x = &x[1..];
+            y = &y[1..];
+        }
+    }
+    x.len().cmp(&y.len()).then_with(|| a.cmp(&b))
+}
+
+/// The times of `candidates`, and whether a name's time had no zone.
 fn assign_times(
     candidates: Vec<Candidate>,
     times: TimeSource,
-) -> Result<Vec<SeriesInput>, ConvertError> {
+    zone: &Zone,
+) -> Result<(Vec<(SeriesInput, TimeOrigin)>, bool), ConvertError> {
     match times {
         TimeSource::StartStep { start, step_ns } => candidates
             .into_iter()
@@ -182,32 +312,75 @@ fn assign_times(
                         },
                     })?;
                 check_range(&c.path.to_string_lossy(), t)?;
-                Ok(SeriesInput {
-                    path: c.path,
-                    time: t,
-                })
+                Ok((
+                    SeriesInput {
+                        path: c.path,
+                        time: t,
+                    },
+                    TimeOrigin::StartStep,
+                ))
             })
-            .collect(),
+            .collect::<Result<_, _>>()
+            .map(|timed| (timed, false)),
+        TimeSource::TimesFile(list) => {
+            let (listed, zoneless) = read_times_file(&list, zone)?;
+            if listed.len() != candidates.len() {
+                return Err(ConvertError::TimesCount {
+                    list,
+                    times: listed.len(),
+                    files: candidates.len(),
+                });
+            }
+            let timed = candidates
+                .into_iter()
+                .zip(listed)
+                .map(|(c, time)| {
+                    let input = SeriesInput { path: c.path, time };
+                    (input, TimeOrigin::TimesFile)
+                })
+                .collect();
+            Ok((timed, zoneless))
+        }
         TimeSource::Auto | TimeSource::FileNames => {
             let use_manifest = times == TimeSource::Auto;
             let mut out = Vec::with_capacity(candidates.len());
             let mut unnamed = Vec::new();
+            let mut zoneless = false;
             for c in candidates {
+                let from_manifest = c.manifest_time.filter(|_| use_manifest);
                 let from_name = || {
                     c.path
                         .file_name()
                         .and_then(|n| n.to_str())
-                        .and_then(time_from_file_name)
+                        .and_then(|name| read_time_from_file_name(name, zone))
                 };
-                match c.manifest_time.filter(|_| use_manifest).or_else(from_name) {
-                    Some(time) => out.push(SeriesInput { path: c.path, time }),
-                    None => unnamed.push(c.path),
+                match from_manifest {
+                    Some(time) => {
+                        out.push((SeriesInput { path: c.path, time }, TimeOrigin::Manifest))
+                    }
+                    None => match from_name() {
+                        Some(read) if read.time < EARLIEST_IN_NAME => {
+                            return Err(ConvertError::EarlyNameTime {
+                                path: c.path,
+                                time: read.time,
+                            })
+                        }
+                        Some(read) => {
+                            zoneless |= read.zoneless;
+                            let input = SeriesInput {
+                                path: c.path,
+                                time: read.time,
+                            };
+                            out.push((input, TimeOrigin::FileName))
+                        }
+                        None => unnamed.push(c.path),
+                    },
                 }
             }
             if !unnamed.is_empty() {
                 return Err(ConvertError::NoTimes { files: unnamed });
             }
-            Ok(out)
+            Ok((out, zoneless))
         }
     }
 }
@@ -237,8 +410,67 @@ fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, Conve
     Ok(files)
 }
 
-/// Reads a manifest: `path,time` per line, `#` comments and a `path,time` header allowed.
-fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
+/// The map files in `dir` that `listed` (its manifest's rows) leaves out.
+fn unlisted_files(
+    dir: &Path,
+    extensions: &[&str],
+    listed: &[Candidate],
+) -> Result<Vec<PathBuf>, ConvertError> {
+    let canonical = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let listed: std::collections::HashSet<PathBuf> =
+        listed.iter().map(|c| canonical(&c.path)).collect();
+    let mut files: Vec<PathBuf> = list_map_files(dir, extensions)?
+        .into_iter()
+        .filter(|f| !listed.contains(&canonical(f)))
+        .collect();
+    files.sort_by(|a, b| natural_cmp(a, b));
+    Ok(files)
+}
+
+/// The times of a `--times-file`, and whether one had no zone.
+fn read_times_file(list: &Path, zone: &Zone) -> Result<(Vec<Timestamp>, bool), ConvertError> {
+    if let Some(kind) = special_kind(list) {
+        return Err(ConvertError::NotAFile {
+            path: list.to_path_buf(),
+            kind,
+        });
+    }
+    let text = std::fs::read_to_string(list).map_err(|source| ConvertError::Unlistable {
+        path: list.to_path_buf(),
+        source,
+    })?;
+    let mut zoneless = false;
+    let mut times = Vec::new();
+    for (number, line) in data_lines(&text) {
+        let read = read_time(line, zone).map_err(|e| ConvertError::ManifestLine {
+            manifest: list.to_path_buf(),
+            line: number,
+            problem: e.into(),
+        })?;
+        zoneless |= read.zoneless;
+        times.push(read.time);
+    }
+    Ok((times, zoneless))
+}
+
+/// Names a header may give the path column.
+const PATH_COLUMNS: &[&str] = &["path", "file", "filename", "file_name"];
+/// Names a header may give the time column.
+const TIME_COLUMNS: &[&str] = &["time", "stamp", "t", "timestamp", "unix_time"];
+
+/// Where the path and time are in a manifest's rows.
+enum Columns {
+    /// `path,time`: the time after the last comma, so paths may hold commas.
+    PathThenTime,
+    /// Named by a header, in any order, other columns ignored.
+    Named { path: usize, time: usize },
+}
+
+/// Reads a manifest: a `path,time` row per file; `#` comments, a UTF-8 byte order mark and
+/// CRLF line ends allowed. A first row whose last field is not a time is a header: its
+/// columns are then found by name (`path`/`file`, `time`/`stamp`/`t`/`unix_time`) in any
+/// order, and other columns are ignored.
+fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, ConvertError> {
     if let Some(kind) = special_kind(manifest) {
         return Err(ConvertError::NotAFile {
             path: manifest.to_path_buf(),
@@ -251,23 +483,38 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
     })?;
     let base = manifest.parent().unwrap_or(Path::new("."));
     let mut out = Vec::new();
-    for (number, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty()
-            || line.starts_with('#')
-            || (number == 0 && line.eq_ignore_ascii_case("path,time"))
-        {
-            continue;
-        }
+    let mut columns: Option<Columns> = None;
+    for (number, line) in data_lines(&text) {
         let bad = |problem| ConvertError::ManifestLine {
             manifest: manifest.to_path_buf(),
-            line: number + 1,
+            line: number,
             problem,
         };
-        let (path, time) = line
-            .rsplit_once(',')
-            .ok_or_else(|| bad(ManifestProblem::NotPathTime))?;
-        let time = parse_time(time).map_err(|e| bad(e.into()))?;
+        if columns.is_none() {
+            let header = header_columns(line).map_err(bad)?;
+            let is_header = header.is_some();
+            columns = Some(header.unwrap_or(Columns::PathThenTime));
+            if is_header {
+                continue;
+            }
+        }
+        let Some(layout) = &columns else { continue };
+        let (path, time) = match *layout {
+            Columns::PathThenTime => line
+                .rsplit_once(',')
+                .ok_or_else(|| bad(ManifestProblem::NotPathTime))?,
+            Columns::Named { path, time } => {
+                let fields: Vec<&str> = line.split(',').collect();
+                let field = |column: usize| {
+                    fields
+                        .get(column)
+                        .copied()
+                        .ok_or_else(|| bad(ManifestProblem::MissingField { column: column + 1 }))
+                };
+                (field(path)?, field(time)?)
+            }
+        };
+        let read = read_time(time, zone).map_err(|e| bad(e.into()))?;
         let path = PathBuf::from(path.trim().trim_matches('"'));
         let path = if path.is_absolute() {
             path
@@ -276,7 +523,8 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         };
         out.push(Candidate {
             path,
-            manifest_time: Some(time),
+            manifest_time: Some(read.time),
+            manifest_zoneless: read.zoneless,
         });
     }
     if out.is_empty() {
@@ -285,6 +533,53 @@ fn read_manifest(manifest: &Path) -> Result<Vec<Candidate>, ConvertError> {
         });
     }
     Ok(out)
+}
+
+/// The non-blank, non-comment lines of a text file with their numbers (from 1), a byte
+/// order mark and `\r` line ends removed.
+fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.lines()
+        .enumerate()
+        .map(|(i, line)| (i + 1, line.trim()))
+        .filter(|(_, line)| !line.is_empty() && !line.starts_with('#'))
+}
+
+/// The columns a first row names, or `None` when it is data (its last field is a time, or
+/// it names no known column).
+fn header_columns(line: &str) -> Result<Option<Columns>, ManifestProblem> {
+    let last = line.rsplit(',').next().unwrap_or(line);
+    if crate::time::parse_time(last).is_ok() {
+        return Ok(None);
+    }
+    let names: Vec<String> = line
+        .split(',')
+        .map(|name| name.trim().trim_matches('"').to_ascii_lowercase())
+        .collect();
+    let find = |wanted: &'static str, known: &[&str]| {
+        names
+            .iter()
+            .position(|name| known.contains(&name.as_str()))
+            .ok_or(ManifestProblem::MissingColumn {
+                wanted,
+                names: if wanted == "path" {
+                    "path, file"
+                } else {
+                    "time, stamp, t, unix_time"
+                },
+            })
+    };
+    let (path, time) = (find("path", PATH_COLUMNS), find("time", TIME_COLUMNS));
+    if path.is_err() && time.is_err() {
+        // No known name: a data row with a bad time, which the caller reports as such.
+        return Ok(None);
+    }
+    let (path, time) = (path?, time?);
+    Ok(Some(if names.len() == 2 && path == 0 && time == 1 {
+        Columns::PathThenTime
+    } else {
+        Columns::Named { path, time }
+    }))
 }
 
 /// Writes a manifest (`path,time` with Unix seconds) for files relative to `dir`.
@@ -299,4 +594,294 @@ pub fn manifest_text(dir: &Path, entries: &[SeriesInput]) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(dir: &Path, names: &[&str]) {
+        for name in names {
+            std::fs::write(dir.join(name), b"").unwrap();
+        }
+    }
+
+    #[test]
+    fn numbered_names_sort_naturally() {
+        let mut names: Vec<PathBuf> = ["map_10.bt", "map_2.bt", "map_1.bt", "map_02.bt", "a.bt"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        names.sort_by(|a, b| natural_cmp(a, b));
+        let names: Vec<_> = names.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(
+            names,
+            ["a.bt", "map_1.bt", "map_02.bt", "map_2.bt", "map_10.bt"]
+        );
+    }
+
+    #[test]
+    fn start_and_step_follow_natural_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let names: Vec<String> = (1..=12).map(|i| format!("map_{i}.bt")).collect();
+        touch(
+            dir.path(),
+            &names.iter().map(String::as_str).collect::<Vec<_>>(),
+        );
+        let collected = collect_inputs_explained(
+            &Context::with_default_plugins(),
+            &[dir.path().to_path_buf()],
+            TimeSource::StartStep {
+                start: Timestamp::from_secs(1_700_000_000),
+                step_ns: 1_000_000_000,
+            },
+            &Zone::utc(),
+        )
+        .unwrap();
+        for (i, input) in collected.series.iter().enumerate() {
+            assert_eq!(input.path, dir.path().join(format!("map_{}.bt", i + 1)));
+            assert_eq!(input.time, Timestamp::from_secs(1_700_000_000 + i as i64));
+        }
+        assert!(collected
+            .origins
+            .iter()
+            .all(|&o| o == TimeOrigin::StartStep));
+    }
+
+    #[test]
+    fn frame_numbers_are_not_taken_for_1970_times() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["map_0000000041.bt", "map_0000000042.bt"]);
+        let context = Context::with_default_plugins();
+        let err =
+            collect_inputs(&context, &[dir.path().to_path_buf()], TimeSource::Auto).unwrap_err();
+        assert!(matches!(err, ConvertError::EarlyNameTime { .. }), "{err}");
+        assert!(err.to_string().contains("before 1990"), "{err}");
+        // The same files with explicit times are fine.
+        let ok = collect_inputs(
+            &context,
+            &[dir.path().to_path_buf()],
+            TimeSource::StartStep {
+                start: Timestamp::from_secs(1_700_000_000),
+                step_ns: 60_000_000_000,
+            },
+        )
+        .unwrap();
+        assert_eq!(ok.len(), 2);
+    }
+
+    #[test]
+    fn origins_say_where_times_came_from() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "scan_2024-03-01-10-15-00.bt"]);
+        std::fs::write(dir.path().join("list.csv"), "path,time\na.bt,1700000000\n").unwrap();
+        let collected = collect_inputs_explained(
+            &Context::with_default_plugins(),
+            &[
+                dir.path().join("list.csv"),
+                dir.path().join("scan_2024-03-01-10-15-00.bt"),
+            ],
+            TimeSource::Auto,
+            &Zone::utc(),
+        )
+        .unwrap();
+        assert!(collected.zoneless);
+        assert_eq!(
+            collected.origins,
+            [TimeOrigin::Manifest, TimeOrigin::FileName]
+        );
+        assert_eq!(
+            collected.series[1].time,
+            Timestamp::from_secs(1_709_288_100)
+        );
+    }
+}
+
+#[cfg(test)]
+mod zone_tests {
+    use super::*;
+
+    #[test]
+    fn zoneless_names_and_manifest_times_are_read_in_the_given_zone() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("2024-03-01-10-15-00.bt"), b"").unwrap();
+        std::fs::write(dir.path().join("b.bt"), b"").unwrap();
+        std::fs::write(dir.path().join("m.csv"), "b.bt,2024-03-01T12:00:00\n").unwrap();
+        let inputs = [
+            dir.path().join("2024-03-01-10-15-00.bt"),
+            dir.path().join("m.csv"),
+        ];
+        let context = Context::with_default_plugins();
+        let plus_one = Zone::named("+01:00").unwrap();
+        let collected =
+            collect_inputs_explained(&context, &inputs, TimeSource::Auto, &plus_one).unwrap();
+        assert!(collected.zoneless);
+        assert_eq!(
+            collected.series[0].time,
+            Timestamp::from_secs(1_709_288_100 - 3600)
+        );
+        assert_eq!(
+            collected.series[1].time,
+            Timestamp::from_secs(1_709_294_400 - 3600)
+        );
+        // Unix digits in names carry no zone question.
+        std::fs::write(dir.path().join("map_1709288100.bt"), b"").unwrap();
+        let unix = collect_inputs_explained(
+            &context,
+            &[dir.path().join("map_1709288100.bt")],
+            TimeSource::Auto,
+            &plus_one,
+        )
+        .unwrap();
+        assert!(!unix.zoneless);
+        assert_eq!(unix.series[0].time, Timestamp::from_secs(1_709_288_100));
+    }
+}
+
+#[cfg(test)]
+mod manifest_tests {
+    use super::*;
+
+    fn series(dir: &Path, inputs: &[PathBuf], times: TimeSource) -> CollectedInputs {
+        collect_inputs_explained(
+            &Context::with_default_plugins(),
+            inputs,
+            times,
+            &Zone::utc(),
+        )
+        .unwrap_or_else(|e| panic!("{e} in {}", dir.display()))
+    }
+
+    fn touch(dir: &Path, names: &[&str]) {
+        for name in names {
+            std::fs::write(dir.join(name), b"").unwrap();
+        }
+    }
+
+    #[test]
+    fn headers_name_their_columns_in_any_order() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "b.bt"]);
+        let expected = [
+            (dir.path().join("a.bt"), Timestamp::from_secs(1_700_000_000)),
+            (dir.path().join("b.bt"), Timestamp::from_secs(1_700_000_600)),
+        ];
+        for text in [
+            "file,stamp\na.bt,1700000000\nb.bt,1700000600\n",
+            "path,unix_time\na.bt,1700000000\nb.bt,1700000600\n",
+            "\u{feff}stamp,note,File\r\n1700000000,first,a.bt\r\n1700000600,,b.bt\r\n",
+            "# made by hand\n\nt,path\n1700000000,a.bt\n2023-11-14T22:23:20Z,b.bt\n",
+            "a.bt,1700000000\r\nb.bt,1700000600\r\n",
+        ] {
+            let manifest = dir.path().join("list.csv");
+            std::fs::write(&manifest, text).unwrap();
+            let got = series(dir.path(), &[manifest], TimeSource::Auto);
+            let got: Vec<_> = got.series.into_iter().map(|i| (i.path, i.time)).collect();
+            assert_eq!(got, expected, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn bad_manifests_say_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt"]);
+        let manifest = dir.path().join("list.csv");
+        let context = Context::with_default_plugins();
+        let read = |text: &str| {
+            std::fs::write(&manifest, text).unwrap();
+            collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
+                .unwrap_err()
+                .to_string()
+        };
+        let err = read("file,note\na.bt,x\n");
+        assert!(
+            err.contains(":1:") && err.contains("no time column"),
+            "{err}"
+        );
+        let err = read("a.bt,yesterday\n");
+        assert!(err.contains(":1:") && err.contains("yesterday"), "{err}");
+        let err = read("note,time,path\nx,1700000000\n");
+        assert!(err.contains(":2:") && err.contains("column 3"), "{err}");
+    }
+
+    #[test]
+    fn a_times_file_times_the_files_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["map_1.bt", "map_2.bt", "map_10.bt"]);
+        let list = dir.path().join("stamps.txt");
+        std::fs::write(
+            &list,
+            "# stamps\n1700000000\n1700000060\r\n2023-11-14T22:15:20Z\n",
+        )
+        .unwrap();
+        let got = series(
+            dir.path(),
+            &[dir.path().to_path_buf()],
+            TimeSource::TimesFile(list.clone()),
+        );
+        let names: Vec<_> = got
+            .series
+            .iter()
+            .map(|i| {
+                (
+                    i.path.file_name().unwrap().to_str().unwrap(),
+                    i.time.0 / 1_000_000_000,
+                )
+            })
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("map_1.bt", 1_700_000_000),
+                ("map_2.bt", 1_700_000_060),
+                ("map_10.bt", 1_700_000_120)
+            ]
+        );
+        assert!(got.origins.iter().all(|&o| o == TimeOrigin::TimesFile));
+        std::fs::write(&list, "1700000000\n").unwrap();
+        let err = collect_inputs(
+            &Context::with_default_plugins(),
+            &[dir.path().to_path_buf()],
+            TimeSource::TimesFile(list),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ConvertError::TimesCount {
+                    times: 1,
+                    files: 3,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_manifest_that_leaves_out_map_files_is_reported() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(dir.path(), &["a.bt", "b.bt", "c.ot", "notes.txt"]);
+        std::fs::write(
+            dir.path().join(MANIFEST_NAME),
+            "path,time\n./a.bt,1700000000\n",
+        )
+        .unwrap();
+        let got = series(dir.path(), &[dir.path().to_path_buf()], TimeSource::Auto);
+        assert_eq!(got.series.len(), 1);
+        assert_eq!(
+            got.warnings,
+            [InputWarning::Unlisted {
+                manifest: dir.path().join(MANIFEST_NAME),
+                files: vec![dir.path().join("b.bt"), dir.path().join("c.ot")],
+            }]
+        );
+        std::fs::write(
+            dir.path().join(MANIFEST_NAME),
+            "path,time\na.bt,1700000000\nb.bt,1700000001\nc.ot,1700000002\n",
+        )
+        .unwrap();
+        let got = series(dir.path(), &[dir.path().to_path_buf()], TimeSource::Auto);
+        assert!(got.warnings.is_empty());
+    }
 }

@@ -56,15 +56,20 @@ pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
 pub use froctomap_core::calendar::unix_seconds;
 pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
-pub use inputs::{collect_inputs, manifest_text, SeriesInput, TimeSource, MANIFEST_NAME};
+pub use inputs::{
+    collect_inputs, collect_inputs_explained, manifest_text, natural_cmp, CollectedInputs,
+    InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
+};
 pub use maps::{
-    export, observed_map, predicted_map, probability_log_odds, resolve_observed, write_map,
-    write_observed_map, write_owned_map, write_predicted_map, ExportMode, ExportOptions,
-    ExportReport, LoadedMap, ResolvedSample, TimeQuery, WrittenMap,
+    export, observed_map, predicted_map, probability_log_odds, resolve_observed,
+    resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,
+    ExportMode, ExportOptions, ExportReport, LoadedMap, Pick, ResolvedSample, TimeQuery,
+    WrittenMap,
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use text::group_thousands;
 pub use time::{
-    check_range, parse_duration, parse_time, time_from_file_name, TimeError, EARLIEST, LATEST,
+    check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
+    time_from_file_name, ReadTime, TimeError, Zone, EARLIEST, EARLIEST_IN_NAME, LATEST,
 };

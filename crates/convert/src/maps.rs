@@ -5,7 +5,7 @@ use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::outputs::{refuse_non_empty_dir, refuse_overwriting_input};
 use crate::progress::Progress;
-use crate::time::{check_range, parse_time};
+use crate::time::{check_range, parse_time, read_time, Zone};
 use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
@@ -13,6 +13,7 @@ use froctomap_core::{
 use froctomap_file::{Cell, FroctReader};
 use froctomap_formats::{Backend, MapFormat, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
+use froctomap_temporal::TimeAxis;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -23,21 +24,48 @@ pub enum TimeQuery {
     Instant(Timestamp),
     /// A sample index of the file's time axis.
     Sample(u32),
+    /// A sample counted back from the end of the axis: 1 is the last (`index:-1`, `last`).
+    FromEnd(u32),
 }
 
 impl std::str::FromStr for TimeQuery {
     type Err = ConvertError;
 
-    /// `index:42` is a sample index; anything else is Unix seconds or ISO 8601.
+    /// `index:42` is a sample index, `index:-1` (or `last`) the last sample; anything else
+    /// is Unix seconds or ISO 8601.
     fn from_str(text: &str) -> Result<Self, Self::Err> {
+        if text.trim().eq_ignore_ascii_case("last") {
+            return Ok(TimeQuery::FromEnd(1));
+        }
         if let Some(index) = text.trim().strip_prefix("index:") {
-            return index.trim().parse().map(TimeQuery::Sample).map_err(|_| {
-                ConvertError::BadSampleIndex {
-                    text: text.to_string(),
-                }
-            });
+            let bad = || ConvertError::BadSampleIndex {
+                text: text.to_string(),
+            };
+            return match index.trim().strip_prefix('-') {
+                Some(back) => match back.parse() {
+                    Ok(0) | Err(_) => Err(bad()),
+                    Ok(back) => Ok(TimeQuery::FromEnd(back)),
+                },
+                None => index
+                    .trim()
+                    .parse()
+                    .map(TimeQuery::Sample)
+                    .map_err(|_| bad()),
+            };
         }
         Ok(TimeQuery::Instant(parse_time(text)?))
+    }
+}
+
+impl TimeQuery {
+    /// [`str::parse`], reading a time without zone in `zone`; the flag says whether it had
+    /// none.
+    pub fn read(text: &str, zone: &Zone) -> Result<(Self, bool), ConvertError> {
+        if text.trim().starts_with("index:") || text.trim().eq_ignore_ascii_case("last") {
+            return text.parse().map(|query| (query, false));
+        }
+        let read = read_time(text, zone)?;
+        Ok((TimeQuery::Instant(read.time), read.zoneless))
     }
 }
 
@@ -52,6 +80,18 @@ pub struct ResolvedSample {
     pub exact: bool,
 }
 
+/// Which snapshot an instant between snapshots takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Pick {
+    /// The last snapshot at or before it: the map as it was known then (the default).
+    #[default]
+    AtOrBefore,
+    /// The closest snapshot, earlier or later (the earlier on a tie); an instant before
+    /// the first snapshot takes the first.
+    Nearest,
+}
+
 /// The sample of the map as observed at `query`: the sample itself, or the last snapshot at
 /// or before an instant. Instants before the first snapshot, sample indices beyond the axis
 /// and samples without a snapshot are errors.
@@ -59,47 +99,94 @@ pub fn resolve_observed(
     reader: &FroctReader,
     query: TimeQuery,
 ) -> Result<ResolvedSample, ConvertError> {
+    resolve_observed_with(reader, query, Pick::AtOrBefore)
+}
+
+/// [`resolve_observed`], choosing between snapshots by `pick`.
+pub fn resolve_observed_with(
+    reader: &FroctReader,
+    query: TimeQuery,
+    pick: Pick,
+) -> Result<ResolvedSample, ConvertError> {
     let axis = &reader.header().axis;
-    match query {
-        TimeQuery::Sample(sample) => {
-            let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
-                sample,
-                samples: axis.len(),
-                start: axis.start(),
-                end: axis.end(),
-            })?;
-            if axis.is_missing(sample) {
-                return Err(ConvertError::NoSnapshotAtSample { sample, time });
-            }
-            Ok(ResolvedSample {
-                sample,
-                time,
-                exact: true,
-            })
-        }
-        TimeQuery::Instant(t) => {
-            if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
-                return Ok(ResolvedSample {
-                    sample,
-                    time: t,
-                    exact: true,
-                });
-            }
+    let t = match query {
+        TimeQuery::Instant(t) => t,
+        TimeQuery::Sample(sample) => return stored_sample(axis, sample),
+        TimeQuery::FromEnd(back) => {
             let sample = axis
-                .last_at_or_before(t)
-                .ok_or(ConvertError::BeforeFirstSnapshot {
-                    time: t,
+                .len()
+                .checked_sub(back)
+                .ok_or(ConvertError::SampleBeforeAxis {
+                    back,
+                    samples: axis.len(),
                     start: axis.start(),
                     end: axis.end(),
                 })?;
-            let time = axis.time(sample).unwrap_or(t);
-            Ok(ResolvedSample {
-                sample,
-                time,
-                exact: false,
-            })
+            return stored_sample(axis, sample);
         }
+    };
+    if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
+        return Ok(ResolvedSample {
+            sample,
+            time: t,
+            exact: true,
+        });
     }
+    let before = axis.last_at_or_before(t);
+    let after = || {
+        let mut i = before.map_or(0, |b| b.saturating_add(1));
+        while i < axis.len() && axis.is_missing(i) {
+            i += 1;
+        }
+        (i < axis.len()).then_some(i)
+    };
+    let sample = match (pick, before) {
+        (Pick::AtOrBefore, before) => before,
+        (Pick::Nearest, None) => after(),
+        (Pick::Nearest, Some(before)) => Some(match after() {
+            Some(after) => {
+                let distance = |s: u32| {
+                    axis.time(s)
+                        .map(|u| (i128::from(u.0) - i128::from(t.0)).abs())
+                };
+                if distance(after) < distance(before) {
+                    after
+                } else {
+                    before
+                }
+            }
+            None => before,
+        }),
+    }
+    .ok_or(ConvertError::BeforeFirstSnapshot {
+        time: t,
+        start: axis.start(),
+        end: axis.end(),
+    })?;
+    let time = axis.time(sample).unwrap_or(t);
+    Ok(ResolvedSample {
+        sample,
+        time,
+        exact: false,
+    })
+}
+
+/// A sample asked for by index: it must lie on the axis and hold a snapshot.
+fn stored_sample(axis: &TimeAxis, sample: u32) -> Result<ResolvedSample, ConvertError> {
+    let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
+        sample,
+        samples: axis.len(),
+        start: axis.start(),
+        end: axis.end(),
+    })?;
+    if axis.is_missing(sample) {
+        return Err(ConvertError::NoSnapshotAtSample { sample, time });
+    }
+    Ok(ResolvedSample {
+        sample,
+        time,
+        exact: true,
+    })
 }
 
 /// The map as observed at a sample (exact in lossless files): one leaf per observed cell,
@@ -379,7 +466,8 @@ pub enum ExportMode {
     /// The predicted map (any instant).
     #[default]
     Predict,
-    /// The last observed snapshot at or before the instant.
+    /// The last observed snapshot at or before the instant: each snapshot once, named and
+    /// listed in the manifest at its own time.
     Retrieve,
 }
 
@@ -388,7 +476,8 @@ pub enum ExportMode {
 pub struct ExportOptions {
     /// First instant.
     pub from: Timestamp,
-    /// Last instant (inclusive).
+    /// Last instant, inclusive: a map is made at `to` when it lies on the grid
+    /// `from + i · every`.
     pub to: Timestamp,
     /// Nanoseconds between instants.
     pub every_ns: i64,
@@ -447,12 +536,26 @@ pub fn export(
     let times: Vec<Timestamp> = (0..count as i64)
         .map(|i| Timestamp(options.from.0 + i * options.every_ns))
         .collect();
-    let samples: Vec<Option<u32>> = match options.mode {
-        ExportMode::Predict => vec![None; times.len()],
-        ExportMode::Retrieve => times
-            .iter()
-            .map(|&t| resolve_observed(reader, TimeQuery::Instant(t)).map(|r| Some(r.sample)))
-            .collect::<Result<_, _>>()?,
+    // Retrieval: each snapshot once, named and listed at its own time (instants between
+    // snapshots would otherwise write the same map again under other times).
+    let (times, samples): (Vec<Timestamp>, Vec<Option<u32>>) = match options.mode {
+        ExportMode::Predict => {
+            let samples = vec![None; times.len()];
+            (times, samples)
+        }
+        ExportMode::Retrieve => {
+            let mut resolved = Vec::with_capacity(times.len());
+            for &t in &times {
+                let r = resolve_observed(reader, TimeQuery::Instant(t))?;
+                if resolved
+                    .last()
+                    .is_none_or(|&(_, last)| last != Some(r.sample))
+                {
+                    resolved.push((r.time, Some(r.sample)));
+                }
+            }
+            resolved.into_iter().unzip()
+        }
     };
     let format = context
         .formats()
@@ -497,4 +600,35 @@ pub fn export(
         manifest,
         bytes,
     })
+}
+
+#[cfg(test)]
+mod query_tests {
+    use super::*;
+
+    #[test]
+    fn sample_queries_count_from_either_end() {
+        assert_eq!(
+            "index:3".parse::<TimeQuery>().unwrap(),
+            TimeQuery::Sample(3)
+        );
+        assert_eq!(
+            "index:-1".parse::<TimeQuery>().unwrap(),
+            TimeQuery::FromEnd(1)
+        );
+        assert_eq!("LAST".parse::<TimeQuery>().unwrap(), TimeQuery::FromEnd(1));
+        assert_eq!(
+            " index:-12 ".parse::<TimeQuery>().unwrap(),
+            TimeQuery::FromEnd(12)
+        );
+        for bad in ["index:-0", "index:", "index:-x", "index:1.5"] {
+            let err = bad.parse::<TimeQuery>().unwrap_err();
+            assert!(
+                matches!(err, ConvertError::BadSampleIndex { .. }),
+                "{bad}: {err}"
+            );
+        }
+        let (query, zoneless) = TimeQuery::read("last", &Zone::utc()).unwrap();
+        assert_eq!((query, zoneless), (TimeQuery::FromEnd(1), false));
+    }
 }

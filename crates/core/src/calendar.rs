@@ -180,6 +180,12 @@ impl Digits<'_> {
 /// (`2016-01-04T08:30:00.5Z`) or basic (`20160104T083000Z`); `T`, `t`, `_` or a space
 /// before the time; a `Z`, a `±HH:MM` offset or nothing (UTC); a date alone is midnight.
 pub fn parse_iso8601_prefix(text: &str) -> Option<(Timestamp, &str)> {
+    parse_iso8601_prefix_zoned(text).map(|(t, rest, _)| (t, rest))
+}
+
+/// [`parse_iso8601_prefix`], also saying whether the text named its zone (`Z` or an offset):
+/// `false` when the wall-clock time was read as UTC for want of one.
+pub fn parse_iso8601_prefix_zoned(text: &str) -> Option<(Timestamp, &str, bool)> {
     let mut d = Digits {
         s: text.as_bytes(),
         pos: 0,
@@ -197,6 +203,7 @@ pub fn parse_iso8601_prefix(text: &str) -> Option<(Timestamp, &str)> {
     let mut secs_of_day = 0i64;
     let mut nanos = 0i64;
     let mut offset = 0i64;
+    let mut zoned = false;
     let before_time = d.pos;
     if d.eat(b"T t_").is_some() {
         let time_start = d.pos;
@@ -239,13 +246,14 @@ pub fn parse_iso8601_prefix(text: &str) -> Option<(Timestamp, &str)> {
                     }
                     nanos = format!("{frac:0<9}").parse().ok()?;
                 }
-                if d.eat(b"Zz").is_none() {
-                    if let Some(sign) = d.eat(b"+-") {
-                        let oh = i64::from(d.number(2)?);
-                        d.eat(b":");
-                        let om = i64::from(d.number(2)?);
-                        offset = (oh * 3600 + om * 60) * if sign == b'-' { -1 } else { 1 };
-                    }
+                if d.eat(b"Zz").is_some() {
+                    zoned = true;
+                } else if let Some(sign) = d.eat(b"+-") {
+                    let oh = i64::from(d.number(2)?);
+                    d.eat(b":");
+                    let om = i64::from(d.number(2)?);
+                    offset = (oh * 3600 + om * 60) * if sign == b'-' { -1 } else { 1 };
+                    zoned = true;
                 }
             }
             None => {
@@ -260,5 +268,5 @@ pub fn parse_iso8601_prefix(text: &str) -> Option<(Timestamp, &str)> {
     let days = days_from_civil(i64::from(year), month, day);
     let secs = days * 86_400 + secs_of_day - offset;
     let t = Timestamp(secs.checked_mul(1_000_000_000)?.checked_add(nanos)?);
-    Some((t, text.get(d.pos..)?))
+    Some((t, text.get(d.pos..)?, zoned))
 }
