@@ -33,7 +33,7 @@ use crate::progress::Progress;
 use crate::time::format_iso;
 use accumulate::Accumulator;
 use check::InputCheck;
-use extract::ChangeExtractor;
+use extract::{ChangeExtractor, ExtractOptions};
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, Header, ToggleLayout, WrittenFile};
@@ -252,14 +252,15 @@ pub fn build(
     .run(inputs, progress)?;
 
     progress.stage("reading snapshots", inputs.len() as u64);
-    let read_options = ReadOptions {
-        format: options.input_format.as_deref(),
-        backend: options.backend,
+    let extract = ExtractOptions {
+        read: ReadOptions {
+            format: options.input_format.as_deref(),
+            backend: options.backend,
+        },
+        skip_bad: options.skip_bad,
+        batch: options.batch,
     };
-    let mut extractor =
-        ChangeExtractor::new(context, read_options, inputs, &checked, &axis, progress);
-    extractor.skip_bad = options.skip_bad;
-    extractor.batch = options.batch.max(1);
+    let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
     // Changes are extracted in parallel batches while the accumulating threads apply the
     // previous batch's (see `accumulate`).
     let parts = rayon::current_num_threads().clamp(1, 8);

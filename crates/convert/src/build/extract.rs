@@ -50,18 +50,25 @@ pub(crate) struct Extracted {
     pub resolution: Option<f64>,
 }
 
+/// How to extract.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ExtractOptions<'a> {
+    /// How to read the maps.
+    pub read: ReadOptions<'a>,
+    /// Leave refused files out (listed in the tally) instead of stopping.
+    pub skip_bad: bool,
+    /// Inputs per batch (read in parallel; bounds memory).
+    pub batch: usize,
+}
+
 /// The change extraction of a series, an iterator of batches.
 pub(crate) struct ChangeExtractor<'a> {
     context: &'a Context,
-    read_options: ReadOptions<'a>,
+    options: ExtractOptions<'a>,
     inputs: &'a [SeriesInput],
     usable: &'a [bool],
     axis: &'a TimeAxis,
     progress: &'a dyn Progress,
-    /// Refuse files with `skip_bad` instead of stopping.
-    pub skip_bad: bool,
-    /// Inputs per batch (read in parallel; bounds memory).
-    pub batch: usize,
     /// The first input of the next batch.
     next: usize,
     /// The last snapshot accepted, which the next one is compared with.
@@ -75,7 +82,7 @@ impl<'a> ChangeExtractor<'a> {
     /// Extraction of the inputs `checked` left in, on `axis` (which has every input's time).
     pub fn new(
         context: &'a Context,
-        read_options: ReadOptions<'a>,
+        options: ExtractOptions<'a>,
         inputs: &'a [SeriesInput],
         checked: &'a CheckedInputs,
         axis: &'a TimeAxis,
@@ -83,13 +90,11 @@ impl<'a> ChangeExtractor<'a> {
     ) -> Self {
         Self {
             context,
-            read_options,
+            options,
             inputs,
             usable: &checked.usable,
             axis,
             progress,
-            skip_bad: false,
-            batch: 1,
             next: 0,
             previous: None,
             first_path: checked.resolution.map(|(_, i)| inputs[i].path.clone()),
@@ -117,14 +122,14 @@ impl<'a> ChangeExtractor<'a> {
         // When the series' resolution is not known from the headers, the first file sets it.
         if self.tally.resolution.is_none() {
             if let (Some(&i), Some(Ok(bytes))) = (chunk.first(), raw.first()) {
-                if let Ok(read) = registry.read_bytes(&inputs[i].path, bytes, self.read_options) {
+                if let Ok(read) = registry.read_bytes(&inputs[i].path, bytes, self.options.read) {
                     self.tally.resolution = Some(read.map.snapshot.resolution());
                 }
             }
         }
         let reader = ChangeReader {
             registry,
-            options: self.read_options,
+            options: self.options.read,
             resolution: self.tally.resolution,
         };
         let paths: Vec<&Path> = chunk.iter().map(|&i| inputs[i].path.as_path()).collect();
@@ -149,7 +154,7 @@ impl<'a> ChangeExtractor<'a> {
                         changes: read.changes,
                     });
                 }
-                Err(reason) if self.skip_bad => {
+                Err(reason) if self.options.skip_bad => {
                     self.tally
                         .skipped
                         .push((input.path.clone(), reason.to_string()));
@@ -187,7 +192,7 @@ impl Iterator for ChangeExtractor<'_> {
         if self.next >= self.inputs.len() {
             return None;
         }
-        let end = (self.next + self.batch.max(1)).min(self.inputs.len());
+        let end = (self.next + self.options.batch.max(1)).min(self.inputs.len());
         let chunk: Vec<usize> = (self.next..end).filter(|&i| self.usable[i]).collect();
         self.next = end;
         Some(self.extract(&chunk))
@@ -231,6 +236,22 @@ mod tests {
             .collect()
     }
 
+    fn extractor<'a>(
+        context: &'a Context,
+        inputs: &'a [SeriesInput],
+        checked: &'a CheckedInputs,
+        axis: &'a TimeAxis,
+        skip_bad: bool,
+        batch: usize,
+    ) -> ChangeExtractor<'a> {
+        let options = ExtractOptions {
+            read: ReadOptions::default(),
+            skip_bad,
+            batch,
+        };
+        ChangeExtractor::new(context, options, inputs, checked, axis, &Silent)
+    }
+
     fn axis(inputs: &[SeriesInput]) -> TimeAxis {
         let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
         crate::axis_for_times(&times).unwrap()
@@ -252,15 +273,7 @@ mod tests {
             ..CheckedInputs::default()
         };
         // Batches of two: the third file is compared with the second across the boundary.
-        let mut extractor = ChangeExtractor::new(
-            &context,
-            ReadOptions::default(),
-            &inputs,
-            &checked,
-            &axis,
-            &Silent,
-        );
-        extractor.batch = 2;
+        let mut extractor = extractor(&context, &inputs, &checked, &axis, false, 2);
         let batches: Vec<ChangeBatch> = extractor.by_ref().map(Result::unwrap).collect();
         assert_eq!(batches.len(), 2);
         let all: Vec<&SampleChanges> = batches.iter().flatten().collect();
@@ -296,19 +309,7 @@ mod tests {
             resolution: Some((0.1, 0)),
             ..CheckedInputs::default()
         };
-        let extractor = |skip_bad| {
-            let mut e = ChangeExtractor::new(
-                &context,
-                ReadOptions::default(),
-                &inputs,
-                &checked,
-                &axis,
-                &Silent,
-            );
-            e.skip_bad = skip_bad;
-            e.batch = 8;
-            e
-        };
+        let extractor = |skip_bad| extractor(&context, &inputs, &checked, &axis, skip_bad, 8);
         match extractor(false).next() {
             Some(Err(ConvertError::MixedResolution {
                 first,

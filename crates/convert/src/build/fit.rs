@@ -187,10 +187,14 @@ mod tests {
     use froctomap_core::{MortonCode, Timestamp};
     use froctomap_temporal::{ModelConfig, VoxelObservations};
 
-    fn prepared(axis: &TimeAxis, config: &ModelConfig) -> Box<dyn PreparedModel> {
+    /// A regular axis of `samples` seconds and the default model prepared for it, lossless.
+    fn axis_and_model(samples: u32) -> (TimeAxis, Box<dyn PreparedModel>) {
+        let axis =
+            TimeAxis::regular(Timestamp::from_secs(0), 1_000_000_000, samples, Vec::new()).unwrap();
         let context = Context::with_default_plugins();
         let model = context.models().by_name("fremen-periods").unwrap().create();
-        model.prepare(axis, config).unwrap()
+        let prepared = model.prepare(&axis, &ModelConfig::default()).unwrap();
+        (axis, prepared)
     }
 
     fn cell(
@@ -208,9 +212,7 @@ mod tests {
     #[test]
     fn cells_are_classified_counted_and_fitted() {
         use Occupancy::{Free, Occupied};
-        let axis =
-            TimeAxis::regular(Timestamp::from_secs(0), 1_000_000_000, 8, Vec::new()).unwrap();
-        let model = prepared(&axis, &ModelConfig::default());
+        let (axis, model) = axis_and_model(8);
         let fitter = TileFitter::new(&axis, model.as_ref());
         let tile = TileHistory {
             cells: vec![
@@ -262,9 +264,7 @@ mod tests {
 
     #[test]
     fn a_model_that_refuses_the_observations_stops_the_fit() {
-        let axis =
-            TimeAxis::regular(Timestamp::from_secs(0), 1_000_000_000, 4, Vec::new()).unwrap();
-        let model = prepared(&axis, &ModelConfig::default());
+        let (axis, model) = axis_and_model(4);
         let fitter = TileFitter::new(&axis, model.as_ref());
         // Observations past the end of the axis.
         let tile = TileHistory {
