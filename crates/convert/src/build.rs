@@ -24,6 +24,8 @@ mod accumulate;
 mod check;
 mod extract;
 mod fit;
+#[cfg(test)]
+mod test_support;
 mod write;
 
 use crate::context::Context;

@@ -183,19 +183,9 @@ pub(crate) fn fit_and_write(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::context::Context;
-    use froctomap_core::{MortonCode, Timestamp};
-    use froctomap_temporal::{ModelConfig, VoxelObservations};
-
-    /// A regular axis of `samples` seconds and the default model prepared for it, lossless.
-    fn axis_and_model(samples: u32) -> (TimeAxis, Box<dyn PreparedModel>) {
-        let axis =
-            TimeAxis::regular(Timestamp::from_secs(0), 1_000_000_000, samples, Vec::new()).unwrap();
-        let context = Context::with_default_plugins();
-        let model = context.models().by_name("fremen-periods").unwrap().create();
-        let prepared = model.prepare(&axis, &ModelConfig::default()).unwrap();
-        (axis, prepared)
-    }
+    use crate::build::test_support::default_model;
+    use froctomap_core::MortonCode;
+    use froctomap_temporal::VoxelObservations;
 
     fn cell(
         start: u64,
@@ -212,8 +202,8 @@ mod tests {
     #[test]
     fn cells_are_classified_counted_and_fitted() {
         use Occupancy::{Free, Occupied};
-        let (axis, model) = axis_and_model(8);
-        let fitter = TileFitter::new(&axis, model.as_ref());
+        let setup = default_model(8);
+        let fitter = TileFitter::new(&setup.axis, setup.model.as_ref());
         let tile = TileHistory {
             cells: vec![
                 cell(0, 15, &[(0, 8, Free)]),
@@ -264,8 +254,8 @@ mod tests {
 
     #[test]
     fn a_model_that_refuses_the_observations_stops_the_fit() {
-        let (axis, model) = axis_and_model(4);
-        let fitter = TileFitter::new(&axis, model.as_ref());
+        let setup = default_model(4);
+        let fitter = TileFitter::new(&setup.axis, setup.model.as_ref());
         // Observations past the end of the axis.
         let tile = TileHistory {
             cells: vec![cell(

@@ -67,29 +67,29 @@ impl TileWriter {
 
 #[cfg(test)]
 mod tests {
+    use super::super::accumulate::TileHistory;
+    use super::super::fit::{fit_and_write, TileFitter};
     use super::*;
-    use crate::context::Context;
-    use froctomap_core::{MortonCode, Occupancy, Timestamp};
+    use crate::build::test_support::default_model;
+    use crate::progress::Silent;
+    use froctomap_core::{MortonCode, Occupancy};
     use froctomap_file::{CellContent, Codec, FroctReader};
-    use froctomap_temporal::{ModelConfig, TimeAxis};
+    use froctomap_temporal::VoxelObservations;
+
+    /// The header of a file of depth-14 tiles on a regular axis of `samples` seconds, and
+    /// the default model prepared for that axis.
+    fn file_header(samples: u32) -> (Header, Box<dyn PreparedModel>) {
+        let setup = default_model(samples);
+        let parameters = setup.model.encode_parameters();
+        let header = Header::new(0.1, 14, setup.axis, setup.id, parameters, Codec::default());
+        (header, setup.model)
+    }
 
     #[test]
     fn tiles_written_read_back_as_given_and_counts_add_up() {
         let dir = tempfile::tempdir().unwrap();
         let output = dir.path().join("out.froct");
-        let axis =
-            TimeAxis::regular(Timestamp::from_secs(0), 1_000_000_000, 4, Vec::new()).unwrap();
-        let context = Context::with_default_plugins();
-        let model = context.models().by_name("fremen-periods").unwrap().create();
-        let prepared = model.prepare(&axis, &ModelConfig::default()).unwrap();
-        let header = Header::new(
-            0.1,
-            14,
-            axis,
-            model.id(),
-            prepared.encode_parameters(),
-            Codec::default(),
-        );
+        let (header, prepared) = file_header(4);
         let tile_size = froctomap_core::voxels_per_node(14);
         let constant = |start, state| Cell {
             start: MortonCode(start),
@@ -120,5 +120,59 @@ mod tests {
         for (i, cells) in tiles.iter().enumerate() {
             assert_eq!(&reader.read_tile(i).unwrap(), cells);
         }
+    }
+
+    /// A stream of `count` tiles, each one cell observed free then occupied.
+    fn tile_stream(count: u64) -> impl Iterator<Item = Result<TileHistory, ConvertError>> + Send {
+        let tile_size = froctomap_core::voxels_per_node(14);
+        (0..count).map(move |i| {
+            let runs = vec![(0, 2, Occupancy::Free), (2, 2, Occupancy::Occupied)];
+            Ok(TileHistory {
+                cells: vec![(
+                    MortonCode(i * tile_size),
+                    14,
+                    VoxelObservations::from_runs(runs)?,
+                )],
+            })
+        })
+    }
+
+    #[test]
+    fn a_stream_of_tiles_is_fitted_and_written_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("out.froct");
+        let (header, prepared) = file_header(4);
+        let fitter = TileFitter::new(&header.axis, prepared.as_ref());
+        let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+        let mut writer = TileWriter::create(&output, &header).unwrap();
+        // More tiles than one parallel batch holds.
+        let count = 9 * rayon::current_num_threads() as u64;
+        fit_and_write(tile_stream(count), &fitter, &encoder, &mut writer, &Silent).unwrap();
+        assert_eq!(writer.stats().cells.dynamic, count);
+        writer.finish(Map::new()).unwrap();
+        let reader = FroctReader::open(&output).unwrap();
+        let starts: Vec<u64> = (0..reader.tiles().len())
+            .map(|i| reader.read_tile(i).unwrap()[0].start.0)
+            .collect();
+        let expected: Vec<u64> = tile_stream(count)
+            .map(|t| t.unwrap().cells[0].0 .0)
+            .collect();
+        assert_eq!(starts, expected);
+    }
+
+    #[test]
+    fn an_error_in_the_tile_stream_stops_the_writing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (header, prepared) = file_header(4);
+        let fitter = TileFitter::new(&header.axis, prepared.as_ref());
+        let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+        let output = dir.path().join("out.froct");
+        let mut writer = TileWriter::create(&output, &header).unwrap();
+        let failing = tile_stream(3).chain(std::iter::once(Err(ConvertError::internal("test"))));
+        let result = fit_and_write(failing, &fitter, &encoder, &mut writer, &Silent);
+        assert!(matches!(
+            result,
+            Err(ConvertError::Internal { what: "test", .. })
+        ));
     }
 }
