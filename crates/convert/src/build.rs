@@ -33,7 +33,7 @@ use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use crate::time::format_iso;
-use accumulate::Accumulator;
+use accumulate::{Accumulated, Accumulator};
 use check::InputCheck;
 use extract::{ChangeExtractor, ExtractOptions};
 use fit::{fit_and_write, TileFitter};
@@ -263,37 +263,11 @@ pub fn build(
         batch: options.batch,
     };
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
-    // Changes are extracted in parallel batches while the accumulating threads apply the
-    // previous batch's (see `accumulate`).
-    let parts = rayon::current_num_threads().clamp(1, 8);
-    let (extracted, accumulated) = std::thread::scope(|scope| {
-        let mut accumulator = Accumulator::new(scope, options.tile_depth, parts, progress);
-        let produced = (|| -> Result<(), ConvertError> {
-            for batch in extractor.by_ref() {
-                if !accumulator.push(batch?) {
-                    // An accumulating thread stopped on an error, which `finish` reports.
-                    break;
-                }
-            }
-            Ok(())
-        })();
-        let accumulated = accumulator.finish()?;
-        produced?;
-        Ok::<_, ConvertError>((extractor.finish(), accumulated))
-    })?;
+    let accumulated = accumulate_series(&mut extractor, options.tile_depth, progress)?;
+    let extracted = extractor.finish();
     let mut skipped = checked.skipped;
     skipped.extend(extracted.skipped);
-    let mut absent: Vec<u32> = axis.missing().to_vec();
-    absent.extend(extracted.absent);
-    absent.extend(
-        inputs
-            .iter()
-            .zip(&checked.usable)
-            .filter(|(_, &usable)| !usable)
-            .filter_map(|(input, _)| axis.index_of(input.time)),
-    );
-    absent.sort_unstable();
-    absent.dedup();
+    let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
     let resolution = extracted.resolution.ok_or(ConvertError::NothingToBuild {
         inputs: inputs.len(),
     })?;
@@ -378,6 +352,53 @@ pub fn build(
     })
 }
 
+/// Runs extraction and accumulation side by side: changes are extracted in parallel batches
+/// while the accumulating threads apply the previous batch's.
+fn accumulate_series(
+    extractor: &mut ChangeExtractor<'_>,
+    tile_depth: u8,
+    progress: &dyn Progress,
+) -> Result<Accumulated, ConvertError> {
+    let parts = rayon::current_num_threads().clamp(1, 8);
+    std::thread::scope(|scope| {
+        let mut accumulator = Accumulator::new(scope, tile_depth, parts, progress);
+        let produced = (|| -> Result<(), ConvertError> {
+            for batch in extractor.by_ref() {
+                if !accumulator.push(batch?) {
+                    // An accumulating thread stopped on an error, which `finish` reports.
+                    break;
+                }
+            }
+            Ok(())
+        })();
+        let accumulated = accumulator.finish()?;
+        produced?;
+        Ok(accumulated)
+    })
+}
+
+/// The samples without a snapshot (sorted): the axis' own gaps and the inputs left out by
+/// the check (`usable`) or by extraction (`refused`).
+fn samples_left_out(
+    axis: &TimeAxis,
+    inputs: &[SeriesInput],
+    usable: &[bool],
+    refused: &[u32],
+) -> Vec<u32> {
+    let mut absent: Vec<u32> = axis.missing().to_vec();
+    absent.extend_from_slice(refused);
+    absent.extend(
+        inputs
+            .iter()
+            .zip(usable)
+            .filter(|(_, &usable)| !usable)
+            .filter_map(|(input, _)| axis.index_of(input.time)),
+    );
+    absent.sort_unstable();
+    absent.dedup();
+    absent
+}
+
 fn metadata(
     inputs: &[SeriesInput],
     used: usize,
@@ -411,6 +432,27 @@ fn metadata(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn samples_left_out_join_the_axis_gaps_once_each() {
+        let s = |v: i64| Timestamp::from_secs(v);
+        let times = [s(0), s(10), s(20), s(40), s(50)];
+        let axis = axis_for_times(&times).unwrap();
+        assert_eq!(axis.missing(), &[3]);
+        let inputs: Vec<SeriesInput> = times
+            .iter()
+            .map(|&time| SeriesInput {
+                path: PathBuf::from("map.bt"),
+                time,
+            })
+            .collect();
+        let usable = [true, false, true, true, true];
+        // Sample 5 was refused by extraction, sample 1 by the check (and reported twice).
+        assert_eq!(
+            samples_left_out(&axis, &inputs, &usable, &[5, 1]),
+            [1, 3, 5]
+        );
+    }
 
     #[test]
     fn regular_axes_are_recognised_with_gaps() {
