@@ -1,30 +1,52 @@
-//! `build`: a series of maps → one FROctomap file, streaming, with bounded memory.
+//! `build`: a series of maps → one FROctomap file, streaming, as a pipeline of stages, each
+//! a type in a module of its own with its own tests:
+//!
+//! 1. [`check`] — `InputCheck`: every header, in parallel; unreadable files and mixed
+//!    resolutions stop the build (or are skipped) before anything is decoded.
+//!    → `CheckedInputs` (which inputs go on, the series' resolution).
+//! 2. [`extract`] — `ChangeExtractor`: an iterator of `ChangeBatch`es, the accepted
+//!    snapshots of each batch of files as `SampleChanges { sample, changes }` (where each
+//!    differs from the one before), read and compared in parallel; then `Extracted`, the
+//!    tally (used, skipped, warnings, resolution).
+//! 3. [`accumulate`] — `Accumulator`: the batches applied in time order to the cells'
+//!    histories, on threads split by space; → `Accumulated`, whose `into_tiles` streams one
+//!    `TileHistory` (the cells of a tile with their observations) per tile in Morton order.
+//!    This is the seam where a spilling accumulator bounds memory (see its module).
+//! 4. [`fit`] — `TileFitter`: a `TileHistory` → a `FittedTile` (cells as stored, counts by
+//!    class); `fit_and_write` drives stages 4 and 5 over the tile stream in parallel batches.
+//! 5. [`write`](mod@write) — `TileEncoder` (a tile's cells → bytes, in parallel) and `TileWriter` (the
+//!    tiles in order into the file, atomically, summing the counts).
+//!
+//! [`build()`] wires them: the stages pass values, never reach into each other, and report
+//! typed errors ([`ConvertError`], [`SnapshotError`]).
+
+mod accumulate;
+mod check;
+mod extract;
+mod fit;
+#[cfg(test)]
+mod test_support;
+mod write;
 
 use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
-use crate::history::SeriesHistory;
 use crate::inputs::SeriesInput;
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
-use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
+use accumulate::{Accumulated, Accumulator};
+use check::InputCheck;
+use extract::{ChangeExtractor, ExtractOptions};
+use fit::{fit_and_write, TileFitter};
 use froctomap_core::calendar::iso8601;
-use froctomap_core::{MortonCode, Occupancy, StateChange, Timestamp};
-use froctomap_file::{
-    encode_tile, mask_from_ranges, Cell, CellContent, Codec, EncodedTile, FroctWriter, Header,
-    TileLayout, ToggleLayout, WrittenFile,
-};
-use froctomap_formats::{Backend, FormatError, ReadOptions, PROBE_BYTES};
-use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
-use froctomap_temporal::{ModelConfig, OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
-use rayon::prelude::*;
+use froctomap_core::Timestamp;
+use froctomap_file::{Codec, Header, ToggleLayout, WrittenFile};
+use froctomap_formats::{Backend, FormatError, ReadOptions};
+use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
-use std::borrow::Cow;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::SyncSender;
-use std::sync::Arc;
-use std::thread::ScopedJoinHandle;
 use std::time::Instant;
+use write::{TileEncoder, TileWriter};
 
 /// How to build.
 #[derive(Clone, Debug)]
@@ -200,7 +222,10 @@ pub(crate) fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, SnapshotErr
 }
 
 /// A FIFO or device is refused before it is opened (reading one may never end).
-fn refuse_special(path: &Path, metadata: &std::fs::Metadata) -> Result<(), SnapshotError> {
+pub(crate) fn refuse_special(
+    path: &Path,
+    metadata: &std::fs::Metadata,
+) -> Result<(), SnapshotError> {
     match froctomap_formats::special_kind(metadata.file_type()) {
         None => Ok(()),
         Some(kind) => Err(SnapshotError::Format(FormatError::NotAFile {
@@ -218,26 +243,6 @@ fn gcd(a: i64, b: i64) -> i64 {
     }
 }
 
-/// A file's resolution from its first bytes, when its format is OctoMap's.
-fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
-    use std::io::Read;
-    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
-    refuse_special(path, &metadata)?;
-    let mut head = Vec::with_capacity(PROBE_BYTES as usize);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
-        .map_err(SnapshotError::Io)?;
-    if head.is_empty() {
-        return Err(SnapshotError::Empty);
-    }
-    let kind = detect_kind(&head).unwrap_or(FileKind::Binary);
-    match parse_header(&head, kind) {
-        Ok(header) => Ok(Some(header.resolution)),
-        // Not an OctoMap header (another format, or a long header): the full read decides.
-        Err(_) => Ok(None),
-    }
-}
-
 /// Builds a FROctomap file from snapshots (sorted by time, distinct times).
 ///
 /// Reads the inputs in batches, turns each into its changes from the one before (from the
@@ -245,6 +250,9 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
 /// accumulates the changes in time order (memory grows with the cells and their changes,
 /// not with the number of snapshots), then fits a model per dynamic cell and writes the file
 /// tile by tile, atomically. Input formats and the model are looked up in `context`.
+///
+/// The work is a pipeline of stages (see the module `build`): input check → change
+/// extraction → accumulation → per-tile fit → encode and write.
 ///
 /// Inputs are map files with their times ([`collect_inputs`](crate::collect_inputs)); other
 /// kinds of sources of timed snapshots (recordings such as ROS bags) are to be expanded into
@@ -258,7 +266,6 @@ pub fn build(
 ) -> Result<BuildReport, ConvertError> {
     let started = Instant::now();
     refuse_overwriting_input(output, inputs.iter().map(|i| i.path.as_path()))?;
-    let registry = context.formats();
     let models = context.models();
     let model = models
         .by_name(&options.model)
@@ -275,206 +282,31 @@ pub fn build(
     // Fail on a bad model/axis combination before reading anything.
     let prepared = model.prepare(&axis, &options.config)?;
 
-    // Pass 1: headers only, to fail fast on unreadable files and mixed resolutions.
-    progress.stage("checking inputs", inputs.len() as u64);
-    let resolutions: Vec<Result<Option<f64>, SnapshotError>> = inputs
-        .par_iter()
-        .map(|input| {
-            let r = header_resolution(&input.path);
-            progress.advance(1);
-            r
-        })
-        .collect();
-    let mut skipped: Vec<(PathBuf, String)> = Vec::new();
-    let mut usable = vec![true; inputs.len()];
-    let mut series_resolution: Option<(f64, usize)> = None;
-    for (i, r) in resolutions.into_iter().enumerate() {
-        match r {
-            Err(reason) if options.skip_bad => {
-                skipped.push((inputs[i].path.clone(), reason.to_string()));
-                usable[i] = false;
-            }
-            Err(reason) => {
-                return Err(ConvertError::Snapshot {
-                    path: inputs[i].path.clone(),
-                    source: Arc::new(reason),
-                })
-            }
-            Ok(Some(res)) => match series_resolution {
-                None => series_resolution = Some((res, i)),
-                Some((first, _)) if first == res => {}
-                Some((first, j)) => {
-                    if !options.skip_bad {
-                        return Err(ConvertError::MixedResolution {
-                            first: inputs[j].path.clone(),
-                            first_resolution: first,
-                            second: inputs[i].path.clone(),
-                            second_resolution: res,
-                        });
-                    }
-                    skipped.push((
-                        inputs[i].path.clone(),
-                        format!("resolution {res} m differs from the series' {first} m"),
-                    ));
-                    usable[i] = false;
-                }
-            },
-            Ok(None) => {}
-        }
+    let checked = InputCheck {
+        skip_bad: options.skip_bad,
     }
+    .run(inputs, progress)?;
 
-    // Pass 2: decode and compare with the predecessor in parallel batches, while a second
-    // thread accumulates the previous batch's differences in time order.
     progress.stage("reading snapshots", inputs.len() as u64);
-    let read_options = ReadOptions {
-        format: options.input_format.as_deref(),
-        backend: options.backend,
+    let extract = ExtractOptions {
+        read: ReadOptions {
+            format: options.input_format.as_deref(),
+            backend: options.backend,
+        },
+        skip_bad: options.skip_bad,
+        batch: options.batch,
     };
-    let mut warnings = Vec::new();
-    let mut input_bytes = 0u64;
-    let mut used = 0usize;
-    let mut absent: Vec<u32> = axis.missing().to_vec();
-    let mut resolution = series_resolution.map(|(r, _)| r);
-    let first_path = series_resolution.map(|(_, i)| inputs[i].path.clone());
-    let batch = options.batch.max(1);
-    // Space is split into ranges (at tile boundaries, which no cell straddles) accumulated
-    // by one thread each; the ranges are chosen from the first batch's changes.
-    let parts = rayon::current_num_threads().clamp(1, 8);
-    let (histories, accumulate_seconds) =
-        std::thread::scope(|scope| -> Result<(Vec<SeriesHistory>, f64), ConvertError> {
-            type Batch = Arc<Vec<(u32, Vec<StateChange>)>>;
-            let mut workers: Vec<(SyncSender<Batch>, ScopedJoinHandle<'_, Accumulated>)> =
-                Vec::new();
-            // The last snapshot accepted, which the next one is compared with.
-            let mut previous: Option<Accepted> = None;
-            let produced = (|| -> Result<(), ConvertError> {
-                for chunk_start in (0..inputs.len()).step_by(batch) {
-                    let chunk: Vec<usize> = (chunk_start..(chunk_start + batch).min(inputs.len()))
-                        .filter(|&i| usable[i])
-                        .collect();
-                    let limit = context.limits().max_map_file_bytes;
-                    let raw: Vec<Result<Vec<u8>, Refusal>> = chunk
-                        .par_iter()
-                        .map(|&i| read_input(&inputs[i].path, limit).map_err(Arc::new))
-                        .collect();
-                    // When the series' resolution is not known from the headers, the first file sets it.
-                    if resolution.is_none() {
-                        if let (Some(&i), Some(Ok(bytes))) = (chunk.first(), raw.first()) {
-                            if let Ok(read) =
-                                registry.read_bytes(&inputs[i].path, bytes, read_options)
-                            {
-                                resolution = Some(read.map.snapshot.resolution());
-                            }
-                        }
-                    }
-                    let reader = ChangeReader {
-                        registry,
-                        options: read_options,
-                        resolution,
-                    };
-                    let paths: Vec<&Path> =
-                        chunk.iter().map(|&i| inputs[i].path.as_path()).collect();
-                    let outcomes = reader.batch(&paths, &raw, &mut previous);
-                    let mut accepted = Vec::with_capacity(outcomes.len());
-                    for (k, outcome) in outcomes.into_iter().enumerate() {
-                        let input = &inputs[chunk[k]];
-                        let sample = axis
-                            .index_of(input.time)
-                            .ok_or_else(|| ConvertError::internal("a time not on the axis"))?;
-                        match outcome {
-                            Ok(read) => {
-                                warnings.extend(
-                                    read.warnings.into_iter().map(|w| (input.path.clone(), w)),
-                                );
-                                input_bytes += raw[k].as_ref().map_or(0, |b| b.len() as u64);
-                                used += 1;
-                                accepted.push((sample, read.changes));
-                            }
-                            Err(reason) if options.skip_bad => {
-                                skipped.push((input.path.clone(), reason.to_string()));
-                                absent.push(sample);
-                                progress.advance(1);
-                            }
-                            Err(reason) => {
-                                return Err(match (reason.resolution_mismatch(), &first_path) {
-                                    (Some((series, found)), Some(first)) => {
-                                        ConvertError::MixedResolution {
-                                            first: first.clone(),
-                                            first_resolution: series,
-                                            second: input.path.clone(),
-                                            second_resolution: found,
-                                        }
-                                    }
-                                    _ => ConvertError::Snapshot {
-                                        path: input.path.clone(),
-                                        source: reason,
-                                    },
-                                });
-                            }
-                        }
-                    }
-                    if workers.is_empty() {
-                        let bounds = split_points(&accepted, parts, options.tile_depth);
-                        for (part, range) in ranges(&bounds).into_iter().enumerate() {
-                            let (sender, receiver) = std::sync::mpsc::sync_channel::<Batch>(1);
-                            // One thread reports progress for all.
-                            let report = part == 0;
-                            let worker = scope.spawn(move || -> Accumulated {
-                                let mut history = SeriesHistory::new(options.tile_depth);
-                                let mut busy = 0.0;
-                                for batch in receiver {
-                                    let started = Instant::now();
-                                    for (sample, changes) in batch.iter() {
-                                        history.apply_changes(*sample, &clip(changes, range))?;
-                                        if report {
-                                            progress.advance(1);
-                                        }
-                                    }
-                                    busy += started.elapsed().as_secs_f64();
-                                }
-                                Ok((history, busy))
-                            });
-                            workers.push((sender, worker));
-                        }
-                    }
-                    let batch: Batch = Arc::new(accepted);
-                    if workers
-                        .iter()
-                        .any(|(sender, _)| sender.send(batch.clone()).is_err())
-                    {
-                        // An accumulator stopped on an error, which `join` reports.
-                        break;
-                    }
-                }
-                Ok(())
-            })();
-            let mut histories = Vec::with_capacity(workers.len());
-            let mut busy = 0.0f64;
-            for (sender, worker) in workers {
-                drop(sender);
-                let (history, seconds) = worker
-                    .join()
-                    .map_err(|_| ConvertError::internal("an accumulating thread panicked"))??;
-                histories.push(history);
-                busy = busy.max(seconds);
-            }
-            produced?;
-            Ok((histories, busy))
-        })?;
-    for (i, &u) in usable.iter().enumerate() {
-        if !u {
-            if let Some(sample) = axis.index_of(inputs[i].time) {
-                absent.push(sample);
-            }
-        }
-    }
-    absent.sort_unstable();
-    absent.dedup();
-    let resolution = resolution.ok_or(ConvertError::NothingToBuild {
+    let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
+    let accumulated = accumulate_series(&mut extractor, options.tile_depth, progress)?;
+    let extracted = extractor.finish();
+    let mut skipped = checked.skipped;
+    skipped.extend(extracted.skipped);
+    let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
+    let resolution = extracted.resolution.ok_or(ConvertError::NothingToBuild {
         inputs: inputs.len(),
     })?;
     let read_seconds = started.elapsed().as_secs_f64();
-    let changed_voxels = histories.iter().map(SeriesHistory::changed_voxels).sum();
+    let changed_voxels = accumulated.changed_voxels();
     // Snapshots left out become missing samples of a regular axis, so the file says there
     // is no snapshot at their time (an explicit axis keeps the instant, with nothing
     // observed at it).
@@ -488,7 +320,6 @@ pub fn build(
         _ => (axis, prepared),
     };
 
-    // Pass 3: fit, encode and write, tile by tile.
     let modelling = Instant::now();
     let mut header = Header::new(
         resolution,
@@ -499,96 +330,25 @@ pub fn build(
         options.codec,
     );
     header.toggles = options.toggles;
-    header.metadata = metadata(inputs, used, input_bytes, options);
-    let layout = header.tile_layout();
-    let mut writer = FroctWriter::create(output, &header)?;
-    let cell_count: usize = histories.iter().map(SeriesHistory::cell_count).sum();
-    progress.stage("modelling cells", cell_count as u64);
-    let axis_len = axis.len();
-    let mut stats = TileStats::default();
-    let flush = |tiles: &mut Vec<Vec<(MortonCode, u8, VoxelObservations)>>,
-                 writer: &mut FroctWriter,
-                 stats: &mut TileStats|
-     -> Result<(), ConvertError> {
-        let encoded: Vec<Result<(EncodedTile, TileStats), ConvertError>> = tiles
-            .par_iter()
-            .map(|cells| {
-                let r = encode_cells(cells, &axis, prepared.as_ref(), &layout);
-                progress.advance(cells.len() as u64);
-                r
-            })
-            .collect();
-        for result in encoded {
-            let (tile, tile_stats) = result?;
-            writer.write_tile(&tile)?;
-            stats.add(&tile_stats);
-        }
-        tiles.clear();
-        Ok(())
-    };
-    // Tiles are fitted in parallel batches; a batch ends at a few tiles per thread or at a
-    // bound on the runs it holds (cells' observations are unpacked here, and a long series
-    // with partial views gives every cell many runs), whichever comes first. A thread of
-    // its own walks the cells and gathers the next batch while one is fitted, so up to three
-    // batches exist at once (4-week series: peak 401 MiB with 4 Mi runs, 300 with 1 Mi).
-    const BATCH_RUNS: usize = 1 << 20;
-    type TileBatch = Vec<Vec<(MortonCode, u8, VoxelObservations)>>;
-    std::thread::scope(|scope| -> Result<(), ConvertError> {
-        let (sender, receiver) =
-            std::sync::mpsc::sync_channel::<Result<TileBatch, ConvertError>>(0);
-        let absent = &absent;
-        scope.spawn(move || {
-            let mut pending: Vec<(MortonCode, u8, VoxelObservations)> = Vec::new();
-            let mut tiles: TileBatch = Vec::new();
-            let mut batch_runs = 0usize;
-            let cells = histories
-                .into_iter()
-                .flat_map(|history| history.finish(axis_len, absent));
-            for item in cells {
-                let cell = match item {
-                    Ok(cell) => cell,
-                    Err(e) => {
-                        let _ = sender.send(Err(e.into()));
-                        return;
-                    }
-                };
-                if pending.first().is_some_and(|p| {
-                    p.0.node_start(options.tile_depth) != cell.0.node_start(options.tile_depth)
-                }) {
-                    tiles.push(std::mem::take(&mut pending));
-                    if tiles.len() >= 4 * rayon::current_num_threads().max(1)
-                        || batch_runs >= BATCH_RUNS
-                    {
-                        if sender.send(Ok(std::mem::take(&mut tiles))).is_err() {
-                            // The writer stopped on an error.
-                            return;
-                        }
-                        batch_runs = 0;
-                    }
-                }
-                batch_runs += cell.2.runs().len();
-                pending.push(cell);
-            }
-            if !pending.is_empty() {
-                tiles.push(pending);
-            }
-            let _ = sender.send(Ok(tiles));
-        });
-        for batch in receiver {
-            flush(&mut batch?, &mut writer, &mut stats)?;
-        }
-        Ok(())
-    })?;
+    header.metadata = metadata(inputs, extracted.used, extracted.input_bytes, options);
+    let mut writer = TileWriter::create(output, &header)?;
+    progress.stage("modelling cells", accumulated.cell_count() as u64);
+    let accumulate_seconds = accumulated.busy_seconds();
+    let tiles = accumulated.into_tiles(axis.len(), &absent);
+    let fitter = TileFitter::new(&axis, prepared.as_ref());
+    let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+    fit_and_write(tiles, &fitter, &encoder, &mut writer, progress)?;
     let model_seconds = modelling.elapsed().as_secs_f64();
+    let stats = writer.stats().clone();
     let summary = json!({
         "cell_classes": stats.cells,
         "voxel_classes": stats.voxels,
         "toggles": stats.toggles,
         "model_errors": stats.model_errors,
         "outliers": if options.config.outliers == OutlierMode::Lossless { "lossless" } else { "lossy" },
-        "snapshots_used": used,
+        "snapshots_used": extracted.used,
         "snapshots_skipped": skipped.len(),
-        "input_bytes": input_bytes,
+        "input_bytes": extracted.input_bytes,
         "changed_voxels": changed_voxels,
         "read_seconds": read_seconds,
         "model_seconds": model_seconds,
@@ -605,10 +365,10 @@ pub fn build(
     Ok(BuildReport {
         output: output.to_path_buf(),
         inputs: inputs.len(),
-        used,
+        used: extracted.used,
         skipped,
-        warnings,
-        input_bytes,
+        warnings: extracted.warnings,
+        input_bytes: extracted.input_bytes,
         samples: axis.len(),
         regular_axis: axis.step_ns().is_some(),
         cells: stats.cells,
@@ -626,55 +386,51 @@ pub fn build(
     })
 }
 
-/// What an accumulating thread hands back: its part of the history and its busy seconds.
-type Accumulated = Result<(SeriesHistory, f64), ConvertError>;
-
-/// Up to `parts - 1` increasing tile boundaries that split the changes of a batch into parts
-/// of about as many changes (the first snapshot, which is all new, is left out when others
-/// follow: later snapshots change where the scene moves).
-fn split_points(batch: &[(u32, Vec<StateChange>)], parts: usize, tile_depth: u8) -> Vec<u64> {
-    let sample = match batch {
-        [_, rest @ ..] if rest.iter().any(|(_, c)| !c.is_empty()) => rest,
-        all => all,
-    };
-    let mut starts: Vec<u64> = sample
-        .iter()
-        .flat_map(|(_, changes)| changes.iter().map(|c| c.start))
-        .collect();
-    starts.sort_unstable();
-    let mut bounds: Vec<u64> = (1..parts)
-        .filter_map(|i| starts.get(starts.len() * i / parts))
-        .map(|&at| MortonCode(at).node_start(tile_depth).0)
-        .filter(|&at| at > 0)
-        .collect();
-    bounds.dedup();
-    bounds
+/// Runs extraction and accumulation side by side: changes are extracted in parallel batches
+/// while the accumulating threads apply the previous batch's.
+fn accumulate_series(
+    extractor: &mut ChangeExtractor<'_>,
+    tile_depth: u8,
+    progress: &dyn Progress,
+) -> Result<Accumulated, ConvertError> {
+    let parts = rayon::current_num_threads().clamp(1, 8);
+    std::thread::scope(|scope| {
+        let mut accumulator = Accumulator::new(scope, tile_depth, parts, progress);
+        let produced = (|| -> Result<(), ConvertError> {
+            for batch in extractor.by_ref() {
+                if !accumulator.push(batch?) {
+                    // An accumulating thread stopped on an error, which `finish` reports.
+                    break;
+                }
+            }
+            Ok(())
+        })();
+        let accumulated = accumulator.finish()?;
+        produced?;
+        Ok(accumulated)
+    })
 }
 
-/// The ranges `[from, to)` between consecutive bounds, covering all space.
-fn ranges(bounds: &[u64]) -> Vec<(u64, u64)> {
-    let mut edges = vec![0];
-    edges.extend_from_slice(bounds);
-    edges.push(MortonCode::END);
-    edges.windows(2).map(|w| (w[0], w[1])).collect()
-}
-
-/// The changes (sorted, disjoint) inside `[from, to)`, cut at its ends.
-fn clip(changes: &[StateChange], (from, to): (u64, u64)) -> Cow<'_, [StateChange]> {
-    let first = changes.partition_point(|c| c.end <= from);
-    let last = changes.partition_point(|c| c.start < to).max(first);
-    let inside = &changes[first..last];
-    match (inside.first(), inside.last()) {
-        (Some(a), Some(b)) if a.start < from || b.end > to => inside
+/// The samples without a snapshot (sorted): the axis' own gaps and the inputs left out by
+/// the check (`usable`) or by extraction (`refused`).
+fn samples_left_out(
+    axis: &TimeAxis,
+    inputs: &[SeriesInput],
+    usable: &[bool],
+    refused: &[u32],
+) -> Vec<u32> {
+    let mut absent: Vec<u32> = axis.missing().to_vec();
+    absent.extend_from_slice(refused);
+    absent.extend(
+        inputs
             .iter()
-            .map(|c| StateChange {
-                start: c.start.max(from),
-                end: c.end.min(to),
-                new: c.new,
-            })
-            .collect(),
-        _ => Cow::Borrowed(inside),
-    }
+            .zip(usable)
+            .filter(|(_, &usable)| !usable)
+            .filter_map(|(input, _)| axis.index_of(input.time)),
+    );
+    absent.sort_unstable();
+    absent.dedup();
+    absent
 }
 
 fn metadata(
@@ -709,130 +465,29 @@ fn metadata(
     meta
 }
 
-#[derive(Default)]
-struct TileStats {
-    cells: ClassCounts,
-    voxels: ClassCounts,
-    toggles: u64,
-    model_errors: u64,
-}
-
-impl TileStats {
-    fn add(&mut self, other: &TileStats) {
-        self.cells.add(&other.cells);
-        self.voxels.add(&other.voxels);
-        self.toggles += other.toggles;
-        self.model_errors += other.model_errors;
-    }
-}
-
-/// `true` for a probability OctoMap would clamp (below 0.1192 or above 0.971).
-fn outside_clamping(p: f64) -> bool {
-    use froctomap_core::defaults::{CLAMPING_MAX, CLAMPING_MIN};
-    !(CLAMPING_MIN..=CLAMPING_MAX).contains(&p)
-}
-
-fn encode_cells(
-    cells: &[(MortonCode, u8, VoxelObservations)],
-    axis: &TimeAxis,
-    model: &dyn PreparedModel,
-    layout: &TileLayout,
-) -> Result<(EncodedTile, TileStats), ConvertError> {
-    let mut stats = TileStats::default();
-    let mut out = Vec::with_capacity(cells.len());
-    for (start, depth, obs) in cells {
-        let voxels = froctomap_core::voxels_per_node(*depth);
-        let mask = mask_from_ranges(axis, &obs.observed_ranges());
-        if mask.is_some() {
-            stats.cells.unknown_sometimes += 1;
-            stats.voxels.unknown_sometimes += voxels;
-        }
-        let content = match obs.is_constant() {
-            Some(Occupancy::Free) => {
-                stats.cells.static_free += 1;
-                stats.voxels.static_free += voxels;
-                CellContent::Constant(Occupancy::Free)
-            }
-            Some(Occupancy::Occupied) => {
-                stats.cells.static_occupied += 1;
-                stats.voxels.static_occupied += voxels;
-                CellContent::Constant(Occupancy::Occupied)
-            }
-            None => {
-                let fitted = model.fit(obs)?;
-                stats.cells.dynamic += 1;
-                stats.voxels.dynamic += voxels;
-                stats.toggles += fitted.toggles().len() as u64;
-                stats.model_errors += fitted.model_errors().unwrap_or(0);
-                let lossless = model.outlier_mode() == OutlierMode::Lossless;
-                let parameters = fitted.parameters();
-                let mean = model.mean(parameters);
-                if lossless && model.is_constant(parameters) && outside_clamping(mean) {
-                    // A constant p no map can express (beyond the clamping bounds) adds
-                    // nothing to the constant state; only the exceptions matter. (Lossy files
-                    // keep the mean: without exceptions it is all they know of the changes.)
-                    CellContent::ConstantExcept {
-                        state: Occupancy::from(mean > 0.5),
-                        exceptions: fitted.toggles().clone(),
-                    }
-                } else {
-                    CellContent::Modelled(fitted)
-                }
-            }
-        };
-        out.push(Cell {
-            start: *start,
-            depth: *depth,
-            mask,
-            content,
-        });
-    }
-    let tile = encode_tile(layout, &out, model).map_err(|e| ConvertError::Internal {
-        what: "a tile could not be encoded",
-        source: Some(e.into()),
-    })?;
-    Ok((tile, stats))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn changes_are_split_at_part_bounds_without_loss() {
-        let change = |start, end| StateChange {
-            start,
-            end,
-            new: Some(Occupancy::Occupied),
-        };
-        let changes = [change(0, 10), change(20, 40), change(50, 60)];
-        let bounds = [30u64, 55];
-        let parts = ranges(&bounds);
-        assert_eq!(parts, [(0, 30), (30, 55), (55, MortonCode::END)]);
-        let clipped: Vec<Vec<StateChange>> = parts
+    fn samples_left_out_join_the_axis_gaps_once_each() {
+        let s = |v: i64| Timestamp::from_secs(v);
+        let times = [s(0), s(10), s(20), s(40), s(50)];
+        let axis = axis_for_times(&times).unwrap();
+        assert_eq!(axis.missing(), &[3]);
+        let inputs: Vec<SeriesInput> = times
             .iter()
-            .map(|&r| clip(&changes, r).into_owned())
+            .map(|&time| SeriesInput {
+                path: PathBuf::from("map.bt"),
+                time,
+            })
             .collect();
-        assert_eq!(clipped[0], [change(0, 10), change(20, 30)]);
-        assert_eq!(clipped[1], [change(30, 40), change(50, 55)]);
-        assert_eq!(clipped[2], [change(55, 60)]);
-        // Changes inside one part are passed on as they are.
-        assert!(matches!(clip(&changes[..1], parts[0]), Cow::Borrowed(_)));
-        // Bounds are tile starts, increasing, from the changes after the first snapshot.
-        let batch = vec![
-            (0, vec![change(0, 1 << 40)]),
-            (
-                1,
-                (0..100u64)
-                    .map(|i| change(i << 34, (i << 34) + 1))
-                    .collect(),
-            ),
-        ];
-        let bounds = split_points(&batch, 2, 10);
-        assert_eq!(bounds.len(), 1);
-        assert_eq!(bounds[0] % froctomap_core::voxels_per_node(10), 0);
-        assert!(bounds[0] > 40 << 34 && bounds[0] <= 50 << 34, "{bounds:?}");
-        assert!(split_points(&[], 2, 10).is_empty());
+        let usable = [true, false, true, true, true];
+        // Sample 5 was refused by extraction, sample 1 by the check (and reported twice).
+        assert_eq!(
+            samples_left_out(&axis, &inputs, &usable, &[5, 1]),
+            [1, 3, 5]
+        );
     }
 
     #[test]

@@ -1,0 +1,419 @@
+//! Stage 3, accumulation: the batches of changes applied in time order to the cells'
+//! histories ([`SeriesHistory`]), then handed on tile by tile.
+//!
+//! In: [`ChangeBatch`]es through [`Accumulator::push`]. Out: [`Accumulated`], whose
+//! [`into_tiles`](Accumulated::into_tiles) yields one [`TileHistory`] per tile of the output,
+//! in Morton order — all the fitting stage sees of the accumulation.
+//!
+//! Space is split into ranges at tile boundaries (which no cell straddles), chosen from the
+//! first batch's changes, and each range is accumulated by a thread of its own while the
+//! next batch is extracted.
+//!
+//! **Seam for a bounded-memory build.** This accumulator keeps every history in memory until
+//! the end, so its memory grows with the stored changes. A spilling accumulator replaces it
+//! behind the same three calls: `push` appends each tile's closed runs to a per-tile spill
+//! file once a memory budget is reached, `finish` joins its threads, and `into_tiles` reads
+//! the spill files back one tile at a time (merged with what is still in memory), yielding
+//! the same [`TileHistory`] values in the same order, so the fitter and writer do not change.
+//! An `append` starts the histories from an existing file's tiles instead of from nothing.
+
+use super::extract::ChangeBatch;
+use crate::error::ConvertError;
+use crate::history::SeriesHistory;
+use crate::progress::Progress;
+use froctomap_core::{MortonCode, StateChange};
+use froctomap_temporal::{TemporalError, VoxelObservations};
+use std::borrow::Cow;
+use std::sync::mpsc::SyncSender;
+use std::sync::Arc;
+use std::thread::{Scope, ScopedJoinHandle};
+use std::time::Instant;
+
+/// A cell of the output: its first voxel, its depth and what was observed in it.
+pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
+
+/// The cells of one tile of the output, in Morton order, with their observations.
+#[derive(Debug)]
+pub(crate) struct TileHistory {
+    pub cells: Vec<ObservedCell>,
+}
+
+impl TileHistory {
+    /// Observation runs of all its cells (what fitting the tile holds in memory).
+    pub fn runs(&self) -> usize {
+        self.cells.iter().map(|cell| cell.2.runs().len()).sum()
+    }
+}
+
+/// What an accumulating thread hands back: its part of the history and its busy seconds.
+type Worked = Result<(SeriesHistory, f64), ConvertError>;
+
+/// The in-memory accumulator: one thread per range of space, started by the first batch.
+pub(crate) struct Accumulator<'scope, 'env> {
+    scope: &'scope Scope<'scope, 'env>,
+    tile_depth: u8,
+    parts: usize,
+    progress: &'env dyn Progress,
+    workers: Vec<(
+        SyncSender<Arc<ChangeBatch>>,
+        ScopedJoinHandle<'scope, Worked>,
+    )>,
+}
+
+impl<'scope, 'env> Accumulator<'scope, 'env> {
+    /// An accumulator for cells no coarser than depth-`tile_depth` tiles, working on up to
+    /// `parts` threads of `scope`. It advances `progress` by one per snapshot applied.
+    pub fn new(
+        scope: &'scope Scope<'scope, 'env>,
+        tile_depth: u8,
+        parts: usize,
+        progress: &'env dyn Progress,
+    ) -> Self {
+        Self {
+            scope,
+            tile_depth,
+            parts: parts.max(1),
+            progress,
+            workers: Vec::new(),
+        }
+    }
+
+    /// Hands a batch (later than the ones before) to the accumulating threads. `false` when a
+    /// thread has stopped on an error, which [`finish`](Self::finish) reports.
+    pub fn push(&mut self, batch: ChangeBatch) -> bool {
+        if self.workers.is_empty() {
+            let bounds = split_points(&batch, self.parts, self.tile_depth);
+            for (part, range) in ranges(&bounds).into_iter().enumerate() {
+                // One thread reports progress for all.
+                let progress = (part == 0).then_some(self.progress);
+                let (sender, receiver) = std::sync::mpsc::sync_channel::<Arc<ChangeBatch>>(1);
+                let tile_depth = self.tile_depth;
+                let worker = self.scope.spawn(move || -> Worked {
+                    let mut history = SeriesHistory::new(tile_depth);
+                    let mut busy = 0.0;
+                    for batch in receiver {
+                        let started = Instant::now();
+                        for snapshot in batch.iter() {
+                            history
+                                .apply_changes(snapshot.sample, &clip(&snapshot.changes, range))?;
+                            if let Some(progress) = progress {
+                                progress.advance(1);
+                            }
+                        }
+                        busy += started.elapsed().as_secs_f64();
+                    }
+                    Ok((history, busy))
+                });
+                self.workers.push((sender, worker));
+            }
+        }
+        let batch = Arc::new(batch);
+        self.workers
+            .iter()
+            .all(|(sender, _)| sender.send(batch.clone()).is_ok())
+    }
+
+    /// Waits for the threads to apply every batch pushed.
+    pub fn finish(self) -> Result<Accumulated, ConvertError> {
+        let mut parts = Vec::with_capacity(self.workers.len());
+        let mut busy_seconds = 0.0f64;
+        for (sender, worker) in self.workers {
+            drop(sender);
+            let (history, seconds) = worker
+                .join()
+                .map_err(|_| ConvertError::internal("an accumulating thread panicked"))??;
+            parts.push(history);
+            busy_seconds = busy_seconds.max(seconds);
+        }
+        Ok(Accumulated {
+            parts,
+            busy_seconds,
+            tile_depth: self.tile_depth,
+        })
+    }
+}
+
+/// The histories of a whole series, in ranges of space in Morton order.
+#[derive(Debug)]
+pub(crate) struct Accumulated {
+    parts: Vec<SeriesHistory>,
+    busy_seconds: f64,
+    tile_depth: u8,
+}
+
+impl Accumulated {
+    /// Cells in all.
+    pub fn cell_count(&self) -> usize {
+        self.parts.iter().map(SeriesHistory::cell_count).sum()
+    }
+
+    /// Voxel-changes seen (a voxel changing state at one snapshot counts once).
+    pub fn changed_voxels(&self) -> u64 {
+        self.parts.iter().map(SeriesHistory::changed_voxels).sum()
+    }
+
+    /// Seconds the busiest thread spent applying changes (the part that is sequential).
+    pub fn busy_seconds(&self) -> f64 {
+        self.busy_seconds
+    }
+
+    /// The histories closed at the end of an axis of `axis_len` samples, tile by tile in
+    /// Morton order, with the samples in `absent` (sorted: no snapshot) cut out.
+    pub fn into_tiles(
+        self,
+        axis_len: u32,
+        absent: &[u32],
+    ) -> TileHistories<impl Iterator<Item = Result<ObservedCell, TemporalError>> + Send + '_> {
+        TileHistories {
+            cells: self
+                .parts
+                .into_iter()
+                .flat_map(move |part| part.finish(axis_len, absent)),
+            tile_depth: self.tile_depth,
+            next: None,
+        }
+    }
+}
+
+/// Cells grouped into the tiles of the output.
+pub(crate) struct TileHistories<I> {
+    cells: I,
+    tile_depth: u8,
+    /// The first cell of the next tile, read past the end of the one before.
+    next: Option<ObservedCell>,
+}
+
+impl<I: Iterator<Item = Result<ObservedCell, TemporalError>>> Iterator for TileHistories<I> {
+    type Item = Result<TileHistory, ConvertError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let mut cells: Vec<ObservedCell> = self.next.take().into_iter().collect();
+        for cell in self.cells.by_ref() {
+            let cell = match cell {
+                Ok(cell) => cell,
+                Err(e) => return Some(Err(e.into())),
+            };
+            let tile = |c: &ObservedCell| c.0.node_start(self.tile_depth);
+            if cells
+                .first()
+                .is_some_and(|first| tile(first) != tile(&cell))
+            {
+                self.next = Some(cell);
+                break;
+            }
+            cells.push(cell);
+        }
+        (!cells.is_empty()).then_some(Ok(TileHistory { cells }))
+    }
+}
+
+/// Up to `parts - 1` increasing tile boundaries that split the changes of a batch into parts
+/// of about as many changes (the first snapshot, which is all new, is left out when others
+/// follow: later snapshots change where the scene moves).
+fn split_points(batch: &[super::extract::SampleChanges], parts: usize, tile_depth: u8) -> Vec<u64> {
+    let sample = match batch {
+        [_, rest @ ..] if rest.iter().any(|s| !s.changes.is_empty()) => rest,
+        all => all,
+    };
+    let mut starts: Vec<u64> = sample
+        .iter()
+        .flat_map(|s| s.changes.iter().map(|c| c.start))
+        .collect();
+    starts.sort_unstable();
+    let mut bounds: Vec<u64> = (1..parts)
+        .filter_map(|i| starts.get(starts.len() * i / parts))
+        .map(|&at| MortonCode(at).node_start(tile_depth).0)
+        .filter(|&at| at > 0)
+        .collect();
+    bounds.dedup();
+    bounds
+}
+
+/// The ranges `[from, to)` between consecutive bounds, covering all space.
+fn ranges(bounds: &[u64]) -> Vec<(u64, u64)> {
+    let mut edges = vec![0];
+    edges.extend_from_slice(bounds);
+    edges.push(MortonCode::END);
+    edges.windows(2).map(|w| (w[0], w[1])).collect()
+}
+
+/// The changes (sorted, disjoint) inside `[from, to)`, cut at its ends.
+fn clip(changes: &[StateChange], (from, to): (u64, u64)) -> Cow<'_, [StateChange]> {
+    let first = changes.partition_point(|c| c.end <= from);
+    let last = changes.partition_point(|c| c.start < to).max(first);
+    let inside = &changes[first..last];
+    match (inside.first(), inside.last()) {
+        (Some(a), Some(b)) if a.start < from || b.end > to => inside
+            .iter()
+            .map(|c| StateChange {
+                start: c.start.max(from),
+                end: c.end.min(to),
+                new: c.new,
+            })
+            .collect(),
+        _ => Cow::Borrowed(inside),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::extract::SampleChanges;
+    use super::*;
+    use crate::progress::Silent;
+    use froctomap_core::{voxels_per_node, Occupancy};
+
+    fn change(start: u64, end: u64, new: Option<Occupancy>) -> StateChange {
+        StateChange { start, end, new }
+    }
+
+    fn occupied(start: u64, end: u64) -> StateChange {
+        change(start, end, Some(Occupancy::Occupied))
+    }
+
+    #[test]
+    fn changes_are_split_at_part_bounds_without_loss() {
+        let changes = [occupied(0, 10), occupied(20, 40), occupied(50, 60)];
+        let bounds = [30u64, 55];
+        let parts = ranges(&bounds);
+        assert_eq!(parts, [(0, 30), (30, 55), (55, MortonCode::END)]);
+        let clipped: Vec<Vec<StateChange>> = parts
+            .iter()
+            .map(|&r| clip(&changes, r).into_owned())
+            .collect();
+        assert_eq!(clipped[0], [occupied(0, 10), occupied(20, 30)]);
+        assert_eq!(clipped[1], [occupied(30, 40), occupied(50, 55)]);
+        assert_eq!(clipped[2], [occupied(55, 60)]);
+        // Changes inside one part are passed on as they are.
+        assert!(matches!(clip(&changes[..1], parts[0]), Cow::Borrowed(_)));
+        // Bounds are tile starts, increasing, from the changes after the first snapshot.
+        let batch = vec![
+            SampleChanges {
+                sample: 0,
+                changes: vec![occupied(0, 1 << 40)],
+            },
+            SampleChanges {
+                sample: 1,
+                changes: (0..100u64)
+                    .map(|i| occupied(i << 34, (i << 34) + 1))
+                    .collect(),
+            },
+        ];
+        let bounds = split_points(&batch, 2, 10);
+        assert_eq!(bounds.len(), 1);
+        assert_eq!(bounds[0] % voxels_per_node(10), 0);
+        assert!(bounds[0] > 40 << 34 && bounds[0] <= 50 << 34, "{bounds:?}");
+        assert!(split_points(&[], 2, 10).is_empty());
+    }
+
+    /// A small series over four tiles of depth 14 (64 voxels each), with changes in each.
+    fn series() -> Vec<ChangeBatch> {
+        let tile = voxels_per_node(14);
+        let free = |s, e| change(s, e, Some(Occupancy::Free));
+        vec![
+            vec![
+                SampleChanges {
+                    sample: 0,
+                    changes: vec![free(0, 4 * tile)],
+                },
+                SampleChanges {
+                    sample: 1,
+                    changes: vec![occupied(3, 5), occupied(tile + 7, tile + 8)],
+                },
+            ],
+            vec![
+                SampleChanges {
+                    sample: 2,
+                    changes: vec![free(3, 5), change(2 * tile, 2 * tile + 8, None)],
+                },
+                SampleChanges {
+                    sample: 4,
+                    changes: vec![occupied(3 * tile + 1, 3 * tile + 2)],
+                },
+            ],
+        ]
+    }
+
+    /// The tiles accumulated by `parts` threads.
+    fn tiles(parts: usize) -> Vec<TileHistory> {
+        std::thread::scope(|scope| {
+            let mut accumulator = Accumulator::new(scope, 14, parts, &Silent);
+            for batch in series() {
+                assert!(accumulator.push(batch));
+            }
+            let accumulated = accumulator.finish().unwrap();
+            assert_eq!(accumulated.changed_voxels(), 4 * 64 + 2 + 1 + 2 + 8 + 1);
+            let cells = accumulated.cell_count();
+            let tiles: Vec<TileHistory> = accumulated
+                .into_tiles(5, &[3])
+                .map(Result::unwrap)
+                .collect();
+            assert_eq!(tiles.iter().map(|t| t.cells.len()).sum::<usize>(), cells);
+            tiles
+        })
+    }
+
+    #[test]
+    fn histories_come_out_tile_by_tile_whatever_the_threads() {
+        let one = tiles(1);
+        assert_eq!(one.len(), 4);
+        for (i, tile) in one.iter().enumerate() {
+            let start = i as u64 * voxels_per_node(14);
+            assert!(
+                tile.cells.windows(2).all(|w| w[0].0 < w[1].0),
+                "Morton order"
+            );
+            assert!(tile
+                .cells
+                .iter()
+                .all(|c| c.0.node_start(14).0 == start && c.1 >= 14));
+        }
+        // The changed voxel 3 of the first tile: free, occupied at 1, free from 2 on; the
+        // absent sample 3 is cut out.
+        let cell = one[0]
+            .cells
+            .iter()
+            .find(|c| c.0 .0 <= 3 && 3 < c.0 .0 + voxels_per_node(c.1))
+            .unwrap();
+        let states: Vec<Option<Occupancy>> = (0..5).map(|s| cell.2.state_at(s)).collect();
+        use Occupancy::{Free, Occupied};
+        assert_eq!(
+            states,
+            [Some(Free), Some(Occupied), Some(Free), None, Some(Free)]
+        );
+        // A tile that went unobserved keeps what it saw before.
+        let hidden = &one[2].cells[0];
+        assert_eq!(hidden.2.state_at(1), Some(Free));
+        assert_eq!(hidden.2.state_at(2), None);
+        for parts in [2, 3, 8] {
+            let split = tiles(parts);
+            assert_eq!(split.len(), one.len());
+            for (a, b) in split.iter().zip(&one) {
+                assert_eq!(a.cells, b.cells, "{parts} threads");
+                assert_eq!(a.runs(), b.runs());
+            }
+        }
+    }
+
+    #[test]
+    fn an_out_of_order_batch_is_reported_by_finish() {
+        let result = std::thread::scope(|scope| {
+            let mut accumulator = Accumulator::new(scope, 14, 2, &Silent);
+            let batch = |sample| {
+                vec![SampleChanges {
+                    sample,
+                    changes: vec![occupied(0, 8)],
+                }]
+            };
+            accumulator.push(batch(3));
+            // The threads may or may not have stopped yet when the second batch arrives.
+            accumulator.push(batch(1));
+            accumulator.finish().map(|_| ())
+        });
+        assert!(matches!(
+            result,
+            Err(ConvertError::Model(
+                TemporalError::InvalidObservations { .. }
+            ))
+        ));
+    }
+}

@@ -1,0 +1,178 @@
+//! Stage 5, encode and write: fitted tiles encoded with the file's codec and layout (in
+//! parallel, [`TileEncoder`]) and written in Morton order to the output, atomically
+//! ([`TileWriter`], which also sums the tiles' counts for the summary).
+
+use super::fit::TileStats;
+use crate::error::ConvertError;
+use froctomap_file::{
+    encode_tile, Cell, EncodedTile, FroctWriter, Header, TileLayout, WrittenFile,
+};
+use froctomap_temporal::PreparedModel;
+use serde_json::{Map, Value};
+use std::path::Path;
+
+/// Encodes the cells of a tile as the file stores them.
+pub(crate) struct TileEncoder<'a> {
+    layout: TileLayout,
+    model: &'a dyn PreparedModel,
+}
+
+impl<'a> TileEncoder<'a> {
+    /// An encoder for a file of this layout whose dynamic cells `model` fitted.
+    pub fn new(layout: TileLayout, model: &'a dyn PreparedModel) -> Self {
+        Self { layout, model }
+    }
+
+    /// One tile's cells (in Morton order), encoded.
+    pub fn encode(&self, cells: &[Cell]) -> Result<EncodedTile, ConvertError> {
+        encode_tile(&self.layout, cells, self.model).map_err(|e| ConvertError::Internal {
+            what: "a tile could not be encoded",
+            source: Some(e.into()),
+        })
+    }
+}
+
+/// The output file, written tile by tile.
+pub(crate) struct TileWriter {
+    writer: FroctWriter,
+    stats: TileStats,
+}
+
+impl TileWriter {
+    /// Starts the file at `output` (in place once [`finish`](Self::finish)ed).
+    pub fn create(output: &Path, header: &Header) -> Result<Self, ConvertError> {
+        Ok(Self {
+            writer: FroctWriter::create(output, header)?,
+            stats: TileStats::default(),
+        })
+    }
+
+    /// Writes the next tile (after the ones before in Morton order), with its counts.
+    pub fn write(&mut self, tile: &EncodedTile, stats: &TileStats) -> Result<(), ConvertError> {
+        self.writer.write_tile(tile)?;
+        self.stats.add(stats);
+        Ok(())
+    }
+
+    /// The counts of the tiles written so far.
+    pub fn stats(&self) -> &TileStats {
+        &self.stats
+    }
+
+    /// Writes the index and the summary and puts the file in place.
+    pub fn finish(self, summary: Map<String, Value>) -> Result<WrittenFile, ConvertError> {
+        Ok(self.writer.finish(summary)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::accumulate::TileHistory;
+    use super::super::fit::{fit_and_write, TileFitter};
+    use super::*;
+    use crate::build::test_support::default_model;
+    use crate::progress::Silent;
+    use froctomap_core::{MortonCode, Occupancy};
+    use froctomap_file::{CellContent, Codec, FroctReader};
+    use froctomap_temporal::VoxelObservations;
+
+    /// The header of a file of depth-14 tiles on a regular axis of `samples` seconds, and
+    /// the default model prepared for that axis.
+    fn file_header(samples: u32) -> (Header, Box<dyn PreparedModel>) {
+        let setup = default_model(samples);
+        let parameters = setup.model.encode_parameters();
+        let header = Header::new(0.1, 14, setup.axis, setup.id, parameters, Codec::default());
+        (header, setup.model)
+    }
+
+    #[test]
+    fn tiles_written_read_back_as_given_and_counts_add_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("out.froct");
+        let (header, prepared) = file_header(4);
+        let tile_size = froctomap_core::voxels_per_node(14);
+        let constant = |start, state| Cell {
+            start: MortonCode(start),
+            depth: 14,
+            mask: None,
+            content: CellContent::Constant(state),
+        };
+        let tiles = [
+            vec![constant(0, Occupancy::Free)],
+            vec![constant(3 * tile_size, Occupancy::Occupied)],
+        ];
+        let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+        let mut writer = TileWriter::create(&output, &header).unwrap();
+        let mut one = TileStats::default();
+        one.cells.static_free = 1;
+        for cells in &tiles {
+            writer.write(&encoder.encode(cells).unwrap(), &one).unwrap();
+        }
+        assert_eq!(writer.stats().cells.static_free, 2);
+        assert!(!output.exists(), "in place only once finished");
+        let written = writer.finish(Map::new()).unwrap();
+        assert_eq!(
+            written.file_bytes,
+            std::fs::metadata(&output).unwrap().len()
+        );
+        let reader = FroctReader::open(&output).unwrap();
+        assert_eq!(reader.tiles().len(), 2);
+        for (i, cells) in tiles.iter().enumerate() {
+            assert_eq!(&reader.read_tile(i).unwrap(), cells);
+        }
+    }
+
+    /// A stream of `count` tiles, each one cell observed free then occupied.
+    fn tile_stream(count: u64) -> impl Iterator<Item = Result<TileHistory, ConvertError>> + Send {
+        let tile_size = froctomap_core::voxels_per_node(14);
+        (0..count).map(move |i| {
+            let runs = vec![(0, 2, Occupancy::Free), (2, 2, Occupancy::Occupied)];
+            Ok(TileHistory {
+                cells: vec![(
+                    MortonCode(i * tile_size),
+                    14,
+                    VoxelObservations::from_runs(runs)?,
+                )],
+            })
+        })
+    }
+
+    #[test]
+    fn a_stream_of_tiles_is_fitted_and_written_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("out.froct");
+        let (header, prepared) = file_header(4);
+        let fitter = TileFitter::new(&header.axis, prepared.as_ref());
+        let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+        let mut writer = TileWriter::create(&output, &header).unwrap();
+        // More tiles than one parallel batch holds.
+        let count = 9 * rayon::current_num_threads() as u64;
+        fit_and_write(tile_stream(count), &fitter, &encoder, &mut writer, &Silent).unwrap();
+        assert_eq!(writer.stats().cells.dynamic, count);
+        writer.finish(Map::new()).unwrap();
+        let reader = FroctReader::open(&output).unwrap();
+        let starts: Vec<u64> = (0..reader.tiles().len())
+            .map(|i| reader.read_tile(i).unwrap()[0].start.0)
+            .collect();
+        let expected: Vec<u64> = tile_stream(count)
+            .map(|t| t.unwrap().cells[0].0 .0)
+            .collect();
+        assert_eq!(starts, expected);
+    }
+
+    #[test]
+    fn an_error_in_the_tile_stream_stops_the_writing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (header, prepared) = file_header(4);
+        let fitter = TileFitter::new(&header.axis, prepared.as_ref());
+        let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+        let output = dir.path().join("out.froct");
+        let mut writer = TileWriter::create(&output, &header).unwrap();
+        let failing = tile_stream(3).chain(std::iter::once(Err(ConvertError::internal("test"))));
+        let result = fit_and_write(failing, &fitter, &encoder, &mut writer, &Silent);
+        assert!(matches!(
+            result,
+            Err(ConvertError::Internal { what: "test", .. })
+        ));
+    }
+}
