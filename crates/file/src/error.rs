@@ -115,15 +115,6 @@ pub enum FileError {
         /// Its stored length.
         len: usize,
     },
-    /// The cells of a file's tiles do not form one map (they overlap).
-    #[error("{}: cells overlap", path.display())]
-    Overlap {
-        /// The file.
-        path: PathBuf,
-        /// What the map found.
-        #[source]
-        source: MapError,
-    },
 }
 
 impl FileError {

@@ -48,7 +48,11 @@
 //! writer.finish(Default::default())?;
 //!
 //! let reader = FroctReader::open(&path)?;
-//! let map = reader.snapshot_at_sample(1)?;
+//! // The map at sample 1, tile by tile (`froctomap_convert::observed_map` does it for a whole
+//! // file, tiles in parallel).
+//! let mut leaves = Vec::new();
+//! reader.observed_leaves(0, 1, &mut leaves)?;
+//! let map = froctomap_core::Snapshot::from_leaves(0.05, leaves)?;
 //! assert_eq!(map.state_at(VoxelKey::new(32768, 32768, 32768).morton()), Some(Occupancy::Free));
 //! assert_eq!(reader.read_tile(0)?, cells);
 //! # Ok::<(), Box<dyn std::error::Error>>(())

@@ -3,7 +3,7 @@
 use crate::error::FileError;
 use crate::reader::FroctReader;
 use crate::tile::Cell;
-use froctomap_core::{Leaf, MortonCode, Occupancy, Snapshot, VoxelKey};
+use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
 
 /// A cell's geometry with a value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,20 +89,5 @@ impl FroctReader {
             |_| false,
             |cell| Some(cell.probability(self.model(), seconds)),
         )
-    }
-
-    /// The whole map as observed at `sample`, one leaf per observed cell (with the `.bt`
-    /// log-odds of its state), in Morton order.
-    pub fn snapshot_at_sample(&self, sample: u32) -> Result<Snapshot, FileError> {
-        let mut leaves = Vec::new();
-        for tile in 0..self.tiles().len() {
-            self.observed_leaves(tile, sample, &mut leaves)?;
-        }
-        Snapshot::from_leaves(self.header().resolution, leaves).map_err(|source| {
-            FileError::Overlap {
-                path: self.path().to_path_buf(),
-                source,
-            }
-        })
     }
 }

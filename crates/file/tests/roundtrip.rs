@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use froctomap_core::{MortonCode, Occupancy, Timestamp, VoxelKey};
+use froctomap_core::{MortonCode, Occupancy, Snapshot, Timestamp, VoxelKey};
 use froctomap_file::{Codec, FroctReader, TileLayout, ToggleLayout};
 use froctomap_temporal::{
     ModelConfig, ModelRegistry, ObservationsBuilder, Order, OutlierMode, TimeAxis,
@@ -208,7 +208,11 @@ fn check(
     }
     // The whole-map view agrees with the cells.
     for sample in [0, axis.len() / 2, axis.len() - 1] {
-        let snapshot = reader.snapshot_at_sample(sample).unwrap();
+        let mut leaves = Vec::new();
+        for tile in 0..reader.tiles().len() {
+            reader.observed_leaves(tile, sample, &mut leaves).unwrap();
+        }
+        let snapshot = Snapshot::from_leaves(reader.header().resolution, leaves).unwrap();
         let known = cells
             .iter()
             .filter(|c| c.observations.state_at(sample).is_some())
