@@ -31,19 +31,24 @@ pub struct ReadLimits {
     pub max_toggles_per_tile: u64,
 }
 
+impl ReadLimits {
+    /// The defaults, usable in constants (`ReadLimits { max_tiles: 16, ..ReadLimits::DEFAULT }`).
+    pub const DEFAULT: Self = Self {
+        max_header_bytes: 16 << 20,
+        max_samples: 1 << 28,
+        max_toggle_blocks: 1 << 20,
+        max_model_parameter_bytes: 16 << 20,
+        max_tiles: 1 << 24,
+        max_tile_bytes: 1 << 30,
+        max_cells_per_tile: 1 << 24,
+        max_index_bytes: 1 << 30,
+        max_total_cells: 1 << 26,
+        max_toggles_per_tile: 1 << 28,
+    };
+}
+
 impl Default for ReadLimits {
     fn default() -> Self {
-        Self {
-            max_header_bytes: 16 << 20,
-            max_samples: 1 << 28,
-            max_toggle_blocks: 1 << 20,
-            max_model_parameter_bytes: 16 << 20,
-            max_tiles: 1 << 24,
-            max_tile_bytes: 1 << 30,
-            max_cells_per_tile: 1 << 24,
-            max_index_bytes: 1 << 30,
-            max_total_cells: 1 << 26,
-            max_toggles_per_tile: 1 << 28,
-        }
+        Self::DEFAULT
     }
 }
