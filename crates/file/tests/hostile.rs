@@ -75,7 +75,9 @@ fn a_resealed_huge_cell_count_is_refused_at_open() {
         "{err}"
     );
     // The violation is printed once: in the message, not again as a cause.
-    assert!(err.to_string().contains("more cells than its decoded length"));
+    assert!(err
+        .to_string()
+        .contains("more cells than its decoded length"));
     assert!(std::error::Error::source(&err).is_none());
     // A decoded length large enough for the count (within the tile byte limit) still
     // leaves the count beyond the cells a tile may hold.
