@@ -572,3 +572,80 @@ impl<'a> ToggleColumnReader<'a> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lists over 12 samples in blocks of 4: list 1 toggles once in block 0, so its parity
+    /// bit is set in blocks 1 and 2.
+    const LISTS: [&[u32]; 3] = [&[1, 5], &[3], &[2, 9]];
+    const LAYOUT: ToggleLayout = ToggleLayout::Blocked(4);
+
+    fn blocks_of(columns: &[ListColumns]) -> Vec<ListBlock<'_>> {
+        columns
+            .iter()
+            .enumerate()
+            .map(|(b, c)| ListBlock {
+                start: LAYOUT.block_span(b as u32, 12).0,
+                parity: c.get(Column::Parity),
+                present: Some(c.get(Column::Lists)),
+                columns: [
+                    c.get(Column::Counts),
+                    c.get(Column::Starts),
+                    c.get(Column::Lengths),
+                ],
+            })
+            .collect()
+    }
+
+    fn read_whole(columns: &[ListColumns]) -> Result<Vec<Vec<u32>>, FormatViolation> {
+        let blocks = blocks_of(columns);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 100);
+        let mut lists = Vec::new();
+        for _ in LISTS {
+            let mut positions = Vec::new();
+            reader.next_list_into(&mut positions)?;
+            lists.push(positions);
+        }
+        reader.finish()?;
+        Ok(lists)
+    }
+
+    #[test]
+    fn whole_lists_read_back_and_every_parity_bit_is_checked() {
+        let columns = encode_lists(&LISTS, LAYOUT, 12);
+        assert_eq!(read_whole(&columns).unwrap(), LISTS.map(<[u32]>::to_vec));
+        // Flipping any parity bit of any block is found, whether or not the list has
+        // toggles in the blocks around it.
+        for block in 0..columns.len() {
+            for list in 0..LISTS.len() {
+                let mut damaged = encode_lists(&LISTS, LAYOUT, 12);
+                damaged[block].0[Column::Parity as usize][0] ^= 1 << list;
+                let err = read_whole(&damaged).unwrap_err();
+                assert!(err.to_string().contains("parity"), "{block} {list}: {err}");
+            }
+        }
+    }
+
+    #[test]
+    fn toggles_beyond_the_limit_are_refused() {
+        let columns = encode_lists(&LISTS, LAYOUT, 12);
+        let blocks = blocks_of(&columns);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 2);
+        let mut positions = Vec::new();
+        reader.next_list_into(&mut positions).unwrap();
+        let err = reader.next_list_into(&mut positions).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FormatViolation::Limit {
+                    value: 3,
+                    limit: 2,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+}
