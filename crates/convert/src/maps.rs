@@ -212,19 +212,25 @@ fn collect_tiles(
     leaves_of: impl Fn(usize, &mut Vec<Leaf>) -> Result<(), froctomap_file::FileError> + Sync,
 ) -> Result<Snapshot, ConvertError> {
     // A tile yields at most one leaf per cell, so every buffer is sized once: growing them
-    // (copies and fresh pages) cost more than the walk itself on large maps.
-    let per_tile = reader
-        .tiles()
-        .par_iter()
-        .enumerate()
-        .map(|(tile, entry)| {
-            let mut out = Vec::with_capacity(entry.cell_count as usize);
-            leaves_of(tile, &mut out).map(|()| out)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let mut leaves: Vec<Leaf> = Vec::with_capacity(per_tile.iter().map(Vec::len).sum());
-    for tile_leaves in per_tile {
-        leaves.extend_from_slice(&tile_leaves);
+    // (copies and fresh pages) cost more than the walk itself on large maps. The reader
+    // bounded the index's cell counts (per tile and in total) by its limits at open, and
+    // tiles are decoded a few at a time so that the map is held once, not twice.
+    let tiles = reader.tiles();
+    let cells: usize = tiles.iter().map(|t| t.cell_count as usize).sum();
+    let mut leaves: Vec<Leaf> = Vec::with_capacity(cells);
+    let chunk = 4 * rayon::current_num_threads().max(1);
+    for (first, entries) in tiles.chunks(chunk).enumerate() {
+        let per_tile = entries
+            .par_iter()
+            .enumerate()
+            .map(|(i, entry)| {
+                let mut out = Vec::with_capacity(entry.cell_count as usize);
+                leaves_of(first * chunk + i, &mut out).map(|()| out)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        for tile_leaves in per_tile {
+            leaves.extend_from_slice(&tile_leaves);
+        }
     }
     Snapshot::from_leaves(reader.header().resolution, leaves)
         .map_err(|e| inconsistent_cells(reader, e))

@@ -70,12 +70,15 @@ pub enum FileError {
         source: std::io::Error,
     },
     /// The file's content is invalid.
+    ///
+    /// The violation is this error's own detail, shown in its message and returned by
+    /// [`violation`](Self::violation), not a separate cause: a chain of causes prints it
+    /// once.
     #[error("{}: {violation}", path.display())]
     Invalid {
         /// The file.
         path: PathBuf,
         /// What is wrong.
-        #[source]
         violation: FormatViolation,
     },
     /// The header handed to a writer holds a value no file may hold.

@@ -266,15 +266,26 @@ impl Header {
         let missing = |name: &str| corrupt("header", format!("required section {name} is missing"));
         let (resolution, tile_depth) = map.ok_or_else(|| missing("MAP"))?;
         let (model_id, model_parameters) = model.ok_or_else(|| missing("MODEL"))?;
+        let axis = axis.ok_or_else(|| missing("TIME_AXIS"))?;
+        let toggles = toggle_blocks.map_or(ToggleLayout::Whole, ToggleLayout::Blocked);
+        // Tiles keep a few values per toggle block: bound them before any tile is read.
+        let blocks = u64::from(toggles.blocks(axis.len()));
+        if blocks > limits.max_toggle_blocks {
+            return Err(FormatViolation::Limit {
+                what: "toggle blocks",
+                value: blocks,
+                limit: limits.max_toggle_blocks,
+            });
+        }
         Ok(Header {
             resolution,
             tile_depth,
-            axis: axis.ok_or_else(|| missing("TIME_AXIS"))?,
+            axis,
             model_id,
             model_parameters,
             codec: codec.ok_or_else(|| missing("CODEC"))?,
             metadata,
-            toggles: toggle_blocks.map_or(ToggleLayout::Whole, ToggleLayout::Blocked),
+            toggles,
             version,
         })
     }
@@ -423,6 +434,13 @@ fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, Form
             let start = Timestamp(c.i64()?);
             let step = c.i64()?;
             let count = c.u32()?;
+            if u64::from(count) > limits.max_samples {
+                return Err(FormatViolation::Limit {
+                    what: "sample count",
+                    value: u64::from(count),
+                    limit: limits.max_samples,
+                });
+            }
             let missing_count = c.count("missing sample count", u64::from(count), 1)?;
             let mut missing = Vec::with_capacity(missing_count);
             let mut next = 0u64;

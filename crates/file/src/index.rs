@@ -78,6 +78,8 @@ pub(crate) fn decode_index(
     let tile_size = voxels_per_node(tile_depth);
     let mut entries: Vec<TileEntry> = Vec::with_capacity(count);
     let mut next_free = data.start;
+    // Checked here so that no reader sizes anything by a count it has not bounded.
+    let mut total_cells = 0u64;
     for _ in 0..count {
         let entry = TileEntry {
             code: MortonCode(c.u64()?),
@@ -128,6 +130,29 @@ pub(crate) fn decode_index(
                     entry.code.0
                 ),
             ));
+        }
+        // Every cell has a depth byte and a class byte in the decoded payload.
+        if u64::from(entry.cell_count) * 2 > u64::from(entry.raw_len) {
+            return Err(corrupt(
+                "index",
+                format!(
+                    "tile {:#x} claims more cells than its decoded length can hold",
+                    entry.code.0
+                ),
+            ));
+        }
+        total_cells += u64::from(entry.cell_count);
+        for (what, value, limit) in [
+            (
+                "cells per tile",
+                u64::from(entry.cell_count),
+                limits.max_cells_per_tile,
+            ),
+            ("cells in the file", total_cells, limits.max_total_cells),
+        ] {
+            if value > limit {
+                return Err(FormatViolation::Limit { what, value, limit });
+            }
         }
         next_free = end.unwrap_or(data.end);
         entries.push(entry);

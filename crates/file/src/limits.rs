@@ -7,8 +7,12 @@
 pub struct ReadLimits {
     /// Header section bytes (default 16 MiB).
     pub max_header_bytes: u64,
-    /// Samples of an explicit time axis (default 2^28).
+    /// Samples of a time axis, regular or explicit (default 2^28).
     pub max_samples: u64,
+    /// Toggle blocks a tile may split the time axis into (default 2^20; the default block
+    /// length of 256 samples reaches it at the default `max_samples`). Readers keep a few
+    /// values per block.
+    pub max_toggle_blocks: u64,
     /// Model parameter bytes (default 16 MiB).
     pub max_model_parameter_bytes: u64,
     /// Tiles in the index (default 2^24).
@@ -19,18 +23,32 @@ pub struct ReadLimits {
     pub max_cells_per_tile: u64,
     /// Index bytes (default 1 GiB).
     pub max_index_bytes: u64,
+    /// Cells of the whole file, summed over the index (default 2^26): whole-map reads hold
+    /// one leaf or cell per cell.
+    pub max_total_cells: u64,
+    /// Toggles (observation changes, outliers, exceptions) a reader decodes from one tile
+    /// (default 2^28): whole toggle lists are built from them.
+    pub max_toggles_per_tile: u64,
+}
+
+impl ReadLimits {
+    /// The defaults, usable in constants (`ReadLimits { max_tiles: 16, ..ReadLimits::DEFAULT }`).
+    pub const DEFAULT: Self = Self {
+        max_header_bytes: 16 << 20,
+        max_samples: 1 << 28,
+        max_toggle_blocks: 1 << 20,
+        max_model_parameter_bytes: 16 << 20,
+        max_tiles: 1 << 24,
+        max_tile_bytes: 1 << 30,
+        max_cells_per_tile: 1 << 24,
+        max_index_bytes: 1 << 30,
+        max_total_cells: 1 << 26,
+        max_toggles_per_tile: 1 << 28,
+    };
 }
 
 impl Default for ReadLimits {
     fn default() -> Self {
-        Self {
-            max_header_bytes: 16 << 20,
-            max_samples: 1 << 28,
-            max_model_parameter_bytes: 16 << 20,
-            max_tiles: 1 << 24,
-            max_tile_bytes: 1 << 30,
-            max_cells_per_tile: 1 << 24,
-            max_index_bytes: 1 << 30,
-        }
+        Self::DEFAULT
     }
 }

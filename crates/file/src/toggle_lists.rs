@@ -5,6 +5,8 @@
 use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
 use froctomap_temporal::varint;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
 /// How a file stores toggle lists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -206,17 +208,30 @@ pub(crate) struct ToggleListReader<'a> {
     /// Lists read so far.
     read: usize,
     part: &'static str,
+    /// Reading whole lists in the blocked layout: the next list each block holds toggles
+    /// of, as `(list, block)`, smallest first (filled on the first whole list). A list is
+    /// read from the blocks listing it only, so that reading every list costs the toggles
+    /// and the bitmaps' bytes, not lists × blocks.
+    pending: Option<BinaryHeap<Reverse<(u64, usize)>>>,
+    /// Per block, the lists with an odd number of toggles in it: the parity bitmaps of
+    /// consecutive blocks must differ in exactly those lists (checked by [`finish`](Self::finish)).
+    odd_lists: Vec<u64>,
+    /// Toggles decoded so far, and the most allowed.
+    toggles: u64,
+    max_toggles: u64,
 }
 
 impl<'a> ToggleListReader<'a> {
-    /// A reader over `blocks` (in block order) of an axis of `axis_len` samples.
+    /// A reader over `blocks` (in block order) of an axis of `axis_len` samples, decoding
+    /// at most `max_toggles` toggles.
     pub(crate) fn new(
         blocks: Vec<ListBlock<'a>>,
         layout: ToggleLayout,
         axis_len: u32,
         part: &'static str,
+        max_toggles: u64,
     ) -> Self {
-        let blocks = blocks
+        let blocks: Vec<_> = blocks
             .into_iter()
             .map(|block| {
                 let len = match layout {
@@ -229,9 +244,13 @@ impl<'a> ToggleListReader<'a> {
             .collect();
         Self {
             layout,
+            odd_lists: vec![0; blocks.len()],
             blocks,
             read: 0,
             part,
+            pending: None,
+            toggles: 0,
+            max_toggles,
         }
     }
 
@@ -278,8 +297,9 @@ impl<'a> ToggleListReader<'a> {
         Ok(self.parity_bit(parity, list)? ^ within)
     }
 
-    /// Reads the next list whole into `positions` (cleared first), checking the blocked
-    /// layout's parity bits against the positions before each block.
+    /// Reads the next list whole into `positions` (cleared first). In the blocked layout
+    /// only the blocks listing it are visited; their parity bits are checked here for the
+    /// blocks after them and by [`finish`](Self::finish) for the others.
     pub(crate) fn next_list_into(
         &mut self,
         positions: &mut Vec<u32>,
@@ -287,27 +307,71 @@ impl<'a> ToggleListReader<'a> {
         positions.clear();
         let list = self.read;
         self.read += 1;
+        if self.layout == ToggleLayout::Whole {
+            if let Some((_, _, reader)) = self.blocks.first_mut() {
+                reader.next_list_into(positions)?;
+            }
+            return self.count_toggles(positions.len());
+        }
+        let pending = match &mut self.pending {
+            Some(pending) => pending,
+            None => {
+                let first = self
+                    .blocks
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(b, (_, _, reader))| Some(Reverse((reader.next_listed()?, b))));
+                self.pending.insert(first.collect())
+            }
+        };
         let mut scratch = Vec::new();
-        for b in 0..self.blocks.len() {
-            let parity = self.blocks[b].0;
-            if self.layout != ToggleLayout::Whole
-                && self.parity_bit(parity, list)? != (positions.len() % 2 == 1)
-            {
+        while let Some(&Reverse((next, b))) = pending.peek() {
+            if next > list as u64 {
+                break;
+            }
+            pending.pop();
+            let (parity, start, reader) = &mut self.blocks[b];
+            let parity = bit(parity, list as u64)
+                .ok_or_else(|| corrupt(self.part, "parity bitmap shorter than the lists"))?;
+            if parity != (positions.len() % 2 == 1) {
                 return Err(corrupt(
                     self.part,
                     "a block's parity bit disagrees with the toggles before it",
                 ));
             }
-            let (_, start, reader) = &mut self.blocks[b];
+            reader.skip_to(list as u64);
             reader.next_list_into(&mut scratch)?;
             positions.extend(scratch.iter().map(|&t| *start + t));
+            if scratch.len() % 2 == 1 {
+                self.odd_lists[b] += 1;
+            }
+            if let Some(next) = reader.next_listed() {
+                pending.push(Reverse((next, b)));
+            }
+        }
+        self.count_toggles(positions.len())
+    }
+
+    fn count_toggles(&mut self, count: usize) -> Result<(), FormatViolation> {
+        self.toggles += count as u64;
+        if self.toggles > self.max_toggles {
+            return Err(FormatViolation::Limit {
+                what: "toggles in a tile's list set",
+                value: self.toggles,
+                limit: self.max_toggles,
+            });
         }
         Ok(())
     }
 
     /// Checks that the blocks at hand held exactly the lists read.
-    pub(crate) fn finish(&self) -> Result<(), FormatViolation> {
-        for (parity, start, reader) in &self.blocks {
+    pub(crate) fn finish(&mut self) -> Result<(), FormatViolation> {
+        let whole_lists = self.pending.is_some();
+        for (parity, start, reader) in &mut self.blocks {
+            if whole_lists {
+                // Lists a block does not list were not visited in it.
+                reader.skip_to(self.read as u64);
+            }
             reader.finish()?;
             if self.layout == ToggleLayout::Whole {
                 continue;
@@ -319,6 +383,22 @@ impl<'a> ToggleListReader<'a> {
                 return Err(corrupt(
                     self.part,
                     "parity before the first sample must be even",
+                ));
+            }
+        }
+        // The lists with odd toggles in a block were checked to flip their parity bit at
+        // the next block: no other bit may flip.
+        for (pair, &odd) in self.blocks.windows(2).zip(&self.odd_lists) {
+            let flipped: u64 = pair[0]
+                .0
+                .iter()
+                .zip(pair[1].0)
+                .map(|(a, b)| u64::from((a ^ b).count_ones()))
+                .sum();
+            if flipped != odd {
+                return Err(corrupt(
+                    self.part,
+                    "a block's parity bit disagrees with the toggles before it",
                 ));
             }
         }
@@ -355,6 +435,26 @@ impl<'a> ToggleColumnReader<'a> {
             axis_len,
             part,
         }
+    }
+
+    /// The next list at or after the current one that the lists bitmap marks (sparse
+    /// columns), scanning the bitmap a byte at a time.
+    fn next_listed(&self) -> Option<u64> {
+        let present = self.present?;
+        let mut at = self.index;
+        loop {
+            let byte = *present.get(usize::try_from(at / 8).ok()?)?;
+            let rest = byte >> (at % 8);
+            if rest != 0 {
+                return Some(at + u64::from(rest.trailing_zeros()));
+            }
+            at = (at / 8 + 1) * 8;
+        }
+    }
+
+    /// Passes over lists the bitmap does not mark, up to `list` (sparse columns).
+    fn skip_to(&mut self, list: u64) {
+        self.index = self.index.max(list);
     }
 
     /// Upper bound on the lists left (each takes at least one count byte).
@@ -470,5 +570,82 @@ impl<'a> ToggleColumnReader<'a> {
         } else {
             Err(corrupt(self.part, "bytes no list uses"))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lists over 12 samples in blocks of 4: list 1 toggles once in block 0, so its parity
+    /// bit is set in blocks 1 and 2.
+    const LISTS: [&[u32]; 3] = [&[1, 5], &[3], &[2, 9]];
+    const LAYOUT: ToggleLayout = ToggleLayout::Blocked(4);
+
+    fn blocks_of(columns: &[ListColumns]) -> Vec<ListBlock<'_>> {
+        columns
+            .iter()
+            .enumerate()
+            .map(|(b, c)| ListBlock {
+                start: LAYOUT.block_span(b as u32, 12).0,
+                parity: c.get(Column::Parity),
+                present: Some(c.get(Column::Lists)),
+                columns: [
+                    c.get(Column::Counts),
+                    c.get(Column::Starts),
+                    c.get(Column::Lengths),
+                ],
+            })
+            .collect()
+    }
+
+    fn read_whole(columns: &[ListColumns]) -> Result<Vec<Vec<u32>>, FormatViolation> {
+        let blocks = blocks_of(columns);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 100);
+        let mut lists = Vec::new();
+        for _ in LISTS {
+            let mut positions = Vec::new();
+            reader.next_list_into(&mut positions)?;
+            lists.push(positions);
+        }
+        reader.finish()?;
+        Ok(lists)
+    }
+
+    #[test]
+    fn whole_lists_read_back_and_every_parity_bit_is_checked() {
+        let columns = encode_lists(&LISTS, LAYOUT, 12);
+        assert_eq!(read_whole(&columns).unwrap(), LISTS.map(<[u32]>::to_vec));
+        // Flipping any parity bit of any block is found, whether or not the list has
+        // toggles in the blocks around it.
+        for block in 0..columns.len() {
+            for list in 0..LISTS.len() {
+                let mut damaged = encode_lists(&LISTS, LAYOUT, 12);
+                damaged[block].0[Column::Parity as usize][0] ^= 1 << list;
+                let err = read_whole(&damaged).unwrap_err();
+                assert!(err.to_string().contains("parity"), "{block} {list}: {err}");
+            }
+        }
+    }
+
+    #[test]
+    fn toggles_beyond_the_limit_are_refused() {
+        let columns = encode_lists(&LISTS, LAYOUT, 12);
+        let blocks = blocks_of(&columns);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 2);
+        let mut positions = Vec::new();
+        reader.next_list_into(&mut positions).unwrap();
+        let err = reader.next_list_into(&mut positions).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                FormatViolation::Limit {
+                    value: 3,
+                    limit: 2,
+                    ..
+                }
+            ),
+            "{err}"
+        );
     }
 }

@@ -223,6 +223,7 @@ fn list_readers<'a>(
     blocks: &[(u32, PartStreams<'a>)],
     toggles: ToggleLayout,
     axis_len: u32,
+    max_toggles: u64,
 ) -> [ToggleListReader<'a>; 2] {
     [
         (ListSet::Masks, "tile masks"),
@@ -236,7 +237,7 @@ fn list_readers<'a>(
                 .map(|(b, p)| p.list_block(set, toggles.block_span(*b, axis_len).0))
                 .collect(),
         };
-        ToggleListReader::new(blocks, toggles, axis_len, part)
+        ToggleListReader::new(blocks, toggles, axis_len, part, max_toggles)
     })
 }
 
@@ -261,7 +262,13 @@ pub(crate) fn walk_payload(
     if count == 0 {
         return Err(corrupt("tile", "no cells"));
     }
-    let [mut masks, mut outliers] = list_readers(&cells, &parts.blocks, layout.toggles, axis.len());
+    let [mut masks, mut outliers] = list_readers(
+        &cells,
+        &parts.blocks,
+        layout.toggles,
+        axis.len(),
+        limits.max_toggles_per_tile,
+    );
     let (depths, classes) = (cells.get(Stream::Depth), cells.get(Stream::Class));
     if depths.len() != count || classes.len() != count {
         return Err(corrupt(

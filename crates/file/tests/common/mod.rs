@@ -204,3 +204,55 @@ pub fn golden_path_of(name: &str) -> std::path::PathBuf {
 pub fn golden_path() -> std::path::PathBuf {
     golden_path_of(GOLDENS[1].0)
 }
+
+/// Recomputes every tile checksum, the index checksum and the footer checksum, so that a
+/// damaged tile passes every checksum and its content is parsed.
+pub fn reseal(bytes: &mut [u8]) {
+    use froctomap_file::{FOOTER_LEN, TILE_ENTRY_LEN};
+    let le64 = |b: &[u8]| u64::from_le_bytes(b.try_into().unwrap()) as usize;
+    let le32 = |b: &[u8]| u32::from_le_bytes(b.try_into().unwrap()) as usize;
+    let footer = bytes.len() - FOOTER_LEN;
+    let index = le64(&bytes[footer..footer + 8]);
+    let index_len = le64(&bytes[footer + 8..footer + 16]);
+    let tiles = le32(&bytes[index..index + 4]);
+    for t in 0..tiles {
+        let entry = index + 4 + t * TILE_ENTRY_LEN;
+        let offset = le64(&bytes[entry + 8..entry + 16]);
+        let stored = le32(&bytes[entry + 16..entry + 20]);
+        let crc = crc32c::crc32c(&bytes[offset..offset + stored]);
+        bytes[entry + 24..entry + 28].copy_from_slice(&crc.to_le_bytes());
+    }
+    let crc = crc32c::crc32c(&bytes[index..index + index_len]);
+    bytes[footer + 16..footer + 20].copy_from_slice(&crc.to_le_bytes());
+    let crc = crc32c::crc32c(&bytes[footer..footer + 20]);
+    bytes[footer + 20..footer + 24].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Offset of the payload of the header section `tag` (1 MAP, 2 TIME_AXIS, …, FORMAT.md §3).
+pub fn header_section(bytes: &[u8], tag: u16) -> usize {
+    let le32 = |b: &[u8]| u32::from_le_bytes(b.try_into().unwrap()) as usize;
+    let end = 16 + le32(&bytes[12..16]);
+    let mut at = 16;
+    while at < end {
+        let len = le32(&bytes[at + 4..at + 8]);
+        if u16::from_le_bytes([bytes[at], bytes[at + 1]]) == tag {
+            return at + 8;
+        }
+        at += 8 + len;
+    }
+    panic!("no header section {tag}");
+}
+
+/// Recomputes the header checksum after the header was patched.
+pub fn reseal_header(bytes: &mut [u8]) {
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let crc = crc32c::crc32c(&bytes[..16 + len]);
+    bytes[16 + len..16 + len + 4].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Offset of tile `t`'s index entry.
+pub fn index_entry(bytes: &[u8], t: usize) -> usize {
+    let footer = bytes.len() - froctomap_file::FOOTER_LEN;
+    let index = u64::from_le_bytes(bytes[footer..footer + 8].try_into().unwrap()) as usize;
+    index + 4 + t * froctomap_file::TILE_ENTRY_LEN
+}
