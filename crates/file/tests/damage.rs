@@ -285,23 +285,7 @@ fn raw_golden(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
             froctomap_file::ToggleLayout::Whole,
             froctomap_file::ToggleLayout::Blocked(16),
         ]
-        .map(|toggles| {
-            let dir = tempfile::tempdir().unwrap();
-            let path = dir.path().join("raw.froct");
-            write_file(
-                &path,
-                &golden_axis(),
-                "fremen-periods",
-                &golden_config(),
-                froctomap_file::TileLayout {
-                    tile_depth: GOLDEN_TILE_DEPTH,
-                    codec: froctomap_file::Codec::Raw,
-                    toggles,
-                },
-                &golden_cells(),
-            );
-            std::fs::read(&path).unwrap()
-        })
+        .map(raw_golden_file)
     });
     match toggles {
         froctomap_file::ToggleLayout::Whole => whole.clone(),

@@ -24,25 +24,6 @@ fn golden_bytes() -> Vec<u8> {
     std::fs::read(golden_path()).unwrap()
 }
 
-/// The golden series written raw with toggle blocks of `block` samples.
-fn raw_file(block: u32) -> Vec<u8> {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("raw.froct");
-    write_file(
-        &path,
-        &golden_axis(),
-        "fremen-periods",
-        &golden_config(),
-        TileLayout {
-            tile_depth: GOLDEN_TILE_DEPTH,
-            codec: Codec::Raw,
-            toggles: ToggleLayout::Blocked(block),
-        },
-        &golden_cells(),
-    );
-    std::fs::read(&path).unwrap()
-}
-
 fn limit_of(err: &FileError) -> Option<(&'static str, u64)> {
     match err.violation() {
         Some(FormatViolation::Limit { what, value, .. }) => Some((*what, *value)),
@@ -94,7 +75,7 @@ fn a_resealed_huge_cell_count_is_refused_at_open() {
 
 #[test]
 fn a_regular_axis_of_millions_of_one_sample_blocks_is_refused() {
-    let mut bytes = raw_file(1);
+    let mut bytes = raw_golden_file(ToggleLayout::Blocked(1));
     assert!(open_with(&bytes, ReadLimits::default()).is_ok());
     // TIME_AXIS of a regular axis: kind u8, start i64, step i64, sample count u32.
     let count = header_section(&bytes, 2) + 17;

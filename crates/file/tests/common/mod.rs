@@ -256,3 +256,23 @@ pub fn index_entry(bytes: &[u8], t: usize) -> usize {
     let index = u64::from_le_bytes(bytes[footer..footer + 8].try_into().unwrap()) as usize;
     index + 4 + t * froctomap_file::TILE_ENTRY_LEN
 }
+
+/// The golden series written raw (no zstd), so that damage reaches the tile parser instead of
+/// the decompressor, in a given toggle layout.
+pub fn raw_golden_file(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("raw.froct");
+    write_file(
+        &path,
+        &golden_axis(),
+        "fremen-periods",
+        &golden_config(),
+        froctomap_file::TileLayout {
+            tile_depth: GOLDEN_TILE_DEPTH,
+            codec: froctomap_file::Codec::Raw,
+            toggles,
+        },
+        &golden_cells(),
+    );
+    std::fs::read(&path).unwrap()
+}
