@@ -24,7 +24,7 @@ mod leaf;
 mod snapshot;
 mod time;
 
-pub use atomic_file::{write_atomically, AtomicWriteError};
+pub use atomic_file::{temporary_beside, write_atomically, AtomicWriteError};
 pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;
 pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};

@@ -59,15 +59,8 @@ impl FroctWriter {
             path: path.to_path_buf(),
             source,
         };
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let temp = tempfile::Builder::new()
-            .prefix(".froct-")
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(io)?;
+        let temp =
+            froctomap_core::temporary_beside(path, std::ffi::OsStr::new(".froct-")).map_err(io)?;
         let mut out = BufWriter::with_capacity(1 << 20, temp);
         let bytes = header.encode();
         out.write_all(&bytes).map_err(io)?;
