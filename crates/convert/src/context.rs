@@ -112,12 +112,7 @@ impl Context {
     /// A map file of a registered format (a `.bt` snapshot, say) is refused as such rather
     /// than as a damaged series file.
     pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
-        if let Some(kind) = crate::inputs::special_kind(path) {
-            return Err(ConvertError::NotAFile {
-                path: path.to_path_buf(),
-                kind,
-            });
-        }
+        crate::inputs::refuse_special_file(path)?;
         FroctReader::open_with_limits(path, self.limits.froct, &self.models).map_err(|error| {
             match self.formats.identify_file(path) {
                 Ok(Some(Identified::Map(format))) => ConvertError::MapNotSeries {

@@ -391,6 +391,18 @@ pub(crate) fn special_kind(path: &Path) -> Option<&'static str> {
     froctomap_formats::special_kind(metadata.file_type())
 }
 
+/// Refuses `path`, before it is opened, when it exists but is not a regular file (a FIFO
+/// could block the read forever).
+pub(crate) fn refuse_special_file(path: &Path) -> Result<(), ConvertError> {
+    match special_kind(path) {
+        None => Ok(()),
+        Some(kind) => Err(ConvertError::NotAFile {
+            path: path.to_path_buf(),
+            kind,
+        }),
+    }
+}
+
 fn list_map_files(dir: &Path, extensions: &[&str]) -> Result<Vec<PathBuf>, ConvertError> {
     let io = |source| ConvertError::Unlistable {
         path: dir.to_path_buf(),
@@ -429,12 +441,7 @@ fn unlisted_files(
 
 /// The times of a `--times-file`, and whether one had no zone.
 fn read_times_file(list: &Path, zone: &Zone) -> Result<(Vec<Timestamp>, bool), ConvertError> {
-    if let Some(kind) = special_kind(list) {
-        return Err(ConvertError::NotAFile {
-            path: list.to_path_buf(),
-            kind,
-        });
-    }
+    refuse_special_file(list)?;
     let text = std::fs::read_to_string(list).map_err(|source| ConvertError::Unlistable {
         path: list.to_path_buf(),
         source,
@@ -471,12 +478,7 @@ enum Columns {
 /// columns are then found by name (`path`/`file`, `time`/`stamp`/`t`/`unix_time`) in any
 /// order, and other columns are ignored.
 fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, ConvertError> {
-    if let Some(kind) = special_kind(manifest) {
-        return Err(ConvertError::NotAFile {
-            path: manifest.to_path_buf(),
-            kind,
-        });
-    }
+    refuse_special_file(manifest)?;
     let text = std::fs::read_to_string(manifest).map_err(|source| ConvertError::Unlistable {
         path: manifest.to_path_buf(),
         source,
