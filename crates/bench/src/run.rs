@@ -13,7 +13,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::{
     build, collect_inputs, describe, evaluate, unix_seconds, write_observed_map,
-    write_predicted_map, BuildOptions, EvalReport, LoadedMap, SeriesInput, Silent, TimeSource,
+    write_predicted_map, BuildOptions, EvalReport, SeriesInput, Silent, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
@@ -287,11 +287,10 @@ fn method(report: &EvalReport, name: &str) -> (Errors, Errors) {
 /// Evaluates one file against the ground truths.
 fn evaluate_file(path: &Path, truths: &[SeriesInput]) -> Result<EvalReport> {
     let reader = FroctReader::open(path)?;
-    let map = LoadedMap::load(&reader)?;
     let context = froctomap_convert::Context::with_default_plugins();
     Ok(evaluate(
         &context,
-        &map,
+        &reader,
         truths,
         ReadOptions::default(),
         &Silent,

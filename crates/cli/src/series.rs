@@ -11,7 +11,7 @@ use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
     resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, LoadedMap, Pick, SeriesInput, TimeQuery, TimeSource,
+    ExportMode, ExportOptions, Pick, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -615,11 +615,10 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
         ui.note(&format!("warning: {}", escaped(warning)));
     }
     let truths: Vec<SeriesInput> = collected.series;
-    let map = LoadedMap::load(&reader)?;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
         ui.context,
-        &map,
+        &reader,
         &truths,
         ReadOptions {
             format: None,

@@ -19,10 +19,9 @@
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
-use crate::maps::LoadedMap;
 use crate::progress::Progress;
 use froctomap_core::{Occupancy, Snapshot, Timestamp};
-use froctomap_file::{Cell, CellContent};
+use froctomap_file::{Cell, CellContent, FroctReader};
 use froctomap_formats::ReadOptions;
 use froctomap_temporal::{PreparedModel, TimeAxis};
 use rayon::prelude::*;
@@ -97,7 +96,18 @@ pub struct EvalReport {
 #[derive(Clone, Copy, Default)]
 struct Tally {
     methods: [ErrorRates; 4],
+    /// Ground-truth voxels a cell covers.
+    matched: u64,
     unmodelled: u64,
+}
+
+impl Tally {
+    fn merge(&mut self, other: &Tally) {
+        for (a, b) in self.methods.iter_mut().zip(&other.methods) {
+            a.merge(b);
+        }
+        self.matched += other.matched;
+    }
 }
 
 /// The latest sample `≤ k` at which the cell was observed.
@@ -176,98 +186,157 @@ fn verdicts(
     }
 }
 
-fn tally(
-    map: &LoadedMap<'_>,
-    cells: &[&Cell],
-    truth: &Snapshot,
-    t: Timestamp,
-    inside: bool,
-) -> Tally {
-    let reader = map.reader();
-    let axis = &reader.header().axis;
-    let model = reader.model();
-    let mut out = Tally::default();
-    let leaves = truth.leaves();
-    let known: u64 = leaves.iter().map(|l| l.voxel_count()).sum();
-    let mut matched = 0u64;
-    let (mut i, mut j) = (0usize, 0usize);
-    let mut current: Option<(usize, Verdicts)> = None;
-    // Both lists are sorted and disjoint: walk them together, weighting each overlap.
-    while let (Some(leaf), Some(cell)) = (leaves.get(i), cells.get(j)) {
+/// Tallies the overlaps of one cell with the leaves of a ground truth, from `next` on
+/// (both lists sorted and disjoint), advancing `next` past the leaves the cell ends.
+fn tally_cell(
+    cell: &Cell,
+    truth: &GroundTruth,
+    next: &mut usize,
+    axis: &TimeAxis,
+    model: &dyn PreparedModel,
+    out: &mut Tally,
+) {
+    let leaves = truth.snapshot.leaves();
+    let mut verdict: Option<Verdicts> = None;
+    while let Some(leaf) = leaves.get(*next) {
+        if leaf.start.0 >= cell.end() {
+            break;
+        }
         let start = leaf.start.0.max(cell.start.0);
         let end = leaf.end().min(cell.end());
         if start < end {
-            if current.as_ref().is_none_or(|(k, _)| *k != j) {
-                current = Some((j, verdicts(cell, axis, model, t, inside)));
-            }
-            if let Some((_, v)) = &current {
-                let weight = end - start;
-                matched += weight;
-                let truth_state = leaf.occupancy();
-                for (rates, state) in out.methods.iter_mut().zip(v.states) {
-                    let Some(state) = state else { continue };
-                    let wrong = state != truth_state;
-                    rates.all.add(wrong, weight);
-                    if v.ever_occupied || truth_state.is_occupied() {
-                        rates.non_empty.add(wrong, weight);
-                    }
-                    if v.dynamic {
-                        rates.dynamic.add(wrong, weight);
-                    }
+            let v = verdict
+                .get_or_insert_with(|| verdicts(cell, axis, model, truth.time, truth.inside));
+            let weight = end - start;
+            out.matched += weight;
+            let truth_state = leaf.occupancy();
+            for (rates, state) in out.methods.iter_mut().zip(v.states) {
+                let Some(state) = state else { continue };
+                let wrong = state != truth_state;
+                rates.all.add(wrong, weight);
+                if v.ever_occupied || truth_state.is_occupied() {
+                    rates.non_empty.add(wrong, weight);
+                }
+                if v.dynamic {
+                    rates.dynamic.add(wrong, weight);
                 }
             }
         }
         if leaf.end() <= cell.end() {
-            i += 1;
+            *next += 1;
         } else {
-            j += 1;
+            break;
         }
     }
-    out.unmodelled = known - matched;
-    out
+}
+
+/// A ground-truth map and where its time lies.
+struct GroundTruth {
+    snapshot: Snapshot,
+    time: Timestamp,
+    inside: bool,
+}
+
+/// Reads a ground truth and checks its resolution against the file's.
+fn read_truth(
+    context: &Context,
+    reader: &FroctReader,
+    truth: &SeriesInput,
+    read: ReadOptions<'_>,
+) -> Result<GroundTruth, ConvertError> {
+    let resolution = reader.header().resolution;
+    let axis = &reader.header().axis;
+    let bytes = crate::build::read_input(&truth.path, context.limits().max_map_file_bytes)
+        .map_err(|e| ConvertError::Snapshot {
+            path: truth.path.clone(),
+            source: std::sync::Arc::new(e),
+        })?;
+    let snapshot = context
+        .formats()
+        .read_bytes(&truth.path, &bytes, read)
+        .map_err(ConvertError::Read)?
+        .map
+        .snapshot;
+    if snapshot.resolution() != resolution {
+        return Err(ConvertError::MixedResolution {
+            first: reader.path().to_path_buf(),
+            first_resolution: resolution,
+            second: truth.path.clone(),
+            second_resolution: snapshot.resolution(),
+        });
+    }
+    Ok(GroundTruth {
+        snapshot,
+        time: truth.time,
+        inside: truth.time >= axis.start() && truth.time <= axis.end(),
+    })
+}
+
+/// The tallies of a group of ground truths: the file's tiles in parallel, each walked
+/// once, one cell at a time, against every truth's leaves inside the tile.
+fn tally_group(reader: &FroctReader, truths: &[GroundTruth]) -> Result<Vec<Tally>, ConvertError> {
+    let axis = &reader.header().axis;
+    let model = reader.model();
+    let empty = || vec![Tally::default(); truths.len()];
+    let mut tallies = (0..reader.tiles().len())
+        .into_par_iter()
+        .map(|tile| {
+            let code = reader.tiles()[tile].code.0;
+            let mut out = empty();
+            // Each truth's first leaf reaching into the tile (a coarse leaf may span tiles).
+            let mut next: Vec<usize> = truths
+                .iter()
+                .map(|t| t.snapshot.leaves().partition_point(|l| l.end() <= code))
+                .collect();
+            reader.visit_cells(tile, |cell| {
+                for ((truth, next), out) in truths.iter().zip(&mut next).zip(&mut out) {
+                    tally_cell(&cell, truth, next, axis, model, out);
+                }
+            })?;
+            Ok::<_, ConvertError>(out)
+        })
+        .try_reduce(empty, |mut a, b| {
+            for (a, b) in a.iter_mut().zip(&b) {
+                a.merge(b);
+            }
+            Ok(a)
+        })?;
+    for (tally, truth) in tallies.iter_mut().zip(truths) {
+        let known = truth
+            .snapshot
+            .leaves()
+            .iter()
+            .fold(0u64, |sum, l| sum.saturating_add(l.voxel_count()));
+        tally.unmodelled = known.saturating_sub(tally.matched);
+    }
+    Ok(tallies)
 }
 
 /// Compares a file with ground-truth maps (map files of any format of `context`, with their
 /// times).
+///
+/// Memory is a few ground truths and one tile's decoded bytes per thread, whatever the size
+/// of the file's map: ground truths are read a group at a time (as many as threads) and the
+/// file's tiles are walked cell by cell against each group.
 pub fn evaluate(
     context: &Context,
-    map: &LoadedMap<'_>,
+    reader: &FroctReader,
     truths: &[SeriesInput],
     read: ReadOptions<'_>,
     progress: &dyn Progress,
 ) -> Result<EvalReport, ConvertError> {
-    let reader = map.reader();
-    let axis = &reader.header().axis;
-    let resolution = reader.header().resolution;
-    let cells: Vec<&Cell> = map.cells().collect();
-    let registry = context.formats();
     progress.stage("evaluating", truths.len() as u64);
-    let tallies: Vec<(bool, Tally)> = truths
-        .par_iter()
-        .map(|truth| {
-            let bytes = crate::build::read_input(&truth.path, context.limits().max_map_file_bytes)
-                .map_err(|e| ConvertError::Snapshot {
-                    path: truth.path.clone(),
-                    source: std::sync::Arc::new(e),
-                })?;
-            let read = registry
-                .read_bytes(&truth.path, &bytes, read)
-                .map_err(ConvertError::Read)?;
-            let snapshot = read.map.snapshot;
-            if snapshot.resolution() != resolution {
-                return Err(ConvertError::MixedResolution {
-                    first: reader.path().to_path_buf(),
-                    first_resolution: resolution,
-                    second: truth.path.clone(),
-                    second_resolution: snapshot.resolution(),
-                });
-            }
-            let inside = truth.time >= axis.start() && truth.time <= axis.end();
-            let t = tally(map, &cells, &snapshot, truth.time, inside);
-            progress.advance(1);
-            Ok((inside, t))
-        })
-        .collect::<Result<_, ConvertError>>()?;
+    let group = rayon::current_num_threads().max(1);
+    let mut tallies: Vec<(bool, Tally)> = Vec::with_capacity(truths.len());
+    for inputs in truths.chunks(group) {
+        let loaded = inputs
+            .par_iter()
+            .map(|truth| read_truth(context, reader, truth, read))
+            .collect::<Result<Vec<_>, ConvertError>>()?;
+        let group_tallies = tally_group(reader, &loaded)?;
+        tallies.extend(loaded.iter().map(|t| t.inside).zip(group_tallies));
+        progress.advance(inputs.len() as u64);
+    }
     let mut report = EvalReport::default();
     let mut inside_rates = [ErrorRates::default(); 4];
     let mut outside_rates = [ErrorRates::default(); 4];

@@ -180,7 +180,8 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
         .map(|i| {
             let mut cells = ClassCounts::default();
             let mut voxels = ClassCounts::default();
-            for cell in reader.read_tile(i)? {
+            // One cell at a time: a tile may hold millions of cells.
+            reader.visit_cells(i, |cell| {
                 let n = voxels_per_node(cell.depth);
                 let (c, v) = match cell.content {
                     CellContent::Constant(Occupancy::Free) => {
@@ -199,7 +200,7 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
                     cells.unknown_sometimes += 1;
                     voxels.unknown_sometimes += n;
                 }
-            }
+            })?;
             Ok((cells, voxels))
         })
         .collect::<Result<Vec<_>, ConvertError>>()?;

@@ -7,9 +7,9 @@
 //! * [`observed_map`] gives the map as observed at a sample (bit-exact in lossless files),
 //!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
 //!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
-//!   range of them with a manifest. [`LoadedMap`] decodes every cell once, for evaluation.
+//!   range of them with a manifest.
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
-//!   last-seen baselines; [`describe`] summarises a file.
+//!   last-seen baselines, a tile at a time; [`describe`] summarises a file.
 //!
 //! Every entry point takes a [`Context`]: the registries of map formats and temporal models
 //! and the limits a program chose, built once (binaries and tests start from
@@ -63,8 +63,7 @@ pub use inputs::{
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed,
     resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,
-    ExportMode, ExportOptions, ExportReport, LoadedMap, Pick, ResolvedSample, TimeQuery,
-    WrittenMap,
+    ExportMode, ExportOptions, ExportReport, Pick, ResolvedSample, TimeQuery, WrittenMap,
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};

@@ -10,7 +10,7 @@ use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
-use froctomap_file::{Cell, FroctReader};
+use froctomap_file::FroctReader;
 use froctomap_formats::{Backend, MapFormat, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
 use froctomap_temporal::TimeAxis;
@@ -245,38 +245,6 @@ fn inconsistent_cells(
     ConvertError::InconsistentCells {
         path: reader.path().to_path_buf(),
         source: Box::new(e),
-    }
-}
-
-/// Every cell of a file, decoded once (in parallel) for repeated queries over all cells.
-pub struct LoadedMap<'r> {
-    reader: &'r FroctReader,
-    tiles: Vec<Vec<Cell>>,
-}
-
-impl<'r> LoadedMap<'r> {
-    /// Decodes every tile.
-    pub fn load(reader: &'r FroctReader) -> Result<Self, ConvertError> {
-        let tiles = (0..reader.tiles().len())
-            .into_par_iter()
-            .map(|i| reader.read_tile(i))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Self { reader, tiles })
-    }
-
-    /// The reader the cells came from.
-    pub fn reader(&self) -> &'r FroctReader {
-        self.reader
-    }
-
-    /// All cells in Morton order.
-    pub fn cells(&self) -> impl Iterator<Item = &Cell> {
-        self.tiles.iter().flatten()
-    }
-
-    /// Number of cells.
-    pub fn cell_count(&self) -> usize {
-        self.tiles.iter().map(Vec::len).sum()
     }
 }
 

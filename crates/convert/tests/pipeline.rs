@@ -158,7 +158,6 @@ fn predictions_exports_and_evaluation() {
     let out = dir.path().join("series.froct");
     build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap();
     let reader = FroctReader::open(&out).unwrap();
-    let map = LoadedMap::load(&reader).unwrap();
 
     // A prediction a day later: every cell present, .ot keeps probabilities, .bt states.
     let later = Timestamp(series[8].1 .0 + 86_400_000_000_000);
@@ -241,7 +240,7 @@ fn predictions_exports_and_evaluation() {
     );
 
     // Evaluation against the inputs themselves: the stored states are exact.
-    let report = evaluate(&context, &map, &inputs, ReadOptions::default(), &Silent).unwrap();
+    let report = evaluate(&context, &reader, &inputs, ReadOptions::default(), &Silent).unwrap();
     assert_eq!((report.inside, report.outside), (9, 0));
     let stored = report
         .reconstruction

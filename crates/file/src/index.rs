@@ -141,18 +141,31 @@ pub(crate) fn decode_index(
                 ),
             ));
         }
-        total_cells += u64::from(entry.cell_count);
-        for (what, value, limit) in [
-            (
-                "cells per tile",
-                u64::from(entry.cell_count),
-                limits.max_cells_per_tile,
-            ),
-            ("cells in the file", total_cells, limits.max_total_cells),
-        ] {
-            if value > limit {
-                return Err(FormatViolation::Limit { what, value, limit });
-            }
+        let cells = u64::from(entry.cell_count);
+        if cells > limits.max_cells_per_tile {
+            return Err(FormatViolation::Limit {
+                what: "cells per tile",
+                value: cells,
+                limit: limits.max_cells_per_tile,
+            });
+        }
+        // Cells are disjoint and lie inside the tile: at most one per voxel.
+        if cells > tile_size {
+            return Err(corrupt(
+                "index",
+                format!(
+                    "tile {:#x} claims {} cells; a depth-{tile_depth} tile holds at most {tile_size}",
+                    entry.code.0, cells
+                ),
+            ));
+        }
+        total_cells += cells;
+        if total_cells > limits.max_total_cells {
+            return Err(FormatViolation::Limit {
+                what: "cells in the file",
+                value: total_cells,
+                limit: limits.max_total_cells,
+            });
         }
         next_free = end.unwrap_or(data.end);
         entries.push(entry);

@@ -6,8 +6,8 @@ use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
 use crate::source::{ByteSource, FileSource, MemorySource};
 use crate::tile::{
-    block_parts, decode_frame, decode_payload, frame_table, walk_payload, Cell, CellRef, TileParts,
-    WalkNeed,
+    block_parts, decode_frame, frame_table, visit_payload_cells, walk_payload, Cell, CellRef,
+    TileParts, WalkNeed,
 };
 use crate::toggle_lists::ToggleLayout;
 use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
@@ -321,20 +321,43 @@ impl FroctReader {
     }
 
     /// Reads and decodes one tile: verifies its checksum, decompresses it and parses its cells.
+    /// Holds every cell of the tile (up to [`ReadLimits::max_cells_per_tile`]); see
+    /// [`visit_cells`](Self::visit_cells) to go through them one at a time.
     pub fn read_tile(&self, tile: usize) -> Result<Vec<Cell>, FileError> {
+        let mut cells = Vec::new();
+        self.visit_cells(tile, |cell| cells.push(cell))?;
+        Ok(cells)
+    }
+
+    /// Calls `visit` with each cell of a tile, built, in Morton order, holding one cell at a
+    /// time: what whole-file passes (counting, evaluation) use so that their memory is one
+    /// tile's decoded bytes, not its cells. When it returns an error, the cells visited
+    /// before are not to be trusted either.
+    ///
+    /// ```
+    /// # use froctomap_file::FroctReader;
+    /// # let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+    /// #     .join("../../fixtures/froct/golden-v1.1.froct");
+    /// let reader = FroctReader::open(&path)?;
+    /// let mut voxels = 0;
+    /// reader.visit_cells(0, |cell| voxels += cell.end() - cell.start.0)?;
+    /// assert!(voxels > 0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn visit_cells(&self, tile: usize, visit: impl FnMut(Cell)) -> Result<(), FileError> {
         let layout = self.header.tile_layout();
-        let (entry, cells) = self.with_tile(tile, WalkNeed::Everything, |entry, parts| {
-            let cells = decode_payload(
+        let (entry, count) = self.with_tile(tile, WalkNeed::Everything, |entry, parts| {
+            let count = visit_payload_cells(
                 parts,
                 entry.code,
                 &layout,
                 self.model.as_ref(),
                 &self.limits,
+                visit,
             )?;
-            Ok((*entry, cells))
+            Ok((*entry, count))
         })?;
-        self.check_count(&entry, cells.len())?;
-        Ok(cells)
+        self.check_count(&entry, count)
     }
 
     /// Walks one tile's cells without building them.

@@ -71,6 +71,29 @@ fn a_resealed_huge_cell_count_is_refused_at_open() {
         Some(("cells per tile", (1 << 24) + 1)),
         "{err}"
     );
+    // Within every limit, a count beyond the voxels of a tile (cells are disjoint and lie
+    // inside it) is refused too: no walk over cells that cannot exist.
+    let tile_voxels = 1u32 << (3 * (16 - u32::from(GOLDEN_TILE_DEPTH)));
+    for (count, refused) in [(tile_voxels, false), (tile_voxels + 1, true)] {
+        set_u32(&mut bytes, entry + CELL_COUNT, count);
+        reseal(&mut bytes);
+        match open_with(&bytes, ReadLimits::default()) {
+            Err(err) if refused => assert!(
+                matches!(
+                    err.violation(),
+                    Some(FormatViolation::Corrupt { what: "index", detail })
+                        if detail.contains(&format!("holds at most {tile_voxels}"))
+                ),
+                "{err}"
+            ),
+            // The count is only compared with the tile's cells when the tile is read.
+            Ok(reader) => {
+                assert!(!refused);
+                assert!(reader.read_tile(0).is_err());
+            }
+            Err(err) => panic!("{count} cells refused at open: {err}"),
+        }
+    }
 }
 
 #[test]
@@ -111,19 +134,21 @@ fn the_cells_of_the_whole_file_are_bounded_at_open() {
     open_with(&bytes, limits(total)).unwrap();
     let err = open_with(&bytes, limits(total - 1)).unwrap_err();
     assert_eq!(limit_of(&err), Some(("cells in the file", total)), "{err}");
-    // Resealed counts of 2^24 cells per tile (each within the per-tile limit) add up past
-    // a total of 2^25.
+    // Resealed counts of a full tile each (within the per-tile limits) add up past a
+    // total of two full tiles.
+    let full = 1u32 << (3 * (16 - u32::from(GOLDEN_TILE_DEPTH)));
+    assert!(reader.tiles().len() >= 3);
     let mut bytes = bytes;
     for t in 0..reader.tiles().len() {
         let entry = index_entry(&bytes, t);
         set_u32(&mut bytes, entry + RAW_LEN, 1 << 30);
-        set_u32(&mut bytes, entry + CELL_COUNT, 1 << 24);
+        set_u32(&mut bytes, entry + CELL_COUNT, full);
     }
     reseal(&mut bytes);
-    let err = open_with(&bytes, limits(1 << 25)).unwrap_err();
+    let err = open_with(&bytes, limits(2 * u64::from(full))).unwrap_err();
     assert_eq!(
         limit_of(&err),
-        Some(("cells in the file", 3 << 24)),
+        Some(("cells in the file", 3 * u64::from(full))),
         "{err}"
     );
 }

@@ -17,7 +17,7 @@ pub use encode::{encode_tile, EncodedTile};
 pub(crate) use frames::{block_parts, decode_frame, frame_table};
 pub use streams::StreamSizes;
 pub(crate) use streams::TileParts;
-pub(crate) use walk::{decode_payload, walk_payload, CellRef, WalkNeed};
+pub(crate) use walk::{visit_payload_cells, walk_payload, CellRef, WalkNeed};
 
 // A cell's class byte: its kind in the low bits, then flags.
 const CLASS_FREE: u8 = 0;

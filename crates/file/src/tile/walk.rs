@@ -343,17 +343,18 @@ pub(crate) fn walk_payload(
     Ok(count)
 }
 
-/// Parses a tile payload into its cells.
-pub(crate) fn decode_payload(
+/// Parses a tile payload, handing each cell, built, to `visit` in Morton order. Holds one
+/// cell at a time: a caller that needs the tile's cells collects them.
+pub(crate) fn visit_payload_cells(
     parts: &TileParts<'_>,
     code: MortonCode,
     layout: &TileLayout,
     model: &dyn PreparedModel,
     limits: &ReadLimits,
-) -> Result<Vec<Cell>, FormatViolation> {
-    let mut cells = Vec::new();
+    mut visit: impl FnMut(Cell),
+) -> Result<usize, FormatViolation> {
     let mut invalid = None;
-    walk_payload(
+    let count = walk_payload(
         parts,
         code,
         layout,
@@ -382,7 +383,7 @@ pub(crate) fn decode_payload(
                 }
                 (None, None, _) => return,
             };
-            cells.push(Cell {
+            visit(Cell {
                 start: cell.start,
                 depth: cell.depth,
                 mask: cell.mask.cloned(),
@@ -393,5 +394,5 @@ pub(crate) fn decode_payload(
     if let Some(detail) = invalid {
         return Err(corrupt("tile outliers", detail));
     }
-    Ok(cells)
+    Ok(count)
 }
