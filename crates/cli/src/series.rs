@@ -143,6 +143,13 @@ pub struct BuildArgs {
     /// instead of stopping.
     #[arg(long)]
     skip_bad: bool,
+    /// The series' resolution in metres; inputs of another resolution are refused (or left
+    /// out with --skip-bad). Default: the resolution most inputs have.
+    #[arg(long, value_name = "METRES")]
+    resolution: Option<f64>,
+    /// With --skip-bad, build even when more than half of the inputs are left out.
+    #[arg(long, requires = "skip_bad")]
+    allow_mostly_skipped: bool,
     /// Force the input map format instead of detecting it.
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -283,6 +290,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             samples => ToggleLayout::Blocked(samples),
         },
         skip_bad: args.skip_bad,
+        resolution: args.resolution,
+        allow_mostly_skipped: args.allow_mostly_skipped,
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,

@@ -960,3 +960,50 @@ fn retrieve_nearest_last_and_out_of_span_say_what_they_do() {
     assert_eq!(times, expected, "{manifest}");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 9);
 }
+
+/// Issue 16 item 13: a stray file of another resolution sorted first used to set the
+/// series' resolution, so that `--skip-bad` kept it alone and succeeded.
+#[test]
+fn skip_bad_keeps_the_resolution_most_inputs_have() {
+    let (dir, inputs, files) = series_in_subdir(5);
+    // Sorted (and timed) before the others.
+    let stray = inputs.join(format!("room_{}.bt", 1_451_865_600 - 600));
+    let coarse = Snapshot::from_leaves(0.2, frame(0).leaves().to_vec()).unwrap();
+    FormatRegistry::with_default_formats()
+        .write_file(&coarse, &stray, WriteOptions::default())
+        .unwrap();
+    let map = dir.path().join("room.froct");
+    let out = froctomap(&["build", "--skip-bad", s(&inputs), "-o", s(&map)]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{e}");
+    assert!(e.contains(s(&stray)), "the stray file is listed: {e}");
+    let info = ok(&["info", "--json", s(&map)]);
+    assert!(info.contains("\"resolution_m\": 0.1"), "{info}");
+    // The user's resolution decides; leaving 5 of 6 out needs saying so, and every file
+    // left out is named in one run.
+    let e = err(&[
+        "build",
+        "--skip-bad",
+        "--resolution",
+        "0.2",
+        s(&inputs),
+        "-o",
+        s(&map),
+    ]);
+    assert!(e.contains("5 of 6 inputs would be left out"), "{e}");
+    assert!(files.iter().all(|f| e.contains(s(f))), "{e}");
+    assert!(e.contains("--allow-mostly-skipped"), "{e}");
+    ok(&[
+        "build",
+        "--quiet",
+        "--skip-bad",
+        "--allow-mostly-skipped",
+        "--resolution",
+        "0.2",
+        s(&inputs),
+        "-o",
+        s(&map),
+    ]);
+    let info = ok(&["info", "--json", s(&map)]);
+    assert!(info.contains("\"resolution_m\": 0.2"), "{info}");
+}

@@ -66,6 +66,12 @@ pub struct BuildOptions {
     /// Leave unreadable files and files of another resolution out (listed in the report)
     /// instead of stopping.
     pub skip_bad: bool,
+    /// The series' resolution, metres; `None`: the one most input headers give. Inputs of
+    /// another resolution are refused (or left out with `skip_bad`).
+    pub resolution: Option<f64>,
+    /// With `skip_bad`, build even when more than half of the inputs are left out (refused
+    /// by default: the series is probably not the one meant).
+    pub allow_mostly_skipped: bool,
     /// Force the input map format.
     pub input_format: Option<String>,
     /// Preferred implementation for reading maps.
@@ -89,6 +95,8 @@ impl Default for BuildOptions {
             codec: Codec::default(),
             toggles: ToggleLayout::DEFAULT,
             skip_bad: false,
+            resolution: None,
+            allow_mostly_skipped: false,
             input_format: None,
             backend: None,
             metadata: Map::new(),
@@ -282,8 +290,16 @@ pub fn build(
     // Fail on a bad model/axis combination before reading anything.
     let prepared = model.prepare(&axis, &options.config)?;
 
+    if let Some(r) = options.resolution {
+        froctomap_core::validate_resolution(r).map_err(|source| ConvertError::BadResolution {
+            resolution: r,
+            source,
+        })?;
+    }
     let checked = InputCheck {
         skip_bad: options.skip_bad,
+        resolution: options.resolution,
+        allow_mostly_skipped: options.allow_mostly_skipped,
     }
     .run(inputs, progress)?;
 
@@ -301,6 +317,12 @@ pub fn build(
     let extracted = extractor.finish();
     let mut skipped = checked.skipped;
     skipped.extend(extracted.skipped);
+    check::refuse_mostly_skipped(
+        inputs.len(),
+        &skipped,
+        extracted.resolution,
+        options.allow_mostly_skipped,
+    )?;
     let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
     let resolution = extracted.resolution.ok_or(ConvertError::NothingToBuild {
         inputs: inputs.len(),

@@ -279,6 +279,26 @@ pub enum ConvertError {
         /// The directory.
         dir: PathBuf,
     },
+    /// A series resolution that no map can have (not positive and finite).
+    #[error("resolution {resolution} m: {source}")]
+    BadResolution {
+        /// As given.
+        resolution: f64,
+        /// Why.
+        #[source]
+        source: froctomap_core::MapError,
+    },
+    /// More than half of the inputs would be left out (with `skip_bad`): every one is
+    /// listed, with why.
+    #[error("{}", mostly_skipped_message(*inputs, skipped, *resolution))]
+    MostlySkipped {
+        /// Inputs given.
+        inputs: usize,
+        /// The inputs left out, and why.
+        skipped: Vec<(PathBuf, String)>,
+        /// The series' resolution, where one was chosen.
+        resolution: Option<f64>,
+    },
     /// Every input was unreadable or skipped.
     #[error("no readable snapshots: all {inputs} inputs were left out")]
     NothingToBuild {
@@ -378,6 +398,27 @@ fn snapshot_message(path: &std::path::Path, error: &SnapshotError) -> String {
     } else {
         format!("{}: {error}", path.display())
     }
+}
+
+fn mostly_skipped_message(
+    inputs: usize,
+    skipped: &[(PathBuf, String)],
+    resolution: Option<f64>,
+) -> String {
+    let mut text = format!(
+        "{} of {inputs} inputs would be left out, more than half",
+        skipped.len()
+    );
+    if let Some(r) = resolution {
+        text.push_str(&format!(" (the series' resolution is {r} m)"));
+    }
+    // One line (front ends escape control characters): every file, as `--skip-bad` lists
+    // them, so that one run shows all of them.
+    let listed: Vec<String> = skipped
+        .iter()
+        .map(|(path, why)| format!("{}: {why}", path.display()))
+        .collect();
+    format!("{text}: {}", listed.join("; "))
 }
 
 /// What is wrong with a manifest line.

@@ -18,6 +18,10 @@ use std::sync::Arc;
 pub(crate) struct InputCheck {
     /// Leave unreadable files and files of another resolution out instead of stopping.
     pub skip_bad: bool,
+    /// The series' resolution as the user gave it; `None`: the one most headers give.
+    pub resolution: Option<f64>,
+    /// Go on with `skip_bad` when more than half of the inputs are left out.
+    pub allow_mostly_skipped: bool,
 }
 
 /// What the header check decided.
@@ -27,8 +31,11 @@ pub(crate) struct CheckedInputs {
     pub usable: Vec<bool>,
     /// Inputs left out, and why.
     pub skipped: Vec<(PathBuf, String)>,
-    /// The series' resolution, from the first header that gives one, and that input's index.
-    pub resolution: Option<(f64, usize)>,
+    /// The series' resolution: the one given, else the one most headers give (the earliest
+    /// file's on a tie); `None` when no header gives one and none was given.
+    pub resolution: Option<f64>,
+    /// An input of that resolution, named when another one differs.
+    pub resolution_file: Option<usize>,
 }
 
 impl InputCheck {
@@ -51,25 +58,37 @@ impl InputCheck {
     }
 
     /// Decides from each input's header resolution (`None`: the header does not tell).
+    /// The series' resolution is chosen from all headers before any file is judged, so a
+    /// stray file at the start does not decide it; with `skip_bad` every bad file is listed.
     fn decide(
         &self,
         inputs: &[SeriesInput],
         headers: Vec<Result<Option<f64>, SnapshotError>>,
     ) -> Result<CheckedInputs, ConvertError> {
+        let (resolution, resolution_file) = match self.resolution {
+            Some(given) => (
+                Some(given),
+                headers
+                    .iter()
+                    .position(|h| matches!(h, Ok(Some(r)) if *r == given)),
+            ),
+            None => match majority_resolution(&headers) {
+                Some((r, i)) => (Some(r), Some(i)),
+                None => (None, None),
+            },
+        };
         let mut checked = CheckedInputs {
             usable: vec![true; inputs.len()],
+            resolution,
+            resolution_file,
             ..CheckedInputs::default()
         };
         for (i, header) in headers.into_iter().enumerate() {
-            let refusal = match header {
-                Ok(None) => continue,
-                Ok(Some(found)) => match checked.resolution {
-                    None => {
-                        checked.resolution = Some((found, i));
-                        continue;
-                    }
-                    Some((series, _)) if series == found => continue,
-                    Some((series, first)) if !self.skip_bad => {
+            let refusal = match (header, resolution) {
+                (Ok(None), _) | (Ok(Some(_)), None) => continue,
+                (Ok(Some(found)), Some(series)) if found == series => continue,
+                (Ok(Some(found)), Some(series)) => match resolution_file {
+                    Some(first) if !self.skip_bad => {
                         return Err(ConvertError::MixedResolution {
                             first: inputs[first].path.clone(),
                             first_resolution: series,
@@ -77,23 +96,68 @@ impl InputCheck {
                             second_resolution: found,
                         })
                     }
-                    Some((series, _)) => SnapshotError::Resolution { found, series },
+                    _ => SnapshotError::Resolution { found, series },
                 },
-                Err(reason) if !self.skip_bad => {
-                    return Err(ConvertError::Snapshot {
-                        path: inputs[i].path.clone(),
-                        source: Arc::new(reason),
-                    })
-                }
-                Err(reason) => reason,
+                (Err(reason), _) => reason,
             };
+            if !self.skip_bad {
+                return Err(ConvertError::Snapshot {
+                    path: inputs[i].path.clone(),
+                    source: Arc::new(refusal),
+                });
+            }
             checked
                 .skipped
                 .push((inputs[i].path.clone(), refusal.to_string()));
             checked.usable[i] = false;
         }
+        refuse_mostly_skipped(
+            inputs.len(),
+            &checked.skipped,
+            checked.resolution,
+            self.allow_mostly_skipped,
+        )?;
         Ok(checked)
     }
+}
+
+/// The resolution most headers give, and the first input giving it (the earliest such
+/// input's resolution on a tie).
+fn majority_resolution(headers: &[Result<Option<f64>, SnapshotError>]) -> Option<(f64, usize)> {
+    // (resolution, files, first file), in order of first appearance.
+    let mut counts: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, header) in headers.iter().enumerate() {
+        if let Ok(Some(r)) = header {
+            match counts.iter_mut().find(|(known, _, _)| known == r) {
+                Some((_, n, _)) => *n += 1,
+                None => counts.push((*r, 1, i)),
+            }
+        }
+    }
+    // `max_by_key` keeps the last of equal counts: search from the back for the earliest.
+    counts
+        .iter()
+        .rev()
+        .max_by_key(|(_, n, _)| *n)
+        .map(|&(r, _, first)| (r, first))
+}
+
+/// Refuses to go on when more than half of `inputs` inputs were left out (a series built
+/// from a few stray files of another resolution, say), unless `allow`.
+pub(crate) fn refuse_mostly_skipped(
+    inputs: usize,
+    skipped: &[(PathBuf, String)],
+    resolution: Option<f64>,
+    allow: bool,
+) -> Result<(), ConvertError> {
+    if allow || skipped.len() * 2 <= inputs {
+        return Ok(());
+    }
+    Err(ConvertError::MostlySkipped {
+        inputs,
+        skipped: skipped.to_vec(),
+        resolution,
+    })
 }
 
 /// A file's resolution from its first bytes, when its format is OctoMap's.
@@ -130,11 +194,19 @@ mod tests {
             .collect()
     }
 
+    fn check(skip_bad: bool) -> InputCheck {
+        InputCheck {
+            skip_bad,
+            resolution: None,
+            allow_mostly_skipped: false,
+        }
+    }
+
     #[test]
-    fn the_first_resolution_found_is_the_series_and_others_are_refused_or_skipped() {
+    fn the_resolution_most_headers_give_is_the_series_and_others_are_refused_or_skipped() {
         let inputs = series(4);
         let headers = || vec![Ok(None), Ok(Some(0.1)), Ok(Some(0.1)), Ok(Some(0.05))];
-        let strict = InputCheck { skip_bad: false };
+        let strict = check(false);
         match strict.decide(&inputs, headers()) {
             Err(ConvertError::MixedResolution {
                 first,
@@ -148,10 +220,11 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
-        let lenient = InputCheck { skip_bad: true };
+        let lenient = check(true);
         let checked = lenient.decide(&inputs, headers()).unwrap();
         assert_eq!(checked.usable, [true, true, true, false]);
-        assert_eq!(checked.resolution, Some((0.1, 1)));
+        assert_eq!(checked.resolution, Some(0.1));
+        assert_eq!(checked.resolution_file, Some(1));
         assert_eq!(checked.skipped.len(), 1);
         assert_eq!(checked.skipped[0].0, inputs[3].path);
         assert_eq!(
@@ -164,19 +237,119 @@ mod tests {
     fn unreadable_headers_stop_the_build_or_are_skipped() {
         let inputs = series(3);
         let headers = || vec![Err(SnapshotError::Empty), Ok(Some(0.2)), Ok(None)];
-        match (InputCheck { skip_bad: false }).decide(&inputs, headers()) {
+        match check(false).decide(&inputs, headers()) {
             Err(ConvertError::Snapshot { path, source }) => {
                 assert_eq!(path, inputs[0].path);
                 assert!(matches!(*source, SnapshotError::Empty));
             }
             other => panic!("{other:?}"),
         }
-        let checked = (InputCheck { skip_bad: true })
-            .decide(&inputs, headers())
-            .unwrap();
+        let checked = check(true).decide(&inputs, headers()).unwrap();
         assert_eq!(checked.usable, [false, true, true]);
-        assert_eq!(checked.resolution, Some((0.2, 1)));
+        assert_eq!(checked.resolution, Some(0.2));
         assert_eq!(checked.skipped[0].1, SnapshotError::Empty.to_string());
+    }
+
+    /// Issue 16 item 13: a 0.1 m file first in a series of 0.05 m files used to set the
+    /// series' resolution, so that `--skip-bad` kept 2 of 30 files and succeeded.
+    #[test]
+    fn a_stray_first_file_does_not_set_the_resolution() {
+        let inputs = series(30);
+        let headers = || {
+            (0..30)
+                .map(|i| Ok(Some(if i == 0 || i == 17 { 0.1 } else { 0.05 })))
+                .collect::<Vec<_>>()
+        };
+        let checked = check(true).decide(&inputs, headers()).unwrap();
+        assert_eq!(checked.resolution, Some(0.05));
+        assert_eq!(checked.resolution_file, Some(1));
+        let skipped: Vec<&PathBuf> = checked.skipped.iter().map(|(p, _)| p).collect();
+        assert_eq!(skipped, [&inputs[0].path, &inputs[17].path]);
+        assert_eq!(checked.usable.iter().filter(|u| **u).count(), 28);
+        // Without --skip-bad, the error names the stray file against a majority one.
+        match check(false).decide(&inputs, headers()) {
+            Err(ConvertError::MixedResolution { first, second, .. }) => {
+                assert_eq!(
+                    (first, second),
+                    (inputs[1].path.clone(), inputs[0].path.clone())
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+        // The user's resolution wins: 28 of 30 left out is refused, listing all of them,
+        // unless allowed.
+        let given = |allow_mostly_skipped| InputCheck {
+            skip_bad: true,
+            resolution: Some(0.1),
+            allow_mostly_skipped,
+        };
+        match given(false).decide(&inputs, headers()) {
+            Err(err @ ConvertError::MostlySkipped { .. }) => {
+                let ConvertError::MostlySkipped {
+                    inputs: n,
+                    ref skipped,
+                    resolution,
+                } = err
+                else {
+                    unreachable!()
+                };
+                assert_eq!((n, skipped.len(), resolution), (30, 28, Some(0.1)));
+                let text = err.to_string();
+                assert!(
+                    text.starts_with("28 of 30 inputs would be left out"),
+                    "{text}"
+                );
+                for i in (1..30).filter(|&i| i != 17) {
+                    assert!(
+                        text.contains(&format!("map{i}.bt: resolution 0.05 m")),
+                        "{text}"
+                    );
+                }
+            }
+            other => panic!("{other:?}"),
+        }
+        let checked = given(true).decide(&inputs, headers()).unwrap();
+        assert_eq!(checked.resolution, Some(0.1));
+        assert_eq!(checked.resolution_file, Some(0));
+        assert_eq!(checked.usable.iter().filter(|u| **u).count(), 2);
+    }
+
+    #[test]
+    fn ties_go_to_the_earliest_and_a_given_resolution_need_not_be_in_the_series() {
+        let inputs = series(4);
+        let headers = || vec![Ok(None), Ok(Some(0.2)), Ok(Some(0.1)), Ok(Some(0.1))];
+        let tie = || vec![Ok(Some(0.2)), Ok(Some(0.1)), Ok(Some(0.1)), Ok(Some(0.2))];
+        let checked = check(true).decide(&inputs, tie()).unwrap();
+        assert_eq!(
+            (checked.resolution, checked.resolution_file),
+            (Some(0.2), Some(0))
+        );
+        // Exactly half left out is still a series.
+        assert_eq!(checked.skipped.len(), 2);
+        let checked = check(true).decide(&inputs, headers()).unwrap();
+        assert_eq!(
+            (checked.resolution, checked.resolution_file),
+            (Some(0.1), Some(2))
+        );
+        assert_eq!(checked.skipped.len(), 1);
+        let given = InputCheck {
+            skip_bad: false,
+            resolution: Some(0.5),
+            allow_mostly_skipped: false,
+        };
+        match given.decide(&inputs, headers()) {
+            Err(ConvertError::Snapshot { path, source }) => {
+                assert_eq!(path, inputs[1].path);
+                assert!(matches!(
+                    *source,
+                    SnapshotError::Resolution {
+                        found: 0.2,
+                        series: 0.5
+                    }
+                ));
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]

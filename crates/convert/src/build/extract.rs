@@ -97,9 +97,9 @@ impl<'a> ChangeExtractor<'a> {
             progress,
             next: 0,
             previous: None,
-            first_path: checked.resolution.map(|(_, i)| inputs[i].path.clone()),
+            first_path: checked.resolution_file.map(|i| inputs[i].path.clone()),
             tally: Extracted {
-                resolution: checked.resolution.map(|(r, _)| r),
+                resolution: checked.resolution,
                 ..Extracted::default()
             },
         }
@@ -306,7 +306,8 @@ mod tests {
         let axis = axis(&inputs);
         let checked = CheckedInputs {
             usable: vec![true; 3],
-            resolution: Some((0.1, 0)),
+            resolution: Some(0.1),
+            resolution_file: Some(0),
             ..CheckedInputs::default()
         };
         let extractor = |skip_bad| extractor(&context, &inputs, &checked, &axis, skip_bad, 8);
