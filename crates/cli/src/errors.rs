@@ -1,7 +1,7 @@
 //! What to try after an error: the command-line options that get past it, which the
 //! libraries cannot name.
 
-use froctomap_convert::ConvertError;
+use froctomap_convert::{ConvertError, SnapshotError};
 use froctomap_formats::FormatError;
 use std::fmt::Write as _;
 
@@ -43,6 +43,11 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         }
         ConvertError::NoTimes { .. } | ConvertError::EarlyNameTime { .. } => {
             Some("give the times with --start and --step, or name the files by their times")
+        }
+        ConvertError::Snapshot { source, .. }
+            if matches!(**source, SnapshotError::TooManyCells { .. }) =>
+        {
+            Some("build with a smaller --tile-depth (coarser tiles), or leave the file out")
         }
         ConvertError::MostlySkipped { .. } => Some(
             "give the series' resolution with --resolution, or pass --allow-mostly-skipped to build from the rest",

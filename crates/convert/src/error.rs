@@ -325,10 +325,14 @@ impl ConvertError {
     /// `true` when leaving the files concerned out of a series would get past this error
     /// (what a front end's "skip bad files" option does).
     pub fn is_skippable(&self) -> bool {
-        matches!(
-            self,
-            Self::Snapshot { .. } | Self::MixedResolution { .. } | Self::Read(_)
-        )
+        match self {
+            // Refused after the file became the one the next is compared with.
+            Self::Snapshot { source, .. } => {
+                !matches!(**source, SnapshotError::TooManyCells { .. })
+            }
+            Self::MixedResolution { .. } | Self::Read(_) => true,
+            _ => false,
+        }
     }
 }
 
@@ -363,6 +367,18 @@ pub enum SnapshotError {
         found: f64,
         /// The series' resolution.
         series: f64,
+    },
+    /// Its leaves coarser than the tiles would be split into more tile-depth cells than
+    /// [`Limits::max_snapshot_cells`](crate::Limits) (a tiny file of a few huge leaves).
+    /// Stops a build even when bad files are skipped.
+    #[error(
+        "its leaves would make more than {limit} cells of tile depth {tile_depth} (leaves coarser than a tile are split into tiles)"
+    )]
+    TooManyCells {
+        /// The build's tile depth.
+        tile_depth: u8,
+        /// The limit.
+        limit: u64,
     },
     /// Byte-identical to a file refused before it, and so refused for the same reason.
     #[error("byte-identical to a file refused before it: {0}")]

@@ -274,3 +274,52 @@ fn unknown_model_and_incompatible_axis_are_refused_before_reading() {
     .to_string();
     assert!(err.contains("fremen-regular"), "{err}");
 }
+
+/// Issue 16 item 5: an 18-byte legacy `.bt` (a root with eight leaf children) would be
+/// split into 2^30 cells at tile depth 10: the build stops before accumulating it, naming
+/// the file, and a coarser tiling takes it.
+#[test]
+fn coarse_leaves_that_would_make_billions_of_cells_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("map_1451865600.bt");
+    let mut legacy = Vec::new();
+    legacy.extend(3i32.to_le_bytes());
+    legacy.extend(0.1f64.to_le_bytes());
+    legacy.extend(9u32.to_le_bytes());
+    // The root's children, two bits each: every one a leaf.
+    legacy.extend([0x55, 0x55]);
+    assert_eq!(legacy.len(), 18);
+    std::fs::write(&path, &legacy).unwrap();
+    let options = BuildOptions::default();
+    assert_eq!(options.tile_depth, 10);
+    match build_dir(dir.path(), &options) {
+        Err(ConvertError::Snapshot {
+            path: refused,
+            source,
+        }) => {
+            assert_eq!(refused, path);
+            match *source {
+                SnapshotError::TooManyCells { tile_depth, limit } => {
+                    assert_eq!(tile_depth, 10);
+                    assert_eq!(limit, context().limits().max_snapshot_cells);
+                }
+                ref other => panic!("{other:?}"),
+            }
+        }
+        other => panic!("{other:?}"),
+    }
+    // Not a file --skip-bad can leave out: it was read as the series' latest map.
+    let skipping = BuildOptions {
+        skip_bad: true,
+        ..BuildOptions::default()
+    };
+    let err = build_dir(dir.path(), &skipping).unwrap_err();
+    assert!(!err.is_skippable(), "{err}");
+    // Tiles of depth 2 hold it in 8 × 8 cells.
+    let coarse = BuildOptions {
+        tile_depth: 2,
+        ..BuildOptions::default()
+    };
+    let report = build_dir(dir.path(), &coarse).unwrap();
+    assert_eq!(report.used, 1);
+}

@@ -8,6 +8,7 @@
 use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
+use froctomap_core::{voxels_per_node, StateChange};
 use froctomap_formats::PROBE_BYTES;
 use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
 use rayon::prelude::*;
@@ -158,6 +159,41 @@ pub(crate) fn refuse_mostly_skipped(
         skipped: skipped.to_vec(),
         resolution,
     })
+}
+
+/// How many cells one snapshot's changes may make a build hold. A history cell is never
+/// coarser than a tile, so a change covering `n` tiles makes at least `n` cells: an 18-byte
+/// `.bt` of one root leaf would make 2^30 at tile depth 10. Counted from the changes before
+/// they are accumulated, in time linear in the changes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CellBudget {
+    /// The build's tile depth.
+    pub tile_depth: u8,
+    /// [`Limits::max_snapshot_cells`](crate::Limits).
+    pub max_cells: u64,
+}
+
+impl CellBudget {
+    /// Refuses changes that would add more than `max_cells` cells (only known states add
+    /// cells; unknown ones only change cells already there).
+    pub fn check(&self, changes: &[StateChange]) -> Result<(), SnapshotError> {
+        let tile = voxels_per_node(self.tile_depth);
+        let mut cells = 0u64;
+        for change in changes.iter().filter(|c| c.new.is_some()) {
+            let Some(last) = change.end.checked_sub(1).filter(|&l| l >= change.start) else {
+                continue;
+            };
+            let tiles = last / tile - change.start / tile + 1;
+            cells = cells.saturating_add(tiles);
+            if cells > self.max_cells {
+                return Err(SnapshotError::TooManyCells {
+                    tile_depth: self.tile_depth,
+                    limit: self.max_cells,
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// A file's resolution from its first bytes, when its format is OctoMap's.
@@ -350,6 +386,38 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn changes_count_the_tiles_they_cover() {
+        use froctomap_core::{Occupancy, StateChange};
+        let budget = |max_cells| CellBudget {
+            tile_depth: 15,
+            max_cells,
+        };
+        let change = |start, end, new| StateChange { start, end, new };
+        let known = Some(Occupancy::Free);
+        // Depth-15 tiles hold 8 voxels: [4, 20) touches 3 tiles, [24, 32) one, [32, 33) one;
+        // a change to unknown adds no cells.
+        let changes = [
+            change(4, 20, known),
+            change(24, 32, Some(Occupancy::Occupied)),
+            change(32, 33, known),
+            change(40, 4000, None),
+        ];
+        assert!(budget(5).check(&changes).is_ok());
+        assert!(matches!(
+            budget(4).check(&changes),
+            Err(SnapshotError::TooManyCells {
+                tile_depth: 15,
+                limit: 4
+            })
+        ));
+        // The whole space is 8^15 depth-15 tiles: counted without a walk over them.
+        let root = [change(0, 1 << 48, known)];
+        assert!(budget(u64::MAX).check(&root).is_ok());
+        assert!(budget(1 << 45).check(&root).is_ok());
+        assert!(budget((1 << 45) - 1).check(&root).is_err());
     }
 
     #[test]

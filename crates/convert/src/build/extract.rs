@@ -7,7 +7,7 @@
 //! then [`Extracted`], the tally of what was used, skipped and warned about. Memory holds one
 //! batch of files; the accumulator consumes the batches as they come.
 
-use super::check::CheckedInputs;
+use super::check::{CellBudget, CheckedInputs};
 use super::read_input;
 use crate::context::Context;
 use crate::error::ConvertError;
@@ -59,6 +59,8 @@ pub(crate) struct ExtractOptions<'a> {
     pub skip_bad: bool,
     /// Inputs per batch (read in parallel; bounds memory).
     pub batch: usize,
+    /// How many cells one snapshot may add.
+    pub cells: CellBudget,
 }
 
 /// The change extraction of a series, an iterator of batches.
@@ -143,6 +145,12 @@ impl<'a> ChangeExtractor<'a> {
                 .ok_or_else(|| ConvertError::internal("a time not on the axis"))?;
             match outcome {
                 Ok(read) => {
+                    self.options.cells.check(&read.changes).map_err(|e| {
+                        ConvertError::Snapshot {
+                            path: input.path.clone(),
+                            source: Arc::new(e),
+                        }
+                    })?;
                     let tally = &mut self.tally;
                     tally
                         .warnings
@@ -248,6 +256,10 @@ mod tests {
             read: ReadOptions::default(),
             skip_bad,
             batch,
+            cells: CellBudget {
+                tile_depth: 10,
+                max_cells: u64::MAX,
+            },
         };
         ChangeExtractor::new(context, options, inputs, checked, axis, &Silent)
     }
