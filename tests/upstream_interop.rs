@@ -144,3 +144,93 @@ fn size_mismatch_is_rejected_by_edit_octree_but_read_by_us_with_a_warning() {
         map.warnings
     );
 }
+
+/// A `ColorOcTree` written by upstream's library (a small program compiled against it):
+/// froctomap reads its occupancy, with a notice, as upstream reads it (`convert_octree`
+/// to `.bt` is upstream's occupancy of the same file), and upstream's own rewrite of the
+/// file reads back the same.
+#[test]
+fn color_octrees_written_by_upstream_read_as_upstream_reads_their_occupancy() {
+    let dir = scratch();
+    let program = dir.path().join("color_tree.cc");
+    std::fs::write(
+        &program,
+        r#"#include <octomap/ColorOcTree.h>
+using namespace octomap;
+int main(int argc, char** argv) {
+  ColorOcTree tree(0.1);
+  for (int x = 0; x < 24; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 2; ++z) {
+        point3d p(x * 0.1 + 0.05, y * 0.1 + 0.05, z * 0.1 + 0.05);
+        bool occupied = (x / 4 + y / 4 + z) % 3 == 0;
+        tree.updateNode(p, occupied);
+        if (x % 8 == 0) tree.updateNode(p, !occupied);
+        tree.setNodeColor(tree.coordToKey(p), 10 * x, 15 * y, occupied ? 255 : 0);
+      }
+  tree.updateInnerOccupancy();
+  return tree.write(argv[1]) ? 0 : 1;
+}
+"#,
+    )
+    .unwrap();
+    let binary = dir.path().join("color_tree");
+    let flags = std::process::Command::new("pkg-config")
+        .args(["--cflags", "--libs", "octomap"])
+        .output()
+        .expect("pkg-config (liboctomap-dev)");
+    let flags = String::from_utf8(flags.stdout).unwrap();
+    let compiled = std::process::Command::new("c++")
+        .arg(&program)
+        .arg("-o")
+        .arg(&binary)
+        .args(flags.split_whitespace())
+        .output()
+        .expect("a C++ compiler");
+    assert!(
+        compiled.status.success(),
+        "{}",
+        String::from_utf8_lossy(&compiled.stderr)
+    );
+    let color = dir.path().join("color.ot");
+    let ran = std::process::Command::new(&binary)
+        .arg(&color)
+        .output()
+        .unwrap();
+    assert!(ran.status.success() && color.exists(), "{ran:?}");
+    assert!(std::fs::read(&color)
+        .unwrap()
+        .windows(14)
+        .any(|w| w == b"id ColorOcTree"));
+
+    let ours = read(&color);
+    assert!(
+        ours.map
+            .warnings
+            .iter()
+            .any(|w| w.contains("`ColorOcTree` read as a plain OcTree")),
+        "{:?}",
+        ours.map.warnings
+    );
+    let leaves = ours.map.snapshot.leaves();
+    assert!(leaves.len() > 100);
+    assert!(leaves.iter().any(|l| l.occupancy().is_occupied()));
+    assert!(leaves.iter().any(|l| !l.occupancy().is_occupied()));
+
+    // Upstream's occupancy of the same file.
+    let theirs_bt = dir.path().join("theirs.bt");
+    convert_octree(&color, &theirs_bt);
+    let theirs = read(&theirs_bt).map.snapshot;
+    assert!(ours
+        .map
+        .snapshot
+        .to_max_likelihood()
+        .same_voxel_states(&theirs));
+    // Upstream's rewrite of the colour tree: the same log-odds, leaf for leaf.
+    let rewritten = dir.path().join("rewritten.ot");
+    convert_octree(&color, &rewritten);
+    assert_eq!(
+        leaf_tuples(&read(&rewritten).map.snapshot),
+        leaf_tuples(&ours.map.snapshot)
+    );
+}

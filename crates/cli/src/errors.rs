@@ -45,7 +45,7 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
             Some("give the times with --start and --step, or name the files by their times")
         }
         ConvertError::Snapshot { source, .. }
-            if matches!(**source, SnapshotError::TooManyCells { .. }) =>
+            if matches!(**source, SnapshotError::TooManyTiles { .. }) =>
         {
             Some("build with a smaller --tile-depth (coarser tiles), or leave the file out")
         }

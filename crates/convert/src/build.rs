@@ -34,7 +34,7 @@ use crate::inputs::SeriesInput;
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
-use check::{CellBudget, InputCheck};
+use check::{InputCheck, TileBudget};
 use extract::{ChangeExtractor, ExtractOptions};
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::calendar::iso8601;
@@ -311,9 +311,9 @@ pub fn build(
         },
         skip_bad: options.skip_bad,
         batch: options.batch,
-        cells: CellBudget {
+        tiles: TileBudget {
             tile_depth: options.tile_depth,
-            max_cells: context.limits().max_snapshot_cells,
+            max_tiles: context.limits().max_snapshot_tiles,
         },
     };
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);

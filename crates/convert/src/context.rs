@@ -18,11 +18,13 @@ pub struct Limits {
     pub max_map_file_bytes: u64,
     /// Most maps one export may write (a guard against a mistyped interval).
     pub max_exports: u64,
-    /// Most cells one input snapshot may add to a build, counting each leaf coarser than
-    /// the build's tiles as the tiles it covers (default 2^26, the cells of a whole file a
-    /// `.froct` reader accepts by default): a few bytes of coarse leaves cannot make a
-    /// build split space into billions of cells.
-    pub max_snapshot_cells: u64,
+    /// Most tiles of the build's tile depth the known space of one input snapshot may
+    /// cover (default 2^20: at tile depth 10 and 5 cm voxels, 3.2 m tiles, about 3·10^7 m³).
+    /// Each tile a snapshot covers holds at least one cell of the build (a leaf coarser than
+    /// a tile is split into the tiles it covers), so a few bytes of coarse leaves cannot
+    /// make a build split space into billions of cells; the cells inside the tiles are
+    /// bounded by the snapshot's leaves, that is by its bytes.
+    pub max_snapshot_tiles: u64,
     /// What a FROctomap file may make its reader allocate ([`Context::open_froct`]).
     pub froct: ReadLimits,
 }
@@ -33,7 +35,7 @@ impl Default for Limits {
             // Far above any OctoMap scan seen (a building floor at 5 cm is tens of MB).
             max_map_file_bytes: 4 << 30,
             max_exports: 1_000_000,
-            max_snapshot_cells: ReadLimits::DEFAULT.max_total_cells,
+            max_snapshot_tiles: 1 << 20,
             froct: ReadLimits::default(),
         }
     }

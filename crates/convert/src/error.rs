@@ -328,7 +328,7 @@ impl ConvertError {
         match self {
             // Refused after the file became the one the next is compared with.
             Self::Snapshot { source, .. } => {
-                !matches!(**source, SnapshotError::TooManyCells { .. })
+                !matches!(**source, SnapshotError::TooManyTiles { .. })
             }
             Self::MixedResolution { .. } | Self::Read(_) => true,
             _ => false,
@@ -368,13 +368,13 @@ pub enum SnapshotError {
         /// The series' resolution.
         series: f64,
     },
-    /// Its leaves coarser than the tiles would be split into more tile-depth cells than
-    /// [`Limits::max_snapshot_cells`](crate::Limits) (a tiny file of a few huge leaves).
-    /// Stops a build even when bad files are skipped.
+    /// Its known space covers more tiles than [`Limits::max_snapshot_tiles`](crate::Limits)
+    /// (a tiny file of a few huge leaves, each split into the tiles it covers). Stops a
+    /// build even when bad files are skipped.
     #[error(
-        "its leaves would make more than {limit} cells of tile depth {tile_depth} (leaves coarser than a tile are split into tiles)"
+        "its known space covers more than {limit} tiles of depth {tile_depth}, each at least one cell (leaves coarser than a tile are split into tiles)"
     )]
-    TooManyCells {
+    TooManyTiles {
         /// The build's tile depth.
         tile_depth: u8,
         /// The limit.

@@ -299,9 +299,9 @@ fn coarse_leaves_that_would_make_billions_of_cells_are_refused() {
         }) => {
             assert_eq!(refused, path);
             match *source {
-                SnapshotError::TooManyCells { tile_depth, limit } => {
+                SnapshotError::TooManyTiles { tile_depth, limit } => {
                     assert_eq!(tile_depth, 10);
-                    assert_eq!(limit, context().limits().max_snapshot_cells);
+                    assert_eq!(limit, context().limits().max_snapshot_tiles);
                 }
                 ref other => panic!("{other:?}"),
             }

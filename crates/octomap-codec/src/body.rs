@@ -10,15 +10,16 @@
 //!   node whose 8 codes are all 0 becomes, in upstream's tree, a childless node with value
 //!   `-FLT_MAX` (the maximum over no children), i.e. a free leaf; a childless root keeps the
 //!   occupied value upstream gives every node before reading its children.
-//! * `.ot`: every node is its `f32` log-odds (little-endian) then a child-mask byte; set bits
-//!   are followed by those children's subtrees. Nodes without children are leaves.
+//! * `.ot`: every node is its `f32` log-odds (little-endian), its tree type's other data
+//!   (a `ColorOcTree`'s three colour bytes; nothing for an `OcTree`), then a child-mask byte;
+//!   set bits are followed by those children's subtrees. Nodes without children are leaves.
 //!
 //! Upstream recurses without a depth bound and reads past the end of truncated data; this
 //! walk stops at depth 16 and checks every length, so it can vouch for a stream before the
 //! C++ library sees it.
 
 use crate::error::CodecError;
-use crate::kind::FileKind;
+use crate::kind::{FileKind, TreeType};
 use froctomap_core::{free_log_odds, occupied_log_odds, Leaf, MortonCode, TREE_DEPTH};
 
 /// Resource bounds for reading untrusted files.
@@ -51,6 +52,7 @@ pub struct BodySummary {
 /// `body_offset` is only used to report file offsets in errors.
 pub fn walk_body<F: FnMut(Leaf) + ?Sized>(
     kind: FileKind,
+    tree: TreeType,
     body: &[u8],
     body_offset: usize,
     limits: ReadLimits,
@@ -68,7 +70,12 @@ pub fn walk_body<F: FnMut(Leaf) + ?Sized>(
     };
     match kind {
         FileKind::Binary => walk.binary_node(0, 0)?,
-        FileKind::Full => walk.full_node(0, 0)?,
+        FileKind::Full => match tree {
+            TreeType::OcTree => walk.full_node::<{ TreeType::OcTree.full_record_len() }>(0, 0)?,
+            TreeType::ColorOcTree => {
+                walk.full_node::<{ TreeType::ColorOcTree.full_record_len() }>(0, 0)?
+            }
+        },
     }
     Ok(BodySummary {
         node_count: walk.nodes,
@@ -156,11 +163,13 @@ impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
         Ok(())
     }
 
-    /// Reads one `.ot` node at `depth` whose first voxel is `start`.
-    fn full_node(&mut self, depth: u8, start: u64) -> Result<(), CodecError> {
+    /// Reads one `.ot` node of `R` bytes (its log-odds first, its child mask last) at
+    /// `depth` whose first voxel is `start`.
+    fn full_node<const R: usize>(&mut self, depth: u8, start: u64) -> Result<(), CodecError> {
         let offset = self.body_offset + self.pos;
-        let [a, b, c, d, mask] = self.take::<5>()?;
-        let value = f32::from_le_bytes([a, b, c, d]);
+        let record = self.take::<R>()?;
+        let value = f32::from_le_bytes([record[0], record[1], record[2], record[3]]);
+        let mask = record[R - 1];
         if mask == 0 {
             self.emit(start, depth, value);
             return Ok(());
@@ -175,7 +184,7 @@ impl<F: FnMut(Leaf) + ?Sized> Walk<'_, '_, F> {
             let child = present.trailing_zeros();
             present &= present - 1;
             self.count_node()?;
-            self.full_node(child_depth, start + (u64::from(child) << child_shift))?;
+            self.full_node::<R>(child_depth, start + (u64::from(child) << child_shift))?;
         }
         Ok(())
     }

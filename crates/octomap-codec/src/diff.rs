@@ -15,9 +15,9 @@
 use crate::body::{record_at, BodySummary, ReadLimits};
 use crate::error::CodecError;
 use crate::header::{detect_kind, parse_header};
-use crate::kind::FileKind;
-use crate::{scan_with, ScanSummary};
-use froctomap_core::{voxels_per_node, Occupancy, StateChange, TREE_DEPTH};
+use crate::kind::{FileKind, TreeType};
+use crate::{decode, scan, scan_with, ScanSummary};
+use froctomap_core::{changes, voxels_per_node, Occupancy, StateChange, TREE_DEPTH};
 
 /// Streams the ranges where `current` differs from `previous` (`None`: a map where nothing is
 /// known) to `on_change`, in Morton order and maximal per new state: the same list
@@ -45,7 +45,7 @@ pub fn diff<F: FnMut(StateChange) + ?Sized>(
     let kind = kind
         .or_else(|| detect_kind(current))
         .unwrap_or(FileKind::Binary);
-    let old = match previous {
+    let (old, old_tree) = match previous {
         Some((bytes, index)) => {
             let header = parse_header(bytes, kind)?;
             let body = match header.declared_size {
@@ -53,24 +53,76 @@ pub fn diff<F: FnMut(StateChange) + ?Sized>(
                 0 => &[][..],
                 _ => bytes.get(header.body_offset..).unwrap_or_default(),
             };
-            (body, header.body_offset, index)
+            let tree = body_tree(kind, &header.tree_id)?;
+            ((body, header.body_offset, index), Some(tree))
         }
-        None => (&[][..], 0, None),
+        None => ((&[][..], 0, None), None),
     };
-    let compare = |current: Option<(&[u8], usize)>, on_change: &mut F| match kind {
-        FileKind::Binary => diff_bodies::<Binary, F>(old, current, limits, on_change),
-        FileKind::Full => diff_bodies::<Full, F>(old, current, limits, on_change),
-    };
+    if let Some(old_tree) = old_tree {
+        let current_tree = body_tree(kind, &parse_header(current, kind)?.tree_id)?;
+        if old_tree != current_tree {
+            // Nodes of two layouts cannot be compared record by record: compare the leaves.
+            return diff_decoded(previous, current, kind, limits, on_change);
+        }
+    }
+    let compare =
+        |tree: TreeType, current: Option<(&[u8], usize)>, on_change: &mut F| match (kind, tree) {
+            (FileKind::Binary, _) => diff_bodies::<Binary, F>(old, current, limits, on_change),
+            (FileKind::Full, TreeType::OcTree) => diff_bodies::<
+                Full<{ TreeType::OcTree.full_record_len() }>,
+                F,
+            >(old, current, limits, on_change),
+            (FileKind::Full, TreeType::ColorOcTree) => {
+                diff_bodies::<Full<{ TreeType::ColorOcTree.full_record_len() }>, F>(
+                    old, current, limits, on_change,
+                )
+            }
+        };
     let mut index = TreeIndex::default();
-    let summary = scan_with(current, Some(kind), |_, body, body_offset| {
-        let (summary, current_index) = compare(Some((body, body_offset)), on_change)?;
+    let mut tree = TreeType::OcTree;
+    let summary = scan_with(current, Some(kind), |_, current_tree, body, body_offset| {
+        tree = current_tree;
+        let (summary, current_index) = compare(tree, Some((body, body_offset)), on_change)?;
         index = current_index;
         Ok(summary)
     })?;
     if summary.header.declared_size == 0 {
         // The body was not read: everything known before is unknown now.
-        compare(None, on_change)?;
+        let tree = body_tree(kind, &summary.header.tree_id)?;
+        compare(tree, None, on_change)?;
     }
+    Ok((summary, index))
+}
+
+/// The node layout of a body of `kind` whose header names `tree_id` (a `.bt` has one
+/// layout whatever the type).
+fn body_tree(kind: FileKind, tree_id: &str) -> Result<TreeType, CodecError> {
+    match kind {
+        FileKind::Binary => Ok(TreeType::OcTree),
+        FileKind::Full => TreeType::from_id(tree_id)
+            .ok_or_else(|| CodecError::UnsupportedTreeType(tree_id.into())),
+    }
+}
+
+/// [`diff`] of two files whose nodes have different layouts (an `OcTree` and a
+/// `ColorOcTree` `.ot`): both decoded, their leaves compared.
+fn diff_decoded<F: FnMut(StateChange) + ?Sized>(
+    previous: Option<(&[u8], Option<&TreeIndex>)>,
+    current: &[u8],
+    kind: FileKind,
+    limits: ReadLimits,
+    on_change: &mut F,
+) -> Result<(ScanSummary, TreeIndex), CodecError> {
+    let old = match previous {
+        Some((bytes, _)) => decode(bytes, Some(kind), limits)?.leaves,
+        None => Vec::new(),
+    };
+    let mut leaves = Vec::new();
+    let summary = scan(current, Some(kind), limits, &mut |leaf| leaves.push(leaf))?;
+    for change in changes(&old, &leaves) {
+        on_change(change);
+    }
+    let index = TreeIndex::of(current, kind)?;
     Ok((summary, index))
 }
 
@@ -92,9 +144,14 @@ impl TreeIndex {
             return Ok(TreeIndex::default());
         }
         let body = bytes.get(header.body_offset..).unwrap_or_default();
-        Ok(match kind {
-            FileKind::Binary => index_of_body::<Binary>(body, header.body_offset)?,
-            FileKind::Full => index_of_body::<Full>(body, header.body_offset)?,
+        Ok(match (kind, body_tree(kind, &header.tree_id)?) {
+            (FileKind::Binary, _) => index_of_body::<Binary>(body, header.body_offset)?,
+            (FileKind::Full, TreeType::OcTree) => index_of_body::<
+                Full<{ TreeType::OcTree.full_record_len() }>,
+            >(body, header.body_offset)?,
+            (FileKind::Full, TreeType::ColorOcTree) => index_of_body::<
+                Full<{ TreeType::ColorOcTree.full_record_len() }>,
+            >(body, header.body_offset)?,
         })
     }
 }
@@ -451,15 +508,17 @@ impl Layout for Binary {
     }
 }
 
-/// `.ot`: a node is its `f32` log-odds and a child mask; nodes without children are leaves.
-struct Full;
+/// `.ot`: a node is `R` bytes, its `f32` log-odds first and a child mask last (a tree type's
+/// other data between, [`TreeType::full_record_len`]); nodes without children are leaves.
+struct Full<const R: usize>;
 
-impl Full {
+impl<const R: usize> Full<R> {
     fn node(stream: &mut Stream<'_>, depth: u8) -> Result<View, CodecError> {
         let offset = stream.offset();
-        let ([a, b, c, d, mask], index) = stream.take::<5>()?;
+        let (record, index) = stream.take::<R>()?;
+        let mask = record[R - 1];
         if mask == 0 {
-            let value = f32::from_le_bytes([a, b, c, d]);
+            let value = f32::from_le_bytes([record[0], record[1], record[2], record[3]]);
             if value.is_nan() {
                 return Err(CodecError::NotANumber { offset });
             }
@@ -472,25 +531,25 @@ impl Full {
     }
 
     fn mask(record: &[u8]) -> u8 {
-        record.get(4).copied().unwrap_or(0)
+        record.get(R - 1).copied().unwrap_or(0)
     }
 }
 
-impl Layout for Full {
-    const RECORD: usize = 5;
+impl<const R: usize> Layout for Full<R> {
+    const RECORD: usize = R;
 
     #[inline]
     fn records_below(record: &[u8]) -> u32 {
-        Full::mask(record).count_ones()
+        Self::mask(record).count_ones()
     }
 
     #[inline]
     fn children(record: &[u8]) -> u32 {
-        Full::mask(record).count_ones()
+        Self::mask(record).count_ones()
     }
 
     fn root(stream: &mut Stream<'_>) -> Result<View, CodecError> {
-        Full::node(stream, 0)
+        Self::node(stream, 0)
     }
 
     #[inline]
@@ -503,7 +562,7 @@ impl Layout for Full {
         if record >> child & 1 == 0 {
             return Ok(View::Known(None));
         }
-        Full::node(stream, child_depth)
+        Self::node(stream, child_depth)
     }
 
     #[inline]
@@ -689,6 +748,84 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A `ColorOcTree` `.ot` of the tree: each node's log-odds, three colour bytes (made
+    /// from the node's position in the file, so that equal subtrees may differ in colour),
+    /// then its child mask.
+    fn color_file(root: &Node, tint: u8) -> Vec<u8> {
+        fn body(node: &Node, tint: u8, out: &mut Vec<u8>) {
+            let (value, children) = match node {
+                Node::Unknown => return,
+                Node::Leaf(v) => (*v, &[][..]),
+                Node::Inner(v, children) => (*v, &children[..]),
+            };
+            let mask = children
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| !matches!(c, Node::Unknown))
+                .fold(0u8, |m, (i, _)| m | 1 << i);
+            let n = out.len() as u8;
+            out.extend(value.to_le_bytes());
+            out.extend([n ^ tint, n.wrapping_mul(3), tint]);
+            out.push(mask);
+            for child in children {
+                body(child, tint, out);
+            }
+        }
+        let mut out = format!(
+            "{}\nid ColorOcTree\nsize {}\nres 0.1\ndata\n",
+            FileKind::Full.first_line(),
+            nodes(root)
+        )
+        .into_bytes();
+        body(root, tint, &mut out);
+        out
+    }
+
+    #[test]
+    fn color_trees_read_and_compare_as_their_occupancy() {
+        for seed in 0..24u64 {
+            let a = tree(seed, (0, 0), 0, 0);
+            let b = tree(seed, (seed + 1, 150), 0, 0);
+            let (plain_a, plain_b) = (file(&a, FileKind::Full), file(&b, FileKind::Full));
+            let (color_a, color_b) = (color_file(&a, 7), color_file(&b, 9));
+            let read = |bytes: &[u8]| decode(bytes, None, ReadLimits::default()).unwrap();
+            let (got, want) = (read(&color_a), read(&plain_a));
+            assert_eq!(got.leaves, want.leaves);
+            assert_eq!(got.node_count, want.node_count);
+            assert!(
+                got.warnings
+                    .iter()
+                    .any(|w| w.contains("`ColorOcTree` read as a plain OcTree")),
+                "{:?}",
+                got.warnings
+            );
+            // Colour files compared from their bytes (colours differ everywhere), and files
+            // of the two layouts compared through their leaves.
+            for (previous, current) in [
+                (Some(&color_a[..]), &color_b[..]),
+                (Some(&color_b), &color_a),
+                (None, &color_b),
+                (Some(&color_a), &color_a),
+                (Some(&plain_a), &color_b),
+                (Some(&color_a), &plain_b),
+            ] {
+                let (got, summary) = collect(previous, current);
+                assert_eq!(got, expected(previous, current), "seed {seed}");
+                let scanned = scan(current, None, ReadLimits::default(), &mut |_| {}).unwrap();
+                assert_eq!(summary, scanned);
+            }
+        }
+        // Other tree types, whose node layouts froctomap does not know, are refused.
+        let plain = file(&tree(3, (0, 0), 0, 0), FileKind::Full);
+        let at = plain.windows(9).position(|w| w == b"id OcTree").unwrap() + 9;
+        let stamped = [&plain[..at], b"Stamped", &plain[at..]].concat();
+        let got = diff(None, &stamped, None, ReadLimits::default(), &mut |_| {});
+        assert!(
+            matches!(&got, Err(CodecError::UnsupportedTreeType(id)) if id == "OcTreeStamped"),
+            "{got:?}"
+        );
     }
 
     #[test]

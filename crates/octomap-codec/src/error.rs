@@ -27,8 +27,9 @@ pub enum CodecError {
         /// What is wrong.
         reason: String,
     },
-    /// A `.ot` file of a tree type other than `OcTree`, whose node layout differs.
-    #[error("unsupported tree type `{0}` (froctomap reads plain OcTree occupancy maps)")]
+    /// A `.ot` file of a tree type whose node layout froctomap does not know (it reads
+    /// `OcTree` and `ColorOcTree`, [`TreeType`](crate::TreeType)).
+    #[error("unsupported tree type `{0}` (froctomap reads the occupancy of OcTree and ColorOcTree maps)")]
     UnsupportedTreeType(String),
     /// The body ends before the tree does.
     #[error("truncated: the tree data needs more bytes than the file has (a node at offset {offset} needs {needed} bytes, {available} remain)")]

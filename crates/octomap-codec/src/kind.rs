@@ -31,3 +31,41 @@ impl FileKind {
         }
     }
 }
+
+/// The tree types whose `.ot` files froctomap reads, by what their nodes store. A `.bt`
+/// stores occupancy only, whatever the type; a `.ot` node stores its type's data, which
+/// froctomap reads as occupancy (the log-odds) and skips the rest of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum TreeType {
+    /// `OcTree`: a node is its `f32` log-odds.
+    OcTree,
+    /// `ColorOcTree`: a node is its `f32` log-odds then its colour (red, green, blue bytes),
+    /// as upstream's `ColorOcTreeNode::writeData` writes it.
+    ColorOcTree,
+}
+
+impl TreeType {
+    /// The type a header's `id` names, if froctomap reads it.
+    ///
+    /// ```
+    /// use froctomap_octomap_codec::TreeType;
+    /// assert_eq!(TreeType::from_id("ColorOcTree"), Some(TreeType::ColorOcTree));
+    /// assert_eq!(TreeType::from_id("OcTreeStamped"), None);
+    /// ```
+    pub fn from_id(id: &str) -> Option<Self> {
+        match id {
+            "OcTree" => Some(TreeType::OcTree),
+            "ColorOcTree" => Some(TreeType::ColorOcTree),
+            _ => None,
+        }
+    }
+
+    /// Bytes of one `.ot` node: its data, then the child-mask byte.
+    pub const fn full_record_len(self) -> usize {
+        match self {
+            TreeType::OcTree => 5,
+            TreeType::ColorOcTree => 8,
+        }
+    }
+}

@@ -46,7 +46,7 @@ pub use error::{CodecError, EncodeError};
 pub use header::{
     detect_kind, looks_like_legacy_binary, parse_header, Header, HeaderLayout, OCTREE_ID,
 };
-pub use kind::{FileKind, BINARY_FIRST_LINE, FULL_FIRST_LINE};
+pub use kind::{FileKind, TreeType, BINARY_FIRST_LINE, FULL_FIRST_LINE};
 pub use runs::{merge_runs, scan_runs, RunMerger, VoxelRun};
 
 use froctomap_core::Leaf;
@@ -99,8 +99,10 @@ fn leaf_capacity_hint(bytes: &[u8], kind: Option<FileKind>, limits: ReadLimits) 
     let most_leaves = match kind {
         // Every 2 bytes describe at most 8 children.
         FileKind::Binary => body.saturating_mul(4),
-        // Every node takes 5 bytes.
-        FileKind::Full => body / 5,
+        // Every node takes a record of its type's length.
+        FileKind::Full => {
+            body / TreeType::from_id(&header.tree_id).map_or(5, TreeType::full_record_len) as u64
+        }
     };
     let hint = u64::from(header.declared_size)
         .min(most_leaves)
@@ -141,8 +143,8 @@ pub fn scan<F: FnMut(Leaf) + ?Sized>(
     limits: ReadLimits,
     on_leaf: &mut F,
 ) -> Result<ScanSummary, CodecError> {
-    scan_with(bytes, kind, |kind, body, body_offset| {
-        walk_body(kind, body, body_offset, limits, on_leaf)
+    scan_with(bytes, kind, |kind, tree, body, body_offset| {
+        walk_body(kind, tree, body, body_offset, limits, on_leaf)
     })
 }
 
@@ -150,7 +152,7 @@ pub fn scan<F: FnMut(Leaf) + ?Sized>(
 pub(crate) fn scan_with(
     bytes: &[u8],
     kind: Option<FileKind>,
-    walk: impl FnOnce(FileKind, &[u8], usize) -> Result<BodySummary, CodecError>,
+    walk: impl FnOnce(FileKind, TreeType, &[u8], usize) -> Result<BodySummary, CodecError>,
 ) -> Result<ScanSummary, CodecError> {
     if bytes.is_empty() {
         return Err(CodecError::Empty);
@@ -159,15 +161,24 @@ pub(crate) fn scan_with(
         .or_else(|| detect_kind(bytes))
         .unwrap_or(FileKind::Binary);
     let header = parse_header(bytes, kind)?;
-    if kind == FileKind::Full && header.tree_id != OCTREE_ID {
-        return Err(CodecError::UnsupportedTreeType(header.tree_id));
-    }
+    let tree = match (kind, TreeType::from_id(&header.tree_id)) {
+        (FileKind::Full, None) => return Err(CodecError::UnsupportedTreeType(header.tree_id)),
+        // A .bt node stores occupancy whatever the type.
+        (FileKind::Binary, _) => TreeType::OcTree,
+        (FileKind::Full, Some(tree)) => tree,
+    };
     let mut warnings = header.warnings.clone();
-    if kind == FileKind::Binary && header.tree_id != OCTREE_ID {
-        warnings.push(format!(
-            "tree id `{}` read as a plain OcTree (a .bt file stores occupancy only)",
-            header.tree_id
-        ));
+    if header.tree_id != OCTREE_ID {
+        warnings.push(match kind {
+            FileKind::Binary => format!(
+                "tree id `{}` read as a plain OcTree (a .bt file stores occupancy only)",
+                header.tree_id
+            ),
+            FileKind::Full => format!(
+                "tree id `{}` read as a plain OcTree (its occupancy; the rest of each node is skipped)",
+                header.tree_id
+            ),
+        });
     }
     let body = bytes.get(header.body_offset..).unwrap_or_default();
     let (node_count, data_end) = if header.declared_size == 0 {
@@ -180,7 +191,7 @@ pub(crate) fn scan_with(
         }
         (0, header.body_offset)
     } else {
-        let summary = walk(kind, body, header.body_offset)?;
+        let summary = walk(kind, tree, body, header.body_offset)?;
         if summary.node_count != u64::from(header.declared_size) {
             warnings.push(format!(
                 "header says `size {}` but the tree has {} nodes; the tree data is complete, so it is used (OctoMap loads it too but reports failure)",

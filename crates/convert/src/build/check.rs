@@ -161,34 +161,46 @@ pub(crate) fn refuse_mostly_skipped(
     })
 }
 
-/// How many cells one snapshot's changes may make a build hold. A history cell is never
-/// coarser than a tile, so a change covering `n` tiles makes at least `n` cells: an 18-byte
-/// `.bt` of one root leaf would make 2^30 at tile depth 10. Counted from the changes before
-/// they are accumulated, in time linear in the changes.
+/// How many tiles one snapshot's known space may cover. A history cell is never coarser
+/// than a tile, so every tile a change covers holds at least one cell: an 18-byte `.bt` of
+/// one root leaf would make 2^30 cells at tile depth 10, while a real map's leaves lie in
+/// comparatively few tiles (its cells within them are bounded by its leaves, that is by
+/// its bytes). Counted from the changes before they are accumulated, in time linear in the
+/// changes.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct CellBudget {
+pub(crate) struct TileBudget {
     /// The build's tile depth.
     pub tile_depth: u8,
-    /// [`Limits::max_snapshot_cells`](crate::Limits).
-    pub max_cells: u64,
+    /// [`Limits::max_snapshot_tiles`](crate::Limits).
+    pub max_tiles: u64,
 }
 
-impl CellBudget {
-    /// Refuses changes that would add more than `max_cells` cells (only known states add
-    /// cells; unknown ones only change cells already there).
+impl TileBudget {
+    /// Refuses changes to known states that cover more than `max_tiles` distinct tiles
+    /// (changes to unknown only change cells already there).
     pub fn check(&self, changes: &[StateChange]) -> Result<(), SnapshotError> {
         let tile = voxels_per_node(self.tile_depth);
-        let mut cells = 0u64;
+        let mut tiles = 0u64;
+        // Changes are sorted and disjoint: a tile is counted again only by the change that
+        // starts in the tile where the one before ended.
+        let mut last_counted: Option<u64> = None;
         for change in changes.iter().filter(|c| c.new.is_some()) {
             let Some(last) = change.end.checked_sub(1).filter(|&l| l >= change.start) else {
                 continue;
             };
-            let tiles = last / tile - change.start / tile + 1;
-            cells = cells.saturating_add(tiles);
-            if cells > self.max_cells {
-                return Err(SnapshotError::TooManyCells {
+            let (first_tile, last_tile) = (change.start / tile, last / tile);
+            let first_new = match last_counted {
+                Some(counted) if counted >= first_tile => counted + 1,
+                _ => first_tile,
+            };
+            if last_tile >= first_new {
+                tiles = tiles.saturating_add(last_tile - first_new + 1);
+                last_counted = Some(last_tile);
+            }
+            if tiles > self.max_tiles {
+                return Err(SnapshotError::TooManyTiles {
                     tile_depth: self.tile_depth,
-                    limit: self.max_cells,
+                    limit: self.max_tiles,
                 });
             }
         }
@@ -389,28 +401,29 @@ mod tests {
     }
 
     #[test]
-    fn changes_count_the_tiles_they_cover() {
+    fn changes_count_the_distinct_tiles_they_cover() {
         use froctomap_core::{Occupancy, StateChange};
-        let budget = |max_cells| CellBudget {
+        let budget = |max_tiles| TileBudget {
             tile_depth: 15,
-            max_cells,
+            max_tiles,
         };
         let change = |start, end, new| StateChange { start, end, new };
         let known = Some(Occupancy::Free);
-        // Depth-15 tiles hold 8 voxels: [4, 20) touches 3 tiles, [24, 32) one, [32, 33) one;
-        // a change to unknown adds no cells.
+        // Depth-15 tiles hold 8 voxels: [4, 20) covers tiles 0-2, [20, 22) and [23, 24)
+        // tile 2 again, [32, 33) tile 4; a change to unknown covers nothing new.
         let changes = [
             change(4, 20, known),
-            change(24, 32, Some(Occupancy::Occupied)),
+            change(20, 22, Some(Occupancy::Occupied)),
+            change(23, 24, known),
             change(32, 33, known),
             change(40, 4000, None),
         ];
-        assert!(budget(5).check(&changes).is_ok());
+        assert!(budget(4).check(&changes).is_ok());
         assert!(matches!(
-            budget(4).check(&changes),
-            Err(SnapshotError::TooManyCells {
+            budget(3).check(&changes),
+            Err(SnapshotError::TooManyTiles {
                 tile_depth: 15,
-                limit: 4
+                limit: 3
             })
         ));
         // The whole space is 8^15 depth-15 tiles: counted without a walk over them.

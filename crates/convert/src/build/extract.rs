@@ -7,7 +7,7 @@
 //! then [`Extracted`], the tally of what was used, skipped and warned about. Memory holds one
 //! batch of files; the accumulator consumes the batches as they come.
 
-use super::check::{CellBudget, CheckedInputs};
+use super::check::{CheckedInputs, TileBudget};
 use super::read_input;
 use crate::context::Context;
 use crate::error::ConvertError;
@@ -59,8 +59,8 @@ pub(crate) struct ExtractOptions<'a> {
     pub skip_bad: bool,
     /// Inputs per batch (read in parallel; bounds memory).
     pub batch: usize,
-    /// How many cells one snapshot may add.
-    pub cells: CellBudget,
+    /// How many tiles one snapshot may cover.
+    pub tiles: TileBudget,
 }
 
 /// The change extraction of a series, an iterator of batches.
@@ -145,7 +145,7 @@ impl<'a> ChangeExtractor<'a> {
                 .ok_or_else(|| ConvertError::internal("a time not on the axis"))?;
             match outcome {
                 Ok(read) => {
-                    self.options.cells.check(&read.changes).map_err(|e| {
+                    self.options.tiles.check(&read.changes).map_err(|e| {
                         ConvertError::Snapshot {
                             path: input.path.clone(),
                             source: Arc::new(e),
@@ -256,9 +256,9 @@ mod tests {
             read: ReadOptions::default(),
             skip_bad,
             batch,
-            cells: CellBudget {
+            tiles: TileBudget {
                 tile_depth: 10,
-                max_cells: u64::MAX,
+                max_tiles: u64::MAX,
             },
         };
         ChangeExtractor::new(context, options, inputs, checked, axis, &Silent)
