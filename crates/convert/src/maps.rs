@@ -542,28 +542,40 @@ pub fn export(
     })?;
     let extension = format.extensions.first().copied().unwrap_or(format.name);
     progress.stage("exporting maps", times.len() as u64);
-    let files: Vec<(SeriesInput, u64)> = times
-        .par_iter()
-        .zip(samples.par_iter())
-        .map(|(&t, sample)| {
-            let path = dir.join(format!(
-                "{}_{}.{extension}",
-                options.prefix,
-                iso8601_basic(t)
-            ));
-            let write = WriteOptions {
-                format: Some(options.format.as_str()),
-                backend: options.backend,
-            };
-            match sample {
-                Some(s) => write_observed_map(context, reader, *s, &path, write)?,
-                None => write_predicted_map(context, reader, t, &path, write)?,
-            };
-            let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-            progress.advance(1);
-            Ok((SeriesInput { path, time: t }, bytes))
-        })
-        .collect::<Result<_, ConvertError>>()?;
+    let write_one = |(&t, sample): (&Timestamp, &Option<u32>)| {
+        let path = dir.join(format!(
+            "{}_{}.{extension}",
+            options.prefix,
+            iso8601_basic(t)
+        ));
+        let write = WriteOptions {
+            format: Some(options.format.as_str()),
+            backend: options.backend,
+        };
+        match sample {
+            Some(s) => write_observed_map(context, reader, *s, &path, write)?,
+            None => write_predicted_map(context, reader, t, &path, write)?,
+        };
+        let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        progress.advance(1);
+        Ok((SeriesInput { path, time: t }, bytes))
+    };
+    // A format written tile by tile holds little of each map, so maps are made in
+    // parallel; others hold a whole map while writing it, so one map at a time (each built
+    // from tiles in parallel) keeps memory at one map.
+    let files: Vec<(SeriesInput, u64)> = if format.capabilities.writes_canonical_binary {
+        times
+            .par_iter()
+            .zip(samples.par_iter())
+            .map(write_one)
+            .collect::<Result<_, ConvertError>>()?
+    } else {
+        times
+            .iter()
+            .zip(samples.iter())
+            .map(write_one)
+            .collect::<Result<_, ConvertError>>()?
+    };
     let bytes = files.iter().map(|(_, b)| b).sum();
     let files: Vec<SeriesInput> = files.into_iter().map(|(f, _)| f).collect();
     let manifest = dir.join(MANIFEST_NAME);

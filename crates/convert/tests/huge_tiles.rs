@@ -1,6 +1,7 @@
 //! Whole-file passes over files of huge tiles (issue 16, items 1 and 3): `describe` (the
 //! `info` cell count) and `evaluate` go through one tile's cells at a time, so their memory
-//! is one tile's decoded bytes per thread, not the map's cells. A file of full tiles (every
+//! is one tile's decoded bytes per thread, not the map's cells; `export` to a format that
+//! holds a whole map writes one map at a time. A file of full tiles (every
 //! voxel of a depth-8 tile a cell of its own) is a few kilobytes once compressed; building
 //! its cells used to cost about a hundred bytes per cell.
 //!
@@ -9,7 +10,10 @@
 // The one unsafe block: a global allocator that counts bytes and delegates to the system's.
 #![allow(unsafe_code)]
 
-use froctomap_convert::{describe, evaluate, write_map, Context, SeriesInput, Silent};
+use froctomap_convert::{
+    describe, evaluate, export, write_map, write_observed_map, Context, ExportMode, ExportOptions,
+    SeriesInput, Silent,
+};
 use froctomap_core::{Leaf, MortonCode, Snapshot, Timestamp};
 use froctomap_file::{Cell, Codec, FroctReader, Header, ToggleLayout, FOOTER_LEN, PREAMBLE_LEN};
 use froctomap_formats::{ReadOptions, WriteOptions};
@@ -219,4 +223,30 @@ fn counting_and_evaluating_hold_one_tile_not_the_map() {
         );
         assert_eq!(rates.dynamic.total, 0, "{method}");
     }
+
+    // An export to a format that holds a whole map while writing it (`.ot`) writes one map
+    // at a time: two maps cost what one does, not twice that.
+    let one = dir.path().join("one.ot");
+    let (written, single) = peak_during(|| {
+        pool.install(|| write_observed_map(&context, &reader, 0, &one, WriteOptions::default()))
+    });
+    written.unwrap();
+    let options = ExportOptions {
+        from: axis.start(),
+        to: axis.end(),
+        every_ns: 3_600_000_000_000,
+        mode: ExportMode::Predict,
+        format: "ot".into(),
+        backend: None,
+        prefix: "map".into(),
+        overwrite: false,
+    };
+    let out = dir.path().join("export");
+    let (report, peak) =
+        peak_during(|| pool.install(|| export(&context, &reader, &out, &options, &Silent)));
+    assert_eq!(report.unwrap().files.len(), 2);
+    assert!(
+        peak < single + single / 2,
+        "exporting two maps allocated {peak} bytes, one map {single}"
+    );
 }
