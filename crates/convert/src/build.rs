@@ -21,9 +21,11 @@
 //! typed errors ([`ConvertError`], [`SnapshotError`]).
 
 mod accumulate;
+mod append;
 mod check;
 mod extract;
 mod fit;
+mod merge;
 #[cfg(test)]
 mod test_support;
 mod write;
@@ -34,6 +36,7 @@ use crate::inputs::SeriesInput;
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
+pub use append::{append, AppendOptions, AppendReport};
 use check::InputCheck;
 use extract::{ChangeExtractor, ExtractOptions};
 use fit::{fit_and_write, TileFitter};
