@@ -44,6 +44,9 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         ConvertError::NoTimes { .. } | ConvertError::EarlyNameTime { .. } => {
             Some("give the times with --start and --step, or name the files by their times")
         }
+        ConvertError::AppendOverlap { .. } => Some(
+            "append takes only snapshots later than the file's last one (`froctomap info FILE` shows its span); leave the earlier ones out",
+        ),
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
         ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
         ConvertError::NonPositiveInterval => Some("--every must be positive"),
