@@ -100,7 +100,12 @@ fn append_summarises_and_every_snapshot_comes_back() {
     }
     // JSON report.
     series = write_frames(&dir.path().join("wednesday"), 9..10);
-    let json = ok(&["append", s(&file), s(&dir.path().join("wednesday")), "--json"]);
+    let json = ok(&[
+        "append",
+        s(&file),
+        s(&dir.path().join("wednesday")),
+        "--json",
+    ]);
     let report: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(report["added"], 1);
     assert_eq!(report["end"], "2016-01-04T01:30:00Z");

@@ -18,7 +18,8 @@
 //!    tiles in order into the file, atomically, summing the counts).
 //!
 //! [`build()`] wires them: the stages pass values, never reach into each other, and report
-//! typed errors ([`ConvertError`], [`SnapshotError`]).
+//! typed errors ([`ConvertError`], [`SnapshotError`]). [`append()`](append::append) wires the
+//! same stages around an existing file, with [`merge`] joining its cells to the new ones.
 
 mod accumulate;
 mod append;

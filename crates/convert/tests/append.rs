@@ -350,7 +350,8 @@ fn overlapping_other_resolution_and_broken_inputs_leave_the_file_as_it_was() {
     let broken = dir.path().join("broken");
     write_frames(&broken, 4..5, regular);
     let bad = broken.join(format!("scan_{}.bt", iso8601_basic(regular(5))));
-    let mut bytes = std::fs::read(broken.join(format!("scan_{}.bt", iso8601_basic(regular(4))))).unwrap();
+    let mut bytes =
+        std::fs::read(broken.join(format!("scan_{}.bt", iso8601_basic(regular(4))))).unwrap();
     let half = bytes.len() / 2;
     bytes.truncate(half);
     std::fs::write(&bad, bytes).unwrap();
@@ -378,7 +379,14 @@ fn a_lossy_file_continues_from_its_reconstruction() {
     let first_dir = dir.path().join("first");
     let first = write_frames(&first_dir, 0..6, regular);
     let file = dir.path().join("lossy.froct");
-    build(&context, &inputs(&context, &[&first_dir]), &file, &lossy, &Silent).unwrap();
+    build(
+        &context,
+        &inputs(&context, &[&first_dir]),
+        &file,
+        &lossy,
+        &Silent,
+    )
+    .unwrap();
 
     // What the lossy file knows of its past: its reconstructed maps, written as snapshots.
     let known = dir.path().join("known");

@@ -217,7 +217,9 @@ pub fn append(
     let seam = old_axis
         .time(last_observed)
         .and_then(|t| axis.index_of(t))
-        .ok_or(ConvertError::internal("the file's last sample is not on the new axis"))?;
+        .ok_or(ConvertError::internal(
+            "the file's last sample is not on the new axis",
+        ))?;
     let last_map = observed_map(&reader, last_observed)?;
     let start = SampleChanges {
         sample: seam,
@@ -356,7 +358,10 @@ pub(crate) fn extended_axis(old: &TimeAxis, times: &[Timestamp]) -> Result<TimeA
             && count <= i64::from(u32::MAX)
         {
             let mut missing: Vec<u32> = old.missing().to_vec();
-            let mut next = times.iter().map(|t| (t.0 - old.start().0) / step).peekable();
+            let mut next = times
+                .iter()
+                .map(|t| (t.0 - old.start().0) / step)
+                .peekable();
             for i in i64::from(old.len())..count {
                 if next.peek() == Some(&i) {
                     next.next();
@@ -430,7 +435,9 @@ impl<'a> SampleMap<'a> {
             self.old
                 .time(s)
                 .and_then(|t| self.new.index_of(t))
-                .ok_or(ConvertError::internal("an old sample is not on the new axis"))
+                .ok_or(ConvertError::internal(
+                    "an old sample is not on the new axis",
+                ))
         };
         let (a, b) = (index(first)?, index(end - 1)?);
         if b - a == end - 1 - first {

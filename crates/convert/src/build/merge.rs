@@ -186,7 +186,10 @@ mod tests {
     fn nested_cells_are_refined_and_runs_joined_across_the_seam() {
         // Old: a depth-14 cell (64 voxels) free over samples 0..4 (the seam is sample 3),
         // and a voxel seen only at sample 1.
-        let old = vec![cell(0, 14, &[(0, 4, Free)]), cell(200, 16, &[(1, 1, Occupied)])];
+        let old = vec![
+            cell(0, 14, &[(0, 4, Free)]),
+            cell(200, 16, &[(1, 1, Occupied)]),
+        ];
         // New, from sample 3 on: voxel 9 becomes occupied at 5, the rest stays free;
         // voxel 300 is new.
         let mut new = vec![cell(0, 15, &[(3, 4, Free)])];
