@@ -440,7 +440,7 @@ impl<'a> SampleMap<'a> {
                 ))
         };
         let (a, b) = (index(first)?, index(end - 1)?);
-        if b - a == end - 1 - first {
+        if b.checked_sub(a) == Some(end - 1 - first) {
             out.push((a, end - first, state));
         } else {
             // The new grid is finer: each old sample on its own.
@@ -593,6 +593,56 @@ mod tests {
 
     fn s(v: i64) -> Timestamp {
         Timestamp::from_secs(v)
+    }
+
+    #[test]
+    fn a_cells_runs_come_from_its_mask_exceptions_and_model() {
+        use froctomap_core::MortonCode;
+        use froctomap_temporal::{Toggles, VoxelObservations};
+        use std::sync::Arc;
+        use Occupancy::{Free, Occupied};
+        let setup = crate::build::test_support::default_model(8);
+        let axis = setup.axis.clone();
+        let samples = SampleMap::new(&axis, &axis);
+        let runs = |cell: &Cell| {
+            old_observations(cell, setup.model.as_ref(), &samples)
+                .unwrap()
+                .2
+        };
+        // Observed over samples 1..6 and from 7 on, free except at samples 3 and 7.
+        let mask = Some(Arc::new(Toggles::new(vec![1, 6, 7]).unwrap()));
+        let cell = Cell {
+            start: MortonCode(0),
+            depth: 16,
+            mask: mask.clone(),
+            content: CellContent::ConstantExcept {
+                state: Free,
+                exceptions: Toggles::new(vec![3, 4, 7]).unwrap(),
+            },
+        };
+        let expected = [
+            (1, 2, Free),
+            (3, 1, Occupied),
+            (4, 2, Free),
+            (7, 1, Occupied),
+        ];
+        assert_eq!(runs(&cell), VoxelObservations::from_runs(expected).unwrap());
+        // A modelled cell gives back what it was fitted on.
+        let observed = VoxelObservations::from_runs(expected).unwrap();
+        let cell = Cell {
+            content: CellContent::Modelled(setup.model.fit(&observed).unwrap()),
+            ..cell
+        };
+        assert_eq!(runs(&cell), observed);
+        let constant = Cell {
+            mask: None,
+            content: CellContent::Constant(Occupied),
+            ..cell
+        };
+        assert_eq!(
+            runs(&constant),
+            VoxelObservations::from_runs([(0, 8, Occupied)]).unwrap()
+        );
     }
 
     #[test]
