@@ -134,3 +134,62 @@ fn snapshots_not_later_than_the_file_are_refused_with_a_hint() {
     let help = ok(&["append", "--help"]);
     assert!(help.contains("refitted on the whole history"), "{help}");
 }
+
+/// The bytes of `file` after appending `inputs` to a copy of it.
+fn appended_copy(file: &Path, inputs: &Path, copy: &Path) -> Vec<u8> {
+    std::fs::copy(file, copy).unwrap();
+    let appended = "--appended=2016-02-01T00:00:00Z";
+    ok(&["-q", "append", s(copy), s(inputs), appended]);
+    std::fs::read(copy).unwrap()
+}
+
+#[test]
+fn an_append_killed_at_any_moment_leaves_the_old_file_or_the_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let days = |from: &str, days: &str, out: &Path| {
+        ok(&[
+            "-q",
+            "generate",
+            "--start",
+            from,
+            "--days",
+            days,
+            "--step",
+            "1h",
+            "-o",
+            s(out),
+        ]);
+    };
+    let first = dir.path().join("first");
+    let later = dir.path().join("later");
+    days("2016-01-04T00:00:00Z", "1", &first);
+    days("2016-01-05T00:00:00Z", "1", &later);
+    let file = dir.path().join("office.froct");
+    ok(&[
+        "-q",
+        "build",
+        s(&first),
+        "-o",
+        s(&file),
+        "--created=2016-01-06T00:00:00Z",
+    ]);
+    let old = std::fs::read(&file).unwrap();
+    let new = appended_copy(&file, &later, &dir.path().join("copy.froct"));
+    assert_ne!(old, new);
+    for delay_ms in [5, 100, 400, 1500] {
+        std::fs::write(&file, &old).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(["-q", "append", s(&file), s(&later)])
+            .arg("--appended=2016-02-01T00:00:00Z")
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = child.kill();
+        child.wait().unwrap();
+        let now = std::fs::read(&file).unwrap();
+        assert!(
+            now == old || now == new,
+            "killed after {delay_ms} ms: a third file"
+        );
+    }
+}
