@@ -424,3 +424,56 @@ fn a_lossy_file_continues_from_its_reconstruction() {
     build(&context, &all, &full, &lossy, &Silent).unwrap();
     assert_same_tiles(&file, &full);
 }
+
+#[test]
+fn broken_snapshots_left_out_become_missing_samples_as_in_a_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let context = Context::with_default_plugins();
+    let first = dir.path().join("first");
+    let mut series = write_frames(&first, 0..4, regular);
+    let file = dir.path().join("skipping.froct");
+    let skip = BuildOptions {
+        skip_bad: true,
+        ..BuildOptions::default()
+    };
+    build(
+        &context,
+        &inputs(&context, &[&first]),
+        &file,
+        &skip,
+        &Silent,
+    )
+    .unwrap();
+    let later = dir.path().join("later");
+    series.extend(write_frames(&later, [4, 5, 7].into_iter(), regular));
+    let broken = later.join(format!("scan_{}.bt", iso8601_basic(regular(6))));
+    std::fs::write(&broken, b"# Octomap OcTree binary file\nid OcTree\n").unwrap();
+    let options = AppendOptions {
+        skip_bad: true,
+        ..AppendOptions::default()
+    };
+    let report = append(
+        &context,
+        &file,
+        &inputs(&context, &[&later]),
+        &options,
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(report.added, 3);
+    assert_eq!(report.skipped.len(), 1);
+    assert_eq!(report.skipped[0].0, broken);
+    assert_retrieves(&context, &file, &series);
+    let reader = FroctReader::open(&file).unwrap();
+    assert_eq!(reader.header().axis.missing(), &[6]);
+    let full = dir.path().join("full.froct");
+    build(
+        &context,
+        &inputs(&context, &[&first, &later]),
+        &full,
+        &skip,
+        &Silent,
+    )
+    .unwrap();
+    assert_same_tiles(&file, &full);
+}

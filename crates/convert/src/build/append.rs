@@ -49,8 +49,9 @@ pub struct AppendOptions {
     /// options it was built with, so give the ones of the build (none: the model's
     /// defaults). The model itself and lossless/lossy come from the file.
     pub model_options: ModelOptions,
-    /// Leave unreadable files and files of another resolution out (listed in the report)
-    /// instead of stopping.
+    /// Leave unreadable files and files of another resolution than the file's out (listed
+    /// in the report) instead of stopping. (The first input whose header gives a resolution
+    /// must have the file's: the header check takes it for the series'.)
     pub skip_bad: bool,
     /// Force the input map format.
     pub input_format: Option<String>,
@@ -198,8 +199,10 @@ pub fn append(
         skip_bad: options.skip_bad,
     }
     .run(inputs, progress)?;
+    // The check takes the first header's resolution for the series': when that is not the
+    // file's, it would have kept the wrong files, so this is refused even with `skip_bad`.
     if let Some((found, i)) = checked.resolution {
-        if found != old.resolution && !options.skip_bad {
+        if found != old.resolution {
             return Err(ConvertError::MixedResolution {
                 first: file.to_path_buf(),
                 first_resolution: old.resolution,
