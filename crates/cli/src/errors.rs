@@ -52,6 +52,9 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         ConvertError::MostlySkipped { .. } => Some(
             "give the series' resolution with --resolution, or pass --allow-mostly-skipped to build from the rest",
         ),
+        ConvertError::AppendOverlap { .. } => Some(
+            "append takes only snapshots later than the file's last one (`froctomap info FILE` shows its span); leave the earlier ones out",
+        ),
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
         ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
         ConvertError::NonPositiveInterval => Some("--every must be positive"),

@@ -9,6 +9,7 @@ macro_rules! outln {
     }};
 }
 
+mod append;
 mod commands;
 mod errors;
 mod froct_info;
@@ -105,6 +106,18 @@ enum Command {
     /// Example: froctomap build maps/ -o office.froct
     ///          froctomap build 'scans/*.bt' --start 2016-01-04T00:00:00Z --step 10min -o office.froct
     Build(series::BuildArgs),
+    /// Add snapshots later than a FROctomap file's last one to it.
+    ///
+    /// Inputs as for `build`, all later than the file's last sample and of its resolution
+    /// (others are refused, and the file is left as it was). Reads the file and the new
+    /// snapshots only: the snapshots the file was built from are not needed. Every earlier
+    /// and every new observed state is kept (exactly, in a lossless file), and every model is
+    /// refitted on the whole history, so the file is what a build of all the snapshots
+    /// gives. A lossy file's past is its reconstruction: that is what the refit sees, and
+    /// the file stays lossy. The file is replaced atomically.
+    ///
+    /// Example: froctomap append office.froct maps/today/
+    Append(append::AppendArgs),
     /// Write the map as observed at a time (exact in lossless files).
     ///
     /// Example: froctomap retrieve office.froct --time 2016-01-05T10:00:00Z -o then.bt
@@ -166,12 +179,13 @@ fn main() -> ExitCode {
         zone_given: cli.tz.is_some(),
         told_zoneless: std::cell::Cell::new(false),
     };
-    let skips_bad_files = matches!(cli.command, Command::Build(_));
+    let skips_bad_files = matches!(cli.command, Command::Build(_) | Command::Append(_));
     let result = match cli.command {
         Command::Info(args) => commands::info(&ui, &args),
         Command::Convert(args) => commands::convert(&ui, &args),
         Command::Formats => commands::formats(&ui),
         Command::Build(args) => series::build_command(&ui, &args),
+        Command::Append(args) => append::append_command(&ui, &args),
         Command::Retrieve(args) => series::retrieve_command(&ui, &args),
         Command::Predict(args) => series::predict_command(&ui, &args),
         Command::Export(args) => series::export_command(&ui, &args),

@@ -22,7 +22,7 @@ use serde_json::{Map, Value};
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// How the inputs of a series get their times (shared by `build` and `eval`).
+/// How the inputs of a series get their times (shared by `build`, `append` and `eval`).
 #[derive(Args, Clone)]
 pub struct TimeArgs {
     /// Time of the first file (Unix seconds or ISO 8601), for a plain list of files without
@@ -42,7 +42,7 @@ pub struct TimeArgs {
 }
 
 impl TimeArgs {
-    fn source(&self, ui: &Ui) -> Result<TimeSource> {
+    pub(crate) fn source(&self, ui: &Ui) -> Result<TimeSource> {
         if let Some(list) = &self.times_file {
             return Ok(TimeSource::TimesFile(list.clone()));
         }

@@ -18,12 +18,15 @@
 //!    tiles in order into the file, atomically, summing the counts).
 //!
 //! [`build()`] wires them: the stages pass values, never reach into each other, and report
-//! typed errors ([`ConvertError`], [`SnapshotError`]).
+//! typed errors ([`ConvertError`], [`SnapshotError`]). [`append()`](append::append) wires the
+//! same stages around an existing file, with [`merge`] joining its cells to the new ones.
 
 mod accumulate;
+mod append;
 mod check;
 mod extract;
 mod fit;
+mod merge;
 #[cfg(test)]
 mod test_support;
 mod write;
@@ -34,6 +37,7 @@ use crate::inputs::SeriesInput;
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
+pub use append::{append, AppendOptions, AppendReport};
 use check::{InputCheck, TileBudget};
 use extract::{ChangeExtractor, ExtractOptions};
 use fit::{fit_and_write, TileFitter};

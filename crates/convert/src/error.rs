@@ -305,6 +305,19 @@ pub enum ConvertError {
         /// Inputs given.
         inputs: usize,
     },
+    /// A snapshot to append that is not later than the last sample of the file appended
+    /// to: an append only extends a file's span.
+    #[error("{}: its time {} is not after the last sample of {} ({}); append adds only snapshots later than the file's span", input.display(), iso8601(*time), file.display(), iso8601(*last))]
+    AppendOverlap {
+        /// The file appended to.
+        file: PathBuf,
+        /// The time of its last sample.
+        last: Timestamp,
+        /// The first input at or before it.
+        input: PathBuf,
+        /// That input's time.
+        time: Timestamp,
+    },
     /// A fault of froctomap itself, not of the inputs (please report it).
     #[error("internal error: {what}")]
     Internal {

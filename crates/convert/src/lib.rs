@@ -3,7 +3,8 @@
 //!
 //! * [`collect_inputs`] turns directories, globs, manifests and files into a time-sorted
 //!   series; [`build`] streams it into one FROctomap file (memory grows with the map's cells
-//!   and their changes, not with the number of snapshots).
+//!   and their changes, not with the number of snapshots); [`append`] adds later snapshots
+//!   to such a file from the file and the new snapshots alone.
 //! * [`observed_map`] gives the map as observed at a sample (bit-exact in lossless files),
 //!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
 //!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
@@ -49,7 +50,10 @@ mod snapshot_changes;
 mod text;
 mod time;
 
-pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
+pub use build::{
+    append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,
+    ClassCounts,
+};
 pub use context::{Context, Limits, FROCT};
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};

@@ -35,6 +35,19 @@ pub(crate) struct Accepted {
     state: Option<DiffState>,
 }
 
+impl Accepted {
+    /// A map that was not read from a file (an existing `.froct`'s last observed map, which
+    /// an append continues from): its canonical bytes, for byte-level comparison with files
+    /// of the same format, and its leaves, for the others.
+    pub fn from_map(bytes: Vec<u8>, leaves: Vec<Leaf>) -> Self {
+        Self {
+            bytes,
+            leaves: Some(leaves),
+            state: None,
+        }
+    }
+}
+
 /// One file after the parallel stage.
 enum FirstLook {
     /// Byte-identical to the file before it.

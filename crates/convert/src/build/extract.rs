@@ -77,6 +77,8 @@ pub(crate) struct ChangeExtractor<'a> {
     previous: Option<Accepted>,
     /// The file that set the series' resolution, named when another one differs.
     first_path: Option<PathBuf>,
+    /// A batch handed out before the inputs' (an append's starting map).
+    seed: Option<ChangeBatch>,
     tally: Extracted,
 }
 
@@ -99,12 +101,32 @@ impl<'a> ChangeExtractor<'a> {
             progress,
             next: 0,
             previous: None,
+            seed: None,
             first_path: checked.resolution_file.map(|i| inputs[i].path.clone()),
             tally: Extracted {
                 resolution: checked.resolution,
                 ..Extracted::default()
             },
         }
+    }
+
+    /// Extraction that continues a series: `start` (the map `previous` holds, as its changes
+    /// from nothing, at its sample) is handed out as the first batch, the first input is
+    /// compared with `previous` instead of with nothing, and inputs of another resolution
+    /// than `resolution`, which `origin` set, are refused naming `origin`. This is how an
+    /// append continues from the file's last observed map. The tally counts inputs only.
+    pub fn continuing(
+        mut self,
+        start: SampleChanges,
+        previous: Accepted,
+        resolution: f64,
+        origin: &Path,
+    ) -> Self {
+        self.seed = Some(vec![start]);
+        self.previous = Some(previous);
+        self.tally.resolution = Some(resolution);
+        self.first_path = Some(origin.to_path_buf());
+        self
     }
 
     /// The tally, once the batches are through.
@@ -197,6 +219,9 @@ impl Iterator for ChangeExtractor<'_> {
     type Item = Result<ChangeBatch, ConvertError>;
 
     fn next(&mut self) -> Option<Self::Item> {
+        if let Some(seed) = self.seed.take() {
+            return Some(Ok(seed));
+        }
         if self.next >= self.inputs.len() {
             return None;
         }

@@ -1,0 +1,164 @@
+//! `froctomap append`: later snapshots added to a FROctomap file, a thin layer over
+//! `froctomap_convert::append`.
+
+use crate::progress::Bars;
+use crate::series::TimeArgs;
+use crate::ui::{escaped, Ui};
+use anyhow::{Context, Result};
+use clap::Args;
+use froctomap_convert::{append, collect_inputs_explained, group_thousands, AppendOptions};
+use froctomap_core::calendar::iso8601;
+use froctomap_temporal::ModelOptions;
+use serde_json::{Map, Value};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct AppendArgs {
+    /// The FROctomap file to extend (replaced atomically: an append that fails or is
+    /// interrupted leaves it as it was).
+    #[arg(value_name = "FILE")]
+    file: PathBuf,
+    /// Snapshots later than the file's last one, as for `build`: directories (their
+    /// manifest.csv, else every .bt/.ot file), glob patterns, manifest CSV files
+    /// (`path,time`), or single files.
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<PathBuf>,
+    #[command(flatten)]
+    times: TimeArgs,
+    /// A model option the file was built with (repeatable). A file does not record the
+    /// options of its build, and every model is refitted on the whole history: give the
+    /// same --model-option values (--order, --periods … as KEY=VALUE) as the build, or
+    /// none for the model's defaults. The model and lossless/lossy come from the file.
+    #[arg(long, value_name = "KEY=VALUE")]
+    model_option: Vec<String>,
+    /// Leave unreadable files and files of another resolution than the file's out (listed
+    /// at the end) instead of stopping; the first file whose header gives a resolution
+    /// must have the file's.
+    #[arg(long)]
+    skip_bad: bool,
+    /// Force the input map format instead of detecting it.
+    #[arg(long, value_name = "FORMAT")]
+    input_format: Option<String>,
+    /// A key=value tag stored in the file's metadata (repeatable; replaces the file's tags).
+    #[arg(long, value_name = "KEY=VALUE")]
+    tag: Vec<String>,
+    /// Time of the append stored in the file (Unix seconds or ISO 8601) instead of now, for
+    /// reproducible files.
+    #[arg(long, value_name = "TIME")]
+    appended: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
+    let collected =
+        collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
+    ui.read_zoneless(collected.zoneless);
+    for warning in &collected.warnings {
+        ui.note(&format!("warning: {}", escaped(warning)));
+    }
+    let inputs = collected.series;
+    let mut model_options = ModelOptions::new();
+    for assignment in &args.model_option {
+        model_options
+            .set_assignment(assignment)
+            .context("--model-option")?;
+    }
+    let mut metadata = Map::new();
+    let mut tags = Map::new();
+    for tag in &args.tag {
+        let (k, v) = tag
+            .split_once('=')
+            .with_context(|| format!("--tag {tag:?}: expected KEY=VALUE"))?;
+        tags.insert(k.to_string(), Value::from(v));
+    }
+    if !tags.is_empty() {
+        metadata.insert("tags".into(), Value::Object(tags));
+    }
+    let options = AppendOptions {
+        model_options,
+        skip_bad: args.skip_bad,
+        input_format: args.input_format.clone(),
+        backend: Some(ui.backend),
+        metadata,
+        appended: args
+            .appended
+            .as_deref()
+            .map(|text| ui.time(text, "--appended"))
+            .transpose()?,
+        ..AppendOptions::default()
+    };
+    ui.note(&format!(
+        "appending {} snapshots ({} .. {}) to {}",
+        inputs.len(),
+        inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
+        inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
+        escaped(args.file.display()),
+    ));
+    let bars = Bars::new(ui.quiet);
+    let report = append(ui.context, &args.file, &inputs, &options, &bars)?;
+    drop(bars);
+    if args.json {
+        outln!("{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        let n = group_thousands;
+        outln!(
+            "appended {} snapshots to {}",
+            report.added,
+            escaped(report.file.display())
+        )?;
+        outln!(
+            "span:        {} .. {} (was .. {}), {} samples (was {}), {} axis",
+            iso8601(report.start),
+            iso8601(report.end),
+            iso8601(report.end_before),
+            report.samples,
+            report.samples_before,
+            if report.regular_axis {
+                "regular"
+            } else {
+                "explicit"
+            }
+        )?;
+        outln!(
+            "size:        {} bytes (was {})",
+            n(report.file_bytes),
+            n(report.bytes_before)
+        )?;
+        if report.lossless {
+            outln!(
+                "outliers:    {} toggles stored (lossless)",
+                n(report.toggles)
+            )?;
+        } else {
+            outln!(
+                "model error: {} observed cell-samples differ from the input (lossy: the file's past is its reconstruction)",
+                n(report.model_errors)
+            )?;
+        }
+        outln!(
+            "time:        {:.1} s reading, {:.1} s modelling",
+            report.read_seconds,
+            report.model_seconds
+        )?;
+    }
+    if !report.warnings.is_empty() && !ui.quiet {
+        for (path, warning) in report.warnings.iter().take(10) {
+            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
+        }
+        if report.warnings.len() > 10 {
+            eprintln!(
+                "warning: ... and {} more warnings",
+                report.warnings.len() - 10
+            );
+        }
+    }
+    if !report.skipped.is_empty() {
+        eprintln!("skipped {} file(s):", report.skipped.len());
+        for (path, reason) in &report.skipped {
+            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,195 @@
+//! `froctomap append` through the binary: the summary, retrieval of every snapshot of both
+//! parts, and the refusal of snapshots that are not later than the file.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use froctomap_core::{Leaf, Snapshot, VoxelKey};
+use froctomap_formats::{FormatRegistry, WriteOptions};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn froctomap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(args)
+        .output()
+        .expect("run froctomap")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = froctomap(args);
+    assert!(
+        out.status.success(),
+        "froctomap {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// A room of 16×16 voxels with a wall and a door closed on every other pair of frames; on
+/// odd frames a corner is not observed.
+fn frame(i: u32) -> Snapshot {
+    let mut leaves = Vec::new();
+    for x in 0..16u16 {
+        for y in 0..16u16 {
+            if i % 2 == 1 && x < 4 && y < 4 {
+                continue;
+            }
+            let wall = x == 15;
+            let door = x == 8 && (4..8).contains(&y);
+            let occupied = wall || (door && (i / 2) % 2 == 1);
+            leaves.push(Leaf::voxel(
+                VoxelKey::new(32768 + x, 32768 + y, 32768),
+                if occupied { 3.5 } else { -2.0 },
+            ));
+        }
+    }
+    Snapshot::from_leaves(0.1, leaves).unwrap()
+}
+
+fn write_frames(dir: &Path, frames: std::ops::Range<u32>) -> Vec<(PathBuf, u32)> {
+    std::fs::create_dir_all(dir).unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    frames
+        .map(|i| {
+            let time = 1_451_865_600 + i * 600;
+            let path = dir.join(format!("room_{time}.bt"));
+            registry
+                .write_file(&frame(i), &path, WriteOptions::default())
+                .unwrap();
+            (path, time)
+        })
+        .collect()
+}
+
+#[test]
+fn append_summarises_and_every_snapshot_comes_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut series = write_frames(&dir.path().join("monday"), 0..4);
+    let file = dir.path().join("room.froct");
+    ok(&["build", s(&dir.path().join("monday")), "-o", s(&file)]);
+    let before = std::fs::metadata(&file).unwrap().len();
+    series.extend(write_frames(&dir.path().join("tuesday"), 4..9));
+    let out = ok(&["append", s(&file), s(&dir.path().join("tuesday"))]);
+    assert!(out.contains("appended 5 snapshots"), "{out}");
+    assert!(
+        out.contains("2016-01-04T00:00:00Z .. 2016-01-04T01:20:00Z (was .. 2016-01-04T00:30:00Z), 9 samples (was 4)"),
+        "{out}"
+    );
+    let after = std::fs::metadata(&file).unwrap().len();
+    assert!(out.contains(&format!("(was {before})")), "{out}");
+    assert!(after > 0);
+    for (path, time) in &series {
+        let back = dir.path().join("back.bt");
+        ok(&[
+            "retrieve",
+            s(&file),
+            "--time",
+            &time.to_string(),
+            "-o",
+            s(&back),
+        ]);
+        assert_eq!(
+            std::fs::read(&back).unwrap(),
+            std::fs::read(path).unwrap(),
+            "{}",
+            path.display()
+        );
+    }
+    // JSON report.
+    series = write_frames(&dir.path().join("wednesday"), 9..10);
+    let json = ok(&[
+        "append",
+        s(&file),
+        s(&dir.path().join("wednesday")),
+        "--json",
+    ]);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(report["added"], 1);
+    assert_eq!(report["end"], "2016-01-04T01:30:00Z");
+    assert_eq!(series.len(), 1);
+}
+
+#[test]
+fn snapshots_not_later_than_the_file_are_refused_with_a_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    write_frames(&dir.path().join("a"), 0..4);
+    let file = dir.path().join("room.froct");
+    ok(&["build", s(&dir.path().join("a")), "-o", s(&file)]);
+    let bytes = std::fs::read(&file).unwrap();
+    write_frames(&dir.path().join("b"), 2..6);
+    let out = froctomap(&["append", s(&file), s(&dir.path().join("b"))]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains("room_1451867400.bt")
+            && stderr.contains("is not after the last sample of")
+            && stderr.contains("room.froct")
+            && stderr.contains("hint: append takes only snapshots later"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&file).unwrap(), bytes);
+    let help = ok(&["append", "--help"]);
+    assert!(help.contains("refitted on the whole history"), "{help}");
+}
+
+/// The bytes of `file` after appending `inputs` to a copy of it.
+fn appended_copy(file: &Path, inputs: &Path, copy: &Path) -> Vec<u8> {
+    std::fs::copy(file, copy).unwrap();
+    let appended = "--appended=2016-02-01T00:00:00Z";
+    ok(&["-q", "append", s(copy), s(inputs), appended]);
+    std::fs::read(copy).unwrap()
+}
+
+#[test]
+fn an_append_killed_at_any_moment_leaves_the_old_file_or_the_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let days = |from: &str, days: &str, out: &Path| {
+        ok(&[
+            "-q",
+            "generate",
+            "--start",
+            from,
+            "--days",
+            days,
+            "--step",
+            "1h",
+            "-o",
+            s(out),
+        ]);
+    };
+    let first = dir.path().join("first");
+    let later = dir.path().join("later");
+    days("2016-01-04T00:00:00Z", "1", &first);
+    days("2016-01-05T00:00:00Z", "1", &later);
+    let file = dir.path().join("office.froct");
+    ok(&[
+        "-q",
+        "build",
+        s(&first),
+        "-o",
+        s(&file),
+        "--created=2016-01-06T00:00:00Z",
+    ]);
+    let old = std::fs::read(&file).unwrap();
+    let new = appended_copy(&file, &later, &dir.path().join("copy.froct"));
+    assert_ne!(old, new);
+    for delay_ms in [5, 100, 400, 1500] {
+        std::fs::write(&file, &old).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(["-q", "append", s(&file), s(&later)])
+            .arg("--appended=2016-02-01T00:00:00Z")
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = child.kill();
+        child.wait().unwrap();
+        let now = std::fs::read(&file).unwrap();
+        assert!(
+            now == old || now == new,
+            "killed after {delay_ms} ms: a third file"
+        );
+    }
+}

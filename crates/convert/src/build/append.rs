@@ -1,0 +1,706 @@
+//! `append`: later snapshots added to an existing FROctomap file, at a cost that grows with
+//! the file and the new snapshots, never with the snapshots the file was built from (they
+//! may be gone).
+//!
+//! The build's stages, wired around the file:
+//!
+//! 1. The file's header gives the resolution, tile depth, model, codec and toggle layout;
+//!    the new time axis is the old one extended by the new times ([`extended_axis`]).
+//! 2. The inputs are checked and extracted as in a build, the first one compared with the
+//!    file's last observed map, which also starts the accumulation (at the file's last
+//!    observed sample) so that the new histories continue the old ones.
+//! 3. The file's cells are decoded tile by tile into their observed runs on the new axis
+//!    ([`OldTiles`]) and merged with the accumulated tiles ([`merge`](super::merge)).
+//! 4. Every cell is fitted again on the whole history and the file is written beside the
+//!    old one and renamed over it: an append that fails leaves the old file as it was.
+//!
+//! A lossy file knows its past only as the model's reconstruction: that reconstruction is
+//! taken as what was observed, and the result is lossy too.
+
+use super::accumulate::{ObservedCell, TileHistory};
+use super::check::{InputCheck, TileBudget};
+use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
+use super::fit::{fit_and_write, TileFitter};
+use super::merge::merge_tiles;
+use super::write::{TileEncoder, TileWriter};
+use super::{accumulate_series, axis_for_times, samples_left_out, ClassCounts};
+use crate::context::Context;
+use crate::error::{ConvertError, SnapshotError};
+use crate::inputs::SeriesInput;
+use crate::maps::observed_map;
+use crate::outputs::refuse_overwriting_input;
+use crate::progress::Progress;
+use crate::snapshot_changes::Accepted;
+use froctomap_core::calendar::iso8601;
+use froctomap_core::{Occupancy, Timestamp};
+use froctomap_file::{Cell, CellContent, FroctReader, Header};
+use froctomap_formats::{Backend, ReadOptions};
+use froctomap_temporal::{ModelConfig, ModelOptions, OutlierMode, PreparedModel, TimeAxis};
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::{json, Map, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to append.
+#[derive(Clone, Debug)]
+pub struct AppendOptions {
+    /// The model's own options for the refit (`key=value`). A file does not record the
+    /// options it was built with, so give the ones of the build (none: the model's
+    /// defaults). The model itself and lossless/lossy come from the file.
+    pub model_options: ModelOptions,
+    /// Leave unreadable files and files of another resolution than the file's out (listed
+    /// in the report) instead of stopping. (The first input whose header gives a resolution
+    /// must have the file's: the header check takes it for the series'.)
+    pub skip_bad: bool,
+    /// Force the input map format.
+    pub input_format: Option<String>,
+    /// Preferred implementation for reading maps.
+    pub backend: Option<Backend>,
+    /// Extra metadata stored in the file header (replacing keys of the same name).
+    pub metadata: Map<String, Value>,
+    /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
+    pub batch: usize,
+    /// Time of the append stored in the metadata (`appended`), to the second; `None`: now. A
+    /// fixed time makes the file reproducible (no timings are stored then).
+    pub appended: Option<Timestamp>,
+}
+
+impl Default for AppendOptions {
+    fn default() -> Self {
+        Self {
+            model_options: ModelOptions::new(),
+            skip_bad: false,
+            input_format: None,
+            backend: None,
+            metadata: Map::new(),
+            batch: 8 * rayon::current_num_threads().max(1),
+            appended: None,
+        }
+    }
+}
+
+/// What an append did.
+#[derive(Clone, Debug, Serialize)]
+pub struct AppendReport {
+    /// The file appended to.
+    pub file: PathBuf,
+    /// Snapshots given.
+    pub inputs: usize,
+    /// Snapshots added.
+    pub added: usize,
+    /// Files left out with `skip_bad`, and why.
+    pub skipped: Vec<(PathBuf, String)>,
+    /// Reader warnings (file, message).
+    pub warnings: Vec<(PathBuf, String)>,
+    /// Total bytes of the input files added.
+    pub input_bytes: u64,
+    /// Samples of the time axis before the append.
+    pub samples_before: u32,
+    /// Samples of the time axis now.
+    pub samples: u32,
+    /// `true` for a regular axis.
+    pub regular_axis: bool,
+    /// First instant of the file.
+    #[serde(serialize_with = "as_iso8601")]
+    pub start: Timestamp,
+    /// Last instant before the append.
+    #[serde(serialize_with = "as_iso8601")]
+    pub end_before: Timestamp,
+    /// Last instant now.
+    #[serde(serialize_with = "as_iso8601")]
+    pub end: Timestamp,
+    /// Cells by class.
+    pub cells: ClassCounts,
+    /// Voxels by class.
+    pub voxels: ClassCounts,
+    /// Outlier toggles stored (lossless).
+    pub toggles: u64,
+    /// Observed cell-samples the model gets wrong without outliers.
+    pub model_errors: u64,
+    /// `true` when the file keeps every observed state exactly.
+    pub lossless: bool,
+    /// Bytes of the file before the append.
+    pub bytes_before: u64,
+    /// Bytes of the file now.
+    pub file_bytes: u64,
+    /// Seconds spent reading and accumulating the new snapshots.
+    pub read_seconds: f64,
+    /// Seconds spent merging, fitting, encoding and writing.
+    pub model_seconds: f64,
+}
+
+fn as_iso8601<S: serde::Serializer>(t: &Timestamp, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_str(&iso8601(*t))
+}
+
+/// Appends snapshots later than the last sample of the FROctomap file `file` to it.
+///
+/// Inputs are a time-sorted series as for [`build`](crate::build()) (from
+/// [`collect_inputs`](crate::collect_inputs)), all later than the file's last sample and of
+/// its resolution; otherwise the append is refused ([`ConvertError::AppendOverlap`],
+/// [`ConvertError::MixedResolution`] naming the file) before anything is written. The work
+/// reads the file and the new snapshots only: the snapshots the file was built from are
+/// not needed. Every earlier and every new observed state is kept (exactly, in a lossless
+/// file; a lossy file's past is its reconstruction), and every cell's model is refitted on
+/// the whole history, so the file is what a build of all the snapshots would give, up to its
+/// metadata. The file is replaced atomically: on any error it is left as it was.
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
+/// let report = append(&context, Path::new("office.froct"), &tonight, &AppendOptions::default(), &Silent)?;
+/// println!("{} snapshots added, {} → {} bytes", report.added, report.bytes_before, report.file_bytes);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn append(
+    context: &Context,
+    file: &Path,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<AppendReport, ConvertError> {
+    let started = Instant::now();
+    let first = inputs.first().ok_or(ConvertError::NoInputs)?;
+    refuse_overwriting_input(file, inputs.iter().map(|i| i.path.as_path()))?;
+    let reader = context.open_froct(file)?;
+    let old = reader.header().clone();
+    let old_axis = &old.axis;
+    if first.time <= old_axis.end() {
+        let last = inputs
+            .iter()
+            .rev()
+            .find(|i| i.time <= old_axis.end())
+            .unwrap_or(first);
+        return Err(ConvertError::AppendOverlap {
+            file: file.to_path_buf(),
+            last: old_axis.end(),
+            input: last.path.clone(),
+            time: last.time,
+        });
+    }
+    let model = context
+        .models()
+        .by_id(old.model_id)
+        .ok_or(ConvertError::internal(
+            "the model of an opened file is not registered",
+        ))?
+        .create();
+    let mut config = ModelConfig::default().with_outliers(reader.model().outlier_mode());
+    config.options = options.model_options.clone();
+    let new_times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+    let axis = extended_axis(old_axis, &new_times)?;
+    // Fail on a bad model/axis combination before reading anything.
+    model.prepare(&axis, &config)?;
+
+    // The file fixes the series' resolution: inputs of another one are refused (or left
+    // out with `skip_bad`), whatever most of them give.
+    let checked = InputCheck {
+        skip_bad: options.skip_bad,
+        resolution: Some(old.resolution),
+        allow_mostly_skipped: false,
+    }
+    .run(inputs, progress)
+    .map_err(|e| match e {
+        ConvertError::Snapshot { path, source } => match *source {
+            SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {
+                first: file.to_path_buf(),
+                first_resolution: old.resolution,
+                second: path,
+                second_resolution: found,
+            },
+            _ => ConvertError::Snapshot { path, source },
+        },
+        other => other,
+    })?;
+
+    // The file's last observed map starts the new histories, at its sample on the new axis.
+    let last_observed = (0..old_axis.len())
+        .rev()
+        .find(|&s| !old_axis.is_missing(s))
+        .ok_or(ConvertError::internal("a file without a snapshot"))?;
+    let seam = old_axis
+        .time(last_observed)
+        .and_then(|t| axis.index_of(t))
+        .ok_or(ConvertError::internal(
+            "the file's last sample is not on the new axis",
+        ))?;
+    let last_map = observed_map(&reader, last_observed)?;
+    let start = SampleChanges {
+        sample: seam,
+        changes: froctomap_core::changes(&[], last_map.leaves()),
+    };
+    let seed_voxels: u64 = start.changes.iter().map(|c| c.end - c.start).sum();
+    let previous = Accepted::from_map(
+        froctomap_octomap_codec::encode_binary(&last_map),
+        last_map.into_leaves(),
+    );
+
+    progress.stage("reading snapshots", inputs.len() as u64 + 1);
+    let extract = ExtractOptions {
+        read: ReadOptions {
+            format: options.input_format.as_deref(),
+            backend: options.backend,
+        },
+        skip_bad: options.skip_bad,
+        batch: options.batch,
+        tiles: TileBudget {
+            tile_depth: old.tile_depth,
+            max_tiles: context.limits().max_snapshot_tiles,
+        },
+    };
+    let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress)
+        .continuing(start, previous, old.resolution, file);
+    let accumulated = accumulate_series(&mut extractor, old.tile_depth, progress)?;
+    let extracted = extractor.finish();
+    let mut skipped = checked.skipped;
+    skipped.extend(extracted.skipped);
+    if extracted.used == 0 {
+        return Err(ConvertError::NothingToBuild {
+            inputs: inputs.len(),
+        });
+    }
+    let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
+    let read_seconds = started.elapsed().as_secs_f64();
+    let changed_voxels = accumulated.changed_voxels().saturating_sub(seed_voxels);
+    // As in a build: snapshots left out become missing samples of a regular axis.
+    let axis = match axis.step_ns() {
+        Some(step) if absent.len() > axis.missing().len() => {
+            TimeAxis::regular(axis.start(), step, axis.len(), absent.clone())
+                .map_err(ConvertError::TimeAxis)?
+        }
+        _ => axis,
+    };
+    let prepared = model.prepare(&axis, &config)?;
+
+    let modelling = Instant::now();
+    let mut header = Header::new(
+        old.resolution,
+        old.tile_depth,
+        axis.clone(),
+        model.id(),
+        prepared.encode_parameters(),
+        old.codec,
+    );
+    header.toggles = old.toggles;
+    header.metadata = metadata(&old, extracted.used, extracted.input_bytes, options);
+    let mut writer = TileWriter::create(file, &header)?;
+    let old_cells: u64 = reader.tiles().iter().map(|t| u64::from(t.cell_count)).sum();
+    progress.stage(
+        "modelling cells",
+        old_cells + accumulated.cell_count() as u64,
+    );
+    let samples = SampleMap::new(old_axis, &axis);
+    let old_tiles = OldTiles::new(&reader, &samples);
+    let new_tiles = accumulated.into_tiles(axis.len(), &absent);
+    let tiles = merge_tiles(old_tiles, new_tiles, old.tile_depth);
+    let fitter = TileFitter::new(&axis, prepared.as_ref());
+    let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+    fit_and_write(tiles, &fitter, &encoder, &mut writer, progress)?;
+    let model_seconds = modelling.elapsed().as_secs_f64();
+    let stats = writer.stats().clone();
+    let previously = |key: &str| reader.summary().get(key).and_then(Value::as_u64);
+    let lossless = config.outliers == OutlierMode::Lossless;
+    let mut summary = Map::new();
+    let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
+    put("cell_classes", json!(stats.cells));
+    put("voxel_classes", json!(stats.voxels));
+    put("toggles", json!(stats.toggles));
+    put("model_errors", json!(stats.model_errors));
+    put(
+        "outliers",
+        json!(if lossless { "lossless" } else { "lossy" }),
+    );
+    let used = previously("snapshots_used").unwrap_or(0) + extracted.used as u64;
+    put("snapshots_used", json!(used));
+    let skipped_all = previously("snapshots_skipped").unwrap_or(0) + skipped.len() as u64;
+    put("snapshots_skipped", json!(skipped_all));
+    let input_bytes = previously("input_bytes").unwrap_or(0) + extracted.input_bytes;
+    put("input_bytes", json!(input_bytes));
+    let changed = previously("changed_voxels").unwrap_or(0) + changed_voxels;
+    put("changed_voxels", json!(changed));
+    put("appends", json!(previously("appends").unwrap_or(0) + 1));
+    if options.appended.is_none() {
+        put("read_seconds", json!(read_seconds));
+        put("model_seconds", json!(model_seconds));
+    }
+    let bytes_before = reader.file_len();
+    let written = writer.finish(summary)?;
+    Ok(AppendReport {
+        file: file.to_path_buf(),
+        inputs: inputs.len(),
+        added: extracted.used,
+        skipped,
+        warnings: extracted.warnings,
+        input_bytes: extracted.input_bytes,
+        samples_before: old_axis.len(),
+        samples: axis.len(),
+        regular_axis: axis.step_ns().is_some(),
+        start: axis.start(),
+        end_before: old_axis.end(),
+        end: axis.end(),
+        cells: stats.cells,
+        voxels: stats.voxels,
+        toggles: stats.toggles,
+        model_errors: stats.model_errors,
+        lossless,
+        bytes_before,
+        file_bytes: written.file_bytes,
+        read_seconds,
+        model_seconds,
+    })
+}
+
+/// The time axis of a file's samples followed by later `times` (sorted): the file's grid
+/// when the new times lie on it (its missing samples stay missing, the grid's unused
+/// instants between become missing), by the rule of [`axis_for_times`] (at most as many
+/// gaps as snapshots); otherwise the axis [`axis_for_times`] gives for every instant with a
+/// snapshot, which is the axis a build of all the snapshots has.
+pub(crate) fn extended_axis(old: &TimeAxis, times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
+    let present = (0..old.len()).filter(|&s| !old.is_missing(s));
+    if let (Some(step), Some(last)) = (old.step_ns(), times.last()) {
+        let on_grid = |t: &Timestamp| (t.0 - old.start().0) % step == 0;
+        let count = (last.0 - old.start().0) / step + 1;
+        let snapshots = present.clone().count() + times.len();
+        if times.iter().all(on_grid)
+            && count <= 2 * snapshots as i64
+            && count <= i64::from(u32::MAX)
+        {
+            let mut missing: Vec<u32> = old.missing().to_vec();
+            let mut next = times
+                .iter()
+                .map(|t| (t.0 - old.start().0) / step)
+                .peekable();
+            for i in i64::from(old.len())..count {
+                if next.peek() == Some(&i) {
+                    next.next();
+                } else {
+                    missing.push(i as u32);
+                }
+            }
+            return TimeAxis::regular(old.start(), step, count as u32, missing)
+                .map_err(ConvertError::TimeAxis);
+        }
+    }
+    let mut all: Vec<Timestamp> = present.filter_map(|s| old.time(s)).collect();
+    all.extend_from_slice(times);
+    axis_for_times(&all)
+}
+
+/// Where the samples of a file's axis are on the axis that extends it.
+pub(crate) struct SampleMap<'a> {
+    old: &'a TimeAxis,
+    new: &'a TimeAxis,
+    /// Every sample keeps its index (the same grid, or the same list of instants).
+    same_indices: bool,
+}
+
+impl<'a> SampleMap<'a> {
+    pub fn new(old: &'a TimeAxis, new: &'a TimeAxis) -> Self {
+        let same_grid = old.step_ns().is_some() && old.step_ns() == new.step_ns();
+        let both_lists = old.step_ns().is_none() && new.step_ns().is_none();
+        Self {
+            old,
+            new,
+            same_indices: old.start() == new.start() && (same_grid || both_lists),
+        }
+    }
+
+    /// Appends to `out` the runs on the new axis of the old samples `[first, end)` observed in
+    /// `state`, without the old axis' missing samples.
+    fn push_run(
+        &self,
+        first: u32,
+        end: u32,
+        state: Occupancy,
+        out: &mut Vec<(u32, u32, Occupancy)>,
+    ) -> Result<(), ConvertError> {
+        let missing = self.old.missing();
+        let from = missing.partition_point(|&m| m < first);
+        let to = missing.partition_point(|&m| m < end);
+        let mut cursor = first;
+        for &hole in missing[from..to].iter().chain(std::iter::once(&end)) {
+            if hole > cursor {
+                self.push_present(cursor, hole, state, out)?;
+            }
+            cursor = hole.saturating_add(1);
+        }
+        Ok(())
+    }
+
+    /// [`push_run`](Self::push_run) for samples `[first, end)` that all have a snapshot.
+    fn push_present(
+        &self,
+        first: u32,
+        end: u32,
+        state: Occupancy,
+        out: &mut Vec<(u32, u32, Occupancy)>,
+    ) -> Result<(), ConvertError> {
+        if self.same_indices {
+            out.push((first, end - first, state));
+            return Ok(());
+        }
+        let index = |s: u32| {
+            self.old
+                .time(s)
+                .and_then(|t| self.new.index_of(t))
+                .ok_or(ConvertError::internal(
+                    "an old sample is not on the new axis",
+                ))
+        };
+        let (a, b) = (index(first)?, index(end - 1)?);
+        if b.checked_sub(a) == Some(end - 1 - first) {
+            out.push((a, end - first, state));
+        } else {
+            // The new grid is finer: each old sample on its own.
+            for s in first..end {
+                out.push((index(s)?, 1, state));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The observations of a file's cell, on the new axis.
+fn old_observations(
+    cell: &Cell,
+    model: &dyn PreparedModel,
+    samples: &SampleMap<'_>,
+) -> Result<ObservedCell, ConvertError> {
+    let len = samples.old.len();
+    let ranges: Vec<(u32, u32)> = match &cell.mask {
+        None => vec![(0, len)],
+        Some(mask) => mask
+            .as_slice()
+            .chunks(2)
+            .map(|pair| (pair[0], pair.get(1).copied().unwrap_or(len).min(len)))
+            .filter(|(a, b)| a < b)
+            .collect(),
+    };
+    let mut runs: Vec<(u32, u32, Occupancy)> = Vec::new();
+    for (first, end) in ranges {
+        match &cell.content {
+            CellContent::Constant(state) => samples.push_run(first, end, *state, &mut runs)?,
+            CellContent::ConstantExcept { state, exceptions } => {
+                let flips = exceptions.as_slice();
+                let at = |s: u32| {
+                    if exceptions.parity_at(s) {
+                        !*state
+                    } else {
+                        *state
+                    }
+                };
+                let mut cursor = first;
+                let from = flips.partition_point(|&p| p <= first);
+                for &flip in flips[from..].iter().take_while(|&&p| p < end) {
+                    samples.push_run(cursor, flip, at(cursor), &mut runs)?;
+                    cursor = flip;
+                }
+                samples.push_run(cursor, end, at(cursor), &mut runs)?;
+            }
+            CellContent::Modelled(voxel) => {
+                let mut cursor = first;
+                let mut current = model.state_at_sample(voxel, first);
+                for s in first + 1..end {
+                    let state = model.state_at_sample(voxel, s);
+                    if state != current {
+                        samples.push_run(cursor, s, current, &mut runs)?;
+                        (cursor, current) = (s, state);
+                    }
+                }
+                samples.push_run(cursor, end, current, &mut runs)?;
+            }
+        }
+    }
+    let observations = froctomap_temporal::VoxelObservations::from_runs(runs)?;
+    Ok((cell.start, cell.depth, observations))
+}
+
+/// A file's tiles as [`TileHistory`] values on the new axis, in Morton order, decoded a few
+/// at a time in parallel.
+struct OldTiles<'a> {
+    reader: &'a FroctReader,
+    samples: &'a SampleMap<'a>,
+    next: usize,
+    ready: std::vec::IntoIter<Result<TileHistory, ConvertError>>,
+}
+
+impl<'a> OldTiles<'a> {
+    fn new(reader: &'a FroctReader, samples: &'a SampleMap<'a>) -> Self {
+        Self {
+            reader,
+            samples,
+            next: 0,
+            ready: Vec::new().into_iter(),
+        }
+    }
+}
+
+impl Iterator for OldTiles<'_> {
+    type Item = Result<TileHistory, ConvertError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Some(tile) = self.ready.next() {
+            return Some(tile);
+        }
+        let count = self.reader.tiles().len();
+        if self.next >= count {
+            return None;
+        }
+        let end = (self.next + 4 * rayon::current_num_threads().max(1)).min(count);
+        let (reader, samples) = (self.reader, self.samples);
+        let model = reader.model();
+        let decoded: Vec<Result<TileHistory, ConvertError>> = (self.next..end)
+            .into_par_iter()
+            .map(|i| {
+                let cells = reader.read_tile(i)?;
+                let cells = cells
+                    .iter()
+                    .map(|cell| old_observations(cell, model, samples))
+                    .collect::<Result<Vec<ObservedCell>, ConvertError>>()?;
+                Ok(TileHistory { cells })
+            })
+            .collect();
+        self.next = end;
+        self.ready = decoded.into_iter();
+        self.ready.next()
+    }
+}
+
+/// The file's metadata with the snapshots added counted in and the append's time.
+fn metadata(
+    old: &Header,
+    used: usize,
+    input_bytes: u64,
+    options: &AppendOptions,
+) -> Map<String, Value> {
+    let now = options.appended.unwrap_or_else(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
+            .unwrap_or_default()
+    });
+    let mut meta = old.metadata.clone();
+    let count = |key: &str| meta.get(key).and_then(Value::as_u64).unwrap_or(0);
+    let sources = count("sources") + used as u64;
+    let bytes = count("input_bytes") + input_bytes;
+    meta.insert("sources".into(), Value::from(sources));
+    meta.insert("input_bytes".into(), Value::from(bytes));
+    meta.insert(
+        "appended".into(),
+        Value::from(iso8601(Timestamp(now.0 - now.0 % 1_000_000_000))),
+    );
+    for (k, v) in &options.metadata {
+        meta.insert(k.clone(), v.clone());
+    }
+    meta
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn s(v: i64) -> Timestamp {
+        Timestamp::from_secs(v)
+    }
+
+    #[test]
+    fn a_cells_runs_come_from_its_mask_exceptions_and_model() {
+        use froctomap_core::MortonCode;
+        use froctomap_temporal::{Toggles, VoxelObservations};
+        use std::sync::Arc;
+        use Occupancy::{Free, Occupied};
+        let setup = crate::build::test_support::default_model(8);
+        let axis = setup.axis.clone();
+        let samples = SampleMap::new(&axis, &axis);
+        let runs = |cell: &Cell| {
+            old_observations(cell, setup.model.as_ref(), &samples)
+                .unwrap()
+                .2
+        };
+        // Observed over samples 1..6 and from 7 on, free except at samples 3 and 7.
+        let mask = Some(Arc::new(Toggles::new(vec![1, 6, 7]).unwrap()));
+        let cell = Cell {
+            start: MortonCode(0),
+            depth: 16,
+            mask: mask.clone(),
+            content: CellContent::ConstantExcept {
+                state: Free,
+                exceptions: Toggles::new(vec![3, 4, 7]).unwrap(),
+            },
+        };
+        let expected = [
+            (1, 2, Free),
+            (3, 1, Occupied),
+            (4, 2, Free),
+            (7, 1, Occupied),
+        ];
+        assert_eq!(runs(&cell), VoxelObservations::from_runs(expected).unwrap());
+        // A modelled cell gives back what it was fitted on.
+        let observed = VoxelObservations::from_runs(expected).unwrap();
+        let cell = Cell {
+            content: CellContent::Modelled(setup.model.fit(&observed).unwrap()),
+            ..cell
+        };
+        assert_eq!(runs(&cell), observed);
+        let constant = Cell {
+            mask: None,
+            content: CellContent::Constant(Occupied),
+            ..cell
+        };
+        assert_eq!(
+            runs(&constant),
+            VoxelObservations::from_runs([(0, 8, Occupied)]).unwrap()
+        );
+    }
+
+    #[test]
+    fn a_grid_stays_a_grid_when_the_new_times_lie_on_it() {
+        // Samples 0..4 every 10 s, sample 2 missing (a snapshot left out).
+        let old = TimeAxis::regular(s(0), 10_000_000_000, 4, vec![2]).unwrap();
+        let axis = extended_axis(&old, &[s(40), s(60)]).unwrap();
+        assert_eq!(axis.step_ns(), Some(10_000_000_000));
+        assert_eq!(axis.len(), 7);
+        assert_eq!(axis.missing(), &[2, 5]);
+        let map = SampleMap::new(&old, &axis);
+        assert!(map.same_indices);
+        let mut runs = Vec::new();
+        map.push_run(0, 4, Occupancy::Free, &mut runs).unwrap();
+        assert_eq!(runs, [(0, 2, Occupancy::Free), (3, 1, Occupancy::Free)]);
+    }
+
+    #[test]
+    fn times_off_the_grid_make_the_axis_of_all_instants() {
+        let old = TimeAxis::regular(s(0), 10_000_000_000, 3, vec![1]).unwrap();
+        // Off the grid: the axis of the instants with a snapshot (0, 20, 25, 30), whose
+        // grid is 5 s: old sample 2 (20 s) is new sample 4.
+        let axis = extended_axis(&old, &[s(25), s(30)]).unwrap();
+        assert_eq!(axis, axis_for_times(&[s(0), s(20), s(25), s(30)]).unwrap());
+        let map = SampleMap::new(&old, &axis);
+        let mut runs = Vec::new();
+        map.push_run(0, 3, Occupancy::Occupied, &mut runs).unwrap();
+        assert_eq!(
+            runs,
+            [(0, 1, Occupancy::Occupied), (4, 1, Occupancy::Occupied)]
+        );
+        // Jittered times: an explicit axis, samples renumbered.
+        let axis = extended_axis(&old, &[s(31), s(44)]).unwrap();
+        assert_eq!(axis.step_ns(), None);
+        assert_eq!(axis.times().unwrap(), &[s(0), s(20), s(31), s(44)]);
+        let map = SampleMap::new(&old, &axis);
+        let mut runs = Vec::new();
+        map.push_run(0, 3, Occupancy::Free, &mut runs).unwrap();
+        // Old samples 0 and 2 (1 is missing) are new samples 0 and 1: one run.
+        assert_eq!(
+            froctomap_temporal::VoxelObservations::from_runs(runs).unwrap(),
+            froctomap_temporal::VoxelObservations::from_runs([(0, 2, Occupancy::Free)]).unwrap()
+        );
+        // An explicit axis stays one, with the same indices.
+        let old = TimeAxis::explicit(vec![s(0), s(7), s(9)]).unwrap();
+        let axis = extended_axis(&old, &[s(20)]).unwrap();
+        assert_eq!(axis.times().unwrap(), &[s(0), s(7), s(9), s(20)]);
+        assert!(SampleMap::new(&old, &axis).same_indices);
+    }
+}
