@@ -49,7 +49,9 @@ mod snapshot_changes;
 mod text;
 mod time;
 
-pub use build::{axis_for_times, build, BuildOptions, BuildReport, ClassCounts};
+pub use build::{
+    axis_for_times, build, BuildOptions, BuildReport, ClassCounts, DEFAULT_BUILD_MEMORY,
+};
 pub use context::{Context, Limits, FROCT};
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
