@@ -312,18 +312,23 @@ impl SeriesHistory {
         axis_len: u32,
         absent: &[u32],
     ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), TemporalError>> + '_ {
-        self.finish_with(axis_len, absent, |_, _, _| Ok(()))
+        self.finish_with(axis_len, absent, |_, _, _| Ok::<(), TemporalError>(()))
+            .map(|cell| {
+                let (start, depth, packed) = cell?;
+                Ok((start, depth, packed.unpack()?))
+            })
     }
 
-    /// [`finish`](Self::finish) for a history that was [`spill`](Self::spill)ed: `spilled`
-    /// appends, for the cell at `start` of `depth`, the runs spilled for it and for the
-    /// coarser cells it was split from, in the order they were spilled.
-    pub fn finish_with<'a, E: From<TemporalError>>(
+    /// [`finish`](Self::finish) for a history that was [`spill`](Self::spill)ed, with each
+    /// cell's observations still packed: `spilled` appends, for the cell at `start` of
+    /// `depth`, the runs spilled for it and for the coarser cells it was split from, in the
+    /// order they were spilled.
+    pub fn finish_with<'a, E>(
         mut self,
         axis_len: u32,
         absent: &'a [u32],
         mut spilled: impl FnMut(u64, u8, &mut Vec<Run>) -> Result<(), E> + 'a,
-    ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), E>> + 'a {
+    ) -> impl Iterator<Item = Result<(MortonCode, u8, PackedObservations), E>> + 'a {
         self.gaps.extend(self.growing_gap.take());
         let mut containing = ContainingGaps::new(std::mem::take(&mut self.gaps));
         let mut earlier: Vec<Run> = Vec::new();
@@ -333,16 +338,15 @@ impl SeriesHistory {
             earlier.clear();
             spilled(start, cell.depth, &mut earlier)?;
             // Spilled runs were cut by the gaps of their time; the gaps left are later.
-            let runs: Vec<(u32, u32, Occupancy)> = earlier
+            let runs = earlier
                 .iter()
                 .copied()
                 .chain(cell.runs.iter().flat_map(|run| without_gaps(run, cut)))
-                .flat_map(|run| without_absent(run, absent))
-                .collect();
+                .flat_map(|run| without_absent(run, absent));
             Ok((
                 MortonCode(start),
                 cell.depth,
-                VoxelObservations::from_runs(runs)?,
+                PackedObservations::pack(runs),
             ))
         })
     }
@@ -437,6 +441,58 @@ impl ContainingGaps {
             .extend(self.containing.iter().map(|gap| (gap.from, gap.to)));
         self.cut.sort_unstable();
         &self.cut
+    }
+}
+
+/// A cell's observation runs as `(first, len, state)`, packed as varints until they are
+/// needed: three bytes or so a run where [`VoxelObservations`] takes twelve, so that the
+/// tiles waiting to be fitted hold a fraction of the memory. Unpacking gives exactly the
+/// runs packed (checked then, as [`VoxelObservations::from_runs`] checks them).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PackedObservations {
+    bytes: Box<[u8]>,
+    runs: usize,
+}
+
+impl PackedObservations {
+    /// Packs runs (any `u32` values: they come back as given).
+    pub fn pack(runs: impl IntoIterator<Item = (u32, u32, Occupancy)>) -> Self {
+        let mut bytes = Vec::new();
+        let mut end = 0u32;
+        let mut count = 0usize;
+        for (first, len, state) in runs {
+            varint::write_u32(&mut bytes, first.wrapping_sub(end));
+            varint::write_u64(
+                &mut bytes,
+                u64::from(len) << 1 | u64::from(state.is_occupied()),
+            );
+            end = first.wrapping_add(len);
+            count += 1;
+        }
+        Self {
+            bytes: bytes.into_boxed_slice(),
+            runs: count,
+        }
+    }
+
+    /// Runs packed.
+    pub fn run_count(&self) -> usize {
+        self.runs
+    }
+
+    /// The observations.
+    pub fn unpack(&self) -> Result<VoxelObservations, TemporalError> {
+        let mut reader = varint::Reader::new(&self.bytes);
+        let mut runs = Vec::with_capacity(self.runs);
+        let mut end = 0u32;
+        while reader.remaining() > 0 {
+            let first = end.wrapping_add(reader.u32()?);
+            let packed = reader.u64()?;
+            let len = (packed >> 1) as u32;
+            end = first.wrapping_add(len);
+            runs.push((first, len, Occupancy::from(packed & 1 == 1)));
+        }
+        VoxelObservations::from_runs(runs)
     }
 }
 
@@ -663,7 +719,10 @@ mod tests {
                     spilled_for(&spilled, start, out);
                     Ok::<(), TemporalError>(())
                 })
-                .map(Result::unwrap)
+                .map(|cell| {
+                    let (start, depth, packed) = cell.unwrap();
+                    (start, depth, packed.unpack().unwrap())
+                })
                 .collect();
             prop_assert_eq!(got, expected);
         }

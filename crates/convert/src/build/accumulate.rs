@@ -20,10 +20,10 @@
 use super::extract::ChangeBatch;
 use super::spill::{SpillReader, SpillWriter};
 use crate::error::ConvertError;
-use crate::history::SeriesHistory;
+use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
-use froctomap_temporal::VoxelObservations;
+use froctomap_temporal::{TemporalError, VoxelObservations};
 use std::borrow::Cow;
 use std::path::Path;
 use std::sync::mpsc::SyncSender;
@@ -34,16 +34,59 @@ use std::time::Instant;
 /// A cell of the output: its first voxel, its depth and what was observed in it.
 pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
 
-/// The cells of one tile of the output, in Morton order, with their observations.
-#[derive(Debug)]
+/// A cell with its observations packed ([`PackedObservations`]).
+type PackedCell = (MortonCode, u8, PackedObservations);
+
+/// The cells of one tile of the output, in Morton order, with their observations — kept
+/// packed, since the tiles waiting to be fitted would otherwise hold most of a long
+/// series' memory; each cell is unpacked when it is fitted ([`cells`](Self::cells)).
+#[derive(Debug, Default)]
 pub(crate) struct TileHistory {
-    pub cells: Vec<ObservedCell>,
+    cells: Vec<PackedCell>,
+    runs: usize,
 }
 
 impl TileHistory {
+    /// A tile of these cells (in Morton order).
+    #[cfg(test)]
+    pub fn new(cells: Vec<ObservedCell>) -> Self {
+        let mut tile = Self::default();
+        for (start, depth, observations) in cells {
+            let runs = observations
+                .runs()
+                .iter()
+                .map(|run| (run.first, run.len, run.state));
+            tile.push((start, depth, PackedObservations::pack(runs)));
+        }
+        tile
+    }
+
+    fn push(&mut self, cell: PackedCell) {
+        self.runs += cell.2.run_count();
+        self.cells.push(cell);
+    }
+
+    /// Its cells.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
     /// Observation runs of all its cells (what fitting the tile holds in memory).
     pub fn runs(&self) -> usize {
-        self.cells.iter().map(|cell| cell.2.runs().len()).sum()
+        self.runs
+    }
+
+    /// The cells, unpacked one at a time.
+    pub fn cells(&self) -> impl Iterator<Item = Result<ObservedCell, TemporalError>> + '_ {
+        self.cells
+            .iter()
+            .map(|(start, depth, packed)| Ok((*start, *depth, packed.unpack()?)))
+    }
+
+    /// All the cells, unpacked.
+    #[cfg(test)]
+    pub fn unpacked(&self) -> Vec<ObservedCell> {
+        self.cells().map(Result::unwrap).collect()
     }
 }
 
@@ -241,7 +284,7 @@ impl Accumulated {
         self,
         axis_len: u32,
         absent: &[u32],
-    ) -> TileHistories<impl Iterator<Item = Result<ObservedCell, ConvertError>> + Send + '_> {
+    ) -> TileHistories<impl Iterator<Item = Result<PackedCell, ConvertError>> + Send + '_> {
         TileHistories {
             cells: self
                 .parts
@@ -267,30 +310,34 @@ pub(crate) struct TileHistories<I> {
     cells: I,
     tile_depth: u8,
     /// The first cell of the next tile, read past the end of the one before.
-    next: Option<ObservedCell>,
+    next: Option<PackedCell>,
 }
 
-impl<I: Iterator<Item = Result<ObservedCell, ConvertError>>> Iterator for TileHistories<I> {
+impl<I: Iterator<Item = Result<PackedCell, ConvertError>>> Iterator for TileHistories<I> {
     type Item = Result<TileHistory, ConvertError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let mut cells: Vec<ObservedCell> = self.next.take().into_iter().collect();
+        let mut tile = TileHistory::default();
+        if let Some(cell) = self.next.take() {
+            tile.push(cell);
+        }
         for cell in self.cells.by_ref() {
             let cell = match cell {
                 Ok(cell) => cell,
                 Err(e) => return Some(Err(e)),
             };
-            let tile = |c: &ObservedCell| c.0.node_start(self.tile_depth);
-            if cells
+            let tile_of = |c: &PackedCell| c.0.node_start(self.tile_depth);
+            if tile
+                .cells
                 .first()
-                .is_some_and(|first| tile(first) != tile(&cell))
+                .is_some_and(|first| tile_of(first) != tile_of(&cell))
             {
                 self.next = Some(cell);
                 break;
             }
-            cells.push(cell);
+            tile.push(cell);
         }
-        (!cells.is_empty()).then_some(Ok(TileHistory { cells }))
+        (!tile.cells.is_empty()).then_some(Ok(tile))
     }
 }
 
@@ -348,7 +395,6 @@ mod tests {
     use super::*;
     use crate::progress::Silent;
     use froctomap_core::{voxels_per_node, Occupancy};
-    use froctomap_temporal::TemporalError;
 
     fn change(start: u64, end: u64, new: Option<Occupancy>) -> StateChange {
         StateChange { start, end, new }
@@ -422,13 +468,13 @@ mod tests {
     }
 
     /// The tiles accumulated by `parts` threads.
-    fn tiles(parts: usize) -> Vec<TileHistory> {
+    fn tiles(parts: usize) -> Vec<Vec<ObservedCell>> {
         tiles_spilling(parts, None)
     }
 
     /// The tiles accumulated by `parts` threads, spilling into `spill` (a directory and a
     /// budget) if given.
-    fn tiles_spilling(parts: usize, spill: Option<(&Path, usize)>) -> Vec<TileHistory> {
+    fn tiles_spilling(parts: usize, spill: Option<(&Path, usize)>) -> Vec<Vec<ObservedCell>> {
         std::thread::scope(|scope| {
             let mut accumulator = Accumulator::new(scope, 14, parts, &Silent);
             if let Some((dir, budget)) = spill {
@@ -447,8 +493,13 @@ mod tests {
                 .into_tiles(5, &[3])
                 .map(Result::unwrap)
                 .collect();
-            assert_eq!(tiles.iter().map(|t| t.cells.len()).sum::<usize>(), cells);
-            tiles
+            for tile in &tiles {
+                let runs: usize = tile.unpacked().iter().map(|c| c.2.runs().len()).sum();
+                // Counted before adjacent runs of one state are merged.
+                assert!(tile.runs() >= runs);
+            }
+            assert_eq!(tiles.iter().map(TileHistory::len).sum::<usize>(), cells);
+            tiles.iter().map(TileHistory::unpacked).collect()
         })
     }
 
@@ -458,19 +509,14 @@ mod tests {
         assert_eq!(one.len(), 4);
         for (i, tile) in one.iter().enumerate() {
             let start = i as u64 * voxels_per_node(14);
-            assert!(
-                tile.cells.windows(2).all(|w| w[0].0 < w[1].0),
-                "Morton order"
-            );
+            assert!(tile.windows(2).all(|w| w[0].0 < w[1].0), "Morton order");
             assert!(tile
-                .cells
                 .iter()
                 .all(|c| c.0.node_start(14).0 == start && c.1 >= 14));
         }
         // The changed voxel 3 of the first tile: free, occupied at 1, free from 2 on; the
         // absent sample 3 is cut out.
         let cell = one[0]
-            .cells
             .iter()
             .find(|c| c.0 .0 <= 3 && 3 < c.0 .0 + voxels_per_node(c.1))
             .unwrap();
@@ -481,15 +527,14 @@ mod tests {
             [Some(Free), Some(Occupied), Some(Free), None, Some(Free)]
         );
         // A tile that went unobserved keeps what it saw before.
-        let hidden = &one[2].cells[0];
+        let hidden = &one[2][0];
         assert_eq!(hidden.2.state_at(1), Some(Free));
         assert_eq!(hidden.2.state_at(2), None);
         for parts in [2, 3, 8] {
             let split = tiles(parts);
             assert_eq!(split.len(), one.len());
             for (a, b) in split.iter().zip(&one) {
-                assert_eq!(a.cells, b.cells, "{parts} threads");
-                assert_eq!(a.runs(), b.runs());
+                assert_eq!(a, b, "{parts} threads");
             }
         }
     }
@@ -502,7 +547,7 @@ mod tests {
             let spilled = tiles_spilling(parts, Some((dir.path(), 0)));
             assert_eq!(spilled.len(), kept.len());
             for (a, b) in spilled.iter().zip(&kept) {
-                assert_eq!(a.cells, b.cells, "{parts} threads");
+                assert_eq!(a, b, "{parts} threads");
             }
         }
     }
