@@ -179,12 +179,20 @@ fn encode_cell(out: &mut Vec<u8>, offset: u64, depth: u8, runs: &[Run]) {
     }
 }
 
-/// A cell of one spill, read back: its start, its end and its runs.
+/// A cell of one spill, read back: its start, its end and where its runs are in the
+/// segment's bytes (kept packed: a tile of a long series has millions of runs).
 #[derive(Debug)]
 struct SpilledCell {
     start: u64,
     end: u64,
-    runs: Vec<Run>,
+    runs: std::ops::Range<usize>,
+}
+
+/// One spill's segment of the loaded tile: its bytes and its cells.
+#[derive(Debug)]
+struct Segment {
+    bytes: Vec<u8>,
+    cells: Vec<SpilledCell>,
 }
 
 /// One accumulating thread's spill file, read back tile by tile in Morton order.
@@ -196,7 +204,7 @@ pub(crate) struct SpillReader {
     segments: Segments,
     /// The tile loaded, and its cells spill by spill.
     tile: Option<u64>,
-    loaded: Vec<Vec<SpilledCell>>,
+    loaded: Vec<Segment>,
     bytes: u64,
 }
 
@@ -217,10 +225,14 @@ impl SpillReader {
             })?;
         }
         for spill in &self.loaded {
-            let after = spill.partition_point(|cell| cell.start <= start);
-            if let Some(cell) = after.checked_sub(1).and_then(|i| spill.get(i)) {
+            let after = spill.cells.partition_point(|cell| cell.start <= start);
+            if let Some(cell) = after.checked_sub(1).and_then(|i| spill.cells.get(i)) {
                 if start < cell.end {
-                    out.extend_from_slice(&cell.runs);
+                    let runs = spill.bytes.get(cell.runs.clone()).unwrap_or_default();
+                    decode_runs(runs, out).map_err(|source| ConvertError::Spill {
+                        path: self.path.clone(),
+                        source,
+                    })?;
                 }
             }
         }
@@ -231,14 +243,13 @@ impl SpillReader {
     fn load(&mut self, tile: u64) -> io::Result<()> {
         self.tile = Some(tile);
         self.loaded.clear();
-        let mut bytes = Vec::new();
         for (offset, len) in self.segments.remove(&tile).unwrap_or_default() {
             let len = usize::try_from(len).map_err(|_| damaged("a segment too long"))?;
-            bytes.clear();
-            bytes.resize(len, 0);
+            let mut bytes = vec![0; len];
             self.file.seek(SeekFrom::Start(offset))?;
             self.file.read_exact(&mut bytes)?;
-            self.loaded.push(decode_segment(&bytes, tile)?);
+            let cells = decode_segment(&bytes, tile)?;
+            self.loaded.push(Segment { bytes, cells });
         }
         Ok(())
     }
@@ -269,27 +280,42 @@ fn decode_segment(bytes: &[u8], tile: u64) -> io::Result<Vec<SpilledCell>> {
         if count > reader.remaining() as u64 / 2 {
             return Err(damaged("more runs than bytes"));
         }
-        let mut runs = Vec::with_capacity(count as usize);
-        let mut run_end = 0u32;
+        let from = reader.position();
         for _ in 0..count {
-            let gap = reader.u32().map_err(bad)?;
-            let packed = reader.u64().map_err(bad)?;
-            let first = run_end
-                .checked_add(gap)
-                .ok_or_else(|| damaged("a run beyond the axis"))?;
-            let len = u32::try_from(packed >> 1).map_err(|_| damaged("a run too long"))?;
-            run_end = first
-                .checked_add(len)
-                .ok_or_else(|| damaged("a run beyond the axis"))?;
-            runs.push(Run {
-                first,
-                len,
-                state: Occupancy::from(packed & 1 == 1),
-            });
+            reader.u32().map_err(bad)?;
+            reader.u64().map_err(bad)?;
         }
-        cells.push(SpilledCell { start, end, runs });
+        cells.push(SpilledCell {
+            start,
+            end,
+            runs: from..reader.position(),
+        });
     }
     Ok(cells)
+}
+
+/// Appends the runs packed in `bytes` (a cell's, by [`encode_cell`]) to `out`.
+fn decode_runs(bytes: &[u8], out: &mut Vec<Run>) -> io::Result<()> {
+    let bad = |_| damaged("a bad number");
+    let mut reader = varint::Reader::new(bytes);
+    let mut run_end = 0u32;
+    while reader.remaining() > 0 {
+        let gap = reader.u32().map_err(bad)?;
+        let packed = reader.u64().map_err(bad)?;
+        let first = run_end
+            .checked_add(gap)
+            .ok_or_else(|| damaged("a run beyond the axis"))?;
+        let len = u32::try_from(packed >> 1).map_err(|_| damaged("a run too long"))?;
+        run_end = first
+            .checked_add(len)
+            .ok_or_else(|| damaged("a run beyond the axis"))?;
+        out.push(Run {
+            first,
+            len,
+            state: Occupancy::from(packed & 1 == 1),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -317,7 +343,9 @@ mod tests {
             (tile, 2 * tile),
             "offsets are from the tile's start"
         );
-        assert_eq!(first[0].runs, [run(0, 3, false), run(5, 2, true)]);
+        let mut runs = Vec::new();
+        decode_runs(&segment[first[0].runs.clone()], &mut runs).unwrap();
+        assert_eq!(runs, [run(0, 3, false), run(5, 2, true)]);
         // Truncated or forged segments are errors, not panics or huge allocations.
         for cut in 1..segment.len() {
             assert!(decode_segment(&segment[..cut], tile).is_err(), "cut {cut}");
