@@ -46,7 +46,7 @@ use froctomap_formats::{Backend, FormatError, ReadOptions};
 use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
-use spill::SpillDir;
+use spill::SpillPlace;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use write::{TileEncoder, TileWriter};
@@ -321,16 +321,16 @@ pub fn build(
         skip_bad: options.skip_bad,
         batch: options.batch,
     };
-    let spill_dir = SpillDir::create(match &options.tmp_dir {
+    let spill_place = SpillPlace::new(match &options.tmp_dir {
         Some(dir) => dir.as_path(),
         None => output_dir(output),
-    })?;
+    });
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
     let budget = usize::try_from(options.memory).unwrap_or(usize::MAX);
     let accumulated = accumulate_series(
         &mut extractor,
         options.tile_depth,
-        (spill_dir.path(), budget),
+        (&spill_place, budget),
         progress,
     )?;
     let extracted = extractor.finish();
@@ -437,13 +437,13 @@ fn output_dir(output: &Path) -> &Path {
 fn accumulate_series(
     extractor: &mut ChangeExtractor<'_>,
     tile_depth: u8,
-    (spill_dir, budget): (&Path, usize),
+    (spill_place, budget): (&SpillPlace, usize),
     progress: &dyn Progress,
 ) -> Result<Accumulated, ConvertError> {
     let parts = rayon::current_num_threads().clamp(1, 8);
     std::thread::scope(|scope| {
         let mut accumulator =
-            Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_dir, budget);
+            Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_place, budget);
         let produced = (|| -> Result<(), ConvertError> {
             for batch in extractor.by_ref() {
                 if !accumulator.push(batch?) {

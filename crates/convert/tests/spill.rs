@@ -101,7 +101,8 @@ fn same_bytes_when_spilling(inputs: &[SeriesInput], tile_depth: u8) -> Result<()
     )
     .unwrap();
     if kept.cells.total() > 0 {
-        prop_assert!(spilled.spilled_bytes > 0 && spilled.spills > 0);
+        // (Bytes only where some run had closed: a series that never changes spills none.)
+        prop_assert!(spilled.spills > 0);
     }
     prop_assert!(
         std::fs::read(&kept_path).unwrap() == std::fs::read(&spilled_path).unwrap(),

@@ -18,14 +18,13 @@
 //! budget everything stays in memory.
 
 use super::extract::ChangeBatch;
-use super::spill::{SpillReader, SpillWriter};
+use super::spill::{SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
 use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
 use froctomap_temporal::{TemporalError, VoxelObservations};
 use std::borrow::Cow;
-use std::path::Path;
 use std::sync::mpsc::SyncSender;
 use std::sync::Arc;
 use std::thread::{Scope, ScopedJoinHandle};
@@ -97,7 +96,7 @@ type Worked = Result<(SeriesHistory, Option<SpillWriter>, f64), ConvertError>;
 /// Where and when accumulating threads spill.
 #[derive(Clone, Copy, Debug)]
 struct Spilling<'env> {
-    dir: &'env Path,
+    place: &'env SpillPlace,
     /// Bytes of history each thread may hold.
     budget: usize,
 }
@@ -143,10 +142,10 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
     }
 
     /// Keeps the histories within about `budget` bytes in all by spilling them into files
-    /// in `dir` (see the module). Call before the first [`push`](Self::push).
-    pub fn spill_into(mut self, dir: &'env Path, budget: usize) -> Self {
+    /// in `place` (see the module). Call before the first [`push`](Self::push).
+    pub fn spill_into(mut self, place: &'env SpillPlace, budget: usize) -> Self {
         self.spilling = Some(Spilling {
-            dir,
+            place,
             budget: budget / self.parts,
         });
         self
@@ -176,7 +175,7 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
                                 let writer = match &mut spilled {
                                     Some(writer) => writer,
                                     None => spilled.insert(SpillWriter::create(
-                                        spilling.dir,
+                                        &spilling.place.dir()?,
                                         part,
                                         tile_depth,
                                     )?),
@@ -474,11 +473,11 @@ mod tests {
 
     /// The tiles accumulated by `parts` threads, spilling into `spill` (a directory and a
     /// budget) if given.
-    fn tiles_spilling(parts: usize, spill: Option<(&Path, usize)>) -> Vec<Vec<ObservedCell>> {
+    fn tiles_spilling(parts: usize, spill: Option<(&SpillPlace, usize)>) -> Vec<Vec<ObservedCell>> {
         std::thread::scope(|scope| {
             let mut accumulator = Accumulator::new(scope, 14, parts, &Silent);
-            if let Some((dir, budget)) = spill {
-                accumulator = accumulator.spill_into(dir, budget);
+            if let Some((place, budget)) = spill {
+                accumulator = accumulator.spill_into(place, budget);
             }
             for batch in series() {
                 assert!(accumulator.push(batch));
@@ -544,7 +543,8 @@ mod tests {
         let kept = tiles(1);
         for parts in [1, 3] {
             let dir = tempfile::tempdir().unwrap();
-            let spilled = tiles_spilling(parts, Some((dir.path(), 0)));
+            let place = SpillPlace::new(dir.path());
+            let spilled = tiles_spilling(parts, Some((&place, 0)));
             assert_eq!(spilled.len(), kept.len());
             for (a, b) in spilled.iter().zip(&kept) {
                 assert_eq!(a, b, "{parts} threads");

@@ -23,6 +23,39 @@ use std::fs::File;
 use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+/// Where a build spills: a directory in which a [`SpillDir`] is made at the first spill
+/// (a build within its budget never writes there), removed when this is dropped.
+#[derive(Debug)]
+pub(crate) struct SpillPlace {
+    parent: PathBuf,
+    dir: std::sync::Mutex<Option<SpillDir>>,
+}
+
+impl SpillPlace {
+    /// Spill data will go into a new directory inside `parent`.
+    pub fn new(parent: &Path) -> Self {
+        Self {
+            parent: parent.to_path_buf(),
+            dir: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// The spill directory, made on the first call.
+    pub fn dir(&self) -> Result<PathBuf, ConvertError> {
+        let mut dir = self
+            .dir
+            .lock()
+            .map_err(|_| ConvertError::internal("a spilling thread panicked"))?;
+        if dir.is_none() {
+            *dir = Some(SpillDir::create(&self.parent)?);
+        }
+        Ok(dir
+            .as_ref()
+            .map(|d| d.path().to_path_buf())
+            .unwrap_or_default())
+    }
+}
+
 /// A temporary directory for the spill files of one build (`.froct-spill-…` in the chosen
 /// directory), removed with everything in it when dropped — on success and on error — and
 /// registered for removal if the process is stopped by a signal
