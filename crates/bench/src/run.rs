@@ -446,8 +446,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
         train_days,
         heldout_days,
         short_days,
+        step: size_step,
+        half_too,
     } = plan(&args.size, args.heldout_days)?;
-    let step = step_seconds(&args.step)?;
+    let step = step_seconds(size_step.unwrap_or(&args.step))?;
     let tools = system::check_tools()?;
     plots::register_font(system::load_font(Path::new(FONT))?)?;
     let doors = door_file(args.real_doors.as_deref())?;
@@ -603,24 +605,48 @@ pub fn run(args: &RunArgs) -> Result<()> {
         false,
         false,
     )?;
+    let half = if half_too {
+        let half_frames =
+            (froctomap_synth::frames_for(train_days / 2.0, step) as usize).min(train.len());
+        let half_manifest = dataset::prefix_manifest(train, &root, half_frames)?;
+        note(&format!(
+            "building lossless from the first {half_frames} snapshots (memory)"
+        ));
+        Some(spawn_build(
+            &format!("build lossless, first {half_frames} snapshots"),
+            &half_manifest,
+            &root.join("half.froct"),
+            &ChildModel::fremen(None, args.max_order),
+            false,
+            false,
+        )?)
+    } else {
+        None
+    };
     let full = builds[0].clone();
-    let memory = vec![
-        MemoryRow {
-            frames: short.frames,
-            days: short_days,
-            peak_memory_bytes: short.peak_memory_bytes,
-            seconds: short.seconds,
-            file_bytes: short.file_bytes,
-        },
-        MemoryRow {
-            frames: full.frames,
-            days: train_days,
-            peak_memory_bytes: full.peak_memory_bytes,
-            seconds: full.seconds,
-            file_bytes: full.file_bytes,
-        },
-    ];
+    let mut memory = vec![MemoryRow {
+        frames: short.frames,
+        days: short_days,
+        peak_memory_bytes: short.peak_memory_bytes,
+        seconds: short.seconds,
+        file_bytes: short.file_bytes,
+    }];
+    memory.extend(half.iter().map(|half| MemoryRow {
+        frames: half.frames,
+        days: train_days / 2.0,
+        peak_memory_bytes: half.peak_memory_bytes,
+        seconds: half.seconds,
+        file_bytes: half.file_bytes,
+    }));
+    memory.extend([MemoryRow {
+        frames: full.frames,
+        days: train_days,
+        peak_memory_bytes: full.peak_memory_bytes,
+        seconds: full.seconds,
+        file_bytes: full.file_bytes,
+    }]);
     builds.push(short);
+    builds.extend(half);
 
     // Archive baselines.
     note("tar | zstd -19 --long=31 -T0");

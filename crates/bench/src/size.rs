@@ -12,18 +12,30 @@ pub struct Plan {
     pub heldout_days: f64,
     /// The shorter prefix built again for the memory comparison.
     pub short_days: f64,
+    /// The time between snapshots the size stands for (`paper-*`: the paper's 5 s), instead
+    /// of `--step`.
+    pub step: Option<&'static str>,
+    /// Also build the first half for the memory comparison (¼, ½ and the whole series).
+    pub half_too: bool,
 }
 
-/// Reads `ci`, `week`, `4weeks`, `<n>weeks`, `<n>d`/`<n>days` or a plain number of days.
+/// Reads `ci`, `week`, `4weeks`, `<n>weeks`, `<n>d`/`<n>days`, a plain number of days, or
+/// the paper's sampling, one snapshot every 5 s (whatever `--step` says): `paper-day`
+/// (17,280 snapshots, about 3.6 GB of .bt) and `paper-week` (120,960, about 25 GB), whose
+/// memory comparison builds ¼, ½ and the whole series.
 ///
 /// `ci` is two training days and one held-out day (a few minutes on two cores); every
 /// other size holds out two days. The memory comparison builds a quarter of the series
 /// again (half for series under four days).
 pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
     let s = size.trim().to_ascii_lowercase();
+    let paper = s.starts_with("paper-");
     let (train, default_heldout) = match s.as_str() {
         "ci" => (2.0, 1.0),
         "week" => (7.0, 2.0),
+        // A held-out day at 5 s is 17,280 more snapshots: half a day is plenty.
+        "paper-day" => (1.0, 0.5),
+        "paper-week" => (7.0, 0.5),
         _ => {
             let days = if let Some(n) = s
                 .strip_suffix("weeks")
@@ -51,10 +63,13 @@ pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
     } else {
         train / 2.0
     };
+    let short = if paper { train / 4.0 } else { short };
     Ok(Plan {
         train_days: train,
         heldout_days: heldout,
         short_days: short,
+        step: paper.then_some("5s"),
+        half_too: paper,
     })
 }
 
@@ -89,7 +104,14 @@ mod tests {
         assert_eq!(plan("3d", Some(0.5)).unwrap().heldout_days, 0.5);
         assert_eq!(plan("10", None).unwrap().train_days, 10.0);
         assert_eq!(plan("3days", None).unwrap().short_days, 1.5);
-        for bad in ["", "x", "0", "-1", "nan", "weeks", "99999"] {
+        let p = plan("paper-day", None).unwrap();
+        assert_eq!(
+            (p.train_days, p.short_days, p.step, p.half_too),
+            (1.0, 0.25, Some("5s"), true)
+        );
+        assert_eq!(plan("paper-week", None).unwrap().train_days, 7.0);
+        assert_eq!(plan("week", None).unwrap().step, None);
+        for bad in ["", "x", "0", "-1", "nan", "weeks", "99999", "paper-year"] {
             assert!(plan(bad, None).is_err(), "{bad}");
         }
         assert!(plan("ci", Some(0.0)).is_err());

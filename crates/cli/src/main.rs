@@ -18,6 +18,7 @@ mod manual;
 mod plugins;
 mod progress;
 mod series;
+mod signals;
 mod ui;
 
 use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
@@ -163,6 +164,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    signals::clean_up_on_signals();
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
         None => froctomap_convert::Zone::utc(),
         Some(Ok(zone)) => zone,

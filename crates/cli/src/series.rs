@@ -161,6 +161,17 @@ pub struct BuildArgs {
     /// given.
     #[arg(long, value_name = "TIME")]
     created: Option<String>,
+    /// Memory for the accumulated histories (e.g. 512MiB, 2GiB, 4G, or bytes). What grows
+    /// with the number of snapshots is spilled to disk beyond it and read back tile by tile,
+    /// so long series build in bounded memory; the file is the same whatever the budget.
+    /// Reading and fitting need memory on top of it.
+    #[arg(long, value_name = "SIZE", default_value = "1GiB", value_parser = byte_size)]
+    memory: u64,
+    /// Directory for the spill data (default: the output's directory). It goes into a
+    /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
+    /// stopped by Ctrl-C/SIGTERM.
+    #[arg(long, value_name = "DIR")]
+    tmp_dir: Option<PathBuf>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -168,6 +179,32 @@ pub struct BuildArgs {
     /// writing anything.
     #[arg(long)]
     dry_run: bool,
+}
+
+/// `--memory`: bytes, or a number with a unit (K/M/G/T, binary whatever the spelling:
+/// `512M`, `512MiB` and `512MB` are all 512 × 2^20 bytes).
+fn byte_size(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let digits = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(digits);
+    let shift = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        _ => return Err("expected bytes or a size such as 512MiB, 2GiB, 4G".into()),
+    };
+    let value: f64 = number
+        .parse()
+        .map_err(|_| "expected a number of bytes, e.g. 512MiB or 2GiB".to_string())?;
+    let bytes = value * (1u64 << shift) as f64;
+    if !(bytes.is_finite() && bytes >= 0.0 && bytes < u64::MAX as f64) {
+        return Err("out of range".into());
+    }
+    Ok(bytes as u64)
 }
 
 fn model_config(args: &BuildArgs, models: &ModelRegistry) -> Result<ModelConfig> {
@@ -296,6 +333,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         backend: Some(ui.backend),
         metadata,
         created: creation_time(ui, args)?,
+        memory: args.memory,
+        tmp_dir: args.tmp_dir.clone(),
         ..BuildOptions::default()
     };
     ui.note(&format!(
@@ -366,6 +405,13 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             report.model_seconds,
             peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
         )?;
+        if report.spilled_bytes > 0 {
+            outln!(
+                "spilled:     {} of history to disk to stay within --memory ({} spills)",
+                mib(report.spilled_bytes),
+                report.spills
+            )?;
+        }
     }
     if !report.warnings.is_empty() && !ui.quiet {
         for (path, warning) in report.warnings.iter().take(10) {
@@ -686,4 +732,20 @@ fn print_eval(report: &EvalReport) -> std::io::Result<()> {
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::byte_size;
+
+    #[test]
+    fn memory_sizes_read_with_binary_units() {
+        assert_eq!(byte_size("1GiB"), Ok(1 << 30));
+        assert_eq!(byte_size("512M"), Ok(512 << 20));
+        assert_eq!(byte_size("1.5 kb"), Ok(1536));
+        assert_eq!(byte_size("0"), Ok(0));
+        assert!(byte_size("lots").is_err());
+        assert!(byte_size("5 parsecs").is_err());
+        assert!(byte_size("99999999999T").is_err());
+    }
 }

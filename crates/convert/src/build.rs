@@ -11,7 +11,8 @@
 //! 3. [`accumulate`] — `Accumulator`: the batches applied in time order to the cells'
 //!    histories, on threads split by space; → `Accumulated`, whose `into_tiles` streams one
 //!    `TileHistory` (the cells of a tile with their observations) per tile in Morton order.
-//!    This is the seam where a spilling accumulator bounds memory (see its module).
+//!    Within a memory budget ([`BuildOptions::memory`]), what grows with the series is
+//!    spilled to files in a temporary directory ([`spill`]) and read back tile by tile.
 //! 4. [`fit`] — `TileFitter`: a `TileHistory` → a `FittedTile` (cells as stored, counts by
 //!    class); `fit_and_write` drives stages 4 and 5 over the tile stream in parallel batches.
 //! 5. [`write`](mod@write) — `TileEncoder` (a tile's cells → bytes, in parallel) and `TileWriter` (the
@@ -27,6 +28,7 @@ mod check;
 mod extract;
 mod fit;
 mod merge;
+mod spill;
 #[cfg(test)]
 mod test_support;
 mod write;
@@ -48,6 +50,7 @@ use froctomap_formats::{Backend, FormatError, ReadOptions};
 use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
+use spill::SpillPlace;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use write::{TileEncoder, TileWriter};
@@ -88,7 +91,22 @@ pub struct BuildOptions {
     /// time makes the file reproducible (the build's timings are then not stored either): the
     /// same inputs and options give the same bytes.
     pub created: Option<Timestamp>,
+    /// Memory budget of the accumulated histories, in bytes (default 1 GiB). What grows with
+    /// the number of snapshots (each cell's closed runs, the regions partial views hid) is
+    /// spilled to disk when the histories reach it, and read back one tile at a time for
+    /// fitting, so peak memory depends on the map and this budget, not on the length of
+    /// the series. The cells themselves, the snapshots being read and the tiles being
+    /// fitted come on top. The output is the same whatever the budget; `0` spills after
+    /// every snapshot.
+    pub memory: u64,
+    /// Directory for the spill data (default: the output's directory). The data is kept in
+    /// a hidden `.froct-spill-…` directory there, removed when the build ends, whether it
+    /// succeeds or fails (and on Ctrl-C/SIGTERM in the command-line tool).
+    pub tmp_dir: Option<PathBuf>,
 }
+
+/// The default [`BuildOptions::memory`]: 1 GiB.
+pub const DEFAULT_BUILD_MEMORY: u64 = 1 << 30;
 
 impl Default for BuildOptions {
     fn default() -> Self {
@@ -106,6 +124,8 @@ impl Default for BuildOptions {
             metadata: Map::new(),
             batch: 8 * rayon::current_num_threads().max(1),
             created: None,
+            memory: DEFAULT_BUILD_MEMORY,
+            tmp_dir: None,
         }
     }
 }
@@ -193,6 +213,11 @@ pub struct BuildReport {
     pub accumulate_seconds: f64,
     /// Seconds spent fitting, encoding and writing.
     pub model_seconds: f64,
+    /// Bytes of history spilled to disk to stay within [`BuildOptions::memory`] (0: all
+    /// stayed in memory). Not stored in the file, whose bytes do not depend on the budget.
+    pub spilled_bytes: u64,
+    /// The most times one accumulating thread spilled.
+    pub spills: usize,
 }
 
 /// The time axis of sorted, distinct instants: a regular grid (with missing samples) when
@@ -320,8 +345,18 @@ pub fn build(
             max_tiles: context.limits().max_snapshot_tiles,
         },
     };
+    let spill_place = SpillPlace::new(match &options.tmp_dir {
+        Some(dir) => dir.as_path(),
+        None => output_dir(output),
+    });
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
-    let accumulated = accumulate_series(&mut extractor, options.tile_depth, progress)?;
+    let budget = usize::try_from(options.memory).unwrap_or(usize::MAX);
+    let accumulated = accumulate_series(
+        &mut extractor,
+        options.tile_depth,
+        (&spill_place, budget),
+        progress,
+    )?;
     let extracted = extractor.finish();
     let mut skipped = checked.skipped;
     skipped.extend(extracted.skipped);
@@ -364,6 +399,7 @@ pub fn build(
     let mut writer = TileWriter::create(output, &header)?;
     progress.stage("modelling cells", accumulated.cell_count() as u64);
     let accumulate_seconds = accumulated.busy_seconds();
+    let (spilled_bytes, spills) = (accumulated.spilled_bytes(), accumulated.spills());
     let tiles = accumulated.into_tiles(axis.len(), &absent);
     let fitter = TileFitter::new(&axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
@@ -413,7 +449,17 @@ pub fn build(
         read_seconds,
         accumulate_seconds,
         model_seconds,
+        spilled_bytes,
+        spills,
     })
+}
+
+/// The directory an output goes into.
+fn output_dir(output: &Path) -> &Path {
+    match output.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    }
 }
 
 /// Runs extraction and accumulation side by side: changes are extracted in parallel batches
@@ -421,11 +467,13 @@ pub fn build(
 fn accumulate_series(
     extractor: &mut ChangeExtractor<'_>,
     tile_depth: u8,
+    (spill_place, budget): (&SpillPlace, usize),
     progress: &dyn Progress,
 ) -> Result<Accumulated, ConvertError> {
     let parts = rayon::current_num_threads().clamp(1, 8);
     std::thread::scope(|scope| {
-        let mut accumulator = Accumulator::new(scope, tile_depth, parts, progress);
+        let mut accumulator =
+            Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_place, budget);
         let produced = (|| -> Result<(), ConvertError> {
             for batch in extractor.by_ref() {
                 if !accumulator.push(batch?) {

@@ -318,6 +318,16 @@ pub enum ConvertError {
         /// That input's time.
         time: Timestamp,
     },
+    /// The build's spill data (runs set aside on disk to bound memory, see
+    /// `BuildOptions::memory`) could not be written or read back.
+    #[error("{}: spill data of the build: {source}", path.display())]
+    Spill {
+        /// The spill file or directory.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
     /// A fault of froctomap itself, not of the inputs (please report it).
     #[error("internal error: {what}")]
     Internal {

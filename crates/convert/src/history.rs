@@ -10,6 +10,14 @@
 //! Cells are the common refinement of every snapshot seen: a cell is split only when a
 //! change boundary falls inside it, and its history is inherited by its eight children.
 //! Cells are never coarser than a tile of the output file.
+//!
+//! **Spilling.** What grows with the series — closed runs and the unobserved gaps — can be
+//! handed out between snapshots ([`SeriesHistory::spill`]): each cell's runs up to now,
+//! already cut by every gap recorded so far, after which the gaps are dropped. This is
+//! exact because a gap recorded later never reaches back into runs that were closed (or
+//! cut) before it: its start lies inside the cell's open run. At the end,
+//! [`SeriesHistory::finish_with`] prepends what was spilled for each cell (and for the
+//! coarser cells it was split from) to the runs still in memory.
 
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, StateChange, TREE_DEPTH};
 use froctomap_temporal::{varint, Run, TemporalError, VoxelObservations};
@@ -139,7 +147,13 @@ pub struct SeriesHistory {
     tile_depth: u8,
     last_sample: Option<u32>,
     changed_voxels: u64,
+    /// Bytes allocated for closed runs (capacity), the part of memory that grows with time.
+    run_bytes: usize,
 }
+
+/// Estimated bytes of one cell held in memory besides its runs (the map node and the fixed
+/// part of its history), for [`SeriesHistory::memory_bytes`].
+const CELL_BYTES: usize = 96;
 
 impl SeriesHistory {
     /// An empty history whose cells will never be coarser than a depth-`tile_depth` node.
@@ -151,7 +165,19 @@ impl SeriesHistory {
             tile_depth: tile_depth.clamp(1, TREE_DEPTH),
             last_sample: None,
             changed_voxels: 0,
+            run_bytes: 0,
         }
+    }
+
+    /// An estimate of the memory held: the cells, their closed runs and the gaps.
+    pub fn memory_bytes(&self) -> usize {
+        self.cells.len() * CELL_BYTES + self.spillable_bytes()
+    }
+
+    /// The part of [`memory_bytes`](Self::memory_bytes) that [`spill`](Self::spill) frees:
+    /// closed runs and gaps, which grow with the series.
+    pub fn spillable_bytes(&self) -> usize {
+        self.run_bytes + (self.gaps.len() + 1) * std::mem::size_of::<Gap>()
     }
 
     /// Number of cells so far.
@@ -202,7 +228,10 @@ impl SeriesHistory {
                 unseen.push((cursor, start));
             }
             cursor = start + voxels_per_node(cell.depth);
-            match cell.observe(sample, change.new) {
+            let capacity = cell.runs.bytes.capacity();
+            let reappeared = cell.observe(sample, change.new);
+            self.run_bytes += cell.runs.bytes.capacity() - capacity;
+            match reappeared {
                 Some(from) => match &mut self.growing_gap {
                     Some(gap) if gap.from == from => gap.end = cursor,
                     growing => {
@@ -262,6 +291,9 @@ impl SeriesHistory {
             };
             let depth = parent.depth + 1;
             let size = voxels_per_node(depth);
+            // Seven more copies of the runs (a clone allocates just their length).
+            self.run_bytes += 8 * parent.runs.bytes.len();
+            self.run_bytes -= parent.runs.bytes.capacity();
             for child in 0..8 {
                 let history = CellHistory {
                     depth,
@@ -276,46 +308,191 @@ impl SeriesHistory {
     /// cell's observations in Morton order, with the samples in `absent` (sorted: samples
     /// with no snapshot) and the cell's unobserved gaps removed from the runs.
     pub fn finish(
-        mut self,
+        self,
         axis_len: u32,
         absent: &[u32],
     ) -> impl Iterator<Item = Result<(MortonCode, u8, VoxelObservations), TemporalError>> + '_ {
+        self.finish_with(axis_len, absent, |_, _, _| Ok::<(), TemporalError>(()))
+            .map(|cell| {
+                let (start, depth, packed) = cell?;
+                Ok((start, depth, packed.unpack()?))
+            })
+    }
+
+    /// [`finish`](Self::finish) for a history that was [`spill`](Self::spill)ed, with each
+    /// cell's observations still packed: `spilled` appends, for the cell at `start` of
+    /// `depth`, the runs spilled for it and for the coarser cells it was split from, in the
+    /// order they were spilled.
+    pub fn finish_with<'a, E>(
+        mut self,
+        axis_len: u32,
+        absent: &'a [u32],
+        mut spilled: impl FnMut(u64, u8, &mut Vec<Run>) -> Result<(), E> + 'a,
+    ) -> impl Iterator<Item = Result<(MortonCode, u8, PackedObservations), E>> + 'a {
         self.gaps.extend(self.growing_gap.take());
-        let mut gaps = std::mem::take(&mut self.gaps);
-        gaps.sort_unstable_by_key(|gap| gap.start);
-        let mut next_gap = 0usize;
-        // The gaps that contain the current cell (cells never straddle a gap's bounds).
-        let mut containing: Vec<Gap> = Vec::new();
-        let mut first_end = u64::MAX;
-        let mut cut: Vec<(u32, u32)> = Vec::new();
+        let mut containing = ContainingGaps::new(std::mem::take(&mut self.gaps));
+        let mut earlier: Vec<Run> = Vec::new();
         self.cells.into_iter().map(move |(start, mut cell)| {
             cell.finish(axis_len);
-            if start >= first_end {
-                containing.retain(|gap| gap.end > start);
-                first_end = containing.iter().map(|g| g.end).min().unwrap_or(u64::MAX);
-            }
-            while let Some(&gap) = gaps.get(next_gap).filter(|g| g.start <= start) {
-                next_gap += 1;
-                if gap.end > start {
-                    first_end = first_end.min(gap.end);
-                    containing.push(gap);
-                }
-            }
-            cut.clear();
-            cut.extend(containing.iter().map(|gap| (gap.from, gap.to)));
-            cut.sort_unstable();
-            let runs: Vec<(u32, u32, Occupancy)> = cell
-                .runs
+            let cut = containing.at(start);
+            earlier.clear();
+            spilled(start, cell.depth, &mut earlier)?;
+            // Spilled runs were cut by the gaps of their time; the gaps left are later.
+            let runs = earlier
                 .iter()
-                .flat_map(|run| without_gaps(run, &cut))
-                .flat_map(|run| without_absent(run, absent))
-                .collect();
+                .copied()
+                .chain(cell.runs.iter().flat_map(|run| without_gaps(run, cut)))
+                .flat_map(|run| without_absent(run, absent));
             Ok((
                 MortonCode(start),
                 cell.depth,
-                VoxelObservations::from_runs(runs)?,
+                PackedObservations::pack(runs),
             ))
         })
+    }
+
+    /// Hands out what grows with the series, between two snapshots: `sink` gets, for each
+    /// cell in Morton order with anything to hand out (its start, its depth), its closed
+    /// runs and the parts of its open run before the last gap recorded in it, all cut by
+    /// the gaps recorded so far; the runs are then dropped, the open runs shortened and the
+    /// gaps forgotten. [`finish_with`](Self::finish_with) must be given the runs back.
+    pub fn spill<E>(
+        &mut self,
+        mut sink: impl FnMut(u64, u8, &[Run]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        self.gaps.extend(self.growing_gap.take());
+        let mut containing = ContainingGaps::new(std::mem::take(&mut self.gaps));
+        let mut pieces: Vec<Run> = Vec::new();
+        for (&start, cell) in self.cells.iter_mut() {
+            let cut = containing.at(start);
+            pieces.clear();
+            pieces.extend(cell.runs.iter().flat_map(|run| without_gaps(run, cut)));
+            if let Some((state, first)) = &mut cell.open {
+                // Gaps recorded inside the open run end before now: the run's pieces before
+                // the last of them are final, as they would be cut at the end.
+                for &(from, to) in cut {
+                    if to <= *first {
+                        continue;
+                    }
+                    if from > *first {
+                        pieces.push(Run {
+                            first: *first,
+                            len: from - *first,
+                            state: *state,
+                        });
+                    }
+                    *first = (*first).max(to);
+                }
+            }
+            if !pieces.is_empty() {
+                sink(start, cell.depth, &pieces)?;
+            }
+            cell.runs = PackedRuns::default();
+        }
+        self.run_bytes = 0;
+        Ok(())
+    }
+}
+
+/// The gaps (sorted by start) that contain each cell in turn, for cells visited in Morton
+/// order (cells never straddle a gap's bounds).
+struct ContainingGaps {
+    gaps: Vec<Gap>,
+    next_gap: usize,
+    containing: Vec<Gap>,
+    first_end: u64,
+    /// The `(from, to)` sample ranges of the gaps containing the current cell, sorted.
+    cut: Vec<(u32, u32)>,
+}
+
+impl ContainingGaps {
+    fn new(mut gaps: Vec<Gap>) -> Self {
+        gaps.sort_unstable_by_key(|gap| gap.start);
+        Self {
+            gaps,
+            next_gap: 0,
+            containing: Vec::new(),
+            first_end: u64::MAX,
+            cut: Vec::new(),
+        }
+    }
+
+    /// The sample ranges to cut out of the runs of the cell at `start` (after the cells
+    /// before it).
+    fn at(&mut self, start: u64) -> &[(u32, u32)] {
+        if start >= self.first_end {
+            self.containing.retain(|gap| gap.end > start);
+            self.first_end = self
+                .containing
+                .iter()
+                .map(|g| g.end)
+                .min()
+                .unwrap_or(u64::MAX);
+        }
+        while let Some(&gap) = self.gaps.get(self.next_gap).filter(|g| g.start <= start) {
+            self.next_gap += 1;
+            if gap.end > start {
+                self.first_end = self.first_end.min(gap.end);
+                self.containing.push(gap);
+            }
+        }
+        self.cut.clear();
+        self.cut
+            .extend(self.containing.iter().map(|gap| (gap.from, gap.to)));
+        self.cut.sort_unstable();
+        &self.cut
+    }
+}
+
+/// A cell's observation runs as `(first, len, state)`, packed as varints until they are
+/// needed: three bytes or so a run where [`VoxelObservations`] takes twelve, so that the
+/// tiles waiting to be fitted hold a fraction of the memory. Unpacking gives exactly the
+/// runs packed (checked then, as [`VoxelObservations::from_runs`] checks them).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PackedObservations {
+    bytes: Box<[u8]>,
+    runs: usize,
+}
+
+impl PackedObservations {
+    /// Packs runs (any `u32` values: they come back as given).
+    pub fn pack(runs: impl IntoIterator<Item = (u32, u32, Occupancy)>) -> Self {
+        let mut bytes = Vec::new();
+        let mut end = 0u32;
+        let mut count = 0usize;
+        for (first, len, state) in runs {
+            varint::write_u32(&mut bytes, first.wrapping_sub(end));
+            varint::write_u64(
+                &mut bytes,
+                u64::from(len) << 1 | u64::from(state.is_occupied()),
+            );
+            end = first.wrapping_add(len);
+            count += 1;
+        }
+        Self {
+            bytes: bytes.into_boxed_slice(),
+            runs: count,
+        }
+    }
+
+    /// Runs packed.
+    pub fn run_count(&self) -> usize {
+        self.runs
+    }
+
+    /// The observations.
+    pub fn unpack(&self) -> Result<VoxelObservations, TemporalError> {
+        let mut reader = varint::Reader::new(&self.bytes);
+        let mut runs = Vec::with_capacity(self.runs);
+        let mut end = 0u32;
+        while reader.remaining() > 0 {
+            let first = end.wrapping_add(reader.u32()?);
+            let packed = reader.u64()?;
+            let len = (packed >> 1) as u32;
+            end = first.wrapping_add(len);
+            runs.push((first, len, Occupancy::from(packed & 1 == 1)));
+        }
+        VoxelObservations::from_runs(runs)
     }
 }
 
@@ -482,6 +659,73 @@ mod tests {
             without_absent(run, &[1, 3, 4, 7, 9]),
             vec![(2, 1, Occupancy::Free), (5, 2, Occupancy::Free)]
         );
+    }
+
+    /// Runs spilled by [`SeriesHistory::spill`], kept in memory: (cell start, depth, runs).
+    type Spilled = Vec<(u64, u8, Vec<Run>)>;
+
+    /// The runs spilled for the cell at `start` or the coarser cells it was split from.
+    fn spilled_for(spilled: &Spilled, start: u64, out: &mut Vec<Run>) {
+        for (s, d, runs) in spilled {
+            if *s <= start && start < s + voxels_per_node(*d) {
+                out.extend_from_slice(runs);
+            }
+        }
+    }
+
+    proptest! {
+        /// Spilling between any snapshots gives the same cells as keeping everything, with
+        /// partial views (gaps), coarse cells split later, and absent samples.
+        #[test]
+        fn spilling_changes_nothing(
+            frames in proptest::collection::vec(proptest::collection::vec((0u16..24, 13u8..=16, proptest::option::of(any::<bool>())), 0..12), 1..10),
+            spill_after in proptest::collection::btree_set(0usize..10, 0..10),
+            absent in proptest::collection::btree_set(0u32..12, 0..3),
+        ) {
+            let mut kept = SeriesHistory::new(11);
+            let mut spilling = SeriesHistory::new(11);
+            let mut spilled: Spilled = Vec::new();
+            let mut previous: Vec<Leaf> = Vec::new();
+            let mut sample = 0u32;
+            for (i, frame) in frames.into_iter().enumerate() {
+                while absent.contains(&sample) { sample += 1; }
+                let mut leaves: Vec<Leaf> = Vec::new();
+                for (slot, depth, state) in frame {
+                    if let Some(occupied) = state {
+                        let l = leaf(slot * 4, depth, occupied);
+                        if leaves.iter().all(|o| o.end() <= l.start.0 || l.end() <= o.start.0) {
+                            leaves.push(l);
+                        }
+                    }
+                }
+                let snapshot = Snapshot::from_leaves(0.1, leaves).unwrap();
+                let diff = changes(&previous, snapshot.leaves());
+                kept.apply_changes(sample, &diff).unwrap();
+                spilling.apply_changes(sample, &diff).unwrap();
+                if spill_after.contains(&i) {
+                    spilling.spill(|start, depth, runs| {
+                        spilled.push((start, depth, runs.to_vec()));
+                        Ok::<(), TemporalError>(())
+                    }).unwrap();
+                    prop_assert!(spilling.spillable_bytes() <= std::mem::size_of::<Gap>());
+                }
+                previous = snapshot.into_leaves();
+                sample += 1;
+            }
+            let absent: Vec<u32> = absent.into_iter().filter(|&s| s < sample).collect();
+            let expected: Vec<_> = kept.finish(sample, &absent).map(Result::unwrap).collect();
+            let got: Vec<_> = spilling
+                .finish_with(sample, &absent, |start, _, out| {
+                    spilled_for(&spilled, start, out);
+                    Ok::<(), TemporalError>(())
+                })
+                .map(|cell| {
+                    let (start, depth, packed) = cell.unwrap();
+                    (start, depth, packed.unpack().unwrap())
+                })
+                .collect();
+            prop_assert_eq!(got, expected);
+        }
     }
 
     proptest! {

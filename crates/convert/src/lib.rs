@@ -52,7 +52,7 @@ mod time;
 
 pub use build::{
     append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,
-    ClassCounts,
+    ClassCounts, DEFAULT_BUILD_MEMORY,
 };
 pub use context::{Context, Limits, FROCT};
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};

@@ -57,14 +57,46 @@ pub fn write_atomically(
     Ok(())
 }
 
+/// A temporary output file: removed when dropped unless [`persist`](Self::persist)ed, and
+/// listed for removal on a signal while it lives ([`crate::cleanup`]).
+#[derive(Debug)]
+pub struct TemporaryFile {
+    file: tempfile::NamedTempFile,
+    _registered: crate::cleanup::Registered,
+}
+
+impl TemporaryFile {
+    /// The open file.
+    pub fn as_file(&self) -> &std::fs::File {
+        self.file.as_file()
+    }
+
+    /// Where it is.
+    pub fn path(&self) -> &Path {
+        self.file.path()
+    }
+
+    /// Renames it over `path` (atomically on POSIX file systems within one directory).
+    pub fn persist(self, path: &Path) -> Result<std::fs::File, tempfile::PersistError> {
+        self.file.persist(path)
+    }
+}
+
+impl Write for TemporaryFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.file.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.file.flush()
+    }
+}
+
 /// A temporary file in `path`'s directory (named `prefix…tmp`) for an output that will be
 /// renamed over `path`. Its permissions are those the output would get from a plain
 /// `File::create(path)`, as upstream OctoMap's tools give theirs: the mode of the file it
 /// replaces, else `0666` less the process's umask (a temporary file alone would be `0600`).
-pub fn temporary_beside(
-    path: &Path,
-    prefix: &std::ffi::OsStr,
-) -> io::Result<tempfile::NamedTempFile> {
+pub fn temporary_beside(path: &Path, prefix: &std::ffi::OsStr) -> io::Result<TemporaryFile> {
     let dir = match path.parent() {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),
@@ -78,11 +110,15 @@ pub fn temporary_beside(
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
     let temp = builder.tempfile_in(dir)?;
+    let registered = crate::cleanup::Registered::new(temp.path());
     if let Ok(replaced) = std::fs::metadata(path) {
         // A replaced file keeps its mode (set without the umask, as truncating it would).
         temp.as_file().set_permissions(replaced.permissions())?;
     }
-    Ok(temp)
+    Ok(TemporaryFile {
+        file: temp,
+        _registered: registered,
+    })
 }
 
 #[cfg(all(test, unix))]

@@ -18,13 +18,14 @@
 mod atomic_file;
 pub mod calendar;
 mod change;
+pub mod cleanup;
 mod error;
 mod key;
 mod leaf;
 mod snapshot;
 mod time;
 
-pub use atomic_file::{temporary_beside, write_atomically, AtomicWriteError};
+pub use atomic_file::{temporary_beside, write_atomically, AtomicWriteError, TemporaryFile};
 pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;
 pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};

@@ -6,10 +6,10 @@ use crate::index::{encode_footer, encode_index, TileEntry};
 #[cfg(doc)]
 use crate::tile::encode_tile;
 use crate::tile::{EncodedTile, StreamSizes};
+use froctomap_core::TemporaryFile;
 use serde_json::{Map, Value};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use tempfile::NamedTempFile;
 
 /// Writes a FROctomap file: header first, then tiles in increasing Morton order as they are
 /// encoded, then index and footer on [`FroctWriter::finish`]. The writer seals each tile
@@ -20,7 +20,7 @@ use tempfile::NamedTempFile;
 /// or failed write leaves nothing behind (and never damages an existing file).
 pub struct FroctWriter {
     path: PathBuf,
-    out: BufWriter<NamedTempFile>,
+    out: BufWriter<TemporaryFile>,
     header_len: u64,
     offset: u64,
     entries: Vec<TileEntry>,

@@ -9,17 +9,18 @@
 //! first batch's changes, and each range is accumulated by a thread of its own while the
 //! next batch is extracted.
 //!
-//! **Seam for a bounded-memory build.** This accumulator keeps every history in memory until
-//! the end, so its memory grows with the stored changes. A spilling accumulator replaces it
-//! behind the same three calls: `push` appends each tile's closed runs to a per-tile spill
-//! file once a memory budget is reached, `finish` joins its threads, and `into_tiles` reads
-//! the spill files back one tile at a time (merged with what is still in memory), yielding
-//! the same [`TileHistory`] values in the same order, so the fitter and writer do not change.
-//! An `append` starts the histories from an existing file's tiles instead of from nothing.
+//! **Bounded memory.** Given a budget ([`Accumulator::spill_into`]), each thread keeps its
+//! histories within its share of it: after a snapshot that takes them over, what grows with
+//! the series (closed runs, unobserved gaps) is spilled to the thread's file in a spill
+//! directory ([`super::spill`]), and `into_tiles` reads the files back one tile at a time,
+//! merged with what is still in memory, yielding exactly the [`TileHistory`] values an
+//! accumulator without a budget yields, so the fitter and writer do not change. Without a
+//! budget everything stays in memory.
 
 use super::extract::ChangeBatch;
+use super::spill::{SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
-use crate::history::SeriesHistory;
+use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
 use froctomap_temporal::{TemporalError, VoxelObservations};
@@ -32,21 +33,90 @@ use std::time::Instant;
 /// A cell of the output: its first voxel, its depth and what was observed in it.
 pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
 
-/// The cells of one tile of the output, in Morton order, with their observations.
-#[derive(Debug)]
+/// A cell with its observations packed ([`PackedObservations`]).
+type PackedCell = (MortonCode, u8, PackedObservations);
+
+/// The cells of one tile of the output, in Morton order, with their observations — kept
+/// packed, since the tiles waiting to be fitted would otherwise hold most of a long
+/// series' memory; each cell is unpacked when it is fitted ([`cells`](Self::cells)).
+#[derive(Debug, Default)]
 pub(crate) struct TileHistory {
-    pub cells: Vec<ObservedCell>,
+    cells: Vec<PackedCell>,
+    runs: usize,
 }
 
 impl TileHistory {
+    /// A tile of these cells (in Morton order).
+    pub fn new(cells: Vec<ObservedCell>) -> Self {
+        let mut tile = Self::default();
+        for (start, depth, observations) in cells {
+            let runs = observations
+                .runs()
+                .iter()
+                .map(|run| (run.first, run.len, run.state));
+            tile.push((start, depth, PackedObservations::pack(runs)));
+        }
+        tile
+    }
+
+    fn push(&mut self, cell: PackedCell) {
+        self.runs += cell.2.run_count();
+        self.cells.push(cell);
+    }
+
+    /// Its cells.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
     /// Observation runs of all its cells (what fitting the tile holds in memory).
     pub fn runs(&self) -> usize {
-        self.cells.iter().map(|cell| cell.2.runs().len()).sum()
+        self.runs
+    }
+
+    /// The cells, unpacked one at a time.
+    pub fn cells(&self) -> impl Iterator<Item = Result<ObservedCell, TemporalError>> + '_ {
+        self.cells
+            .iter()
+            .map(|(start, depth, packed)| Ok((*start, *depth, packed.unpack()?)))
+    }
+
+    /// The first voxel of its first cell (`None`: no cell).
+    pub fn first_start(&self) -> Option<MortonCode> {
+        self.cells.first().map(|cell| cell.0)
+    }
+
+    /// All the cells, unpacked (an append's merge works on whole tiles).
+    pub fn into_cells(self) -> Result<Vec<ObservedCell>, TemporalError> {
+        self.cells().collect()
+    }
+
+    /// All the cells, unpacked.
+    #[cfg(test)]
+    pub fn unpacked(&self) -> Vec<ObservedCell> {
+        self.cells().map(Result::unwrap).collect()
     }
 }
 
-/// What an accumulating thread hands back: its part of the history and its busy seconds.
-type Worked = Result<(SeriesHistory, f64), ConvertError>;
+/// What an accumulating thread hands back: its part of the history, what it spilled (if
+/// anything) and its busy seconds.
+type Worked = Result<(SeriesHistory, Option<SpillWriter>, f64), ConvertError>;
+
+/// Where and when accumulating threads spill.
+#[derive(Clone, Copy, Debug)]
+struct Spilling<'env> {
+    place: &'env SpillPlace,
+    /// Bytes of history each thread may hold.
+    budget: usize,
+}
+
+impl Spilling<'_> {
+    /// Whether `history` should be spilled now: over budget, with enough to spill that it
+    /// is worth a pass over the cells (the cells themselves are not spilled).
+    fn due(&self, history: &SeriesHistory) -> bool {
+        history.memory_bytes() > self.budget && history.spillable_bytes() >= self.budget / 8
+    }
+}
 
 /// The in-memory accumulator: one thread per range of space, started by the first batch.
 pub(crate) struct Accumulator<'scope, 'env> {
@@ -54,6 +124,7 @@ pub(crate) struct Accumulator<'scope, 'env> {
     tile_depth: u8,
     parts: usize,
     progress: &'env dyn Progress,
+    spilling: Option<Spilling<'env>>,
     workers: Vec<(
         SyncSender<Arc<ChangeBatch>>,
         ScopedJoinHandle<'scope, Worked>,
@@ -74,8 +145,19 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
             tile_depth,
             parts: parts.max(1),
             progress,
+            spilling: None,
             workers: Vec::new(),
         }
+    }
+
+    /// Keeps the histories within about `budget` bytes in all by spilling them into files
+    /// in `place` (see the module). Call before the first [`push`](Self::push).
+    pub fn spill_into(mut self, place: &'env SpillPlace, budget: usize) -> Self {
+        self.spilling = Some(Spilling {
+            place,
+            budget: budget / self.parts,
+        });
+        self
     }
 
     /// Hands a batch (later than the ones before) to the accumulating threads. `false` when a
@@ -88,21 +170,34 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
                 let progress = (part == 0).then_some(self.progress);
                 let (sender, receiver) = std::sync::mpsc::sync_channel::<Arc<ChangeBatch>>(1);
                 let tile_depth = self.tile_depth;
+                let spilling = self.spilling;
                 let worker = self.scope.spawn(move || -> Worked {
                     let mut history = SeriesHistory::new(tile_depth);
+                    let mut spilled: Option<SpillWriter> = None;
                     let mut busy = 0.0;
                     for batch in receiver {
                         let started = Instant::now();
                         for snapshot in batch.iter() {
                             history
                                 .apply_changes(snapshot.sample, &clip(&snapshot.changes, range))?;
+                            if let Some(spilling) = spilling.filter(|s| s.due(&history)) {
+                                let writer = match &mut spilled {
+                                    Some(writer) => writer,
+                                    None => spilled.insert(SpillWriter::create(
+                                        &spilling.place.dir()?,
+                                        part,
+                                        tile_depth,
+                                    )?),
+                                };
+                                writer.spill(&mut history)?;
+                            }
                             if let Some(progress) = progress {
                                 progress.advance(1);
                             }
                         }
                         busy += started.elapsed().as_secs_f64();
                     }
-                    Ok((history, busy))
+                    Ok((history, spilled, busy))
                 });
                 self.workers.push((sender, worker));
             }
@@ -117,17 +212,38 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
     pub fn finish(self) -> Result<Accumulated, ConvertError> {
         let mut parts = Vec::with_capacity(self.workers.len());
         let mut busy_seconds = 0.0f64;
+        let mut spills = 0;
+        let mut failed = None;
+        // Every thread is joined, also after one failed.
         for (sender, worker) in self.workers {
             drop(sender);
-            let (history, seconds) = worker
+            let worked = worker
                 .join()
-                .map_err(|_| ConvertError::internal("an accumulating thread panicked"))??;
-            parts.push(history);
-            busy_seconds = busy_seconds.max(seconds);
+                .map_err(|_| ConvertError::internal("an accumulating thread panicked"))
+                .and_then(|worked| worked);
+            match worked {
+                Ok((history, spilled, seconds)) if failed.is_none() => {
+                    spills = spills.max(spilled.as_ref().map_or(0, SpillWriter::spills));
+                    let spilled = spilled.map(SpillWriter::into_reader).transpose();
+                    match spilled {
+                        Ok(spilled) => parts.push((history, spilled)),
+                        Err(e) => failed = Some(e),
+                    }
+                    busy_seconds = busy_seconds.max(seconds);
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    failed.get_or_insert(e);
+                }
+            }
+        }
+        if let Some(e) = failed {
+            return Err(e);
         }
         Ok(Accumulated {
             parts,
             busy_seconds,
+            spills,
             tile_depth: self.tile_depth,
         })
     }
@@ -136,20 +252,33 @@ impl<'scope, 'env> Accumulator<'scope, 'env> {
 /// The histories of a whole series, in ranges of space in Morton order.
 #[derive(Debug)]
 pub(crate) struct Accumulated {
-    parts: Vec<SeriesHistory>,
+    /// Each range's history in memory, and what it spilled.
+    parts: Vec<(SeriesHistory, Option<SpillReader>)>,
     busy_seconds: f64,
+    spills: usize,
     tile_depth: u8,
 }
 
 impl Accumulated {
     /// Cells in all.
     pub fn cell_count(&self) -> usize {
-        self.parts.iter().map(SeriesHistory::cell_count).sum()
+        self.parts.iter().map(|(h, _)| h.cell_count()).sum()
     }
 
     /// Voxel-changes seen (a voxel changing state at one snapshot counts once).
     pub fn changed_voxels(&self) -> u64 {
-        self.parts.iter().map(SeriesHistory::changed_voxels).sum()
+        self.parts.iter().map(|(h, _)| h.changed_voxels()).sum()
+    }
+
+    /// Bytes spilled to disk in all.
+    pub fn spilled_bytes(&self) -> u64 {
+        let spilled = self.parts.iter().filter_map(|(_, s)| s.as_ref());
+        spilled.map(SpillReader::bytes).sum()
+    }
+
+    /// The most times one thread spilled.
+    pub fn spills(&self) -> usize {
+        self.spills
     }
 
     /// Seconds the busiest thread spent applying changes (the part that is sequential).
@@ -163,12 +292,21 @@ impl Accumulated {
         self,
         axis_len: u32,
         absent: &[u32],
-    ) -> TileHistories<impl Iterator<Item = Result<ObservedCell, TemporalError>> + Send + '_> {
+    ) -> TileHistories<impl Iterator<Item = Result<PackedCell, ConvertError>> + Send + '_> {
         TileHistories {
             cells: self
                 .parts
                 .into_iter()
-                .flat_map(move |part| part.finish(axis_len, absent)),
+                .flat_map(move |(history, mut spilled)| {
+                    history.finish_with(
+                        axis_len,
+                        absent,
+                        move |start, _, runs| match &mut spilled {
+                            Some(spilled) => spilled.runs_for(start, runs),
+                            None => Ok(()),
+                        },
+                    )
+                }),
             tile_depth: self.tile_depth,
             next: None,
         }
@@ -180,30 +318,34 @@ pub(crate) struct TileHistories<I> {
     cells: I,
     tile_depth: u8,
     /// The first cell of the next tile, read past the end of the one before.
-    next: Option<ObservedCell>,
+    next: Option<PackedCell>,
 }
 
-impl<I: Iterator<Item = Result<ObservedCell, TemporalError>>> Iterator for TileHistories<I> {
+impl<I: Iterator<Item = Result<PackedCell, ConvertError>>> Iterator for TileHistories<I> {
     type Item = Result<TileHistory, ConvertError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let mut cells: Vec<ObservedCell> = self.next.take().into_iter().collect();
+        let mut tile = TileHistory::default();
+        if let Some(cell) = self.next.take() {
+            tile.push(cell);
+        }
         for cell in self.cells.by_ref() {
             let cell = match cell {
                 Ok(cell) => cell,
-                Err(e) => return Some(Err(e.into())),
+                Err(e) => return Some(Err(e)),
             };
-            let tile = |c: &ObservedCell| c.0.node_start(self.tile_depth);
-            if cells
+            let tile_of = |c: &PackedCell| c.0.node_start(self.tile_depth);
+            if tile
+                .cells
                 .first()
-                .is_some_and(|first| tile(first) != tile(&cell))
+                .is_some_and(|first| tile_of(first) != tile_of(&cell))
             {
                 self.next = Some(cell);
                 break;
             }
-            cells.push(cell);
+            tile.push(cell);
         }
-        (!cells.is_empty()).then_some(Ok(TileHistory { cells }))
+        (!tile.cells.is_empty()).then_some(Ok(tile))
     }
 }
 
@@ -334,21 +476,38 @@ mod tests {
     }
 
     /// The tiles accumulated by `parts` threads.
-    fn tiles(parts: usize) -> Vec<TileHistory> {
+    fn tiles(parts: usize) -> Vec<Vec<ObservedCell>> {
+        tiles_spilling(parts, None)
+    }
+
+    /// The tiles accumulated by `parts` threads, spilling into `spill` (a directory and a
+    /// budget) if given.
+    fn tiles_spilling(parts: usize, spill: Option<(&SpillPlace, usize)>) -> Vec<Vec<ObservedCell>> {
         std::thread::scope(|scope| {
             let mut accumulator = Accumulator::new(scope, 14, parts, &Silent);
+            if let Some((place, budget)) = spill {
+                accumulator = accumulator.spill_into(place, budget);
+            }
             for batch in series() {
                 assert!(accumulator.push(batch));
             }
             let accumulated = accumulator.finish().unwrap();
+            if spill.is_some() {
+                assert!(accumulated.spilled_bytes() > 0 && accumulated.spills() > 0);
+            }
             assert_eq!(accumulated.changed_voxels(), 4 * 64 + 2 + 1 + 2 + 8 + 1);
             let cells = accumulated.cell_count();
             let tiles: Vec<TileHistory> = accumulated
                 .into_tiles(5, &[3])
                 .map(Result::unwrap)
                 .collect();
-            assert_eq!(tiles.iter().map(|t| t.cells.len()).sum::<usize>(), cells);
-            tiles
+            for tile in &tiles {
+                let runs: usize = tile.unpacked().iter().map(|c| c.2.runs().len()).sum();
+                // Counted before adjacent runs of one state are merged.
+                assert!(tile.runs() >= runs);
+            }
+            assert_eq!(tiles.iter().map(TileHistory::len).sum::<usize>(), cells);
+            tiles.iter().map(TileHistory::unpacked).collect()
         })
     }
 
@@ -358,19 +517,14 @@ mod tests {
         assert_eq!(one.len(), 4);
         for (i, tile) in one.iter().enumerate() {
             let start = i as u64 * voxels_per_node(14);
-            assert!(
-                tile.cells.windows(2).all(|w| w[0].0 < w[1].0),
-                "Morton order"
-            );
+            assert!(tile.windows(2).all(|w| w[0].0 < w[1].0), "Morton order");
             assert!(tile
-                .cells
                 .iter()
                 .all(|c| c.0.node_start(14).0 == start && c.1 >= 14));
         }
         // The changed voxel 3 of the first tile: free, occupied at 1, free from 2 on; the
         // absent sample 3 is cut out.
         let cell = one[0]
-            .cells
             .iter()
             .find(|c| c.0 .0 <= 3 && 3 < c.0 .0 + voxels_per_node(c.1))
             .unwrap();
@@ -381,15 +535,28 @@ mod tests {
             [Some(Free), Some(Occupied), Some(Free), None, Some(Free)]
         );
         // A tile that went unobserved keeps what it saw before.
-        let hidden = &one[2].cells[0];
+        let hidden = &one[2][0];
         assert_eq!(hidden.2.state_at(1), Some(Free));
         assert_eq!(hidden.2.state_at(2), None);
         for parts in [2, 3, 8] {
             let split = tiles(parts);
             assert_eq!(split.len(), one.len());
             for (a, b) in split.iter().zip(&one) {
-                assert_eq!(a.cells, b.cells, "{parts} threads");
-                assert_eq!(a.runs(), b.runs());
+                assert_eq!(a, b, "{parts} threads");
+            }
+        }
+    }
+
+    #[test]
+    fn spilled_histories_come_out_the_same() {
+        let kept = tiles(1);
+        for parts in [1, 3] {
+            let dir = tempfile::tempdir().unwrap();
+            let place = SpillPlace::new(dir.path());
+            let spilled = tiles_spilling(parts, Some((&place, 0)));
+            assert_eq!(spilled.len(), kept.len());
+            for (a, b) in spilled.iter().zip(&kept) {
+                assert_eq!(a, b, "{parts} threads");
             }
         }
     }

@@ -22,8 +22,9 @@ use super::check::{InputCheck, TileBudget};
 use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
 use super::fit::{fit_and_write, TileFitter};
 use super::merge::merge_tiles;
+use super::spill::SpillPlace;
 use super::write::{TileEncoder, TileWriter};
-use super::{accumulate_series, axis_for_times, samples_left_out, ClassCounts};
+use super::{accumulate_series, axis_for_times, output_dir, samples_left_out, ClassCounts};
 use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
@@ -64,6 +65,11 @@ pub struct AppendOptions {
     /// Time of the append stored in the metadata (`appended`), to the second; `None`: now. A
     /// fixed time makes the file reproducible (no timings are stored then).
     pub appended: Option<Timestamp>,
+    /// Bytes the accumulated histories of the new snapshots may hold before they are
+    /// spilled to disk (as [`BuildOptions::memory`](super::BuildOptions::memory)).
+    pub memory: u64,
+    /// Where spill data goes; `None`: a hidden directory beside the file.
+    pub tmp_dir: Option<PathBuf>,
 }
 
 impl Default for AppendOptions {
@@ -76,6 +82,8 @@ impl Default for AppendOptions {
             metadata: Map::new(),
             batch: 8 * rayon::current_num_threads().max(1),
             appended: None,
+            memory: super::DEFAULT_BUILD_MEMORY,
+            tmp_dir: None,
         }
     }
 }
@@ -253,7 +261,17 @@ pub fn append(
     };
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress)
         .continuing(start, previous, old.resolution, file);
-    let accumulated = accumulate_series(&mut extractor, old.tile_depth, progress)?;
+    let spill_place = SpillPlace::new(match &options.tmp_dir {
+        Some(dir) => dir.as_path(),
+        None => output_dir(file),
+    });
+    let budget = usize::try_from(options.memory).unwrap_or(usize::MAX);
+    let accumulated = accumulate_series(
+        &mut extractor,
+        old.tile_depth,
+        (&spill_place, budget),
+        progress,
+    )?;
     let extracted = extractor.finish();
     let mut skipped = checked.skipped;
     skipped.extend(extracted.skipped);
@@ -560,7 +578,7 @@ impl Iterator for OldTiles<'_> {
                     .iter()
                     .map(|cell| old_observations(cell, model, samples))
                     .collect::<Result<Vec<ObservedCell>, ConvertError>>()?;
-                Ok(TileHistory { cells })
+                Ok(TileHistory::new(cells))
             })
             .collect();
         self.next = end;

@@ -59,9 +59,11 @@ impl<'a> TileFitter<'a> {
     pub fn fit(&self, tile: &TileHistory) -> Result<FittedTile, ConvertError> {
         let model = self.model;
         let mut stats = TileStats::default();
-        let mut cells = Vec::with_capacity(tile.cells.len());
-        for (start, depth, obs) in &tile.cells {
-            let voxels = froctomap_core::voxels_per_node(*depth);
+        let mut cells = Vec::with_capacity(tile.len());
+        for cell in tile.cells() {
+            let (start, depth, obs) = cell?;
+            let obs = &obs;
+            let voxels = froctomap_core::voxels_per_node(depth);
             let mask = mask_from_ranges(self.axis, &obs.observed_ranges());
             if mask.is_some() {
                 stats.cells.unknown_sometimes += 1;
@@ -102,8 +104,8 @@ impl<'a> TileFitter<'a> {
                 }
             };
             cells.push(Cell {
-                start: *start,
-                depth: *depth,
+                start,
+                depth,
                 mask,
                 content,
             });
@@ -167,7 +169,7 @@ pub(crate) fn fit_and_write(
                 .map(|tile| {
                     let fitted = fitter.fit(tile)?;
                     let encoded = encoder.encode(&fitted.cells)?;
-                    progress.advance(tile.cells.len() as u64);
+                    progress.advance(tile.len() as u64);
                     Ok((encoded, fitted.stats))
                 })
                 .collect();
@@ -204,15 +206,13 @@ mod tests {
         use Occupancy::{Free, Occupied};
         let setup = default_model(8);
         let fitter = TileFitter::new(&setup.axis, setup.model.as_ref());
-        let tile = TileHistory {
-            cells: vec![
-                cell(0, 15, &[(0, 8, Free)]),
-                cell(8, 15, &[(0, 8, Occupied)]),
-                // Seen for half the series only: a mask.
-                cell(16, 16, &[(4, 4, Occupied)]),
-                cell(17, 16, &[(0, 2, Free), (2, 2, Occupied), (4, 4, Free)]),
-            ],
-        };
+        let tile = TileHistory::new(vec![
+            cell(0, 15, &[(0, 8, Free)]),
+            cell(8, 15, &[(0, 8, Occupied)]),
+            // Seen for half the series only: a mask.
+            cell(16, 16, &[(4, 4, Occupied)]),
+            cell(17, 16, &[(0, 2, Free), (2, 2, Occupied), (4, 4, Free)]),
+        ]);
         let fitted = fitter.fit(&tile).unwrap();
         let contents: Vec<&CellContent> = fitted.cells.iter().map(|c| &c.content).collect();
         assert_eq!(contents[0], &CellContent::Constant(Free));
@@ -257,13 +257,11 @@ mod tests {
         let setup = default_model(4);
         let fitter = TileFitter::new(&setup.axis, setup.model.as_ref());
         // Observations past the end of the axis.
-        let tile = TileHistory {
-            cells: vec![cell(
-                0,
-                16,
-                &[(0, 4, Occupancy::Free), (4, 4, Occupancy::Occupied)],
-            )],
-        };
+        let tile = TileHistory::new(vec![cell(
+            0,
+            16,
+            &[(0, 4, Occupancy::Free), (4, 4, Occupancy::Occupied)],
+        )]);
         assert!(matches!(fitter.fit(&tile), Err(ConvertError::Model(_))));
     }
 }

@@ -48,7 +48,7 @@ where
         let tile_depth = self.tile_depth;
         let code = |tile: &Result<TileHistory, ConvertError>| match tile {
             Err(_) => None,
-            Ok(tile) => tile.cells.first().map(|c| c.0.node_start(tile_depth)),
+            Ok(tile) => tile.first_start().map(|c| c.node_start(tile_depth)),
         };
         let old = self.old.peek().map(code);
         let new = self.new.peek().map(code);
@@ -65,8 +65,10 @@ where
                     return Some(Err(ConvertError::internal("a peeked tile went missing")));
                 };
                 Some(
-                    merge_cells(old.cells, new.cells)
-                        .map(|cells| TileHistory { cells })
+                    old.into_cells()
+                        .and_then(|old| Ok((old, new.into_cells()?)))
+                        .and_then(|(old, new)| merge_cells(old, new))
+                        .map(TileHistory::new)
                         .map_err(ConvertError::from),
                 )
             }
@@ -256,9 +258,11 @@ mod tests {
             tiles
                 .iter()
                 .map(|&(t, first)| {
-                    Ok(TileHistory {
-                        cells: vec![cell(t * tile, depth, &[(first, 1, Free)])],
-                    })
+                    Ok(TileHistory::new(vec![cell(
+                        t * tile,
+                        depth,
+                        &[(first, 1, Free)],
+                    )]))
                 })
                 .collect()
         };
@@ -267,9 +271,9 @@ mod tests {
         let merged: Vec<TileHistory> = merge_tiles(old.into_iter(), new.into_iter(), depth)
             .map(Result::unwrap)
             .collect();
-        let codes: Vec<u64> = merged.iter().map(|t| t.cells[0].0 .0 / tile).collect();
+        let codes: Vec<u64> = merged.iter().map(|t| t.unpacked()[0].0 .0 / tile).collect();
         assert_eq!(codes, [0, 1, 2, 5, 7]);
-        assert_eq!(merged[2].cells[0].2.observed_count(), 2, "joined");
+        assert_eq!(merged[2].unpacked()[0].2.observed_count(), 2, "joined");
         // An error on either side comes through.
         let failing = vec![Err(ConvertError::internal("test"))];
         let mut merged = merge_tiles(history(&[(0, 0)]).into_iter(), failing.into_iter(), depth);

@@ -127,13 +127,11 @@ mod tests {
         let tile_size = froctomap_core::voxels_per_node(14);
         (0..count).map(move |i| {
             let runs = vec![(0, 2, Occupancy::Free), (2, 2, Occupancy::Occupied)];
-            Ok(TileHistory {
-                cells: vec![(
-                    MortonCode(i * tile_size),
-                    14,
-                    VoxelObservations::from_runs(runs)?,
-                )],
-            })
+            Ok(TileHistory::new(vec![(
+                MortonCode(i * tile_size),
+                14,
+                VoxelObservations::from_runs(runs)?,
+            )]))
         })
     }
 
@@ -155,7 +153,7 @@ mod tests {
             .map(|i| reader.read_tile(i).unwrap()[0].start.0)
             .collect();
         let expected: Vec<u64> = tile_stream(count)
-            .map(|t| t.unwrap().cells[0].0 .0)
+            .map(|t| t.unwrap().unpacked()[0].0 .0)
             .collect();
         assert_eq!(starts, expected);
     }

@@ -1,0 +1,101 @@
+//! Ctrl-C (SIGINT) and SIGTERM during `build` leave no temporary output (`.froct-*.tmp`)
+//! and no spill directory (`.froct-spill-*`) behind, and the process ends by the signal.
+#![cfg(unix)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use std::os::unix::process::ExitStatusExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+fn froctomap() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+}
+
+/// A generated series of a day every ten minutes (144 snapshots of the FR-079 scan).
+fn series(dir: &Path) -> PathBuf {
+    let series = dir.join("series");
+    let status = froctomap()
+        .args(["generate", "--days", "1", "--step", "10min", "-q", "-o"])
+        .arg(&series)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    series
+}
+
+/// Hidden temporary entries of froctomap in `dir`.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with(".froct-"))
+        .collect()
+}
+
+/// Starts a build of `series` into `out` that spills after every snapshot.
+fn start_build(series: &Path, out: &Path) -> Child {
+    froctomap()
+        .args(["build", "-q", "--memory", "0", "-o"])
+        .arg(out.join("series.froct"))
+        .arg(series)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits until an entry of `dir` is `wanted` (then `true`) or the child ends.
+fn wait_for(child: &mut Child, dir: &Path, wanted: fn(&str) -> bool) -> bool {
+    loop {
+        if temporaries(dir).iter().any(|name| wanted(name)) {
+            return true;
+        }
+        if child.try_wait().unwrap().is_some() {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+}
+
+fn send(child: &Child, signal: &str) {
+    let status = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+#[test]
+fn signals_during_a_build_leave_no_temporary_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let series = series(dir.path());
+    // (signal, number, what to wait for): the spill directory exists from the start of
+    // reading; the temporary output from the start of modelling.
+    let spill: fn(&str) -> bool = |name| name.starts_with(".froct-spill-");
+    let output: fn(&str) -> bool = |name| name.ends_with(".tmp");
+    let cases = [
+        ("-TERM", 15, "spill directory", spill),
+        ("-INT", 2, "spill directory", spill),
+        ("-TERM", 15, "temporary output", output),
+        ("-INT", 2, "temporary output", output),
+    ];
+    for (signal, number, what, wanted) in cases {
+        let out = tempfile::tempdir().unwrap();
+        // The build may (rarely) finish before the file is seen: then try again.
+        let mut caught = false;
+        for _ in 0..5 {
+            let mut child = start_build(&series, out.path());
+            if !wait_for(&mut child, out.path(), wanted) {
+                continue;
+            }
+            send(&child, signal);
+            let status = child.wait().unwrap();
+            assert_eq!(status.signal(), Some(number), "{signal}: {status:?}");
+            caught = true;
+            break;
+        }
+        assert!(caught, "{signal}: never saw the {what} while building");
+        assert_eq!(temporaries(out.path()), Vec::<String>::new(), "{signal}");
+        assert!(!out.path().join("series.froct").exists());
+    }
+}

@@ -1,0 +1,434 @@
+//! Spill data of a bounded-memory build: the runs an accumulating thread sets aside on disk
+//! when its histories outgrow their share of the memory budget, read back tile by tile.
+//!
+//! Each thread writes one file in a [`SpillDir`]. A spill ([`SpillWriter::spill`]) hands out
+//! every cell's runs in Morton order ([`SeriesHistory::spill`]); they are appended as one
+//! segment per tile, whose place is kept in memory (16 bytes a tile per spill). Reading back
+//! ([`SpillReader::runs_for`]) loads one tile's segments at a time and gives each cell of
+//! the end the runs spilled for it or for the coarser cell it was split from, oldest spill
+//! first — cells only ever get finer, so a spilled cell contains every cell later cut from
+//! it.
+//!
+//! A segment is a list of cells: the cell's offset in its tile and depth, its number of
+//! runs, then each run as varints (samples since the previous run's end, `len << 1 | state`).
+//! The files are this build's own, but are still read with checks: damage gives an error,
+//! never a panic or a huge allocation.
+
+use crate::error::ConvertError;
+use crate::history::SeriesHistory;
+use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
+use froctomap_temporal::{varint, Run};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+/// Where a build spills: a directory in which a [`SpillDir`] is made at the first spill
+/// (a build within its budget never writes there), removed when this is dropped.
+#[derive(Debug)]
+pub(crate) struct SpillPlace {
+    parent: PathBuf,
+    dir: std::sync::Mutex<Option<SpillDir>>,
+}
+
+impl SpillPlace {
+    /// Spill data will go into a new directory inside `parent`.
+    pub fn new(parent: &Path) -> Self {
+        Self {
+            parent: parent.to_path_buf(),
+            dir: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// The spill directory, made on the first call.
+    pub fn dir(&self) -> Result<PathBuf, ConvertError> {
+        let mut dir = self
+            .dir
+            .lock()
+            .map_err(|_| ConvertError::internal("a spilling thread panicked"))?;
+        if dir.is_none() {
+            *dir = Some(SpillDir::create(&self.parent)?);
+        }
+        Ok(dir
+            .as_ref()
+            .map(|d| d.path().to_path_buf())
+            .unwrap_or_default())
+    }
+}
+
+/// A temporary directory for the spill files of one build (`.froct-spill-…` in the chosen
+/// directory), removed with everything in it when dropped — on success and on error — and
+/// registered for removal if the process is stopped by a signal
+/// ([`froctomap_core::cleanup`]).
+#[derive(Debug)]
+pub(crate) struct SpillDir {
+    dir: tempfile::TempDir,
+    _registered: froctomap_core::cleanup::Registered,
+}
+
+impl SpillDir {
+    /// A new, empty spill directory inside `parent`.
+    pub fn create(parent: &Path) -> Result<Self, ConvertError> {
+        let dir = tempfile::Builder::new()
+            .prefix(".froct-spill-")
+            .tempdir_in(parent)
+            .map_err(|source| ConvertError::Spill {
+                path: parent.to_path_buf(),
+                source,
+            })?;
+        let registered = froctomap_core::cleanup::Registered::new(dir.path());
+        Ok(Self {
+            dir,
+            _registered: registered,
+        })
+    }
+
+    /// Where it is.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+/// Where each tile's segments are in a spill file: offset and length, one per spill.
+type Segments = BTreeMap<u64, Vec<(u64, u64)>>;
+
+/// One accumulating thread's spill file, being written.
+#[derive(Debug)]
+pub(crate) struct SpillWriter {
+    path: PathBuf,
+    file: BufWriter<File>,
+    tile_depth: u8,
+    written: u64,
+    segments: Segments,
+    spills: usize,
+}
+
+impl SpillWriter {
+    /// A new spill file `part` in `dir`, for tiles of depth `tile_depth`.
+    pub fn create(dir: &Path, part: usize, tile_depth: u8) -> Result<Self, ConvertError> {
+        let path = dir.join(format!("part-{part}.spill"));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(|source| ConvertError::Spill {
+                path: path.clone(),
+                source,
+            })?;
+        Ok(Self {
+            path,
+            file: BufWriter::with_capacity(1 << 20, file),
+            tile_depth,
+            written: 0,
+            segments: Segments::new(),
+            spills: 0,
+        })
+    }
+
+    /// Moves what grows with the series out of `history` into the file.
+    pub fn spill(&mut self, history: &mut SeriesHistory) -> Result<(), ConvertError> {
+        let Self {
+            file,
+            tile_depth,
+            written,
+            segments,
+            ..
+        } = self;
+        let mut tile: Option<u64> = None;
+        let mut segment: Vec<u8> = Vec::new();
+        let mut end_segment = |tile: u64, segment: &mut Vec<u8>| -> io::Result<()> {
+            file.write_all(segment)?;
+            let len = segment.len() as u64;
+            segments.entry(tile).or_default().push((*written, len));
+            *written += len;
+            segment.clear();
+            Ok(())
+        };
+        history
+            .spill(|start, depth, runs| -> io::Result<()> {
+                let this = MortonCode(start).node_start(*tile_depth).0;
+                if let Some(previous) = tile.filter(|&t| t != this) {
+                    end_segment(previous, &mut segment)?;
+                }
+                tile = Some(this);
+                encode_cell(&mut segment, start - this, depth, runs);
+                Ok(())
+            })
+            .and_then(|()| match tile {
+                Some(last) => end_segment(last, &mut segment),
+                None => Ok(()),
+            })
+            .map_err(|source| ConvertError::Spill {
+                path: self.path.clone(),
+                source,
+            })?;
+        self.spills += 1;
+        Ok(())
+    }
+
+    /// Bytes written so far.
+    #[cfg(test)]
+    pub fn bytes(&self) -> u64 {
+        self.written
+    }
+
+    /// Spills so far.
+    pub fn spills(&self) -> usize {
+        self.spills
+    }
+
+    /// The file, written out, to be read back.
+    pub fn into_reader(self) -> Result<SpillReader, ConvertError> {
+        let fail = |source| ConvertError::Spill {
+            path: self.path.clone(),
+            source,
+        };
+        let file = self.file.into_inner().map_err(|e| fail(e.into_error()))?;
+        Ok(SpillReader {
+            file,
+            tile_depth: self.tile_depth,
+            segments: self.segments,
+            tile: None,
+            loaded: Vec::new(),
+            bytes: self.written,
+            path: self.path,
+        })
+    }
+}
+
+fn encode_cell(out: &mut Vec<u8>, offset: u64, depth: u8, runs: &[Run]) {
+    varint::write_u64(out, offset);
+    out.push(depth);
+    varint::write_u64(out, runs.len() as u64);
+    let mut end = 0u32;
+    for run in runs {
+        varint::write_u32(out, run.first - end);
+        varint::write_u64(
+            out,
+            u64::from(run.len) << 1 | u64::from(run.state.is_occupied()),
+        );
+        end = run.first + run.len;
+    }
+}
+
+/// A cell of one spill, read back: its start, its end and where its runs are in the
+/// segment's bytes (kept packed: a tile of a long series has millions of runs).
+#[derive(Debug)]
+struct SpilledCell {
+    start: u64,
+    end: u64,
+    runs: std::ops::Range<usize>,
+}
+
+/// One spill's segment of the loaded tile: its bytes and its cells.
+#[derive(Debug)]
+struct Segment {
+    bytes: Vec<u8>,
+    cells: Vec<SpilledCell>,
+}
+
+/// One accumulating thread's spill file, read back tile by tile in Morton order.
+#[derive(Debug)]
+pub(crate) struct SpillReader {
+    path: PathBuf,
+    file: File,
+    tile_depth: u8,
+    segments: Segments,
+    /// The tile loaded, and its cells spill by spill.
+    tile: Option<u64>,
+    loaded: Vec<Segment>,
+    bytes: u64,
+}
+
+impl SpillReader {
+    /// Bytes spilled.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Appends to `out` the runs spilled for the cell at `start` (or the coarser cells it
+    /// was split from), oldest first. Cells are asked for in Morton order.
+    pub fn runs_for(&mut self, start: u64, out: &mut Vec<Run>) -> Result<(), ConvertError> {
+        let tile = MortonCode(start).node_start(self.tile_depth).0;
+        if self.tile != Some(tile) {
+            self.load(tile).map_err(|source| ConvertError::Spill {
+                path: self.path.clone(),
+                source,
+            })?;
+        }
+        for spill in &self.loaded {
+            let after = spill.cells.partition_point(|cell| cell.start <= start);
+            if let Some(cell) = after.checked_sub(1).and_then(|i| spill.cells.get(i)) {
+                if start < cell.end {
+                    let runs = spill.bytes.get(cell.runs.clone()).unwrap_or_default();
+                    decode_runs(runs, out).map_err(|source| ConvertError::Spill {
+                        path: self.path.clone(),
+                        source,
+                    })?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads the segments of `tile` (and forgets where they were).
+    fn load(&mut self, tile: u64) -> io::Result<()> {
+        self.tile = Some(tile);
+        self.loaded.clear();
+        for (offset, len) in self.segments.remove(&tile).unwrap_or_default() {
+            let len = usize::try_from(len).map_err(|_| damaged("a segment too long"))?;
+            let mut bytes = vec![0; len];
+            self.file.seek(SeekFrom::Start(offset))?;
+            self.file.read_exact(&mut bytes)?;
+            let cells = decode_segment(&bytes, tile)?;
+            self.loaded.push(Segment { bytes, cells });
+        }
+        Ok(())
+    }
+}
+
+fn damaged(what: &'static str) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidData, format!("damaged: {what}"))
+}
+
+fn decode_segment(bytes: &[u8], tile: u64) -> io::Result<Vec<SpilledCell>> {
+    let bad = |_| damaged("a bad number");
+    let mut reader = varint::Reader::new(bytes);
+    let mut cells = Vec::new();
+    while reader.remaining() > 0 {
+        let offset = reader.u64().map_err(bad)?;
+        let depth = reader.u8("depth").map_err(bad)?;
+        if depth > TREE_DEPTH {
+            return Err(damaged("a cell deeper than the tree"));
+        }
+        let start = tile
+            .checked_add(offset)
+            .ok_or_else(|| damaged("a cell beyond space"))?;
+        let end = start
+            .checked_add(voxels_per_node(depth))
+            .ok_or_else(|| damaged("a cell beyond space"))?;
+        let count = reader.u64().map_err(bad)?;
+        // Every run takes two bytes at least.
+        if count > reader.remaining() as u64 / 2 {
+            return Err(damaged("more runs than bytes"));
+        }
+        let from = reader.position();
+        for _ in 0..count {
+            reader.u32().map_err(bad)?;
+            reader.u64().map_err(bad)?;
+        }
+        cells.push(SpilledCell {
+            start,
+            end,
+            runs: from..reader.position(),
+        });
+    }
+    Ok(cells)
+}
+
+/// Appends the runs packed in `bytes` (a cell's, by [`encode_cell`]) to `out`.
+fn decode_runs(bytes: &[u8], out: &mut Vec<Run>) -> io::Result<()> {
+    let bad = |_| damaged("a bad number");
+    let mut reader = varint::Reader::new(bytes);
+    let mut run_end = 0u32;
+    while reader.remaining() > 0 {
+        let gap = reader.u32().map_err(bad)?;
+        let packed = reader.u64().map_err(bad)?;
+        let first = run_end
+            .checked_add(gap)
+            .ok_or_else(|| damaged("a run beyond the axis"))?;
+        let len = u32::try_from(packed >> 1).map_err(|_| damaged("a run too long"))?;
+        run_end = first
+            .checked_add(len)
+            .ok_or_else(|| damaged("a run beyond the axis"))?;
+        out.push(Run {
+            first,
+            len,
+            state: Occupancy::from(packed & 1 == 1),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(first: u32, len: u32, occupied: bool) -> Run {
+        Run {
+            first,
+            len,
+            state: Occupancy::from(occupied),
+        }
+    }
+
+    #[test]
+    fn cells_read_back_get_the_runs_of_the_cells_they_were_cut_from() {
+        let tile = voxels_per_node(12);
+        let mut segment = Vec::new();
+        // A coarse cell (a whole depth-12 tile), then a finer one of the next tile.
+        encode_cell(&mut segment, 0, 12, &[run(0, 3, false), run(5, 2, true)]);
+        let first = decode_segment(&segment, tile).unwrap();
+        assert_eq!(first.len(), 1);
+        assert_eq!(
+            (first[0].start, first[0].end),
+            (tile, 2 * tile),
+            "offsets are from the tile's start"
+        );
+        let mut runs = Vec::new();
+        decode_runs(&segment[first[0].runs.clone()], &mut runs).unwrap();
+        assert_eq!(runs, [run(0, 3, false), run(5, 2, true)]);
+        // Truncated or forged segments are errors, not panics or huge allocations.
+        for cut in 1..segment.len() {
+            assert!(decode_segment(&segment[..cut], tile).is_err(), "cut {cut}");
+        }
+        let mut forged = Vec::new();
+        varint::write_u64(&mut forged, 0);
+        forged.push(3);
+        varint::write_u64(&mut forged, u64::MAX);
+        assert!(decode_segment(&forged, 0).is_err());
+        forged[1] = TREE_DEPTH + 1;
+        assert!(decode_segment(&forged, 0).is_err());
+    }
+
+    #[test]
+    fn spill_files_give_back_what_was_spilled_tile_by_tile() {
+        use froctomap_core::{Occupancy::Free, StateChange};
+        let dir = tempfile::tempdir().unwrap();
+        let spill_dir = SpillDir::create(dir.path()).unwrap();
+        let tile_depth = 15; // 8 voxels a tile
+        let mut history = SeriesHistory::new(tile_depth);
+        let mut writer = SpillWriter::create(spill_dir.path(), 0, tile_depth).unwrap();
+        let change = |start, end, new| StateChange { start, end, new };
+        history
+            .apply_changes(0, &[change(0, 16, Some(Free))])
+            .unwrap();
+        history
+            .apply_changes(1, &[change(0, 16, Some(Occupancy::Occupied))])
+            .unwrap();
+        writer.spill(&mut history).unwrap();
+        // Splits the first tile's cell after the spill.
+        history
+            .apply_changes(2, &[change(3, 4, Some(Free))])
+            .unwrap();
+        writer.spill(&mut history).unwrap();
+        assert_eq!(writer.spills(), 2);
+        assert!(writer.bytes() > 0);
+        let mut reader = writer.into_reader().unwrap();
+        let mut runs = Vec::new();
+        reader.runs_for(3, &mut runs).unwrap();
+        assert_eq!(runs, [run(0, 1, false), run(1, 1, true)]);
+        runs.clear();
+        reader.runs_for(8, &mut runs).unwrap();
+        assert_eq!(runs, [run(0, 1, false)]);
+        let path = spill_dir.path().to_path_buf();
+        assert!(path.join("part-0.spill").exists());
+        drop(reader);
+        drop(spill_dir);
+        assert!(
+            !path.exists(),
+            "the spill directory is removed when dropped"
+        );
+    }
+}

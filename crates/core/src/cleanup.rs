@@ -1,0 +1,104 @@
+//! Temporary files and directories to remove if the process is stopped by a signal.
+//!
+//! Temporary outputs ([`temporary_beside`](crate::temporary_beside)) and a build's spill
+//! directory remove themselves when dropped, on success and on error. A signal such as
+//! Ctrl-C (SIGINT) or SIGTERM ends the process without running destructors, so each of them
+//! is also [`Registered`] here while it lives, and a front end's signal handler calls
+//! [`remove_registered`] before the process ends. The library installs no handler itself:
+//! what a signal means is the program's choice.
+//!
+//! ```
+//! let dir = tempfile::tempdir()?;
+//! let path = dir.path().join("partial.tmp");
+//! std::fs::write(&path, b"half")?;
+//! let registered = froctomap_core::cleanup::Registered::new(&path);
+//! // What a signal handler does:
+//! froctomap_core::cleanup::remove_registered();
+//! assert!(!path.exists());
+//! drop(registered);
+//! # Ok::<(), std::io::Error>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+/// The live temporary paths, by registration number.
+static LIVE: Mutex<Vec<(u64, PathBuf)>> = Mutex::new(Vec::new());
+static NEXT: AtomicU64 = AtomicU64::new(0);
+
+fn live() -> MutexGuard<'static, Vec<(u64, PathBuf)>> {
+    // A panic elsewhere while the list was held leaves it valid: go on with it.
+    LIVE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// A temporary file or directory listed for [`remove_registered`] until dropped (dropping
+/// it only takes it off the list; removing the path itself is its owner's job).
+#[derive(Debug)]
+pub struct Registered {
+    id: u64,
+}
+
+impl Registered {
+    /// Lists `path` (a file, or a directory removed with its contents).
+    pub fn new(path: &Path) -> Self {
+        let id = NEXT.fetch_add(1, Ordering::Relaxed);
+        live().push((id, path.to_path_buf()));
+        Self { id }
+    }
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        live().retain(|(id, _)| *id != self.id);
+    }
+}
+
+/// Removes every registered file and directory (with its contents) that still exists, and
+/// returns how many were removed. For a signal handler that is about to end the process;
+/// it runs on an ordinary thread (not inside the handler itself), since it takes a lock.
+pub fn remove_registered() -> usize {
+    remove_where(|_| true)
+}
+
+/// Removes the registered paths for which `chosen` is true.
+fn remove_where(chosen: impl Fn(&Path) -> bool) -> usize {
+    let mut live = live();
+    let (remove, keep): (Vec<_>, Vec<_>) = live.drain(..).partition(|(_, p)| chosen(p));
+    *live = keep;
+    let mut removed = 0;
+    for (_, path) in remove {
+        let gone = match std::fs::symlink_metadata(&path) {
+            Ok(meta) if meta.is_dir() => std::fs::remove_dir_all(&path).is_ok(),
+            Ok(_) => std::fs::remove_file(&path).is_ok(),
+            Err(_) => false,
+        };
+        removed += usize::from(gone);
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registered_paths_are_removed_until_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("a.tmp");
+        let sub = dir.path().join("spill");
+        std::fs::write(&file, b"x").unwrap();
+        std::fs::create_dir(&sub).unwrap();
+        std::fs::write(sub.join("part-0"), b"y").unwrap();
+        let kept = dir.path().join("kept.tmp");
+        std::fs::write(&kept, b"z").unwrap();
+        let a = Registered::new(&file);
+        let b = Registered::new(&sub);
+        drop(Registered::new(&kept));
+        // Other tests of this process register their own temporary files: only ours go.
+        assert_eq!(remove_where(|p| p.starts_with(dir.path())), 2);
+        assert!(!file.exists() && !sub.exists());
+        assert!(kept.exists(), "a dropped registration is not removed");
+        drop((a, b));
+    }
+}
