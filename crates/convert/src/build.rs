@@ -285,7 +285,11 @@ pub fn build(
     let checked = InputCheck {
         skip_bad: options.skip_bad,
     }
-    .run(inputs, progress)?;
+    .run(
+        inputs,
+        &|input| crate::recording::is_recorded(context, input),
+        progress,
+    )?;
 
     progress.stage("reading snapshots", inputs.len() as u64);
     let extract = ExtractOptions {

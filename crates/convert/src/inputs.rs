@@ -281,6 +281,7 @@ pub fn collect_inputs_explained(
     // Manifest rows too: a FIFO among them would stall the build.
     if let Some((path, kind)) = candidates
         .iter()
+        .filter(|c| c.recorded_time.is_none())
         .find_map(|c| special_kind(&c.path).map(|kind| (&c.path, kind)))
     {
         return Err(ConvertError::NotAFile {

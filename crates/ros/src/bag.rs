@@ -38,7 +38,8 @@ impl<'a> Fields<'a> {
     fn parse(file: &RecordingFile, mut bytes: &'a [u8]) -> Result<Self, RosError> {
         let mut fields = Vec::new();
         while !bytes.is_empty() {
-            let (len, rest) = split_u32(bytes).ok_or_else(|| file.malformed("record header", "a field length is cut off"))?;
+            let (len, rest) = split_u32(bytes)
+                .ok_or_else(|| file.malformed("record header", "a field length is cut off"))?;
             let field = rest
                 .get(..len as usize)
                 .ok_or_else(|| file.malformed("record header", "a field runs past the header"))?;
@@ -100,7 +101,11 @@ impl FileRecord {
     }
 }
 
-fn read_record(file: &RecordingFile, offset: u64, what: &'static str) -> Result<FileRecord, RosError> {
+fn read_record(
+    file: &RecordingFile,
+    offset: u64,
+    what: &'static str,
+) -> Result<FileRecord, RosError> {
     let len = |bytes: Vec<u8>| bytes.try_into().map(u32::from_le_bytes).unwrap_or(0);
     let header_len = u64::from(len(file.read_at(offset, 4, what)?));
     let header = file.read_at(offset + 4, header_len, what)?;
@@ -180,7 +185,9 @@ impl Bag {
             let fields = Fields::parse(&bag.file, &record.header)?;
             match fields.op() {
                 Some(OP_CONNECTION) => {
-                    let data = bag.file.read_at(record.data_offset, record.data_len, "connection")?;
+                    let data =
+                        bag.file
+                            .read_at(record.data_offset, record.data_len, "connection")?;
                     let connection = Fields::parse(&bag.file, &data)?;
                     bag.connections.push(Connection {
                         id: fields.u32(&bag.file, "conn")?,
@@ -189,7 +196,9 @@ impl Bag {
                     });
                 }
                 Some(OP_CHUNK_INFO) => {
-                    let data = bag.file.read_at(record.data_offset, record.data_len, "chunk info")?;
+                    let data =
+                        bag.file
+                            .read_at(record.data_offset, record.data_len, "chunk info")?;
                     let connections = data
                         .chunks_exact(8)
                         .filter_map(|pair| pair[..4].try_into().ok().map(u32::from_le_bytes))
@@ -222,7 +231,9 @@ impl Bag {
                     break;
                 }
                 if connections.contains(&fields.u32(&self.file, "conn")?) {
-                    let data = self.file.read_at(record.data_offset, record.data_len, "index data")?;
+                    let data =
+                        self.file
+                            .read_at(record.data_offset, record.data_len, "index data")?;
                     for entry in data.chunks_exact(12) {
                         let word = |i: usize| {
                             u32::from_le_bytes([entry[i], entry[i + 1], entry[i + 2], entry[i + 3]])
@@ -245,13 +256,19 @@ impl Bag {
         let record = read_record(&self.file, chunk_pos, "chunk")?;
         let fields = Fields::parse(&self.file, &record.header)?;
         if fields.op() != Some(OP_CHUNK) {
-            return Err(self.file.malformed("chunk", "the index points at another kind of record"));
+            return Err(self
+                .file
+                .malformed("chunk", "the index points at another kind of record"));
         }
-        let size = self
-            .file
-            .bounded("uncompressed chunk", u64::from(fields.u32(&self.file, "size")?), limit)?;
+        let size = self.file.bounded(
+            "uncompressed chunk",
+            u64::from(fields.u32(&self.file, "size")?),
+            limit,
+        )?;
         let compression = fields.text("compression");
-        let data = self.file.read_at(record.data_offset, record.data_len, "chunk")?;
+        let data = self
+            .file
+            .read_at(record.data_offset, record.data_len, "chunk")?;
         let mut out = Vec::new();
         let read = match compression.as_str() {
             "none" => {
@@ -268,10 +285,16 @@ impl Bag {
                 return Err(RosError::UnsupportedCompression {
                     path: self.file.path.clone(),
                     name: compression,
+                    supported: "none, bz2 and lz4",
                 })
             }
         };
-        read.map_err(|e| self.file.malformed("chunk", format!("{compression} data does not decompress: {e}")))?;
+        read.map_err(|e| {
+            self.file.malformed(
+                "chunk",
+                format!("{compression} data does not decompress: {e}"),
+            )
+        })?;
         if out.len() as u64 != size {
             return Err(self.file.malformed(
                 "chunk",
@@ -283,10 +306,15 @@ impl Bag {
 
     /// The serialised message whose record is at `offset` of a decompressed chunk.
     pub fn message_in<'c>(&self, chunk: &'c [u8], offset: u32) -> Result<&'c [u8], RosError> {
-        let (header, data) = record_in(chunk, offset as usize)
-            .ok_or_else(|| self.file.malformed("chunk", "an index entry points outside its chunk"))?;
+        let (header, data) = record_in(chunk, offset as usize).ok_or_else(|| {
+            self.file
+                .malformed("chunk", "an index entry points outside its chunk")
+        })?;
         if Fields::parse(&self.file, header)?.op() != Some(OP_MESSAGE) {
-            return Err(self.file.malformed("chunk", "an index entry points at a record that is no message"));
+            return Err(self.file.malformed(
+                "chunk",
+                "an index entry points at a record that is no message",
+            ));
         }
         Ok(data)
     }

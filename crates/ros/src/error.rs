@@ -46,13 +46,15 @@ pub enum RosError {
         /// The limit.
         limit: u64,
     },
-    /// A ROS 1 bag chunk compressed in a way this reader does not know.
-    #[error("{}: chunk compression `{name}` is not supported (none, bz2 and lz4 are)", path.display())]
+    /// A chunk compressed in a way this reader does not know.
+    #[error("{}: chunk compression `{name}` is not supported ({supported} are)", path.display())]
     UnsupportedCompression {
         /// The recording.
         path: PathBuf,
         /// The compression named in the chunk.
         name: String,
+        /// The compressions this kind of recording may use that are read.
+        supported: &'static str,
     },
     /// The MCAP library refused the file.
     #[error("{}: {source}", path.display())]

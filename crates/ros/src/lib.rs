@@ -52,7 +52,14 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     name: "mcap",
     description: "MCAP recording",
     probe: |path| path.is_file() && io::starts_with(path, mcap_file::MAGIC),
-    open: |path, options, limit| Ok(source::open_mcap(path, &[path.to_path_buf()], options, limit)?),
+    open: |path, options, limit| {
+        Ok(source::open_mcap(
+            path,
+            &[path.to_path_buf()],
+            options,
+            limit,
+        )?)
+    },
 };
 
 /// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage.

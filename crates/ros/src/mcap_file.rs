@@ -62,7 +62,11 @@ impl McapFile {
             .map(|c| McapChannel {
                 id: c.id,
                 topic: c.topic.clone(),
-                schema: c.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+                schema: c
+                    .schema
+                    .as_ref()
+                    .map(|s| s.name.clone())
+                    .unwrap_or_default(),
                 encoding: c.message_encoding.clone(),
             })
             .collect();
@@ -72,7 +76,12 @@ impl McapFile {
             .iter()
             .map(|c| {
                 let indexed = c.message_index_offsets.keys().copied().collect();
-                (c.chunk_start_offset, c.chunk_length, c.uncompressed_size, indexed)
+                (
+                    c.chunk_start_offset,
+                    c.chunk_length,
+                    c.uncompressed_size,
+                    indexed,
+                )
             })
             .collect();
         chunks.sort_by_key(|c| c.0);
@@ -103,7 +112,8 @@ impl McapFile {
                 if let Record::Message { header, data } = record {
                     if channels.contains(&header.channel_id) {
                         let log_ns = i64::try_from(header.log_time).map_err(|_| {
-                            self.file.malformed("message", "a log time past the year 2262")
+                            self.file
+                                .malformed("message", "a log time past the year 2262")
                         })?;
                         let found = McapMessage {
                             log_ns,
@@ -131,7 +141,10 @@ impl McapFile {
             }
             Ok(false)
         })?;
-        data.ok_or_else(|| self.file.malformed("chunk", "a message is missing from its chunk"))
+        data.ok_or_else(|| {
+            self.file
+                .malformed("chunk", "a message is missing from its chunk")
+        })
     }
 
     /// Calls `on_record` with each record of chunk `i` and its place, while it returns `true`.
@@ -144,24 +157,98 @@ impl McapFile {
         let Some(&(start, length, uncompressed, _)) = self.chunks.get(i) else {
             return Err(self.file.malformed("chunk index", "no such chunk"));
         };
-        self.file.bounded("uncompressed chunk", uncompressed, limit)?;
+        self.file
+            .bounded("uncompressed chunk", uncompressed, limit)?;
         let bytes = self.file.read_at(start, length, "chunk")?;
         let body = bytes
             .get(9..)
             .filter(|_| bytes.first() == Some(&mcap::records::op::CHUNK))
-            .ok_or_else(|| self.file.malformed("chunk index", "it does not point at a chunk"))?;
+            .ok_or_else(|| {
+                self.file
+                    .malformed("chunk index", "it does not point at a chunk")
+            })?;
         let to_error = mcap_error(&self.file.path);
-        let Record::Chunk { header, data } = mcap::parse_record(mcap::records::op::CHUNK, body).map_err(&to_error)? else {
+        let Record::Chunk { header, data } =
+            mcap::parse_record(mcap::records::op::CHUNK, body).map_err(&to_error)?
+        else {
             return Err(self.file.malformed("chunk", "not a chunk record"));
         };
-        self.file.bounded("uncompressed chunk", header.uncompressed_size, limit)?;
-        let reader = mcap::read::ChunkReader::new(header, &data).map_err(&to_error)?;
-        for (index, record) in reader.enumerate() {
-            if !on_record(record.map_err(&to_error)?, index)? {
+        let size = self
+            .file
+            .bounded("uncompressed chunk", header.uncompressed_size, limit)?;
+        let records = self.decompress(&header.compression, &data, size)?;
+        if header.uncompressed_crc != 0 && crc32fast::hash(&records) != header.uncompressed_crc {
+            return Err(self
+                .file
+                .malformed("chunk", "its records do not match their CRC"));
+        }
+        // The records, each length checked against the chunk before it is used.
+        let mut pos = 0usize;
+        let mut index = 0usize;
+        while pos < records.len() {
+            let (opcode, len) = records
+                .get(pos..pos + 9)
+                .map(|head| {
+                    (
+                        head[0],
+                        u64::from_le_bytes([
+                            head[1], head[2], head[3], head[4], head[5], head[6], head[7], head[8],
+                        ]),
+                    )
+                })
+                .ok_or_else(|| self.file.malformed("chunk", "a record header is cut off"))?;
+            let body = usize::try_from(len)
+                .ok()
+                .and_then(|len| records.get(pos + 9..)?.get(..len))
+                .ok_or_else(|| self.file.malformed("chunk", "a record runs past its chunk"))?;
+            let record = mcap::parse_record(opcode, body).map_err(&to_error)?;
+            if !on_record(record, index)? {
                 break;
             }
+            pos += 9 + body.len();
+            index += 1;
         }
         Ok(())
+    }
+}
+
+impl McapFile {
+    /// A chunk's records, decompressed to exactly `size` bytes.
+    fn decompress(&self, compression: &str, data: &[u8], size: u64) -> Result<Vec<u8>, RosError> {
+        let bad = |e: std::io::Error| {
+            self.file.malformed(
+                "chunk",
+                format!("{compression} data does not decompress: {e}"),
+            )
+        };
+        let size_usize =
+            usize::try_from(size).map_err(|_| self.file.malformed("chunk", "too large"))?;
+        let out = match compression {
+            "" => data.to_vec(),
+            // Decompresses into at most `size` bytes: a longer chunk is an error.
+            "zstd" => zstd::bulk::decompress(data, size_usize).map_err(bad)?,
+            "lz4" => {
+                let mut out = Vec::new();
+                lz4::Decoder::new(data)
+                    .and_then(|decoder| decoder.take(size + 1).read_to_end(&mut out))
+                    .map_err(bad)?;
+                out
+            }
+            other => {
+                return Err(RosError::UnsupportedCompression {
+                    path: self.file.path.clone(),
+                    name: other.to_string(),
+                    supported: "none, zstd and lz4",
+                })
+            }
+        };
+        if out.len() != size_usize {
+            return Err(self.file.malformed(
+                "chunk",
+                format!("{} bytes uncompressed, the header says {size}", out.len()),
+            ));
+        }
+        Ok(out)
     }
 }
 

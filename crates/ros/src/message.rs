@@ -18,7 +18,9 @@
 //!   terminating NUL, then the bytes and the NUL.
 
 use crate::error::MessageError;
-use froctomap_octomap_codec::{walk_body, FileKind, ReadLimits, BINARY_FIRST_LINE, FULL_FIRST_LINE};
+use froctomap_octomap_codec::{
+    walk_body, FileKind, ReadLimits, BINARY_FIRST_LINE, FULL_FIRST_LINE,
+};
 
 /// How a message is serialised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -334,7 +336,9 @@ mod tests {
         assert_eq!(message.resolution, 0.05);
         assert_eq!(message.data, [0x09, 0x00]);
         let file = message.map_file().unwrap();
-        assert!(file.starts_with(b"# Octomap OcTree binary file\nid OcTree\nsize 3\nres 0.05\ndata\n"));
+        assert!(
+            file.starts_with(b"# Octomap OcTree binary file\nid OcTree\nsize 3\nres 0.05\ndata\n")
+        );
         assert_eq!(
             decode_stamp(&bytes, Encoding::Cdr, MessageType::Octomap).unwrap(),
             message.stamp_ns
@@ -353,7 +357,10 @@ mod tests {
         }
         let message = decode_message(&bytes, Encoding::Cdr, MessageType::Octomap).unwrap();
         // A full (.ot) body: one leaf node, value then an empty child mask.
-        assert!(message.map_file().unwrap().starts_with(b"# Octomap OcTree file\n"));
+        assert!(message
+            .map_file()
+            .unwrap()
+            .starts_with(b"# Octomap OcTree file\n"));
     }
 
     #[test]

@@ -108,7 +108,7 @@ impl TopicMaps {
     fn bag_chunk(&self, bag: &Bag, chunk_pos: u64, limit: u64) -> Result<Arc<Vec<u8>>, RosError> {
         let cache = || self.chunk_cache.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((pos, chunk)) = cache().as_ref() {
-            if *pos == chunk_pos {
+            if *pos == chunk_pos && chunk.len() as u64 <= limit {
                 return Ok(chunk.clone());
             }
         }
@@ -126,6 +126,14 @@ impl TopicMaps {
             });
         };
         let decode = |bytes: &[u8], encoding| {
+            if bytes.len() as u64 > limit {
+                return Err(RosError::TooLarge {
+                    path: self.path.clone(),
+                    what: "map message",
+                    bytes: bytes.len() as u64,
+                    limit,
+                });
+            }
             decode_message(bytes, encoding, self.kind)
                 .and_then(|m| m.map_file())
                 .map_err(|e| self.bad_message(*log_ns, e))
@@ -156,14 +164,15 @@ impl RecordedMaps for TopicMaps {
     fn map_bytes(&self, index: usize, limit: u64) -> Result<Vec<u8>, froctomap_convert::Cause> {
         Ok(self.fetch(index, limit)?)
     }
+
+    fn topic(&self) -> &str {
+        &self.topic
+    }
 }
 
 /// The recording's times as `options` ask, each map's stamp (`None`: not read) replaced by
 /// its log time when zero, with one warning counting those.
-fn times(
-    maps: &[(i64, Option<i64>)],
-    time: RecordedTime,
-) -> (Vec<Timestamp>, Vec<String>) {
+fn times(maps: &[(i64, Option<i64>)], time: RecordedTime) -> (Vec<Timestamp>, Vec<String>) {
     let mut zero = 0usize;
     let times = maps
         .iter()
@@ -187,7 +196,11 @@ fn times(
 }
 
 /// Opens a ROS 1 bag.
-pub(crate) fn open_bag(path: &Path, options: &RecordingOptions, limit: u64) -> Result<Recording, RosError> {
+pub(crate) fn open_bag(
+    path: &Path,
+    options: &RecordingOptions,
+    limit: u64,
+) -> Result<Recording, RosError> {
     let bag = Bag::open(path)?;
     let topics: Vec<TopicEntry> = bag
         .connections
@@ -243,7 +256,10 @@ pub(crate) fn open_mcap(
     options: &RecordingOptions,
     limit: u64,
 ) -> Result<Recording, RosError> {
-    let opened: Vec<McapFile> = files.iter().map(|f| McapFile::open(f)).collect::<Result<_, _>>()?;
+    let opened: Vec<McapFile> = files
+        .iter()
+        .map(|f| McapFile::open(f))
+        .collect::<Result<_, _>>()?;
     let topics: Vec<TopicEntry> = opened
         .iter()
         .flat_map(|f| &f.channels)
@@ -280,12 +296,14 @@ pub(crate) fn open_mcap(
             if !header {
                 return Ok(None);
             }
-            decode_stamp(data, encoding, kind).map(Some).map_err(|problem| RosError::BadMessage {
-                path: file_path.clone(),
-                topic: topic.clone(),
-                time: iso8601(Timestamp(log_ns)),
-                problem,
-            })
+            decode_stamp(data, encoding, kind)
+                .map(Some)
+                .map_err(|problem| RosError::BadMessage {
+                    path: file_path.clone(),
+                    topic: topic.clone(),
+                    time: iso8601(Timestamp(log_ns)),
+                    problem,
+                })
         })?;
         for (message, stamp) in found {
             stamps.push((message.log_ns, stamp));

@@ -12,7 +12,7 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
-use crate::recording::snapshot_bytes;
+use crate::recording::{input_name, snapshot_bytes};
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use froctomap_core::StateChange;
 use froctomap_formats::ReadOptions;
@@ -133,7 +133,11 @@ impl<'a> ChangeExtractor<'a> {
             options: self.options.read,
             resolution: self.tally.resolution,
         };
-        let paths: Vec<&Path> = chunk.iter().map(|&i| inputs[i].path.as_path()).collect();
+        let names: Vec<PathBuf> = chunk
+            .iter()
+            .map(|&i| input_name(context, &inputs[i]))
+            .collect();
+        let paths: Vec<&Path> = names.iter().map(PathBuf::as_path).collect();
         let outcomes = reader.batch(&paths, &raw, &mut self.previous);
         let mut accepted = Vec::with_capacity(outcomes.len());
         for (k, outcome) in outcomes.into_iter().enumerate() {
