@@ -134,9 +134,9 @@ pub enum RosError {
         topic: String,
         /// The message's log time (ISO 8601).
         time: String,
-        /// What is wrong.
+        /// What is wrong (boxed: the codec's errors are large).
         #[source]
-        problem: MessageError,
+        problem: Box<MessageError>,
     },
 }
 

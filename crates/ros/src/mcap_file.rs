@@ -20,6 +20,9 @@ pub(crate) struct McapChannel {
     pub encoding: String,
 }
 
+/// Reads a message's header stamp from its log time and data (`None`: not wanted).
+pub(crate) type StampReader<'a> = dyn FnMut(i64, &[u8]) -> Result<Option<i64>, RosError> + 'a;
+
 /// An opened MCAP file.
 #[derive(Debug)]
 pub(crate) struct McapFile {
@@ -101,7 +104,7 @@ impl McapFile {
         &self,
         channels: &[u16],
         limit: u64,
-        stamp: &mut dyn FnMut(i64, &[u8]) -> Result<Option<i64>, RosError>,
+        stamp: &mut StampReader<'_>,
     ) -> Result<Vec<(McapMessage, Option<i64>)>, RosError> {
         let mut out = Vec::new();
         for (i, (_, _, _, indexed)) in self.chunks.iter().enumerate() {

@@ -101,7 +101,7 @@ impl TopicMaps {
             path: self.path.clone(),
             topic: self.topic.clone(),
             time: iso8601(Timestamp(log_ns)),
-            problem,
+            problem: Box::new(problem),
         }
     }
 
@@ -302,7 +302,7 @@ pub(crate) fn open_mcap(
                     path: file_path.clone(),
                     topic: topic.clone(),
                     time: iso8601(Timestamp(log_ns)),
-                    problem,
+                    problem: Box::new(problem),
                 })
         })?;
         for (message, stamp) in found {
