@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
 # Creates a Python venv with the PyPI package octomap-python (upstream OctoMap 1.10, linked
-# statically): a second, separately built OctoMap client for interoperability tests.
+# statically): a second, separately built OctoMap client for interoperability tests; and
+# rosbags, mcap and mcap-ros2-support, independent writers of ROS 1 bags, ROS 2 bags and MCAP
+# files for the recording tests.
 # Usage: scripts/python-client.sh VENV_DIR   (idempotent)
 set -euo pipefail
 venv=${1:?usage: python-client.sh VENV_DIR}
 version=1.10.0.0
-if "$venv/bin/python" -c "import octomap" 2>/dev/null; then
+ros_packages=(rosbags==0.11.9 mcap==1.6.0 mcap-ros2-support==0.6.0)
+check="import octomap, rosbags, mcap, mcap_ros2"
+if "$venv/bin/python" -c "$check" 2>/dev/null; then
   exit 0
 fi
 python=$(command -v python3 || true)
@@ -17,9 +21,9 @@ fi
 tmp="$venv.tmp.$$"
 rm -rf "$tmp"
 "$python" -m venv "$tmp"
-"$tmp/bin/python" -m pip install --quiet --disable-pip-version-check "octomap-python==$version"
+"$tmp/bin/python" -m pip install --quiet --disable-pip-version-check "octomap-python==$version" "${ros_packages[@]}"
 rm -rf "$venv"
 mv "$tmp" "$venv"
 # Paths inside a venv are absolute; re-create the launcher links for the final location.
 "$python" -m venv --upgrade "$venv" >/dev/null
-"$venv/bin/python" -c "import octomap" || { echo "python-client.sh: octomap-python did not import" >&2; exit 1; }
+"$venv/bin/python" -c "$check" || { echo "python-client.sh: the Python packages did not import" >&2; exit 1; }

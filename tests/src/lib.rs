@@ -177,7 +177,8 @@ pub fn octomap_python() -> PathBuf {
 
 fn python_has_octomap(python: &Path) -> bool {
     Command::new(python)
-        .args(["-c", "import octomap"])
+        // The recording tests' writers too (scripts/python-client.sh installs them all).
+        .args(["-c", "import octomap, rosbags, mcap, mcap_ros2"])
         .output()
         .is_ok_and(|o| o.status.success())
 }

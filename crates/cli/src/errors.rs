@@ -3,6 +3,7 @@
 
 use froctomap_convert::{ConvertError, SnapshotError};
 use froctomap_formats::FormatError;
+use froctomap_ros::RosError;
 use std::fmt::Write as _;
 
 /// The error and its causes on one line, each text once: a cause whose text its parent's
@@ -24,8 +25,13 @@ pub fn message(error: &anyhow::Error) -> String {
 /// command has `--skip-bad`.
 pub fn hint(error: &anyhow::Error, skips_bad_files: bool) -> Option<&'static str> {
     error.chain().find_map(|cause| {
+        if let Some(error) = cause.downcast_ref::<RosError>() {
+            return recording_hint(error);
+        }
         if let Some(error) = cause.downcast_ref::<ConvertError>() {
-            return convert_hint(error, skips_bad_files);
+            if let Some(hint) = convert_hint(error, skips_bad_files) {
+                return Some(hint);
+            }
         }
         match cause.downcast_ref::<FormatError>() {
             Some(FormatError::UnknownExtension { .. }) => {
@@ -63,6 +69,26 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         }
         ConvertError::Write(FormatError::UnknownExtension { .. }) => {
             Some("name the file accordingly or pass --format")
+        }
+        ConvertError::RecordingTimes { .. } => {
+            Some("leave out --start/--step and --times-file; --time-source log takes the recording times")
+        }
+        _ => None,
+    }
+}
+
+fn recording_hint(error: &RosError) -> Option<&'static str> {
+    match error {
+        RosError::SeveralOctomapTopics { .. }
+        | RosError::NoSuchTopic { .. }
+        | RosError::NotOctomapTopic { .. } => {
+            Some("choose one of the listed topics with --topic NAME")
+        }
+        RosError::NoOctomapTopic { .. } => Some(
+            "record the map topic of octomap_server (/octomap_binary), or name a topic of another octomap type with --topic",
+        ),
+        RosError::UnsupportedCompression { .. } => {
+            Some("decompress the bag with `rosbag decompress` first")
         }
         _ => None,
     }

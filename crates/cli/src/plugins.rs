@@ -7,7 +7,12 @@ use std::sync::OnceLock;
 /// values they accept are the registered ones).
 pub fn context() -> &'static Context {
     static CONTEXT: OnceLock<Context> = OnceLock::new();
-    CONTEXT.get_or_init(Context::with_default_plugins)
+    CONTEXT.get_or_init(|| {
+        let mut context = Context::with_default_plugins();
+        // ROS 1 bags, MCAP files and ROS 2 bag directories as sources of timed maps.
+        froctomap_ros::register(&mut context);
+        context
+    })
 }
 
 /// A parser of `--format` values that accepts the writable formats' names and lists them

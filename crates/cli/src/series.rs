@@ -11,7 +11,8 @@ use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
     resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, Pick, SeriesInput, TimeQuery, TimeSource,
+    ExportMode, ExportOptions, Pick, RecordedTime, RecordingOptions, SeriesInput, TimeQuery,
+    TimeSource,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -39,9 +40,37 @@ pub struct TimeArgs {
     /// given (directories and globs in natural order: map_2 before map_10).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["start", "times_from_names"])]
     times_file: Option<PathBuf>,
+    /// Recordings (ROS 1 .bag, .mcap, ROS 2 bag directories): the topic to read. Default: the
+    /// one topic of type octomap_msgs/Octomap.
+    #[arg(long, value_name = "NAME")]
+    topic: Option<String>,
+    /// Recordings: which time a map gets, its message's header stamp (zero stamps take the
+    /// log time, with a warning) or the time it was logged.
+    #[arg(long, value_enum, value_name = "SOURCE", default_value_t = RecordedTimeArg::Header)]
+    time_source: RecordedTimeArg,
+}
+
+/// `--time-source`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum RecordedTimeArg {
+    /// The header stamp of each message.
+    Header,
+    /// The recording (log) time of each message.
+    Log,
 }
 
 impl TimeArgs {
+    /// The program's context reading recordings as `--topic` and `--time-source` say.
+    fn context(&self, ui: &Ui) -> froctomap_convert::Context {
+        let time = match self.time_source {
+            RecordedTimeArg::Header => RecordedTime::Header,
+            RecordedTimeArg::Log => RecordedTime::Log,
+        };
+        ui.context
+            .clone()
+            .with_recording_options(RecordingOptions::new(self.topic.clone(), time))
+    }
+
     pub(crate) fn source(&self, ui: &Ui) -> Result<TimeSource> {
         if let Some(list) = &self.times_file {
             return Ok(TimeSource::TimesFile(list.clone()));
@@ -278,8 +307,14 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    let collected =
-        collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
+    // Recordings among the inputs are read back through the context that expanded them.
+    let series_context = &args.times.context(ui);
+    let collected = collect_inputs_explained(
+        series_context,
+        &args.inputs,
+        args.times.source(ui)?,
+        &ui.zone,
+    )?;
     ui.read_zoneless(collected.zoneless);
     for warning in &collected.warnings {
         ui.note(&format!("warning: {}", escaped(warning)));
@@ -345,7 +380,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = build(ui.context, &inputs, output, &options, &bars)?;
+    let report = build(series_context, &inputs, output, &options, &bars)?;
     drop(bars);
     let peak = peak_memory_bytes();
     if args.json {

@@ -330,7 +330,11 @@ pub fn build(
         resolution: options.resolution,
         allow_mostly_skipped: options.allow_mostly_skipped,
     }
-    .run(inputs, progress)?;
+    .run(
+        inputs,
+        &|input| crate::recording::is_recorded(context, input),
+        progress,
+    )?;
 
     progress.stage("reading snapshots", inputs.len() as u64);
     let extract = ExtractOptions {

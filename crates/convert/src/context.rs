@@ -4,6 +4,7 @@
 //! reaches every path.
 
 use crate::error::ConvertError;
+use crate::recording::{OpenRecordings, RecordingFormat, RecordingOptions};
 use froctomap_file::{FroctReader, ReadLimits};
 use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
 use froctomap_temporal::ModelRegistry;
@@ -64,6 +65,10 @@ pub struct Context {
     formats: FormatRegistry,
     models: ModelRegistry,
     limits: Limits,
+    recordings: Vec<RecordingFormat>,
+    recording_options: RecordingOptions,
+    /// Recordings opened while collecting inputs, shared by clones.
+    open_recordings: OpenRecordings,
 }
 
 impl Context {
@@ -73,6 +78,9 @@ impl Context {
             formats,
             models,
             limits: Limits::default(),
+            recordings: Vec::new(),
+            recording_options: RecordingOptions::default(),
+            open_recordings: OpenRecordings::default(),
         }
     }
 
@@ -113,6 +121,33 @@ impl Context {
     /// The resource bounds.
     pub fn limits(&self) -> &Limits {
         &self.limits
+    }
+
+    /// Adds a format of recordings (ROS bags…), which
+    /// [`collect_inputs`](crate::collect_inputs) then expands into their maps.
+    pub fn register_recording(&mut self, format: RecordingFormat) {
+        self.recordings.push(format);
+    }
+
+    /// The registered formats of recordings, in registration order.
+    pub fn recording_formats(&self) -> &[RecordingFormat] {
+        &self.recordings
+    }
+
+    /// The same context reading recordings with these options (topic, time).
+    pub fn with_recording_options(mut self, options: RecordingOptions) -> Self {
+        self.recording_options = options;
+        self
+    }
+
+    /// How recordings are read.
+    pub fn recording_options(&self) -> &RecordingOptions {
+        &self.recording_options
+    }
+
+    /// The recordings opened while collecting inputs.
+    pub(crate) fn open_recordings(&self) -> &OpenRecordings {
+        &self.open_recordings
     }
 
     /// Opens a FROctomap file with this context's models (so a model the program registered

@@ -49,6 +49,25 @@ pub enum ConvertError {
         /// The pattern.
         pattern: String,
     },
+    /// A recording (a ROS bag, an MCAP file) that its format's plugin could not open or
+    /// expand into maps (the cause names the recording).
+    #[error("{source}")]
+    Recording {
+        /// The recording.
+        path: PathBuf,
+        /// Its format.
+        format: &'static str,
+        /// What went wrong, as the plugin's own error type.
+        #[source]
+        source: Cause,
+    },
+    /// `--start/--step` or a times file given with a recording, whose maps carry their own
+    /// times.
+    #[error("{}: a recording's maps carry their own times; --start/--step and --times-file apply to map files only", path.display())]
+    RecordingTimes {
+        /// The recording.
+        path: PathBuf,
+    },
     /// A directory without a manifest or map files.
     #[error("{}: no {manifest} or map files ({extensions}) in this directory", dir.display())]
     NoMapFiles {
@@ -406,6 +425,9 @@ pub enum SnapshotError {
     /// Byte-identical to a file refused before it, and so refused for the same reason.
     #[error("byte-identical to a file refused before it: {0}")]
     SameAsRefused(#[source] Arc<SnapshotError>),
+    /// A recorded map could not be fetched from its recording (the cause names it).
+    #[error("{0}")]
+    Recorded(#[source] Arc<dyn std::error::Error + Send + Sync + 'static>),
     /// A fault of froctomap itself.
     #[error("internal error: {0}")]
     Internal(&'static str),
@@ -415,7 +437,7 @@ impl SnapshotError {
     /// `true` when the message names the file already.
     fn names_file(&self) -> bool {
         match self {
-            Self::Format(_) => true,
+            Self::Format(_) | Self::Recorded(_) => true,
             // It names the earlier file, if any.
             _ => false,
         }

@@ -53,6 +53,8 @@ pub enum TimeOrigin {
     StartStep,
     /// A list of times, by the file's place in the list.
     TimesFile,
+    /// A map recorded in a recording (a ROS bag…), at the time the recording gives it.
+    Recorded,
 }
 
 impl std::fmt::Display for TimeOrigin {
@@ -62,6 +64,7 @@ impl std::fmt::Display for TimeOrigin {
             Self::FileName => "file name",
             Self::StartStep => "start + step",
             Self::TimesFile => "times file",
+            Self::Recorded => "recording",
         })
     }
 }
@@ -92,6 +95,14 @@ pub enum InputWarning {
         /// The map files it does not list.
         files: Vec<PathBuf>,
     },
+    /// Something a recording's reader tolerated (e.g. zero stamps given recording times).
+    #[error("{}: {message}", path.display())]
+    Recording {
+        /// The recording.
+        path: PathBuf,
+        /// What it tolerated.
+        message: String,
+    },
 }
 
 /// The name of a manifest inside a series directory.
@@ -103,6 +114,49 @@ struct Candidate {
     manifest_time: Option<Timestamp>,
     /// The manifest's time had no zone.
     manifest_zoneless: bool,
+    /// A map of a recording (at `path`), at this time.
+    recorded_time: Option<Timestamp>,
+}
+
+impl Candidate {
+    /// A plain file, its time still to be found.
+    fn file(path: PathBuf) -> Self {
+        Self {
+            path,
+            manifest_time: None,
+            manifest_zoneless: false,
+            recorded_time: None,
+        }
+    }
+}
+
+/// Adds `path` to `candidates`: the maps of a recording (of a format registered in
+/// `context`) at their times, else the file itself.
+fn push_file(
+    context: &Context,
+    path: PathBuf,
+    candidates: &mut Vec<Candidate>,
+    warnings: &mut Vec<InputWarning>,
+) -> Result<(), ConvertError> {
+    let Some(format) = crate::recording::recording_format(context, &path) else {
+        candidates.push(Candidate::file(path));
+        return Ok(());
+    };
+    let recording = crate::recording::open_recording(context, format, &path)?;
+    warnings.extend(
+        recording
+            .warnings
+            .into_iter()
+            .map(|message| InputWarning::Recording {
+                path: path.clone(),
+                message,
+            }),
+    );
+    candidates.extend(recording.times.into_iter().map(|time| Candidate {
+        recorded_time: Some(time),
+        ..Candidate::file(path.clone())
+    }));
+    Ok(())
 }
 
 /// Expands command-line inputs into the files of a series with their times, sorted by time.
@@ -118,9 +172,12 @@ struct Candidate {
 /// through symbolic links (a link to an ancestor would make the walk endless). A FIFO,
 /// device or socket among the inputs or a manifest's rows is refused before it is opened.
 ///
-/// A later kind of *source* (a recording such as a ROS bag, holding many timed snapshots in
-/// one file) plugs in here: recognised by the registry's probe as a
-/// [`SeriesFormat`](froctomap_formats::SeriesFormat), expanded into its timed snapshots.
+/// A *recording* (a file or directory of a [`RecordingFormat`](crate::RecordingFormat)
+/// registered in `context`, such as a ROS bag) given directly or matched by a glob is
+/// expanded into its maps, one input each with the recording's path and the map's time
+/// (read as `context`'s [`RecordingOptions`](crate::RecordingOptions) say); such inputs
+/// are read back through the same `context`. Their times are their own: `--start/--step`
+/// and times files are refused with them.
 pub fn collect_inputs(
     context: &Context,
     inputs: &[PathBuf],
@@ -171,11 +228,11 @@ pub fn collect_inputs_explained(
                 });
             }
             matched.sort_by(|a, b| natural_cmp(a, b));
-            candidates.extend(matched.into_iter().map(|path| Candidate {
-                path,
-                manifest_time: None,
-                manifest_zoneless: false,
-            }));
+            for path in matched {
+                push_file(context, path, &mut candidates, &mut warnings)?;
+            }
+        } else if input.is_dir() && crate::recording::recording_format(context, input).is_some() {
+            push_file(context, input.clone(), &mut candidates, &mut warnings)?;
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
             if manifest.is_file() {
@@ -198,11 +255,7 @@ pub fn collect_inputs_explained(
                     });
                 }
                 files.sort_by(|a, b| natural_cmp(a, b));
-                candidates.extend(files.into_iter().map(|path| Candidate {
-                    path,
-                    manifest_time: None,
-                    manifest_zoneless: false,
-                }));
+                candidates.extend(files.into_iter().map(Candidate::file));
             }
         } else if let Some(kind) = special_kind(input) {
             return Err(ConvertError::NotAFile {
@@ -215,11 +268,7 @@ pub fn collect_inputs_explained(
         {
             candidates.extend(read_manifest(input, zone)?);
         } else if input.is_file() {
-            candidates.push(Candidate {
-                path: input.clone(),
-                manifest_time: None,
-                manifest_zoneless: false,
-            });
+            push_file(context, input.clone(), &mut candidates, &mut warnings)?;
         } else {
             return Err(ConvertError::NotFound {
                 path: input.clone(),
@@ -232,6 +281,7 @@ pub fn collect_inputs_explained(
     // Manifest rows too: a FIFO among them would stall the build.
     if let Some((path, kind)) = candidates
         .iter()
+        .filter(|c| c.recorded_time.is_none())
         .find_map(|c| special_kind(&c.path).map(|kind| (&c.path, kind)))
     {
         return Err(ConvertError::NotAFile {
@@ -240,6 +290,14 @@ pub fn collect_inputs_explained(
         });
     }
     let zoneless = candidates.iter().any(|c| c.manifest_zoneless);
+    if let (TimeSource::StartStep { .. } | TimeSource::TimesFile(_), Some(recorded)) = (
+        &times,
+        candidates.iter().find(|c| c.recorded_time.is_some()),
+    ) {
+        return Err(ConvertError::RecordingTimes {
+            path: recorded.path.clone(),
+        });
+    }
     let (mut timed, names_zoneless) = assign_times(candidates, times, zone)?;
     timed.sort_by(|(a, _), (b, _)| a.time.cmp(&b.time).then_with(|| a.path.cmp(&b.path)));
     if let Some(pair) = timed.windows(2).find(|w| w[0].0.time == w[1].0.time) {
@@ -347,6 +405,10 @@ fn assign_times(
             let mut unnamed = Vec::new();
             let mut zoneless = false;
             for c in candidates {
+                if let Some(time) = c.recorded_time {
+                    out.push((SeriesInput { path: c.path, time }, TimeOrigin::Recorded));
+                    continue;
+                }
                 let from_manifest = c.manifest_time.filter(|_| use_manifest);
                 let from_name = || {
                     c.path
@@ -524,9 +586,9 @@ fn read_manifest(manifest: &Path, zone: &Zone) -> Result<Vec<Candidate>, Convert
             base.join(path)
         };
         out.push(Candidate {
-            path,
             manifest_time: Some(read.time),
             manifest_zoneless: read.zoneless,
+            ..Candidate::file(path)
         });
     }
     if out.is_empty() {

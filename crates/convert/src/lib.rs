@@ -46,6 +46,7 @@ mod inputs;
 mod maps;
 mod outputs;
 mod progress;
+mod recording;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -71,6 +72,7 @@ pub use maps::{
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
+pub use recording::{RecordedMaps, RecordedTime, Recording, RecordingFormat, RecordingOptions};
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,

@@ -210,7 +210,11 @@ pub fn append(
         resolution: Some(old.resolution),
         allow_mostly_skipped: false,
     }
-    .run(inputs, progress)
+    .run(
+        inputs,
+        &|input| crate::recording::is_recorded(context, input),
+        progress,
+    )
     .map_err(|e| match e {
         ConvertError::Snapshot { path, source } => match *source {
             SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {

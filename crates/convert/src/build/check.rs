@@ -41,16 +41,22 @@ pub(crate) struct CheckedInputs {
 
 impl InputCheck {
     /// Reads every input's header (in parallel, one progress unit each) and decides.
+    /// Maps of a recording (`recorded`) have no header to check here: their reading decides.
     pub fn run(
         &self,
         inputs: &[SeriesInput],
+        recorded: &(dyn Fn(&SeriesInput) -> bool + Sync),
         progress: &dyn Progress,
     ) -> Result<CheckedInputs, ConvertError> {
         progress.stage("checking inputs", inputs.len() as u64);
         let headers: Vec<Result<Option<f64>, SnapshotError>> = inputs
             .par_iter()
             .map(|input| {
-                let resolution = header_resolution(&input.path);
+                let resolution = if recorded(input) {
+                    Ok(None)
+                } else {
+                    header_resolution(&input.path)
+                };
                 progress.advance(1);
                 resolution
             })

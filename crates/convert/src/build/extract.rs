@@ -8,11 +8,11 @@
 //! batch of files; the accumulator consumes the batches as they come.
 
 use super::check::{CheckedInputs, TileBudget};
-use super::read_input;
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
+use crate::recording::{input_name, snapshot_bytes};
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use froctomap_core::StateChange;
 use froctomap_formats::ReadOptions;
@@ -139,9 +139,10 @@ impl<'a> ChangeExtractor<'a> {
         let registry = self.context.formats();
         let limit = self.context.limits().max_map_file_bytes;
         let inputs = self.inputs;
+        let context = self.context;
         let raw: Vec<Result<Vec<u8>, Refusal>> = chunk
             .par_iter()
-            .map(|&i| read_input(&inputs[i].path, limit).map_err(Arc::new))
+            .map(|&i| snapshot_bytes(context, &inputs[i], limit).map_err(Arc::new))
             .collect();
         // When the series' resolution is not known from the headers, the first file sets it.
         if self.tally.resolution.is_none() {
@@ -156,7 +157,11 @@ impl<'a> ChangeExtractor<'a> {
             options: self.options.read,
             resolution: self.tally.resolution,
         };
-        let paths: Vec<&Path> = chunk.iter().map(|&i| inputs[i].path.as_path()).collect();
+        let names: Vec<PathBuf> = chunk
+            .iter()
+            .map(|&i| input_name(context, &inputs[i]))
+            .collect();
+        let paths: Vec<&Path> = names.iter().map(PathBuf::as_path).collect();
         let outcomes = reader.batch(&paths, &raw, &mut self.previous);
         let mut accepted = Vec::with_capacity(outcomes.len());
         for (k, outcome) in outcomes.into_iter().enumerate() {

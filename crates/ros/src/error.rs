@@ -1,0 +1,179 @@
+//! Why a recording or one of its messages could not be read. Every variant names the file.
+
+use std::path::PathBuf;
+
+/// Why a recording could not be read. Messages name the recording (and the topic or message
+/// where one is concerned).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RosError {
+    /// The file could not be opened or read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Io {
+        /// The recording.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file ends inside a record.
+    #[error("{}: truncated: {what} ends past the end of the file", path.display())]
+    Truncated {
+        /// The recording.
+        path: PathBuf,
+        /// The record that is cut off.
+        what: &'static str,
+    },
+    /// A record does not follow the format.
+    #[error("{}: malformed {what}: {problem}", path.display())]
+    Malformed {
+        /// The recording.
+        path: PathBuf,
+        /// The record concerned.
+        what: &'static str,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A length field asks for more than the limits allow (hostile or damaged input).
+    #[error("{}: {what} of {bytes} bytes is more than the limit of {limit} bytes", path.display())]
+    TooLarge {
+        /// The recording.
+        path: PathBuf,
+        /// What the length is of.
+        what: &'static str,
+        /// The length found.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// A chunk compressed in a way this reader does not know.
+    #[error("{}: chunk compression `{name}` is not supported ({supported} are)", path.display())]
+    UnsupportedCompression {
+        /// The recording.
+        path: PathBuf,
+        /// The compression named in the chunk.
+        name: String,
+        /// The compressions this kind of recording may use that are read.
+        supported: &'static str,
+    },
+    /// The MCAP library refused the file.
+    #[error("{}: {source}", path.display())]
+    Mcap {
+        /// The recording.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: mcap::McapError,
+    },
+    /// An MCAP file without a summary section: its chunks cannot be found without reading all.
+    #[error("{}: MCAP file without a summary (chunk index); re-index it with `mcap recover`", path.display())]
+    NoSummary {
+        /// The recording.
+        path: PathBuf,
+    },
+    /// A ROS 2 bag directory whose storage is not MCAP.
+    #[error("{}: ROS 2 bag without .mcap files{}; convert it with `ros2 bag convert` to MCAP storage", path.display(), if *sqlite { " (it uses sqlite3 storage)" } else { "" })]
+    NoMcapInBag {
+        /// The bag directory.
+        path: PathBuf,
+        /// It holds `.db3` files.
+        sqlite: bool,
+    },
+    /// No topic of an octomap message type.
+    #[error("{}: no topic of type octomap_msgs/Octomap; topics: {}", path.display(), list_topics(topics))]
+    NoOctomapTopic {
+        /// The recording.
+        path: PathBuf,
+        /// Every topic and its type.
+        topics: Vec<(String, String)>,
+    },
+    /// Several topics of an octomap message type and no `--topic`.
+    #[error("{}: several octomap topics ({}); choose one with --topic", path.display(), list_topics(topics))]
+    SeveralOctomapTopics {
+        /// The recording.
+        path: PathBuf,
+        /// The octomap topics and their types.
+        topics: Vec<(String, String)>,
+    },
+    /// The topic asked for is not in the recording.
+    #[error("{}: no topic `{topic}`; topics: {}", path.display(), list_topics(topics))]
+    NoSuchTopic {
+        /// The recording.
+        path: PathBuf,
+        /// The topic asked for.
+        topic: String,
+        /// Every topic and its type.
+        topics: Vec<(String, String)>,
+    },
+    /// The topic asked for carries another message type.
+    #[error("{}: topic `{topic}` has type {found}, not octomap_msgs/Octomap", path.display())]
+    NotOctomapTopic {
+        /// The recording.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Its type.
+        found: String,
+    },
+    /// The topic's messages are in an encoding this reader does not decode.
+    #[error("{}: topic `{topic}` is encoded as `{encoding}` (ros1 and cdr are read)", path.display())]
+    UnsupportedEncoding {
+        /// The recording.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Its message encoding.
+        encoding: String,
+    },
+    /// A message that does not decode as `octomap_msgs/Octomap`.
+    #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
+    BadMessage {
+        /// The recording.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// The message's log time (ISO 8601).
+        time: String,
+        /// What is wrong (boxed: the codec's errors are large).
+        #[source]
+        problem: Box<MessageError>,
+    },
+}
+
+/// Why a message's bytes are not an `octomap_msgs/Octomap`.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum MessageError {
+    /// The bytes end inside a field.
+    #[error("the message ends inside its `{field}` field")]
+    Truncated {
+        /// The field.
+        field: &'static str,
+    },
+    /// A CDR encapsulation this reader does not decode.
+    #[error("CDR encapsulation {0:#06x} is not plain CDR (0x0000 big or 0x0001 little endian)")]
+    Encapsulation(u16),
+    /// A string that is not UTF-8 or lacks its terminating NUL.
+    #[error("field `{field}` is not a valid string")]
+    BadString {
+        /// The field.
+        field: &'static str,
+    },
+    /// The resolution is not a positive number.
+    #[error("resolution {0} is not a positive number")]
+    Resolution(String),
+    /// The map data is not an OctoMap tree.
+    #[error("the map data is not an OctoMap tree: {0}")]
+    NotAMap(#[source] froctomap_octomap_codec::CodecError),
+}
+
+fn list_topics(topics: &[(String, String)]) -> String {
+    if topics.is_empty() {
+        return "none".to_string();
+    }
+    topics
+        .iter()
+        .map(|(topic, kind)| format!("{topic} [{kind}]"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

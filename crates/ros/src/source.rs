@@ -1,0 +1,324 @@
+//! A recording as froctomap's inputs see it: the maps of one octomap topic at their times,
+//! fetched one at a time ([`RecordedMaps`]).
+
+use crate::bag::{Bag, BagMessage};
+use crate::error::RosError;
+use crate::mcap_file::{McapFile, McapMessage};
+use crate::message::{decode_message, decode_stamp, Encoding, MessageType};
+use froctomap_convert::{RecordedMaps, RecordedTime, Recording, RecordingOptions};
+use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// A topic of a recording file with its type, as the file names them.
+#[derive(Clone, Debug)]
+struct TopicEntry {
+    topic: String,
+    type_name: String,
+}
+
+/// The topic to read among `topics` (several entries may share a topic): `wanted`, else the
+/// one of an octomap type.
+fn select_topic(
+    path: &Path,
+    topics: &[TopicEntry],
+    wanted: Option<&str>,
+) -> Result<(String, MessageType), RosError> {
+    let mut listed: Vec<(String, String)> = topics
+        .iter()
+        .map(|t| (t.topic.clone(), t.type_name.clone()))
+        .collect();
+    listed.sort();
+    listed.dedup();
+    if let Some(wanted) = wanted {
+        let Some((topic, type_name)) = listed.iter().find(|(t, _)| t == wanted) else {
+            return Err(RosError::NoSuchTopic {
+                path: path.to_path_buf(),
+                topic: wanted.to_string(),
+                topics: listed,
+            });
+        };
+        return MessageType::from_name(type_name)
+            .map(|kind| (topic.clone(), kind))
+            .ok_or_else(|| RosError::NotOctomapTopic {
+                path: path.to_path_buf(),
+                topic: topic.clone(),
+                found: type_name.clone(),
+            });
+    }
+    let maps: Vec<(String, String)> = listed
+        .iter()
+        .filter(|(_, kind)| MessageType::from_name(kind).is_some())
+        .cloned()
+        .collect();
+    match maps.as_slice() {
+        [] => Err(RosError::NoOctomapTopic {
+            path: path.to_path_buf(),
+            topics: listed,
+        }),
+        [(topic, kind)] => Ok((
+            topic.clone(),
+            MessageType::from_name(kind).unwrap_or(MessageType::Octomap),
+        )),
+        _ => Err(RosError::SeveralOctomapTopics {
+            path: path.to_path_buf(),
+            topics: maps,
+        }),
+    }
+}
+
+/// Where one map is.
+#[derive(Clone, Debug)]
+enum Location {
+    Bag(BagMessage),
+    /// A message of the `file`-th MCAP file of the recording.
+    Mcap(usize, McapMessage),
+}
+
+/// The files a recording is made of.
+#[derive(Debug)]
+enum Files {
+    Bag(Bag),
+    Mcap(Vec<(McapFile, Encoding)>),
+}
+
+/// The maps of one topic of a recording.
+#[derive(Debug)]
+struct TopicMaps {
+    path: PathBuf,
+    topic: String,
+    kind: MessageType,
+    files: Files,
+    maps: Vec<(i64, Location)>,
+    /// The last decompressed bag chunk (several maps often share one).
+    chunk_cache: Mutex<Option<(u64, Arc<Vec<u8>>)>>,
+}
+
+impl TopicMaps {
+    fn bad_message(&self, log_ns: i64, problem: crate::MessageError) -> RosError {
+        RosError::BadMessage {
+            path: self.path.clone(),
+            topic: self.topic.clone(),
+            time: iso8601(Timestamp(log_ns)),
+            problem: Box::new(problem),
+        }
+    }
+
+    fn bag_chunk(&self, bag: &Bag, chunk_pos: u64, limit: u64) -> Result<Arc<Vec<u8>>, RosError> {
+        let cache = || self.chunk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((pos, chunk)) = cache().as_ref() {
+            if *pos == chunk_pos && chunk.len() as u64 <= limit {
+                return Ok(chunk.clone());
+            }
+        }
+        let chunk = Arc::new(bag.chunk(chunk_pos, limit)?);
+        *cache() = Some((chunk_pos, chunk.clone()));
+        Ok(chunk)
+    }
+
+    fn fetch(&self, index: usize, limit: u64) -> Result<Vec<u8>, RosError> {
+        let Some((log_ns, location)) = self.maps.get(index) else {
+            return Err(RosError::Malformed {
+                path: self.path.clone(),
+                what: "recording",
+                problem: format!("no map {index}"),
+            });
+        };
+        let decode = |bytes: &[u8], encoding| {
+            if bytes.len() as u64 > limit {
+                return Err(RosError::TooLarge {
+                    path: self.path.clone(),
+                    what: "map message",
+                    bytes: bytes.len() as u64,
+                    limit,
+                });
+            }
+            decode_message(bytes, encoding, self.kind)
+                .and_then(|m| m.map_file())
+                .map_err(|e| self.bad_message(*log_ns, e))
+        };
+        match (&self.files, location) {
+            (Files::Bag(bag), Location::Bag(found)) => {
+                let chunk = self.bag_chunk(bag, found.chunk_pos, limit)?;
+                decode(bag.message_in(&chunk, found.offset)?, Encoding::Ros1)
+            }
+            (Files::Mcap(files), Location::Mcap(file, found)) => {
+                let (mcap, encoding) = files.get(*file).ok_or_else(|| RosError::Malformed {
+                    path: self.path.clone(),
+                    what: "recording",
+                    problem: "no such file".into(),
+                })?;
+                decode(&mcap.message(found, limit)?, *encoding)
+            }
+            _ => Err(RosError::Malformed {
+                path: self.path.clone(),
+                what: "recording",
+                problem: "a location of another kind of file".into(),
+            }),
+        }
+    }
+}
+
+impl RecordedMaps for TopicMaps {
+    fn map_bytes(&self, index: usize, limit: u64) -> Result<Vec<u8>, froctomap_convert::Cause> {
+        Ok(self.fetch(index, limit)?)
+    }
+
+    fn topic(&self) -> &str {
+        &self.topic
+    }
+}
+
+/// The recording's times as `options` ask, each map's stamp (`None`: not read) replaced by
+/// its log time when zero, with one warning counting those.
+fn times(maps: &[(i64, Option<i64>)], time: RecordedTime) -> (Vec<Timestamp>, Vec<String>) {
+    let mut zero = 0usize;
+    let times = maps
+        .iter()
+        .map(|&(log_ns, stamp)| match (time, stamp) {
+            (RecordedTime::Header, Some(0)) => {
+                zero += 1;
+                Timestamp(log_ns)
+            }
+            (RecordedTime::Header, Some(stamp)) => Timestamp(stamp),
+            _ => Timestamp(log_ns),
+        })
+        .collect();
+    let warnings = if zero > 0 {
+        vec![format!(
+            "{zero} message(s) with a zero header stamp take their recording (log) time"
+        )]
+    } else {
+        Vec::new()
+    };
+    (times, warnings)
+}
+
+/// Opens a ROS 1 bag.
+pub(crate) fn open_bag(
+    path: &Path,
+    options: &RecordingOptions,
+    limit: u64,
+) -> Result<Recording, RosError> {
+    let bag = Bag::open(path)?;
+    let topics: Vec<TopicEntry> = bag
+        .connections
+        .iter()
+        .map(|c| TopicEntry {
+            topic: c.topic.clone(),
+            type_name: c.type_name.clone(),
+        })
+        .collect();
+    let (topic, kind) = select_topic(path, &topics, options.topic.as_deref())?;
+    let ids: Vec<u32> = bag
+        .connections
+        .iter()
+        .filter(|c| c.topic == topic)
+        .map(|c| c.id)
+        .collect();
+    let found = bag.messages(&ids)?;
+    let mut maps = TopicMaps {
+        path: path.to_path_buf(),
+        topic,
+        kind,
+        files: Files::Bag(bag),
+        maps: Vec::new(),
+        chunk_cache: Mutex::new(None),
+    };
+    let mut stamps = Vec::with_capacity(found.len());
+    let mut locations = Vec::with_capacity(found.len());
+    if let Files::Bag(bag) = &maps.files {
+        for message in found {
+            let stamp = if options.time == RecordedTime::Header {
+                let chunk = maps.bag_chunk(bag, message.chunk_pos, limit)?;
+                let bytes = bag.message_in(&chunk, message.offset)?;
+                Some(
+                    decode_stamp(bytes, Encoding::Ros1, kind)
+                        .map_err(|e| maps.bad_message(message.log_ns, e))?,
+                )
+            } else {
+                None
+            };
+            stamps.push((message.log_ns, stamp));
+            locations.push((message.log_ns, Location::Bag(message)));
+        }
+    }
+    maps.maps = locations;
+    let (times, warnings) = times(&stamps, options.time);
+    Ok(Recording::new(times, warnings, Arc::new(maps)))
+}
+
+/// Opens MCAP files as one recording (one file, or the files of a ROS 2 bag directory).
+pub(crate) fn open_mcap(
+    path: &Path,
+    files: &[PathBuf],
+    options: &RecordingOptions,
+    limit: u64,
+) -> Result<Recording, RosError> {
+    let opened: Vec<McapFile> = files
+        .iter()
+        .map(|f| McapFile::open(f))
+        .collect::<Result<_, _>>()?;
+    let topics: Vec<TopicEntry> = opened
+        .iter()
+        .flat_map(|f| &f.channels)
+        .map(|c| TopicEntry {
+            topic: c.topic.clone(),
+            type_name: c.schema.clone(),
+        })
+        .collect();
+    let (topic, kind) = select_topic(path, &topics, options.topic.as_deref())?;
+    let mut stamps = Vec::new();
+    let mut locations = Vec::new();
+    let mut with_encoding = Vec::with_capacity(opened.len());
+    for (file_index, mcap) in opened.into_iter().enumerate() {
+        let channels: Vec<_> = mcap.channels.iter().filter(|c| c.topic == topic).collect();
+        let Some(first) = channels.first() else {
+            with_encoding.push((mcap, Encoding::Cdr));
+            continue;
+        };
+        let encoding = match first.encoding.as_str() {
+            "cdr" => Encoding::Cdr,
+            "ros1" => Encoding::Ros1,
+            other => {
+                return Err(RosError::UnsupportedEncoding {
+                    path: mcap.file.path.clone(),
+                    topic,
+                    encoding: other.to_string(),
+                })
+            }
+        };
+        let ids: Vec<u16> = channels.iter().map(|c| c.id).collect();
+        let header = options.time == RecordedTime::Header;
+        let file_path = mcap.file.path.clone();
+        let found = mcap.messages(&ids, limit, &mut |log_ns, data| {
+            if !header {
+                return Ok(None);
+            }
+            decode_stamp(data, encoding, kind)
+                .map(Some)
+                .map_err(|problem| RosError::BadMessage {
+                    path: file_path.clone(),
+                    topic: topic.clone(),
+                    time: iso8601(Timestamp(log_ns)),
+                    problem: Box::new(problem),
+                })
+        })?;
+        for (message, stamp) in found {
+            stamps.push((message.log_ns, stamp));
+            locations.push((message.log_ns, Location::Mcap(file_index, message)));
+        }
+        with_encoding.push((mcap, encoding));
+    }
+    let maps = TopicMaps {
+        path: path.to_path_buf(),
+        topic,
+        kind,
+        files: Files::Mcap(with_encoding),
+        maps: locations,
+        chunk_cache: Mutex::new(None),
+    };
+    let (times, warnings) = times(&stamps, options.time);
+    Ok(Recording::new(times, warnings, Arc::new(maps)))
+}

@@ -1,0 +1,190 @@
+//! The recordings in fixtures/ros (written by PyPI rosbags and mcap-ros2-support) read back:
+//! topics, times, and maps identical to the .bt files they were made from; truncated and
+//! damaged copies give errors, never panics.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use froctomap_convert::{Context, RecordedTime, Recording, RecordingFormat, RecordingOptions};
+use froctomap_core::Timestamp;
+use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_ros::{RosError, MCAP, ROS2_BAG, ROSBAG};
+use std::path::{Path, PathBuf};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(name)
+}
+
+fn open(
+    format: &RecordingFormat,
+    path: &Path,
+    topic: Option<&str>,
+    time: RecordedTime,
+) -> Result<Recording, Box<dyn std::error::Error + Send + Sync>> {
+    let options = RecordingOptions::new(topic.map(str::to_string), time);
+    (format.open)(path, &options, 1 << 30)
+}
+
+/// The leaves of a map file's bytes, as the registry reads them.
+fn leaves(bytes: &[u8]) -> Vec<froctomap_core::Leaf> {
+    let registry = FormatRegistry::with_default_formats();
+    let read = registry
+        .read_bytes(Path::new("map"), bytes, ReadOptions::default())
+        .unwrap();
+    assert!(read.map.warnings.is_empty(), "{:?}", read.map.warnings);
+    read.map.snapshot.leaves().to_vec()
+}
+
+fn fixture_leaves(name: &str) -> Vec<froctomap_core::Leaf> {
+    leaves(&std::fs::read(fixture(&format!("octomap/{name}"))).unwrap())
+}
+
+const STAMPS: [i64; 2] = [1_700_000_000_000_000_000, 1_700_000_060_500_000_000];
+const LOGS: [i64; 2] = [1_700_000_001_000_000_000, 1_700_000_061_000_000_000];
+
+#[test]
+fn every_kind_of_recording_gives_its_maps_at_their_stamps() {
+    for (format, name) in [
+        (&ROSBAG, "ros/two_maps_lz4.bag"),
+        (&ROS2_BAG, "ros/two_maps_ros2"),
+        (&MCAP, "ros/two_maps_zstd.mcap"),
+    ] {
+        let path = fixture(name);
+        assert!((format.probe)(&path), "{name}");
+        let recording = open(format, &path, None, RecordedTime::Header).unwrap();
+        assert_eq!(recording.times, STAMPS.map(Timestamp), "{name}");
+        assert!(recording.warnings.is_empty());
+        let maps = [
+            recording.maps.map_bytes(0, 1 << 30).unwrap(),
+            recording.maps.map_bytes(1, 1 << 30).unwrap(),
+        ];
+        assert_eq!(leaves(&maps[0]), fixture_leaves("few_voxels.bt"), "{name}");
+        assert_eq!(
+            leaves(&maps[1]),
+            fixture_leaves("coarse_leaves.bt"),
+            "{name}"
+        );
+        assert_eq!(recording.maps.topic(), "/octomap_binary");
+        let logged = open(format, &path, None, RecordedTime::Log).unwrap();
+        assert_eq!(logged.times, LOGS.map(Timestamp), "{name}");
+        // A map above the limit is refused before it is read.
+        assert!(recording.maps.map_bytes(0, 10).is_err());
+    }
+    // Formats recognise their own kind only.
+    assert!(!(ROSBAG.probe)(&fixture("ros/two_maps_zstd.mcap")));
+    assert!(!(MCAP.probe)(&fixture("ros/two_maps_lz4.bag")));
+    assert!(!(ROS2_BAG.probe)(&fixture("ros/two_maps_lz4.bag")));
+}
+
+#[test]
+fn topics_are_chosen_or_listed() {
+    let path = fixture("ros/two_topics_bz2.bag");
+    let err = open(&ROSBAG, &path, None, RecordedTime::Header).unwrap_err();
+    match err.downcast_ref::<RosError>() {
+        Some(RosError::SeveralOctomapTopics { topics, .. }) => {
+            let names: Vec<&str> = topics.iter().map(|(t, _)| t.as_str()).collect();
+            assert_eq!(names, ["/octomap_binary", "/octomap_full"]);
+        }
+        other => panic!("{other:?}"),
+    }
+    let full = open(&ROSBAG, &path, Some("/octomap_full"), RecordedTime::Header).unwrap();
+    assert_eq!(full.times, [Timestamp(STAMPS[0])]);
+    assert_eq!(
+        leaves(&full.maps.map_bytes(0, 1 << 30).unwrap()),
+        fixture_leaves("coarse_leaves.bt")
+    );
+    // A zero stamp takes the log time, with a warning.
+    let binary = open(
+        &ROSBAG,
+        &path,
+        Some("/octomap_binary"),
+        RecordedTime::Header,
+    )
+    .unwrap();
+    assert_eq!(binary.times, [Timestamp(LOGS[0])]);
+    assert_eq!(binary.warnings.len(), 1, "{:?}", binary.warnings);
+    assert!(binary.warnings[0].contains("zero header stamp"));
+    let err = open(&ROSBAG, &path, Some("/chatter"), RecordedTime::Header).unwrap_err();
+    assert!(
+        matches!(err.downcast_ref::<RosError>(), Some(RosError::NotOctomapTopic { found, .. }) if found == "std_msgs/String"),
+        "{err}"
+    );
+    let err = open(&ROSBAG, &path, Some("/nope"), RecordedTime::Header).unwrap_err();
+    assert!(
+        err.to_string().contains("/chatter [std_msgs/String]"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_directory_of_bags_is_not_a_ros2_bag_and_a_ros2_bag_without_mcap_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    assert!(!(ROS2_BAG.probe)(dir.path()));
+    std::fs::write(
+        dir.path().join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n",
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("x_0.db3"), b"SQLite format 3\0").unwrap();
+    assert!((ROS2_BAG.probe)(dir.path()));
+    let err = open(&ROS2_BAG, dir.path(), None, RecordedTime::Header).unwrap_err();
+    assert!(
+        matches!(
+            err.downcast_ref::<RosError>(),
+            Some(RosError::NoMcapInBag { sqlite: true, .. })
+        ),
+        "{err}"
+    );
+}
+
+/// Opens a damaged copy and fetches every map: any outcome but a panic.
+fn read_all(format: &RecordingFormat, path: &Path) -> Result<usize, String> {
+    let recording = open(format, path, None, RecordedTime::Header).map_err(|e| e.to_string())?;
+    for i in 0..recording.times.len() {
+        recording
+            .maps
+            .map_bytes(i, 1 << 30)
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(recording.times.len())
+}
+
+#[test]
+fn truncated_and_damaged_recordings_give_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (format, name) in [
+        (&ROSBAG, "ros/two_maps_lz4.bag"),
+        (&ROSBAG, "ros/two_topics_bz2.bag"),
+        (&ROSBAG, "ros/one_map.bag"),
+        (&MCAP, "ros/two_maps_zstd.mcap"),
+    ] {
+        let bytes = std::fs::read(fixture(name)).unwrap();
+        let copy = dir.path().join("copy");
+        for end in (0..bytes.len()).step_by(7) {
+            std::fs::write(&copy, &bytes[..end]).unwrap();
+            if let Err(message) = read_all(format, &copy) {
+                assert!(message.contains("copy"), "{name} cut at {end}: {message}");
+            }
+        }
+        // Every byte damaged in turn (in steps, to keep the test short): no panic, no hang.
+        for at in (0..bytes.len()).step_by(3) {
+            let mut damaged = bytes.clone();
+            damaged[at] ^= 0x5a;
+            std::fs::write(&copy, &damaged).unwrap();
+            let _ = read_all(format, &copy);
+        }
+    }
+}
+
+#[test]
+fn the_plugin_registers_in_a_context() {
+    let mut context = Context::with_default_plugins();
+    froctomap_ros::register(&mut context);
+    let names: Vec<&str> = context.recording_formats().iter().map(|f| f.name).collect();
+    assert_eq!(names, ["rosbag", "mcap", "ros2bag"]);
+    let head = std::fs::read(fixture("ros/one_map.bag")).unwrap();
+    assert!(matches!(
+        context.formats().identify(&head),
+        Some(froctomap_formats::Identified::Series(f)) if f.name == "rosbag"
+    ));
+}
