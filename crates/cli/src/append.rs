@@ -2,7 +2,7 @@
 //! `froctomap_convert::append`.
 
 use crate::progress::Bars;
-use crate::series::TimeArgs;
+use crate::series::{print_input_notes, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::Args;
@@ -46,14 +46,18 @@ pub struct AppendArgs {
     /// reproducible files.
     #[arg(long, value_name = "TIME")]
     appended: Option<String>,
+    #[command(flatten)]
+    spill: SpillArgs,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
 }
 
 pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
+    // Recordings among the inputs are read back through the context that expanded them.
+    let context = &args.times.context(ui);
     let collected =
-        collect_inputs_explained(ui.context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
+        collect_inputs_explained(context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
     for warning in &collected.warnings {
         ui.note(&format!("warning: {}", escaped(warning)));
@@ -87,6 +91,8 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
             .as_deref()
             .map(|text| ui.time(text, "--appended"))
             .transpose()?,
+        memory: args.spill.memory,
+        tmp_dir: args.spill.tmp_dir.clone(),
         ..AppendOptions::default()
     };
     ui.note(&format!(
@@ -97,7 +103,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
         escaped(args.file.display()),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = append(ui.context, &args.file, &inputs, &options, &bars)?;
+    let report = append(context, &args.file, &inputs, &options, &bars)?;
     drop(bars);
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?)?;
@@ -143,22 +149,6 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
             report.model_seconds
         )?;
     }
-    if !report.warnings.is_empty() && !ui.quiet {
-        for (path, warning) in report.warnings.iter().take(10) {
-            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
-        }
-        if report.warnings.len() > 10 {
-            eprintln!(
-                "warning: ... and {} more warnings",
-                report.warnings.len() - 10
-            );
-        }
-    }
-    if !report.skipped.is_empty() {
-        eprintln!("skipped {} file(s):", report.skipped.len());
-        for (path, reason) in &report.skipped {
-            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
-        }
-    }
+    print_input_notes(ui, &report.warnings, &report.skipped);
     Ok(())
 }

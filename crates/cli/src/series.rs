@@ -61,7 +61,7 @@ enum RecordedTimeArg {
 
 impl TimeArgs {
     /// The program's context reading recordings as `--topic` and `--time-source` say.
-    fn context(&self, ui: &Ui) -> froctomap_convert::Context {
+    pub(crate) fn context(&self, ui: &Ui) -> froctomap_convert::Context {
         let time = match self.time_source {
             RecordedTimeArg::Header => RecordedTime::Header,
             RecordedTimeArg::Log => RecordedTime::Log,
@@ -190,17 +190,8 @@ pub struct BuildArgs {
     /// given.
     #[arg(long, value_name = "TIME")]
     created: Option<String>,
-    /// Memory for the accumulated histories (e.g. 512MiB, 2GiB, 4G, or bytes). What grows
-    /// with the number of snapshots is spilled to disk beyond it and read back tile by tile,
-    /// so long series build in bounded memory; the file is the same whatever the budget.
-    /// Reading and fitting need memory on top of it.
-    #[arg(long, value_name = "SIZE", default_value = "1GiB", value_parser = byte_size)]
-    memory: u64,
-    /// Directory for the spill data (default: the output's directory). It goes into a
-    /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
-    /// stopped by Ctrl-C/SIGTERM.
-    #[arg(long, value_name = "DIR")]
-    tmp_dir: Option<PathBuf>,
+    #[command(flatten)]
+    spill: SpillArgs,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -208,6 +199,22 @@ pub struct BuildArgs {
     /// writing anything.
     #[arg(long)]
     dry_run: bool,
+}
+
+/// Where and beyond how much memory a build or an append spills the accumulated histories.
+#[derive(Args, Debug)]
+pub(crate) struct SpillArgs {
+    /// Memory for the accumulated histories (e.g. 512MiB, 2GiB, 4G, or bytes). What grows
+    /// with the number of snapshots is spilled to disk beyond it and read back tile by tile,
+    /// so long series build in bounded memory; the file is the same whatever the budget.
+    /// Reading and fitting need memory on top of it.
+    #[arg(long, value_name = "SIZE", default_value = "1GiB", value_parser = byte_size)]
+    pub(crate) memory: u64,
+    /// Directory for the spill data (default: the output's directory). It goes into a
+    /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
+    /// stopped by Ctrl-C/SIGTERM.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) tmp_dir: Option<PathBuf>,
 }
 
 /// `--memory`: bytes, or a number with a unit (K/M/G/T, binary whatever the spelling:
@@ -368,8 +375,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         backend: Some(ui.backend),
         metadata,
         created: creation_time(ui, args)?,
-        memory: args.memory,
-        tmp_dir: args.tmp_dir.clone(),
+        memory: args.spill.memory,
+        tmp_dir: args.spill.tmp_dir.clone(),
         ..BuildOptions::default()
     };
     ui.note(&format!(
@@ -448,23 +455,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             )?;
         }
     }
-    if !report.warnings.is_empty() && !ui.quiet {
-        for (path, warning) in report.warnings.iter().take(10) {
-            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
-        }
-        if report.warnings.len() > 10 {
-            eprintln!(
-                "warning: ... and {} more warnings",
-                report.warnings.len() - 10
-            );
-        }
-    }
-    if !report.skipped.is_empty() {
-        eprintln!("skipped {} file(s):", report.skipped.len());
-        for (path, reason) in &report.skipped {
-            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
-        }
-    }
+    print_input_notes(ui, &report.warnings, &report.skipped);
     Ok(())
 }
 
@@ -767,6 +758,28 @@ fn print_eval(report: &EvalReport) -> std::io::Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// The readers' warnings (the first ten) and the files left out, after a build or an append.
+pub(crate) fn print_input_notes(
+    ui: &Ui,
+    warnings: &[(PathBuf, String)],
+    skipped: &[(PathBuf, String)],
+) {
+    if !warnings.is_empty() && !ui.quiet {
+        for (path, warning) in warnings.iter().take(10) {
+            eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
+        }
+        if warnings.len() > 10 {
+            eprintln!("warning: ... and {} more warnings", warnings.len() - 10);
+        }
+    }
+    if !skipped.is_empty() {
+        eprintln!("skipped {} file(s):", skipped.len());
+        for (path, reason) in skipped {
+            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
+        }
+    }
 }
 
 #[cfg(test)]
