@@ -109,8 +109,8 @@ pub fn temporary_beside(path: &Path, prefix: &std::ffi::OsStr) -> io::Result<Tem
         // Created with 0666: open(2) applies the umask, as for any new file.
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    let temp = builder.tempfile_in(dir)?;
-    let registered = crate::cleanup::Registered::new(temp.path());
+    let (temp, registered) =
+        crate::cleanup::create_registered(|| builder.tempfile_in(dir), |temp| temp.path())?;
     if let Ok(replaced) = std::fs::metadata(path) {
         // A replaced file keeps its mode (set without the umask, as truncating it would).
         temp.as_file().set_permissions(replaced.permissions())?;

@@ -20,12 +20,14 @@
 //! ```
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Mutex, MutexGuard};
 
 /// The live temporary paths, by registration number.
 static LIVE: Mutex<Vec<(u64, PathBuf)>> = Mutex::new(Vec::new());
 static NEXT: AtomicU64 = AtomicU64::new(0);
+/// Set by [`remove_registered`]: the process is ending, nothing more may be created.
+static STOPPING: AtomicBool = AtomicBool::new(false);
 
 fn live() -> MutexGuard<'static, Vec<(u64, PathBuf)>> {
     // A panic elsewhere while the list was held leaves it valid: go on with it.
@@ -48,6 +50,27 @@ impl Registered {
     }
 }
 
+/// Makes a temporary file or directory with `create` and registers the path `path_of` gives,
+/// under the list's lock, so that a signal arriving meanwhile cannot miss it: either it is
+/// registered before [`remove_registered`] runs (and removed by it), or it is never made
+/// (an `Interrupted` error once the process is ending).
+pub fn create_registered<T>(
+    create: impl FnOnce() -> std::io::Result<T>,
+    path_of: impl FnOnce(&T) -> &Path,
+) -> std::io::Result<(T, Registered)> {
+    let mut live = live();
+    if STOPPING.load(Ordering::SeqCst) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::Interrupted,
+            "the process is ending (a signal was received)",
+        ));
+    }
+    let made = create()?;
+    let id = NEXT.fetch_add(1, Ordering::Relaxed);
+    live.push((id, path_of(&made).to_path_buf()));
+    Ok((made, Registered { id }))
+}
+
 impl Drop for Registered {
     fn drop(&mut self) {
         live().retain(|(id, _)| *id != self.id);
@@ -58,6 +81,10 @@ impl Drop for Registered {
 /// returns how many were removed. For a signal handler that is about to end the process;
 /// it runs on an ordinary thread (not inside the handler itself), since it takes a lock.
 pub fn remove_registered() -> usize {
+    {
+        let _live = live();
+        STOPPING.store(true, Ordering::SeqCst);
+    }
     remove_where(|_| true)
 }
 
@@ -68,12 +95,19 @@ fn remove_where(chosen: impl Fn(&Path) -> bool) -> usize {
     *live = keep;
     let mut removed = 0;
     for (_, path) in remove {
-        let gone = match std::fs::symlink_metadata(&path) {
-            Ok(meta) if meta.is_dir() => std::fs::remove_dir_all(&path).is_ok(),
-            Ok(_) => std::fs::remove_file(&path).is_ok(),
-            Err(_) => false,
-        };
-        removed += usize::from(gone);
+        // Other threads run on until the process ends and may still add a file to a
+        // directory being removed (a spilling thread's first spill): try again then.
+        for _ in 0..20 {
+            let gone = match std::fs::symlink_metadata(&path) {
+                Ok(meta) if meta.is_dir() => std::fs::remove_dir_all(&path).is_ok(),
+                Ok(_) => std::fs::remove_file(&path).is_ok(),
+                Err(_) => break,
+            };
+            if gone {
+                removed += 1;
+                break;
+            }
+        }
     }
     removed
 }

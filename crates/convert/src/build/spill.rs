@@ -69,14 +69,18 @@ pub(crate) struct SpillDir {
 impl SpillDir {
     /// A new, empty spill directory inside `parent`.
     pub fn create(parent: &Path) -> Result<Self, ConvertError> {
-        let dir = tempfile::Builder::new()
-            .prefix(".froct-spill-")
-            .tempdir_in(parent)
-            .map_err(|source| ConvertError::Spill {
-                path: parent.to_path_buf(),
-                source,
-            })?;
-        let registered = froctomap_core::cleanup::Registered::new(dir.path());
+        let (dir, registered) = froctomap_core::cleanup::create_registered(
+            || {
+                tempfile::Builder::new()
+                    .prefix(".froct-spill-")
+                    .tempdir_in(parent)
+            },
+            |dir| dir.path(),
+        )
+        .map_err(|source| ConvertError::Spill {
+            path: parent.to_path_buf(),
+            source,
+        })?;
         Ok(Self {
             dir,
             _registered: registered,
