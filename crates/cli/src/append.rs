@@ -2,14 +2,13 @@
 //! `froctomap_convert::append`.
 
 use crate::progress::Bars;
-use crate::series::{print_input_notes, SpillArgs, TimeArgs};
+use crate::series::{print_input_notes, tags_metadata, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::Args;
 use froctomap_convert::{append, collect_inputs_explained, group_thousands, AppendOptions};
 use froctomap_core::calendar::iso8601;
 use froctomap_temporal::ModelOptions;
-use serde_json::{Map, Value};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -69,17 +68,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
             .set_assignment(assignment)
             .context("--model-option")?;
     }
-    let mut metadata = Map::new();
-    let mut tags = Map::new();
-    for tag in &args.tag {
-        let (k, v) = tag
-            .split_once('=')
-            .with_context(|| format!("--tag {tag:?}: expected KEY=VALUE"))?;
-        tags.insert(k.to_string(), Value::from(v));
-    }
-    if !tags.is_empty() {
-        metadata.insert("tags".into(), Value::Object(tags));
-    }
+    let metadata = tags_metadata(&args.tag)?;
     let options = AppendOptions {
         model_options,
         skip_bad: args.skip_bad,

@@ -342,17 +342,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         .output
         .as_deref()
         .context("--output is required to build")?;
-    let mut metadata = Map::new();
-    let mut tags = Map::new();
-    for tag in &args.tag {
-        let (k, v) = tag
-            .split_once('=')
-            .with_context(|| format!("--tag {tag:?}: expected KEY=VALUE"))?;
-        tags.insert(k.to_string(), Value::from(v));
-    }
-    if !tags.is_empty() {
-        metadata.insert("tags".into(), Value::Object(tags));
-    }
+    let metadata = tags_metadata(&args.tag)?;
     let options = BuildOptions {
         model: args.model.clone(),
         config: model_config(args, context().models())?,
@@ -780,6 +770,22 @@ pub(crate) fn print_input_notes(
             eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
         }
     }
+}
+
+/// `--tag KEY=VALUE`s as the header metadata of a build or an append (`tags`: an object).
+pub(crate) fn tags_metadata(tags: &[String]) -> Result<Map<String, Value>> {
+    let mut metadata = Map::new();
+    let mut pairs = Map::new();
+    for tag in tags {
+        let (k, v) = tag
+            .split_once('=')
+            .with_context(|| format!("--tag {tag:?}: expected KEY=VALUE"))?;
+        pairs.insert(k.to_string(), Value::from(v));
+    }
+    if !pairs.is_empty() {
+        metadata.insert("tags".into(), Value::Object(pairs));
+    }
+    Ok(metadata)
 }
 
 #[cfg(test)]

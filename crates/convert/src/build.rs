@@ -349,16 +349,12 @@ pub fn build(
             max_tiles: context.limits().max_snapshot_tiles,
         },
     };
-    let spill_place = SpillPlace::new(match &options.tmp_dir {
-        Some(dir) => dir.as_path(),
-        None => output_dir(output),
-    });
+    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(output)));
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
-    let budget = usize::try_from(options.memory).unwrap_or(usize::MAX);
     let accumulated = accumulate_series(
         &mut extractor,
         options.tile_depth,
-        (&spill_place, budget),
+        (&spill_place, options.memory),
         progress,
     )?;
     let extracted = extractor.finish();
@@ -471,9 +467,10 @@ fn output_dir(output: &Path) -> &Path {
 fn accumulate_series(
     extractor: &mut ChangeExtractor<'_>,
     tile_depth: u8,
-    (spill_place, budget): (&SpillPlace, usize),
+    (spill_place, memory): (&SpillPlace, u64),
     progress: &dyn Progress,
 ) -> Result<Accumulated, ConvertError> {
+    let budget = usize::try_from(memory).unwrap_or(usize::MAX);
     let parts = rayon::current_num_threads().clamp(1, 8);
     std::thread::scope(|scope| {
         let mut accumulator =

@@ -265,15 +265,11 @@ pub fn append(
     };
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress)
         .continuing(start, previous, old.resolution, file);
-    let spill_place = SpillPlace::new(match &options.tmp_dir {
-        Some(dir) => dir.as_path(),
-        None => output_dir(file),
-    });
-    let budget = usize::try_from(options.memory).unwrap_or(usize::MAX);
+    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(file)));
     let accumulated = accumulate_series(
         &mut extractor,
         old.tile_depth,
-        (&spill_place, budget),
+        (&spill_place, options.memory),
         progress,
     )?;
     let extracted = extractor.finish();
