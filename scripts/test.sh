@@ -27,6 +27,12 @@ for library in "${libraries[@]}"; do
 done
 cargo test --locked "${libraries[@]}"
 
+# The Python package: `pip install .` into a venv (a release build of crates/python through
+# maturin), then its tests against the command line built above (tests/python: round trips
+# byte for byte, octomap-python reading its maps, the Dask fleet example of docs/FLEET.md).
+scripts/python-package.sh "$PWD/target/python-venv"
+FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests/python
+
 # The fuzz crate is its own workspace (cargo-fuzz layout); it must keep building, and each
 # target runs briefly from the fixtures so a crash cannot hide.
 cargo build --locked --manifest-path fuzz/Cargo.toml

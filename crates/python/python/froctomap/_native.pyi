@@ -1,0 +1,107 @@
+"""Type stubs of the extension module ``froctomap._native`` (the Rust part of the package)."""
+
+import os
+from datetime import date, datetime
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+PathLike = Union[str, os.PathLike[str]]
+#: Unix seconds, a datetime or date (naive: UTC), ISO 8601 text, numpy.datetime64, or
+#: "index:N" / "index:-N" / "last" (a sample of the file's axis).
+Time = Union[int, float, str, datetime, date, np.datetime64]
+
+def open(path: PathLike) -> FroctFile:
+    """Opens a FROctomap file; raises FroctError when it is missing, damaged or not one."""
+
+def parse_time(t: Time) -> Union[float, Tuple[str, int]]:
+    """Reads a time as the command line's --time: Unix seconds of an instant, or
+    ("index", N) / ("from_end", N) for a sample query."""
+
+def build(inputs: List[Any], output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.build."""
+
+def evaluate(path: PathLike, against: List[Any], **options: Any) -> Dict[str, Any]:
+    """See froctomap.evaluate."""
+
+class FroctFile:
+    """An open FROctomap file (from froctomap.open); a context manager."""
+
+    @property
+    def path(self) -> str:
+        """The path given to open."""
+    @property
+    def times(self) -> npt.NDArray[np.float64]:
+        """Unix seconds of every sample of the time axis, shape (samples,)."""
+    @property
+    def times_ns(self) -> npt.NDArray[np.int64]:
+        """Nanoseconds since 1970 of every sample, shape (samples,)."""
+    @property
+    def observed(self) -> npt.NDArray[np.bool_]:
+        """Whether each sample holds a snapshot, shape (samples,)."""
+    @property
+    def resolution(self) -> float:
+        """Voxel edge length, metres."""
+    @property
+    def info(self) -> Dict[str, Any]:
+        """The fields of `froctomap info --json`."""
+    def describe(self, count: bool = False) -> Dict[str, Any]:
+        """info; count=True recounts the cells from every tile."""
+    def retrieve(self, t: Time, nearest: bool = False) -> Map:
+        """The map as observed at t (the snapshot at or before it; nearest=True: the
+        closest). Warns when t is after the last snapshot; raises FroctError before the
+        first one or for an index beyond the axis."""
+    def predict(self, t: Time) -> Map:
+        """The map predicted for any instant t (p(t) per cell)."""
+    def probability(self, t: Time, points: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """p(t) at each point of an (N, 3) array (metres), shape (N,); NaN where the file has
+        no cell."""
+    def history(
+        self, point: npt.ArrayLike, start: Optional[Time] = None, end: Optional[Time] = None
+    ) -> Dict[str, Any]:
+        """The story of the voxel at point (x, y, z): its cell, class, model, and per sample
+        the time, the observed state and the model's p."""
+    def close(self) -> None:
+        """Closes the file; maps taken from it stay usable."""
+    def __enter__(self) -> FroctFile: ...
+    def __exit__(self, *args: Any) -> bool: ...
+    def __len__(self) -> int:
+        """Samples of the time axis."""
+
+class Map:
+    """A map from FroctFile.retrieve (as observed) or FroctFile.predict (p(t) per cell)."""
+
+    @property
+    def kind(self) -> str:
+        """"observed" or "predicted"."""
+    @property
+    def time(self) -> float:
+        """The map's time, Unix seconds."""
+    @property
+    def iso_time(self) -> str:
+        """The map's time, ISO 8601 (UTC)."""
+    @property
+    def sample(self) -> Optional[int]:
+        """The sample of a retrieved map; None for a predicted one."""
+    @property
+    def resolution(self) -> float:
+        """Voxel edge length, metres."""
+    def to_bt_bytes(self) -> bytes:
+        """The .bt file's bytes, exactly what the command line writes."""
+    def to_ot_bytes(self) -> bytes:
+        """The .ot file's bytes, exactly what the command line writes."""
+    def write(self, path: PathLike, format: Optional[str] = None) -> int:
+        """Writes the map (format from the extension, or "bt"/"ot"); returns its leaves."""
+    def point_cloud(
+        self, max_points: int = 50_000_000
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """(occupied, free) voxel centres, each of shape (N, 3), metres."""
+    def leaves(
+        self,
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
+        """(centres (N, 3), edge lengths (N,), occupied (N,)) of the map's leaves."""
+    def __len__(self) -> int:
+        """Leaves of the map."""

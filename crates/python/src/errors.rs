@@ -1,0 +1,76 @@
+//! Rust errors as `froctomap.FroctError` (a subclass of `OSError` and `ValueError`, defined in
+//! Python), with the message the command-line tool prints for the same failure.
+
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::PyType;
+use std::fmt::Write as _;
+
+/// The error and its causes on one line, each text once: a cause whose text its parent's
+/// message already includes is not repeated (the CLI's `errors::message`, so that Python
+/// and the command line say the same thing).
+pub(crate) fn message(error: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = String::new();
+    let mut cause = Some(error);
+    while let Some(current) = cause {
+        let part = current.to_string();
+        if text.is_empty() {
+            text = part;
+        } else if !text.contains(&part) {
+            let _ = write!(text, ": {part}");
+        }
+        cause = current.source();
+    }
+    text
+}
+
+/// The operating system's error number of the first I/O error in the chain, if any (so that
+/// `error.errno == errno.ENOENT` works for a missing file).
+fn os_error_number(error: &(dyn std::error::Error + 'static)) -> Option<i32> {
+    let mut cause = Some(error);
+    while let Some(current) = cause {
+        if let Some(io) = current.downcast_ref::<std::io::Error>() {
+            if let Some(number) = io.raw_os_error() {
+                return Some(number);
+            }
+        }
+        cause = current.source();
+    }
+    None
+}
+
+fn error_class(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
+    static CLASS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    CLASS.import(py, "froctomap._errors", "FroctError")
+}
+
+/// `FroctError(message)`, with `errno` set from an I/O cause.
+pub(crate) fn froct_error(error: &(dyn std::error::Error + 'static)) -> PyErr {
+    raise(&message(error), os_error_number(error))
+}
+
+/// `FroctError(text)` for a problem found by the binding itself.
+pub(crate) fn froct_error_text(text: impl Into<String>) -> PyErr {
+    raise(&text.into(), None)
+}
+
+fn raise(text: &str, errno: Option<i32>) -> PyErr {
+    Python::attach(|py| {
+        let made = error_class(py).and_then(|class| class.call1((text,)));
+        match made {
+            Ok(value) => {
+                if let Some(number) = errno {
+                    // Best effort: the message is what matters.
+                    let _ = value.setattr("errno", number);
+                }
+                PyErr::from_value(value)
+            }
+            Err(import_failed) => import_failed,
+        }
+    })
+}
+
+/// `.map_err(to_py)` for any Rust error of the libraries.
+pub(crate) fn to_py<E: std::error::Error + 'static>(error: E) -> PyErr {
+    froct_error(&error)
+}

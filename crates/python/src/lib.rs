@@ -1,0 +1,45 @@
+//! `froctomap._native`: the Python extension module behind the `froctomap` package.
+//!
+//! Every function is a thin layer over `froctomap-convert`, as the command-line tool is: the
+//! same context of formats and models, the same time parsing, the same writers (so a map's
+//! bytes are the CLI's bytes), and the same error messages, raised as `froctomap.FroctError`.
+//! Rust work runs with the interpreter released (`Python::detach`), so other Python threads
+//! run meanwhile; arrays are handed over as numpy arrays without copying.
+//!
+//! The pure-Python part of the package (`crates/python/python/froctomap/`) defines the
+//! exception class, the progress bars and the stubs; see `docs/PYTHON.md`.
+
+mod errors;
+mod file;
+mod map;
+mod progress;
+mod series;
+mod times;
+
+use froctomap_convert::Context;
+use pyo3::prelude::*;
+use std::sync::OnceLock;
+
+/// The formats, models and recording sources every call uses, registered once (as the CLI's
+/// `plugins::context`).
+pub(crate) fn context() -> &'static Context {
+    static CONTEXT: OnceLock<Context> = OnceLock::new();
+    CONTEXT.get_or_init(|| {
+        let mut context = Context::with_default_plugins();
+        froctomap_ros::register(&mut context);
+        context
+    })
+}
+
+/// The extension module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<file::FroctFile>()?;
+    m.add_class::<map::Map>()?;
+    m.add_function(wrap_pyfunction!(file::open, m)?)?;
+    m.add_function(wrap_pyfunction!(series::build, m)?)?;
+    m.add_function(wrap_pyfunction!(series::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(series::parse_time, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

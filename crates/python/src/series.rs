@@ -1,0 +1,343 @@
+//! `froctomap.build` and `froctomap.evaluate`: series of maps in, a file or error tables out.
+
+use crate::errors::{froct_error_text, message, to_py};
+use crate::file::json_value;
+use crate::progress::Callback;
+use crate::times::instant;
+use froctomap_convert::{
+    build as build_file, collect_inputs_explained, evaluate as evaluate_file, parse_duration,
+    BuildOptions, Progress, RecordedTime, RecordingOptions, Silent, TimeSource, Zone,
+};
+use froctomap_core::Timestamp;
+use froctomap_file::{Codec, ToggleLayout};
+use froctomap_formats::ReadOptions;
+use froctomap_temporal::{ModelConfig, OutlierMode};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use serde_json::{Map, Value};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// How the inputs of a series get their times, as on the command line (`--start/--step`,
+/// `--times-file`, `--times-from-names`; manifests and file names otherwise).
+fn series_times(
+    start: Option<&Bound<'_, PyAny>>,
+    step: Option<&Bound<'_, PyAny>>,
+    times_file: Option<PathBuf>,
+    times_from_names: bool,
+) -> PyResult<TimeSource> {
+    if let Some(list) = times_file {
+        return Ok(TimeSource::TimesFile(list));
+    }
+    match (start, step) {
+        (Some(start), Some(step)) => Ok(TimeSource::StartStep {
+            start: instant(start, "start")?,
+            step_ns: duration_ns(step)?,
+        }),
+        (None, None) if times_from_names => Ok(TimeSource::FileNames),
+        (None, None) => Ok(TimeSource::Auto),
+        _ => Err(froct_error_text("start and step go together")),
+    }
+}
+
+/// A duration: seconds as a number, or text such as `10min`, `1.5h`.
+fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
+    let text = match value.extract::<String>() {
+        Ok(text) => text,
+        Err(_) => format!("{}", value.extract::<f64>()?),
+    };
+    parse_duration(&text).map_err(to_py)
+}
+
+/// The input paths: one path or a list of them.
+fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
+    if let Ok(path) = value.extract::<PathBuf>() {
+        return Ok(vec![path]);
+    }
+    value
+        .try_iter()?
+        .map(|item| item?.extract::<PathBuf>())
+        .collect()
+}
+
+/// The model's settings from the keyword arguments, checked by the model (`--model`,
+/// `--model-option`, `--order`, `--max-order`, `--periods`, `--lossy`).
+fn model_config(
+    model: &str,
+    lossy: bool,
+    order: Option<&Bound<'_, PyAny>>,
+    max_order: Option<u8>,
+    periods: Option<&Bound<'_, PyAny>>,
+    model_options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<ModelConfig> {
+    let models = crate::context().models();
+    let descriptor = models.by_name(model).ok_or_else(|| {
+        let known: Vec<&str> = models.iter().map(|d| d.name).collect();
+        froct_error_text(format!(
+            "unknown model {model:?} (registered: {})",
+            known.join(", ")
+        ))
+    })?;
+    let mut config = ModelConfig::default().with_outliers(if lossy {
+        OutlierMode::Lossy
+    } else {
+        OutlierMode::Lossless
+    });
+    if let Some(options) = model_options {
+        for (key, value) in options.iter() {
+            let key: String = key.extract()?;
+            config.options.set(&key, value.str()?.to_string());
+        }
+    }
+    let has = |key: &str| descriptor.options.iter().any(|o| o.key == key);
+    let order = match order {
+        None => None,
+        Some(value) => match value.extract::<String>() {
+            Ok(text) => Some(text),
+            Err(_) => Some(value.extract::<u32>()?.to_string()),
+        },
+    };
+    // The default order ("auto") means nothing to a model without orders.
+    let order = order.filter(|o| has("order") || o != "auto");
+    let periods = match periods {
+        None => None,
+        Some(values) => {
+            let mut seconds = Vec::new();
+            for value in values.try_iter()? {
+                seconds.push((duration_ns(&value?)? as f64 / 1e9).to_string());
+            }
+            (!seconds.is_empty()).then(|| seconds.join(","))
+        }
+    };
+    for (argument, key, value) in [
+        ("order", "order", order),
+        ("max_order", "max-order", max_order.map(|n| n.to_string())),
+        ("periods", "periods", periods),
+    ] {
+        let Some(value) = value else { continue };
+        if !has(key) {
+            return Err(froct_error_text(format!(
+                "{argument}: model {} has no option {key}",
+                descriptor.name
+            )));
+        }
+        config.options.set(key, value);
+    }
+    descriptor
+        .create()
+        .check_options(&config.options)
+        .map_err(to_py)?;
+    Ok(config)
+}
+
+/// `created`, else SOURCE_DATE_EPOCH (whole Unix seconds), as the command line reads them.
+fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestamp>> {
+    if let Some(value) = created {
+        return instant(value, "created").map(Some);
+    }
+    let Some(epoch) = std::env::var_os("SOURCE_DATE_EPOCH") else {
+        return Ok(None);
+    };
+    let seconds = epoch
+        .to_str()
+        .and_then(|text| text.trim().parse::<i64>().ok())
+        .ok_or_else(|| {
+            froct_error_text(format!(
+                "SOURCE_DATE_EPOCH={epoch:?} is not a whole number of seconds"
+            ))
+        })?;
+    let created = Timestamp::from_secs(seconds);
+    froctomap_convert::check_range("SOURCE_DATE_EPOCH", created).map_err(to_py)?;
+    Ok(Some(created))
+}
+
+/// `tags` as the header metadata (`{"tags": {...}}`, as `--tag KEY=VALUE`).
+fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value>> {
+    let mut metadata = Map::new();
+    let Some(tags) = tags else {
+        return Ok(metadata);
+    };
+    let mut pairs = Map::new();
+    for (key, value) in tags.iter() {
+        pairs.insert(key.str()?.to_string(), Value::from(value.str()?.to_string()));
+    }
+    if !pairs.is_empty() {
+        metadata.insert("tags".into(), Value::Object(pairs));
+    }
+    Ok(metadata)
+}
+
+/// Builds a FROctomap file from a series of OctoMap snapshots (`froctomap build`).
+///
+/// See the package's `build` for the arguments. Returns the report of `build --json`.
+#[pyfunction]
+#[pyo3(signature = (
+    inputs, output, *, lossy = false, order = None, model = "fremen-periods".to_string(),
+    model_options = None, max_order = None, periods = None, tile_depth = 10, zstd_level = 19,
+    toggle_block = 256, skip_bad = false, resolution = None, allow_mostly_skipped = false,
+    tags = None, created = None, memory = None, tmp_dir = None, start = None, step = None,
+    times_file = None, times_from_names = false, topic = None, time_source = "header".to_string(),
+    progress = None
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn build<'py>(
+    py: Python<'py>,
+    inputs: &Bound<'py, PyAny>,
+    output: PathBuf,
+    lossy: bool,
+    order: Option<&Bound<'py, PyAny>>,
+    model: String,
+    model_options: Option<&Bound<'py, PyDict>>,
+    max_order: Option<u8>,
+    periods: Option<&Bound<'py, PyAny>>,
+    tile_depth: u8,
+    zstd_level: i8,
+    toggle_block: u32,
+    skip_bad: bool,
+    resolution: Option<f64>,
+    allow_mostly_skipped: bool,
+    tags: Option<&Bound<'py, PyDict>>,
+    created: Option<&Bound<'py, PyAny>>,
+    memory: Option<u64>,
+    tmp_dir: Option<PathBuf>,
+    start: Option<&Bound<'py, PyAny>>,
+    step: Option<&Bound<'py, PyAny>>,
+    times_file: Option<PathBuf>,
+    times_from_names: bool,
+    topic: Option<String>,
+    time_source: String,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let started = Instant::now();
+    if !(1..=16).contains(&tile_depth) {
+        return Err(froct_error_text("tile_depth must be 1 ..= 16"));
+    }
+    if !(0..=22).contains(&zstd_level) {
+        return Err(froct_error_text("zstd_level must be 0 ..= 22"));
+    }
+    let recorded = match time_source.as_str() {
+        "header" => RecordedTime::Header,
+        "log" => RecordedTime::Log,
+        other => {
+            return Err(froct_error_text(format!(
+                "time_source {other:?}: expected \"header\" or \"log\""
+            )))
+        }
+    };
+    let inputs = paths(inputs)?;
+    let source = series_times(start, step, times_file, times_from_names)?;
+    let options = BuildOptions {
+        model: model.clone(),
+        config: model_config(&model, lossy, order, max_order, periods, model_options)?,
+        tile_depth,
+        codec: if zstd_level == 0 {
+            Codec::Raw
+        } else {
+            Codec::Zstd { level: zstd_level }
+        },
+        toggles: match toggle_block {
+            0 => ToggleLayout::Whole,
+            samples => ToggleLayout::Blocked(samples),
+        },
+        skip_bad,
+        resolution,
+        allow_mostly_skipped,
+        metadata: tags_metadata(tags)?,
+        created: creation_time(created)?,
+        memory: memory.unwrap_or(froctomap_convert::DEFAULT_BUILD_MEMORY),
+        tmp_dir,
+        ..BuildOptions::default()
+    };
+    // Recordings among the inputs are read back through the context that expanded them.
+    let context = crate::context()
+        .clone()
+        .with_recording_options(RecordingOptions::new(topic, recorded));
+    let callback = progress.map(Callback::new);
+    let report = py.detach(|| {
+        let progress: &dyn Progress = match &callback {
+            Some(callback) => callback,
+            None => &Silent,
+        };
+        let collected = collect_inputs_explained(&context, &inputs, source, &Zone::utc())
+            .map_err(|e| message(&e))?;
+        let report = build_file(&context, &collected.series, &output, &options, progress)
+            .map_err(|e| message(&e))?;
+        let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+        if let Value::Object(map) = &mut value {
+            let warnings: Vec<Value> = collected
+                .warnings
+                .iter()
+                .map(|w| Value::from(w.to_string()))
+                .collect();
+            map.insert("input_warnings".into(), Value::from(warnings));
+            map.insert(
+                "seconds".into(),
+                Value::from(started.elapsed().as_secs_f64()),
+            );
+        }
+        serde_json::to_string(&value).map_err(|e| e.to_string())
+    });
+    if let Some(callback) = callback {
+        callback.finish()?;
+    }
+    json_value(py, &report.map_err(froct_error_text)?)
+}
+
+/// Compares a FROctomap file with ground-truth maps (`froctomap eval --json`).
+#[pyfunction]
+#[pyo3(signature = (path, against, *, start = None, step = None, times_file = None,
+                    times_from_names = false, progress = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    against: &Bound<'py, PyAny>,
+    start: Option<&Bound<'py, PyAny>>,
+    step: Option<&Bound<'py, PyAny>>,
+    times_file: Option<PathBuf>,
+    times_from_names: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let against = paths(against)?;
+    let source = series_times(start, step, times_file, times_from_names)?;
+    let callback = progress.map(Callback::new);
+    let report = py.detach(|| {
+        let progress: &dyn Progress = match &callback {
+            Some(callback) => callback,
+            None => &Silent,
+        };
+        let context = crate::context();
+        let reader = context.open_froct(&path).map_err(|e| message(&e))?;
+        let collected = collect_inputs_explained(context, &against, source, &Zone::utc())
+            .map_err(|e| message(&e))?;
+        let report = evaluate_file(
+            context,
+            &reader,
+            &collected.series,
+            ReadOptions::default(),
+            progress,
+        )
+        .map_err(|e| message(&e))?;
+        serde_json::to_string(&report).map_err(|e| e.to_string())
+    });
+    if let Some(callback) = callback {
+        callback.finish()?;
+    }
+    json_value(py, &report.map_err(froct_error_text)?)
+}
+
+/// Reads a time as the command line does (`--time`): Unix seconds (float) of an instant, or
+/// a sample query (`"index:N"`) as `("index", N)` / `("from_end", N)`.
+#[pyfunction]
+pub fn parse_time<'py>(py: Python<'py>, t: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    use froctomap_convert::TimeQuery;
+    Ok(match crate::times::time_query(t)? {
+        TimeQuery::Instant(time) => time.as_secs_f64().into_pyobject(py)?.into_any(),
+        TimeQuery::Sample(sample) => ("index", i64::from(sample))
+            .into_pyobject(py)?
+            .into_any(),
+        TimeQuery::FromEnd(back) => ("from_end", i64::from(back))
+            .into_pyobject(py)?
+            .into_any(),
+    })
+}

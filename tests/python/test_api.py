@@ -1,0 +1,233 @@
+"""The package against the command line: every public name, byte-for-byte round trips,
+numpy shapes and dtypes, and octomap-python reading the maps' bytes."""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+from pathlib import Path
+
+import numpy as np
+import octomap
+import pytest
+
+import froctomap
+from conftest import CREATED, run_cli, snapshot_files
+
+
+@pytest.fixture(scope="module")
+def f(cli_file: Path):
+    with froctomap.open(cli_file) as opened:
+        yield opened
+
+
+def manifest_times(series: Path) -> list:
+    with open(series / "manifest.csv", newline="") as text:
+        rows = list(csv.DictReader(text))
+    return [(series / row["path"], row["time"]) for row in rows]
+
+
+def test_public_names_are_exported():
+    for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError",
+                 "__version__"]:
+        assert hasattr(froctomap, name), name
+        assert name in froctomap.__all__
+    assert issubclass(froctomap.FroctError, OSError)
+    assert issubclass(froctomap.FroctError, ValueError)
+    for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError"]:
+        assert getattr(froctomap, name).__doc__, name
+    package = Path(froctomap.__file__).parent
+    assert (package / "py.typed").is_file()
+    assert (package / "_native.pyi").is_file()
+
+
+def test_build_writes_the_bytes_of_the_command_line(series, cli_file, tmp_path):
+    out = tmp_path / "python.froct"
+    report = froctomap.build(series, out, created=CREATED, progress=False)
+    assert out.read_bytes() == cli_file.read_bytes()
+    assert report["file_bytes"] == out.stat().st_size
+    assert report["used"] == len(snapshot_files(series))
+    cli = json.loads(run_cli("-q", "build", series, "-o", tmp_path / "again.froct",
+                             "--created", CREATED, "--json").stdout)
+    for key in ["inputs", "used", "input_bytes", "samples", "cells", "voxels", "toggles",
+                "file_bytes", "model_errors"]:
+        assert report[key] == cli[key], key
+
+
+def test_lossy_and_fixed_order_builds_match_the_command_line(series, tmp_path):
+    ours = tmp_path / "ours.froct"
+    theirs = tmp_path / "theirs.froct"
+    froctomap.build(series, ours, lossy=True,
+                    order=1, created=CREATED, progress=False)
+    run_cli("-q", "build", series, "-o", theirs, "--lossy", "--order", "1", "--created", CREATED)
+    assert ours.read_bytes() == theirs.read_bytes()
+
+
+def test_times_are_the_snapshots_times(f, series):
+    expected = [froctomap.parse_time(t) for _, t in manifest_times(series)]
+    assert f.times.dtype == np.float64
+    assert f.times.shape == (len(f),)
+    assert f.times_ns.dtype == np.int64
+    assert f.observed.dtype == np.bool_
+    assert list(f.times[f.observed]) == expected
+    assert f.resolution == pytest.approx(0.05)
+
+
+def test_info_has_the_fields_of_info_json(f, cli_file):
+    cli = json.loads(run_cli("info", cli_file, "--json").stdout)
+    assert f.info == cli
+    assert f.describe(count=True)["cells"] == cli["cells"]
+
+
+@pytest.mark.parametrize(
+    "when",
+    [
+        "index:3",
+        "index:-1",
+        "last",
+        "2016-01-04T06:00:00Z",
+        "2016-01-04 07:00:00+01:00",
+        "2016-01-04T07:30:00Z",  # between snapshots: the one before
+        1451890800,
+        1451890800.0,
+        dt.datetime(2016, 1, 4, 8, tzinfo=dt.timezone.utc),
+        dt.datetime(2016, 1, 4, 8),  # naive: UTC, as on the command line
+        np.datetime64("2016-01-04T10:00:00"),
+    ],
+)
+def test_retrieved_bytes_are_the_command_lines(f, cli_file, tmp_path, when):
+    m = f.retrieve(when)
+    assert m.kind == "observed"
+    text = when.isoformat() if isinstance(when, dt.datetime) else str(when)
+    for extension, data in [("bt", m.to_bt_bytes()), ("ot", m.to_ot_bytes())]:
+        out = tmp_path / f"cli.{extension}"
+        run_cli("-q", "retrieve", cli_file, "--time", text, "-o", out)
+        assert data == out.read_bytes(), (when, extension)
+
+
+def test_retrieval_gives_back_the_input_snapshots(f, series):
+    for path, time in manifest_times(series):
+        m = f.retrieve(time)
+        assert m.time == froctomap.parse_time(time)
+        assert m.to_bt_bytes() == path.read_bytes(), path
+
+
+def test_nearest_takes_the_closest_snapshot(f):
+    assert f.retrieve("2016-01-04T07:30:00Z").iso_time == "2016-01-04T06:00:00Z"
+    assert f.retrieve("2016-01-04T07:30:00Z", nearest=True).iso_time == "2016-01-04T08:00:00Z"
+
+
+@pytest.mark.parametrize("when", ["2016-01-06T12:00:00Z", "2016-01-04T05:00:00Z", "index:2"])
+def test_predicted_bytes_are_the_command_lines(f, cli_file, tmp_path, when):
+    m = f.predict(when)
+    assert m.kind == "predicted" and m.sample is None
+    for extension, data in [("bt", m.to_bt_bytes()), ("ot", m.to_ot_bytes())]:
+        out = tmp_path / f"cli.{extension}"
+        run_cli("-q", "predict", cli_file, "--time", when, "-o", out)
+        assert data == out.read_bytes(), (when, extension)
+
+
+def test_write_gives_the_same_bytes(f, tmp_path):
+    m = f.predict("2016-01-07T00:00:00Z")
+    assert m.write(tmp_path / "p.bt") > 0
+    assert (tmp_path / "p.bt").read_bytes() == m.to_bt_bytes()
+    m.write(tmp_path / "p.map", format="ot")
+    assert (tmp_path / "p.map").read_bytes() == m.to_ot_bytes()
+
+
+def octomap_tree(data: bytes) -> "octomap.OcTree":
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(data), "octomap-python refused the bytes"
+    return tree
+
+
+def keys(points: np.ndarray, resolution: float) -> set:
+    return set(map(tuple, np.floor(points / resolution).astype(np.int64)))
+
+
+@pytest.mark.parametrize("query", ["retrieve", "predict"])
+def test_octomap_python_reads_the_bt_bytes_as_the_point_cloud(f, query):
+    m = getattr(f, query)("2016-01-04T12:00:00Z")
+    occupied, free = m.point_cloud()
+    for cloud in (occupied, free):
+        assert cloud.dtype == np.float64 and cloud.ndim == 2 and cloud.shape[1] == 3
+    assert len(occupied) > 1000 and len(free) > len(occupied)
+    tree = octomap_tree(m.to_bt_bytes())
+    assert tree.getResolution() == pytest.approx(m.resolution)
+    their_occupied, their_free = tree.extractPointCloud()
+    assert len(their_occupied) == len(occupied) and len(their_free) == len(free)
+    assert keys(their_occupied, m.resolution) == keys(occupied, m.resolution)
+    assert keys(their_free, m.resolution) == keys(free, m.resolution)
+    # The centres are voxel centres: half a voxel from the grid lines.
+    offsets = occupied / m.resolution - np.floor(occupied / m.resolution)
+    assert np.allclose(offsets, 0.5)
+
+
+def test_leaves_are_the_compact_form_of_the_point_cloud(f):
+    m = f.retrieve("index:0")
+    centres, sizes, occupied = m.leaves()
+    assert centres.shape == (len(m), 3) and centres.dtype == np.float64
+    assert sizes.shape == (len(m),) and sizes.dtype == np.float64
+    assert occupied.shape == (len(m),) and occupied.dtype == np.bool_
+    voxels = np.round((sizes / m.resolution) ** 3).astype(np.int64)
+    occ, free = m.point_cloud()
+    assert voxels[occupied].sum() == len(occ)
+    assert voxels[~occupied].sum() == len(free)
+    with pytest.raises(froctomap.FroctError, match="max_points"):
+        m.point_cloud(max_points=10)
+
+
+def test_parse_time_reads_like_the_command_line():
+    assert froctomap.parse_time("2016-01-04T00:00:00Z") == 1451865600.0
+    assert froctomap.parse_time(1451865600.25) == 1451865600.25
+    assert froctomap.parse_time(dt.date(2016, 1, 4)) == 1451865600.0
+    assert froctomap.parse_time("index:7") == ("index", 7)
+    assert froctomap.parse_time("last") == ("from_end", 1)
+    with pytest.raises(froctomap.FroctError, match="cannot read"):
+        froctomap.parse_time("yesterday-ish")
+    with pytest.raises(TypeError):
+        froctomap.parse_time([1, 2])
+    with pytest.raises(TypeError):
+        froctomap.parse_time(True)
+
+
+def test_evaluate_returns_the_tables_of_eval_json(cli_file, held_out, series):
+    ours = froctomap.evaluate(cli_file, [held_out, series])
+    theirs = json.loads(run_cli("-q", "eval", cli_file, "--against", held_out, series,
+                                "--json").stdout)
+    assert ours == theirs
+    assert ours["outside"] == len(snapshot_files(held_out))
+    assert ours["inside"] == len(snapshot_files(series))
+
+
+def test_progress_reaches_a_callback(series, tmp_path):
+    calls = []
+    froctomap.build(series, tmp_path / "p.froct", created=CREATED,
+                    progress=lambda stage, done, total: calls.append((stage, done, total)))
+    stages = {stage for stage, _, _ in calls}
+    assert len(stages) >= 2, calls
+    for stage in stages:
+        last = [c for c in calls if c[0] == stage][-1]
+        assert last[2] == 0 or last[1] == last[2], last
+    # progress=True draws tqdm bars (on stderr); it must not change the file.
+    froctomap.build(series, tmp_path / "bars.froct", created=CREATED, progress=True)
+    assert (tmp_path / "bars.froct").read_bytes() == (tmp_path / "p.froct").read_bytes()
+
+
+def test_an_exception_in_the_callback_is_raised_after_the_build(series, tmp_path):
+    def broken(stage, done, total):
+        raise RuntimeError("stop drawing")
+
+    with pytest.raises(RuntimeError, match="stop drawing"):
+        froctomap.build(series, tmp_path / "x.froct", progress=broken)
+
+
+def test_maps_outlive_the_closed_file(cli_file):
+    file = froctomap.open(cli_file)
+    m = file.retrieve("index:0")
+    file.close()
+    assert m.to_bt_bytes()
+    with pytest.raises(froctomap.FroctError, match="closed"):
+        file.retrieve("index:0")
+    assert "closed" in repr(file)
