@@ -2,13 +2,19 @@
 
 use crate::errors::{froct_error_text, to_py};
 use crate::map::Map;
+use crate::times::instant;
 use crate::times::time_query;
-use froctomap_convert::{describe, resolve_observed_with, Pick, TimeQuery};
+use froctomap_convert::{
+    describe, probabilities, resolve_observed_with, voxel_history, HistorySample, Pick, TimeQuery,
+    VoxelHistory,
+};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
-use numpy::{IntoPyArray, PyArray1};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
@@ -37,15 +43,33 @@ pub struct FroctFile {
 }
 
 impl FroctFile {
+    /// The instant a `predict`-style time names: an instant, or the time of a sample.
+    fn instant_of(&self, reader: &FroctReader, t: &Bound<'_, PyAny>) -> PyResult<Timestamp> {
+        let axis = &reader.header().axis;
+        let text = crate::times::time_text(t)?;
+        let sample = match time_query(t)? {
+            TimeQuery::Instant(t) => return Ok(t),
+            TimeQuery::Sample(s) => Some(s),
+            TimeQuery::FromEnd(back) => axis.len().checked_sub(back),
+        };
+        sample.and_then(|s| axis.time(s)).ok_or_else(|| {
+            froct_error_text(format!(
+                "{text}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
+                self.path.display(),
+                axis.len(),
+                axis.len().saturating_sub(1),
+                axis.len()
+            ))
+        })
+    }
+
     /// The reader, or an error once closed.
     pub(crate) fn reader(&self) -> PyResult<Arc<FroctReader>> {
         self.reader
             .lock()
             .ok()
             .and_then(|slot| slot.clone())
-            .ok_or_else(|| {
-                froct_error_text(format!("{}: the file is closed", self.path.display()))
-            })
+            .ok_or_else(|| froct_error_text(format!("{}: the file is closed", self.path.display())))
     }
 
     fn sample_times(&self) -> PyResult<Vec<Timestamp>> {
@@ -159,26 +183,79 @@ impl FroctFile {
     /// `t` as for `retrieve` (`"index:N"` predicts at that sample's time).
     fn predict(&self, t: &Bound<'_, PyAny>) -> PyResult<Map> {
         let reader = self.reader()?;
+        let at = self.instant_of(&reader, t)?;
+        Ok(Map::predicted(reader, at))
+    }
+
+    /// The model's occupancy probability p(t) at each of `points` (an (N, 3) array of
+    /// metres, the map's frame): a numpy float64 array of shape (N,), NaN where the file has
+    /// no cell (never observed, or outside the map). `t` as for `predict`: any instant.
+    fn probability<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let reader = self.reader()?;
+        let at = self.instant_of(&reader, t)?;
+        let points = float_array(py, points)?;
+        let shape = points.shape().to_vec();
+        if shape.len() != 2 || shape[1] != 3 {
+            return Err(PyValueError::new_err(format!(
+                "points must have shape (N, 3), not {shape:?}"
+            )));
+        }
+        let flat = points.as_slice()?;
+        let points: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let p = py
+            .detach(|| probabilities(&reader, at, &points))
+            .map_err(to_py)?;
+        Ok(p.into_pyarray(py))
+    }
+
+    /// One voxel's story: the cell holding `point` (x, y, z in metres), its class and model,
+    /// and for every sample (between `start` and `end`, inclusive, when given) its time, the
+    /// observed state and the model's p there, plus the samples where they disagree (the
+    /// outliers). A dict:
+    ///
+    /// * `point`, `cell` (`key`, `depth`, `center`, `size`, `min`, `max`), `class`
+    ///   (`"static_free"`, `"static_occupied"`, `"noisy"`, `"dynamic"`), `sometimes_unknown`;
+    /// * `model`: `None`, or `{"mean": m, "periodic": [{"period_seconds", "amplitude",
+    ///   "phase_turns"}, ...]}` for a dynamic cell;
+    /// * `samples` (int64), `times` (Unix seconds), `states` (1.0 occupied, 0.0 free, NaN
+    ///   unknown), `p` (float64): numpy arrays, one entry per sample;
+    /// * `outlier_samples`, `outlier_times`: numpy arrays.
+    ///
+    /// A point without a cell raises FroctError naming the map's extent.
+    #[pyo3(signature = (point, start = None, end = None))]
+    fn history<'py>(
+        &self,
+        py: Python<'py>,
+        point: &Bound<'py, PyAny>,
+        start: Option<&Bound<'py, PyAny>>,
+        end: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let reader = self.reader()?;
+        let values = float_array(py, point)?;
+        let values = values.as_slice()?;
+        let point: [f64; 3] = values.try_into().map_err(|_| {
+            PyValueError::new_err(format!(
+                "point must be (x, y, z), not {} values",
+                values.len()
+            ))
+        })?;
         let axis = &reader.header().axis;
-        let text = crate::times::time_text(t)?;
-        let sample = match time_query(t)? {
-            TimeQuery::Instant(t) => Ok(t),
-            TimeQuery::Sample(s) => Err(Some(s)),
-            TimeQuery::FromEnd(back) => Err(axis.len().checked_sub(back)),
+        let range = match (start, end) {
+            (None, None) => None,
+            (start, end) => Some((
+                start.map_or(Ok(axis.start()), |t| instant(t, "start"))?,
+                end.map_or(Ok(axis.end()), |t| instant(t, "end"))?,
+            )),
         };
-        let at = match sample {
-            Ok(t) => t,
-            Err(sample) => sample.and_then(|s| axis.time(s)).ok_or_else(|| {
-                froct_error_text(format!(
-                    "{text}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
-                    self.path.display(),
-                    axis.len(),
-                    axis.len().saturating_sub(1),
-                    axis.len()
-                ))
-            })?,
-        };
-        Ok(Map::predicted(reader.clone(), at))
+        let story = py
+            .detach(|| voxel_history(&reader, point, range))
+            .map_err(to_py)?;
+        history_dict(py, &story)
     }
 
     /// Closes the file (maps taken from it stay usable).
@@ -224,6 +301,96 @@ impl FroctFile {
     }
 }
 
+/// `numpy.ascontiguousarray(value, dtype=float64)`, read-only.
+fn float_array<'py>(
+    py: Python<'py>,
+    value: &Bound<'py, PyAny>,
+) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let array = py
+        .import("numpy")?
+        .call_method1("ascontiguousarray", (value, "float64"))?;
+    array.extract::<PyReadonlyArrayDyn<'py, f64>>()
+}
+
+/// A [`VoxelHistory`] as the dict `FroctFile.history` documents.
+fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("point", story.point.to_vec())?;
+    let cell = PyDict::new(py);
+    let key = story.cell.key;
+    cell.set_item("key", (key.x, key.y, key.z))?;
+    cell.set_item("depth", story.cell.depth)?;
+    cell.set_item("center", story.cell.center.to_vec())?;
+    cell.set_item("size", story.cell.size)?;
+    cell.set_item("min", story.cell.min.to_vec())?;
+    cell.set_item("max", story.cell.max.to_vec())?;
+    dict.set_item("cell", cell)?;
+    let class = serde_json::to_value(story.class)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    dict.set_item("class", class)?;
+    dict.set_item("sometimes_unknown", story.sometimes_unknown)?;
+    match &story.model {
+        None => dict.set_item("model", py.None())?,
+        Some(model) => {
+            let described = PyDict::new(py);
+            described.set_item("mean", model.mean)?;
+            let terms = model
+                .periodic
+                .iter()
+                .map(|term| {
+                    let entry = PyDict::new(py);
+                    entry.set_item("period_seconds", term.period_seconds)?;
+                    entry.set_item("amplitude", term.amplitude)?;
+                    entry.set_item("phase_turns", term.phase_turns)?;
+                    Ok(entry)
+                })
+                .collect::<PyResult<Vec<_>>>()?;
+            described.set_item("periodic", terms)?;
+            dict.set_item("model", described)?;
+        }
+    }
+    let samples = &story.samples;
+    let column = |f: &dyn Fn(&HistorySample) -> f64| samples.iter().map(f).collect::<Vec<f64>>();
+    dict.set_item(
+        "samples",
+        samples
+            .iter()
+            .map(|s| i64::from(s.sample))
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    dict.set_item("times", column(&|s| s.time.as_secs_f64()).into_pyarray(py))?;
+    dict.set_item(
+        "states",
+        column(&|s| {
+            s.state
+                .map_or(f64::NAN, |o| f64::from(u8::from(o.is_occupied())))
+        })
+        .into_pyarray(py),
+    )?;
+    dict.set_item("p", column(&|s| s.p).into_pyarray(py))?;
+    let outliers = &story.outliers;
+    dict.set_item(
+        "outlier_samples",
+        outliers
+            .iter()
+            .map(|s| i64::from(s.sample))
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    dict.set_item(
+        "outlier_times",
+        outliers
+            .iter()
+            .map(|s| s.time.as_secs_f64())
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    Ok(dict)
+}
+
 /// JSON text as Python values (`json.loads`).
 pub(crate) fn json_value<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
@@ -231,7 +398,9 @@ pub(crate) fn json_value<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py
 
 /// `warnings.warn(message)`, which the CLI prints as `warning: …`.
 fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
-    py.import("warnings")?
-        .call_method1("warn", (message, py.get_type::<pyo3::exceptions::PyUserWarning>(), 2))?;
+    py.import("warnings")?.call_method1(
+        "warn",
+        (message, py.get_type::<pyo3::exceptions::PyUserWarning>(), 2),
+    )?;
     Ok(())
 }

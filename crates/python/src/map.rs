@@ -16,6 +16,16 @@ use pyo3::types::PyBytes;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
+/// `(occupied, free)` voxel centres, (N, 3) each.
+type PointCloud<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// `(centres, sizes, occupied)` of the leaves.
+type Leaves<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<bool>>,
+);
+
 /// Which map of the file.
 #[derive(Clone, Copy)]
 enum Query {
@@ -202,11 +212,7 @@ impl Map {
     /// octomap-python's `extractPointCloud` does). Raises FroctError when there would be
     /// more than `max_points` points in all (see `leaves()` for the compact form).
     #[pyo3(signature = (max_points = 50_000_000))]
-    fn point_cloud<'py>(
-        &self,
-        py: Python<'py>,
-        max_points: u64,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    fn point_cloud<'py>(&self, py: Python<'py>, max_points: u64) -> PyResult<PointCloud<'py>> {
         let snapshot = self.snapshot(py)?;
         let (mut occupied, mut free) = (0u64, 0u64);
         for leaf in snapshot.leaves() {
@@ -235,14 +241,7 @@ impl Map {
     /// The map's leaves (one per octree node without children, coarse free space in one
     /// leaf): `(centres, sizes, occupied)`, numpy arrays of shapes (N, 3) float64 (metres),
     /// (N,) float64 (edge length, metres) and (N,) bool.
-    fn leaves<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(
-        Bound<'py, PyArray2<f64>>,
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray1<bool>>,
-    )> {
+    fn leaves<'py>(&self, py: Python<'py>) -> PyResult<Leaves<'py>> {
         let snapshot = self.snapshot(py)?;
         let resolution = snapshot.resolution();
         let leaves = snapshot.leaves();

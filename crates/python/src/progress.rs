@@ -51,7 +51,11 @@ impl Callback {
         };
         if state.failed.is_none() {
             if let Some(stage) = state.stage.take() {
-                let done = if state.total > 0 { state.total } else { state.done };
+                let done = if state.total > 0 {
+                    state.total
+                } else {
+                    state.done
+                };
                 call(&self.callable, &mut state, &stage, done);
             }
         }
@@ -80,7 +84,11 @@ impl Progress for Callback {
             return;
         };
         if let Some(previous) = state.stage.take() {
-            let done = if state.total > 0 { state.total } else { state.done };
+            let done = if state.total > 0 {
+                state.total
+            } else {
+                state.done
+            };
             call(&self.callable, &mut state, &previous, done);
         }
         state.stage = Some(name.to_string());

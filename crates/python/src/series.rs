@@ -159,7 +159,10 @@ fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value
     };
     let mut pairs = Map::new();
     for (key, value) in tags.iter() {
-        pairs.insert(key.str()?.to_string(), Value::from(value.str()?.to_string()));
+        pairs.insert(
+            key.str()?.to_string(),
+            Value::from(value.str()?.to_string()),
+        );
     }
     if !pairs.is_empty() {
         metadata.insert("tags".into(), Value::Object(pairs));
@@ -333,11 +336,7 @@ pub fn parse_time<'py>(py: Python<'py>, t: &Bound<'py, PyAny>) -> PyResult<Bound
     use froctomap_convert::TimeQuery;
     Ok(match crate::times::time_query(t)? {
         TimeQuery::Instant(time) => time.as_secs_f64().into_pyobject(py)?.into_any(),
-        TimeQuery::Sample(sample) => ("index", i64::from(sample))
-            .into_pyobject(py)?
-            .into_any(),
-        TimeQuery::FromEnd(back) => ("from_end", i64::from(back))
-            .into_pyobject(py)?
-            .into_any(),
+        TimeQuery::Sample(sample) => ("index", i64::from(sample)).into_pyobject(py)?.into_any(),
+        TimeQuery::FromEnd(back) => ("from_end", i64::from(back)).into_pyobject(py)?.into_any(),
     })
 }

@@ -36,7 +36,7 @@ pub(crate) fn time_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
         return Ok(value.str()?.to_string());
     }
     if value.hasattr("isoformat")? {
-        return Ok(value.call_method0("isoformat")?.extract()?);
+        return value.call_method0("isoformat")?.extract();
     }
     Err(PyTypeError::new_err(format!(
         "a time is Unix seconds, a datetime, an ISO 8601 string or \"index:N\", not {type_name}"
@@ -52,12 +52,11 @@ pub(crate) fn time_query(value: &Bound<'_, PyAny>) -> PyResult<TimeQuery> {
 }
 
 /// An instant (no sample index) from a Python value.
-pub(crate) fn instant(
-    value: &Bound<'_, PyAny>,
-    what: &str,
-) -> PyResult<froctomap_core::Timestamp> {
+pub(crate) fn instant(value: &Bound<'_, PyAny>, what: &str) -> PyResult<froctomap_core::Timestamp> {
     let text = time_text(value)?;
     froctomap_convert::read_time(&text, &Zone::utc())
         .map(|read| read.time)
-        .map_err(|e| crate::errors::froct_error_text(format!("{what}: {}", crate::errors::message(&e))))
+        .map_err(|e| {
+            crate::errors::froct_error_text(format!("{what}: {}", crate::errors::message(&e)))
+        })
 }

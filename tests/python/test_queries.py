@@ -1,0 +1,139 @@
+"""Point queries (`probability`, `history`) against the predicted maps and the input
+snapshots, both read by octomap-python."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import octomap
+import pytest
+
+import froctomap
+
+# OctoMap's clamping bounds of stored probabilities (log-odds -2 and 3.5).
+CLAMP = (0.1192, 0.971)
+
+
+@pytest.fixture(scope="module")
+def f(cli_file: Path):
+    return froctomap.open(cli_file)
+
+
+def tree_of(data: bytes) -> "octomap.OcTree":
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(data)
+    return tree
+
+
+def read_tree(path: Path) -> "octomap.OcTree":
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(str(path).encode())
+    return tree
+
+
+def node_of(tree, point):
+    """The node holding `point`, or None (octomap-python raises on a missing node)."""
+    node = tree.search(np.asarray(point, dtype=float))
+    try:
+        node.getOccupancy()
+    except Exception:
+        return None
+    return node
+
+
+def points_in_and_around(f, count: int, seed: int) -> np.ndarray:
+    occupied, free = f.retrieve("index:0").point_cloud()
+    rng = np.random.default_rng(seed)
+    cloud = np.vstack([occupied, free])
+    low, high = cloud.min(axis=0) - 1.0, cloud.max(axis=0) + 1.0
+    inside = cloud[rng.choice(len(cloud), count // 2)]
+    anywhere = rng.uniform(low, high, size=(count - count // 2, 3))
+    return np.vstack([inside, anywhere, [[1e6, 0.0, 0.0]]])
+
+
+def test_probability_is_the_predicted_maps_p(f):
+    t = "2016-01-06T09:00:00Z"
+    points = points_in_and_around(f, 400, seed=7)
+    p = f.probability(t, points)
+    assert p.dtype == np.float64 and p.shape == (len(points),)
+    assert np.isnan(p[-1])
+    tree = tree_of(f.predict(t).to_ot_bytes())
+    for point, ours in zip(points, p):
+        node = node_of(tree, point)
+        if node is None:
+            assert np.isnan(ours), point
+        else:
+            assert not np.isnan(ours), point
+            expected = node.getOccupancy()
+            assert np.clip(ours, *CLAMP) == pytest.approx(expected, abs=1e-5), point
+    assert (~np.isnan(p)).sum() > 200
+
+
+def test_probability_takes_lists_and_sample_queries(f):
+    point = f.retrieve("index:0").point_cloud()[0][:1]
+    by_list = f.probability("index:2", point.tolist())
+    by_time = f.probability(float(f.times[2]), point)
+    assert by_list.shape == (1,) and by_list[0] == by_time[0]
+    with pytest.raises(ValueError, match="shape"):
+        f.probability("index:0", [1.0, 2.0])
+    with pytest.raises(froctomap.FroctError):
+        f.probability("index:99", point)
+
+
+def dynamic_points(f, wanted: int):
+    """Voxels whose occupancy changes: occupied in some snapshot, free in another."""
+    first = {tuple(p) for p in f.retrieve("index:0").point_cloud()[0]}
+    found = []
+    for sample in range(1, len(f)):
+        occupied = f.retrieve(f"index:{sample}").point_cloud()[0]
+        for point in occupied:
+            if tuple(point) not in first:
+                found.append(point)
+                if len(found) == wanted:
+                    return found
+    return found
+
+
+def test_history_gives_the_states_of_the_input_snapshots(f, series):
+    with open(series / "manifest.csv", newline="") as text:
+        paths = [series / row["path"] for row in csv.DictReader(text)]
+    trees = [read_tree(path) for path in paths]
+    points = dynamic_points(f, 5)
+    assert points, "the series should have changing voxels"
+    for point in points:
+        story = f.history(point)
+        assert story["class"] in ("dynamic", "noisy")
+        assert story["times"].dtype == np.float64
+        assert story["states"].shape == story["p"].shape == story["samples"].shape
+        assert list(story["times"]) == list(f.times)
+        cell_min, cell_max = np.array(story["cell"]["min"]), np.array(story["cell"]["max"])
+        assert np.all(cell_min <= point) and np.all(point < cell_max)
+        for sample, state in zip(story["samples"], story["states"]):
+            node = node_of(trees[sample], point)
+            if node is None:
+                assert np.isnan(state), (point, sample)
+            else:
+                assert state == float(trees[sample].isNodeOccupied(node)), (point, sample)
+        if story["class"] == "dynamic":
+            assert story["model"] is not None and 0.0 <= story["model"]["mean"] <= 1.0
+        # The outliers are the samples where the observation and the model disagree.
+        observed = ~np.isnan(story["states"])
+        disagree = observed & (story["states"] != (story["p"] > 0.5))
+        if story["class"] == "dynamic":
+            assert list(story["outlier_samples"]) == list(story["samples"][disagree])
+
+
+def test_history_ranges_and_refusals(f):
+    point = dynamic_points(f, 1)[0]
+    part = f.history(point, start="2016-01-04T04:00:00Z", end="2016-01-04T10:00:00Z")
+    assert list(part["times"]) == [t for t in f.times
+                                   if froctomap.parse_time("2016-01-04T04:00:00Z") <= t
+                                   <= froctomap.parse_time("2016-01-04T10:00:00Z")]
+    with pytest.raises(froctomap.FroctError):
+        f.history((1e6, 0.0, 0.0))
+    with pytest.raises(froctomap.FroctError):
+        f.history(point, start="2017-01-01T00:00:00Z")
+    with pytest.raises(ValueError):
+        f.history((1.0, 2.0))
