@@ -71,7 +71,9 @@ def test_times_are_the_snapshots_times(f, series):
     assert f.times_ns.dtype == np.int64
     assert f.observed.dtype == np.bool_
     assert list(f.times[f.observed]) == expected
-    assert f.resolution == pytest.approx(0.05)
+    first = octomap.OcTree(0.1)
+    assert first.readBinary(str(manifest_times(series)[0][0]).encode())
+    assert f.resolution == first.getResolution()
 
 
 def test_info_has_the_fields_of_info_json(f, cli_file):

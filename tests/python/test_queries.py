@@ -21,9 +21,10 @@ def f(cli_file: Path):
     return froctomap.open(cli_file)
 
 
-def tree_of(data: bytes) -> "octomap.OcTree":
-    tree = octomap.OcTree(0.1)
-    assert tree.readBinary(data)
+def tree_of_ot(data: bytes) -> "octomap.OcTree":
+    """An .ot file's bytes read by octomap-python (log-odds kept)."""
+    tree = octomap.OcTree.read(data)
+    assert tree is not None and tree.size() > 0
     return tree
 
 
@@ -59,7 +60,7 @@ def test_probability_is_the_predicted_maps_p(f):
     p = f.probability(t, points)
     assert p.dtype == np.float64 and p.shape == (len(points),)
     assert np.isnan(p[-1])
-    tree = tree_of(f.predict(t).to_ot_bytes())
+    tree = tree_of_ot(f.predict(t).to_ot_bytes())
     for point, ours in zip(points, p):
         node = node_of(tree, point)
         if node is None:

@@ -96,7 +96,7 @@ impl FroctFile {
         let times: Vec<f64> = self
             .sample_times()?
             .into_iter()
-            .map(Timestamp::as_secs_f64)
+            .map(crate::times::unix_seconds)
             .collect();
         Ok(times.into_pyarray(py))
     }
@@ -361,7 +361,10 @@ fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'p
             .collect::<Vec<_>>()
             .into_pyarray(py),
     )?;
-    dict.set_item("times", column(&|s| s.time.as_secs_f64()).into_pyarray(py))?;
+    dict.set_item(
+        "times",
+        column(&|s| crate::times::unix_seconds(s.time)).into_pyarray(py),
+    )?;
     dict.set_item(
         "states",
         column(&|s| {
@@ -384,7 +387,7 @@ fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'p
         "outlier_times",
         outliers
             .iter()
-            .map(|s| s.time.as_secs_f64())
+            .map(|s| crate::times::unix_seconds(s.time))
             .collect::<Vec<_>>()
             .into_pyarray(py),
     )?;

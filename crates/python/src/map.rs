@@ -160,7 +160,7 @@ impl Map {
     /// The map's time, Unix seconds (a retrieved map: its snapshot's time).
     #[getter(time)]
     fn time_seconds(&self) -> f64 {
-        self.time().as_secs_f64()
+        crate::times::unix_seconds(self.time())
     }
 
     /// The map's time in ISO 8601 (UTC).

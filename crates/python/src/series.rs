@@ -335,7 +335,9 @@ pub fn evaluate<'py>(
 pub fn parse_time<'py>(py: Python<'py>, t: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
     use froctomap_convert::TimeQuery;
     Ok(match crate::times::time_query(t)? {
-        TimeQuery::Instant(time) => time.as_secs_f64().into_pyobject(py)?.into_any(),
+        TimeQuery::Instant(time) => crate::times::unix_seconds(time)
+            .into_pyobject(py)?
+            .into_any(),
         TimeQuery::Sample(sample) => ("index", i64::from(sample)).into_pyobject(py)?.into_any(),
         TimeQuery::FromEnd(back) => ("from_end", i64::from(back)).into_pyobject(py)?.into_any(),
     })

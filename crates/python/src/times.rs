@@ -60,3 +60,12 @@ pub(crate) fn instant(value: &Bound<'_, PyAny>, what: &str) -> PyResult<froctoma
             crate::errors::froct_error_text(format!("{what}: {}", crate::errors::message(&e)))
         })
 }
+
+/// Unix seconds of an instant as the nearest float: whole seconds and the fraction are
+/// converted apart, so `1451865600.25` comes back as written (dividing the nanoseconds by
+/// 1e9 in one go would round it to `1451865600.2499998`).
+pub(crate) fn unix_seconds(t: froctomap_core::Timestamp) -> f64 {
+    let whole = t.0.div_euclid(1_000_000_000);
+    let nanos = t.0.rem_euclid(1_000_000_000);
+    whole as f64 + nanos as f64 / 1e9
+}

@@ -152,9 +152,10 @@ def evaluate(
     ``against``: maps given as to :func:`build` (directories, globs, manifests, files), e.g.
     later snapshots. Maps inside the file's span measure its reconstruction, maps after it its
     prediction, each against the static-mean and last-seen baselines. Returns a dict with
-    ``inside``/``outside`` (numbers of maps), ``reconstruction`` and ``prediction`` (per
-    method, error rates over all, non-empty and dynamic voxels: ``wrong``/``compared``) and
-    ``unmodelled_voxels``, the fields of ``froctomap eval --json``.
+    ``inside``/``outside`` (numbers of maps), ``reconstruction`` and ``prediction`` (lists of
+    ``[method, rates]`` pairs; ``rates`` over all, non-empty and dynamic voxels, each
+    ``{"wrong": n, "total": n}``) and ``unmodelled_voxels``: the fields of
+    ``froctomap eval --json``.
     """
     callback = _progress.reporter(progress)
     try:
