@@ -42,6 +42,27 @@ def test_public_names_are_exported():
     assert (package / "_native.pyi").is_file()
 
 
+def test_every_native_name_has_a_stub_and_a_docstring():
+    import ast
+    from froctomap import _native
+
+    stub = ast.parse((Path(_native.__file__).parent / "_native.pyi").read_text())
+    stubbed = {node.name: node for node in stub.body
+               if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+    for name in dir(_native):
+        if name.startswith("_"):
+            continue
+        assert name in stubbed, name
+        value = getattr(_native, name)
+        assert value.__doc__, name
+        if isinstance(value, type):
+            members = {n.name for n in stubbed[name].body if isinstance(n, ast.FunctionDef)}
+            for member in dir(value):
+                if not member.startswith("_"):
+                    assert member in members, f"{name}.{member}"
+                    assert getattr(value, member).__doc__, f"{name}.{member}"
+
+
 def test_build_writes_the_bytes_of_the_command_line(series, cli_file, tmp_path):
     out = tmp_path / "python.froct"
     report = froctomap.build(series, out, created=CREATED, progress=False)

@@ -1,6 +1,7 @@
 """Type stubs of the extension module ``froctomap._native`` (the Rust part of the package)."""
 
 import os
+import pathlib
 from datetime import date, datetime
 from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
@@ -31,7 +32,7 @@ class FroctFile:
     """An open FROctomap file (from froctomap.open); a context manager."""
 
     @property
-    def path(self) -> str:
+    def path(self) -> pathlib.Path:
         """The path given to open."""
     @property
     def times(self) -> npt.NDArray[np.float64]:
