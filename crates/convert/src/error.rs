@@ -251,6 +251,31 @@ pub enum ConvertError {
         /// Last instant of the file.
         end: Timestamp,
     },
+    /// A point where the file has no cell: nothing was ever observed there (or it lies
+    /// outside the space a map can address).
+    #[error("{}: no cell at ({}, {}, {}) m: nothing was ever observed there{}", path.display(), point[0], point[1], point[2], extent_text(extent))]
+    PointOutsideMap {
+        /// The FROctomap file.
+        path: PathBuf,
+        /// The point, metres.
+        point: [f64; 3],
+        /// The metric box the file's tiles cover (minimum, maximum corner), if any.
+        extent: Option<([f64; 3], [f64; 3])>,
+    },
+    /// A time range that holds no sample of the file.
+    #[error("{}: no sample between {} and {}; the file covers {} .. {}", path.display(), iso8601(*from), iso8601(*to), iso8601(*start), iso8601(*end))]
+    RangeOutsideAxis {
+        /// The FROctomap file.
+        path: PathBuf,
+        /// First instant asked for.
+        from: Timestamp,
+        /// Last instant asked for.
+        to: Timestamp,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
     /// An export range that ends before it starts.
     #[error("the range ends at {} before it starts at {}", iso8601(*to), iso8601(*from))]
     EmptyRange {
@@ -506,6 +531,16 @@ pub enum ManifestProblem {
         /// The column, from 1.
         column: usize,
     },
+}
+
+fn extent_text(extent: &Option<([f64; 3], [f64; 3])>) -> String {
+    match extent {
+        Some((min, max)) => format!(
+            " (the map's tiles span ({:.2}, {:.2}, {:.2}) .. ({:.2}, {:.2}, {:.2}) m)",
+            min[0], min[1], min[2], max[0], max[1], max[2]
+        ),
+        None => " (the map is empty)".to_string(),
+    }
 }
 
 fn shown(files: &[PathBuf]) -> String {

@@ -47,6 +47,7 @@ mod inputs;
 mod maps;
 mod outputs;
 mod progress;
+mod query;
 mod recording;
 mod snapshot_changes;
 mod text;
@@ -77,6 +78,9 @@ pub use maps::{
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
+pub use query::{
+    probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
+};
 pub use recording::{RecordedMaps, RecordedTime, Recording, RecordingFormat, RecordingOptions};
 pub use text::group_thousands;
 pub use time::{
