@@ -120,10 +120,10 @@ pub fn render_dynamics(reader: &FroctReader, width: u32) -> Result<Picture, Rend
                 column.known = true;
                 let voxels = o.area as f64 * edge;
                 match dynamics {
-                    CellDynamics::Static(state) | CellDynamics::RareFlips(state) => {
-                        if state.is_occupied() {
-                            column.static_occupied += o.area * edge as u64;
-                        }
+                    CellDynamics::Static(state) | CellDynamics::RareFlips(state)
+                        if state.is_occupied() =>
+                    {
+                        column.static_occupied += o.area * edge as u64;
                     }
                     CellDynamics::Modelled { mean, .. } => {
                         column.dynamic += voxels;

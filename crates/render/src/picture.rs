@@ -83,13 +83,20 @@ impl Picture {
         self.frame.as_ref()
     }
 
-    /// The picture as PNG bytes.
+    /// The picture as PNG bytes (best compression: pictures go into READMEs and reports).
     pub fn png(&self) -> Result<Vec<u8>, RenderError> {
-        let mut bytes = std::io::Cursor::new(Vec::new());
-        self.image
-            .write_to(&mut bytes, image::ImageOutputFormat::Png)
+        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+        use image::ImageEncoder as _;
+        let mut bytes = Vec::new();
+        PngEncoder::new_with_quality(&mut bytes, CompressionType::Best, FilterType::Adaptive)
+            .write_image(
+                self.image.as_raw(),
+                self.image.width(),
+                self.image.height(),
+                image::ColorType::Rgb8,
+            )
             .map_err(|source| RenderError::Encode { source })?;
-        Ok(bytes.into_inner())
+        Ok(bytes)
     }
 
     /// Writes the picture as PNG to `path`, atomically; refused when `path` is one of
