@@ -4,6 +4,10 @@
 use froctomap_convert::KeyExtent;
 use froctomap_core::{Leaf, MortonCode, KEY_ORIGIN};
 
+/// Most columns of a grid (their per-column tallies are what a picture costs besides its
+/// pixels).
+pub(crate) const MAX_COLUMNS: u64 = 1 << 20;
+
 /// Columns over the map's horizontal extent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Grid {
@@ -31,10 +35,17 @@ impl Grid {
     /// Columns over `extent`, no more than `max_x` along x and `max_y` along y.
     pub(crate) fn covering(extent: &KeyExtent, resolution: f64, max_x: u32, max_y: u32) -> Self {
         let span = |a: usize| extent.max[a] - extent.min[a] + 1;
-        let cell = span(0)
+        let mut cell = span(0)
             .div_ceil(max_x.max(1))
             .max(span(1).div_ceil(max_y.max(1)))
             .max(1);
+        // A big map of the picture's shape could reach max_x × max_y columns: bound their
+        // memory, at the price of columns slightly wider than a pixel on such maps.
+        let columns =
+            |cell: u32| u64::from(span(0).div_ceil(cell)) * u64::from(span(1).div_ceil(cell));
+        while columns(cell) > MAX_COLUMNS {
+            cell += 1;
+        }
         Grid {
             origin: [extent.min[0], extent.min[1]],
             cell,
@@ -120,5 +131,16 @@ mod tests {
         grid.overlaps(cube, 14, |o| seen.push((o.column, o.area)));
         assert_eq!(seen, [(2, 4), (3, 4), (6, 4), (7, 4)]);
         assert_eq!(seen.iter().map(|s| s.1).sum::<u64>(), 16);
+    }
+
+    #[test]
+    fn large_maps_get_wider_columns_not_more_of_them() {
+        let extent = KeyExtent {
+            min: [0, 0, 0],
+            max: [40_000, 60_000, 10],
+        };
+        let grid = Grid::covering(&extent, 0.05, 1160, 2400);
+        assert!(grid.len() as u64 <= MAX_COLUMNS, "{grid:?}");
+        assert!(u64::from(grid.nx * grid.cell) > 40_000 && u64::from(grid.ny * grid.cell) > 60_000);
     }
 }
