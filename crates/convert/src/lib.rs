@@ -47,6 +47,7 @@ mod maps;
 mod outputs;
 mod progress;
 mod recording;
+mod recording_export;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -72,7 +73,10 @@ pub use maps::{
 };
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
-pub use recording::{RecordedMaps, RecordedTime, Recording, RecordingFormat, RecordingOptions};
+pub use recording::{
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
+};
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
