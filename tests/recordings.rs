@@ -5,8 +5,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
 use froctomap_convert::{
-    build, collect_inputs, observed_map, resolve_observed, BuildOptions, Context, RecordedTime,
-    RecordingOptions, SeriesInput, Silent, TimeQuery, TimeSource,
+    build, collect_inputs, export, observed_map, resolve_observed, BuildOptions, Context,
+    ExportMode, ExportOptions, RecordedTime, RecordingOptions, SeriesInput, Silent, TimeQuery,
+    TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
@@ -167,4 +168,126 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
         .map(|t| Timestamp(t.0 + 1_000_000_000))
         .collect();
     assert_eq!(logged, shifted);
+}
+
+/// `export --format mcap`, read back by PyPI mcap and mcap-ros2-support: one Octomap message
+/// per exported time whose data is the body of the `.bt` export of that time, byte for byte,
+/// and one foxglove.PointCloud whose points are the occupied voxels octomap-python reads
+/// from that `.bt`.
+#[test]
+fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let plain = Context::with_default_plugins();
+    let froct = dir.path().join("series.froct");
+    build(&plain, &inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
+    let reader = FroctReader::open(&froct).unwrap();
+    let minute = 60_000_000_000;
+    let first = inputs.first().unwrap().time;
+    let last = inputs.last().unwrap().time;
+    // Retrieved inside the span (instants between snapshots give each snapshot once),
+    // predicted before and after it.
+    let options = |format: &str| ExportOptions {
+        from: Timestamp(first.0 - 40 * minute),
+        to: Timestamp(last.0 + 60 * minute),
+        every_ns: 20 * minute,
+        mode: ExportMode::Auto,
+        format: format.to_string(),
+        backend: None,
+        prefix: "map".to_string(),
+        overwrite: false,
+    };
+    let bt_dir = dir.path().join("bt");
+    let bts = export(&plain, &reader, &bt_dir, &options("bt"), &Silent).unwrap();
+    let out_dir = dir.path().join("mcap");
+    std::fs::create_dir(&out_dir).unwrap();
+    let mcap = out_dir.join("maps.mcap");
+    let exported = export(
+        &context(RecordedTime::Header),
+        &reader,
+        &mcap,
+        &options("mcap"),
+        &Silent,
+    )
+    .unwrap();
+    assert!(exported.manifest.is_none());
+    let times: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();
+    let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
+    assert_eq!(got, times);
+    let predicted = |t: Timestamp| t < first || t > last;
+    assert!(times.iter().any(|&t| predicted(t)) && times.iter().any(|&t| !predicted(t)));
+    // Only the finished file is left: no temporary beside it.
+    let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+
+    let mut bt_of = String::from("{");
+    for (i, file) in bts.files.iter().enumerate() {
+        let sep = if i > 0 { ", " } else { "" };
+        bt_of.push_str(&format!(
+            "{sep}\"{}\": \"{}\"",
+            file.time.0,
+            file.path.display()
+        ));
+    }
+    bt_of.push('}');
+    let bt_json = dir.path().join("bt.json");
+    std::fs::write(&bt_json, bt_of).unwrap();
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir(&data_dir).unwrap();
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/read_exported_mcap.py"))
+        .args([&mcap, &data_dir, &bt_json])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["profile"], "ros2");
+    assert_eq!(report["schemas"]["octomap_msgs/msg/Octomap"], "ros2msg");
+    assert_eq!(report["schemas"]["foxglove.PointCloud"], "jsonschema");
+    assert_eq!(report["channels"]["/octomap_binary"]["encoding"], "cdr");
+    assert_eq!(
+        report["channels"]["/froctomap/occupied_voxels"]["schema"],
+        "foxglove.PointCloud"
+    );
+    let octomaps = report["octomap"].as_array().unwrap();
+    let clouds = report["cloud"].as_array().unwrap();
+    assert_eq!((octomaps.len(), clouds.len()), (times.len(), times.len()));
+    let resolution = reader.header().resolution;
+    for ((file, octomap), cloud) in bts.files.iter().zip(octomaps).zip(clouds) {
+        let t = file.time.0;
+        for message in [octomap, cloud] {
+            assert_eq!(message["log_time"], t);
+            assert_eq!(message["stamp_ns"], t);
+            assert_eq!(message["frame_id"], "map");
+        }
+        assert_eq!(octomap["binary"], true);
+        assert_eq!(octomap["id"], "OcTree");
+        assert_eq!(octomap["resolution"], resolution);
+        let bt = std::fs::read(&file.path).unwrap();
+        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+        assert!(data == bt[body_at..], "data of the message at {t}");
+
+        assert_eq!(cloud["same_voxels"], true, "points of the cloud at {t}");
+        assert_eq!(cloud["remainder"], 0);
+        assert_eq!(cloud["points"], cloud["distinct_points"]);
+        assert!(cloud["points"].as_u64().unwrap() > 0);
+        if predicted(file.time) {
+            assert_eq!(cloud["value"], "p");
+            assert!(cloud["min"].as_f64().unwrap() > 0.5);
+            assert!(cloud["max"].as_f64().unwrap() <= 1.0);
+        } else {
+            assert_eq!(cloud["value"], "dynamic");
+            // Dynamic and static voxels, each in its own colour.
+            assert_eq!(cloud["colours"], 2, "{cloud}");
+            assert_eq!(
+                (cloud["min"].as_f64(), cloud["max"].as_f64()),
+                (Some(0.0), Some(1.0))
+            );
+        }
+    }
 }
