@@ -291,3 +291,170 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
         }
     }
 }
+
+/// Recordings written by rosbags and mcap-ros2-support, then damaged here: each problem is an
+/// error naming the recording (and the topic and message time where there is one), or, for a
+/// message whose data is not a map, a map left out and listed with `skip_bad`.
+#[test]
+fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let good = [
+        fixtures.join("few_voxels.bt"),
+        fixtures.join("coarse_leaves.bt"),
+    ];
+    // A map whose body is not an OctoMap tree (every node claims children past the leaves).
+    let raw = std::fs::read(&good[0]).unwrap();
+    let at = raw.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+    let mut not_a_map = raw[..at].to_vec();
+    not_a_map.extend_from_slice(&[0xff; 40]);
+    let bad = dir.path().join("not_a_map.bt");
+    std::fs::write(&bad, not_a_map).unwrap();
+    let second = 1_000_000_000;
+    let t0 = 1_700_000_000 * second;
+    let input = |path: &Path, t: i64| SeriesInput {
+        path: path.to_path_buf(),
+        time: Timestamp(t),
+    };
+    let three = [
+        input(&good[0], t0),
+        input(&bad, t0 + 60 * second),
+        input(&good[1], t0 + 120 * second),
+    ];
+    let same = [input(&good[0], t0), input(&good[1], t0)];
+    let path = |name: &str| dir.path().join(name);
+    write_recordings(
+        dir.path(),
+        &[
+            (
+                "ros1",
+                path("not_a_map.bag"),
+                "none",
+                three.iter().collect(),
+            ),
+            (
+                "mcap",
+                path("not_a_map.mcap"),
+                "zstd",
+                three.iter().collect(),
+            ),
+            ("ros1", path("same.bag"), "none", same.iter().collect()),
+            ("ros1", path("lz4.bag"), "lz4", same[..1].iter().collect()),
+        ],
+    );
+    let context = || context(RecordedTime::Header);
+    let out = path("out.froct");
+    for name in ["not_a_map.bag", "not_a_map.mcap"] {
+        // Recorded inputs are built with the context that collected them.
+        let context = context();
+        let inputs = collect_inputs(&context, &[path(name)], TimeSource::Auto).unwrap();
+        let err = build(&context, &inputs, &out, &BuildOptions::default(), &Silent)
+            .unwrap_err()
+            .to_string();
+        // The message is named by its log time (one second after its stamp here).
+        for part in [
+            name,
+            "/octomap_binary",
+            "2023-11-14T22:14:21Z",
+            "not an OctoMap tree",
+        ] {
+            assert!(err.contains(part), "{name}: {err}");
+        }
+        let options = BuildOptions {
+            skip_bad: true,
+            ..BuildOptions::default()
+        };
+        let report = build(&context, &inputs, &out, &options, &Silent).unwrap();
+        assert_eq!(report.used, 2, "{name}");
+        assert_eq!(report.skipped.len(), 1, "{name}");
+        assert!(
+            report.skipped[0].1.contains("2023-11-14T22:14:21Z"),
+            "{:?}",
+            report.skipped
+        );
+    }
+
+    // Two maps of one time.
+    let err = collect_inputs(&context(), &[path("same.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    for part in [
+        "same.bag",
+        "/octomap_binary",
+        "2023-11-14T22:13:20Z",
+        "same time",
+    ] {
+        assert!(err.contains(part), "{err}");
+    }
+
+    // Compression this reader does not know, and a damaged lz4 chunk.
+    let bag = std::fs::read(path("lz4.bag")).unwrap();
+    let field = bag
+        .windows(15)
+        .position(|w| w == b"compression=lz4")
+        .unwrap();
+    let mut unknown = bag.clone();
+    unknown[field + 12..field + 15].copy_from_slice(b"xz4");
+    std::fs::write(path("unknown.bag"), unknown).unwrap();
+    let err = collect_inputs(&context(), &[path("unknown.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("unknown.bag") && err.contains("`xz4` is not supported"),
+        "{err}"
+    );
+    let mut damaged = bag.clone();
+    for byte in &mut damaged[field + 80..field + 140] {
+        *byte ^= 0x5a;
+    }
+    std::fs::write(path("damaged.bag"), damaged).unwrap();
+    let err = collect_inputs(&context(), &[path("damaged.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("damaged.bag"), "{err}");
+    // Cut anywhere: an error naming the bag, never a panic.
+    for end in (0..bag.len()).step_by(97) {
+        std::fs::write(path("cut.bag"), &bag[..end]).unwrap();
+        if let Err(err) = collect_inputs(&context(), &[path("cut.bag")], TimeSource::Auto) {
+            assert!(err.to_string().contains("cut.bag"), "cut at {end}: {err}");
+        }
+    }
+}
+
+/// Maps stamped out of their recording order are taken in time order, with a warning.
+#[test]
+fn maps_stamped_out_of_recording_order_are_sorted_with_a_warning() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let t0 = 1_700_000_000_000_000_000;
+    let minute = 60_000_000_000;
+    // Logged in this order (log time = stamp + 1 s), stamped later then earlier.
+    let late = SeriesInput {
+        path: fixtures.join("few_voxels.bt"),
+        time: Timestamp(t0 + minute),
+    };
+    let early = SeriesInput {
+        path: fixtures.join("coarse_leaves.bt"),
+        time: Timestamp(t0 - 2 * minute),
+    };
+    let bag = dir.path().join("unordered.bag");
+    write_recordings(
+        dir.path(),
+        &[("ros1", bag.clone(), "none", vec![&late, &early])],
+    );
+    let context = context(RecordedTime::Header);
+    let collected = froctomap_convert::collect_inputs_explained(
+        &context,
+        &[bag],
+        TimeSource::Auto,
+        &Default::default(),
+    )
+    .unwrap();
+    let times: Vec<Timestamp> = collected.series.iter().map(|i| i.time).collect();
+    assert_eq!(times, [early.time, late.time]);
+    let warnings: Vec<String> = collected.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("stamped earlier")),
+        "{warnings:?}"
+    );
+}

@@ -786,9 +786,15 @@ pub(crate) fn print_input_notes(
         }
     }
     if !skipped.is_empty() {
-        eprintln!("skipped {} file(s):", skipped.len());
+        eprintln!("skipped {} file(s) or recorded map(s):", skipped.len());
         for (path, reason) in skipped {
-            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
+            // A recorded map's reason names its recording, topic and time already.
+            let name = path.display().to_string();
+            if reason.starts_with(&format!("{name}: ")) {
+                eprintln!("  {}", escaped(reason));
+            } else {
+                eprintln!("  {name}: {}", escaped(reason), name = escaped(&name));
+            }
         }
     }
 }

@@ -125,6 +125,18 @@ pub enum RosError {
         /// Its message encoding.
         encoding: String,
     },
+    /// Several messages of the topic carry the same time.
+    #[error("{}: {count} messages on `{topic}` have the same time {time} (a republished map? `--time-source log` takes the recording times)", path.display())]
+    DuplicateTimes {
+        /// The recording.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// The time (ISO 8601).
+        time: String,
+        /// How many messages have it.
+        count: usize,
+    },
     /// A message that does not decode as `octomap_msgs/Octomap`.
     #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
     BadMessage {
