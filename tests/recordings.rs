@@ -5,9 +5,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
 use froctomap_convert::{
-    build, collect_inputs, export, observed_map, resolve_observed, BuildOptions, Context,
-    ExportMode, ExportOptions, RecordedTime, RecordingOptions, SeriesInput, Silent, TimeQuery,
-    TimeSource,
+    append, build, collect_inputs, evaluate, export, observed_map, resolve_observed, AppendOptions,
+    BuildOptions, Context, ExportMode, ExportOptions, RecordedTime, RecordingOptions, SeriesInput,
+    Silent, TimeQuery, TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
@@ -457,4 +457,63 @@ fn maps_stamped_out_of_recording_order_are_sorted_with_a_warning() {
         warnings.iter().any(|w| w.contains("stamped earlier")),
         "{warnings:?}"
     );
+}
+
+/// `append` takes a recording like .bt files, and `evaluate` takes one as ground truth: the
+/// same results as with the recorded maps as .bt files.
+#[test]
+fn append_and_eval_take_recordings() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let (early, late) = inputs.split_at(inputs.len() / 2);
+    let mcap = dir.path().join("late.mcap");
+    write_recordings(
+        dir.path(),
+        &[("mcap", mcap.clone(), "zstd", late.iter().collect())],
+    );
+    let plain = Context::with_default_plugins();
+    let from_files = dir.path().join("files.froct");
+    build(
+        &plain,
+        early,
+        &from_files,
+        &BuildOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let from_recording = dir.path().join("recording.froct");
+    std::fs::copy(&from_files, &from_recording).unwrap();
+
+    // Evaluated against the later maps: from the recording as from the files.
+    let eval = |context: &Context, truths: &[SeriesInput]| {
+        let reader = FroctReader::open(&from_files).unwrap();
+        let report = evaluate(context, &reader, truths, ReadOptions::default(), &Silent).unwrap();
+        serde_json::to_value(report).unwrap()
+    };
+    let context = context(RecordedTime::Header);
+    let recorded = collect_inputs(&context, &[mcap], TimeSource::Auto).unwrap();
+    assert_eq!(recorded.len(), late.len());
+    let expected = eval(&plain, late);
+    assert_eq!(expected["outside"], late.len());
+    assert_eq!(eval(&context, &recorded), expected);
+
+    // Appended: the file of the recording equals the one of the files, map for map.
+    append(
+        &plain,
+        &from_files,
+        late,
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    append(
+        &context,
+        &from_recording,
+        &recorded,
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+    assert!(observed(&from_recording, &times) == observed(&from_files, &times));
 }

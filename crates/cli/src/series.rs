@@ -688,7 +688,8 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
 pub struct EvalArgs {
     /// The FROctomap file.
     file: PathBuf,
-    /// Ground-truth maps (directories, globs, manifests, files), e.g. later snapshots.
+    /// Ground-truth maps (directories, globs, manifests, files, recordings: ROS 1 bags,
+    /// MCAP files, ROS 2 bag directories), e.g. later snapshots.
     #[arg(long, required = true, num_args = 1.., value_name = "INPUT")]
     against: Vec<PathBuf>,
     #[command(flatten)]
@@ -700,8 +701,11 @@ pub struct EvalArgs {
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
+    // Recordings among the ground truths are read with --topic/--time-source, and their maps
+    // fetched through the context that collected them.
+    let context = args.times.context(ui);
     let collected =
-        collect_inputs_explained(ui.context, &args.against, args.times.source(ui)?, &ui.zone)?;
+        collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
     for warning in &collected.warnings {
         ui.note(&format!("warning: {}", escaped(warning)));
@@ -709,7 +713,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let truths: Vec<SeriesInput> = collected.series;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
-        ui.context,
+        &context,
         &reader,
         &truths,
         ReadOptions {
