@@ -5,8 +5,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
 use froctomap_convert::{
-    build, collect_inputs, observed_map, resolve_observed, BuildOptions, Context, RecordedTime,
-    RecordingOptions, SeriesInput, Silent, TimeQuery, TimeSource,
+    append, build, collect_inputs, evaluate, export, observed_map, resolve_observed, AppendOptions,
+    BuildOptions, Context, ExportMode, ExportOptions, RecordedTime, RecordingOptions, SeriesInput,
+    Silent, TimeQuery, TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
@@ -167,4 +168,352 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
         .map(|t| Timestamp(t.0 + 1_000_000_000))
         .collect();
     assert_eq!(logged, shifted);
+}
+
+/// `export --format mcap`, read back by PyPI mcap and mcap-ros2-support: one Octomap message
+/// per exported time whose data is the body of the `.bt` export of that time, byte for byte,
+/// and one foxglove.PointCloud whose points are the occupied voxels octomap-python reads
+/// from that `.bt`.
+#[test]
+fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let plain = Context::with_default_plugins();
+    let froct = dir.path().join("series.froct");
+    build(&plain, &inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
+    let reader = FroctReader::open(&froct).unwrap();
+    let minute = 60_000_000_000;
+    let first = inputs.first().unwrap().time;
+    let last = inputs.last().unwrap().time;
+    // Retrieved inside the span (instants between snapshots give each snapshot once),
+    // predicted before and after it.
+    let options = |format: &str| ExportOptions {
+        from: Timestamp(first.0 - 40 * minute),
+        to: Timestamp(last.0 + 60 * minute),
+        every_ns: 20 * minute,
+        mode: ExportMode::Auto,
+        format: format.to_string(),
+        backend: None,
+        prefix: "map".to_string(),
+        overwrite: false,
+    };
+    let bt_dir = dir.path().join("bt");
+    let bts = export(&plain, &reader, &bt_dir, &options("bt"), &Silent).unwrap();
+    let out_dir = dir.path().join("mcap");
+    std::fs::create_dir(&out_dir).unwrap();
+    let mcap = out_dir.join("maps.mcap");
+    let exported = export(
+        &context(RecordedTime::Header),
+        &reader,
+        &mcap,
+        &options("mcap"),
+        &Silent,
+    )
+    .unwrap();
+    assert!(exported.manifest.is_none());
+    let times: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();
+    let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
+    assert_eq!(got, times);
+    let predicted = |t: Timestamp| t < first || t > last;
+    assert!(times.iter().any(|&t| predicted(t)) && times.iter().any(|&t| !predicted(t)));
+    // Only the finished file is left: no temporary beside it.
+    let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+
+    let mut bt_of = String::from("{");
+    for (i, file) in bts.files.iter().enumerate() {
+        let sep = if i > 0 { ", " } else { "" };
+        bt_of.push_str(&format!(
+            "{sep}\"{}\": \"{}\"",
+            file.time.0,
+            file.path.display()
+        ));
+    }
+    bt_of.push('}');
+    let bt_json = dir.path().join("bt.json");
+    std::fs::write(&bt_json, bt_of).unwrap();
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir(&data_dir).unwrap();
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/read_exported_mcap.py"))
+        .args([&mcap, &data_dir, &bt_json])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["profile"], "ros2");
+    assert_eq!(report["schemas"]["octomap_msgs/msg/Octomap"], "ros2msg");
+    assert_eq!(report["schemas"]["foxglove.PointCloud"], "jsonschema");
+    assert_eq!(report["channels"]["/octomap_binary"]["encoding"], "cdr");
+    assert_eq!(
+        report["channels"]["/froctomap/occupied_voxels"]["schema"],
+        "foxglove.PointCloud"
+    );
+    let octomaps = report["octomap"].as_array().unwrap();
+    let clouds = report["cloud"].as_array().unwrap();
+    assert_eq!((octomaps.len(), clouds.len()), (times.len(), times.len()));
+    let resolution = reader.header().resolution;
+    for ((file, octomap), cloud) in bts.files.iter().zip(octomaps).zip(clouds) {
+        let t = file.time.0;
+        for message in [octomap, cloud] {
+            assert_eq!(message["log_time"], t);
+            assert_eq!(message["stamp_ns"], t);
+            assert_eq!(message["frame_id"], "map");
+        }
+        assert_eq!(octomap["binary"], true);
+        assert_eq!(octomap["id"], "OcTree");
+        assert_eq!(octomap["resolution"], resolution);
+        let bt = std::fs::read(&file.path).unwrap();
+        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+        assert!(data == bt[body_at..], "data of the message at {t}");
+
+        assert_eq!(cloud["same_voxels"], true, "points of the cloud at {t}");
+        assert_eq!(cloud["remainder"], 0);
+        assert_eq!(cloud["points"], cloud["distinct_points"]);
+        assert!(cloud["points"].as_u64().unwrap() > 0);
+        if predicted(file.time) {
+            assert_eq!(cloud["value"], "p");
+            assert!(cloud["min"].as_f64().unwrap() > 0.5);
+            assert!(cloud["max"].as_f64().unwrap() <= 1.0);
+        } else {
+            assert_eq!(cloud["value"], "dynamic");
+            // Dynamic and static voxels, each in its own colour.
+            assert_eq!(cloud["colours"], 2, "{cloud}");
+            assert_eq!(
+                (cloud["min"].as_f64(), cloud["max"].as_f64()),
+                (Some(0.0), Some(1.0))
+            );
+        }
+    }
+}
+
+/// Recordings written by rosbags and mcap-ros2-support, then damaged here: each problem is an
+/// error naming the recording (and the topic and message time where there is one), or, for a
+/// message whose data is not a map, a map left out and listed with `skip_bad`.
+#[test]
+fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let good = [
+        fixtures.join("few_voxels.bt"),
+        fixtures.join("coarse_leaves.bt"),
+    ];
+    // A map whose body is not an OctoMap tree (every node claims children past the leaves).
+    let raw = std::fs::read(&good[0]).unwrap();
+    let at = raw.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+    let mut not_a_map = raw[..at].to_vec();
+    not_a_map.extend_from_slice(&[0xff; 40]);
+    let bad = dir.path().join("not_a_map.bt");
+    std::fs::write(&bad, not_a_map).unwrap();
+    let second = 1_000_000_000;
+    let t0 = 1_700_000_000 * second;
+    let input = |path: &Path, t: i64| SeriesInput {
+        path: path.to_path_buf(),
+        time: Timestamp(t),
+    };
+    let three = [
+        input(&good[0], t0),
+        input(&bad, t0 + 60 * second),
+        input(&good[1], t0 + 120 * second),
+    ];
+    let same = [input(&good[0], t0), input(&good[1], t0)];
+    let path = |name: &str| dir.path().join(name);
+    write_recordings(
+        dir.path(),
+        &[
+            (
+                "ros1",
+                path("not_a_map.bag"),
+                "none",
+                three.iter().collect(),
+            ),
+            (
+                "mcap",
+                path("not_a_map.mcap"),
+                "zstd",
+                three.iter().collect(),
+            ),
+            ("ros1", path("same.bag"), "none", same.iter().collect()),
+            ("ros1", path("lz4.bag"), "lz4", same[..1].iter().collect()),
+        ],
+    );
+    let context = || context(RecordedTime::Header);
+    let out = path("out.froct");
+    for name in ["not_a_map.bag", "not_a_map.mcap"] {
+        // Recorded inputs are built with the context that collected them.
+        let context = context();
+        let inputs = collect_inputs(&context, &[path(name)], TimeSource::Auto).unwrap();
+        let err = build(&context, &inputs, &out, &BuildOptions::default(), &Silent)
+            .unwrap_err()
+            .to_string();
+        // The message is named by its log time (one second after its stamp here).
+        for part in [
+            name,
+            "/octomap_binary",
+            "2023-11-14T22:14:21Z",
+            "not an OctoMap tree",
+        ] {
+            assert!(err.contains(part), "{name}: {err}");
+        }
+        let options = BuildOptions {
+            skip_bad: true,
+            ..BuildOptions::default()
+        };
+        let report = build(&context, &inputs, &out, &options, &Silent).unwrap();
+        assert_eq!(report.used, 2, "{name}");
+        assert_eq!(report.skipped.len(), 1, "{name}");
+        assert!(
+            report.skipped[0].1.contains("2023-11-14T22:14:21Z"),
+            "{:?}",
+            report.skipped
+        );
+    }
+
+    // Two maps of one time.
+    let err = collect_inputs(&context(), &[path("same.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    for part in [
+        "same.bag",
+        "/octomap_binary",
+        "2023-11-14T22:13:20Z",
+        "same time",
+    ] {
+        assert!(err.contains(part), "{err}");
+    }
+
+    // Compression this reader does not know, and a damaged lz4 chunk.
+    let bag = std::fs::read(path("lz4.bag")).unwrap();
+    let field = bag
+        .windows(15)
+        .position(|w| w == b"compression=lz4")
+        .unwrap();
+    let mut unknown = bag.clone();
+    unknown[field + 12..field + 15].copy_from_slice(b"xz4");
+    std::fs::write(path("unknown.bag"), unknown).unwrap();
+    let err = collect_inputs(&context(), &[path("unknown.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("unknown.bag") && err.contains("`xz4` is not supported"),
+        "{err}"
+    );
+    let mut damaged = bag.clone();
+    for byte in &mut damaged[field + 80..field + 140] {
+        *byte ^= 0x5a;
+    }
+    std::fs::write(path("damaged.bag"), damaged).unwrap();
+    let err = collect_inputs(&context(), &[path("damaged.bag")], TimeSource::Auto)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("damaged.bag"), "{err}");
+    // Cut anywhere: an error naming the bag, never a panic.
+    for end in (0..bag.len()).step_by(97) {
+        std::fs::write(path("cut.bag"), &bag[..end]).unwrap();
+        if let Err(err) = collect_inputs(&context(), &[path("cut.bag")], TimeSource::Auto) {
+            assert!(err.to_string().contains("cut.bag"), "cut at {end}: {err}");
+        }
+    }
+}
+
+/// Maps stamped out of their recording order are taken in time order, with a warning.
+#[test]
+fn maps_stamped_out_of_recording_order_are_sorted_with_a_warning() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let t0 = 1_700_000_000_000_000_000;
+    let minute = 60_000_000_000;
+    // Logged in this order (log time = stamp + 1 s), stamped later then earlier.
+    let late = SeriesInput {
+        path: fixtures.join("few_voxels.bt"),
+        time: Timestamp(t0 + minute),
+    };
+    let early = SeriesInput {
+        path: fixtures.join("coarse_leaves.bt"),
+        time: Timestamp(t0 - 2 * minute),
+    };
+    let bag = dir.path().join("unordered.bag");
+    write_recordings(
+        dir.path(),
+        &[("ros1", bag.clone(), "none", vec![&late, &early])],
+    );
+    let context = context(RecordedTime::Header);
+    let collected = froctomap_convert::collect_inputs_explained(
+        &context,
+        &[bag],
+        TimeSource::Auto,
+        &Default::default(),
+    )
+    .unwrap();
+    let times: Vec<Timestamp> = collected.series.iter().map(|i| i.time).collect();
+    assert_eq!(times, [early.time, late.time]);
+    let warnings: Vec<String> = collected.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("stamped earlier")),
+        "{warnings:?}"
+    );
+}
+
+/// `append` takes a recording like .bt files, and `evaluate` takes one as ground truth: the
+/// same results as with the recorded maps as .bt files.
+#[test]
+fn append_and_eval_take_recordings() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let (early, late) = inputs.split_at(inputs.len() / 2);
+    let mcap = dir.path().join("late.mcap");
+    write_recordings(
+        dir.path(),
+        &[("mcap", mcap.clone(), "zstd", late.iter().collect())],
+    );
+    let plain = Context::with_default_plugins();
+    let from_files = dir.path().join("files.froct");
+    build(
+        &plain,
+        early,
+        &from_files,
+        &BuildOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let from_recording = dir.path().join("recording.froct");
+    std::fs::copy(&from_files, &from_recording).unwrap();
+
+    // Evaluated against the later maps: from the recording as from the files.
+    let eval = |context: &Context, truths: &[SeriesInput]| {
+        let reader = FroctReader::open(&from_files).unwrap();
+        let report = evaluate(context, &reader, truths, ReadOptions::default(), &Silent).unwrap();
+        serde_json::to_value(report).unwrap()
+    };
+    let context = context(RecordedTime::Header);
+    let recorded = collect_inputs(&context, &[mcap], TimeSource::Auto).unwrap();
+    assert_eq!(recorded.len(), late.len());
+    let expected = eval(&plain, late);
+    assert_eq!(expected["outside"], late.len());
+    assert_eq!(eval(&context, &recorded), expected);
+
+    // Appended: the file of the recording equals the one of the files, map for map.
+    append(
+        &plain,
+        &from_files,
+        late,
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    append(
+        &context,
+        &from_recording,
+        &recorded,
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+    assert!(observed(&from_recording, &times) == observed(&from_files, &times));
 }

@@ -130,6 +130,6 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
         let (_, leaves) = python_leaves(&file.path, "bt");
         assert!(leaves == upstream_leaves(&file.path));
     }
-    let manifest = std::fs::read_to_string(&exported.manifest).unwrap();
+    let manifest = std::fs::read_to_string(exported.manifest.as_ref().unwrap()).unwrap();
     assert_eq!(manifest.lines().count(), 4, "{manifest}");
 }

@@ -22,6 +22,7 @@
 mod dataset;
 mod generate;
 mod plots;
+mod recording;
 mod report;
 mod run;
 mod size;

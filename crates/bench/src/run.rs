@@ -114,7 +114,9 @@ pub struct BuildChildArgs {
 
 /// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
 pub fn build_child(args: &BuildChildArgs) -> Result<()> {
-    let context = froctomap_convert::Context::with_default_plugins();
+    let mut context = froctomap_convert::Context::with_default_plugins();
+    // Recordings too (the MCAP row), as the CLI reads them.
+    froctomap_ros::register(&mut context);
     let inputs = collect_inputs(
         &context,
         std::slice::from_ref(&args.input),
@@ -548,6 +550,20 @@ pub fn run(args: &RunArgs) -> Result<()> {
         rows::BUILD_NATIVE,
         &train_manifest,
         &lossless,
+        &ChildModel::fremen(None, args.max_order),
+        false,
+        false,
+    )?);
+    let mcap = root.join("train.mcap");
+    note("writing the training series as one MCAP file");
+    let mcap_bytes = crate::recording::write_mcap(train, &mcap)?;
+    note(&format!(
+        "building lossless from the MCAP file ({mcap_bytes} bytes)"
+    ));
+    builds.push(spawn_build(
+        crate::recording::BUILD_FROM_MCAP,
+        &mcap,
+        &root.join("from-mcap.froct"),
         &ChildModel::fremen(None, args.max_order),
         false,
         false,

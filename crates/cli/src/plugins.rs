@@ -20,3 +20,32 @@ pub fn context() -> &'static Context {
 pub fn writable_format() -> clap::builder::PossibleValuesParser {
     clap::builder::PossibleValuesParser::new(context().formats().writable_names())
 }
+
+/// A parser of `export --format` values: the writable map formats and the recording formats
+/// that can be written (`mcap`).
+pub fn export_format() -> clap::builder::PossibleValuesParser {
+    let mut names = context().formats().writable_names();
+    names.extend(
+        context()
+            .recording_formats()
+            .iter()
+            .filter(|f| f.create.is_some())
+            .map(|f| f.name),
+    );
+    clap::builder::PossibleValuesParser::new(names)
+}
+
+/// The writable recording format whose extension `path` has (`out.mcap`: `mcap`).
+pub fn recording_format_of(path: &std::path::Path) -> Option<&'static str> {
+    let extension = path.extension()?.to_str()?;
+    context()
+        .recording_formats()
+        .iter()
+        .find(|f| {
+            f.create.is_some()
+                && f.extensions
+                    .iter()
+                    .any(|e| e.eq_ignore_ascii_case(extension))
+        })
+        .map(|f| f.name)
+}

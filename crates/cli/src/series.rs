@@ -2,7 +2,7 @@
 //! FROctomap files. Each is a thin layer over `froctomap-convert`.
 
 use crate::froct_info::class_counts;
-use crate::plugins::{context, writable_format};
+use crate::plugins::{context, export_format, recording_format_of, writable_format};
 use crate::progress::{peak_memory_bytes, Bars};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
@@ -602,6 +602,8 @@ pub enum ExportModeArg {
     Predict,
     /// The last observed snapshot at or before each instant.
     Retrieve,
+    /// Retrieved inside the file's span, predicted outside it.
+    Auto,
 }
 
 #[derive(Args)]
@@ -618,16 +620,21 @@ pub struct ExportArgs {
     /// Interval between maps (e.g. 1h, 10min, 600).
     #[arg(long, value_name = "DURATION")]
     every: String,
-    /// Directory for the maps and manifest.csv (created if missing).
-    #[arg(short, long, value_name = "DIR")]
+    /// Directory for the maps and manifest.csv (created if missing); for a recording format
+    /// (--format mcap, or an output named *.mcap), the one file holding every map.
+    #[arg(short, long, value_name = "DIR|FILE")]
     output: PathBuf,
-    /// Predicted maps (one per instant) or retrieved snapshots (each snapshot seen at the
-    /// instants once, named and listed at its own time).
+    /// Predicted maps (one per instant), retrieved snapshots (each snapshot seen at the
+    /// instants once, named and listed at its own time), or auto: retrieved inside the
+    /// file's span, predicted outside it.
     #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
     mode: ExportModeArg,
-    /// Map format (see `froctomap formats`).
-    #[arg(long, value_parser = writable_format(), default_value = "bt")]
-    format: String,
+    /// Map format (see `froctomap formats`), or `mcap`: one MCAP file with the maps as
+    /// octomap_msgs/msg/Octomap on /octomap_binary (for ros2 bag play) and their occupied
+    /// voxels as a foxglove.PointCloud on /froctomap/occupied_voxels (for Foxglove).
+    /// Default: mcap for an output named *.mcap, else bt.
+    #[arg(long, value_parser = export_format())]
+    format: Option<String>,
     /// File name prefix.
     #[arg(long, default_value = "map")]
     prefix: String,
@@ -645,8 +652,13 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         mode: match args.mode {
             ExportModeArg::Predict => ExportMode::Predict,
             ExportModeArg::Retrieve => ExportMode::Retrieve,
+            ExportModeArg::Auto => ExportMode::Auto,
         },
-        format: args.format.clone(),
+        format: args
+            .format
+            .clone()
+            .or_else(|| recording_format_of(&args.output).map(str::to_string))
+            .unwrap_or_else(|| "bt".to_string()),
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
         overwrite: args.overwrite,
@@ -654,12 +666,21 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;
     drop(bars);
-    ui.note(&format!(
-        "wrote {} maps ({} bytes) and {}",
-        report.files.len(),
-        group_thousands(report.bytes),
-        escaped(report.manifest.display())
-    ));
+    match &report.manifest {
+        Some(manifest) => ui.note(&format!(
+            "wrote {} maps ({} bytes) and {}",
+            report.files.len(),
+            group_thousands(report.bytes),
+            escaped(manifest.display())
+        )),
+        None => ui.note(&format!(
+            "wrote {} maps into {} ({}, {} bytes)",
+            report.files.len(),
+            escaped(args.output.display()),
+            options.format,
+            group_thousands(report.bytes)
+        )),
+    }
     Ok(())
 }
 
@@ -667,7 +688,8 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
 pub struct EvalArgs {
     /// The FROctomap file.
     file: PathBuf,
-    /// Ground-truth maps (directories, globs, manifests, files), e.g. later snapshots.
+    /// Ground-truth maps (directories, globs, manifests, files, recordings: ROS 1 bags,
+    /// MCAP files, ROS 2 bag directories), e.g. later snapshots.
     #[arg(long, required = true, num_args = 1.., value_name = "INPUT")]
     against: Vec<PathBuf>,
     #[command(flatten)]
@@ -679,8 +701,11 @@ pub struct EvalArgs {
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
+    // Recordings among the ground truths are read with --topic/--time-source, and their maps
+    // fetched through the context that collected them.
+    let context = args.times.context(ui);
     let collected =
-        collect_inputs_explained(ui.context, &args.against, args.times.source(ui)?, &ui.zone)?;
+        collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
     for warning in &collected.warnings {
         ui.note(&format!("warning: {}", escaped(warning)));
@@ -688,7 +713,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let truths: Vec<SeriesInput> = collected.series;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
-        ui.context,
+        &context,
         &reader,
         &truths,
         ReadOptions {
@@ -765,9 +790,15 @@ pub(crate) fn print_input_notes(
         }
     }
     if !skipped.is_empty() {
-        eprintln!("skipped {} file(s):", skipped.len());
+        eprintln!("skipped {} file(s) or recorded map(s):", skipped.len());
         for (path, reason) in skipped {
-            eprintln!("  {}: {}", escaped(path.display()), escaped(reason));
+            // A recorded map's reason names its recording, topic and time already.
+            let name = path.display().to_string();
+            if reason.starts_with(&format!("{name}: ")) {
+                eprintln!("  {}", escaped(reason));
+            } else {
+                eprintln!("  {name}: {}", escaped(reason), name = escaped(&name));
+            }
         }
     }
 }

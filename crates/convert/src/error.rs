@@ -308,6 +308,19 @@ pub enum ConvertError {
     /// Writing an output failed.
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),
+    /// A recording format's writer refused or failed to write an exported map.
+    #[error("{}: writing the {format} recording failed{}: {source}", path.display(), at.map(|t| format!(" at the map for {}", iso8601(t))).unwrap_or_default())]
+    RecordingWrite {
+        /// The recording being written.
+        path: PathBuf,
+        /// Its format.
+        format: &'static str,
+        /// The map being written, if the failure was at one.
+        at: Option<Timestamp>,
+        /// The writer's own error.
+        #[source]
+        source: Cause,
+    },
     /// An output that is one of the inputs (also through a link): writing it would destroy
     /// the input.
     #[error("{}: this output is the input {}; writing it would destroy the input", output.display(), input.display())]

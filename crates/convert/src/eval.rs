@@ -246,14 +246,18 @@ fn read_truth(
 ) -> Result<GroundTruth, ConvertError> {
     let resolution = reader.header().resolution;
     let axis = &reader.header().axis;
-    let bytes = crate::build::read_input(&truth.path, context.limits().max_map_file_bytes)
-        .map_err(|e| ConvertError::Snapshot {
-            path: truth.path.clone(),
-            source: std::sync::Arc::new(e),
-        })?;
+    // A file, or a map of a recording the inputs were collected from (named
+    // `recording/topic@time`).
+    let name = crate::recording::input_name(context, truth);
+    let bytes =
+        crate::recording::snapshot_bytes(context, truth, context.limits().max_map_file_bytes)
+            .map_err(|e| ConvertError::Snapshot {
+                path: name.clone(),
+                source: std::sync::Arc::new(e),
+            })?;
     let snapshot = context
         .formats()
-        .read_bytes(&truth.path, &bytes, read)
+        .read_bytes(&name, &bytes, read)
         .map_err(ConvertError::Read)?
         .map
         .snapshot;
@@ -261,7 +265,7 @@ fn read_truth(
         return Err(ConvertError::MixedResolution {
             first: reader.path().to_path_buf(),
             first_resolution: resolution,
-            second: truth.path.clone(),
+            second: name,
             second_resolution: snapshot.resolution(),
         });
     }

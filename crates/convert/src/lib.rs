@@ -49,6 +49,7 @@ mod outputs;
 mod progress;
 mod query;
 mod recording;
+mod recording_export;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -81,7 +82,10 @@ pub use progress::{Progress, Silent};
 pub use query::{
     probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
 };
-pub use recording::{RecordedMaps, RecordedTime, Recording, RecordingFormat, RecordingOptions};
+pub use recording::{
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
+};
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,

@@ -383,6 +383,14 @@ fn write_states_bt(
     path: &Path,
     query: StateQuery,
 ) -> Result<WrittenMap, ConvertError> {
+    let (bytes, leaves) = states_bt(reader, query)?;
+    write_atomically(path, |out| out.write_all(&bytes))?;
+    Ok(WrittenMap { format, leaves })
+}
+
+/// The canonical `.bt` file of the cells' states and its leaf count, built tile by tile in
+/// parallel.
+fn states_bt(reader: &FroctReader, query: StateQuery) -> Result<(Vec<u8>, usize), ConvertError> {
     let inconsistent = |e: EncodeError| inconsistent_cells(reader, e);
     let tile_depth = reader.header().tile_depth;
     let parts = reader
@@ -421,8 +429,20 @@ fn write_states_bt(
     let bytes = whole
         .into_file(reader.header().resolution)
         .map_err(inconsistent)?;
-    write_atomically(path, |out| out.write_all(&bytes))?;
-    Ok(WrittenMap { format, leaves })
+    Ok((bytes, leaves))
+}
+
+/// The canonical `.bt` file of the map observed at `sample` (the bytes
+/// [`write_observed_map`] writes to a `.bt`).
+pub(crate) fn observed_bt(reader: &FroctReader, sample: u32) -> Result<Vec<u8>, ConvertError> {
+    states_bt(reader, StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
+}
+
+/// The canonical `.bt` file of the map predicted for `t` (the bytes
+/// [`write_predicted_map`] writes to a `.bt`).
+pub(crate) fn predicted_bt(reader: &FroctReader, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
+    let seconds = t.secs_since(reader.header().axis.start());
+    states_bt(reader, StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
 }
 
 /// What [`write_map`] wrote.
@@ -443,6 +463,9 @@ pub enum ExportMode {
     /// The last observed snapshot at or before the instant: each snapshot once, named and
     /// listed in the manifest at its own time.
     Retrieve,
+    /// Retrieved inside the file's span (as [`Retrieve`](Self::Retrieve)), predicted
+    /// outside it.
+    Auto,
 }
 
 /// Settings of an export.
@@ -457,7 +480,9 @@ pub struct ExportOptions {
     pub every_ns: i64,
     /// Predicted or retrieved maps.
     pub mode: ExportMode,
-    /// Output format name (a writable format of the context, e.g. `bt` or `ot`).
+    /// Output format name: a writable map format of the context (e.g. `bt` or `ot`, one file
+    /// per map in a directory) or a recording format that can be written (e.g. `mcap`, one
+    /// file holding every map).
     pub format: String,
     /// Preferred writer implementation.
     pub backend: Option<Backend>,
@@ -470,67 +495,40 @@ pub struct ExportOptions {
 
 /// What `export` wrote.
 #[derive(Clone, Debug)]
+#[non_exhaustive]
 pub struct ExportReport {
-    /// Files and their instants, in time order.
+    /// Maps and their instants, in time order (for a recording, each map's path is the
+    /// recording's).
     pub files: Vec<SeriesInput>,
-    /// The manifest (`path,time`), which `build` accepts.
-    pub manifest: PathBuf,
+    /// The manifest (`path,time`), which `build` accepts; `None` for a recording, which
+    /// holds its maps' times itself.
+    pub manifest: Option<PathBuf>,
     /// Bytes written.
     pub bytes: u64,
 }
 
-/// Writes one map per instant of `from..=to` (every `every_ns`) into `dir` (missing or empty,
-/// unless [`ExportOptions::overwrite`]), each atomically, then a manifest. A failure leaves only complete files behind. At most
-/// [`Limits::max_exports`](crate::Limits) maps are written.
+/// Writes one map per instant of `from..=to` (every `every_ns`): into `output`, a directory
+/// (missing or empty, unless [`ExportOptions::overwrite`]), one file per map, each written
+/// atomically, then a manifest; or, when [`ExportOptions::format`] names a recording format
+/// of the context that can be written ([`RecordingFormat::create`], e.g. `mcap`), into
+/// `output` as one recording, written atomically, one map at a time. A failure leaves only
+/// complete files behind. At most [`Limits::max_exports`](crate::Limits) maps are written.
+///
+/// [`RecordingFormat::create`]: crate::RecordingFormat::create
 pub fn export(
     context: &Context,
     reader: &FroctReader,
-    dir: &Path,
+    output: &Path,
     options: &ExportOptions,
     progress: &dyn Progress,
 ) -> Result<ExportReport, ConvertError> {
-    for (what, t) in [("from", options.from), ("to", options.to)] {
-        check_range(what, t)?;
+    let (times, samples) = export_instants(context, reader, options)?;
+    if let Some(format) = crate::recording::writable_recording(context, &options.format) {
+        return crate::recording_export::export_recording(
+            reader, output, format, &times, &samples, progress,
+        );
     }
-    if options.to < options.from {
-        return Err(ConvertError::EmptyRange {
-            from: options.from,
-            to: options.to,
-        });
-    }
-    if options.every_ns <= 0 {
-        return Err(ConvertError::NonPositiveInterval);
-    }
-    let count =
-        (i128::from(options.to.0) - i128::from(options.from.0)) / i128::from(options.every_ns) + 1;
-    let limit = context.limits().max_exports;
-    if count > i128::from(limit) {
-        return Err(ConvertError::TooManyMaps { count, limit });
-    }
-    let times: Vec<Timestamp> = (0..count as i64)
-        .map(|i| Timestamp(options.from.0 + i * options.every_ns))
-        .collect();
-    // Retrieval: each snapshot once, named and listed at its own time (instants between
-    // snapshots would otherwise write the same map again under other times).
-    let (times, samples): (Vec<Timestamp>, Vec<Option<u32>>) = match options.mode {
-        ExportMode::Predict => {
-            let samples = vec![None; times.len()];
-            (times, samples)
-        }
-        ExportMode::Retrieve => {
-            let mut resolved = Vec::with_capacity(times.len());
-            for &t in &times {
-                let r = resolve_observed(reader, TimeQuery::Instant(t))?;
-                if resolved
-                    .last()
-                    .is_none_or(|&(_, last)| last != Some(r.sample))
-                {
-                    resolved.push((r.time, Some(r.sample)));
-                }
-            }
-            resolved.into_iter().unzip()
-        }
-    };
+    let dir = output;
     let format = context
         .formats()
         .by_name(&options.format, options.backend)
@@ -583,9 +581,61 @@ pub fn export(
     write_atomically(&manifest, |out| out.write_all(text.as_bytes()))?;
     Ok(ExportReport {
         files,
-        manifest,
+        manifest: Some(manifest),
         bytes,
     })
+}
+
+/// The instants of an export and, for each, the sample retrieved there (`None`: predicted).
+/// Retrieval takes each snapshot once, at its own time (instants between snapshots would
+/// otherwise give the same map again under other times).
+type Instants = (Vec<Timestamp>, Vec<Option<u32>>);
+
+fn export_instants(
+    context: &Context,
+    reader: &FroctReader,
+    options: &ExportOptions,
+) -> Result<Instants, ConvertError> {
+    for (what, t) in [("from", options.from), ("to", options.to)] {
+        check_range(what, t)?;
+    }
+    if options.to < options.from {
+        return Err(ConvertError::EmptyRange {
+            from: options.from,
+            to: options.to,
+        });
+    }
+    if options.every_ns <= 0 {
+        return Err(ConvertError::NonPositiveInterval);
+    }
+    let count =
+        (i128::from(options.to.0) - i128::from(options.from.0)) / i128::from(options.every_ns) + 1;
+    let limit = context.limits().max_exports;
+    if count > i128::from(limit) {
+        return Err(ConvertError::TooManyMaps { count, limit });
+    }
+    let axis = &reader.header().axis;
+    let mut instants: Vec<(Timestamp, Option<u32>)> = Vec::with_capacity(count as usize);
+    for i in 0..count as i64 {
+        let t = Timestamp(options.from.0 + i * options.every_ns);
+        let retrieve = match options.mode {
+            ExportMode::Predict => false,
+            ExportMode::Retrieve => true,
+            ExportMode::Auto => axis.start() <= t && t <= axis.end(),
+        };
+        if !retrieve {
+            instants.push((t, None));
+            continue;
+        }
+        let r = resolve_observed(reader, TimeQuery::Instant(t))?;
+        if instants
+            .last()
+            .is_none_or(|&(_, last)| last != Some(r.sample))
+        {
+            instants.push((r.time, Some(r.sample)));
+        }
+    }
+    Ok(instants.into_iter().unzip())
 }
 
 #[cfg(test)]

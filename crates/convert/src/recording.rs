@@ -88,6 +88,10 @@ pub struct RecordingFormat {
     /// Opens a recording: its maps' times (from its index where it has one) and a handle to
     /// fetch them.
     pub open: fn(&Path, &RecordingOptions, u64) -> Result<Recording, Cause>,
+    /// Extensions of its files, the usual first (for outputs named without `--format`).
+    pub extensions: &'static [&'static str],
+    /// Writes a new recording of exported maps, if the format can be written.
+    pub create: Option<CreateRecording>,
 }
 
 /// The recordings a [`Context`] has opened while collecting inputs, by path, so that
@@ -136,6 +140,17 @@ pub(crate) fn recording_format<'c>(
     path: &Path,
 ) -> Option<&'c RecordingFormat> {
     context.recording_formats().iter().find(|f| (f.probe)(path))
+}
+
+/// The recording format named `name` if it can be written.
+pub(crate) fn writable_recording<'c>(
+    context: &'c Context,
+    name: &str,
+) -> Option<&'c RecordingFormat> {
+    context
+        .recording_formats()
+        .iter()
+        .find(|f| f.name == name && f.create.is_some())
 }
 
 /// Opens `path` with `format` and remembers it in `context` for extraction.
@@ -193,4 +208,96 @@ pub(crate) fn snapshot_bytes(
     open.maps
         .map_bytes(index, limit)
         .map_err(|e| SnapshotError::Recorded(Arc::from(e)))
+}
+
+/// Where a [`RecordingWriter`] writes: a temporary file beside the output, renamed over it
+/// once the writer finished, so a failed export leaves no partial recording.
+pub trait RecordingSink: std::io::Write + std::io::Seek + Send {}
+
+impl<T: std::io::Write + std::io::Seek + Send> RecordingSink for T {}
+
+/// Makes a writer of a new recording into a sink.
+pub type CreateRecording = fn(Box<dyn RecordingSink>) -> Result<Box<dyn RecordingWriter>, Cause>;
+
+/// A recording being written, one map at a time in time order ([`export`](crate::export)
+/// to a recording format that has [`RecordingFormat::create`]).
+pub trait RecordingWriter {
+    /// Adds one map.
+    fn write_map(&mut self, map: &ExportedMap<'_>) -> Result<(), Cause>;
+
+    /// Completes the recording (its index, summary…) and flushes the sink.
+    fn finish(self: Box<Self>) -> Result<(), Cause>;
+}
+
+/// What an exported map is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ExportedKind {
+    /// The map as observed at this sample of the file's axis.
+    Retrieved {
+        /// The sample.
+        sample: u32,
+    },
+    /// The map predicted for the instant (occupied where `p(t) > 0.5`).
+    Predicted,
+}
+
+/// How an occupied cell of an exported map is to be shown.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum CellShade {
+    /// A predicted cell, with its probability of being occupied (above 0.5).
+    Probability(f32),
+    /// A retrieved cell whose state changes over the file's span.
+    Dynamic,
+    /// A retrieved cell occupied over the whole span (wherever it was observed).
+    Static,
+}
+
+/// An occupied cell of an exported map: `8^(16 − depth)` voxels from `start` in Morton
+/// order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OccupiedCell {
+    /// Morton code of its first voxel.
+    pub start: froctomap_core::MortonCode,
+    /// Its depth in the octree (16: one voxel).
+    pub depth: u8,
+    /// How to show it.
+    pub shade: CellShade,
+}
+
+/// One map handed to a [`RecordingWriter`]: its time, what it is, its canonical `.bt` file
+/// (the bytes a `.bt` export of the same time writes) and its occupied cells.
+#[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
+pub struct ExportedMap<'a> {
+    /// The instant the map is for.
+    pub time: Timestamp,
+    /// Retrieved or predicted.
+    pub kind: ExportedKind,
+    /// Voxel edge length, metres.
+    pub resolution: f64,
+    /// The map as a `.bt` file.
+    pub bt: &'a [u8],
+    /// The occupied cells, in Morton order.
+    pub occupied: &'a [OccupiedCell],
+}
+
+impl<'a> ExportedMap<'a> {
+    /// A map for a writer (writers' tests build their own).
+    pub fn new(
+        time: Timestamp,
+        kind: ExportedKind,
+        resolution: f64,
+        bt: &'a [u8],
+        occupied: &'a [OccupiedCell],
+    ) -> Self {
+        Self {
+            time,
+            kind,
+            resolution,
+            bt,
+            occupied,
+        }
+    }
 }

@@ -125,6 +125,18 @@ pub enum RosError {
         /// Its message encoding.
         encoding: String,
     },
+    /// Several messages of the topic carry the same time.
+    #[error("{}: {count} messages on `{topic}` have the same time {time} (a republished map? `--time-source log` takes the recording times)", path.display())]
+    DuplicateTimes {
+        /// The recording.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// The time (ISO 8601).
+        time: String,
+        /// How many messages have it.
+        count: usize,
+    },
     /// A message that does not decode as `octomap_msgs/Octomap`.
     #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
     BadMessage {
@@ -176,4 +188,37 @@ fn list_topics(topics: &[(String, String)]) -> String {
         .map(|(topic, kind)| format!("{topic} [{kind}]"))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// Why a map could not be written into an MCAP recording.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum McapWriteError {
+    /// The MCAP library failed (writing the file, most often).
+    #[error(transparent)]
+    Mcap(#[from] mcap::McapError),
+    /// Flushing the output failed.
+    #[error("cannot write: {0}")]
+    Io(#[from] std::io::Error),
+    /// A time that a ROS 2 stamp (`int32` seconds) or an MCAP log time (unsigned
+    /// nanoseconds since 1970) cannot hold.
+    #[error("{0} cannot be written as a ROS 2 stamp (1970 to 2038)")]
+    TimeOutOfRange(String),
+    /// The exported map is not a `.bt` file (a fault of the exporter).
+    #[error("the exported map is not a .bt file: {0}")]
+    NotBinary(#[source] froctomap_octomap_codec::CodecError),
+    /// A map too large for one message (CDR lengths are `u32`).
+    #[error("a map of {bytes} bytes is longer than one ROS 2 message may hold")]
+    MessageTooLong {
+        /// The map's bytes.
+        bytes: u64,
+    },
+    /// A map with more occupied voxels than one point cloud may hold.
+    #[error("{voxels} occupied voxels, more than the {limit} one point-cloud message may hold")]
+    TooManyPoints {
+        /// Occupied voxels of the map.
+        voxels: u64,
+        /// The limit.
+        limit: u64,
+    },
 }

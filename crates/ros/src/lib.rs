@@ -26,13 +26,19 @@
 //! ```
 
 mod bag;
+mod encode;
 mod error;
+mod foxglove;
 mod io;
+mod mcap_export;
 mod mcap_file;
 mod message;
 mod source;
 
-pub use error::{MessageError, RosError};
+pub use encode::{encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE};
+pub use error::{McapWriteError, MessageError, RosError};
+pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+pub use mcap_export::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD_TOPIC};
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 
 use froctomap_convert::{Context, Recording, RecordingFormat, RecordingOptions};
@@ -45,9 +51,14 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     description: "ROS 1 bag",
     probe: |path| path.is_file() && io::starts_with(path, bag::MAGIC),
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
+    extensions: &["bag"],
+    create: None,
 };
 
 /// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4).
+/// Written by `export --format mcap`: the maps as `octomap_msgs/msg/Octomap` (CDR) on
+/// [`OCTOMAP_TOPIC`] and their occupied voxels as a `foxglove.PointCloud` (JSON) on
+/// [`POINT_CLOUD_TOPIC`].
 pub const MCAP: RecordingFormat = RecordingFormat {
     name: "mcap",
     description: "MCAP recording",
@@ -60,6 +71,8 @@ pub const MCAP: RecordingFormat = RecordingFormat {
             limit,
         )?)
     },
+    extensions: &["mcap"],
+    create: Some(mcap_export::create),
 };
 
 /// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage.
@@ -68,6 +81,8 @@ pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     description: "ROS 2 bag directory",
     probe: |path| path.is_dir() && path.join("metadata.yaml").is_file(),
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
+    extensions: &[],
+    create: None,
 };
 
 /// The recording formats for [`SeriesFormat`] identification (so that other commands say

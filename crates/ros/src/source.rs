@@ -171,10 +171,16 @@ impl RecordedMaps for TopicMaps {
 }
 
 /// The recording's times as `options` ask, each map's stamp (`None`: not read) replaced by
-/// its log time when zero, with one warning counting those.
-fn times(maps: &[(i64, Option<i64>)], time: RecordedTime) -> (Vec<Timestamp>, Vec<String>) {
+/// its log time when zero, with one warning counting those and one counting maps stamped
+/// earlier than a map logged before them (the maps are taken in time order). Two maps of
+/// one time are an error naming it.
+fn times(
+    maps: &TopicMaps,
+    stamps: &[(i64, Option<i64>)],
+    time: RecordedTime,
+) -> Result<(Vec<Timestamp>, Vec<String>), RosError> {
     let mut zero = 0usize;
-    let times = maps
+    let times: Vec<Timestamp> = stamps
         .iter()
         .map(|&(log_ns, stamp)| match (time, stamp) {
             (RecordedTime::Header, Some(0)) => {
@@ -185,14 +191,37 @@ fn times(maps: &[(i64, Option<i64>)], time: RecordedTime) -> (Vec<Timestamp>, Ve
             _ => Timestamp(log_ns),
         })
         .collect();
-    let warnings = if zero > 0 {
-        vec![format!(
+    let mut warnings = Vec::new();
+    if zero > 0 {
+        warnings.push(format!(
             "{zero} message(s) with a zero header stamp take their recording (log) time"
-        )]
-    } else {
-        Vec::new()
-    };
-    (times, warnings)
+        ));
+    }
+    let mut latest = None;
+    let mut earlier = 0usize;
+    for &t in &times {
+        if latest.is_some_and(|l| t < l) {
+            earlier += 1;
+        }
+        latest = latest.max(Some(t));
+    }
+    if earlier > 0 {
+        warnings.push(format!(
+            "{earlier} message(s) on `{}` stamped earlier than a message recorded before them; the maps are taken in time order",
+            maps.topic
+        ));
+    }
+    let mut sorted = times.clone();
+    sorted.sort_unstable();
+    if let Some(pair) = sorted.windows(2).find(|w| w[0] == w[1]) {
+        return Err(RosError::DuplicateTimes {
+            path: maps.path.clone(),
+            topic: maps.topic.clone(),
+            time: iso8601(pair[0]),
+            count: sorted.iter().filter(|&&t| t == pair[0]).count(),
+        });
+    }
+    Ok((times, warnings))
 }
 
 /// Opens a ROS 1 bag.
@@ -245,7 +274,7 @@ pub(crate) fn open_bag(
         }
     }
     maps.maps = locations;
-    let (times, warnings) = times(&stamps, options.time);
+    let (times, warnings) = times(&maps, &stamps, options.time)?;
     Ok(Recording::new(times, warnings, Arc::new(maps)))
 }
 
@@ -319,6 +348,6 @@ pub(crate) fn open_mcap(
         maps: locations,
         chunk_cache: Mutex::new(None),
     };
-    let (times, warnings) = times(&stamps, options.time);
+    let (times, warnings) = times(&maps, &stamps, options.time)?;
     Ok(Recording::new(times, warnings, Arc::new(maps)))
 }

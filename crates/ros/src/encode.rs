@@ -1,0 +1,97 @@
+//! Writing `octomap_msgs/msg/Octomap` messages in CDR, as ROS 2 publishes them (the inverse
+//! of [`decode_message`](crate::decode_message) for [`Encoding::Cdr`](crate::Encoding)),
+//! and the message definition MCAP files embed as the channel's `ros2msg` schema.
+
+/// The `ros2msg` schema of `octomap_msgs/msg/Octomap`: its fields, then each nested type's
+/// definition after a separator line, as `ros2 bag record` embeds them in MCAP.
+pub const OCTOMAP_ROS2MSG: &str = "\
+std_msgs/Header header
+bool binary
+string id
+float64 resolution
+int8[] data
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+/// The ROS 2 type name of the messages [`encode_octomap_cdr`] writes.
+pub const OCTOMAP_TYPE: &str = "octomap_msgs/msg/Octomap";
+
+/// An `octomap_msgs/msg/Octomap` message in little-endian CDR: header stamp (`sec`,
+/// `nanosec`) and `frame_id`, `binary`, the tree `id`, `resolution` and the map `data` (for
+/// `binary`, the body of a `.bt` file behind its text header, as octomap_msgs'
+/// `binaryMapToMsg` fills it). `None` when a field is longer than a CDR length (`u32`) can
+/// say.
+///
+/// ```
+/// use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageType};
+/// let bytes = encode_octomap_cdr((1_700_000_000, 5), "map", true, "OcTree", 0.05, &[0x09, 0x00]).unwrap();
+/// let message = decode_message(&bytes, Encoding::Cdr, MessageType::Octomap)?;
+/// assert_eq!(message.stamp_ns, 1_700_000_000_000_000_005);
+/// assert_eq!((message.binary, message.id, message.resolution, message.data), (true, "OcTree", 0.05, &[0x09, 0x00][..]));
+/// # Ok::<(), froctomap_ros::MessageError>(())
+/// ```
+pub fn encode_octomap_cdr(
+    stamp: (i32, u32),
+    frame_id: &str,
+    binary: bool,
+    id: &str,
+    resolution: f64,
+    data: &[u8],
+) -> Option<Vec<u8>> {
+    let too_long = |len: usize| u32::try_from(len.saturating_add(1)).is_err();
+    if too_long(frame_id.len()) || too_long(id.len()) || too_long(data.len()) {
+        return None;
+    }
+    let mut out = CdrWriter::with_capacity(64 + frame_id.len() + id.len() + data.len());
+    out.u32(stamp.0 as u32);
+    out.u32(stamp.1);
+    out.string(frame_id);
+    out.bytes.push(u8::from(binary));
+    out.string(id);
+    out.align(8);
+    out.bytes.extend_from_slice(&resolution.to_le_bytes());
+    out.u32(data.len() as u32); // Checked above.
+    out.bytes.extend_from_slice(data);
+    Some(out.bytes)
+}
+
+/// Little-endian CDR: a 4-byte encapsulation header, then each primitive aligned to its size
+/// counted from the end of that header.
+struct CdrWriter {
+    bytes: Vec<u8>,
+}
+
+impl CdrWriter {
+    const ORIGIN: usize = 4;
+
+    fn with_capacity(capacity: usize) -> Self {
+        let mut bytes = Vec::with_capacity(capacity);
+        bytes.extend_from_slice(&[0x00, 0x01, 0x00, 0x00]);
+        Self { bytes }
+    }
+
+    fn align(&mut self, to: usize) {
+        while (self.bytes.len() - Self::ORIGIN) % to != 0 {
+            self.bytes.push(0);
+        }
+    }
+
+    fn u32(&mut self, value: u32) {
+        self.align(4);
+        self.bytes.extend_from_slice(&value.to_le_bytes());
+    }
+
+    /// A string: its length counting a terminating NUL, the bytes, the NUL.
+    fn string(&mut self, text: &str) {
+        self.u32((text.len() + 1) as u32); // Checked by the caller.
+        self.bytes.extend_from_slice(text.as_bytes());
+        self.bytes.push(0);
+    }
+}
