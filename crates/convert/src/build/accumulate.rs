@@ -320,14 +320,10 @@ impl Accumulated {
         self.parts
             .into_iter()
             .flat_map(move |(history, mut spilled)| {
-                history.finish_with(
-                    axis_len,
-                    absent,
-                    move |start, _, runs| match &mut spilled {
-                        Some(spilled) => spilled.runs_for(start, runs),
-                        None => Ok(()),
-                    },
-                )
+                history.finish_with(axis_len, absent, move |start, _, runs| match &mut spilled {
+                    Some(spilled) => spilled.runs_for(start, runs),
+                    None => Ok(()),
+                })
             })
     }
 

@@ -317,7 +317,14 @@ pub fn append(
     let fitter = TileFitter::new(&axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
     let cells = cells_of_tiles(tiles);
-    fit_and_write(cells, old.tile_depth, &fitter, &encoder, &mut writer, progress)?;
+    fit_and_write(
+        cells,
+        old.tile_depth,
+        &fitter,
+        &encoder,
+        &mut writer,
+        progress,
+    )?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let stats = writer.stats().clone();
     let previously = |key: &str| reader.summary().get(key).and_then(Value::as_u64);

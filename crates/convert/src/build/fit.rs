@@ -183,9 +183,8 @@ pub(crate) fn fit_and_write(
     let threads = rayon::current_num_threads().max(1);
     let step_chunks = 4 * threads;
     std::thread::scope(|scope| -> Result<(), ConvertError> {
-        let (sender, receiver) = std::sync::mpsc::sync_channel::<Result<Chunk, ConvertError>>(
-            step_chunks,
-        );
+        let (sender, receiver) =
+            std::sync::mpsc::sync_channel::<Result<Chunk, ConvertError>>(step_chunks);
         scope.spawn(move || {
             let mut chunk: Option<(Chunk, usize)> = None;
             for cell in cells {
