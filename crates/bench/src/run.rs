@@ -83,6 +83,10 @@ pub struct RunArgs {
     /// Skip the xz baseline (slow on large series).
     #[arg(long)]
     skip_xz: bool,
+    /// Memory budget of every build, MiB (`froctomap build --memory`; default: the
+    /// build's 1 GiB, 256 MiB for the paper-* sizes).
+    #[arg(long)]
+    memory_mib: Option<u64>,
 }
 
 /// Options of the hidden `build-child`.
@@ -109,6 +113,9 @@ pub struct BuildChildArgs {
     /// Read the inputs with the upstream C++ library.
     #[arg(long)]
     cpp_reader: bool,
+    /// Memory budget of the histories, MiB (default: the build's).
+    #[arg(long)]
+    memory_mib: Option<u64>,
 }
 
 /// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
@@ -151,6 +158,13 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
         }),
         ..BuildOptions::default()
     };
+    let options = match args.memory_mib {
+        Some(mib) => BuildOptions {
+            memory: mib.saturating_mul(1 << 20),
+            ..options
+        },
+        None => options,
+    };
     let started = Instant::now();
     let report = build(&context, &inputs, &args.output, &options, &Silent)?;
     let seconds = started.elapsed().as_secs_f64();
@@ -189,6 +203,7 @@ fn spawn_build(
     model: &ChildModel<'_>,
     lossy: bool,
     cpp_reader: bool,
+    memory_mib: Option<u64>,
 ) -> Result<BuildRow> {
     let ChildModel {
         name: model_name,
@@ -215,6 +230,9 @@ fn spawn_build(
     }
     if cpp_reader {
         command.arg("--cpp-reader");
+    }
+    if let Some(mib) = memory_mib {
+        command.arg("--memory-mib").arg(mib.to_string());
     }
     let out = command
         .stdin(Stdio::null())
@@ -448,7 +466,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
         short_days,
         step: size_step,
         half_too,
+        memory_mib,
     } = plan(&args.size, args.heldout_days)?;
+    let memory_mib = args.memory_mib.or(memory_mib);
     let step = step_seconds(size_step.unwrap_or(&args.step))?;
     let tools = system::check_tools()?;
     plots::register_font(system::load_font(Path::new(FONT))?)?;
@@ -549,6 +569,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &ChildModel::fremen(None, args.max_order),
         false,
         false,
+        memory_mib,
     )?);
     if !args.skip_cpp_build {
         note("building lossless (C++ reader)");
@@ -559,6 +580,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(None, args.max_order),
             false,
             true,
+            memory_mib,
         )?);
     }
     let mut lossy_files = Vec::new();
@@ -572,6 +594,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(Some(n), args.max_order),
             true,
             false,
+            memory_mib,
         )?);
         lossy_files.push((n, path));
     }
@@ -590,6 +613,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         },
         true,
         false,
+        memory_mib,
     )?);
     let short_frames =
         froctomap_synth::frames_for(short_days, step).min(train.len() as u64) as usize;
@@ -604,6 +628,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &ChildModel::fremen(None, args.max_order),
         false,
         false,
+        memory_mib,
     )?;
     let half = if half_too {
         let half_frames =
@@ -619,6 +644,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(None, args.max_order),
             false,
             false,
+            memory_mib,
         )?)
     } else {
         None
