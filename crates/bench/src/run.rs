@@ -84,7 +84,7 @@ pub struct RunArgs {
     #[arg(long)]
     skip_xz: bool,
     /// Memory budget of every build, MiB (`froctomap build --memory`; default: the
-    /// build's 1 GiB, 256 MiB for the paper-* sizes).
+    /// build's 1 GiB, 64 MiB for the paper-* sizes).
     #[arg(long)]
     memory_mib: Option<u64>,
 }
@@ -598,6 +598,16 @@ pub fn run(args: &RunArgs) -> Result<()> {
         )?);
         lossy_files.push((n, path));
     }
+    note("building lossy, auto order");
+    builds.push(spawn_build(
+        rows::LOSSY_AUTO,
+        &train_manifest,
+        &root.join("lossy-auto.froct"),
+        &ChildModel::fremen(None, args.max_order),
+        true,
+        false,
+        memory_mib,
+    )?);
     // A second, non-spectral model for the accuracy table (lossy: the model alone is what
     // is compared, and it is the quick build).
     note("building lossy, markov");
@@ -722,6 +732,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
         vs_raw_states: vs_states(full.file_bytes),
         order: None,
     });
+    if let Some(b) = builds.iter().find(|b| b.name == rows::LOSSY_AUTO) {
+        storage.push(StorageRow {
+            name: rows::LOSSY_AUTO.into(),
+            bytes: b.file_bytes,
+            seconds: Some(b.seconds),
+            vs_raw_states: vs_states(b.file_bytes),
+            order: None,
+        });
+    }
     for (n, _) in &lossy_files {
         if let Some(b) = builds.iter().find(|b| b.name == rows::lossy(*n)) {
             storage.push(StorageRow {

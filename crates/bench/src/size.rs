@@ -18,8 +18,8 @@ pub struct Plan {
     /// Also build the first half for the memory comparison (¼, ½ and the whole series).
     pub half_too: bool,
     /// The builds' memory budget in MiB (`build --memory`) unless `--memory-mib` says:
-    /// `paper-*` sizes take 256 MiB, below the histories of their first quarter, so that
-    /// all three builds spill and the table shows memory flat in the series' length (with
+    /// `paper-*` sizes take 64 MiB, below the histories of their first quarter (about
+    /// 80 MiB for a quarter of a day at 5 s on the default map), so that all three builds spill and the table shows memory flat in the series' length (with
     /// the default 1 GiB, memory grows with the series until the histories reach it).
     pub memory_mib: Option<u64>,
 }
@@ -75,7 +75,7 @@ pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
         short_days: short,
         step: paper.then_some("5s"),
         half_too: paper,
-        memory_mib: paper.then_some(256),
+        memory_mib: paper.then_some(64),
     })
 }
 
