@@ -348,6 +348,9 @@ pub mod rows {
     pub const STORED: &str = "stored (lossless file)";
 
     /// Name of the lossy file of order `n`.
+    /// The lossy file with the order chosen per voxel (as the lossless default).
+    pub const LOSSY_AUTO: &str = "froctomap lossy (auto order ≤ 5)";
+    /// The name of a lossy file row with a fixed order.
     pub fn lossy(n: u8) -> String {
         format!("froctomap lossy, order {n}")
     }

@@ -84,6 +84,10 @@ pub struct RunArgs {
     /// Skip the xz baseline (slow on large series).
     #[arg(long)]
     skip_xz: bool,
+    /// Memory budget of every build, MiB (`froctomap build --memory`; default: the
+    /// build's 1 GiB, 64 MiB for the paper-* sizes).
+    #[arg(long)]
+    memory_mib: Option<u64>,
 }
 
 /// Options of the hidden `build-child`.
@@ -110,6 +114,9 @@ pub struct BuildChildArgs {
     /// Read the inputs with the upstream C++ library.
     #[arg(long)]
     cpp_reader: bool,
+    /// Memory budget of the histories, MiB (default: the build's).
+    #[arg(long)]
+    memory_mib: Option<u64>,
 }
 
 /// Builds one file in this process and prints `{report, seconds, peak_memory_bytes}`.
@@ -154,6 +161,13 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
         }),
         ..BuildOptions::default()
     };
+    let options = match args.memory_mib {
+        Some(mib) => BuildOptions {
+            memory: mib.saturating_mul(1 << 20),
+            ..options
+        },
+        None => options,
+    };
     let started = Instant::now();
     let report = build(&context, &inputs, &args.output, &options, &Silent)?;
     let seconds = started.elapsed().as_secs_f64();
@@ -192,6 +206,7 @@ fn spawn_build(
     model: &ChildModel<'_>,
     lossy: bool,
     cpp_reader: bool,
+    memory_mib: Option<u64>,
 ) -> Result<BuildRow> {
     let ChildModel {
         name: model_name,
@@ -218,6 +233,9 @@ fn spawn_build(
     }
     if cpp_reader {
         command.arg("--cpp-reader");
+    }
+    if let Some(mib) = memory_mib {
+        command.arg("--memory-mib").arg(mib.to_string());
     }
     let out = command
         .stdin(Stdio::null())
@@ -452,7 +470,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
         short_days,
         step: size_step,
         half_too,
+        memory_mib,
     } = plan(&args.size, args.heldout_days)?;
+    let memory_mib = args.memory_mib.or(memory_mib);
     let step = step_seconds(size_step.unwrap_or(&args.step))?;
     let tools = system::check_tools()?;
     plots::register_font(system::load_font(Path::new(FONT))?)?;
@@ -553,6 +573,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &ChildModel::fremen(None, args.max_order),
         false,
         false,
+        memory_mib,
     )?);
     let mcap = root.join("train.mcap");
     note("writing the training series as one MCAP file");
@@ -577,6 +598,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(None, args.max_order),
             false,
             true,
+            memory_mib,
         )?);
     }
     let mut lossy_files = Vec::new();
@@ -590,9 +612,20 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(Some(n), args.max_order),
             true,
             false,
+            memory_mib,
         )?);
         lossy_files.push((n, path));
     }
+    note("building lossy, auto order");
+    builds.push(spawn_build(
+        rows::LOSSY_AUTO,
+        &train_manifest,
+        &root.join("lossy-auto.froct"),
+        &ChildModel::fremen(None, args.max_order),
+        true,
+        false,
+        memory_mib,
+    )?);
     // A second, non-spectral model for the accuracy table (lossy: the model alone is what
     // is compared, and it is the quick build).
     note("building lossy, markov");
@@ -608,6 +641,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         },
         true,
         false,
+        memory_mib,
     )?);
     let short_frames =
         froctomap_synth::frames_for(short_days, step).min(train.len() as u64) as usize;
@@ -622,6 +656,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &ChildModel::fremen(None, args.max_order),
         false,
         false,
+        memory_mib,
     )?;
     let half = if half_too {
         let half_frames =
@@ -637,6 +672,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             &ChildModel::fremen(None, args.max_order),
             false,
             false,
+            memory_mib,
         )?)
     } else {
         None
@@ -714,6 +750,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
         vs_raw_states: vs_states(full.file_bytes),
         order: None,
     });
+    if let Some(b) = builds.iter().find(|b| b.name == rows::LOSSY_AUTO) {
+        storage.push(StorageRow {
+            name: rows::LOSSY_AUTO.into(),
+            bytes: b.file_bytes,
+            seconds: Some(b.seconds),
+            vs_raw_states: vs_states(b.file_bytes),
+            order: None,
+        });
+    }
     for (n, _) in &lossy_files {
         if let Some(b) = builds.iter().find(|b| b.name == rows::lossy(*n)) {
             storage.push(StorageRow {

@@ -9,12 +9,13 @@
 //!    differs from the one before), read and compared in parallel; then `Extracted`, the
 //!    tally (used, skipped, warnings, resolution).
 //! 3. [`accumulate`] — `Accumulator`: the batches applied in time order to the cells'
-//!    histories, on threads split by space; → `Accumulated`, whose `into_tiles` streams one
-//!    `TileHistory` (the cells of a tile with their observations) per tile in Morton order.
+//!    histories, on threads split by space; → `Accumulated`, whose `into_cells` streams the
+//!    cells with their observations in Morton order, tile after tile.
 //!    Within a memory budget ([`BuildOptions::memory`]), what grows with the series is
 //!    spilled to files in a temporary directory ([`spill`]) and read back tile by tile.
 //! 4. [`fit`] — `TileFitter`: a `TileHistory` → a `FittedTile` (cells as stored, counts by
-//!    class); `fit_and_write` drives stages 4 and 5 over the tile stream in parallel batches.
+//!    class); `fit_and_write` drives stages 4 and 5 over the cell stream in parallel steps
+//!    of bounded chunks of cells (both cores within one tile; memory bounded per step).
 //! 5. [`write`](mod@write) — `TileEncoder` (a tile's cells → bytes, in parallel) and `TileWriter` (the
 //!    tiles in order into the file, atomically, summing the counts).
 //!
@@ -400,10 +401,11 @@ pub fn build(
     progress.stage("modelling cells", accumulated.cell_count() as u64);
     let accumulate_seconds = accumulated.busy_seconds();
     let (spilled_bytes, spills) = (accumulated.spilled_bytes(), accumulated.spills());
-    let tiles = accumulated.into_tiles(axis.len(), &absent);
+    let tile_depth = accumulated.tile_depth();
+    let cells = accumulated.into_cells(axis.len(), &absent);
     let fitter = TileFitter::new(&axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
-    fit_and_write(tiles, &fitter, &encoder, &mut writer, progress)?;
+    fit_and_write(cells, tile_depth, &fitter, &encoder, &mut writer, progress)?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let stats = writer.stats().clone();
     let summary = json!({

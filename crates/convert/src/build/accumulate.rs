@@ -34,7 +34,7 @@ use std::time::Instant;
 pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
 
 /// A cell with its observations packed ([`PackedObservations`]).
-type PackedCell = (MortonCode, u8, PackedObservations);
+pub(crate) type PackedCell = (MortonCode, u8, PackedObservations);
 
 /// The cells of one tile of the output, in Morton order, with their observations — kept
 /// packed, since the tiles waiting to be fitted would otherwise hold most of a long
@@ -65,11 +65,13 @@ impl TileHistory {
     }
 
     /// Its cells.
+    #[cfg(test)]
     pub fn len(&self) -> usize {
         self.cells.len()
     }
 
-    /// Observation runs of all its cells (what fitting the tile holds in memory).
+    /// Observation runs of all its cells.
+    #[cfg(test)]
     pub fn runs(&self) -> usize {
         self.runs
     }
@@ -84,6 +86,11 @@ impl TileHistory {
     /// The first voxel of its first cell (`None`: no cell).
     pub fn first_start(&self) -> Option<MortonCode> {
         self.cells.first().map(|cell| cell.0)
+    }
+
+    /// The cells, packed.
+    pub fn into_packed(self) -> Vec<PackedCell> {
+        self.cells
     }
 
     /// All the cells, unpacked (an append's merge works on whole tiles).
@@ -293,23 +300,36 @@ impl Accumulated {
         axis_len: u32,
         absent: &[u32],
     ) -> TileHistories<impl Iterator<Item = Result<PackedCell, ConvertError>> + Send + '_> {
+        let tile_depth = self.tile_depth;
         TileHistories {
-            cells: self
-                .parts
-                .into_iter()
-                .flat_map(move |(history, mut spilled)| {
-                    history.finish_with(
-                        axis_len,
-                        absent,
-                        move |start, _, runs| match &mut spilled {
-                            Some(spilled) => spilled.runs_for(start, runs),
-                            None => Ok(()),
-                        },
-                    )
-                }),
-            tile_depth: self.tile_depth,
+            cells: self.into_cells(axis_len, absent),
+            tile_depth,
             next: None,
         }
+    }
+
+    /// The histories closed at the end of an axis of `axis_len` samples, cell by cell in
+    /// Morton order (a tile's cells one after the other), with the samples in `absent`
+    /// (sorted: no snapshot) cut out. Only the cell being handed out, and the spilled runs
+    /// of its tile, are read back at a time.
+    pub fn into_cells(
+        self,
+        axis_len: u32,
+        absent: &[u32],
+    ) -> impl Iterator<Item = Result<PackedCell, ConvertError>> + Send + '_ {
+        self.parts
+            .into_iter()
+            .flat_map(move |(history, mut spilled)| {
+                history.finish_with(axis_len, absent, move |start, _, runs| match &mut spilled {
+                    Some(spilled) => spilled.runs_for(start, runs),
+                    None => Ok(()),
+                })
+            })
+    }
+
+    /// The depth of the tiles the cells are grouped in.
+    pub fn tile_depth(&self) -> u8 {
+        self.tile_depth
     }
 }
 

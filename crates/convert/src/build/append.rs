@@ -20,7 +20,7 @@
 use super::accumulate::{ObservedCell, TileHistory};
 use super::check::{InputCheck, TileBudget};
 use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
-use super::fit::{fit_and_write, TileFitter};
+use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::merge::merge_tiles;
 use super::spill::SpillPlace;
 use super::write::{TileEncoder, TileWriter};
@@ -316,7 +316,15 @@ pub fn append(
     let tiles = merge_tiles(old_tiles, new_tiles, old.tile_depth);
     let fitter = TileFitter::new(&axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
-    fit_and_write(tiles, &fitter, &encoder, &mut writer, progress)?;
+    let cells = cells_of_tiles(tiles);
+    fit_and_write(
+        cells,
+        old.tile_depth,
+        &fitter,
+        &encoder,
+        &mut writer,
+        progress,
+    )?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let stats = writer.stats().clone();
     let previously = |key: &str| reader.summary().get(key).and_then(Value::as_u64);

@@ -5,15 +5,18 @@
 //! their counts by class. [`fit_and_write`] runs this stage and the writer's over a stream of
 //! tiles: fitted and encoded in parallel batches, written in order.
 
-use super::accumulate::TileHistory;
+use super::accumulate::{PackedCell, TileHistory};
 use super::write::{TileEncoder, TileWriter};
 use crate::build::ClassCounts;
 use crate::error::ConvertError;
 use crate::progress::Progress;
-use froctomap_core::Occupancy;
+use froctomap_core::{MortonCode, Occupancy};
 use froctomap_file::{mask_from_ranges, Cell, CellContent, EncodedTile};
-use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis};
+use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, Toggles, VoxelObservations};
 use rayon::prelude::*;
+use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
+use std::sync::Arc;
 
 /// Counts of a tile's (or a file's) cells, voxels and stored toggles.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -55,62 +58,88 @@ impl<'a> TileFitter<'a> {
 
     /// The tile's cells as stored: constant ones as their state, dynamic ones as the model's
     /// fit (or, lossless, as a constant with exceptions when the fit is a constant no map can
-    /// express), each with its observation mask.
+    /// express), each with its observation mask. (A build fits chunks of cells; this is the
+    /// same for a whole tile.)
+    #[cfg(test)]
     pub fn fit(&self, tile: &TileHistory) -> Result<FittedTile, ConvertError> {
-        let model = self.model;
         let mut stats = TileStats::default();
         let mut cells = Vec::with_capacity(tile.len());
         for cell in tile.cells() {
             let (start, depth, obs) = cell?;
-            let obs = &obs;
-            let voxels = froctomap_core::voxels_per_node(depth);
-            let mask = mask_from_ranges(self.axis, &obs.observed_ranges());
-            if mask.is_some() {
-                stats.cells.unknown_sometimes += 1;
-                stats.voxels.unknown_sometimes += voxels;
-            }
-            let content = match obs.is_constant() {
-                Some(Occupancy::Free) => {
-                    stats.cells.static_free += 1;
-                    stats.voxels.static_free += voxels;
-                    CellContent::Constant(Occupancy::Free)
-                }
-                Some(Occupancy::Occupied) => {
-                    stats.cells.static_occupied += 1;
-                    stats.voxels.static_occupied += voxels;
-                    CellContent::Constant(Occupancy::Occupied)
-                }
-                None => {
-                    let fitted = model.fit(obs)?;
-                    stats.cells.dynamic += 1;
-                    stats.voxels.dynamic += voxels;
-                    stats.toggles += fitted.toggles().len() as u64;
-                    stats.model_errors += fitted.model_errors().unwrap_or(0);
-                    let lossless = model.outlier_mode() == OutlierMode::Lossless;
-                    let parameters = fitted.parameters();
-                    let mean = model.mean(parameters);
-                    if lossless && model.is_constant(parameters) && outside_clamping(mean) {
-                        // A constant p no map can express (beyond the clamping bounds) adds
-                        // nothing to the constant state; only the exceptions matter. (Lossy
-                        // files keep the mean: without exceptions it is all they know of the
-                        // changes.)
-                        CellContent::ConstantExcept {
-                            state: Occupancy::from(mean > 0.5),
-                            exceptions: fitted.toggles().clone(),
-                        }
-                    } else {
-                        CellContent::Modelled(fitted)
-                    }
-                }
-            };
-            cells.push(Cell {
-                start,
-                depth,
-                mask,
-                content,
-            });
+            cells.push(self.fit_cell(start, depth, &obs, &mut stats)?);
         }
         Ok(FittedTile { cells, stats })
+    }
+
+    /// Consecutive cells of one tile (packed), as stored, with their counts.
+    fn fit_chunk(&self, cells: &[PackedCell]) -> Result<FittedTile, ConvertError> {
+        let mut stats = TileStats::default();
+        let mut fitted = Vec::with_capacity(cells.len());
+        for (start, depth, packed) in cells {
+            let obs = packed.unpack()?;
+            fitted.push(self.fit_cell(*start, *depth, &obs, &mut stats)?);
+        }
+        Ok(FittedTile {
+            cells: fitted,
+            stats,
+        })
+    }
+
+    /// One cell as stored, counted into `stats`.
+    fn fit_cell(
+        &self,
+        start: MortonCode,
+        depth: u8,
+        obs: &VoxelObservations,
+        stats: &mut TileStats,
+    ) -> Result<Cell, ConvertError> {
+        let model = self.model;
+        let voxels = froctomap_core::voxels_per_node(depth);
+        let mask = mask_from_ranges(self.axis, &obs.observed_ranges());
+        if mask.is_some() {
+            stats.cells.unknown_sometimes += 1;
+            stats.voxels.unknown_sometimes += voxels;
+        }
+        let content = match obs.is_constant() {
+            Some(Occupancy::Free) => {
+                stats.cells.static_free += 1;
+                stats.voxels.static_free += voxels;
+                CellContent::Constant(Occupancy::Free)
+            }
+            Some(Occupancy::Occupied) => {
+                stats.cells.static_occupied += 1;
+                stats.voxels.static_occupied += voxels;
+                CellContent::Constant(Occupancy::Occupied)
+            }
+            None => {
+                let fitted = model.fit(obs)?;
+                stats.cells.dynamic += 1;
+                stats.voxels.dynamic += voxels;
+                stats.toggles += fitted.toggles().len() as u64;
+                stats.model_errors += fitted.model_errors().unwrap_or(0);
+                let lossless = model.outlier_mode() == OutlierMode::Lossless;
+                let parameters = fitted.parameters();
+                let mean = model.mean(parameters);
+                if lossless && model.is_constant(parameters) && outside_clamping(mean) {
+                    // A constant p no map can express (beyond the clamping bounds) adds
+                    // nothing to the constant state; only the exceptions matter. (Lossy
+                    // files keep the mean: without exceptions it is all they know of the
+                    // changes.)
+                    CellContent::ConstantExcept {
+                        state: Occupancy::from(mean > 0.5),
+                        exceptions: fitted.toggles().clone(),
+                    }
+                } else {
+                    CellContent::Modelled(fitted)
+                }
+            }
+        };
+        Ok(Cell {
+            start,
+            depth,
+            mask,
+            content,
+        })
     }
 }
 
@@ -120,65 +149,195 @@ fn outside_clamping(p: f64) -> bool {
     !(CLAMPING_MIN..=CLAMPING_MAX).contains(&p)
 }
 
-/// Fits, encodes and writes a stream of tiles (in Morton order), advancing `progress` by
-/// their cells.
+/// Most observation runs in one chunk of a tile's cells (fitted on one thread).
+const CHUNK_RUNS: usize = 1 << 16;
+/// Most cells in one chunk.
+const CHUNK_CELLS: usize = 1 << 11;
+/// Most runs fitted in one parallel step (a few megabytes, whatever the series' length).
+const STEP_RUNS: usize = 1 << 19;
+
+/// Consecutive cells of one tile (at `tile`), fitted together on one thread.
+struct Chunk {
+    tile: u64,
+    cells: Vec<PackedCell>,
+}
+
+/// Fits, encodes and writes a stream of cells (in Morton order, each inside one tile of
+/// depth `tile_depth`), advancing `progress` by the cells.
 ///
-/// Tiles are fitted in parallel batches; a batch ends at a few tiles per thread or at a
-/// bound on the runs it holds (cells' observations are unpacked here, and a long series
-/// with partial views gives every cell many runs), whichever comes first. A thread of its
-/// own pulls the tiles and gathers the next batch while one is fitted, so up to three
-/// batches exist at once (4-week series: peak 401 MiB with 4 Mi runs, 300 with 1 Mi).
+/// Memory is bounded whatever the length of the series: a thread of its own pulls the
+/// cells and cuts them into chunks of a few thousand cells or runs (never across tiles);
+/// each parallel step fits a bounded number of chunks (both cores work within one tile of
+/// a long series) and encodes the tiles completed before it, and a tile waiting to be
+/// encoded holds only its fitted cells, whose observation masks are shared between cells
+/// with the same mask (as the file stores them). The output does not depend on the
+/// chunking: cells reach the encoder in the same order, grouped in the same tiles.
 pub(crate) fn fit_and_write(
-    tiles: impl Iterator<Item = Result<TileHistory, ConvertError>> + Send,
+    cells: impl Iterator<Item = Result<PackedCell, ConvertError>> + Send,
+    tile_depth: u8,
     fitter: &TileFitter<'_>,
     encoder: &TileEncoder<'_>,
     writer: &mut TileWriter,
     progress: &dyn Progress,
 ) -> Result<(), ConvertError> {
-    const BATCH_RUNS: usize = 1 << 20;
-    let batch_tiles = 4 * rayon::current_num_threads().max(1);
-    type Batch = Vec<TileHistory>;
+    let threads = rayon::current_num_threads().max(1);
+    let step_chunks = 4 * threads;
     std::thread::scope(|scope| -> Result<(), ConvertError> {
-        let (sender, receiver) = std::sync::mpsc::sync_channel::<Result<Batch, ConvertError>>(0);
+        let (sender, receiver) =
+            std::sync::mpsc::sync_channel::<Result<Chunk, ConvertError>>(step_chunks);
         scope.spawn(move || {
-            let mut batch: Batch = Vec::new();
-            let mut batch_runs = 0usize;
-            for tile in tiles {
-                let tile = match tile {
-                    Ok(tile) => tile,
+            let mut chunk: Option<(Chunk, usize)> = None;
+            for cell in cells {
+                let cell = match cell {
+                    Ok(cell) => cell,
                     Err(e) => {
                         let _ = sender.send(Err(e));
                         return;
                     }
                 };
-                batch_runs += tile.runs();
-                batch.push(tile);
-                if batch.len() >= batch_tiles || batch_runs >= BATCH_RUNS {
-                    if sender.send(Ok(std::mem::take(&mut batch))).is_err() {
-                        // The writer stopped on an error.
-                        return;
+                let tile = cell.0.node_start(tile_depth).0;
+                let full = chunk.as_ref().is_some_and(|(c, runs)| {
+                    c.tile != tile || c.cells.len() >= CHUNK_CELLS || *runs >= CHUNK_RUNS
+                });
+                if full {
+                    if let Some((done, _)) = chunk.take() {
+                        if sender.send(Ok(done)).is_err() {
+                            // The writer stopped on an error.
+                            return;
+                        }
                     }
-                    batch_runs = 0;
                 }
+                let (current, runs) = chunk.get_or_insert_with(|| {
+                    (
+                        Chunk {
+                            tile,
+                            cells: Vec::new(),
+                        },
+                        0,
+                    )
+                });
+                *runs += cell.2.run_count();
+                current.cells.push(cell);
             }
-            let _ = sender.send(Ok(batch));
+            if let Some((done, _)) = chunk {
+                let _ = sender.send(Ok(done));
+            }
         });
-        for batch in receiver {
-            let encoded: Vec<Result<(EncodedTile, TileStats), ConvertError>> = batch?
-                .par_iter()
-                .map(|tile| {
-                    let fitted = fitter.fit(tile)?;
-                    let encoded = encoder.encode(&fitted.cells)?;
-                    progress.advance(tile.len() as u64);
-                    Ok((encoded, fitted.stats))
-                })
-                .collect();
-            for result in encoded {
-                let (tile, stats) = result?;
+        let mut pending = PendingTiles::default();
+        let mut chunks = receiver.into_iter().peekable();
+        while chunks.peek().is_some() || !pending.complete.is_empty() {
+            let mut step: Vec<Chunk> = Vec::new();
+            let mut runs = 0usize;
+            while step.len() < step_chunks && runs < STEP_RUNS {
+                let Some(chunk) = chunks.next() else { break };
+                let chunk = chunk?;
+                runs += chunk.cells.iter().map(|c| c.2.run_count()).sum::<usize>();
+                step.push(chunk);
+            }
+            let complete = std::mem::take(&mut pending.complete);
+            let (encoded, fitted) = rayon::join(
+                || {
+                    complete
+                        .into_par_iter()
+                        .map(|tile| Ok((encoder.encode(&tile.cells)?, tile.stats)))
+                        .collect::<Result<Vec<(EncodedTile, TileStats)>, ConvertError>>()
+                },
+                || {
+                    step.par_iter()
+                        .map(|chunk| {
+                            let fitted = fitter.fit_chunk(&chunk.cells)?;
+                            progress.advance(chunk.cells.len() as u64);
+                            Ok((chunk.tile, fitted))
+                        })
+                        .collect::<Result<Vec<(u64, FittedTile)>, ConvertError>>()
+                },
+            );
+            for (tile, stats) in encoded? {
                 writer.write(&tile, &stats)?;
+            }
+            for (tile, fitted) in fitted? {
+                pending.add(tile, fitted);
+            }
+            if chunks.peek().is_none() {
+                pending.close();
             }
         }
         Ok(())
+    })
+}
+
+/// The tiles between fitting and encoding: the one whose cells are still arriving, and
+/// the completed ones waiting for the next step.
+#[derive(Default)]
+struct PendingTiles {
+    current: Option<(u64, FittedTile, SharedMasks)>,
+    complete: Vec<FittedTile>,
+}
+
+impl PendingTiles {
+    /// Adds the fitted cells of a chunk of `tile` (chunks arrive in Morton order).
+    fn add(&mut self, tile: u64, mut fitted: FittedTile) {
+        if self.current.as_ref().is_some_and(|(t, ..)| *t != tile) {
+            self.close();
+        }
+        let (_, cells, masks) = self.current.get_or_insert_with(|| {
+            (
+                tile,
+                FittedTile {
+                    cells: Vec::new(),
+                    stats: TileStats::default(),
+                },
+                SharedMasks::default(),
+            )
+        });
+        for cell in &mut fitted.cells {
+            if let Some(mask) = cell.mask.take() {
+                cell.mask = Some(masks.share(mask));
+            }
+        }
+        cells.cells.append(&mut fitted.cells);
+        cells.stats.add(&fitted.stats);
+    }
+
+    /// The tile whose cells were arriving is complete.
+    fn close(&mut self) {
+        if let Some((_, mut tile, _)) = self.current.take() {
+            tile.cells.shrink_to_fit();
+            self.complete.push(tile);
+        }
+    }
+}
+
+/// A tile's distinct observation masks: neighbouring cells are usually hidden by the same
+/// partial views, so a tile of a long series holds one copy of each mask, not one a cell.
+#[derive(Default)]
+struct SharedMasks {
+    by_hash: HashMap<u64, Vec<Arc<Toggles>>>,
+}
+
+impl SharedMasks {
+    /// The mask already held equal to `mask`, or `mask`, now held.
+    fn share(&mut self, mask: Arc<Toggles>) -> Arc<Toggles> {
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        mask.as_slice().hash(&mut hasher);
+        let same = self.by_hash.entry(hasher.finish()).or_default();
+        if let Some(held) = same.iter().find(|m| m.as_slice() == mask.as_slice()) {
+            return held.clone();
+        }
+        same.push(mask.clone());
+        mask
+    }
+}
+
+/// The cells of a stream of tiles (for [`fit_and_write`]).
+pub(crate) fn cells_of_tiles(
+    tiles: impl Iterator<Item = Result<TileHistory, ConvertError>>,
+) -> impl Iterator<Item = Result<PackedCell, ConvertError>> {
+    tiles.flat_map(|tile| -> Box<dyn Iterator<Item = _> + Send> {
+        match tile {
+            Ok(tile) => Box::new(tile.into_packed().into_iter().map(Ok)),
+            Err(e) => Box::new(std::iter::once(Err(e))),
+        }
     })
 }
 

@@ -194,7 +194,7 @@ impl SpillWriter {
             tile_depth: self.tile_depth,
             segments: self.segments,
             tile: None,
-            loaded: Vec::new(),
+            cursors: Vec::new(),
             bytes: self.written,
             path: self.path,
         })
@@ -216,22 +216,6 @@ fn encode_cell(out: &mut Vec<u8>, offset: u64, depth: u8, runs: &[Run]) {
     }
 }
 
-/// A cell of one spill, read back: its start, its end and where its runs are in the
-/// segment's bytes (kept packed: a tile of a long series has millions of runs).
-#[derive(Debug)]
-struct SpilledCell {
-    start: u64,
-    end: u64,
-    runs: std::ops::Range<usize>,
-}
-
-/// One spill's segment of the loaded tile: its bytes and its cells.
-#[derive(Debug)]
-struct Segment {
-    bytes: Vec<u8>,
-    cells: Vec<SpilledCell>,
-}
-
 /// One accumulating thread's spill file, read back tile by tile in Morton order.
 #[derive(Debug)]
 pub(crate) struct SpillReader {
@@ -239,9 +223,9 @@ pub(crate) struct SpillReader {
     file: File,
     tile_depth: u8,
     segments: Segments,
-    /// The tile loaded, and its cells spill by spill.
+    /// The tile being read, and a cursor in each of its segments (one per spill).
     tile: Option<u64>,
-    loaded: Vec<Segment>,
+    cursors: Vec<SegmentCursor>,
     bytes: u64,
 }
 
@@ -256,79 +240,165 @@ impl SpillReader {
     pub fn runs_for(&mut self, start: u64, out: &mut Vec<Run>) -> Result<(), ConvertError> {
         let tile = MortonCode(start).node_start(self.tile_depth).0;
         if self.tile != Some(tile) {
-            self.load(tile).map_err(|source| ConvertError::Spill {
-                path: self.path.clone(),
-                source,
-            })?;
+            self.tile = Some(tile);
+            let segments = self.segments.remove(&tile).unwrap_or_default();
+            self.cursors = segments
+                .into_iter()
+                .map(|(offset, len)| SegmentCursor::new(tile, offset, len))
+                .collect();
         }
-        for spill in &self.loaded {
-            let after = spill.cells.partition_point(|cell| cell.start <= start);
-            if let Some(cell) = after.checked_sub(1).and_then(|i| spill.cells.get(i)) {
-                if start < cell.end {
-                    let runs = spill.bytes.get(cell.runs.clone()).unwrap_or_default();
-                    decode_runs(runs, out).map_err(|source| ConvertError::Spill {
-                        path: self.path.clone(),
-                        source,
-                    })?;
-                }
+        let fail = |source| ConvertError::Spill {
+            path: self.path.clone(),
+            source,
+        };
+        for cursor in &mut self.cursors {
+            if let Some(runs) = cursor.runs_for(start, &mut self.file).map_err(fail)? {
+                decode_runs(runs, out).map_err(fail)?;
             }
         }
         Ok(())
     }
+}
 
-    /// Reads the segments of `tile` (and forgets where they were).
-    fn load(&mut self, tile: u64) -> io::Result<()> {
-        self.tile = Some(tile);
-        self.loaded.clear();
-        for (offset, len) in self.segments.remove(&tile).unwrap_or_default() {
-            let len = usize::try_from(len).map_err(|_| damaged("a segment too long"))?;
-            let mut bytes = vec![0; len];
-            self.file.seek(SeekFrom::Start(offset))?;
-            self.file.read_exact(&mut bytes)?;
-            let cells = decode_segment(&bytes, tile)?;
-            self.loaded.push(Segment { bytes, cells });
+/// Bytes read from a segment at a time.
+const SEGMENT_BUFFER: usize = 16 << 10;
+
+/// A position in one spill's segment of a tile, read a few kilobytes at a time: the cells
+/// of the segment are passed in Morton order, holding one cell's runs (packed) at a time,
+/// so that reading back a tile of a long series costs a buffer per spill, not the tile's
+/// history.
+#[derive(Debug)]
+struct SegmentCursor {
+    tile: u64,
+    /// File offset of the bytes not yet in `buffer`, and the segment's end.
+    next: u64,
+    end: u64,
+    buffer: Vec<u8>,
+    at: usize,
+    /// The cell read last: its start, its end and its runs as spilled.
+    cell: Option<(u64, u64, Vec<u8>)>,
+}
+
+impl SegmentCursor {
+    fn new(tile: u64, offset: u64, len: u64) -> Self {
+        Self {
+            tile,
+            next: offset,
+            end: offset.saturating_add(len),
+            buffer: Vec::new(),
+            at: 0,
+            cell: None,
         }
+    }
+
+    /// Bytes of the segment not yet read.
+    fn remaining(&self) -> u64 {
+        (self.end - self.next) + (self.buffer.len() - self.at) as u64
+    }
+
+    /// Reads on until `need` bytes are buffered or the segment ends.
+    fn fill(&mut self, source: &mut (impl Read + Seek), need: usize) -> io::Result<()> {
+        if self.buffer.len() - self.at >= need || self.next >= self.end {
+            return Ok(());
+        }
+        self.buffer.drain(..self.at);
+        self.at = 0;
+        let more = (self.end - self.next).min(SEGMENT_BUFFER.max(need) as u64) as usize;
+        let have = self.buffer.len();
+        self.buffer.resize(have + more, 0);
+        source.seek(SeekFrom::Start(self.next))?;
+        source.read_exact(&mut self.buffer[have..])?;
+        self.next += more as u64;
+        Ok(())
+    }
+
+    /// The next varint of the segment, with its bytes appended to `copy` if given.
+    fn varint(
+        &mut self,
+        source: &mut (impl Read + Seek),
+        copy: Option<&mut Vec<u8>>,
+    ) -> io::Result<u64> {
+        self.fill(source, varint::MAX_LEN_U64)?;
+        let bytes = &self.buffer[self.at..];
+        let (value, len) = varint::read_u64(bytes).map_err(|_| damaged("a bad number"))?;
+        if let Some(copy) = copy {
+            copy.extend_from_slice(&bytes[..len]);
+        }
+        self.at += len;
+        Ok(value)
+    }
+
+    /// The runs spilled in this segment for the cell at `start` (inside a spilled cell,
+    /// which may be coarser), if any. Cells are asked for in Morton order.
+    fn runs_for(
+        &mut self,
+        start: u64,
+        source: &mut (impl Read + Seek),
+    ) -> io::Result<Option<&[u8]>> {
+        loop {
+            if let Some((first, end, _)) = &self.cell {
+                if start < *end {
+                    let inside = *first <= start;
+                    return Ok(self.cell.as_ref().filter(|_| inside).map(|c| &c.2[..]));
+                }
+            }
+            if self.remaining() == 0 {
+                self.cell = None;
+                return Ok(None);
+            }
+            self.read_cell(source)?;
+        }
+    }
+
+    /// Reads the next cell of the segment into `cell`.
+    fn read_cell(&mut self, source: &mut (impl Read + Seek)) -> io::Result<()> {
+        let offset = self.varint(source, None)?;
+        self.fill(source, 1)?;
+        let depth = *self
+            .buffer
+            .get(self.at)
+            .ok_or_else(|| damaged("a cell cut short"))?;
+        self.at += 1;
+        if depth > TREE_DEPTH {
+            return Err(damaged("a cell deeper than the tree"));
+        }
+        let start = self
+            .tile
+            .checked_add(offset)
+            .ok_or_else(|| damaged("a cell beyond space"))?;
+        let end = start
+            .checked_add(voxels_per_node(depth))
+            .ok_or_else(|| damaged("a cell beyond space"))?;
+        if self
+            .cell
+            .as_ref()
+            .is_some_and(|(_, previous_end, _)| start < *previous_end)
+        {
+            return Err(damaged("cells out of order"));
+        }
+        let count = self.varint(source, None)?;
+        // Every run takes two bytes at least.
+        if count > self.remaining() / 2 {
+            return Err(damaged("more runs than bytes"));
+        }
+        let mut runs = match self.cell.take() {
+            Some((_, _, mut bytes)) => {
+                bytes.clear();
+                bytes
+            }
+            None => Vec::new(),
+        };
+        for _ in 0..count {
+            self.varint(source, Some(&mut runs))?;
+            self.varint(source, Some(&mut runs))?;
+        }
+        self.cell = Some((start, end, runs));
         Ok(())
     }
 }
 
 fn damaged(what: &'static str) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidData, format!("damaged: {what}"))
-}
-
-fn decode_segment(bytes: &[u8], tile: u64) -> io::Result<Vec<SpilledCell>> {
-    let bad = |_| damaged("a bad number");
-    let mut reader = varint::Reader::new(bytes);
-    let mut cells = Vec::new();
-    while reader.remaining() > 0 {
-        let offset = reader.u64().map_err(bad)?;
-        let depth = reader.u8("depth").map_err(bad)?;
-        if depth > TREE_DEPTH {
-            return Err(damaged("a cell deeper than the tree"));
-        }
-        let start = tile
-            .checked_add(offset)
-            .ok_or_else(|| damaged("a cell beyond space"))?;
-        let end = start
-            .checked_add(voxels_per_node(depth))
-            .ok_or_else(|| damaged("a cell beyond space"))?;
-        let count = reader.u64().map_err(bad)?;
-        // Every run takes two bytes at least.
-        if count > reader.remaining() as u64 / 2 {
-            return Err(damaged("more runs than bytes"));
-        }
-        let from = reader.position();
-        for _ in 0..count {
-            reader.u32().map_err(bad)?;
-            reader.u64().map_err(bad)?;
-        }
-        cells.push(SpilledCell {
-            start,
-            end,
-            runs: from..reader.position(),
-        });
-    }
-    Ok(cells)
 }
 
 /// Appends the runs packed in `bytes` (a cell's, by [`encode_cell`]) to `out`.
@@ -370,30 +440,54 @@ mod tests {
     #[test]
     fn cells_read_back_get_the_runs_of_the_cells_they_were_cut_from() {
         let tile = voxels_per_node(12);
-        let mut segment = Vec::new();
-        // A coarse cell (a whole depth-12 tile), then a finer one of the next tile.
-        encode_cell(&mut segment, 0, 12, &[run(0, 3, false), run(5, 2, true)]);
-        let first = decode_segment(&segment, tile).unwrap();
-        assert_eq!(first.len(), 1);
-        assert_eq!(
-            (first[0].start, first[0].end),
-            (tile, 2 * tile),
-            "offsets are from the tile's start"
-        );
-        let mut runs = Vec::new();
-        decode_runs(&segment[first[0].runs.clone()], &mut runs).unwrap();
-        assert_eq!(runs, [run(0, 3, false), run(5, 2, true)]);
-        // Truncated or forged segments are errors, not panics or huge allocations.
-        for cut in 1..segment.len() {
-            assert!(decode_segment(&segment[..cut], tile).is_err(), "cut {cut}");
+        let cell = voxels_per_node(14);
+        // A coarse cell (an eighth of a depth-12 tile: eight depth-14 cells), then a finer one after a gap; a
+        // buffer's worth of padding before the segment, so that reads cross refills.
+        let pad = SEGMENT_BUFFER + 7;
+        let mut segment = vec![0xEE; pad];
+        encode_cell(&mut segment, 0, 13, &[run(0, 3, false), run(5, 2, true)]);
+        let first_len = (segment.len() - pad) as u64;
+        let long: Vec<Run> = (0..5000).map(|i| run(2 * i, 1, i % 2 == 0)).collect();
+        encode_cell(&mut segment, 9 * cell, 14, &long);
+        let len = (segment.len() - pad) as u64;
+        let mut source = io::Cursor::new(segment.clone());
+        let mut cursor = SegmentCursor::new(tile, pad as u64, len);
+        let mut runs_of = |start| {
+            let mut runs = Vec::new();
+            if let Some(bytes) = cursor.runs_for(tile + start, &mut source).unwrap() {
+                decode_runs(bytes, &mut runs).unwrap();
+            }
+            runs
+        };
+        // Offsets are from the tile's start; every cell cut from the coarse one gets its runs.
+        assert_eq!(runs_of(0), [run(0, 3, false), run(5, 2, true)]);
+        assert_eq!(runs_of(7 * cell), [run(0, 3, false), run(5, 2, true)]);
+        assert!(runs_of(8 * cell).is_empty());
+        assert_eq!(runs_of(9 * cell), long);
+        assert!(runs_of(10 * cell).is_empty());
+        // Segments cut inside a cell or forged are errors, not panics or huge allocations.
+        for cut in (1..len).filter(|&cut| cut != first_len) {
+            let mut cursor = SegmentCursor::new(tile, pad as u64, cut);
+            let mut source = io::Cursor::new(segment.clone());
+            let read = (|| -> io::Result<()> {
+                cursor.runs_for(tile, &mut source)?;
+                cursor.runs_for(tile + 9 * cell, &mut source)?;
+                Ok(())
+            })();
+            assert!(read.is_err(), "cut {cut}");
         }
         let mut forged = Vec::new();
         varint::write_u64(&mut forged, 0);
         forged.push(3);
         varint::write_u64(&mut forged, u64::MAX);
-        assert!(decode_segment(&forged, 0).is_err());
+        let read = |forged: &Vec<u8>| {
+            let mut cursor = SegmentCursor::new(0, 0, forged.len() as u64);
+            let mut source = io::Cursor::new(forged.clone());
+            cursor.runs_for(0, &mut source).map(|_| ())
+        };
+        assert!(read(&forged).is_err());
         forged[1] = TREE_DEPTH + 1;
-        assert!(decode_segment(&forged, 0).is_err());
+        assert!(read(&forged).is_err());
     }
 
     #[test]

@@ -68,7 +68,7 @@ impl TileWriter {
 #[cfg(test)]
 mod tests {
     use super::super::accumulate::TileHistory;
-    use super::super::fit::{fit_and_write, TileFitter};
+    use super::super::fit::{cells_of_tiles, fit_and_write, TileFitter};
     use super::*;
     use crate::build::test_support::default_model;
     use crate::progress::Silent;
@@ -145,7 +145,8 @@ mod tests {
         let mut writer = TileWriter::create(&output, &header).unwrap();
         // More tiles than one parallel batch holds.
         let count = 9 * rayon::current_num_threads() as u64;
-        fit_and_write(tile_stream(count), &fitter, &encoder, &mut writer, &Silent).unwrap();
+        let cells = cells_of_tiles(tile_stream(count));
+        fit_and_write(cells, 14, &fitter, &encoder, &mut writer, &Silent).unwrap();
         assert_eq!(writer.stats().cells.dynamic, count);
         writer.finish(Map::new()).unwrap();
         let reader = FroctReader::open(&output).unwrap();
@@ -167,7 +168,14 @@ mod tests {
         let output = dir.path().join("out.froct");
         let mut writer = TileWriter::create(&output, &header).unwrap();
         let failing = tile_stream(3).chain(std::iter::once(Err(ConvertError::internal("test"))));
-        let result = fit_and_write(failing, &fitter, &encoder, &mut writer, &Silent);
+        let result = fit_and_write(
+            cells_of_tiles(failing),
+            14,
+            &fitter,
+            &encoder,
+            &mut writer,
+            &Silent,
+        );
         assert!(matches!(
             result,
             Err(ConvertError::Internal { what: "test", .. })
