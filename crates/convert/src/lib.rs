@@ -55,6 +55,7 @@ mod time;
 
 pub use anomaly::{
     anomalies, read_snapshot, AnomalyKind, AnomalyOptions, AnomalyRegion, AnomalyReport,
+    Expectation,
 };
 pub use build::{
     append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,

@@ -172,6 +172,34 @@ fn the_hour_matters() {
     let report = anomalies(&reader, &opened, time(night), &AnomalyOptions::default()).unwrap();
     assert_eq!(report.regions.len(), 1, "{report:#?}");
     assert_eq!(report.regions[0].kind, AnomalyKind::Vanished);
+
+    // The baselines cannot tell: the door is as often closed as open on average, and it
+    // was closed in the last snapshot (23:00); both see the day's closed door at 10:00
+    // as nothing new. Against the last seen map the open door at 10:00 is a change.
+    let day = FRAMES + 10;
+    let closed = frame_with(day, |k, s| {
+        Some(if is_door(k) { Occupancy::Occupied } else { s })
+    });
+    for expectation in [
+        Expectation::Model,
+        Expectation::StaticMean,
+        Expectation::LastSeen,
+    ] {
+        let mut options = AnomalyOptions::default();
+        options.expectation = expectation;
+        let found = anomalies(&reader, &closed, time(day), &options).unwrap();
+        assert_eq!(
+            found.regions.len(),
+            usize::from(expectation == Expectation::Model),
+            "{expectation:?}: {found:#?}"
+        );
+        let open = anomalies(&reader, &frame(day), time(day), &options).unwrap();
+        assert_eq!(
+            open.regions.len(),
+            usize::from(expectation == Expectation::LastSeen),
+            "{expectation:?}: {open:#?}"
+        );
+    }
 }
 
 #[test]

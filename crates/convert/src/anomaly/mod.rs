@@ -36,6 +36,21 @@ pub enum AnomalyKind {
     Vanished,
 }
 
+/// What a snapshot is compared with: the model at its time, or one of the simple
+/// baselines the model has to beat.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Expectation {
+    /// The file's model at the snapshot's time (static cells: their state).
+    #[default]
+    Model,
+    /// Each cell's mean occupancy over the file's history, whatever the time.
+    StaticMean,
+    /// Each cell's state at the last snapshot at or before the time (the last seen map);
+    /// cells not observed there count as never seen.
+    LastSeen,
+}
+
 /// Thresholds of [`anomalies`]. Surprises are in nats (`−ln p`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -50,6 +65,8 @@ pub struct AnomalyOptions {
     /// Regions whose total surprise is below this are not reported (default 20 nats, about
     /// four voxels of static structure flipped: single noisy voxels stay quiet).
     pub min_region_score: f64,
+    /// What the snapshot is compared with (default the model).
+    pub expectation: Expectation,
 }
 
 impl Default for AnomalyOptions {
@@ -58,6 +75,7 @@ impl Default for AnomalyOptions {
             error_rate: 0.01,
             voxel_threshold: 5f64.ln(),
             min_region_score: 20.0,
+            expectation: Expectation::Model,
         }
     }
 }
@@ -171,8 +189,9 @@ pub fn anomalies(
     }
     let scorer = Scorer {
         model: reader.model(),
+        axis: &header.axis,
         seconds: t.secs_since(header.axis.start()),
-        samples: header.axis.len(),
+        last_seen: header.axis.last_at_or_before(t),
         options,
     };
     let leaves = snapshot.leaves();

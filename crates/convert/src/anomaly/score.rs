@@ -2,10 +2,10 @@
 //! snapshot's leaves and the file's cells are walked together in Morton order, one tile of
 //! the file at a time, and every piece whose state the model found unlikely is kept.
 
-use super::{AnomalyKind, AnomalyOptions};
+use super::{AnomalyKind, AnomalyOptions, Expectation};
 use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_file::{Cell, CellContent, FileError, FroctReader};
-use froctomap_temporal::{PreparedModel, Toggles};
+use froctomap_temporal::{PreparedModel, TimeAxis, Toggles};
 
 /// An aligned cube of the snapshot whose observed state was surprising.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,30 +37,38 @@ impl Piece {
 /// What scoring needs of the file and the instant.
 pub(crate) struct Scorer<'a> {
     pub model: &'a dyn PreparedModel,
+    pub axis: &'a TimeAxis,
     /// Seconds since the file's first sample.
     pub seconds: f64,
-    /// Samples of the file's axis.
-    pub samples: u32,
+    /// The last sample at or before the instant (for [`Expectation::LastSeen`]).
+    pub last_seen: Option<u32>,
     pub options: &'a AnomalyOptions,
 }
 
 impl Scorer<'_> {
-    /// The probability the file gives a cell's voxels to be occupied at the instant: a
-    /// static cell's state with the error rate, a noisy cell's with its own exception rate
-    /// (at least the error rate), a model's `p(t)` kept within the error rate of 0 and 1.
-    fn occupied_probability(&self, cell: &Cell) -> f64 {
+    /// The probability the file gives a cell's voxels to be occupied at the instant
+    /// (`None`: the cell counts as never seen), by the options' expectation.
+    fn occupied_probability(&self, cell: &Cell) -> Option<f64> {
         let eps = self.options.error_rate;
-        let with_rate = |state: Occupancy, rate: f64| {
-            if state.is_occupied() {
-                1.0 - rate
-            } else {
-                rate
+        match self.options.expectation {
+            Expectation::Model => Some(self.model_probability(cell)),
+            Expectation::StaticMean => Some(self.mean(cell).clamp(eps, 1.0 - eps)),
+            Expectation::LastSeen => {
+                let state = cell.state_at(self.axis, self.model, self.last_seen?)?;
+                Some(with_rate(state, eps))
             }
-        };
+        }
+    }
+
+    /// A static cell's state with the error rate, a noisy cell's with its own exception
+    /// rate (at least the error rate), a model's `p(t)` kept within the error rate of 0
+    /// and 1.
+    fn model_probability(&self, cell: &Cell) -> f64 {
+        let eps = self.options.error_rate;
         match &cell.content {
             CellContent::Constant(state) => with_rate(*state, eps),
             CellContent::ConstantExcept { state, exceptions } => {
-                let rate = exception_share(exceptions, self.samples).clamp(eps, 0.5);
+                let rate = exception_share(exceptions, self.axis.len()).clamp(eps, 0.5);
                 with_rate(*state, rate)
             }
             CellContent::Modelled(voxel) => {
@@ -71,6 +79,22 @@ impl Scorer<'_> {
                     0.5
                 }
             }
+        }
+    }
+
+    /// The cell's mean occupancy over the file's history.
+    fn mean(&self, cell: &Cell) -> f64 {
+        match &cell.content {
+            CellContent::Constant(state) => f64::from(u8::from(state.is_occupied())),
+            CellContent::ConstantExcept { state, exceptions } => {
+                let share = exception_share(exceptions, self.axis.len());
+                if state.is_occupied() {
+                    1.0 - share
+                } else {
+                    share
+                }
+            }
+            CellContent::Modelled(voxel) => self.model.mean(voxel.parameters()),
         }
     }
 
@@ -101,6 +125,15 @@ impl Scorer<'_> {
         if state.is_occupied() {
             self.judge(start, end, state, self.options.error_rate, out);
         }
+    }
+}
+
+/// Probability of occupied for a cell in `state` that is wrong at `rate`.
+fn with_rate(state: Occupancy, rate: f64) -> f64 {
+    if state.is_occupied() {
+        1.0 - rate
+    } else {
+        rate
     }
 }
 
@@ -187,8 +220,10 @@ pub(crate) fn score_tile(
             }
             let (lo, hi) = (from.max(cell_start), end.min(cell_end));
             if lo < hi {
-                let p = *occupied.get_or_insert_with(|| scorer.occupied_probability(&cell));
-                scorer.judge(lo, hi, state, p, &mut out);
+                match *occupied.get_or_insert_with(|| scorer.occupied_probability(&cell)) {
+                    Some(p) => scorer.judge(lo, hi, state, p, &mut out),
+                    None => scorer.judge_unseen(lo, hi, state, &mut out),
+                }
             }
             if end <= cell_end {
                 next += 1;
