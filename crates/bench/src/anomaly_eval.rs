@@ -86,8 +86,13 @@ pub struct MethodResult {
     pub top_is_injected: usize,
     /// Injected objects whose best region scores above every region of the clean frame.
     pub above_clean: usize,
+    /// Regions of injected frames that miss the injected objects but touch a real change
+    /// of the series (an element of the generator present then or at the end of training).
+    pub real_changes: usize,
     /// Regions reported on the clean frames.
     pub clean_regions: usize,
+    /// Of those, regions touching no real change (spurious).
+    pub clean_spurious: usize,
     /// Seconds spent scoring (all frames, clean and injected).
     pub seconds: f64,
 }
@@ -167,6 +172,7 @@ pub fn evaluate(
         .map(|e| e.voxels)
         .collect();
     let step = generator.spec().step_secs;
+    let train_end = reader.header().axis.end();
     let mut rng = Rng(generator.spec().seed ^ 0xA0_0A11E5);
     let (mut used, mut boxes, mut closed_doors) = (0, 0, 0);
     for (k, i) in crate::dataset::spread(heldout.len(), frames)
@@ -192,6 +198,7 @@ pub fn evaluate(
             continue;
         }
         let injected = with_changes(&clean, &changes)?;
+        let real = real_changes(generator, t, train_end)?;
         used += 1;
         note(&format!(
             "anomalies: frame {} ({} injected)",
@@ -206,7 +213,7 @@ pub fn evaluate(
             let clean_report = anomalies(&reader, &clean, t, &options)?;
             let report = anomalies(&reader, &injected, t, &options)?;
             result.seconds += started.elapsed().as_secs_f64();
-            tally(result, &clean_report, &report, &objects, margin);
+            tally(result, &clean_report, &report, &objects, &real, margin);
         }
     }
     Ok(AnomalyEval {
@@ -226,18 +233,24 @@ fn tally(
     clean: &AnomalyReport,
     report: &AnomalyReport,
     objects: &[Injected],
+    real: &[Injected],
     margin: f64,
 ) {
     let touches = |min: &[f64; 3], max: &[f64; 3], o: &Injected| {
         (0..3).all(|a| min[a] <= o.max[a] + margin && max[a] >= o.min[a] - margin)
     };
+    let on_real =
+        |r: &froctomap_convert::AnomalyRegion| real.iter().any(|o| touches(&r.min, &r.max, o));
     result.clean_regions += clean.regions.len();
+    result.clean_spurious += clean.regions.iter().filter(|r| !on_real(r)).count();
     result.regions += report.regions.len();
-    result.hits += report
-        .regions
-        .iter()
-        .filter(|r| objects.iter().any(|o| touches(&r.min, &r.max, o)))
-        .count();
+    for region in &report.regions {
+        if objects.iter().any(|o| touches(&region.min, &region.max, o)) {
+            result.hits += 1;
+        } else if on_real(region) {
+            result.real_changes += 1;
+        }
+    }
     if report
         .regions
         .first()
@@ -387,6 +400,32 @@ fn close_door(
     Ok(None)
 }
 
+/// Where the series itself changes around `t`: the bounding box of every generated element
+/// (door, person, chair, object, machine) as present at `t` and at the end of training.
+fn real_changes(
+    generator: &Generator,
+    t: Timestamp,
+    train_end: Timestamp,
+) -> Result<Vec<Injected>> {
+    let resolution = generator.base().resolution();
+    let mut boxes = Vec::new();
+    for element in generator.elements() {
+        for when in [t, train_end] {
+            let voxels = generator.occupied_by(element.kind, element.index, when);
+            if voxels.is_empty() {
+                continue;
+            }
+            let (min, max) = bounds(voxels.iter().map(|c| c.key()), resolution);
+            boxes.push(Injected {
+                door: element.kind == ElementKind::Door,
+                min,
+                max,
+            });
+        }
+    }
+    Ok(boxes)
+}
+
 /// The metric bounding box of voxel keys.
 fn bounds(keys: impl Iterator<Item = VoxelKey>, resolution: f64) -> ([f64; 3], [f64; 3]) {
     let mut min = [f64::INFINITY; 3];
@@ -441,8 +480,8 @@ impl AnomalyEval {
             "\n## Anomaly detection (injected objects)\n\n{} held-out snapshots (as the sensor saw them), each with a {BOX_EDGE_M} m box injected in space free at every training snapshot ({} boxes) and, where one qualified, a door closed that was open at every training snapshot at that time of day ({} doors). Default thresholds: error rate {}, voxel surprise > {:.2} nats, region score ≥ {} nats. A region is a hit when its box touches an injected object; every other region of an injected snapshot counts against precision (real changes such as people included).\n\n",
             self.frames, self.boxes, self.doors, self.error_rate, self.voxel_threshold, self.min_region_score
         );
-        text.push_str("| method | precision | recall: boxes | recall: doors | top region injected | injected above all clean regions | regions per clean snapshot | seconds per snapshot |\n");
-        text.push_str("| --- | --- | --- | --- | --- | --- | --- | --- |\n");
+        text.push_str("| method | precision | recall: boxes | recall: doors | top region injected | injected above all clean regions | other regions on real changes | regions per clean snapshot (spurious) | seconds per snapshot |\n");
+        text.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
         let share = |n: usize, d: usize| {
             if d == 0 {
                 "–".to_string()
@@ -453,7 +492,7 @@ impl AnomalyEval {
         let frames = self.frames.max(1) as f64;
         for m in &self.methods {
             text.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {:.1} | {:.2} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {:.1} ({:.1}) | {:.2} |\n",
                 m.method,
                 m.precision().map_or_else(
                     || "–".to_string(),
@@ -463,7 +502,9 @@ impl AnomalyEval {
                 share(m.doors_found, self.doors),
                 share(m.top_is_injected, self.frames),
                 share(m.above_clean, self.boxes + self.doors),
+                share(m.real_changes, m.regions - m.hits),
                 m.clean_regions as f64 / frames,
+                m.clean_spurious as f64 / frames,
                 m.seconds / (2.0 * frames),
             ));
         }

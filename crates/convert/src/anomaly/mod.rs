@@ -2,12 +2,15 @@
 //!
 //! Every observed voxel of the snapshot is scored by its *surprise* under the model at the
 //! snapshot's time, `−ln P(observed state)`: a dynamic cell's `p(t)` (kept within the error
-//! rate of 0 and 1), a static cell's stored state with [`AnomalyOptions::error_rate`], a
-//! noisy cell's state with its own exception rate, and space the file never observed as if
-//! it were static free (occupied there is surprising, free tells nothing). Voxels above
-//! [`AnomalyOptions::voxel_threshold`] are grouped into connected regions of one kind
-//! (appeared: occupied where free was expected; vanished: free where occupied was), each
-//! scored by the sum of its voxels' surprise, and regions of at least
+//! rate of 0 and 1); a static cell's stored state, wrong at the rule of succession's rate
+//! `1 / (n + 2)` after `n` observations (at most [`AnomalyOptions::error_rate`]); a noisy
+//! cell's state, wrong at `(k + 1) / (n + 2)` after `k` exceptions; and space the file never
+//! observed as if it were static free at the error rate (occupied there is surprising, free
+//! tells nothing). Voxels above [`AnomalyOptions::voxel_threshold`] are grouped into
+//! connected regions of one kind (appeared: occupied where free was expected; vanished:
+//! free where occupied was). A region's score is the log-likelihood ratio of its voxels'
+//! states between a vague alternative that gives each the threshold probability and the
+//! model: the surprise beyond the threshold, summed. Regions of at least
 //! [`AnomalyOptions::min_region_score`] are reported, most surprising first.
 //!
 //! The snapshot is held whole; the file is read one tile at a time (tiles in parallel).
@@ -55,15 +58,17 @@ pub enum Expectation {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct AnomalyOptions {
-    /// How often a static cell's stored state is taken to be wrong in a new snapshot, and
-    /// how close to 0 or 1 a model's `p(t)` may get (default 0.01).
+    /// The most a static cell's stored state is taken to be wrong in a new snapshot (less
+    /// after many observations), how close to 0 or 1 a model's `p(t)` may get, and how
+    /// likely occupied is in space never observed (default 0.01).
     pub error_rate: f64,
     /// A voxel is surprising above this surprise (default `ln 5` ≈ 1.6: the model gave its
     /// state less than a 20 % chance; FreMEn's few smooth periodic terms rarely go below
     /// that around a change, even for a door open at that hour every day).
     pub voxel_threshold: f64,
-    /// Regions whose total surprise is below this are not reported (default 20 nats, about
-    /// four voxels of static structure flipped: single noisy voxels stay quiet).
+    /// Regions whose score (surprise beyond the voxel threshold, summed) is below this are
+    /// not reported (default 20 nats, a few voxels of static structure flipped: single
+    /// noisy voxels stay quiet).
     pub min_region_score: f64,
     /// What the snapshot is compared with (default the model).
     pub expectation: Expectation,
@@ -109,7 +114,7 @@ pub struct AnomalyRegion {
     pub max: [f64; 3],
     /// Voxels in it.
     pub voxels: u64,
-    /// Total surprise of its voxels, nats.
+    /// Its voxels' surprise beyond the voxel threshold, summed, nats.
     pub score: f64,
     /// What it shows.
     pub kind: AnomalyKind,
@@ -207,7 +212,9 @@ pub fn anomalies(
     let surprising_voxels = pieces.iter().map(score::Piece::voxels).sum();
     let mut regions: Vec<AnomalyRegion> = [AnomalyKind::Appeared, AnomalyKind::Vanished]
         .into_iter()
-        .flat_map(|kind| regions::regions(&pieces, kind, header.resolution))
+        .flat_map(|kind| {
+            regions::regions(&pieces, kind, header.resolution, options.voxel_threshold)
+        })
         .filter(|r| r.score >= options.min_region_score)
         .collect();
     regions.sort_by(|a, b| {

@@ -26,10 +26,16 @@ impl Groups {
 }
 
 /// The connected regions of pieces of one kind (pieces touching by a face, an edge or a
-/// corner belong together), each with its bounding box, voxels and total surprise.
+/// corner belong together), each with its bounding box, voxels and score: the surprise of its
+/// voxels beyond `threshold`, summed.
 /// Cost: each piece probes the keys of the shell around it, so a coarse piece costs its
 /// surface, never its volume.
-pub(crate) fn regions(pieces: &[Piece], kind: AnomalyKind, resolution: f64) -> Vec<AnomalyRegion> {
+pub(crate) fn regions(
+    pieces: &[Piece],
+    kind: AnomalyKind,
+    resolution: f64,
+    threshold: f64,
+) -> Vec<AnomalyRegion> {
     let of_kind: Vec<&Piece> = pieces.iter().filter(|p| p.kind == kind).collect();
     let by_start: BTreeMap<u64, usize> = of_kind
         .iter()
@@ -71,7 +77,7 @@ pub(crate) fn regions(pieces: &[Piece], kind: AnomalyKind, resolution: f64) -> V
             region.max[a] = region.max[a].max(max[a]);
         }
         region.voxels += voxels;
-        region.score += piece.surprise * voxels as f64;
+        region.score += (piece.surprise - threshold) * voxels as f64;
         region.cubes.push((piece.start, piece.depth));
     }
     by_root.into_values().collect()
@@ -141,15 +147,15 @@ mod tests {
             },
             voxel(15, 15, 15, Appeared),
         ];
-        let mut appeared = regions(&pieces, Appeared, 0.1);
+        let mut appeared = regions(&pieces, Appeared, 0.1, 1.0);
         appeared.sort_by(|a, b| a.voxels.cmp(&b.voxels).then(a.score.total_cmp(&b.score)));
         let summary: Vec<(u64, f64)> = appeared.iter().map(|r| (r.voxels, r.score)).collect();
-        assert_eq!(summary, [(1, 2.0), (2, 4.0), (9, 10.0)]);
+        assert_eq!(summary, [(1, 1.0), (2, 2.0), (9, 1.0)]);
         let big = &appeared[2];
         let key_min = |m: f64| (m / 0.1).round() as i64;
         assert_eq!(big.min.map(key_min), [15 - 32768, 15 - 32768, 15 - 32768]);
         assert_eq!(big.max.map(key_min), [18 - 32768, 18 - 32768, 18 - 32768]);
-        let vanished = regions(&pieces, Vanished, 0.1);
+        let vanished = regions(&pieces, Vanished, 0.1, 1.0);
         assert_eq!(vanished.len(), 1);
         assert_eq!(vanished[0].kind, Vanished);
     }

@@ -60,17 +60,22 @@ impl Scorer<'_> {
         }
     }
 
-    /// A static cell's state with the error rate, a noisy cell's with its own exception
-    /// rate (at least the error rate), a model's `p(t)` kept within the error rate of 0
-    /// and 1.
+    /// A static or noisy cell's state, wrong at the rule of succession's rate `(k + 1) /
+    /// (n + 2)` for `k` exceptions in `n` observed samples (a static cell's at most the error
+    /// rate: a long history of one state makes a flip rarer than a short one); a model's
+    /// `p(t)` kept within the error rate of 0 and 1.
     fn model_probability(&self, cell: &Cell) -> f64 {
         let eps = self.options.error_rate;
+        let succession = |k: u64| {
+            let n = observed_samples(cell, self.axis);
+            ((k + 1) as f64 / (n + 2) as f64).min(0.5)
+        };
         match &cell.content {
-            CellContent::Constant(state) => with_rate(*state, eps),
-            CellContent::ConstantExcept { state, exceptions } => {
-                let rate = exception_share(exceptions, self.axis.len()).clamp(eps, 0.5);
-                with_rate(*state, rate)
-            }
+            CellContent::Constant(state) => with_rate(*state, succession(0).min(eps)),
+            CellContent::ConstantExcept { state, exceptions } => with_rate(
+                *state,
+                succession(samples_inside(exceptions, self.axis.len())),
+            ),
             CellContent::Modelled(voxel) => {
                 let p = self.model.probability(voxel.parameters(), self.seconds);
                 if p.is_finite() {
@@ -137,17 +142,30 @@ fn with_rate(state: Occupancy, rate: f64) -> f64 {
     }
 }
 
-/// Share of the axis's samples inside the exceptions of a noisy cell.
-fn exception_share(exceptions: &Toggles, samples: u32) -> f64 {
-    let toggles = exceptions.as_slice();
-    let inside: u64 = toggles
+/// Samples of `0..samples` inside a toggle list's odd runs (where its parity is set).
+fn samples_inside(toggles: &Toggles, samples: u32) -> u64 {
+    toggles
+        .as_slice()
         .chunks(2)
         .map(|pair| {
-            let end = pair.get(1).copied().unwrap_or(samples);
+            let end = pair.get(1).copied().unwrap_or(samples).min(samples);
             u64::from(end.saturating_sub(pair[0]))
         })
-        .sum();
-    inside as f64 / f64::from(samples.max(1))
+        .sum()
+}
+
+/// Share of the axis's samples inside the exceptions of a noisy cell.
+fn exception_share(exceptions: &Toggles, samples: u32) -> f64 {
+    samples_inside(exceptions, samples) as f64 / f64::from(samples.max(1))
+}
+
+/// Samples at which a cell was observed (missing samples of the axis are never observed;
+/// a mask's runs may include some, which only makes the count a little high).
+fn observed_samples(cell: &Cell, axis: &TimeAxis) -> u64 {
+    match &cell.mask {
+        None => u64::from(axis.len()).saturating_sub(axis.missing().len() as u64),
+        Some(mask) => samples_inside(mask, axis.len()),
+    }
 }
 
 /// The Morton range `[start, end)` cut into the fewest aligned cubes, in order.
