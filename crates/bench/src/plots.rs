@@ -13,14 +13,8 @@ pub fn register_font(bytes: Vec<u8>) -> Result<()> {
         .map_err(|_| anyhow!("the plot font is not a TrueType font plotters can use"))
 }
 
-/// One named line of `(x, y)` points.
-#[derive(Clone, Debug)]
-pub struct Line {
-    /// Legend.
-    pub name: String,
-    /// Points.
-    pub points: Vec<(f64, f64)>,
-}
+/// One named line of `(x, y)` points (shared with the voxel plot of `froctomap-render`).
+pub use froctomap_render::Line;
 
 /// A horizontal reference line.
 #[derive(Clone, Debug)]
@@ -226,99 +220,6 @@ fn short_number(v: f64) -> String {
     .replace(".000", "")
 }
 
-/// One voxel over time: model probabilities as lines, observations as points at 0 and 1,
-/// and a vertical marker at the end of the training span.
-pub struct VoxelPlot<'a> {
-    /// Title.
-    pub title: &'a str,
-    /// `p(t)` curves, x in days since the start of the plotted window.
-    pub curves: &'a [Line],
-    /// Observed states (1 = occupied) used for training.
-    pub observed: &'a [(f64, f64)],
-    /// Ground-truth states of the held-out days.
-    pub truth: &'a [(f64, f64)],
-    /// Where training ends (days).
-    pub train_end: f64,
-    /// X axis label.
-    pub x_label: &'a str,
-}
-
-/// Draws a [`VoxelPlot`].
-pub fn voxel(path: &Path, plot: &VoxelPlot<'_>) -> Result<()> {
-    let xs = plot
-        .curves
-        .iter()
-        .flat_map(|c| c.points.iter().map(|p| p.0))
-        .chain(plot.observed.iter().map(|p| p.0))
-        .chain(plot.truth.iter().map(|p| p.0));
-    let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-        (a.min(x), b.max(x))
-    });
-    let (x0, x1) = if x0.is_finite() && x1 > x0 {
-        (x0, x1)
-    } else {
-        (0.0, 1.0)
-    };
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(plot.title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, -0.08f64..1.3f64)
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc(plot.x_label)
-        .y_desc("p(occupied)")
-        .label_style(("sans-serif", 15))
-        .draw()
-        .map_err(err)?;
-    for (i, curve) in plot.curves.iter().enumerate() {
-        let c = colour(i);
-        chart
-            .draw_series(LineSeries::new(
-                curve.points.iter().copied(),
-                c.stroke_width(2),
-            ))
-            .map_err(err)?
-            .label(curve.name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
-    }
-    let obs = colour(plot.curves.len());
-    chart
-        .draw_series(
-            plot.observed
-                .iter()
-                .map(|&(x, y)| Circle::new((x, y), 2, obs.filled())),
-        )
-        .map_err(err)?
-        .label("observed (training)")
-        .legend(move |(x, y)| Circle::new((x + 10, y), 4, obs.filled()));
-    let truth = colour(plot.curves.len() + 1);
-    chart
-        .draw_series(
-            plot.truth
-                .iter()
-                .map(|&(x, y)| Circle::new((x, y), 2, truth.filled())),
-        )
-        .map_err(err)?
-        .label("ground truth (held out)")
-        .legend(move |(x, y)| Circle::new((x + 10, y), 4, truth.filled()));
-    chart
-        .draw_series(DashedLineSeries::new(
-            [(plot.train_end, -0.08), (plot.train_end, 1.3)],
-            6,
-            4,
-            BLACK.stroke_width(1),
-        ))
-        .map_err(err)?;
-    draw_legend(&mut chart, 14, SeriesLabelPosition::UpperLeft)?;
-    root.present().map_err(err)?;
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -359,20 +260,6 @@ mod tests {
         )
         .unwrap();
         lines(&png, "t", "x", "y", one_line, &[level], true).unwrap();
-        assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
-        let png = dir.path().join("voxel.png");
-        voxel(
-            &png,
-            &VoxelPlot {
-                title: "v",
-                curves: &[line],
-                observed: &[(0.0, 1.0)],
-                truth: &[(2.0, 0.0)],
-                train_end: 1.5,
-                x_label: "days",
-            },
-        )
-        .unwrap();
         assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
     }
 }

@@ -2,7 +2,7 @@
 
 use crate::dataset::{self, spread};
 use crate::generate::{door_file, step_seconds, DEFAULT_BASE};
-use crate::plots::{self, Level, Line, VoxelPlot};
+use crate::plots::{self, Level, Line};
 use crate::report::{
     median, rows, AccuracyRow, BuildRow, Dataset, Errors, MemoryRow, Results, StorageRow,
     TimeResults,
@@ -19,6 +19,7 @@ use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
 use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
+use froctomap_render::{voxel_plot, VoxelPlot};
 use froctomap_synth::{DoorDriver, ElementKind, Generator, SeriesSpec};
 use froctomap_temporal::{ModelConfig, Order, OutlierMode};
 use rayon::prelude::*;
@@ -425,17 +426,18 @@ fn plot_voxel(
         door.kind, c[0], c[1], c[2]
     );
     let x_label = format!("days since {}", iso8601(from));
-    plots::voxel(
-        &out.join("voxel_pt.png"),
-        &VoxelPlot {
-            title: &title,
-            curves: &curves,
-            observed: &observed,
-            truth: &truth,
-            train_end: days(last_train.time),
-            x_label: &x_label,
-        },
-    )?;
+    voxel_plot(&VoxelPlot {
+        title: &title,
+        curves: &curves,
+        observed: &observed,
+        observed_label: "observed (training)",
+        truth: &truth,
+        truth_label: "ground truth (held out)",
+        marker: Some(days(last_train.time)),
+        x_label: &x_label,
+        ..VoxelPlot::default()
+    })?
+    .write_png(&out.join("voxel_pt.png"), &[])?;
     Ok(Some(title))
 }
 

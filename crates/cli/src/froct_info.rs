@@ -2,7 +2,7 @@
 
 use crate::ui::{escaped, Ui};
 use anyhow::Result;
-use froctomap_convert::{describe, group_thousands, ClassCounts};
+use froctomap_convert::{describe, group_thousands, ClassCounts, FroctInfo};
 use serde_json::Value;
 use std::path::Path;
 
@@ -79,6 +79,7 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
         "vs raw states:   {:.1}x (1 bit per voxel per sample)",
         info.ratio_vs_raw_states
     )?;
+    print_dynamics(&info)?;
     if let Some(creator) = info.metadata.get("creator").and_then(Value::as_str) {
         let created = info.metadata.get("created").and_then(Value::as_str);
         outln!(
@@ -86,6 +87,69 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
             escaped(created.unwrap_or("?")),
             escaped(creator)
         )?;
+    }
+    Ok(())
+}
+
+/// Bounds, periods and the largest dynamic regions.
+fn print_dynamics(info: &FroctInfo) -> std::io::Result<()> {
+    let n = group_thousands;
+    let span = |min: [f64; 3], max: [f64; 3]| {
+        format!(
+            "x [{:.2}, {:.2}]  y [{:.2}, {:.2}]  z [{:.2}, {:.2}] m",
+            min[0], max[0], min[1], max[1], min[2], max[2]
+        )
+    };
+    match &info.bounds_m {
+        Some(b) => outln!(
+            "bounds:          {} ({:.1} x {:.1} x {:.1} m)",
+            span(b.min, b.max),
+            b.max[0] - b.min[0],
+            b.max[1] - b.min[1],
+            b.max[2] - b.min[2]
+        )?,
+        None => outln!("bounds:          none (no cells)")?,
+    }
+    if info.periods.is_empty() {
+        outln!("periods:         none (no modelled cells)")?;
+    } else {
+        let modelled: u64 = info.periods.iter().map(|p| p.cells).sum();
+        outln!(
+            "periods:         strongest period of the {} modelled cells (the other {} dynamic cells flip rarely):",
+            n(modelled),
+            n(info.cells.dynamic.saturating_sub(modelled))
+        )?;
+        const SHOWN: usize = 8;
+        for period in info.periods.iter().take(SHOWN) {
+            outln!(
+                "  {:<14} {} cells ({} voxels)",
+                period.period,
+                n(period.cells),
+                n(period.voxels)
+            )?;
+        }
+        if info.periods.len() > SHOWN {
+            let rest = &info.periods[SHOWN..];
+            outln!(
+                "  {} other periods: {} cells ({} voxels; --json lists them)",
+                rest.len(),
+                n(rest.iter().map(|p| p.cells).sum()),
+                n(rest.iter().map(|p| p.voxels).sum())
+            )?;
+        }
+    }
+    if info.dynamic_region_count > 0 {
+        outln!(
+            "dynamic regions: {} connected regions of dynamic voxels; the largest:",
+            n(info.dynamic_region_count as u64)
+        )?;
+        for region in &info.dynamic_regions {
+            outln!(
+                "  {:>9} voxels  {}",
+                n(region.voxels),
+                span(region.min, region.max)
+            )?;
+        }
     }
     Ok(())
 }

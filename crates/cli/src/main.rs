@@ -15,9 +15,11 @@ mod commands;
 mod errors;
 mod froct_info;
 mod generate;
+mod history;
 mod manual;
 mod plugins;
 mod progress;
+mod render;
 mod series;
 mod signals;
 mod ui;
@@ -131,6 +133,17 @@ enum Command {
     ///
     /// Example: froctomap predict office.froct --time 2016-02-01T10:00:00Z -o later.ot
     Predict(series::PredictArgs),
+    /// Draw a FROctomap file as a PNG picture: the map at a time seen from above (occupied,
+    /// free, unknown columns), a horizontal slice, or where the world changes (--dynamics).
+    ///
+    /// Example: froctomap render office.froct --time 2016-01-05T10:00:00Z -o map.png
+    ///          froctomap render office.froct --dynamics -o changes.png
+    Render(render::RenderArgs),
+    /// One voxel's history: its observed states over time, its model's p(t), its outliers
+    /// and its class, as a table (or --json), and as a plot with -o.
+    ///
+    /// Example: froctomap history office.froct --at 23.5,-0.5,1.0 -o voxel.png
+    History(history::HistoryArgs),
     /// Write one OctoMap file per instant of a range, plus a manifest.csv.
     ///
     /// Example: froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h -o hourly/
@@ -205,6 +218,8 @@ fn main() -> ExitCode {
         Command::Append(args) => append::append_command(&ui, &args),
         Command::Retrieve(args) => series::retrieve_command(&ui, &args),
         Command::Predict(args) => series::predict_command(&ui, &args),
+        Command::Render(args) => render::render_command(&ui, &args),
+        Command::History(args) => history::history_command(&ui, &args),
         Command::Export(args) => series::export_command(&ui, &args),
         Command::Eval(args) => series::eval_command(&ui, &args),
         Command::Anomalies(args) => anomalies::anomalies_command(&ui, &args),

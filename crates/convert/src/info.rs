@@ -2,6 +2,7 @@
 
 use crate::build::ClassCounts;
 use crate::context::Context;
+use crate::dynamics::{summarize_dynamics, DynamicRegion, MetricBox, PeriodCount};
 use crate::error::ConvertError;
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{voxels_per_node, Occupancy};
@@ -84,7 +85,19 @@ pub struct FroctInfo {
     pub ratio_vs_raw_states: f64,
     /// The header metadata.
     pub metadata: Map<String, Value>,
+    /// Bounding box of every cell the file knows at some time, metres.
+    pub bounds_m: Option<MetricBox>,
+    /// Modelled cells by the period of their strongest term, most voxels first.
+    pub periods: Vec<PeriodCount>,
+    /// The largest connected regions of dynamic voxels, most voxels first (at most
+    /// [`LARGEST_REGIONS`]).
+    pub dynamic_regions: Vec<DynamicRegion>,
+    /// How many connected dynamic regions there are in all.
+    pub dynamic_region_count: usize,
 }
+
+/// How many dynamic regions [`describe`] lists.
+pub const LARGEST_REGIONS: usize = 10;
 
 fn counts_from_summary(summary: &Map<String, Value>, key: &str) -> Option<ClassCounts> {
     let object = summary.get(key)?;
@@ -97,8 +110,9 @@ fn counts_from_summary(summary: &Map<String, Value>, key: &str) -> Option<ClassC
     })
 }
 
-/// Describes a file from its header and index (and its tiles, when the index carries no
-/// summary, or when `count_cells` asks for an exact recount).
+/// Describes a file from its header and index, and from one pass over its tiles (one tile
+/// per thread at a time) for its bounds, periods and dynamic regions; cells are recounted
+/// from the tiles when the index carries no summary or `count_cells` asks for it.
 pub fn describe(
     context: &Context,
     reader: &FroctReader,
@@ -113,6 +127,7 @@ pub fn describe(
         Some(counts) => counts,
         None => count(reader)?,
     };
+    let dynamics = summarize_dynamics(reader, LARGEST_REGIONS)?;
     let tiles: u64 = reader.tiles().iter().map(|t| u64::from(t.stored_len)).sum();
     let file = reader.file_len();
     let index = file
@@ -171,6 +186,10 @@ pub fn describe(
         ratio_vs_inputs: input_bytes.map(|b| b as f64 / file as f64),
         ratio_vs_raw_states: raw_bits / 8.0 / file as f64,
         metadata: header.metadata.clone(),
+        bounds_m: dynamics.bounds,
+        periods: dynamics.periods,
+        dynamic_regions: dynamics.regions,
+        dynamic_region_count: dynamics.region_count,
     })
 }
 

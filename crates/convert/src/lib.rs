@@ -38,6 +38,7 @@
 mod anomaly;
 mod build;
 mod context;
+mod dynamics;
 mod error;
 mod eval;
 mod glob_walk;
@@ -62,11 +63,15 @@ pub use build::{
     ClassCounts, DEFAULT_BUILD_MEMORY,
 };
 pub use context::{Context, Limits, FROCT};
+pub use dynamics::{
+    key_extent, period_text, summarize_dynamics, CellDynamics, DynamicRegion, DynamicsSummary,
+    KeyExtent, MetricBox, PeriodCount,
+};
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
 pub use froctomap_core::calendar::unix_seconds;
 pub use history::SeriesHistory;
-pub use info::{describe, AxisInfo, FroctInfo, SizeInfo};
+pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
 pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, natural_cmp, CollectedInputs,
     InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,

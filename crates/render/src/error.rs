@@ -1,0 +1,85 @@
+//! What can go wrong while drawing.
+
+use std::path::PathBuf;
+
+/// Errors of `froctomap-render`.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RenderError {
+    /// Reading the file, resolving a time or guarding an output failed.
+    #[error(transparent)]
+    Convert(#[from] froctomap_convert::ConvertError),
+    /// A tile of the file could not be read.
+    #[error(transparent)]
+    File(#[from] froctomap_file::FileError),
+    /// No font for the picture's text.
+    #[error(
+        "no TrueType font for the picture's text (tried {tried}); install the Debian package \
+         fonts-dejavu-core or set FROCTOMAP_FONT to a .ttf file"
+    )]
+    NoFont {
+        /// The paths tried, joined.
+        tried: String,
+    },
+    /// A font file is not one the text renderer can use.
+    #[error("{path}: not a TrueType font the plotter can use")]
+    BadFont {
+        /// The font file.
+        path: PathBuf,
+    },
+    /// The plotting library failed.
+    #[error("drawing the picture: {message}")]
+    Draw {
+        /// What it said.
+        message: String,
+    },
+    /// PNG encoding failed.
+    #[error("encoding the PNG: {source}")]
+    Encode {
+        /// The encoder's error.
+        #[source]
+        source: image::ImageError,
+    },
+    /// Writing the output failed (nothing was left behind).
+    #[error(transparent)]
+    Write(#[from] froctomap_core::AtomicWriteError),
+    /// The file has no cells, so there is no map to draw.
+    #[error("{path}: the file holds no cells, there is no map to draw")]
+    EmptyMap {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A slice height outside the map.
+    #[error("--slice z={z} m is outside the map's heights {min:.3} .. {max:.3} m")]
+    SliceOutside {
+        /// The height asked for.
+        z: f64,
+        /// The map's lowest point.
+        min: f64,
+        /// The map's highest point.
+        max: f64,
+    },
+    /// A slice that is not `z=HEIGHT`.
+    #[error("--slice {text:?}: expected z=HEIGHT in metres (a horizontal cut), e.g. z=0.5")]
+    BadSlice {
+        /// What was given.
+        text: String,
+    },
+    /// A picture width outside what is drawn.
+    #[error("picture width {width} px: expected {min} ..= {max} px")]
+    BadWidth {
+        /// What was asked for.
+        width: u32,
+        /// Narrowest picture.
+        min: u32,
+        /// Widest picture.
+        max: u32,
+    },
+}
+
+/// Plotters' errors carry the backend's error type; they become text here.
+pub(crate) fn draw_error(error: impl std::fmt::Display) -> RenderError {
+    RenderError::Draw {
+        message: error.to_string(),
+    }
+}

@@ -1,0 +1,57 @@
+//! The font of every picture's text: plotters draws text with `ab_glyph` from a TrueType
+//! font registered at run time, so no system font library is linked.
+
+use crate::error::RenderError;
+use plotters::style::FontStyle;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Where Debian, Fedora and Arch put DejaVu Sans (`fonts-dejavu-core` on Debian).
+const CANDIDATES: &[&str] = &[
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu-sans-fonts/DejaVuSans.ttf",
+];
+
+/// The environment variable naming a `.ttf` file to use instead.
+pub const FONT_VARIABLE: &str = "FROCTOMAP_FONT";
+
+/// Registers `bytes` (a TrueType font) as the `sans-serif` family every picture uses. The
+/// bytes live for the rest of the process.
+pub fn register_font(bytes: Vec<u8>, path: &Path) -> Result<(), RenderError> {
+    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+    plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).map_err(|_| {
+        RenderError::BadFont {
+            path: path.to_path_buf(),
+        }
+    })
+}
+
+/// Makes sure a font is registered: `$FROCTOMAP_FONT`, else DejaVu Sans where Linux
+/// distributions install it. Looked up once per process.
+pub fn ensure_font() -> Result<(), RenderError> {
+    static FOUND: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    let found = FOUND.get_or_init(|| {
+        let mut tried = Vec::new();
+        let given = std::env::var_os(FONT_VARIABLE).map(PathBuf::from);
+        for path in given
+            .into_iter()
+            .chain(CANDIDATES.iter().map(PathBuf::from))
+        {
+            if let Ok(bytes) = std::fs::read(&path) {
+                if register_font(bytes, &path).is_ok() {
+                    return Ok(path);
+                }
+            }
+            tried.push(path.display().to_string());
+        }
+        Err(tried.join(", "))
+    });
+    match found {
+        Ok(_) => Ok(()),
+        Err(tried) => Err(RenderError::NoFont {
+            tried: tried.clone(),
+        }),
+    }
+}
