@@ -5,7 +5,8 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::{
     anomalies, collect_inputs, read_snapshot, read_time_from_file_name, refuse_overwriting_input,
-    write_owned_map, AnomalyOptions, AnomalyReport, Expectation, TimeSource, MANIFEST_NAME,
+    write_owned_map, AnomalyKind, AnomalyOptions, AnomalyReport, Expectation, TimeSource,
+    MANIFEST_NAME,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -30,6 +31,13 @@ pub struct AnomaliesArgs {
     /// rviz or octovis, every voxel occupied (appeared and vanished alike).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
+    /// Draw the map at the snapshot's time from above (as `render` does) with each reported
+    /// region's footprint outlined: red appeared, blue vanished.
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
+    /// Width of the --png picture, pixels.
+    #[arg(long, value_name = "PIXELS", default_value_t = froctomap_render::DEFAULT_WIDTH)]
+    width: u32,
     /// How often a static cell's stored state is taken to be wrong (and how close to 0 or
     /// 1 a model's p may get).
     #[arg(long, value_name = "RATE", default_value_t = AnomalyOptions::default().error_rate)]
@@ -113,6 +121,15 @@ pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
             "{} ({}): the anomalous voxels of {} region(s)",
             escaped(output.display()),
             written.format.name,
+            report.regions.len()
+        ));
+    }
+    if let Some(png) = &args.png {
+        write_overlay(&reader, &report, t, png, args)?;
+        ui.note(&format!(
+            "{}: the map at {} with {} region(s) outlined",
+            escaped(png.display()),
+            iso8601(t),
             report.regions.len()
         ));
     }
@@ -229,5 +246,72 @@ fn print_table(args: &AnomaliesArgs, report: &AnomalyReport) -> Result<()> {
             report.regions.len() - shown
         )?;
     }
+    Ok(())
+}
+
+/// Appeared regions' outline colour.
+const APPEARED: [u8; 3] = [220, 20, 60];
+/// Vanished regions' outline colour.
+const VANISHED: [u8; 3] = [30, 100, 255];
+
+/// `--png`: the top-down map at `t` (retrieved inside the file's span, predicted outside)
+/// with each region's footprint outlined, written atomically.
+fn write_overlay(
+    reader: &froctomap_file::FroctReader,
+    report: &AnomalyReport,
+    t: Timestamp,
+    path: &Path,
+    args: &AnomaliesArgs,
+) -> Result<()> {
+    use froctomap_render::{render_map, MapTime, View};
+    refuse_overwriting_input(path, [args.file.as_path(), args.snapshot.as_path()])?;
+    let when = MapTime::choose(reader, froctomap_convert::TimeQuery::Instant(t))?;
+    let picture = render_map(reader, when, View::TopDown, args.width)?;
+    let mut image = picture.image().clone();
+    if let Some(frame) = picture.frame() {
+        // Most surprising last, so that it is drawn on top.
+        for region in report.regions.iter().rev() {
+            let colour = match region.kind {
+                AnomalyKind::Vanished => VANISHED,
+                _ => APPEARED,
+            };
+            let column = |x: f64| {
+                let px = ((x - frame.min_x) * frame.pixels_per_metre).floor();
+                frame.left + px.clamp(0.0, f64::from(frame.width - 1)) as u32
+            };
+            let row = |y: f64| {
+                let py = ((frame.max_y - y) * frame.pixels_per_metre).floor();
+                frame.top + py.clamp(0.0, f64::from(frame.height - 1)) as u32
+            };
+            let (x0, x1) = (column(region.min[0]), column(region.max[0]));
+            let (y0, y1) = (row(region.max[1]), row(region.min[1]));
+            // At least a few pixels across, so that a small region stays visible.
+            let (x0, x1) = (x0.saturating_sub(2), (x1 + 2).min(image.width() - 1));
+            let (y0, y1) = (y0.saturating_sub(2), (y1 + 2).min(image.height() - 1));
+            for x in x0..=x1 {
+                for y in [y0, y0 + 1, y1.saturating_sub(1), y1] {
+                    image.put_pixel(x, y.min(image.height() - 1), image::Rgb(colour));
+                }
+            }
+            for y in y0..=y1 {
+                for x in [x0, x0 + 1, x1.saturating_sub(1), x1] {
+                    image.put_pixel(x.min(image.width() - 1), y, image::Rgb(colour));
+                }
+            }
+        }
+    }
+    let mut bytes = Vec::new();
+    {
+        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+        use image::ImageEncoder as _;
+        PngEncoder::new_with_quality(&mut bytes, CompressionType::Best, FilterType::Adaptive)
+            .write_image(
+                image.as_raw(),
+                image.width(),
+                image.height(),
+                image::ColorType::Rgb8,
+            )?;
+    }
+    froctomap_core::write_atomically(path, |out| out.write_all(&bytes))?;
     Ok(())
 }

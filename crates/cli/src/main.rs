@@ -166,7 +166,7 @@ enum Command {
     /// The time comes from --time, else from the snapshot's file name or a manifest.csv
     /// beside it.
     ///
-    /// Example: froctomap anomalies office.froct scan_2016-01-20T10-00-00Z.bt -o anomalies.bt
+    /// Example: froctomap anomalies office.froct scan_2016-01-20T10-00-00Z.bt -o anomalies.bt --png anomalies.png
     Anomalies(anomalies::AnomaliesArgs),
     /// Write a realistic series of OctoMap snapshots made from a real map: doors (driven by
     /// real recordings with --real-doors, or schedules), people and chairs in working hours,

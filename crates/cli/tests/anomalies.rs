@@ -127,6 +127,47 @@ fn an_injected_box_is_the_top_region_and_its_voxels_are_written() {
         .collect();
     assert!(scores.windows(2).all(|w| w[0] >= w[1]), "{scores:?}");
 
+    // --png: the `render` picture of the map at that time, with the region outlined in red.
+    let overlay = dir.path().join("overlay.png");
+    let map = dir.path().join("map.png");
+    ok(&[
+        "-q",
+        "anomalies",
+        s(&file),
+        s(&snapshot),
+        "--png",
+        s(&overlay),
+        "--width",
+        "400",
+    ]);
+    ok(&[
+        "-q",
+        "render",
+        s(&file),
+        "--time",
+        "2016-01-11T11:00:00Z",
+        "-o",
+        s(&map),
+        "--width",
+        "400",
+    ]);
+    let overlay = image::open(&overlay).unwrap().to_rgb8();
+    let map = image::open(&map).unwrap().to_rgb8();
+    assert_eq!(overlay.dimensions(), map.dimensions());
+    let changed: Vec<[u8; 3]> = overlay
+        .pixels()
+        .zip(map.pixels())
+        .filter(|(a, b)| a != b)
+        .map(|(a, _)| a.0)
+        .collect();
+    assert!(changed.len() >= 20, "{} pixels outlined", changed.len());
+    if regions.len() == 1 {
+        assert!(
+            changed.iter().all(|&p| p == [220, 20, 60]),
+            "only red outlines"
+        );
+    }
+
     // The clean snapshot of the same hour has nothing as surprising.
     let clean = write(
         &room(hour, 0.1, &|_| false),
