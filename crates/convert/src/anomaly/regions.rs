@@ -53,9 +53,18 @@ pub(crate) fn regions(
         let leaf = piece.leaf();
         let lo = leaf.min_key();
         let edge = leaf.edge_voxels();
-        for neighbour in shell(lo, edge) {
-            if let Some(j) = containing(neighbour) {
-                groups.join(i, j);
+        if edge <= MAX_PROBED_EDGE {
+            for neighbour in shell(lo, edge) {
+                if let Some(j) = containing(neighbour) {
+                    groups.join(i, j);
+                }
+            }
+        } else {
+            // A coarse cube's surface costs more than comparing it with every piece.
+            for (j, other) in of_kind.iter().enumerate() {
+                if j != i && touch(piece, other) {
+                    groups.join(i, j);
+                }
             }
         }
     }
@@ -81,6 +90,22 @@ pub(crate) fn regions(
         region.cubes.push((piece.start, piece.depth));
     }
     by_root.into_values().collect()
+}
+
+/// Cubes up to this edge (voxels) find their neighbours by probing their shell; coarser
+/// ones (rare: a large region seen for the first time) by comparing with every piece.
+const MAX_PROBED_EDGE: u32 = 16;
+
+/// `true` when two cubes touch or overlap (26-neighbourhood).
+fn touch(a: &Piece, b: &Piece) -> bool {
+    let (la, lb) = (a.leaf(), b.leaf());
+    let (ka, kb) = (la.min_key(), lb.min_key());
+    let (ea, eb) = (i64::from(la.edge_voxels()), i64::from(lb.edge_voxels()));
+    let axis = |a: u16, b: u16| {
+        let (a, b) = (i64::from(a), i64::from(b));
+        a <= b + eb && b <= a + ea
+    };
+    axis(ka.x, kb.x) && axis(ka.y, kb.y) && axis(ka.z, kb.z)
 }
 
 /// The keys just outside the cube of `edge` voxels whose minimum corner is `lo`, that the
@@ -158,6 +183,28 @@ mod tests {
         let vanished = regions(&pieces, Vanished, 0.1, 1.0);
         assert_eq!(vanished.len(), 1);
         assert_eq!(vanished[0].kind, Vanished);
+    }
+
+    #[test]
+    fn coarse_cubes_join_their_neighbours_too() {
+        use AnomalyKind::*;
+        // A 32-voxel cube at (0..32)³, a voxel touching its far corner, one a voxel away.
+        let pieces = [
+            Piece {
+                start: code(0, 0, 0),
+                depth: 11,
+                kind: Appeared,
+                surprise: 2.0,
+            },
+            voxel(32, 32, 32, Appeared),
+            voxel(34, 0, 0, Appeared),
+        ];
+        let mut found: Vec<u64> = regions(&pieces, Appeared, 0.1, 1.0)
+            .iter()
+            .map(|r| r.voxels)
+            .collect();
+        found.sort_unstable();
+        assert_eq!(found, [1, 32 * 32 * 32 + 1]);
     }
 
     #[test]
