@@ -19,6 +19,7 @@
 //! Builds run as child processes of this binary (a hidden `build-child` subcommand) so that
 //! each one's peak memory (`VmHWM`) is its own.
 
+mod anomaly_eval;
 mod dataset;
 mod generate;
 mod plots;
@@ -55,6 +56,12 @@ enum Command {
     ///
     /// Example: froctomap-bench run --size 4weeks --out bench-out
     Run(run::RunArgs),
+    /// Only the anomaly evaluation (injected boxes and closed doors in held-out snapshots;
+    /// precision/recall against the last-seen and static-mean baselines), on the series
+    /// `run` generates, kept under --data.
+    ///
+    /// Example: froctomap-bench anomalies --size ci --data target/bench-data
+    Anomalies(anomaly_eval::AnomalyEvalArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(run::BuildChildArgs),
@@ -65,6 +72,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Generate(args) => generate::generate(&args),
         Command::Run(args) => run::run(&args),
+        Command::Anomalies(args) => anomaly_eval::anomalies_command(&args),
         Command::BuildChild(args) => run::build_child(&args),
     };
     match result {

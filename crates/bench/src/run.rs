@@ -988,6 +988,14 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
     voxel_files.push(("p(t), markov (lossy file)".to_string(), markov.clone()));
     let voxel_title = plot_voxel(&generator, &voxel_files, train, &written.heldout, &args.out)?;
+    note("anomaly detection on injected objects");
+    let anomaly = crate::anomaly_eval::evaluate(
+        &lossless,
+        &generator,
+        &written.heldout,
+        crate::anomaly_eval::DEFAULT_FRAMES,
+        &|m| note(m),
+    )?;
 
     let mut results = Results {
         machine: system::machine(threads, tools),
@@ -1038,6 +1046,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
         "\nPlots: `error_vs_order.png`, `size_vs_order.png`, `voxel_pt.png`{}.\n",
         voxel_title.map_or_else(String::new, |t| format!(" ({t})"))
     ));
+    markdown.push_str(&anomaly.markdown());
+    std::fs::write(
+        args.out.join("anomalies.json"),
+        serde_json::to_string_pretty(&anomaly)?,
+    )?;
     std::fs::write(
         args.out.join("results.json"),
         serde_json::to_string_pretty(&results)?,

@@ -61,6 +61,12 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
         ConvertError::AppendOverlap { .. } => Some(
             "append takes only snapshots later than the file's last one (`froctomap info FILE` shows its span); leave the earlier ones out",
         ),
+        ConvertError::SnapshotResolution { .. } => Some(
+            "score snapshots of the file's resolution (`froctomap info` shows both), or build a file from snapshots of this one",
+        ),
+        ConvertError::AnomalyTimeBeforeFile { .. } => Some(
+            "give the snapshot's time with --time; `froctomap info FILE` shows the file's span",
+        ),
         ConvertError::TooManyMaps { .. } => Some("use a longer --every"),
         ConvertError::EmptyRange { .. } => Some("--to must not be before --from"),
         ConvertError::NonPositiveInterval => Some("--every must be positive"),

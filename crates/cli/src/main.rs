@@ -9,6 +9,7 @@ macro_rules! outln {
     }};
 }
 
+mod anomalies;
 mod append;
 mod commands;
 mod errors;
@@ -153,6 +154,20 @@ enum Command {
     ///
     /// Example: froctomap eval office.froct --against later-maps/
     Eval(series::EvalArgs),
+    /// Score a snapshot against a FROctomap file's model at the snapshot's time: what
+    /// appeared or vanished that the model did not expect then, as connected regions ranked
+    /// by surprise.
+    ///
+    /// Each observed voxel's surprise is −ln of the probability the model gave its state
+    /// (static cells: their stored state with --error-rate; space never observed: occupied
+    /// there is surprising). Voxels the model gave less than --voxel-probability are
+    /// grouped into connected regions of one kind; regions of at least --min-score nats are
+    /// listed, most surprising first (--json: bounding boxes in metres, voxels, score, kind).
+    /// The time comes from --time, else from the snapshot's file name or a manifest.csv
+    /// beside it.
+    ///
+    /// Example: froctomap anomalies office.froct scan_2016-01-20T10-00-00Z.bt -o anomalies.bt --png anomalies.png
+    Anomalies(anomalies::AnomaliesArgs),
     /// Write a realistic series of OctoMap snapshots made from a real map: doors (driven by
     /// real recordings with --real-doors, or schedules), people and chairs in working hours,
     /// objects staying for days, machines on shifts, sensor noise at surfaces and partially
@@ -207,6 +222,7 @@ fn main() -> ExitCode {
         Command::History(args) => history::history_command(&ui, &args),
         Command::Export(args) => series::export_command(&ui, &args),
         Command::Eval(args) => series::eval_command(&ui, &args),
+        Command::Anomalies(args) => anomalies::anomalies_command(&ui, &args),
         Command::Generate(args) => generate::generate_command(&ui, &args),
         Command::Completions { shell } => manual::completions(Cli::command(), shell),
         Command::Man => manual::man(Cli::command()),

@@ -276,6 +276,39 @@ pub enum ConvertError {
         /// Last instant of the file.
         end: Timestamp,
     },
+    /// A snapshot to score for anomalies whose resolution is not the file's.
+    #[error("{}: resolution {resolution} m, but {} has {file_resolution} m; a snapshot is scored against a file of its own resolution", snapshot.as_ref().map_or_else(|| "the snapshot".to_string(), |p| p.display().to_string()), file.display())]
+    SnapshotResolution {
+        /// The snapshot, when it came from a file.
+        snapshot: Option<PathBuf>,
+        /// Its resolution.
+        resolution: f64,
+        /// The FROctomap file.
+        file: PathBuf,
+        /// The file's resolution.
+        file_resolution: f64,
+    },
+    /// A snapshot time before the first snapshot of the file: its model knows nothing of
+    /// that time.
+    #[error("{}: the snapshot's time {} is before the file's first snapshot; the file covers {} .. {}, and anomalies are judged at or after its start", file.display(), iso8601(*time), iso8601(*start), iso8601(*end))]
+    AnomalyTimeBeforeFile {
+        /// The FROctomap file.
+        file: PathBuf,
+        /// The snapshot's time.
+        time: Timestamp,
+        /// First instant of the file.
+        start: Timestamp,
+        /// Last instant of the file.
+        end: Timestamp,
+    },
+    /// An anomaly threshold or rate out of its range.
+    #[error("bad {what}: {value}")]
+    BadAnomalyOption {
+        /// Which setting, with its valid range.
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
     /// An export range that ends before it starts.
     #[error("the range ends at {} before it starts at {}", iso8601(*to), iso8601(*from))]
     EmptyRange {

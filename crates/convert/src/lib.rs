@@ -35,6 +35,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod anomaly;
 mod build;
 mod context;
 mod dynamics;
@@ -54,6 +55,10 @@ mod snapshot_changes;
 mod text;
 mod time;
 
+pub use anomaly::{
+    anomalies, read_snapshot, AnomalyKind, AnomalyOptions, AnomalyRegion, AnomalyReport,
+    Expectation,
+};
 pub use build::{
     append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,
     ClassCounts, DEFAULT_BUILD_MEMORY,
