@@ -588,6 +588,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         &ChildModel::fremen(None, args.max_order),
         false,
         false,
+        memory_mib,
     )?);
     if !args.skip_cpp_build {
         note("building lossless (C++ reader)");
