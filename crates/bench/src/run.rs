@@ -85,7 +85,7 @@ pub struct RunArgs {
     #[arg(long)]
     skip_xz: bool,
     /// Memory budget of every build, MiB (`froctomap build --memory`; default: the
-    /// build's 1 GiB, 64 MiB for the paper-* sizes).
+    /// build's own default, 64 MiB).
     #[arg(long)]
     memory_mib: Option<u64>,
 }
@@ -470,9 +470,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
         short_days,
         step: size_step,
         half_too,
-        memory_mib,
     } = plan(&args.size, args.heldout_days)?;
-    let memory_mib = args.memory_mib.or(memory_mib);
+    let memory_mib = args.memory_mib;
     let step = step_seconds(size_step.unwrap_or(&args.step))?;
     let tools = system::check_tools()?;
     plots::register_font(system::load_font(Path::new(FONT))?)?;

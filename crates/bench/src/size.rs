@@ -17,11 +17,6 @@ pub struct Plan {
     pub step: Option<&'static str>,
     /// Also build the first half for the memory comparison (¼, ½ and the whole series).
     pub half_too: bool,
-    /// The builds' memory budget in MiB (`build --memory`) unless `--memory-mib` says:
-    /// `paper-*` sizes take 64 MiB, below the histories of their first quarter (about
-    /// 80 MiB for a quarter of a day at 5 s on the default map), so that all three builds spill and the table shows memory flat in the series' length (with
-    /// the default 1 GiB, memory grows with the series until the histories reach it).
-    pub memory_mib: Option<u64>,
 }
 
 /// Reads `ci`, `week`, `4weeks`, `<n>weeks`, `<n>d`/`<n>days`, a plain number of days, or
@@ -75,7 +70,6 @@ pub fn plan(size: &str, heldout_days: Option<f64>) -> Result<Plan> {
         short_days: short,
         step: paper.then_some("5s"),
         half_too: paper,
-        memory_mib: paper.then_some(64),
     })
 }
 

@@ -204,11 +204,11 @@ pub struct BuildArgs {
 /// Where and beyond how much memory a build or an append spills the accumulated histories.
 #[derive(Args, Debug)]
 pub(crate) struct SpillArgs {
-    /// Memory for the accumulated histories (e.g. 512MiB, 2GiB, 4G, or bytes). What grows
+    /// Memory for the accumulated histories (e.g. 64MiB, 2GiB, 4G, or bytes). What grows
     /// with the number of snapshots is spilled to disk beyond it and read back tile by tile,
     /// so long series build in bounded memory; the file is the same whatever the budget.
     /// Reading and fitting need memory on top of it.
-    #[arg(long, value_name = "SIZE", default_value = "1GiB", value_parser = byte_size)]
+    #[arg(long, value_name = "SIZE", default_value = "64MiB", value_parser = byte_size)]
     pub(crate) memory: u64,
     /// Directory for the spill data (default: the output's directory). It goes into a
     /// hidden .froct-spill-* directory there, removed when the build ends, fails or is

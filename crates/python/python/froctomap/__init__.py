@@ -95,7 +95,7 @@ def build(
     ``model_options`` (``{"key": value}``) and ``periods`` (extra candidate periods, e.g.
     ``["1d", "8h"]``) choose the temporal model as ``--model``, ``--model-option`` and
     ``--periods`` do. ``created`` (a time) or ``SOURCE_DATE_EPOCH`` makes the file
-    reproducible; ``memory`` (bytes, default 1 GiB) bounds the accumulated histories, which
+    reproducible; ``memory`` (bytes, default 64 MiB) bounds the accumulated histories, which
     spill to ``tmp_dir`` (default: beside the output) beyond it. ``progress``: ``True`` draws
     a bar per stage (tqdm when installed), a callable is called as
     ``progress(stage, done, total)``, ``False`` reports nothing.
