@@ -7,37 +7,12 @@ use froctomap_core::{Leaf, Occupancy, Snapshot, VoxelKey};
 use froctomap_formats::{FormatRegistry, WriteOptions};
 use froctomap_test_support::{convert_octree, python_leaves};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+
+mod common;
+use common::{err, ok, s};
 
 const START: u32 = 1_451_865_600; // 2016-01-04T00:00:00Z
 const O: u16 = 32768;
-
-fn froctomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .args(args)
-        .output()
-        .expect("run froctomap")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert!(
-        out.status.success(),
-        "froctomap {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn err(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert_eq!(out.status.code(), Some(1), "froctomap {args:?} should fail");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 /// A 16×16×6 room at hour `hour`: floor and walls, free inside, a door in the wall y = 0
 /// open from 08:00 to 18:00; `extra` voxels occupied on top.

@@ -5,28 +5,10 @@
 use froctomap_core::{Leaf, Snapshot, VoxelKey};
 use froctomap_formats::{FormatRegistry, WriteOptions};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn froctomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .args(args)
-        .output()
-        .expect("run froctomap")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert!(
-        out.status.success(),
-        "froctomap {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
+mod common;
+use common::{froctomap, ok, s};
 
 /// A room of 16×16 voxels with a wall and a door closed on every other pair of frames; on
 /// odd frames a corner is not observed.

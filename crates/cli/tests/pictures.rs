@@ -14,8 +14,10 @@ use froctomap_synth::{ElementKind, Generator, SeriesSpec, SpecOverrides};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::OnceLock;
+
+mod common;
+use common::{fails, ok, s};
 
 const RESOLUTION: f64 = 0.1;
 const DAYS: f64 = 4.0;
@@ -23,33 +25,6 @@ const SEED: u64 = 3;
 /// One door, schedules only, no people, objects, machines, noise or partial views.
 const SCENARIO: &str = r#"{"doors": 1, "real_doors": 0, "people": 0, "chairs": 0,
     "objects": 0, "machines": 0, "surface_noise": 0.0, "partial_probability": 0.0}"#;
-
-fn froctomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .args(args)
-        .output()
-        .expect("run froctomap")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert!(
-        out.status.success(),
-        "froctomap {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert!(!out.status.success(), "froctomap {args:?} succeeded");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 /// An 8 x 5 m floor at 0.1 m, 2.4 m high, without a ceiling: a corridor (y 0..2 m) behind
 /// a wall with one doorway (x 3..3.9 m), two rooms; the far corner of the second room was

@@ -5,34 +5,10 @@
 use froctomap_core::{Leaf, Snapshot, VoxelKey};
 use froctomap_formats::{FormatRegistry, ReadOptions, WriteOptions};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn froctomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .args(args)
-        .output()
-        .expect("run froctomap")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert!(
-        out.status.success(),
-        "froctomap {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn err(args: &[&str]) -> String {
-    let out = froctomap(args);
-    assert_eq!(out.status.code(), Some(1), "froctomap {args:?} should fail");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
+mod common;
+use common::{err, froctomap, ok, s};
 
 /// A room of 16×16 free voxels with a wall, and a "door" of 4 voxels that is closed
 /// (occupied) on frames 2, 3, 6, 7 (every other pair), ten minutes apart.
