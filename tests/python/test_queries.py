@@ -4,6 +4,7 @@ snapshots, both read by octomap-python."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import octomap
 import pytest
 
 import froctomap
+from conftest import run_cli, snapshot_files
 
 # OctoMap's clamping bounds of stored probabilities (log-odds -2 and 3.5).
 CLAMP = (0.1192, 0.971)
@@ -138,3 +140,47 @@ def test_history_ranges_and_refusals(f):
         f.history(point, start="2017-01-01T00:00:00Z")
     with pytest.raises(ValueError):
         f.history((1.0, 2.0))
+
+
+def test_anomalies_are_the_command_lines_and_find_an_injected_box(f, cli_file, held_out, tmp_path):
+    snapshot = snapshot_files(held_out)[1]
+    clean = f.anomalies(snapshot)
+    cli_clean = json.loads(run_cli("anomalies", cli_file, snapshot, "--json").stdout)
+    assert clean["regions"] == cli_clean["regions"]
+    assert clean["time"] == cli_clean["time"] and clean["unix_time"] == cli_clean["unix_time"]
+    assert clean["scored_voxels"] == cli_clean["scored_voxels"] > 0
+
+    # A box of 6 x 6 x 6 voxels put by octomap-python into space the file predicts free.
+    tree = read_tree(snapshot)
+    resolution = tree.getResolution()
+    free = f.predict(clean["unix_time"]).point_cloud()[1]
+    corner = free[np.argmin(np.abs(free[:, 2] - 1.0) + np.abs(free[:, 0] - np.median(free[:, 0])))]
+    offsets = np.stack(np.meshgrid(*[np.arange(6)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    for offset in offsets:
+        for _ in range(4):  # a hit adds log-odds 0.85: from free (-2) to occupied
+            tree.updateNode(corner + resolution * offset, True)
+    tree.updateInnerOccupancy()
+    boxed = tmp_path / snapshot.name  # the same name: the time comes from it
+    assert tree.writeBinary(str(boxed).encode())
+
+    found = f.anomalies(boxed)
+    cli_found = json.loads(run_cli("anomalies", cli_file, boxed, "--json").stdout)
+    assert found["regions"] == cli_found["regions"]
+    centre = corner + resolution * 2.5
+    holding = [r for r in found["regions"]
+               if np.all(np.array(r["min"]) <= centre) and np.all(centre <= np.array(r["max"]))]
+    assert holding and holding[0]["kind"] == "appeared", (corner, found["regions"][:3])
+    assert not any(r["min"] == holding[0]["min"] for r in clean["regions"])
+    assert holding[0]["voxels"] >= len(offsets) // 2
+
+    by_time = f.anomalies(boxed, t=clean["time"], expect="static-mean")
+    cli_mean = json.loads(run_cli("anomalies", cli_file, boxed, "--json", "--expect", "static-mean").stdout)
+    assert by_time["regions"] == cli_mean["regions"]
+    with pytest.raises(ValueError, match="expect"):
+        f.anomalies(boxed, expect="yesterday")
+    with pytest.raises(froctomap.FroctError, match="nothing-here.bt"):
+        f.anomalies(tmp_path / "frame_20160105T030000Z_nothing-here.bt")
+    unnamed = tmp_path / "snapshot.bt"
+    unnamed.write_bytes(boxed.read_bytes())
+    with pytest.raises(froctomap.FroctError, match="no time in the file name"):
+        f.anomalies(unnamed)

@@ -5,8 +5,9 @@ use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
 use froctomap_convert::{
-    describe, probabilities, resolve_observed_with, voxel_history, HistorySample, Pick, TimeQuery,
-    VoxelHistory,
+    anomalies, describe, probabilities, read_snapshot, read_time_from_file_name,
+    resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport, Expectation,
+    HistorySample, Pick, TimeQuery, VoxelHistory, Zone,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -258,6 +259,60 @@ impl FroctFile {
         history_dict(py, &story)
     }
 
+    /// What is unusual in `snapshot` (an OctoMap `.bt`/`.ot` file of the file's resolution)
+    /// at time `t` (any form `retrieve` takes; default: the time in the snapshot's file
+    /// name), as `froctomap anomalies --json` reports it: every observed voxel scored by
+    /// its surprise under `expect` (`"model"`, `"static-mean"` or `"last-seen"`), the
+    /// surprising ones grouped into connected regions, most surprising first. A dict with
+    /// `time` (ISO 8601), `unix_time`, `scored_voxels`, `surprising_voxels` and `regions`
+    /// (each `min`, `max` in metres, `voxels`, `score` in nats, `kind` `"appeared"` or
+    /// `"vanished"`).
+    #[pyo3(signature = (snapshot, t=None, expect="model"))]
+    fn anomalies<'py>(
+        &self,
+        py: Python<'py>,
+        snapshot: PathBuf,
+        t: Option<&Bound<'py, PyAny>>,
+        expect: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let reader = self.reader()?;
+        let mut options = AnomalyOptions::default();
+        options.expectation = match expect {
+            "model" => Expectation::Model,
+            "static-mean" => Expectation::StaticMean,
+            "last-seen" => Expectation::LastSeen,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "expect={other:?}: give \"model\", \"static-mean\" or \"last-seen\""
+                )))
+            }
+        };
+        let at = match t {
+            Some(t) => self.instant_of(&reader, t)?,
+            None => {
+                let name = snapshot
+                    .file_name()
+                    .map(|n| n.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                read_time_from_file_name(&name, &Zone::utc())
+                    .map(|read| read.time)
+                    .ok_or_else(|| {
+                        froct_error_text(format!(
+                            "{}: no time in the file name; give t=",
+                            snapshot.display()
+                        ))
+                    })?
+            }
+        };
+        let report = py
+            .detach(|| {
+                let map = read_snapshot(crate::context(), &reader, &snapshot)?;
+                anomalies(&reader, &map, at, &options)
+            })
+            .map_err(to_py)?;
+        anomaly_dict(py, &report)
+    }
+
     /// Closes the file (maps taken from it stay usable).
     fn close(&self) {
         if let Ok(mut slot) = self.reader.lock() {
@@ -310,6 +365,31 @@ fn float_array<'py>(
         .import("numpy")?
         .call_method1("ascontiguousarray", (value, "float64"))?;
     array.extract::<PyReadonlyArrayDyn<'py, f64>>()
+}
+
+/// An [`AnomalyReport`] as the dict `FroctFile.anomalies` documents (the CLI's JSON).
+fn anomaly_dict<'py>(py: Python<'py>, report: &AnomalyReport) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("time", iso8601(report.time))?;
+    dict.set_item("unix_time", crate::times::unix_seconds(report.time))?;
+    dict.set_item("scored_voxels", report.scored_voxels)?;
+    dict.set_item("surprising_voxels", report.surprising_voxels)?;
+    let regions = pyo3::types::PyList::empty(py);
+    for region in &report.regions {
+        let item = PyDict::new(py);
+        item.set_item("min", region.min.to_vec())?;
+        item.set_item("max", region.max.to_vec())?;
+        item.set_item("voxels", region.voxels)?;
+        item.set_item("score", region.score)?;
+        let kind = serde_json::to_value(region.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        item.set_item("kind", kind)?;
+        regions.append(item)?;
+    }
+    dict.set_item("regions", regions)?;
+    Ok(dict)
 }
 
 /// A [`VoxelHistory`] as the dict `FroctFile.history` documents.

@@ -65,6 +65,13 @@ class FroctFile:
     ) -> Dict[str, Any]:
         """The story of the voxel at point (x, y, z): its cell, class, model, and per sample
         the time, the observed state and the model's p."""
+    def anomalies(
+        self, snapshot: PathLike, t: Optional[Time] = None, expect: str = "model"
+    ) -> Dict[str, Any]:
+        """What is unusual in an OctoMap snapshot at time t (default: the time in its file
+        name), as `froctomap anomalies --json` reports it: time, unix_time, scored_voxels,
+        surprising_voxels, and regions (min, max, voxels, score, kind) most surprising
+        first. expect: "model", "static-mean" or "last-seen"."""
     def close(self) -> None:
         """Closes the file; maps taken from it stay usable."""
     def __enter__(self) -> FroctFile: ...
