@@ -517,3 +517,231 @@ fn append_and_eval_take_recordings() {
     let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
     assert!(observed(&from_recording, &times) == observed(&from_files, &times));
 }
+
+/// Where `needle` occurs in `haystack`.
+fn positions(haystack: &[u8], needle: &[u8]) -> Vec<usize> {
+    haystack
+        .windows(needle.len())
+        .enumerate()
+        .filter(|(_, w)| *w == needle)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Recordings of four maps, one chunk each, written by rosbags (ROS 1, lz4) and
+/// mcap-ros2-support (zstd), then damaged here: a chunk whose compressed data is not lz4 or
+/// zstd, one whose CRC fails, and files cut inside their third chunk (no index, no summary).
+/// A damaged chunk is an error naming the recording, topic and times, or with `skip_bad`
+/// is left out and listed; a cut file gives its complete chunks, with a warning saying what
+/// was lost. What is read builds, map for map, what the same `.bt` files build.
+#[test]
+fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let second = 1_000_000_000;
+    let t0 = 1_700_000_000 * second;
+    let inputs: Vec<SeriesInput> = (0..4)
+        .map(|k| SeriesInput {
+            path: fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
+            time: Timestamp(t0 + 60 * second * k as i64),
+        })
+        .collect();
+    let path = |name: &str| dir.path().join(name);
+    let mut spec = String::from("{\"recordings\": [");
+    for (i, (kind, name, compression)) in
+        [("ros1", "bag.bag", "lz4"), ("mcap", "mcap.mcap", "zstd")]
+            .iter()
+            .enumerate()
+    {
+        let messages: Vec<String> = inputs
+            .iter()
+            .map(|m| {
+                format!(
+                    "{{\"topic\": \"/octomap_binary\", \"map\": \"{}\", \"stamp_ns\": {}, \"log_ns\": {}}}",
+                    m.path.display(),
+                    m.time.0,
+                    m.time.0 + second
+                )
+            })
+            .collect();
+        spec.push_str(&format!(
+            "{}{{\"kind\": \"{kind}\", \"path\": \"{}\", \"compression\": \"{compression}\", \"chunk_bytes\": 1, \"messages\": [{}]}}",
+            if i > 0 { ", " } else { "" },
+            path(name).display(),
+            messages.join(", ")
+        ));
+    }
+    spec.push_str("]}");
+    std::fs::write(path("spec.json"), spec).unwrap();
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/write_recordings.py"))
+        .arg(path("spec.json"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let bag = std::fs::read(path("bag.bag")).unwrap();
+    let mcap = std::fs::read(path("mcap.mcap")).unwrap();
+    // The compressed data of each chunk starts with its frame's magic number.
+    let lz4_frames = positions(&bag, &[0x04, 0x22, 0x4d, 0x18]);
+    let zstd_frames = positions(&mcap, &[0x28, 0xb5, 0x2f, 0xfd]);
+    assert!(
+        lz4_frames.len() >= 4 && zstd_frames.len() >= 4,
+        "{lz4_frames:?} {zstd_frames:?}"
+    );
+    // The chunk of the second map: the second frame, or the third when the first chunk holds
+    // only connection records (find it by the map it holds).
+    let damaged = |bytes: &[u8], at: usize, range: std::ops::Range<usize>| {
+        let mut bytes = bytes.to_vec();
+        for b in &mut bytes[at + range.start..at + range.end] {
+            *b ^= 0xff;
+        }
+        bytes
+    };
+    // The message logged at t0 + 61 s (the second map), in ISO 8601.
+    let second_map = "2023-11-14T22:14:21Z";
+    let cases: Vec<(&str, Vec<u8>, &str)> = lz4_frames
+        .iter()
+        .map(|&at| ("lz4.bag", damaged(&bag, at, 0..4), "lz4"))
+        .chain(
+            zstd_frames
+                .iter()
+                .map(|&at| ("zstd.mcap", damaged(&mcap, at, 0..4), "zstd")),
+        )
+        .chain(
+            // The CRC (u32) lies before the compression name (u32 length, "zstd").
+            positions(&mcap, b"\x04\x00\x00\x00zstd")
+                .iter()
+                .map(|&at| ("crc.mcap", damaged(&mcap, at - 4, 0..4), "CRC")),
+        )
+        .collect();
+    let context_for = |skip_bad: bool| {
+        let mut context = Context::with_default_plugins();
+        froctomap_ros::register(&mut context);
+        context.with_recording_options(
+            RecordingOptions::new(None, RecordedTime::Header).with_skip_bad(skip_bad),
+        )
+    };
+    let collect = |context: &Context, file: &Path| {
+        froctomap_convert::collect_inputs_explained(
+            context,
+            &[file.to_path_buf()],
+            TimeSource::Auto,
+            &Default::default(),
+        )
+    };
+    // The build from the .bt files of `kept` (indexes into `inputs`), and its maps.
+    let from_bt = |kept: &[usize], name: &str| {
+        let files: Vec<SeriesInput> = kept.iter().map(|&k| inputs[k].clone()).collect();
+        let out = path(&format!("{name}-bt.froct"));
+        build(
+            &Context::with_default_plugins(),
+            &files,
+            &out,
+            &BuildOptions::default(),
+            &Silent,
+        )
+        .unwrap();
+        let times: Vec<Timestamp> = files.iter().map(|i| i.time).collect();
+        (observed(&out, &times), times)
+    };
+    let mut seen = Vec::new();
+    for (name, bytes, problem) in &cases {
+        std::fs::write(path(name), bytes).unwrap();
+        let strict = collect(&context_for(false), &path(name));
+        // Recorded inputs are built with the context that collected them.
+        let context = context_for(true);
+        let lenient = collect(&context, &path(name)).unwrap();
+        if lenient.series.len() == inputs.len() {
+            // A frame of a chunk without maps (the connections only): nothing of ours lost.
+            assert!(lenient.skipped.is_empty() || strict.is_err(), "{name}");
+            continue;
+        }
+        let err = strict.unwrap_err().to_string();
+        assert_eq!(lenient.skipped.len(), 1, "{name}: {:?}", lenient.skipped);
+        let listed = &lenient.skipped[0].1;
+        for text in [&err, listed] {
+            for part in [name, "/octomap_binary", "chunk at byte", problem] {
+                assert!(text.contains(part), "{name}: {text}");
+            }
+        }
+        // Which map was lost: the one whose time the message names.
+        let lost = (0..4)
+            .find(|&k| !lenient.series.iter().any(|i| i.time == inputs[k].time))
+            .unwrap();
+        let logged = froctomap_core::calendar::iso8601(Timestamp(inputs[lost].time.0 + second));
+        assert!(err.contains(&logged), "{name}: {err}");
+        if lost == 1 {
+            assert!(err.contains(second_map));
+        }
+        seen.push((name.to_string(), lost));
+        // The rest builds what their .bt files build.
+        let out = path(&format!("{name}.froct"));
+        build(
+            &context,
+            &lenient.series,
+            &out,
+            &BuildOptions::default(),
+            &Silent,
+        )
+        .unwrap();
+        let kept: Vec<usize> = (0..4).filter(|&k| k != lost).collect();
+        let (expected, times) = from_bt(&kept, name);
+        assert!(observed(&out, &times) == expected, "{name}");
+    }
+    for name in ["lz4.bag", "zstd.mcap", "crc.mcap"] {
+        assert!(
+            seen.iter().filter(|(n, _)| n == name).count() == 4,
+            "{name}: each map's chunk damaged once: {seen:?}"
+        );
+    }
+
+    // Cut inside the chunk of the third map: no index or summary; the two maps before read.
+    for (name, bytes, frames, fix) in [
+        ("cut.bag", &bag, &lz4_frames, "rosbag reindex"),
+        ("cut.mcap", &mcap, &zstd_frames, "mcap recover"),
+    ] {
+        // The frame holding the third map: the third of the frames that hold maps.
+        let map_frames: Vec<usize> = frames
+            .iter()
+            .copied()
+            .filter(|&at| {
+                std::fs::write(path("probe"), damaged(bytes, at, 0..4)).unwrap();
+                collect(&context_for(true), &path("probe"))
+                    .unwrap()
+                    .series
+                    .len()
+                    < 4
+            })
+            .collect();
+        assert_eq!(map_frames.len(), 4, "{name}");
+        let cut = &bytes[..map_frames[2] + 10];
+        std::fs::write(path(name), cut).unwrap();
+        let context = context_for(false);
+        let collected = collect(&context, &path(name)).unwrap();
+        let times: Vec<Timestamp> = collected.series.iter().map(|i| i.time).collect();
+        assert_eq!(times, [inputs[0].time, inputs[1].time], "{name}");
+        let warnings: Vec<String> = collected.warnings.iter().map(|w| w.to_string()).collect();
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains(name) && w.contains(fix) && w.contains("bytes are not read")),
+            "{name}: {warnings:?}"
+        );
+        let out = path(&format!("{name}.froct"));
+        build(
+            &context,
+            &collected.series,
+            &out,
+            &BuildOptions::default(),
+            &Silent,
+        )
+        .unwrap();
+        let (expected, times) = from_bt(&[0, 1], name);
+        assert!(observed(&out, &times) == expected, "{name}");
+    }
+}

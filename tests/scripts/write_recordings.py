@@ -5,6 +5,7 @@ recording tests of froctomap.
 Usage: python write_recordings.py SPEC.json
 SPEC: {"recordings": [{"kind": "ros1" | "ros2bag" | "mcap", "path": ...,
                        "compression": "none" | "bz2" | "lz4" | "zstd",
+                       "chunk_bytes": int (optional: a chunk ends past this size),
                        "messages": [{"topic": ..., "map": FILE.bt, "stamp_ns": int,
                                      "log_ns": int, "whole_file": bool}]}]}
 Each recording also gets a /chatter std_msgs/String message, a topic of another type.
@@ -59,6 +60,8 @@ def write_ros1(spec):
     fmt = {"bz2": Writer.CompressionFormat.BZ2, "lz4": Writer.CompressionFormat.LZ4}.get(spec["compression"])
     if fmt is not None:
         writer.set_compression(fmt)
+    if "chunk_bytes" in spec:
+        writer.chunk_threshold = spec["chunk_bytes"]
     with writer:
         connections = {}
         for m in spec["messages"]:
@@ -91,7 +94,7 @@ def write_mcap(spec):
     msgdef, _ = ts.generate_msgdef(OCTOMAP, ros_version=2)
     compression = {"none": CompressionType.NONE, "lz4": CompressionType.LZ4}.get(spec["compression"], CompressionType.ZSTD)
     with open(spec["path"], "wb") as out:
-        writer = Writer(out, compression=compression)
+        writer = Writer(out, compression=compression, chunk_size=spec.get("chunk_bytes", 1024 * 1024))
         schema = writer.register_msgdef(OCTOMAP, msgdef)
         string = writer.register_msgdef("std_msgs/msg/String", "string data\n")
         for m in spec["messages"]:

@@ -54,7 +54,7 @@ pub struct AppendArgs {
 
 pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     // Recordings among the inputs are read back through the context that expanded them.
-    let context = &args.times.context(ui);
+    let context = &args.times.context(ui, args.skip_bad);
     let collected =
         collect_inputs_explained(context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);
@@ -92,8 +92,10 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
         escaped(args.file.display()),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = append(context, &args.file, &inputs, &options, &bars)?;
+    let mut report = append(context, &args.file, &inputs, &options, &bars)?;
     drop(bars);
+    // Damaged parts of recordings, left out before the append saw their maps.
+    report.skipped.splice(0..0, collected.skipped);
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {

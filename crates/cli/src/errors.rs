@@ -26,7 +26,7 @@ pub fn message(error: &anyhow::Error) -> String {
 pub fn hint(error: &anyhow::Error, skips_bad_files: bool) -> Option<&'static str> {
     error.chain().find_map(|cause| {
         if let Some(error) = cause.downcast_ref::<RosError>() {
-            return recording_hint(error);
+            return recording_hint(error, skips_bad_files);
         }
         if let Some(error) = cause.downcast_ref::<ConvertError>() {
             if let Some(hint) = convert_hint(error, skips_bad_files) {
@@ -83,7 +83,7 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
     }
 }
 
-fn recording_hint(error: &RosError) -> Option<&'static str> {
+fn recording_hint(error: &RosError, skips_bad_files: bool) -> Option<&'static str> {
     match error {
         RosError::SeveralOctomapTopics { .. }
         | RosError::NoSuchTopic { .. }
@@ -95,6 +95,14 @@ fn recording_hint(error: &RosError) -> Option<&'static str> {
         ),
         RosError::UnsupportedCompression { .. } => {
             Some("decompress the bag with `rosbag decompress` first")
+        }
+        RosError::DamagedChunk { problem, .. }
+            if matches!(**problem, RosError::UnsupportedCompression { .. }) =>
+        {
+            Some("decompress the bag with `rosbag decompress` first")
+        }
+        RosError::DamagedChunk { .. } if skips_bad_files => {
+            Some("pass --skip-bad to leave damaged chunks out (they are listed at the end)")
         }
         _ => None,
     }

@@ -60,15 +60,16 @@ enum RecordedTimeArg {
 }
 
 impl TimeArgs {
-    /// The program's context reading recordings as `--topic` and `--time-source` say.
-    pub(crate) fn context(&self, ui: &Ui) -> froctomap_convert::Context {
+    /// The program's context reading recordings as `--topic` and `--time-source` say,
+    /// leaving their damaged chunks out with `skip_bad`.
+    pub(crate) fn context(&self, ui: &Ui, skip_bad: bool) -> froctomap_convert::Context {
         let time = match self.time_source {
             RecordedTimeArg::Header => RecordedTime::Header,
             RecordedTimeArg::Log => RecordedTime::Log,
         };
-        ui.context
-            .clone()
-            .with_recording_options(RecordingOptions::new(self.topic.clone(), time))
+        ui.context.clone().with_recording_options(
+            RecordingOptions::new(self.topic.clone(), time).with_skip_bad(skip_bad),
+        )
     }
 
     pub(crate) fn source(&self, ui: &Ui) -> Result<TimeSource> {
@@ -315,7 +316,7 @@ fn mib(bytes: u64) -> String {
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
     // Recordings among the inputs are read back through the context that expanded them.
-    let series_context = &args.times.context(ui);
+    let series_context = &args.times.context(ui, args.skip_bad);
     let collected = collect_inputs_explained(
         series_context,
         &args.inputs,
@@ -377,8 +378,10 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let report = build(series_context, &inputs, output, &options, &bars)?;
+    let mut report = build(series_context, &inputs, output, &options, &bars)?;
     drop(bars);
+    // Damaged parts of recordings, left out before the build saw their maps.
+    report.skipped.splice(0..0, collected.skipped);
     let peak = peak_memory_bytes();
     if args.json {
         let mut value = serde_json::to_value(&report)?;
@@ -703,7 +706,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
     // Recordings among the ground truths are read with --topic/--time-source, and their maps
     // fetched through the context that collected them.
-    let context = args.times.context(ui);
+    let context = args.times.context(ui, false);
     let collected =
         collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);

@@ -81,6 +81,11 @@ pub struct CollectedInputs {
     pub zoneless: bool,
     /// Things the caller should pass on to the user.
     pub warnings: Vec<InputWarning>,
+    /// Damaged parts of recordings left out (with [`RecordingOptions::skip_bad`]): the
+    /// recording and why, as a build reports files it left out.
+    ///
+    /// [`RecordingOptions::skip_bad`]: crate::RecordingOptions::skip_bad
+    pub skipped: Vec<(PathBuf, String)>,
 }
 
 /// Something odd about the inputs that does not stop a build.
@@ -130,20 +135,33 @@ impl Candidate {
     }
 }
 
+/// What collecting tells besides the inputs.
+#[derive(Default)]
+struct InputNotes {
+    warnings: Vec<InputWarning>,
+    skipped: Vec<(PathBuf, String)>,
+}
+
 /// Adds `path` to `candidates`: the maps of a recording (of a format registered in
 /// `context`) at their times, else the file itself.
 fn push_file(
     context: &Context,
     path: PathBuf,
     candidates: &mut Vec<Candidate>,
-    warnings: &mut Vec<InputWarning>,
+    notes: &mut InputNotes,
 ) -> Result<(), ConvertError> {
     let Some(format) = crate::recording::recording_format(context, &path) else {
         candidates.push(Candidate::file(path));
         return Ok(());
     };
     let recording = crate::recording::open_recording(context, format, &path)?;
-    warnings.extend(
+    notes.skipped.extend(
+        recording
+            .skipped
+            .iter()
+            .map(|part| (path.clone(), part.to_string())),
+    );
+    notes.warnings.extend(
         recording
             .warnings
             .into_iter()
@@ -206,7 +224,7 @@ pub fn collect_inputs_explained(
         .flat_map(|f| f.extensions.iter().copied())
         .collect();
     let mut candidates = Vec::new();
-    let mut warnings = Vec::new();
+    let mut notes = InputNotes::default();
     for input in inputs {
         let text = input.to_string_lossy();
         if text.contains(['*', '?', '[']) && !input.exists() {
@@ -229,17 +247,17 @@ pub fn collect_inputs_explained(
             }
             matched.sort_by(|a, b| natural_cmp(a, b));
             for path in matched {
-                push_file(context, path, &mut candidates, &mut warnings)?;
+                push_file(context, path, &mut candidates, &mut notes)?;
             }
         } else if input.is_dir() && crate::recording::recording_format(context, input).is_some() {
-            push_file(context, input.clone(), &mut candidates, &mut warnings)?;
+            push_file(context, input.clone(), &mut candidates, &mut notes)?;
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
             if manifest.is_file() {
                 let listed = read_manifest(&manifest, zone)?;
                 let unlisted = unlisted_files(input, &extensions, &listed)?;
                 if !unlisted.is_empty() {
-                    warnings.push(InputWarning::Unlisted {
+                    notes.warnings.push(InputWarning::Unlisted {
                         manifest,
                         files: unlisted,
                     });
@@ -268,7 +286,7 @@ pub fn collect_inputs_explained(
         {
             candidates.extend(read_manifest(input, zone)?);
         } else if input.is_file() {
-            push_file(context, input.clone(), &mut candidates, &mut warnings)?;
+            push_file(context, input.clone(), &mut candidates, &mut notes)?;
         } else {
             return Err(ConvertError::NotFound {
                 path: input.clone(),
@@ -312,7 +330,8 @@ pub fn collect_inputs_explained(
         series,
         origins,
         zoneless: zoneless || names_zoneless,
-        warnings,
+        warnings: notes.warnings,
+        skipped: notes.skipped,
     })
 }
 

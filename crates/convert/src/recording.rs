@@ -33,12 +33,26 @@ pub struct RecordingOptions {
     pub topic: Option<String>,
     /// Which time each map gets.
     pub time: RecordedTime,
+    /// Leave out the damaged parts of a recording (a chunk that does not decompress or
+    /// whose checksum fails, a message whose stamp cannot be read) and list them in
+    /// [`Recording::skipped`], instead of refusing the recording.
+    pub skip_bad: bool,
 }
 
 impl RecordingOptions {
     /// Options reading `topic` (or the one map topic) with `time`.
     pub fn new(topic: Option<String>, time: RecordedTime) -> Self {
-        Self { topic, time }
+        Self {
+            topic,
+            time,
+            skip_bad: false,
+        }
+    }
+
+    /// The same options, leaving damaged parts out when `skip_bad` (see
+    /// [`RecordingOptions::skip_bad`]).
+    pub fn with_skip_bad(self, skip_bad: bool) -> Self {
+        Self { skip_bad, ..self }
     }
 }
 
@@ -61,6 +75,9 @@ pub struct Recording {
     pub times: Vec<Timestamp>,
     /// Things to tell the user (e.g. zero stamps replaced by recording times).
     pub warnings: Vec<String>,
+    /// Parts of the recording left out with [`RecordingOptions::skip_bad`], each an error
+    /// naming the recording, what was lost (a chunk and its messages' times) and why.
+    pub skipped: Vec<Cause>,
     /// Where the maps are fetched from.
     pub maps: Arc<dyn RecordedMaps>,
 }
@@ -71,8 +88,14 @@ impl Recording {
         Self {
             times,
             warnings,
+            skipped: Vec::new(),
             maps,
         }
+    }
+
+    /// The same recording, with these parts left out.
+    pub fn with_skipped(self, skipped: Vec<Cause>) -> Self {
+        Self { skipped, ..self }
     }
 }
 

@@ -16,7 +16,7 @@
 //! Every length is checked against the file size (or the caller's limit, for uncompressed
 //! chunks) before anything is allocated.
 
-use crate::error::RosError;
+use crate::error::{span, RosError};
 use crate::io::RecordingFile;
 use std::io::Read;
 use std::path::Path;
@@ -139,13 +139,30 @@ pub(crate) struct Connection {
     pub type_name: String,
 }
 
-/// An opened bag: its connections and chunks, from its index.
+/// A chunk of a bag: where it is, the log times of its first and last messages (when the
+/// index or its records tell) and the connections with messages in it.
+#[derive(Clone, Debug)]
+pub(crate) struct ChunkInfo {
+    pub pos: u64,
+    pub times: Option<(i64, i64)>,
+    pub connections: Vec<u32>,
+}
+
+/// An opened bag: its connections and chunks, from its index (or, for a bag without a
+/// usable index, from reading its chunks in order, as `rosbag reindex` does).
 #[derive(Debug)]
 pub(crate) struct Bag {
     pub file: RecordingFile,
     pub connections: Vec<Connection>,
-    /// Chunk positions with the connections that have messages in them.
-    chunks: Vec<(u64, Vec<u32>)>,
+    /// In file order.
+    pub chunks: Vec<ChunkInfo>,
+    /// For a bag read without its index: each chunk's messages with their connection.
+    scanned: Option<Vec<Vec<(u32, BagMessage)>>>,
+    /// Chunks that could not be read while scanning a bag without its index (only with
+    /// `skip_bad`; otherwise opening fails), and why.
+    pub damaged: Vec<(ChunkInfo, RosError)>,
+    /// What the reader tolerated (a missing or cut index).
+    pub warnings: Vec<String>,
 }
 
 /// One message of a bag: its log time and where its record is.
@@ -156,8 +173,19 @@ pub(crate) struct BagMessage {
     pub offset: u32,
 }
 
+/// A ROS time field (`u32` seconds, `u32` nanoseconds) as nanoseconds.
+fn time_ns(bytes: &[u8]) -> Option<i64> {
+    let secs = u32::from_le_bytes(bytes.get(..4)?.try_into().ok()?);
+    let nsecs = u32::from_le_bytes(bytes.get(4..8)?.try_into().ok()?);
+    Some(i64::from(secs) * 1_000_000_000 + i64::from(nsecs))
+}
+
 impl Bag {
-    pub fn open(path: &Path) -> Result<Self, RosError> {
+    /// Opens a bag from its index; a bag without one (not closed by its recorder, or cut)
+    /// is read chunk by chunk up to the first incomplete record, with a warning saying what
+    /// was lost. A chunk that does not read during that scan fails the opening, or with
+    /// `skip_bad` is left out and listed in [`Bag::damaged`].
+    pub fn open(path: &Path, limit: u64, skip_bad: bool) -> Result<Self, RosError> {
         let file = RecordingFile::open(path)?;
         if file.read_at(0, MAGIC.len() as u64, "bag magic")? != MAGIC {
             return Err(file.malformed("bag", "it does not start with `#ROSBAG V2.0`"));
@@ -168,85 +196,286 @@ impl Bag {
             return Err(file.malformed("bag header", "the first record is not the bag header"));
         }
         let index_pos = fields.u64(&file, "index_pos")?;
-        if index_pos < header.end() || index_pos >= file.size {
-            return Err(file.malformed(
-                "bag header",
-                format!("index position {index_pos} is outside the file (an unindexed bag: run `rosbag reindex`)"),
-            ));
-        }
         let mut bag = Bag {
             file,
             connections: Vec::new(),
             chunks: Vec::new(),
+            scanned: None,
+            damaged: Vec::new(),
+            warnings: Vec::new(),
         };
+        let why = if index_pos == 0 {
+            "the bag has no index (its recorder did not close it)".to_string()
+        } else if index_pos < header.end() || index_pos >= bag.file.size {
+            format!(
+                "its index should start at byte {index_pos}, outside the file of {} bytes (a cut bag?)",
+                bag.file.size
+            )
+        } else {
+            match bag.read_index(index_pos) {
+                Ok(()) => return Ok(bag),
+                Err(e) => format!("its index does not read ({e})"),
+            }
+        };
+        bag.connections.clear();
+        bag.chunks.clear();
+        bag.scan(header.end(), limit, skip_bad, &why)?;
+        Ok(bag)
+    }
+
+    /// Reads the connection and chunk info records of the index at `index_pos`.
+    fn read_index(&mut self, index_pos: u64) -> Result<(), RosError> {
         let mut pos = index_pos;
-        while pos < bag.file.size {
-            let record = read_record(&bag.file, pos, "index record")?;
-            let fields = Fields::parse(&bag.file, &record.header)?;
+        while pos < self.file.size {
+            let record = read_record(&self.file, pos, "index record")?;
+            let fields = Fields::parse(&self.file, &record.header)?;
             match fields.op() {
                 Some(OP_CONNECTION) => {
                     let data =
-                        bag.file
+                        self.file
                             .read_at(record.data_offset, record.data_len, "connection")?;
-                    let connection = Fields::parse(&bag.file, &data)?;
-                    bag.connections.push(Connection {
-                        id: fields.u32(&bag.file, "conn")?,
-                        topic: fields.text("topic"),
-                        type_name: connection.text("type"),
-                    });
+                    self.connections.push(self.connection(&fields, &data)?);
                 }
                 Some(OP_CHUNK_INFO) => {
                     let data =
-                        bag.file
+                        self.file
                             .read_at(record.data_offset, record.data_len, "chunk info")?;
                     let connections = data
                         .chunks_exact(8)
                         .filter_map(|pair| pair[..4].try_into().ok().map(u32::from_le_bytes))
                         .collect();
-                    bag.chunks
-                        .push((fields.u64(&bag.file, "chunk_pos")?, connections));
+                    let start = fields.get("start_time").and_then(time_ns);
+                    let end = fields.get("end_time").and_then(time_ns);
+                    self.chunks.push(ChunkInfo {
+                        pos: fields.u64(&self.file, "chunk_pos")?,
+                        times: start.zip(end),
+                        connections,
+                    });
                 }
                 _ => {}
             }
             pos = record.end();
         }
-        bag.chunks.sort_by_key(|(p, _)| *p);
-        Ok(bag)
+        self.chunks.sort_by_key(|c| c.pos);
+        Ok(())
     }
 
-    /// The messages of `connections`, from the index data after each chunk (no chunk is
-    /// decompressed), in file order.
-    pub fn messages(&self, connections: &[u32]) -> Result<Vec<BagMessage>, RosError> {
-        let mut out = Vec::new();
-        for (chunk_pos, present) in &self.chunks {
-            if !present.iter().any(|c| connections.contains(c)) {
-                continue;
+    fn connection(&self, fields: &Fields<'_>, data: &[u8]) -> Result<Connection, RosError> {
+        let connection = Fields::parse(&self.file, data)?;
+        Ok(Connection {
+            id: fields.u32(&self.file, "conn")?,
+            topic: fields.text("topic"),
+            type_name: connection.text("type"),
+        })
+    }
+
+    /// Reads the records from `pos` in order, as `rosbag reindex` does: each chunk is
+    /// decompressed for its connections and messages. Stops at the first record that the
+    /// file cuts off (what follows is lost, and said so in a warning) or whose header does
+    /// not read (nothing after it can be found).
+    fn scan(
+        &mut self,
+        mut pos: u64,
+        limit: u64,
+        skip_bad: bool,
+        why: &str,
+    ) -> Result<(), RosError> {
+        let mut scanned = Vec::new();
+        let mut messages = 0usize;
+        let stop = loop {
+            if pos >= self.file.size {
+                break None;
             }
-            let chunk = read_record(&self.file, *chunk_pos, "chunk")?;
-            let mut pos = chunk.end();
-            while pos < self.file.size {
-                let record = read_record(&self.file, pos, "index data")?;
-                let fields = Fields::parse(&self.file, &record.header)?;
-                if fields.op() != Some(OP_INDEX) {
-                    break;
-                }
-                if connections.contains(&fields.u32(&self.file, "conn")?) {
-                    let data =
-                        self.file
-                            .read_at(record.data_offset, record.data_len, "index data")?;
-                    for entry in data.chunks_exact(12) {
-                        let word = |i: usize| {
-                            u32::from_le_bytes([entry[i], entry[i + 1], entry[i + 2], entry[i + 3]])
+            let record = match read_record(&self.file, pos, "record") {
+                Ok(record) => record,
+                Err(RosError::Truncated { .. }) => break Some("is cut off".to_string()),
+                Err(e) => break Some(format!("does not read ({e})")),
+            };
+            let fields = match Fields::parse(&self.file, &record.header) {
+                Ok(fields) => fields,
+                Err(e) => break Some(format!("does not read ({e})")),
+            };
+            match fields.op() {
+                Some(OP_CHUNK) => match self.scan_chunk(pos, limit) {
+                    Ok((info, found, connections)) => {
+                        for connection in connections {
+                            if !self.connections.iter().any(|c| c.id == connection.id) {
+                                self.connections.push(connection);
+                            }
+                        }
+                        messages += found.len();
+                        self.chunks.push(info);
+                        scanned.push(found);
+                    }
+                    Err(problem) => {
+                        let info = ChunkInfo {
+                            pos,
+                            times: self.index_times(record.end()),
+                            connections: Vec::new(),
                         };
-                        out.push(BagMessage {
-                            log_ns: i64::from(word(0)) * 1_000_000_000 + i64::from(word(4)),
-                            chunk_pos: *chunk_pos,
-                            offset: word(8),
-                        });
+                        if !skip_bad {
+                            return Err(RosError::DamagedChunk {
+                                offset: pos,
+                                topic: None,
+                                times: info.times.map(span),
+                                problem: Box::new(problem),
+                            });
+                        }
+                        self.damaged.push((info, problem));
+                    }
+                },
+                // The index of a bag whose index position was not written.
+                Some(OP_CONNECTION) => {
+                    if let Ok(data) =
+                        self.file
+                            .read_at(record.data_offset, record.data_len, "connection")
+                    {
+                        if let Ok(connection) = self.connection(&fields, &data) {
+                            if !self.connections.iter().any(|c| c.id == connection.id) {
+                                self.connections.push(connection);
+                            }
+                        }
                     }
                 }
-                pos = record.end();
+                _ => {}
             }
+            pos = record.end();
+        };
+        let read = format!(
+            "{} chunk(s) with {messages} message(s) read in order",
+            self.chunks.len()
+        );
+        self.warnings.push(match stop {
+            None => format!("{why}; {read}, to the end of the file (`rosbag reindex` writes the index)"),
+            Some(how) => format!(
+                "{why}; {read}; the record at byte {pos} {how}, so its last {} of {} bytes are not read (`rosbag reindex` recovers the same)",
+                self.file.size - pos,
+                self.file.size
+            ),
+        });
+        self.scanned = Some(scanned);
+        Ok(())
+    }
+
+    /// A chunk read while scanning: its info, its messages and the connections in it.
+    #[allow(clippy::type_complexity)]
+    fn scan_chunk(
+        &self,
+        pos: u64,
+        limit: u64,
+    ) -> Result<(ChunkInfo, Vec<(u32, BagMessage)>, Vec<Connection>), RosError> {
+        let chunk = self.chunk(pos, limit)?;
+        let mut found = Vec::new();
+        let mut connections = Vec::new();
+        let mut offset = 0usize;
+        while offset < chunk.len() {
+            let (header, data) = record_in(&chunk, offset)
+                .ok_or_else(|| self.file.malformed("chunk", "a record runs past its chunk"))?;
+            let fields = Fields::parse(&self.file, header)?;
+            match fields.op() {
+                Some(OP_CONNECTION) => connections.push(self.connection(&fields, data)?),
+                Some(OP_MESSAGE) => {
+                    let log_ns = fields
+                        .get("time")
+                        .and_then(time_ns)
+                        .ok_or_else(|| self.file.malformed("message", "no 8-byte `time` field"))?;
+                    let at = u32::try_from(offset)
+                        .map_err(|_| self.file.malformed("chunk", "more than 4 GiB"))?;
+                    found.push((
+                        fields.u32(&self.file, "conn")?,
+                        BagMessage {
+                            log_ns,
+                            chunk_pos: pos,
+                            offset: at,
+                        },
+                    ));
+                }
+                _ => {}
+            }
+            offset += 8 + header.len() + data.len();
+        }
+        let first = found.iter().map(|(_, m)| m.log_ns).min();
+        let last = found.iter().map(|(_, m)| m.log_ns).max();
+        let mut present: Vec<u32> = found.iter().map(|(c, _)| *c).collect();
+        present.sort_unstable();
+        present.dedup();
+        let info = ChunkInfo {
+            pos,
+            times: first.zip(last),
+            connections: present,
+        };
+        Ok((info, found, connections))
+    }
+
+    /// The log times of the first and last messages the index data records from `pos` (after
+    /// a chunk) list, if they read.
+    fn index_times(&self, mut pos: u64) -> Option<(i64, i64)> {
+        let mut times: Option<(i64, i64)> = None;
+        while pos < self.file.size {
+            let record = read_record(&self.file, pos, "index data").ok()?;
+            let fields = Fields::parse(&self.file, &record.header).ok()?;
+            if fields.op() != Some(OP_INDEX) {
+                break;
+            }
+            let data = self
+                .file
+                .read_at(record.data_offset, record.data_len, "index data")
+                .ok()?;
+            for entry in data.chunks_exact(12) {
+                let t = time_ns(entry)?;
+                times = Some(times.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+            }
+            pos = record.end();
+        }
+        times
+    }
+
+    /// The messages of `connections` in the chunk `info`, from the index data after it (no
+    /// chunk is decompressed), or from the scan of a bag without an index.
+    pub fn chunk_messages(
+        &self,
+        info: &ChunkInfo,
+        connections: &[u32],
+    ) -> Result<Vec<BagMessage>, RosError> {
+        if let Some(scanned) = &self.scanned {
+            let i = self
+                .chunks
+                .iter()
+                .position(|c| c.pos == info.pos)
+                .ok_or_else(|| self.file.malformed("chunk", "no such chunk"))?;
+            return Ok(scanned
+                .get(i)
+                .into_iter()
+                .flatten()
+                .filter(|(c, _)| connections.contains(c))
+                .map(|(_, m)| *m)
+                .collect());
+        }
+        let mut out = Vec::new();
+        let chunk = read_record(&self.file, info.pos, "chunk")?;
+        let mut pos = chunk.end();
+        while pos < self.file.size {
+            let record = read_record(&self.file, pos, "index data")?;
+            let fields = Fields::parse(&self.file, &record.header)?;
+            if fields.op() != Some(OP_INDEX) {
+                break;
+            }
+            if connections.contains(&fields.u32(&self.file, "conn")?) {
+                let data = self
+                    .file
+                    .read_at(record.data_offset, record.data_len, "index data")?;
+                for entry in data.chunks_exact(12) {
+                    let word = |i: usize| {
+                        u32::from_le_bytes([entry[i], entry[i + 1], entry[i + 2], entry[i + 3]])
+                    };
+                    out.push(BagMessage {
+                        log_ns: i64::from(word(0)) * 1_000_000_000 + i64::from(word(4)),
+                        chunk_pos: info.pos,
+                        offset: word(8),
+                    });
+                }
+            }
+            pos = record.end();
         }
         Ok(out)
     }

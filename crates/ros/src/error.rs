@@ -137,6 +137,21 @@ pub enum RosError {
         /// How many messages have it.
         count: usize,
     },
+    /// A chunk that does not read (it does not decompress, its checksum fails, its records
+    /// are cut…): the problem (which names the recording), then which chunk and, where its
+    /// index or records tell, the topic and the log times of its messages.
+    #[error("{problem} (chunk at byte {offset}{}{})", topic.as_ref().map(|t| format!(", messages on `{t}`")).unwrap_or_default(), times.as_ref().map(|t| format!(" logged {t}")).unwrap_or_default())]
+    DamagedChunk {
+        /// Where the chunk starts in its file.
+        offset: u64,
+        /// The topic read from the recording, when the chunk holds its messages.
+        topic: Option<String>,
+        /// The log times of the chunk's messages (`from A to B`, ISO 8601), when known.
+        times: Option<String>,
+        /// What is wrong with the chunk.
+        #[source]
+        problem: Box<RosError>,
+    },
     /// A message that does not decode as `octomap_msgs/Octomap`.
     #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
     BadMessage {
@@ -177,6 +192,21 @@ pub enum MessageError {
     /// The map data is not an OctoMap tree.
     #[error("the map data is not an OctoMap tree: {0}")]
     NotAMap(#[source] froctomap_octomap_codec::CodecError),
+}
+
+/// A span of log times (nanoseconds) for messages: `at A` or `from A to B`.
+pub(crate) fn span((first, last): (i64, i64)) -> String {
+    use froctomap_core::calendar::iso8601;
+    use froctomap_core::Timestamp;
+    if first == last {
+        format!("at {}", iso8601(Timestamp(first)))
+    } else {
+        format!(
+            "from {} to {}",
+            iso8601(Timestamp(first)),
+            iso8601(Timestamp(last))
+        )
+    }
 }
 
 fn list_topics(topics: &[(String, String)]) -> String {

@@ -20,17 +20,48 @@ pub(crate) struct McapChannel {
     pub encoding: String,
 }
 
-/// Reads a message's header stamp from its log time and data (`None`: not wanted).
-pub(crate) type StampReader<'a> = dyn FnMut(i64, &[u8]) -> Result<Option<i64>, RosError> + 'a;
+/// Reads a message's header stamp from its log time and data: `None` leaves the message
+/// out, `Some(None)` keeps it without a stamp (not wanted).
+pub(crate) type StampReader<'a> =
+    dyn FnMut(i64, &[u8]) -> Result<Option<Option<i64>>, RosError> + 'a;
+
+/// A chunk of an MCAP file.
+#[derive(Clone, Debug)]
+pub(crate) struct McapChunk {
+    /// Where the chunk record starts, and its length with opcode and length.
+    start: u64,
+    length: u64,
+    /// Its records' bytes, as the index says (0: not known, the chunk's header tells).
+    uncompressed: u64,
+    /// The channels the file's message indexes list in it (empty: not indexed).
+    channels: Vec<u16>,
+    /// Log times of its first and last messages, when known.
+    pub times: Option<(i64, i64)>,
+}
+
+impl McapChunk {
+    pub fn offset(&self) -> u64 {
+        self.start
+    }
+
+    /// Whether the chunk may hold messages of `channels`.
+    pub fn may_hold(&self, channels: &[u16]) -> bool {
+        self.channels.is_empty() || self.channels.iter().any(|c| channels.contains(c))
+    }
+}
 
 /// An opened MCAP file.
 #[derive(Debug)]
 pub(crate) struct McapFile {
     pub file: RecordingFile,
     pub channels: Vec<McapChannel>,
-    /// (chunk start offset, chunk record length, uncompressed size, channels indexed in it
-    /// — empty when the file has no message indexes), in file order.
-    chunks: Vec<(u64, u64, u64, Vec<u16>)>,
+    /// In file order.
+    pub chunks: Vec<McapChunk>,
+    /// Chunks that did not read while scanning a file without a summary (with `skip_bad`;
+    /// otherwise opening fails), and why.
+    pub damaged: Vec<(McapChunk, RosError)>,
+    /// What the reader tolerated (a missing summary).
+    pub warnings: Vec<String>,
 }
 
 /// One message of an MCAP file: its log time, where it is, and its first bytes.
@@ -50,16 +81,67 @@ fn mcap_error(path: &Path) -> impl Fn(mcap::McapError) -> RosError + '_ {
     }
 }
 
+/// What a scan of the records learns of channels: schema names by id, and channels.
+#[derive(Default)]
+struct Found {
+    schemas: Vec<(u16, String)>,
+    channels: Vec<(u16, String, u16, String)>,
+}
+
+impl Found {
+    fn add(&mut self, record: &Record<'_>) {
+        match record {
+            Record::Schema { header, .. } => {
+                if !self.schemas.iter().any(|(id, _)| *id == header.id) {
+                    self.schemas.push((header.id, header.name.clone()));
+                }
+            }
+            Record::Channel(c) => {
+                if !self.channels.iter().any(|(id, ..)| *id == c.id) {
+                    self.channels.push((
+                        c.id,
+                        c.topic.clone(),
+                        c.schema_id,
+                        c.message_encoding.clone(),
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
 impl McapFile {
-    pub fn open(path: &Path) -> Result<Self, RosError> {
+    /// Opens an MCAP file from its summary; a file without one (its writer did not finish,
+    /// or it is cut) is read chunk by chunk up to the first incomplete record, with a
+    /// warning saying what was lost. A chunk that does not read during that scan fails the
+    /// opening, or with `skip_bad` is left out and listed in [`McapFile::damaged`].
+    pub fn open(path: &Path, limit: u64, skip_bad: bool) -> Result<Self, RosError> {
         let file = RecordingFile::open(path)?;
         if file.read_at(0, MAGIC.len() as u64, "MCAP magic")? != MAGIC {
             return Err(file.malformed("MCAP file", "it does not start with the MCAP magic"));
         }
-        let summary = read_summary(&file)?.ok_or_else(|| RosError::NoSummary {
-            path: path.to_path_buf(),
-        })?;
-        let mut channels: Vec<McapChannel> = summary
+        let mut mcap = Self {
+            file,
+            channels: Vec::new(),
+            chunks: Vec::new(),
+            damaged: Vec::new(),
+            warnings: Vec::new(),
+        };
+        let why = match read_summary(&mcap.file) {
+            Ok(Some(summary)) => {
+                mcap.from_summary(&summary)?;
+                return Ok(mcap);
+            }
+            Ok(None) => "no summary (its writer did not finish it, or it is cut)".to_string(),
+            Err(e) => format!("its summary does not read ({e})"),
+        };
+        mcap.scan(limit, skip_bad, &why)?;
+        Ok(mcap)
+    }
+
+    fn from_summary(&mut self, summary: &mcap::Summary) -> Result<(), RosError> {
+        self.channels = summary
             .channels
             .values()
             .map(|c| McapChannel {
@@ -73,69 +155,195 @@ impl McapFile {
                 encoding: c.message_encoding.clone(),
             })
             .collect();
-        channels.sort_by_key(|c| c.id);
-        let mut chunks: Vec<(u64, u64, u64, Vec<u16>)> = summary
+        self.channels.sort_by_key(|c| c.id);
+        self.chunks = summary
             .chunk_indexes
             .iter()
-            .map(|c| {
-                let indexed = c.message_index_offsets.keys().copied().collect();
-                (
-                    c.chunk_start_offset,
-                    c.chunk_length,
-                    c.uncompressed_size,
-                    indexed,
-                )
+            .map(|c| McapChunk {
+                start: c.chunk_start_offset,
+                length: c.chunk_length,
+                uncompressed: c.uncompressed_size,
+                channels: c.message_index_offsets.keys().copied().collect(),
+                times: i64::try_from(c.message_start_time)
+                    .ok()
+                    .zip(i64::try_from(c.message_end_time).ok()),
             })
             .collect();
-        chunks.sort_by_key(|c| c.0);
-        if chunks.is_empty() && summary.stats.is_some_and(|s| s.message_count > 0) {
-            return Err(file.malformed("MCAP file", "messages outside chunks are not indexed"));
+        self.chunks.sort_by_key(|c| c.start);
+        if self.chunks.is_empty() && summary.stats.as_ref().is_some_and(|s| s.message_count > 0) {
+            return Err(self
+                .file
+                .malformed("MCAP file", "messages outside chunks are not indexed"));
         }
-        Ok(Self {
-            file,
-            channels,
-            chunks,
-        })
+        Ok(())
     }
 
-    /// The messages of `channels`, in file order, with the header stamp `stamp` reads from
-    /// each one's data (decompressing one chunk at a time).
-    pub fn messages(
+    /// Reads the records after the magic in order (as `mcap recover` does): schemas and
+    /// channels wherever they are, each chunk decompressed for the ones inside it and its
+    /// messages' times. Stops at the data end or footer, or at the first record the file
+    /// cuts off (what follows is lost, and said so in a warning).
+    fn scan(&mut self, limit: u64, skip_bad: bool, why: &str) -> Result<(), RosError> {
+        let to_error = mcap_error(&self.file.path);
+        let mut found = Found::default();
+        let mut pos = MAGIC.len() as u64;
+        let mut unchunked = 0usize;
+        let mut messages = 0usize;
+        let stop = loop {
+            if pos >= self.file.size {
+                break Some(None);
+            }
+            let Ok(head) = self.file.read_at(pos, 9, "record") else {
+                break Some(Some("is cut off".to_string()));
+            };
+            let opcode = head[0];
+            let len = u64::from_le_bytes([
+                head[1], head[2], head[3], head[4], head[5], head[6], head[7], head[8],
+            ]);
+            let Some(end) = (pos + 9)
+                .checked_add(len)
+                .filter(|&end| end <= self.file.size)
+            else {
+                break Some(Some("is cut off".to_string()));
+            };
+            match opcode {
+                mcap::records::op::DATA_END | mcap::records::op::FOOTER => break None,
+                mcap::records::op::SCHEMA | mcap::records::op::CHANNEL => {
+                    let record = self
+                        .file
+                        .bounded("schema or channel record", len, limit)
+                        .and_then(|len| self.file.read_at(pos + 9, len, "record"))
+                        .and_then(|body| {
+                            mcap::parse_record(opcode, &body)
+                                .map(|r| found.add(&r))
+                                .map_err(&to_error)
+                        });
+                    if let Err(e) = record {
+                        break Some(Some(format!("does not read ({e})")));
+                    }
+                }
+                mcap::records::op::MESSAGE => unchunked += 1,
+                mcap::records::op::CHUNK => {
+                    let mut chunk = McapChunk {
+                        start: pos,
+                        length: end - pos,
+                        uncompressed: 0,
+                        channels: Vec::new(),
+                        times: None,
+                    };
+                    let mut times: Option<(i64, i64)> = None;
+                    let mut count = 0usize;
+                    let read = self.each_record(&chunk, limit, &mut |record, _| {
+                        found.add(&record);
+                        if let Record::Message { header, .. } = record {
+                            count += 1;
+                            if let Ok(t) = i64::try_from(header.log_time) {
+                                times = Some(times.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+                            }
+                        }
+                        Ok(true)
+                    });
+                    chunk.times = times;
+                    match read {
+                        Ok(()) => {
+                            messages += count;
+                            self.chunks.push(chunk);
+                        }
+                        Err(problem) if skip_bad => self.damaged.push((chunk, problem)),
+                        Err(problem) => {
+                            return Err(RosError::DamagedChunk {
+                                offset: pos,
+                                topic: None,
+                                times: None,
+                                problem: Box::new(problem),
+                            })
+                        }
+                    }
+                }
+                _ => {}
+            }
+            pos = end;
+        };
+        if unchunked > 0 {
+            return Err(self
+                .file
+                .malformed("MCAP file", "messages outside chunks are not read"));
+        }
+        self.channels = found
+            .channels
+            .into_iter()
+            .map(|(id, topic, schema_id, encoding)| McapChannel {
+                id,
+                topic,
+                schema: found
+                    .schemas
+                    .iter()
+                    .find(|(s, _)| *s == schema_id)
+                    .map(|(_, name)| name.clone())
+                    .unwrap_or_default(),
+                encoding,
+            })
+            .collect();
+        self.channels.sort_by_key(|c| c.id);
+        let read = format!(
+            "{} chunk(s) with {messages} message(s) read in order",
+            self.chunks.len()
+        );
+        self.warnings.push(match stop {
+            None => format!("{why}; {read}, to the end of its data (`mcap recover` writes the summary)"),
+            Some(None) => format!("{why}; {read}; it ends after them, without the summary (`mcap recover` writes it)"),
+            Some(Some(how)) => format!(
+                "{why}; {read}; the record at byte {pos} {how}, so its last {} of {} bytes are not read (`mcap recover` recovers the same)",
+                self.file.size - pos,
+                self.file.size
+            ),
+        });
+        Ok(())
+    }
+
+    /// The messages of `channels` in chunk `i`, with the header stamp `stamp` reads from
+    /// each one's data (`stamp` may leave a message out).
+    pub fn chunk_messages(
         &self,
+        i: usize,
         channels: &[u16],
         limit: u64,
         stamp: &mut StampReader<'_>,
     ) -> Result<Vec<(McapMessage, Option<i64>)>, RosError> {
         let mut out = Vec::new();
-        for (i, (_, _, _, indexed)) in self.chunks.iter().enumerate() {
-            if !indexed.is_empty() && !indexed.iter().any(|c| channels.contains(c)) {
-                continue;
-            }
-            self.each_record(i, limit, &mut |record, index| {
-                if let Record::Message { header, data } = record {
-                    if channels.contains(&header.channel_id) {
-                        let log_ns = i64::try_from(header.log_time).map_err(|_| {
-                            self.file
-                                .malformed("message", "a log time past the year 2262")
-                        })?;
+        let chunk = self
+            .chunks
+            .get(i)
+            .ok_or_else(|| self.file.malformed("chunk index", "no such chunk"))?;
+        self.each_record(chunk, limit, &mut |record, index| {
+            if let Record::Message { header, data } = record {
+                if channels.contains(&header.channel_id) {
+                    let log_ns = i64::try_from(header.log_time).map_err(|_| {
+                        self.file
+                            .malformed("message", "a log time past the year 2262")
+                    })?;
+                    if let Some(stamp) = stamp(log_ns, &data)? {
                         let found = McapMessage {
                             log_ns,
                             chunk: i,
                             record: index,
                         };
-                        out.push((found, stamp(log_ns, &data)?));
+                        out.push((found, stamp));
                     }
                 }
-                Ok(true)
-            })?;
-        }
+            }
+            Ok(true)
+        })?;
         Ok(out)
     }
 
     /// The data of the message at `found`.
     pub fn message(&self, found: &McapMessage, limit: u64) -> Result<Vec<u8>, RosError> {
+        let chunk = self
+            .chunks
+            .get(found.chunk)
+            .ok_or_else(|| self.file.malformed("chunk index", "no such chunk"))?;
         let mut data = None;
-        self.each_record(found.chunk, limit, &mut |record, index| {
+        self.each_record(chunk, limit, &mut |record, index| {
             if index < found.record {
                 return Ok(true);
             }
@@ -150,19 +358,22 @@ impl McapFile {
         })
     }
 
-    /// Calls `on_record` with each record of chunk `i` and its place, while it returns `true`.
+    /// Calls `on_record` with each record of `chunk` and its place, while it returns `true`.
     fn each_record(
         &self,
-        i: usize,
+        chunk: &McapChunk,
         limit: u64,
         on_record: &mut dyn FnMut(Record<'_>, usize) -> Result<bool, RosError>,
     ) -> Result<(), RosError> {
-        let Some(&(start, length, uncompressed, _)) = self.chunks.get(i) else {
-            return Err(self.file.malformed("chunk index", "no such chunk"));
-        };
         self.file
-            .bounded("uncompressed chunk", uncompressed, limit)?;
-        let bytes = self.file.read_at(start, length, "chunk")?;
+            .bounded("uncompressed chunk", chunk.uncompressed, limit)?;
+        // Compressed data may be a little longer than what it holds.
+        self.file.bounded(
+            "chunk",
+            chunk.length,
+            limit.saturating_add(limit / 64 + 4096),
+        )?;
+        let bytes = self.file.read_at(chunk.start, chunk.length, "chunk")?;
         let body = bytes
             .get(9..)
             .filter(|_| bytes.first() == Some(&mcap::records::op::CHUNK))

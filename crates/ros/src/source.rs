@@ -2,10 +2,10 @@
 //! fetched one at a time ([`RecordedMaps`]).
 
 use crate::bag::{Bag, BagMessage};
-use crate::error::RosError;
+use crate::error::{span, RosError};
 use crate::mcap_file::{McapFile, McapMessage};
 use crate::message::{decode_message, decode_stamp, Encoding, MessageType};
-use froctomap_convert::{RecordedMaps, RecordedTime, Recording, RecordingOptions};
+use froctomap_convert::{Cause, RecordedMaps, RecordedTime, Recording, RecordingOptions};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use std::path::{Path, PathBuf};
@@ -140,8 +140,21 @@ impl TopicMaps {
         };
         match (&self.files, location) {
             (Files::Bag(bag), Location::Bag(found)) => {
-                let chunk = self.bag_chunk(bag, found.chunk_pos, limit)?;
-                decode(bag.message_in(&chunk, found.offset)?, Encoding::Ros1)
+                let in_chunk = |problem| {
+                    let times = bag
+                        .chunks
+                        .iter()
+                        .find(|c| c.pos == found.chunk_pos)
+                        .and_then(|c| c.times);
+                    damaged(found.chunk_pos, Some(&self.topic), times, problem)
+                };
+                let chunk = self
+                    .bag_chunk(bag, found.chunk_pos, limit)
+                    .map_err(in_chunk)?;
+                decode(
+                    bag.message_in(&chunk, found.offset).map_err(in_chunk)?,
+                    Encoding::Ros1,
+                )
             }
             (Files::Mcap(files), Location::Mcap(file, found)) => {
                 let (mcap, encoding) = files.get(*file).ok_or_else(|| RosError::Malformed {
@@ -149,7 +162,16 @@ impl TopicMaps {
                     what: "recording",
                     problem: "no such file".into(),
                 })?;
-                decode(&mcap.message(found, limit)?, *encoding)
+                let data = mcap.message(found, limit).map_err(|problem| {
+                    let chunk = mcap.chunks.get(found.chunk);
+                    damaged(
+                        chunk.map_or(0, |c| c.offset()),
+                        Some(&self.topic),
+                        chunk.and_then(|c| c.times),
+                        problem,
+                    )
+                })?;
+                decode(&data, *encoding)
             }
             _ => Err(RosError::Malformed {
                 path: self.path.clone(),
@@ -224,13 +246,51 @@ fn times(
     Ok((times, warnings))
 }
 
+/// A chunk's problem as an error naming the chunk, the topic and its messages' times.
+fn damaged(
+    offset: u64,
+    topic: Option<&str>,
+    times: Option<(i64, i64)>,
+    problem: RosError,
+) -> RosError {
+    match problem {
+        // Already named (a damaged chunk found while opening a file without its index).
+        RosError::DamagedChunk { .. } => problem,
+        problem => RosError::DamagedChunk {
+            offset,
+            topic: topic.map(str::to_string),
+            times: times.map(span),
+            problem: Box::new(problem),
+        },
+    }
+}
+
+/// Where a problem of one part of a recording goes: an error, or with `skip_bad` the list
+/// of parts left out.
+struct Damage<'a> {
+    skip_bad: bool,
+    skipped: &'a mut Vec<Cause>,
+}
+
+impl Damage<'_> {
+    fn left_out(&mut self, problem: RosError) -> Result<(), RosError> {
+        if !self.skip_bad {
+            return Err(problem);
+        }
+        self.skipped.push(Box::new(problem));
+        Ok(())
+    }
+}
+
 /// Opens a ROS 1 bag.
 pub(crate) fn open_bag(
     path: &Path,
     options: &RecordingOptions,
     limit: u64,
 ) -> Result<Recording, RosError> {
-    let bag = Bag::open(path)?;
+    let mut bag = Bag::open(path, limit, options.skip_bad)?;
+    let left_out = std::mem::take(&mut bag.damaged);
+    let mut warnings = std::mem::take(&mut bag.warnings);
     let topics: Vec<TopicEntry> = bag
         .connections
         .iter()
@@ -246,7 +306,7 @@ pub(crate) fn open_bag(
         .filter(|c| c.topic == topic)
         .map(|c| c.id)
         .collect();
-    let found = bag.messages(&ids)?;
+    let mut skipped: Vec<Cause> = Vec::new();
     let mut maps = TopicMaps {
         path: path.to_path_buf(),
         topic,
@@ -255,27 +315,59 @@ pub(crate) fn open_bag(
         maps: Vec::new(),
         chunk_cache: Mutex::new(None),
     };
-    let mut stamps = Vec::with_capacity(found.len());
-    let mut locations = Vec::with_capacity(found.len());
+    let mut stamps = Vec::new();
+    let mut locations = Vec::new();
     if let Files::Bag(bag) = &maps.files {
-        for message in found {
-            let stamp = if options.time == RecordedTime::Header {
-                let chunk = maps.bag_chunk(bag, message.chunk_pos, limit)?;
-                let bytes = bag.message_in(&chunk, message.offset)?;
-                Some(
-                    decode_stamp(bytes, Encoding::Ros1, kind)
-                        .map_err(|e| maps.bad_message(message.log_ns, e))?,
-                )
-            } else {
-                None
+        let mut damage = Damage {
+            skip_bad: options.skip_bad,
+            skipped: &mut skipped,
+        };
+        for (info, problem) in left_out {
+            damage.left_out(damaged(info.pos, None, info.times, problem))?;
+        }
+        for info in &bag.chunks {
+            if !info.connections.iter().any(|c| ids.contains(c)) {
+                continue;
+            }
+            let read = || -> Result<Vec<(BagMessage, Result<Option<i64>, RosError>)>, RosError> {
+                let found = bag.chunk_messages(info, &ids)?;
+                if options.time != RecordedTime::Header {
+                    return Ok(found.into_iter().map(|m| (m, Ok(None))).collect());
+                }
+                let chunk = maps.bag_chunk(bag, info.pos, limit)?;
+                found
+                    .into_iter()
+                    .map(|message| {
+                        let bytes = bag.message_in(&chunk, message.offset)?;
+                        let stamp = decode_stamp(bytes, Encoding::Ros1, kind)
+                            .map(Some)
+                            .map_err(|e| maps.bad_message(message.log_ns, e));
+                        Ok((message, stamp))
+                    })
+                    .collect()
             };
-            stamps.push((message.log_ns, stamp));
-            locations.push((message.log_ns, Location::Bag(message)));
+            let found = match read() {
+                Ok(found) => found,
+                Err(problem) => {
+                    damage.left_out(damaged(info.pos, Some(&maps.topic), info.times, problem))?;
+                    continue;
+                }
+            };
+            for (message, stamp) in found {
+                match stamp {
+                    Ok(stamp) => {
+                        stamps.push((message.log_ns, stamp));
+                        locations.push((message.log_ns, Location::Bag(message)));
+                    }
+                    Err(problem) => damage.left_out(problem)?,
+                }
+            }
         }
     }
     maps.maps = locations;
-    let (times, warnings) = times(&maps, &stamps, options.time)?;
-    Ok(Recording::new(times, warnings, Arc::new(maps)))
+    let (times, more) = times(&maps, &stamps, options.time)?;
+    warnings.extend(more);
+    Ok(Recording::new(times, warnings, Arc::new(maps)).with_skipped(skipped))
 }
 
 /// Opens MCAP files as one recording (one file, or the files of a ROS 2 bag directory).
@@ -287,7 +379,7 @@ pub(crate) fn open_mcap(
 ) -> Result<Recording, RosError> {
     let opened: Vec<McapFile> = files
         .iter()
-        .map(|f| McapFile::open(f))
+        .map(|f| McapFile::open(f, limit, options.skip_bad))
         .collect::<Result<_, _>>()?;
     let topics: Vec<TopicEntry> = opened
         .iter()
@@ -300,8 +392,25 @@ pub(crate) fn open_mcap(
     let (topic, kind) = select_topic(path, &topics, options.topic.as_deref())?;
     let mut stamps = Vec::new();
     let mut locations = Vec::new();
+    let mut warnings = Vec::new();
+    let mut skipped: Vec<Cause> = Vec::new();
     let mut with_encoding = Vec::with_capacity(opened.len());
-    for (file_index, mcap) in opened.into_iter().enumerate() {
+    for (file_index, mut mcap) in opened.into_iter().enumerate() {
+        // The files of a ROS 2 bag directory are named; a single file is the recording.
+        warnings.extend(mcap.warnings.iter().map(|w| {
+            if mcap.file.path == path {
+                w.clone()
+            } else {
+                format!("{}: {w}", mcap.file.path.display())
+            }
+        }));
+        let mut damage = Damage {
+            skip_bad: options.skip_bad,
+            skipped: &mut skipped,
+        };
+        for (chunk, problem) in std::mem::take(&mut mcap.damaged) {
+            damage.left_out(damaged(chunk.offset(), None, chunk.times, problem))?;
+        }
         let channels: Vec<_> = mcap.channels.iter().filter(|c| c.topic == topic).collect();
         let Some(first) = channels.first() else {
             with_encoding.push((mcap, Encoding::Cdr));
@@ -321,22 +430,43 @@ pub(crate) fn open_mcap(
         let ids: Vec<u16> = channels.iter().map(|c| c.id).collect();
         let header = options.time == RecordedTime::Header;
         let file_path = mcap.file.path.clone();
-        let found = mcap.messages(&ids, limit, &mut |log_ns, data| {
-            if !header {
-                return Ok(None);
+        for (i, chunk) in mcap.chunks.iter().enumerate() {
+            if !chunk.may_hold(&ids) {
+                continue;
             }
-            decode_stamp(data, encoding, kind)
-                .map(Some)
-                .map_err(|problem| RosError::BadMessage {
-                    path: file_path.clone(),
-                    topic: topic.clone(),
-                    time: iso8601(Timestamp(log_ns)),
-                    problem: Box::new(problem),
-                })
-        })?;
-        for (message, stamp) in found {
-            stamps.push((message.log_ns, stamp));
-            locations.push((message.log_ns, Location::Mcap(file_index, message)));
+            let mut bad_messages = Vec::new();
+            let found = mcap.chunk_messages(i, &ids, limit, &mut |log_ns, data| {
+                if !header {
+                    return Ok(Some(None));
+                }
+                match decode_stamp(data, encoding, kind) {
+                    Ok(stamp) => Ok(Some(Some(stamp))),
+                    Err(problem) => {
+                        bad_messages.push(RosError::BadMessage {
+                            path: file_path.clone(),
+                            topic: topic.clone(),
+                            time: iso8601(Timestamp(log_ns)),
+                            problem: Box::new(problem),
+                        });
+                        Ok(None)
+                    }
+                }
+            });
+            let found = match found {
+                Ok(found) => found,
+                Err(problem) => {
+                    let problem = damaged(chunk.offset(), Some(&topic), chunk.times, problem);
+                    damage.left_out(problem)?;
+                    continue;
+                }
+            };
+            for problem in bad_messages {
+                damage.left_out(problem)?;
+            }
+            for (message, stamp) in found {
+                stamps.push((message.log_ns, stamp));
+                locations.push((message.log_ns, Location::Mcap(file_index, message)));
+            }
         }
         with_encoding.push((mcap, encoding));
     }
@@ -348,6 +478,7 @@ pub(crate) fn open_mcap(
         maps: locations,
         chunk_cache: Mutex::new(None),
     };
-    let (times, warnings) = times(&maps, &stamps, options.time)?;
-    Ok(Recording::new(times, warnings, Arc::new(maps)))
+    let (times, more) = times(&maps, &stamps, options.time)?;
+    warnings.extend(more);
+    Ok(Recording::new(times, warnings, Arc::new(maps)).with_skipped(skipped))
 }
