@@ -253,9 +253,27 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
         report["channels"]["/froctomap/occupied_voxels"]["schema"],
         "foxglove.PointCloud"
     );
+    assert_eq!(report["schemas"]["sensor_msgs/msg/PointCloud2"], "ros2msg");
+    assert_eq!(
+        report["channels"]["/froctomap/occupied_voxels_pc2"]["encoding"],
+        "cdr"
+    );
     let octomaps = report["octomap"].as_array().unwrap();
     let clouds = report["cloud"].as_array().unwrap();
+    let clouds2 = report["cloud2"].as_array().unwrap();
     assert_eq!((octomaps.len(), clouds.len()), (times.len(), times.len()));
+    assert_eq!(clouds2.len(), times.len());
+    // The PointCloud2 messages hold the points of the foxglove clouds (which the loop below
+    // checks against octomap-python), with the same colours and values.
+    for (cloud, cloud2) in clouds.iter().zip(clouds2) {
+        assert_eq!(cloud2["same_points"], true, "{cloud2}");
+        assert_eq!(cloud2["points"], cloud["points"]);
+        assert_eq!(cloud2["value"], cloud["value"]);
+        assert_eq!(cloud2["types"], serde_json::json!([7, 7, 7, 6, 7]));
+        for key in ["log_time", "stamp_ns", "frame_id"] {
+            assert_eq!(cloud2[key], cloud[key]);
+        }
+    }
     let resolution = reader.header().resolution;
     for ((file, octomap), cloud) in bts.files.iter().zip(octomaps).zip(clouds) {
         let t = file.time.0;

@@ -62,6 +62,11 @@ enum Command {
     ///
     /// Example: froctomap-bench anomalies --size ci --data target/bench-data
     Anomalies(anomaly_eval::AnomalyEvalArgs),
+    /// Only the MCAP row: pack a series of .bt files into one MCAP and time `froctomap
+    /// build` from it against the .bt directory (same files, checked byte-identical).
+    ///
+    /// Example: froctomap-bench mcap --series /work/data-18/4weeks/train --out target/mcap-row
+    Mcap(recording::McapRowArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(run::BuildChildArgs),
@@ -73,6 +78,7 @@ fn main() -> ExitCode {
         Command::Generate(args) => generate::generate(&args),
         Command::Run(args) => run::run(&args),
         Command::Anomalies(args) => anomaly_eval::anomalies_command(&args),
+        Command::Mcap(args) => recording::mcap_row(&args),
         Command::BuildChild(args) => run::build_child(&args),
     };
     match result {

@@ -1,13 +1,24 @@
 //! The recording row: the training series as one MCAP file (the maps as
 //! `octomap_msgs/msg/Octomap` in CDR, as `ros2 bag record` stores `/octomap_binary`), built
 //! in its own process like the `.bt` build it is compared with (`BUILD_NATIVE`, same run).
+//!
+//! `froctomap-bench mcap --series DIR` measures that row alone on any series of `.bt`
+//! files (e.g. the shared 4-week series): it packs the series into one MCAP with our own
+//! writer (the `mcap` crate; fine for a speed comparison, since the reader does not care who
+//! wrote the chunks), then times `froctomap build` of the `.bt` directory and of the MCAP,
+//! each in its own process, and checks that the two files are byte-identical.
 
-use anyhow::{Context, Result};
-use froctomap_convert::SeriesInput;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use froctomap_convert::{collect_inputs, group_thousands, SeriesInput, TimeSource};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use froctomap_ros::{encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TOPIC, OCTOMAP_TYPE};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Instant;
 
 /// The row's name in the build table.
 pub const BUILD_FROM_MCAP: &str = "build lossless from one MCAP of the series (ROS 2 CDR)";
@@ -44,6 +55,153 @@ pub fn write_mcap(inputs: &[SeriesInput], path: &Path) -> Result<u64> {
     writer.finish()?;
     drop(writer);
     Ok(std::fs::metadata(path)?.len())
+}
+
+/// `froctomap-bench mcap`.
+#[derive(Args)]
+pub struct McapRowArgs {
+    /// The series: a directory of `.bt` files with `manifest.csv` (e.g. the `train`
+    /// directory a `run` generates). Only read.
+    #[arg(long)]
+    series: PathBuf,
+    /// Where the MCAP, the series' links and both built files go (removed afterwards unless
+    /// --keep).
+    #[arg(long)]
+    out: PathBuf,
+    /// The `froctomap` binary (default: the one beside this program).
+    #[arg(long)]
+    froctomap: Option<PathBuf>,
+    /// `--memory` of both builds (default: the build's).
+    #[arg(long)]
+    memory: Option<String>,
+    /// Keep the MCAP and the built files.
+    #[arg(long)]
+    keep: bool,
+}
+
+/// One timed `froctomap build`.
+struct Timed {
+    seconds: f64,
+    peak_memory_bytes: Option<u64>,
+    file_bytes: u64,
+}
+
+/// Packs `--series` into one MCAP and times `froctomap build` of both, checking that they
+/// write the same bytes; prints a markdown table.
+pub fn mcap_row(args: &McapRowArgs) -> Result<()> {
+    let froctomap = match &args.froctomap {
+        Some(path) => path.clone(),
+        None => std::env::current_exe()?
+            .parent()
+            .context("this program's directory")?
+            .join("froctomap"),
+    };
+    let manifest = args.series.join("manifest.csv");
+    let inputs = collect_inputs(
+        &froctomap_convert::Context::with_default_plugins(),
+        std::slice::from_ref(&manifest),
+        TimeSource::Auto,
+    )?;
+    // The series as links beside the MCAP, so that both builds name the same source
+    // directory in the header and the files can be compared byte for byte.
+    let dir = args.out.join("series");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut bt_bytes = 0u64;
+    for input in &inputs {
+        let name = input
+            .path
+            .file_name()
+            .context("a series file without a name")?;
+        let link = dir.join(name);
+        if !link.exists() {
+            std::os::unix::fs::symlink(std::fs::canonicalize(&input.path)?, &link)?;
+        }
+        // Read once, so that both builds start from the page cache.
+        bt_bytes += std::fs::read(&input.path)?.len() as u64;
+    }
+    std::fs::copy(&manifest, dir.join("manifest.csv"))?;
+    let mcap = dir.join("series.mcap");
+    let started = Instant::now();
+    let mcap_bytes = write_mcap(&inputs, &mcap)?;
+    let packing = started.elapsed().as_secs_f64();
+    eprintln!(
+        "{} snapshots, {} bytes of .bt; MCAP of {} bytes written in {packing:.1} s",
+        inputs.len(),
+        group_thousands(bt_bytes),
+        group_thousands(mcap_bytes)
+    );
+    let from_bt = args.out.join("from-bt.froct");
+    let from_mcap = args.out.join("from-mcap.froct");
+    let bt = timed_build(&froctomap, &dir, &from_bt, args.memory.as_deref())?;
+    let recorded = timed_build(&froctomap, &mcap, &from_mcap, args.memory.as_deref())?;
+    let identical = std::fs::read(&from_bt)? == std::fs::read(&from_mcap)?;
+    let mib = |b: Option<u64>| b.map_or("-".into(), |b| format!("{:.0} MiB", b as f64 / 1048576.0));
+    println!(
+        "| build of {} snapshots | input bytes | seconds | ratio | peak memory | file bytes |",
+        inputs.len()
+    );
+    println!("| --- | ---: | ---: | ---: | ---: | ---: |");
+    for (name, bytes, row) in [
+        (".bt directory (baseline)", bt_bytes, &bt),
+        ("one MCAP (ROS 2 CDR, zstd chunks)", mcap_bytes, &recorded),
+    ] {
+        println!(
+            "| {name} | {} | {:.2} | {:.2}× | {} | {} |",
+            group_thousands(bytes),
+            row.seconds,
+            row.seconds / bt.seconds,
+            mib(row.peak_memory_bytes),
+            group_thousands(row.file_bytes)
+        );
+    }
+    println!(
+        "\nbuilt files byte-identical: {}",
+        if identical { "yes" } else { "NO" }
+    );
+    if !args.keep {
+        std::fs::remove_dir_all(&dir)?;
+        std::fs::remove_file(&from_bt)?;
+        std::fs::remove_file(&from_mcap)?;
+    }
+    if !identical {
+        bail!("the builds from the MCAP and from the .bt files differ");
+    }
+    Ok(())
+}
+
+/// `froctomap build INPUT -o OUTPUT --json` in its own process, with a fixed creation time.
+fn timed_build(
+    froctomap: &std::path::Path,
+    input: &std::path::Path,
+    output: &std::path::Path,
+    memory: Option<&str>,
+) -> Result<Timed> {
+    let mut command = Command::new(froctomap);
+    command.arg("build").arg(input).arg("-o").arg(output).args([
+        "--created",
+        "2026-01-01T00:00:00Z",
+        "--json",
+        "--quiet",
+    ]);
+    if let Some(memory) = memory {
+        command.args(["--memory", memory]);
+    }
+    eprintln!("building {}", input.display());
+    let out = command
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .with_context(|| format!("starting {}", froctomap.display()))?;
+    if !out.status.success() {
+        bail!("the build of {} failed ({})", input.display(), out.status);
+    }
+    let value: Value = serde_json::from_slice(&out.stdout)
+        .with_context(|| format!("reading the report of the build of {}", input.display()))?;
+    Ok(Timed {
+        seconds: value["seconds"].as_f64().unwrap_or(0.0),
+        peak_memory_bytes: value["peak_memory_bytes"].as_u64(),
+        file_bytes: value["file_bytes"].as_u64().unwrap_or(0),
+    })
 }
 
 #[cfg(test)]

@@ -62,6 +62,85 @@ pub fn encode_octomap_cdr(
     Some(out.bytes)
 }
 
+/// The `ros2msg` schema of `sensor_msgs/msg/PointCloud2`, with its nested types.
+pub const POINT_CLOUD2_ROS2MSG: &str = "\
+std_msgs/Header header
+uint32 height
+uint32 width
+sensor_msgs/PointField[] fields
+bool is_bigendian
+uint32 point_step
+uint32 row_step
+uint8[] data
+bool is_dense
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+================================================================================
+MSG: sensor_msgs/PointField
+uint8 INT8    = 1
+uint8 UINT8   = 2
+uint8 INT16   = 3
+uint8 UINT16  = 4
+uint8 INT32   = 5
+uint8 UINT32  = 6
+uint8 FLOAT32 = 7
+uint8 FLOAT64 = 8
+string name
+uint32 offset
+uint8 datatype
+uint32 count
+";
+
+/// The ROS 2 type name of the messages [`encode_point_cloud2_cdr`] writes.
+pub const POINT_CLOUD2_TYPE: &str = "sensor_msgs/msg/PointCloud2";
+
+/// A field of a point: its name, its byte offset in the point and its `PointField` datatype
+/// (7: FLOAT32, 6: UINT32…).
+pub type PointFieldSpec<'a> = (&'a str, u32, u8);
+
+/// A `sensor_msgs/msg/PointCloud2` message in little-endian CDR: one row of
+/// `data.len() / point_step` points of the given fields (count 1 each), dense. `None` when
+/// a field is longer than a CDR length (`u32`) can say.
+pub fn encode_point_cloud2_cdr(
+    stamp: (i32, u32),
+    frame_id: &str,
+    fields: &[PointFieldSpec<'_>],
+    point_step: u32,
+    data: &[u8],
+) -> Option<Vec<u8>> {
+    let width = u32::try_from(data.len() / point_step.max(1) as usize).ok()?;
+    let row_step = u32::try_from(data.len()).ok()?;
+    if u32::try_from(frame_id.len().saturating_add(1)).is_err() {
+        return None;
+    }
+    let mut out = CdrWriter::with_capacity(128 + frame_id.len() + data.len());
+    out.u32(stamp.0 as u32);
+    out.u32(stamp.1);
+    out.string(frame_id);
+    out.u32(1);
+    out.u32(width);
+    out.u32(u32::try_from(fields.len()).ok()?);
+    for &(name, offset, datatype) in fields {
+        out.string(name);
+        out.u32(offset);
+        out.bytes.push(datatype);
+        out.u32(1);
+    }
+    out.bytes.push(0); // is_bigendian
+    out.u32(point_step);
+    out.u32(row_step);
+    out.u32(row_step);
+    out.bytes.extend_from_slice(data);
+    out.bytes.push(1); // is_dense
+    Some(out.bytes)
+}
+
 /// Little-endian CDR: a 4-byte encapsulation header, then each primitive aligned to its size
 /// counted from the end of that header.
 struct CdrWriter {

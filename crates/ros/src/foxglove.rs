@@ -8,6 +8,7 @@
 //! `dynamic`, 1 for a retrieved voxel whose state changes over the file's span (orange) and
 //! 0 for a static one (grey).
 
+use crate::encode::encode_point_cloud2_cdr;
 use crate::error::McapWriteError;
 use base64::Engine;
 use froctomap_convert::{CellShade, ExportedKind, OccupiedCell};
@@ -60,14 +61,15 @@ pub const POINT_CLOUD_JSON_SCHEMA: &str = r#"{
 const UINT8: u8 = 1;
 const FLOAT32: u8 = 7;
 
-/// The JSON `foxglove.PointCloud` message of a map's occupied cells.
-pub(crate) fn point_cloud(
-    time: Timestamp,
-    frame_id: &str,
+/// The points of a map's occupied cells: `STRIDE` bytes each (x, y, z as float32, four
+/// colour bytes in the order `colour` gives them, the value as float32), and the value's
+/// name (`p` or `dynamic`).
+fn points(
     kind: ExportedKind,
     resolution: f64,
     occupied: &[OccupiedCell],
-) -> Result<Vec<u8>, McapWriteError> {
+    colour: fn([u8; 4]) -> [u8; 4],
+) -> Result<(Vec<u8>, &'static str), McapWriteError> {
     let voxels: u64 = occupied
         .iter()
         .map(|cell| voxels_per_node(cell.depth))
@@ -85,7 +87,7 @@ pub(crate) fn point_cloud(
             for c in MortonCode(code).key().center(resolution) {
                 data.extend_from_slice(&(c as f32).to_le_bytes());
             }
-            data.extend_from_slice(&rgba);
+            data.extend_from_slice(&colour(rgba));
             data.extend_from_slice(&value.to_le_bytes());
         }
     }
@@ -93,6 +95,18 @@ pub(crate) fn point_cloud(
         ExportedKind::Predicted => "p",
         _ => "dynamic",
     };
+    Ok((data, value_field))
+}
+
+/// The JSON `foxglove.PointCloud` message of a map's occupied cells.
+pub(crate) fn point_cloud(
+    time: Timestamp,
+    frame_id: &str,
+    kind: ExportedKind,
+    resolution: f64,
+    occupied: &[OccupiedCell],
+) -> Result<Vec<u8>, McapWriteError> {
+    let (data, value_field) = points(kind, resolution, occupied, |rgba| rgba)?;
     let fields: Vec<serde_json::Value> = [
         ("x", 0, FLOAT32),
         ("y", 4, FLOAT32),
@@ -121,6 +135,34 @@ pub(crate) fn point_cloud(
         "data": base64::engine::general_purpose::STANDARD.encode(&data),
     });
     Ok(message.to_string().into_bytes())
+}
+
+/// The same points as a `sensor_msgs/msg/PointCloud2` in CDR (for rviz2, Rerun and
+/// Foxglove): fields `x y z` (FLOAT32), `rgba` (UINT32, `0xAARRGGBB` as rviz2 and PCL pack
+/// colours) and the value (FLOAT32).
+pub(crate) fn point_cloud2(
+    stamp: (i32, u32),
+    frame_id: &str,
+    kind: ExportedKind,
+    resolution: f64,
+    occupied: &[OccupiedCell],
+) -> Result<Vec<u8>, McapWriteError> {
+    // Little-endian 0xAARRGGBB: blue, green, red, alpha.
+    let (data, value_field) = points(kind, resolution, occupied, |[r, g, b, a]| [b, g, r, a])?;
+    const ROS_UINT32: u8 = 6;
+    const ROS_FLOAT32: u8 = 7;
+    let fields = [
+        ("x", 0, ROS_FLOAT32),
+        ("y", 4, ROS_FLOAT32),
+        ("z", 8, ROS_FLOAT32),
+        ("rgba", 12, ROS_UINT32),
+        (value_field, 16, ROS_FLOAT32),
+    ];
+    encode_point_cloud2_cdr(stamp, frame_id, &fields, STRIDE as u32, &data).ok_or(
+        McapWriteError::MessageTooLong {
+            bytes: data.len() as u64,
+        },
+    )
 }
 
 /// A cell's colour and value.

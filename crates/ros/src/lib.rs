@@ -35,10 +35,13 @@ mod mcap_file;
 mod message;
 mod source;
 
-pub use encode::{encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE};
+pub use encode::{
+    encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, OCTOMAP_ROS2MSG, OCTOMAP_TYPE,
+    POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
+};
 pub use error::{McapWriteError, MessageError, RosError};
 pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
-pub use mcap_export::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD_TOPIC};
+pub use mcap_export::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 
 use froctomap_convert::{Context, Recording, RecordingFormat, RecordingOptions};
@@ -58,7 +61,8 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
 /// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4).
 /// Written by `export --format mcap`: the maps as `octomap_msgs/msg/Octomap` (CDR) on
 /// [`OCTOMAP_TOPIC`] and their occupied voxels as a `foxglove.PointCloud` (JSON) on
-/// [`POINT_CLOUD_TOPIC`].
+/// [`POINT_CLOUD_TOPIC`] and as a `sensor_msgs/msg/PointCloud2` (CDR) on
+/// [`POINT_CLOUD2_TOPIC`].
 pub const MCAP: RecordingFormat = RecordingFormat {
     name: "mcap",
     description: "MCAP recording",

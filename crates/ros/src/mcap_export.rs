@@ -2,12 +2,16 @@
 //! [`RecordingWriter`]: each map as an `octomap_msgs/msg/Octomap` message in CDR on
 //! [`OCTOMAP_TOPIC`] (`binary`, the `ros2msg` schema embedded, so `ros2 bag play` replays
 //! it to rviz), and its occupied voxels as a `foxglove.PointCloud` in JSON on
-//! [`POINT_CLOUD_TOPIC`] (for Foxglove's 3D panel, without ROS). Both are stamped with the
-//! map's time, as log and publish time too; chunks are zstd-compressed.
+//! [`POINT_CLOUD_TOPIC`] (for Foxglove's 3D panel, without ROS), and the same points as a
+//! `sensor_msgs/msg/PointCloud2` in CDR on [`POINT_CLOUD2_TOPIC`] (the standard message
+//! rviz2 and Rerun draw). All are stamped with the map's time, as log and publish time
+//! too; chunks are zstd-compressed.
 
-use crate::encode::{encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE};
+use crate::encode::{
+    encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
+};
 use crate::error::McapWriteError;
-use crate::foxglove::{point_cloud, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+use crate::foxglove::{point_cloud, point_cloud2, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
 use froctomap_convert::{Cause, ExportedMap, RecordingSink, RecordingWriter};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -20,6 +24,8 @@ use std::io::Write;
 pub const OCTOMAP_TOPIC: &str = "/octomap_binary";
 /// The topic of the exported maps' occupied voxels.
 pub const POINT_CLOUD_TOPIC: &str = "/froctomap/occupied_voxels";
+/// The topic of the exported maps' occupied voxels as `sensor_msgs/msg/PointCloud2`.
+pub const POINT_CLOUD2_TOPIC: &str = "/froctomap/occupied_voxels_pc2";
 /// The frame every message is in.
 pub const FRAME_ID: &str = "map";
 
@@ -28,6 +34,7 @@ struct McapMapWriter {
     writer: mcap::Writer<Box<dyn RecordingSink>>,
     octomap: u16,
     cloud: u16,
+    cloud2: u16,
     sequence: u32,
 }
 
@@ -51,10 +58,17 @@ impl McapMapWriter {
             POINT_CLOUD_JSON_SCHEMA.as_bytes(),
         )?;
         let cloud = writer.add_channel(schema, POINT_CLOUD_TOPIC, "json", &none)?;
+        let schema = writer.add_schema(
+            POINT_CLOUD2_TYPE,
+            "ros2msg",
+            POINT_CLOUD2_ROS2MSG.as_bytes(),
+        )?;
+        let cloud2 = writer.add_channel(schema, POINT_CLOUD2_TOPIC, "cdr", &none)?;
         Ok(Self {
             writer,
             octomap,
             cloud,
+            cloud2,
             sequence: 0,
         })
     }
@@ -71,7 +85,12 @@ impl McapMapWriter {
                     bytes: body.len() as u64,
                 })?;
         let cloud = point_cloud(map.time, FRAME_ID, map.kind, map.resolution, map.occupied)?;
-        for (channel_id, data) in [(self.octomap, &message), (self.cloud, &cloud)] {
+        let cloud2 = point_cloud2(stamp, FRAME_ID, map.kind, map.resolution, map.occupied)?;
+        for (channel_id, data) in [
+            (self.octomap, &message),
+            (self.cloud, &cloud),
+            (self.cloud2, &cloud2),
+        ] {
             let header = MessageHeader {
                 channel_id,
                 sequence: self.sequence,
