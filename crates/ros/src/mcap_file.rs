@@ -134,6 +134,9 @@ impl McapFile {
                 return Ok(mcap);
             }
             Ok(None) => "no summary (its writer did not finish it, or it is cut)".to_string(),
+            Err(RosError::Mcap { source, .. }) => {
+                format!("its summary does not read ({source})")
+            }
             Err(e) => format!("its summary does not read ({e})"),
         };
         mcap.scan(limit, skip_bad, &why)?;
