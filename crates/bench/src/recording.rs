@@ -208,7 +208,9 @@ fn differences(a: &std::path::Path, b: &std::path::Path) -> Result<Option<String
     for (ta, tb) in ra.tiles().iter().zip(rb.tiles()) {
         let stored = |bytes: &[u8], offset: u64, len: u32| {
             let start = usize::try_from(offset).ok()?;
-            bytes.get(start..start.checked_add(len as usize)?).map(<[u8]>::to_vec)
+            bytes
+                .get(start..start.checked_add(len as usize)?)
+                .map(<[u8]>::to_vec)
         };
         let same = (ta.code, ta.stored_len, ta.raw_len, ta.crc)
             == (tb.code, tb.stored_len, tb.raw_len, tb.crc)

@@ -339,14 +339,20 @@ impl McapFile {
         Ok(out)
     }
 
-    /// The data of the message at `found`.
-    pub fn message(&self, found: &McapMessage, limit: u64) -> Result<Vec<u8>, RosError> {
+    /// The records of chunk `i`, decompressed and checked (its CRC), for
+    /// [`McapFile::message_in`].
+    pub fn records(&self, i: usize, limit: u64) -> Result<Vec<u8>, RosError> {
         let chunk = self
             .chunks
-            .get(found.chunk)
+            .get(i)
             .ok_or_else(|| self.file.malformed("chunk index", "no such chunk"))?;
+        self.chunk_records(chunk, limit)
+    }
+
+    /// The data of the message at `found` in `records`, its chunk's records.
+    pub fn message_in(&self, records: &[u8], found: &McapMessage) -> Result<Vec<u8>, RosError> {
         let mut data = None;
-        self.each_record(chunk, limit, &mut |record, index| {
+        self.walk(records, &mut |record, index| {
             if index < found.record {
                 return Ok(true);
             }
@@ -368,6 +374,13 @@ impl McapFile {
         limit: u64,
         on_record: &mut dyn FnMut(Record<'_>, usize) -> Result<bool, RosError>,
     ) -> Result<(), RosError> {
+        let records = self.chunk_records(chunk, limit)?;
+        self.walk(&records, on_record)
+    }
+
+    /// The records of `chunk`, decompressed to the size its header gives (at most `limit`)
+    /// and checked against its CRC.
+    fn chunk_records(&self, chunk: &McapChunk, limit: u64) -> Result<Vec<u8>, RosError> {
         self.file
             .bounded("uncompressed chunk", chunk.uncompressed, limit)?;
         // Compressed data may be a little longer than what it holds.
@@ -399,6 +412,16 @@ impl McapFile {
                 .file
                 .malformed("chunk", "its records do not match their CRC"));
         }
+        Ok(records)
+    }
+
+    /// Calls `on_record` with each of `records` and its place, while it returns `true`.
+    fn walk(
+        &self,
+        records: &[u8],
+        on_record: &mut dyn FnMut(Record<'_>, usize) -> Result<bool, RosError>,
+    ) -> Result<(), RosError> {
+        let to_error = mcap_error(&self.file.path);
         // The records, each length checked against the chunk before it is used.
         let mut pos = 0usize;
         let mut index = 0usize;

@@ -91,7 +91,8 @@ struct TopicMaps {
     kind: MessageType,
     files: Files,
     maps: Vec<(i64, Location)>,
-    /// The last decompressed bag chunk (several maps often share one).
+    /// The last decompressed chunk (several maps often share one): a bag chunk by its
+    /// position, an MCAP chunk by its file (high bits) and index.
     chunk_cache: Mutex<Option<(u64, Arc<Vec<u8>>)>>,
 }
 
@@ -115,6 +116,26 @@ impl TopicMaps {
         let chunk = Arc::new(bag.chunk(chunk_pos, limit)?);
         *cache() = Some((chunk_pos, chunk.clone()));
         Ok(chunk)
+    }
+
+    /// The records of chunk `chunk` of MCAP file `file` (several maps often share one).
+    fn mcap_records(
+        &self,
+        mcap: &McapFile,
+        file: usize,
+        chunk: usize,
+        limit: u64,
+    ) -> Result<Arc<Vec<u8>>, RosError> {
+        let key = ((file as u64) << 40) | chunk as u64;
+        let cache = || self.chunk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((cached, records)) = cache().as_ref() {
+            if *cached == key && records.len() as u64 <= limit {
+                return Ok(records.clone());
+            }
+        }
+        let records = Arc::new(mcap.records(chunk, limit)?);
+        *cache() = Some((key, records.clone()));
+        Ok(records)
     }
 
     fn fetch(&self, index: usize, limit: u64) -> Result<Vec<u8>, RosError> {
@@ -162,15 +183,18 @@ impl TopicMaps {
                     what: "recording",
                     problem: "no such file".into(),
                 })?;
-                let data = mcap.message(found, limit).map_err(|problem| {
-                    let chunk = mcap.chunks.get(found.chunk);
-                    damaged(
-                        chunk.map_or(0, |c| c.offset()),
-                        Some(&self.topic),
-                        chunk.and_then(|c| c.times),
-                        problem,
-                    )
-                })?;
+                let data = self
+                    .mcap_records(mcap, *file, found.chunk, limit)
+                    .and_then(|records| mcap.message_in(&records, found))
+                    .map_err(|problem| {
+                        let chunk = mcap.chunks.get(found.chunk);
+                        damaged(
+                            chunk.map_or(0, |c| c.offset()),
+                            Some(&self.topic),
+                            chunk.and_then(|c| c.times),
+                            problem,
+                        )
+                    })?;
                 decode(&data, *encoding)
             }
             _ => Err(RosError::Malformed {
