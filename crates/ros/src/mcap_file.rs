@@ -91,20 +91,18 @@ struct Found {
 impl Found {
     fn add(&mut self, record: &Record<'_>) {
         match record {
-            Record::Schema { header, .. } => {
-                if !self.schemas.iter().any(|(id, _)| *id == header.id) {
-                    self.schemas.push((header.id, header.name.clone()));
-                }
+            Record::Schema { header, .. }
+                if !self.schemas.iter().any(|(id, _)| *id == header.id) =>
+            {
+                self.schemas.push((header.id, header.name.clone()));
             }
-            Record::Channel(c) => {
-                if !self.channels.iter().any(|(id, ..)| *id == c.id) {
-                    self.channels.push((
-                        c.id,
-                        c.topic.clone(),
-                        c.schema_id,
-                        c.message_encoding.clone(),
-                    ));
-                }
+            Record::Channel(c) if !self.channels.iter().any(|(id, ..)| *id == c.id) => {
+                self.channels.push((
+                    c.id,
+                    c.topic.clone(),
+                    c.schema_id,
+                    c.message_encoding.clone(),
+                ));
             }
             _ => {}
         }
@@ -130,7 +128,7 @@ impl McapFile {
         };
         let why = match read_summary(&mcap.file) {
             Ok(Some(summary)) => {
-                mcap.from_summary(&summary)?;
+                mcap.read_summary_index(&summary)?;
                 return Ok(mcap);
             }
             Ok(None) => "no summary (its writer did not finish it, or it is cut)".to_string(),
@@ -143,7 +141,8 @@ impl McapFile {
         Ok(mcap)
     }
 
-    fn from_summary(&mut self, summary: &mcap::Summary) -> Result<(), RosError> {
+    /// Channels and chunks from the summary.
+    fn read_summary_index(&mut self, summary: &mcap::Summary) -> Result<(), RosError> {
         self.channels = summary
             .channels
             .values()

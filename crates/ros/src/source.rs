@@ -270,6 +270,9 @@ fn times(
     Ok((times, warnings))
 }
 
+/// A bag message with its header stamp (`None`: not read), or why that does not decode.
+type StampedMessage = (BagMessage, Result<Option<i64>, RosError>);
+
 /// A chunk's problem as an error naming the chunk, the topic and its messages' times.
 fn damaged(
     offset: u64,
@@ -353,7 +356,7 @@ pub(crate) fn open_bag(
             if !info.connections.iter().any(|c| ids.contains(c)) {
                 continue;
             }
-            let read = || -> Result<Vec<(BagMessage, Result<Option<i64>, RosError>)>, RosError> {
+            let read = || -> Result<Vec<StampedMessage>, RosError> {
                 let found = bag.chunk_messages(info, &ids)?;
                 if options.time != RecordedTime::Header {
                     return Ok(found.into_iter().map(|m| (m, Ok(None))).collect());
