@@ -91,9 +91,46 @@ struct TopicMaps {
     kind: MessageType,
     files: Files,
     maps: Vec<(i64, Location)>,
-    /// The last decompressed chunk (several maps often share one): a bag chunk by its
+    /// The last decompressed chunks (several maps often share one): a bag chunk by its
     /// position, an MCAP chunk by its file (high bits) and index.
-    chunk_cache: Mutex<Option<(u64, Arc<Vec<u8>>)>>,
+    chunk_cache: ChunkCache,
+}
+
+/// The last few decompressed chunks, most recent first. Extraction reads the maps of a
+/// batch on several threads, each from its own part of the batch, so one entry would be
+/// evicted at every turn; [`ChunkCache::ENTRIES`] keeps each thread's chunk.
+#[derive(Debug, Default)]
+struct ChunkCache(Mutex<Vec<(u64, Arc<Vec<u8>>)>>);
+
+impl ChunkCache {
+    const ENTRIES: usize = 4;
+
+    /// The chunk `key`, from the cache or `read` (then kept, evicting the oldest).
+    fn get_or_read(
+        &self,
+        key: u64,
+        limit: u64,
+        read: impl FnOnce() -> Result<Vec<u8>, RosError>,
+    ) -> Result<Arc<Vec<u8>>, RosError> {
+        let entries = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        {
+            let mut entries = entries();
+            if let Some(i) = entries
+                .iter()
+                .position(|(k, chunk)| *k == key && chunk.len() as u64 <= limit)
+            {
+                let entry = entries.remove(i);
+                let chunk = entry.1.clone();
+                entries.insert(0, entry);
+                return Ok(chunk);
+            }
+        }
+        let chunk = Arc::new(read()?);
+        let mut entries = entries();
+        entries.insert(0, (key, chunk.clone()));
+        entries.truncate(Self::ENTRIES);
+        Ok(chunk)
+    }
 }
 
 impl TopicMaps {
@@ -107,15 +144,8 @@ impl TopicMaps {
     }
 
     fn bag_chunk(&self, bag: &Bag, chunk_pos: u64, limit: u64) -> Result<Arc<Vec<u8>>, RosError> {
-        let cache = || self.chunk_cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((pos, chunk)) = cache().as_ref() {
-            if *pos == chunk_pos && chunk.len() as u64 <= limit {
-                return Ok(chunk.clone());
-            }
-        }
-        let chunk = Arc::new(bag.chunk(chunk_pos, limit)?);
-        *cache() = Some((chunk_pos, chunk.clone()));
-        Ok(chunk)
+        self.chunk_cache
+            .get_or_read(chunk_pos, limit, || bag.chunk(chunk_pos, limit))
     }
 
     /// The records of chunk `chunk` of MCAP file `file` (several maps often share one).
@@ -127,15 +157,8 @@ impl TopicMaps {
         limit: u64,
     ) -> Result<Arc<Vec<u8>>, RosError> {
         let key = ((file as u64) << 40) | chunk as u64;
-        let cache = || self.chunk_cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((cached, records)) = cache().as_ref() {
-            if *cached == key && records.len() as u64 <= limit {
-                return Ok(records.clone());
-            }
-        }
-        let records = Arc::new(mcap.records(chunk, limit)?);
-        *cache() = Some((key, records.clone()));
-        Ok(records)
+        self.chunk_cache
+            .get_or_read(key, limit, || mcap.records(chunk, limit))
     }
 
     fn fetch(&self, index: usize, limit: u64) -> Result<Vec<u8>, RosError> {
@@ -340,7 +363,7 @@ pub(crate) fn open_bag(
         kind,
         files: Files::Bag(bag),
         maps: Vec::new(),
-        chunk_cache: Mutex::new(None),
+        chunk_cache: ChunkCache::default(),
     };
     let mut stamps = Vec::new();
     let mut locations = Vec::new();
@@ -503,7 +526,7 @@ pub(crate) fn open_mcap(
         kind,
         files: Files::Mcap(with_encoding),
         maps: locations,
-        chunk_cache: Mutex::new(None),
+        chunk_cache: ChunkCache::default(),
     };
     let (times, more) = times(&maps, &stamps, options.time)?;
     warnings.extend(more);
