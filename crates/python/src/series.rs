@@ -254,17 +254,21 @@ pub fn build<'py>(
     // Recordings among the inputs are read back through the context that expanded them.
     let context = crate::context()
         .clone()
-        .with_recording_options(RecordingOptions::new(topic, recorded));
+        .with_recording_options(RecordingOptions::new(topic, recorded).with_skip_bad(skip_bad));
     let callback = progress.map(Callback::new);
     let report = py.detach(|| {
         let progress: &dyn Progress = match &callback {
             Some(callback) => callback,
             None => &Silent,
         };
-        let collected = collect_inputs_explained(&context, &inputs, source, &Zone::utc())
+        let mut collected = collect_inputs_explained(&context, &inputs, source, &Zone::utc())
             .map_err(|e| message(&e))?;
-        let report = build_file(&context, &collected.series, &output, &options, progress)
+        let mut report = build_file(&context, &collected.series, &output, &options, progress)
             .map_err(|e| message(&e))?;
+        // Damaged parts of recordings, left out before the build saw their maps.
+        report
+            .skipped
+            .splice(0..0, std::mem::take(&mut collected.skipped));
         let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
         if let Value::Object(map) = &mut value {
             let warnings: Vec<Value> = collected
