@@ -30,9 +30,9 @@ pub struct AppendArgs {
     /// none for the model's defaults. The model and lossless/lossy come from the file.
     #[arg(long, value_name = "KEY=VALUE")]
     model_option: Vec<String>,
-    /// Leave unreadable files and files of another resolution than the file's out (listed
-    /// at the end) instead of stopping; the first file whose header gives a resolution
-    /// must have the file's.
+    /// Leave unreadable files, files of another resolution than the file's and damaged
+    /// chunks of recordings out (listed at the end) instead of stopping; the first file
+    /// whose header gives a resolution must have the file's.
     #[arg(long)]
     skip_bad: bool,
     /// Force the input map format instead of detecting it.

@@ -169,8 +169,8 @@ pub struct BuildArgs {
     /// lists (format 1.0, for readers that only know that version).
     #[arg(long, default_value_t = 256, value_name = "SAMPLES")]
     toggle_block: u32,
-    /// Leave unreadable files and files of another resolution out (listed at the end)
-    /// instead of stopping.
+    /// Leave unreadable files, files of another resolution and damaged chunks of recordings
+    /// out (listed at the end) instead of stopping.
     #[arg(long)]
     skip_bad: bool,
     /// The series' resolution in metres; inputs of another resolution are refused (or left
@@ -634,7 +634,8 @@ pub struct ExportArgs {
     mode: ExportModeArg,
     /// Map format (see `froctomap formats`), or `mcap`: one MCAP file with the maps as
     /// octomap_msgs/msg/Octomap on /octomap_binary (for ros2 bag play) and their occupied
-    /// voxels as a foxglove.PointCloud on /froctomap/occupied_voxels (for Foxglove).
+    /// voxels as a foxglove.PointCloud on /froctomap/occupied_voxels (for Foxglove) and as a
+    /// sensor_msgs/msg/PointCloud2 on /froctomap/occupied_voxels_pc2 (for rviz2, Rerun).
     /// Default: mcap for an output named *.mcap, else bt.
     #[arg(long, value_parser = export_format())]
     format: Option<String>,
