@@ -24,6 +24,9 @@ use std::path::Path;
 /// The first bytes of a bag.
 pub(crate) const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
 
+/// The longest record header read (bag headers hold a few short fields).
+const MAX_HEADER_BYTES: u64 = 1 << 20;
+
 const OP_MESSAGE: u8 = 0x02;
 const OP_BAG_HEADER: u8 = 0x03;
 const OP_INDEX: u8 = 0x04;
@@ -108,6 +111,9 @@ fn read_record(
 ) -> Result<FileRecord, RosError> {
     let len = |bytes: Vec<u8>| bytes.try_into().map(u32::from_le_bytes).unwrap_or(0);
     let header_len = u64::from(len(file.read_at(offset, 4, what)?));
+    // Record headers are a few named fields; a longer one is damage, not a reason to read
+    // up to 4 GiB.
+    let header_len = file.bounded("record header", header_len, MAX_HEADER_BYTES)?;
     let header = file.read_at(offset + 4, header_len, what)?;
     let data_len_at = offset + 4 + header_len;
     let data_len = u64::from(len(file.read_at(data_len_at, 4, what)?));
@@ -495,6 +501,12 @@ impl Bag {
             limit,
         )?;
         let compression = fields.text("compression");
+        // Compressed data may be a little longer than what it holds.
+        self.file.bounded(
+            "chunk",
+            record.data_len,
+            limit.saturating_add(limit / 64 + 4096),
+        )?;
         let data = self
             .file
             .read_at(record.data_offset, record.data_len, "chunk")?;
