@@ -13,7 +13,7 @@
 //! * Which time: the header stamp (default; zero stamps take the log time, with a warning)
 //!   or the log time.
 //! * Streaming: a recording is opened from its index (bag index records, the MCAP summary);
-//!   maps are fetched one message at a time, so memory holds one chunk, never the file.
+//!   maps are fetched one message at a time, so memory holds a few chunks, never the file.
 //! * Each message becomes the map file it stands for ([`OctomapMessage::map_file`]): the
 //!   `.bt` body of `binary` messages, the `.ot` body of others, or a whole file with its
 //!   header when a publisher put one in `data`.

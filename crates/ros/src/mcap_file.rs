@@ -1,5 +1,6 @@
 //! MCAP files, read through the `mcap` crate: the summary section (channels, schemas, chunk
-//! indexes) found from the footer, then one chunk at a time, so memory holds one chunk.
+//! indexes) found from the footer (or, without one, the records in order), then one chunk
+//! at a time.
 
 use crate::error::RosError;
 use crate::io::RecordingFile;
