@@ -171,10 +171,11 @@ pub fn golden_config() -> ModelConfig {
 }
 
 /// The golden files: one per format version, each written with that version's layout.
-pub const GOLDENS: [(&str, ToggleLayout); 2] = [
+pub const GOLDENS: [(&str, ToggleLayout); 3] = [
     ("golden-v1.0.froct", ToggleLayout::Whole),
     // Blocks of 16 samples: the 72-sample axis has five, the last one short.
     ("golden-v1.1.froct", ToggleLayout::Blocked(16)),
+    ("golden-v1.2.froct", ToggleLayout::Coded(16)),
 ];
 
 /// Writes a golden file to `path`.
