@@ -3,46 +3,69 @@
 //!
 //! It is the classic carry-propagating range coder of LZMA with adaptive bit probabilities:
 //! a 32-bit `range`, a 33-bit `low`, bytes shifted out from the top, and per-context
-//! probabilities of a 0 bit in 15-bit fixed point that move 1/32 of the way towards each
-//! coded bit. Two changes make short streams (one per list set and toggle block) cheap: the
-//! always-zero first byte is not stored, and the final bytes are chosen to end in as many
-//! zero bytes as possible, which are not stored either (a decoder reads zeros past the end).
-//! A decoder may read at most [`PAD`] bytes past the end, so the work of decoding is bounded
-//! by the bytes: every decision costs at least ~0.0014 bits.
+//! probabilities of a 0 bit in 16-bit fixed point. A probability moves half way towards the
+//! first bits it codes, then by ever smaller steps down to 1/128 (a running average that
+//! settles), and stays within `[64, 65472] / 65536`. Two changes make short streams (one
+//! per toggle block) cheap: the always-zero first byte is not stored, and the final bytes
+//! are chosen to end in as many zero bytes as possible, which are not stored either (a
+//! decoder reads zeros past the end). A decoder may read at most [`PAD`] bytes past the end,
+//! so the work of decoding is bounded by the bytes: every decision costs at least ~0.0014
+//! bits.
 //!
 //! Written here rather than taken from a crate: the entropy-coding crates (`constriction`,
 //! for one) code symbols with models built per symbol, where this needs a few hundred
 //! adaptive binary contexts evaluated per decision on a query's hot path.
 
 /// Bits of a probability: `p(0) = prob / 2^PROB_BITS`.
-const PROB_BITS: u32 = 15;
-/// A probability moves `1 / 2^ADAPT_SHIFT` of the way towards each coded bit.
-const ADAPT_SHIFT: u32 = 5;
+const PROB_BITS: u32 = 16;
+/// The smallest step a probability moves by: `1 / 2^MAX_SHIFT` of the way to a coded bit.
+const MAX_SHIFT: u32 = 7;
+/// Probabilities stay within `[PROB_MIN, 2^PROB_BITS − PROB_MIN]`.
+const PROB_MIN: u32 = 64;
 /// Probability of a 0 that a fresh context starts with: one half.
-pub(crate) const PROB_INIT: u16 = 1 << (PROB_BITS - 1);
+const PROB_INIT: u16 = 1 << (PROB_BITS - 1);
 /// Below this, `range` is shifted out by a byte.
 const TOP: u32 = 1 << 24;
 /// Bytes a decoder may read past the end of its stream (they read as zeros).
 pub(crate) const PAD: usize = 4;
 
-/// An adaptive probability: the chance of a 0 bit in 15-bit fixed point.
+/// An adaptive probability: the chance of a 0 bit in 16-bit fixed point, and how many bits
+/// it has coded (up to the count where its step stops shrinking).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Prob(u16);
+pub(crate) struct Prob {
+    p: u16,
+    seen: u8,
+}
 
 impl Default for Prob {
     fn default() -> Self {
-        Prob(PROB_INIT)
+        Prob {
+            p: PROB_INIT,
+            seen: 0,
+        }
     }
 }
 
+/// Bits coded after which a probability moves by its smallest step.
+const SETTLED: u8 = (1 << MAX_SHIFT) - 2;
+
 impl Prob {
+    /// Moves `1 / 2^shift` of the way towards `bit`, `shift = ⌊log2(seen + 2)⌋` capped at
+    /// [`MAX_SHIFT`], then clamps.
     #[inline]
     fn update(&mut self, bit: bool) {
-        if bit {
-            self.0 -= self.0 >> ADAPT_SHIFT;
-        } else {
-            self.0 += ((1u16 << PROB_BITS) - self.0) >> ADAPT_SHIFT;
+        let shift = (u32::from(self.seen) + 2).ilog2();
+        if self.seen < SETTLED {
+            self.seen += 1;
         }
+        let p = u32::from(self.p);
+        let p = if bit {
+            p - (p >> shift)
+        } else {
+            p + (((1 << PROB_BITS) - p) >> shift)
+        };
+        // Within u16: at most 2^16 − PROB_MIN.
+        self.p = p.clamp(PROB_MIN, (1 << PROB_BITS) - PROB_MIN) as u16;
     }
 }
 
@@ -75,7 +98,7 @@ impl Encoder {
     /// Codes `bit` with the adaptive probability `prob`, and adapts it.
     #[inline]
     pub(crate) fn bit(&mut self, prob: &mut Prob, bit: bool) {
-        let bound = (self.range >> PROB_BITS) * u32::from(prob.0);
+        let bound = (self.range >> PROB_BITS) * u32::from(prob.p);
         if bit {
             self.low += u64::from(bound);
             self.range -= bound;
@@ -187,7 +210,7 @@ impl<'a> Decoder<'a> {
     /// Decodes a bit with the adaptive probability `prob`, and adapts it.
     #[inline]
     pub(crate) fn bit(&mut self, prob: &mut Prob) -> bool {
-        let bound = (self.range >> PROB_BITS) * u32::from(prob.0);
+        let bound = (self.range >> PROB_BITS) * u32::from(prob.p);
         let bit = if self.code < bound {
             self.range = bound;
             false
@@ -317,7 +340,7 @@ mod tests {
     #[test]
     fn garbage_decodes_without_panicking_and_overruns_are_seen() {
         let mut decoder = Decoder::new(&[0xFF; 3]);
-        let mut prob = Prob(1);
+        let mut prob = Prob { p: 1, seen: 0 };
         let mut steps = 0;
         while !decoder.overrun() {
             decoder.bit(&mut prob);

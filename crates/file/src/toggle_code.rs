@@ -13,8 +13,8 @@
 use crate::error::{corrupt, FormatViolation};
 use crate::range_coder::{Decoder, Encoder, Prob};
 
-/// Bits of a gap's exponent: gaps below `2^32 − 1` have exponents `0..=31`.
-const EXPONENT_BITS: u32 = 5;
+/// Bits of a gap's exponent, its bit length `0..=32`.
+const EXPONENT_BITS: u32 = 6;
 
 /// The adaptive probabilities of one list set in one block.
 #[derive(Clone)]
@@ -24,7 +24,7 @@ struct Contexts {
     more: [[Prob; 2]; 2],
     /// `[state after the toggle]`
     pulse: [Prob; 2],
-    /// `[state]`, nodes `1..32` of the exponent's bit tree.
+    /// `[state]`, nodes `1..64` of the exponent's bit tree.
     exponent: [[Prob; 1 << EXPONENT_BITS]; 2],
 }
 
@@ -101,18 +101,19 @@ impl BlockEncoder {
     }
 }
 
-/// A gap `g` as `v = g + 1 = 2^n + m`: the exponent `n` in the bit tree, then `m` in `n`
-/// direct bits.
+/// A gap `g` as its bit length `n` in the bit tree (most significant bit first), then, for
+/// `n ≥ 1`, the `n − 1` bits of `g` below its leading one as direct bits.
 fn encode_gap(coder: &mut Encoder, tree: &mut [Prob; 1 << EXPONENT_BITS], gap: u32) {
-    let v = gap + 1;
-    let n = 31 - v.leading_zeros();
+    let n = 32 - gap.leading_zeros();
     let mut node = 1usize;
     for k in (0..EXPONENT_BITS).rev() {
         let bit = n >> k & 1 == 1;
         coder.bit(&mut tree[node], bit);
         node = node * 2 + usize::from(bit);
     }
-    coder.direct_bits(v - (1 << n), n);
+    if n > 1 {
+        coder.direct_bits(gap - (1 << (n - 1)), n - 1);
+    }
 }
 
 /// Decodes one block of a list set, list after list.
@@ -160,9 +161,9 @@ impl<'a> BlockDecoder<'a> {
             }
             let gap = decode_gap(&mut self.coder, &mut ctx.exponent[state]);
             // `at < len`, so `len − at` cannot underflow.
-            if gap >= self.len - at {
+            let Some(gap) = gap.filter(|&gap| gap < self.len - at) else {
                 return Err(corrupt(self.part, "toggle beyond its block"));
-            }
+            };
             let t = at + gap;
             toggle(t);
             state ^= 1;
@@ -193,15 +194,18 @@ impl<'a> BlockDecoder<'a> {
     }
 }
 
-fn decode_gap(coder: &mut Decoder<'_>, tree: &mut [Prob; 1 << EXPONENT_BITS]) -> u32 {
+/// A gap, `None` for a bit length beyond 32.
+fn decode_gap(coder: &mut Decoder<'_>, tree: &mut [Prob; 1 << EXPONENT_BITS]) -> Option<u32> {
     let mut node = 1usize;
     for _ in 0..EXPONENT_BITS {
         node = node * 2 + usize::from(coder.bit(&mut tree[node]));
     }
     let n = (node - (1 << EXPONENT_BITS)) as u32;
-    // `n ≤ 31`: `v < 2^32`, and `v ≥ 1`.
-    let v = (1u32 << n) | coder.direct_bits(n);
-    v - 1
+    match n {
+        0 => Some(0),
+        1..=32 => Some((1u32 << (n - 1)) | coder.direct_bits(n - 1)),
+        _ => None,
+    }
 }
 
 /// One block of a list set as the reader holds it: its span, its code and, once read

@@ -78,9 +78,12 @@ fn golden_files_read_back_every_observed_state() {
         }
         assert_eq!(decoded.len(), expected.len());
         // Format 1.2 range codes the noisy voxel's exceptions.
-        let coded = decoded
-            .iter()
-            .any(|c| matches!(c.content, froctomap_file::CellContent::ConstantExcept { .. }));
+        let coded = decoded.iter().any(|c| {
+            matches!(
+                c.content,
+                froctomap_file::CellContent::ConstantExcept { .. }
+            )
+        });
         assert_eq!(coded, minor == 2, "{name}");
         let axis = golden_axis();
         let truth = |series: &SeriesCell, sample: u32| {
