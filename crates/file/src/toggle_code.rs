@@ -2,13 +2,14 @@
 //! in one toggle block coded as events with the adaptive [range coder](crate::range_coder)
 //! ([FORMAT.md §5.5](../../../docs/FORMAT.md)).
 //!
-//! Per list: its parity at the block's start (one adaptive bit; not coded in block 0), then
-//! events until a "no more" bit or the block's end: the gap to the next toggle (a 5-bit
-//! exponent in an adaptive bit tree, then the mantissa in direct bits) and, unless the toggle
-//! is the block's last sample, whether the next sample toggles back (a *pulse*: a one-sample
-//! flicker costs one event instead of two toggles). Contexts: the list's state before the
-//! event (even or odd number of toggles so far) and whether it is the list's first event in
-//! the block.
+//! Per list: whether it is *quiet* (parity 0 at the block's start, no toggle in the block:
+//! most lists, one decision); if not, its parity (not coded in block 0), then events until a
+//! "no more" bit or the block's end: the gap to the next toggle (its bit length in an
+//! adaptive bit tree, then the bits below the leading one as direct bits) and, unless the
+//! toggle is the block's last sample, whether the next sample toggles back (a *pulse*: a
+//! one-sample flicker costs one event instead of two toggles). Contexts: the list's state
+//! before the event (even or odd number of toggles so far) and whether it is the list's
+//! first event in the block. Decisions whose outcome is known are not coded.
 
 use crate::error::{corrupt, FormatViolation};
 use crate::range_coder::{Decoder, Encoder, Prob};
@@ -19,6 +20,8 @@ const EXPONENT_BITS: u32 = 6;
 /// The adaptive probabilities of one list set in one block.
 #[derive(Clone)]
 struct Contexts {
+    /// Whether a list has parity 0 and no event in the block.
+    quiet: Prob,
     parity: Prob,
     /// `[state][first event]`
     more: [[Prob; 2]; 2],
@@ -31,6 +34,7 @@ struct Contexts {
 impl Default for Contexts {
     fn default() -> Self {
         Self {
+            quiet: Prob::default(),
             parity: Prob::default(),
             more: [[Prob::default(); 2]; 2],
             pulse: [Prob::default(); 2],
@@ -65,11 +69,17 @@ impl BlockEncoder {
         let ctx = &mut self.contexts;
         // Block 0 codes no parity: it is 0 there.
         let parity = parity && self.code_parity;
+        let quiet = !parity && positions.is_empty();
+        self.coder.bit(&mut ctx.quiet, !quiet);
+        if quiet {
+            return;
+        }
         if self.code_parity {
             self.coder.bit(&mut ctx.parity, parity);
         }
         let mut state = usize::from(parity);
-        let mut first = 1;
+        // Not quiet with parity 0: the list has an event, which is not coded.
+        let mut first = usize::from(parity);
         let mut at = 0u32;
         let mut rest = positions;
         while at < self.len {
@@ -77,8 +87,15 @@ impl BlockEncoder {
                 self.coder.bit(&mut ctx.more[state][first], false);
                 break;
             };
-            self.coder.bit(&mut ctx.more[state][first], true);
-            encode_gap(&mut self.coder, &mut ctx.exponent[state], t - at);
+            if first == 1 || at > 0 {
+                self.coder.bit(&mut ctx.more[state][first], true);
+            }
+            encode_gap(
+                &mut self.coder,
+                &mut ctx.exponent[state],
+                t - at,
+                self.len - 1 - at,
+            );
             state ^= 1;
             rest = after;
             at = t + 1;
@@ -101,12 +118,25 @@ impl BlockEncoder {
     }
 }
 
-/// A gap `g` as its bit length `n` in the bit tree (most significant bit first), then, for
-/// `n ≥ 1`, the `n − 1` bits of `g` below its leading one as direct bits.
-fn encode_gap(coder: &mut Encoder, tree: &mut [Prob; 1 << EXPONENT_BITS], gap: u32) {
+/// Tree levels of a gap's bit length when the gap is at most `max_gap`: the bit length of
+/// the largest bit length (0 when the gap can only be 0).
+fn levels(max_gap: u32) -> u32 {
+    32 - (32 - max_gap.leading_zeros()).leading_zeros()
+}
+
+/// A gap `g ≤ max_gap` as its bit length `n` in the bit tree (most significant bit first;
+/// only the [`levels`] the largest gap needs, the ones above are 0), then, for `n ≥ 2`, the
+/// `n − 1` bits of `g` below its leading one as direct bits.
+fn encode_gap(
+    coder: &mut Encoder,
+    tree: &mut [Prob; 1 << EXPONENT_BITS],
+    gap: u32,
+    max_gap: u32,
+) {
     let n = 32 - gap.leading_zeros();
-    let mut node = 1usize;
-    for k in (0..EXPONENT_BITS).rev() {
+    let levels = levels(max_gap);
+    let mut node = 1usize << (EXPONENT_BITS - levels);
+    for k in (0..levels).rev() {
         let bit = n >> k & 1 == 1;
         coder.bit(&mut tree[node], bit);
         node = node * 2 + usize::from(bit);
@@ -151,17 +181,22 @@ impl<'a> BlockDecoder<'a> {
         mut toggle: impl FnMut(u32),
     ) -> Result<bool, FormatViolation> {
         let ctx = &mut *self.contexts;
+        if !self.coder.bit(&mut ctx.quiet) {
+            self.overrun()?;
+            return Ok(false);
+        }
         let parity = self.code_parity && self.coder.bit(&mut ctx.parity);
         let mut state = usize::from(parity);
-        let mut first = 1;
+        let mut first = usize::from(parity);
         let mut at = 0u32;
         while at < self.len {
-            if !self.coder.bit(&mut ctx.more[state][first]) {
+            if (first == 1 || at > 0) && !self.coder.bit(&mut ctx.more[state][first]) {
                 break;
             }
-            let gap = decode_gap(&mut self.coder, &mut ctx.exponent[state]);
-            // `at < len`, so `len − at` cannot underflow.
-            let Some(gap) = gap.filter(|&gap| gap < self.len - at) else {
+            // `at < len`, so `len − 1 − at` cannot underflow.
+            let max_gap = self.len - 1 - at;
+            let gap = decode_gap(&mut self.coder, &mut ctx.exponent[state], max_gap);
+            let Some(gap) = gap.filter(|&gap| gap <= max_gap) else {
                 return Err(corrupt(self.part, "toggle beyond its block"));
             };
             let t = at + gap;
@@ -195,9 +230,14 @@ impl<'a> BlockDecoder<'a> {
 }
 
 /// A gap, `None` for a bit length beyond 32.
-fn decode_gap(coder: &mut Decoder<'_>, tree: &mut [Prob; 1 << EXPONENT_BITS]) -> Option<u32> {
-    let mut node = 1usize;
-    for _ in 0..EXPONENT_BITS {
+fn decode_gap(
+    coder: &mut Decoder<'_>,
+    tree: &mut [Prob; 1 << EXPONENT_BITS],
+    max_gap: u32,
+) -> Option<u32> {
+    let levels = levels(max_gap);
+    let mut node = 1usize << (EXPONENT_BITS - levels);
+    for _ in 0..levels {
         node = node * 2 + usize::from(coder.bit(&mut tree[node]));
     }
     let n = (node - (1 << EXPONENT_BITS)) as u32;
