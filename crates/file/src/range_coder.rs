@@ -54,10 +54,13 @@ impl Prob {
     /// [`MAX_SHIFT`], then clamps.
     #[inline]
     fn update(&mut self, bit: bool) {
-        let shift = (u32::from(self.seen) + 2).ilog2();
-        if self.seen < SETTLED {
+        let shift = if self.seen < SETTLED {
+            let shift = (u32::from(self.seen) + 2).ilog2();
             self.seen += 1;
-        }
+            shift
+        } else {
+            MAX_SHIFT
+        };
         let p = u32::from(self.p);
         let p = if bit {
             p - (p >> shift)

@@ -127,12 +127,7 @@ fn levels(max_gap: u32) -> u32 {
 /// A gap `g ≤ max_gap` as its bit length `n` in the bit tree (most significant bit first;
 /// only the [`levels`] the largest gap needs, the ones above are 0), then, for `n ≥ 2`, the
 /// `n − 1` bits of `g` below its leading one as direct bits.
-fn encode_gap(
-    coder: &mut Encoder,
-    tree: &mut [Prob; 1 << EXPONENT_BITS],
-    gap: u32,
-    max_gap: u32,
-) {
+fn encode_gap(coder: &mut Encoder, tree: &mut [Prob; 1 << EXPONENT_BITS], gap: u32, max_gap: u32) {
     let n = 32 - gap.leading_zeros();
     let levels = levels(max_gap);
     let mut node = 1usize << (EXPONENT_BITS - levels);
@@ -153,6 +148,9 @@ pub(crate) struct BlockDecoder<'a> {
     len: u32,
     code_parity: bool,
     part: &'static str,
+    /// The code, to check that a block no list is read from has none.
+    code: &'a [u8],
+    read_any: bool,
 }
 
 impl<'a> BlockDecoder<'a> {
@@ -163,6 +161,8 @@ impl<'a> BlockDecoder<'a> {
             len,
             code_parity,
             part,
+            code,
+            read_any: false,
         }
     }
 
@@ -180,6 +180,7 @@ impl<'a> BlockDecoder<'a> {
         &mut self,
         mut toggle: impl FnMut(u32),
     ) -> Result<bool, FormatViolation> {
+        self.read_any = true;
         let ctx = &mut *self.contexts;
         if !self.coder.bit(&mut ctx.quiet) {
             self.overrun()?;
@@ -222,6 +223,9 @@ impl<'a> BlockDecoder<'a> {
     /// Checks that the lists decoded used the block's code exactly.
     pub(crate) fn finish(&self) -> Result<(), FormatViolation> {
         self.overrun()?;
+        if !self.read_any && !self.code.is_empty() {
+            return Err(corrupt(self.part, "toggle code without lists"));
+        }
         if !self.coder.used_all() {
             return Err(corrupt(self.part, "toggle code has bytes no list uses"));
         }
@@ -248,26 +252,10 @@ fn decode_gap(
     }
 }
 
-/// One block of a list set as the reader holds it: its span, its code and, once read
-/// from, its decoder.
-struct CodedBlock<'a> {
-    start: u32,
-    len: u32,
-    code: &'a [u8],
-    decoder: Option<BlockDecoder<'a>>,
-}
-
-impl<'a> CodedBlock<'a> {
-    fn decoder(&mut self, part: &'static str) -> &mut BlockDecoder<'a> {
-        let (code, len, code_parity) = (self.code, self.len, self.start > 0);
-        self.decoder
-            .get_or_insert_with(|| BlockDecoder::new(code, len, code_parity, part))
-    }
-}
-
 /// Reads a list set's lists from the coded blocks at hand (format 1.2), list after list.
 pub(crate) struct CodedListReader<'a> {
-    blocks: Vec<CodedBlock<'a>>,
+    /// Each block's first sample and decoder.
+    blocks: Vec<(u32, BlockDecoder<'a>)>,
     part: &'static str,
     toggles: u64,
     max_toggles: u64,
@@ -283,12 +271,7 @@ impl<'a> CodedListReader<'a> {
         Self {
             blocks: blocks
                 .into_iter()
-                .map(|(start, len, code)| CodedBlock {
-                    start,
-                    len,
-                    code,
-                    decoder: None,
-                })
+                .map(|(start, len, code)| (start, BlockDecoder::new(code, len, start > 0, part)))
                 .collect(),
             part,
             toggles: 0,
@@ -300,9 +283,7 @@ impl<'a> CodedListReader<'a> {
     pub(crate) fn skip_list(&mut self) -> Result<(), FormatViolation> {
         for b in 0..self.blocks.len() {
             let mut toggles = 0u64;
-            self.blocks[b]
-                .decoder(self.part)
-                .next_list(|_| toggles += 1)?;
+            self.blocks[b].1.next_list(|_| toggles += 1)?;
             self.count(toggles)?;
         }
         Ok(())
@@ -326,13 +307,12 @@ impl<'a> CodedListReader<'a> {
     /// block at hand (the one holding the sample).
     #[inline]
     pub(crate) fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
-        let part = self.part;
-        let Some(block) = self.blocks.first_mut() else {
+        let Some((start, decoder)) = self.blocks.first_mut() else {
             return Ok(false);
         };
-        let within = sample.saturating_sub(block.start);
+        let within = sample.saturating_sub(*start);
         let mut odd = false;
-        let parity = block.decoder(part).next_list(|t| odd ^= t <= within)?;
+        let parity = decoder.next_list(|t| odd ^= t <= within)?;
         Ok(parity ^ odd)
     }
 
@@ -345,12 +325,10 @@ impl<'a> CodedListReader<'a> {
         positions.clear();
         let part = self.part;
         for b in 0..self.blocks.len() {
-            let block = &mut self.blocks[b];
-            let start = block.start;
+            let (start, decoder) = &mut self.blocks[b];
+            let start = *start;
             let before = positions.len();
-            let parity = block
-                .decoder(part)
-                .next_list(|t| positions.push(start + t))?;
+            let parity = decoder.next_list(|t| positions.push(start + t))?;
             if parity != (before % 2 == 1) {
                 return Err(corrupt(
                     part,
@@ -362,15 +340,11 @@ impl<'a> CodedListReader<'a> {
         Ok(())
     }
 
-    /// Checks that the lists read used each block's code exactly (a block no list was
-    /// read from must be empty).
+    /// Checks that the lists read used each block's code exactly (a block no list was read
+    /// from must be empty).
     pub(crate) fn finish(&self) -> Result<(), FormatViolation> {
-        for block in &self.blocks {
-            match &block.decoder {
-                Some(decoder) => decoder.finish()?,
-                None if block.code.is_empty() => {}
-                None => return Err(corrupt(self.part, "toggle code without lists")),
-            }
+        for (_, decoder) in &self.blocks {
+            decoder.finish()?;
         }
         Ok(())
     }
