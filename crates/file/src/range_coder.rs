@@ -124,6 +124,15 @@ impl Encoder {
         }
     }
 
+    /// Codes `value < count` with probability `1 / count` each (`count ≤ 2^16`): the range
+    /// is cut into `count` parts of `⌊range / count⌋` (the remainder is not used).
+    pub(crate) fn uniform(&mut self, value: u32, count: u32) {
+        let part = self.range / count;
+        self.low += u64::from(value) * u64::from(part);
+        self.range = part;
+        self.normalize();
+    }
+
     #[inline]
     fn normalize(&mut self) {
         while self.range < TOP {
@@ -240,6 +249,20 @@ impl<'a> Decoder<'a> {
             self.normalize();
         }
         value
+    }
+
+    /// Decodes a value coded by [`Encoder::uniform`] (`1 ≤ count ≤ 2^16`); `None` when
+    /// the code lies in the unused remainder (damaged bytes).
+    pub(crate) fn uniform(&mut self, count: u32) -> Option<u32> {
+        let part = self.range / count;
+        let value = self.code / part;
+        if value >= count {
+            return None;
+        }
+        self.code -= value * part;
+        self.range = part;
+        self.normalize();
+        Some(value)
     }
 
     #[inline]
