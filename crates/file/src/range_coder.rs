@@ -313,6 +313,9 @@ mod tests {
             encoder.bit(&mut probs[context], bit);
             if direct && i % 5 == 0 {
                 encoder.direct_bits(i as u32 & 0x3FF, 10);
+                encoder.uniform(i as u32 % 300, 300);
+                encoder.uniform(0, 1);
+                encoder.uniform(i as u32 % 65536, 65536);
             }
         }
         let bytes = encoder.finish();
@@ -322,6 +325,9 @@ mod tests {
             assert_eq!(decoder.bit(&mut probs[context]), bit, "bit {i}");
             if direct && i % 5 == 0 {
                 assert_eq!(decoder.direct_bits(10), i as u32 & 0x3FF);
+                assert_eq!(decoder.uniform(300), Some(i as u32 % 300));
+                assert_eq!(decoder.uniform(1), Some(0));
+                assert_eq!(decoder.uniform(65536), Some(i as u32 % 65536));
             }
             assert!(!decoder.overrun());
         }
@@ -371,6 +377,7 @@ mod tests {
         while !decoder.overrun() {
             decoder.bit(&mut prob);
             decoder.direct_bits(31);
+            let _ = decoder.uniform(65536);
             steps += 1;
         }
         assert!(steps < 100);
