@@ -88,6 +88,10 @@ pub struct RunArgs {
     /// build's own default, 64 MiB).
     #[arg(long)]
     memory_mib: Option<u64>,
+    /// Only generate (or check and reuse) the series under --data, then stop: a shared
+    /// series that later runs with the same size, step and seed reuse.
+    #[arg(long, requires = "data")]
+    generate_only: bool,
 }
 
 /// Options of the hidden `build-child`.
@@ -524,6 +528,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
         written.heldout.len(),
         if written.reused { " (reused)" } else { "" }
     ));
+    if args.generate_only {
+        return Ok(());
+    }
     let train = &written.train;
     let train_dir = root.join("train");
     let mut bt_bytes = 0u64;
