@@ -105,9 +105,15 @@ fn noise_and_partial_terms_match_the_written_snapshots() {
         // Every observed change against the truth is a flip of a candidate.
         let changed = known
             .iter()
-            .filter(|&&c| seen.state_at(c).is_some_and(|s| Some(s) != truth.state_at(c)))
+            .filter(|&&c| {
+                seen.state_at(c)
+                    .is_some_and(|s| Some(s) != truth.state_at(c))
+            })
             .count() as u64;
-        assert_eq!(changed, flips, "frame {index}: a change outside the surface");
+        assert_eq!(
+            changed, flips,
+            "frame {index}: a change outside the surface"
+        );
         let n = observed.len() as u64;
         noise_bits += flips as f64 * -p.log2() + (n - flips) as f64 * -(1.0 - p).log2();
         flips_total += flips;

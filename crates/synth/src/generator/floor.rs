@@ -207,8 +207,8 @@ impl Generator {
         };
         floor.frames = observed.len() as u64;
         if let (Some(&first), Some(&last)) = (samples.secs.first(), samples.secs.last()) {
-            let days = day_number(Timestamp::from_secs(first))
-                ..=day_number(Timestamp::from_secs(last));
+            let days =
+                day_number(Timestamp::from_secs(first))..=day_number(Timestamp::from_secs(last));
             self.schedule_terms(&samples, days, &mut floor);
             floor.real_door_bits = self.real_door_bits(&observed);
         }
@@ -229,7 +229,12 @@ impl Generator {
                     f.partial_bits = match &region {
                         None => surprise(1.0 - q),
                         Some(_) => {
-                            surprise(q) + self.partial_positions().iter().map(|&n| n.log2()).sum::<f64>()
+                            surprise(q)
+                                + self
+                                    .partial_positions()
+                                    .iter()
+                                    .map(|&n| n.log2())
+                                    .sum::<f64>()
                         }
                     };
                 }
@@ -271,8 +276,8 @@ impl Generator {
         let missed = self.spec.missed_frames;
         if missed > 0.0 {
             let dropped = range.end - range.start - observed.len() as u64;
-            floor.timing_bits += dropped as f64 * surprise(missed)
-                + observed.len() as f64 * surprise(1.0 - missed);
+            floor.timing_bits +=
+                dropped as f64 * surprise(missed) + observed.len() as f64 * surprise(1.0 - missed);
         }
         floor
     }
@@ -309,8 +314,7 @@ impl Generator {
                 let visit = samples.count(day0 + 10 * 3600, day0 + 14 * 3600) > 0;
                 let offices = self.office_doors().count();
                 if visit {
-                    floor.office_door_bits +=
-                        offices as f64 * binary_entropy(WEEKEND_VISIT_CHANCE);
+                    floor.office_door_bits += offices as f64 * binary_entropy(WEEKEND_VISIT_CHANCE);
                 }
                 continue;
             }
@@ -392,7 +396,9 @@ impl Generator {
         let period_secs = model.period_days * DAY_SECS;
         let mean_duration = (model.min_secs + model.max_secs) as f64 / 2.0;
         // Start and length, quantised to frames: uniform over the frames they can fall on.
-        let timing = ((period_secs as f64 - mean_duration) / step).max(1.0).log2()
+        let timing = ((period_secs as f64 - mean_duration) / step)
+            .max(1.0)
+            .log2()
             + ((model.max_secs - model.min_secs) as f64 / step + 1.0).log2();
         let mut bits = 0.0;
         for slot in 0..model.phases.len() {
