@@ -17,7 +17,7 @@ use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_synth::EntropyFloor;
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// One lossless way of storing the series against the floor.
@@ -38,15 +38,37 @@ pub struct FloorSection {
     pub floor: EntropyFloor,
     /// Its total, bytes.
     pub floor_bytes: f64,
+    /// The static base map, which the floor takes as known but every file must hold once:
+    /// `zstd -19` of the base map file, bytes (a reference, not a bound).
+    pub base_map_bytes: Option<u64>,
     /// Lossless storage rows against it.
     pub rows: Vec<FloorRow>,
+}
+
+/// One row's bytes against the floor plus the base map.
+fn with_base(bytes: u64, floor_bytes: f64, base: Option<u64>) -> Option<f64> {
+    base.and_then(|b| crate::report::ratio(bytes as f64, floor_bytes + b as f64))
+}
+
+/// `zstd -19` of the base map file, bytes.
+pub fn base_map_bytes(path: &Path) -> Result<u64> {
+    let out = std::process::Command::new("zstd")
+        .args(["-19", "-q", "-c"])
+        .arg(path)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .context("cannot start zstd")?;
+    if !out.status.success() {
+        bail!("zstd -19 {} failed ({})", path.display(), out.status);
+    }
+    Ok(out.stdout.len() as u64)
 }
 
 impl FloorSection {
     /// The floor against the lossless rows of `storage` (raw files, archives and lossless
     /// froctomap files; lossy files do not reproduce the series, so the floor does not
     /// bound them and they are left out).
-    pub fn new(floor: EntropyFloor, storage: &[StorageRow]) -> Self {
+    pub fn new(floor: EntropyFloor, storage: &[StorageRow], base_map_bytes: Option<u64>) -> Self {
         let floor_bytes = floor.bytes();
         let rows = storage
             .iter()
@@ -60,6 +82,7 @@ impl FloorSection {
         Self {
             floor,
             floor_bytes,
+            base_map_bytes,
             rows,
         }
     }
@@ -105,14 +128,29 @@ impl FloorSection {
                     group(r.bytes),
                     megabytes(r.bytes),
                     times(r.vs_floor),
+                    times(with_base(r.bytes, self.floor_bytes, self.base_map_bytes)),
                 ]
             })
             .collect();
         out.push_str(&table(
-            &["lossless storage", "bytes", "size", "× floor"],
-            &label_then_numbers(4),
+            &[
+                "lossless storage",
+                "bytes",
+                "size",
+                "× floor",
+                "× (floor + base map)",
+            ],
+            &label_then_numbers(5),
             &rows,
         ));
+        if let Some(base) = self.base_map_bytes {
+            let _ = writeln!(
+                out,
+                "
+Base map: {} bytes under `zstd -19` (static; the floor takes it as known,                  every file holds it once).",
+                group(base)
+            );
+        }
         out
     }
 }
@@ -221,7 +259,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
             zstd_seconds: zstd.seconds,
         });
     }
-    let section = FloorSection::new(floor, &storage);
+    let section = FloorSection::new(floor, &storage, Some(base_map_bytes(&args.series.base)?));
     let mut markdown = section.markdown();
     if let Some(t) = &measured {
         let _ =
@@ -254,10 +292,10 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
 /// Medians of retrieving the middle snapshot from `file` and of one C++ read of its input;
 /// checks that the retrieved map is the input.
 fn time_retrieval(
-    file: &std::path::Path,
+    file: &Path,
     train: &[froctomap_convert::SeriesInput],
     repeats: u32,
-    scratch: &std::path::Path,
+    scratch: &Path,
 ) -> Result<(f64, f64)> {
     let context = froctomap_convert::Context::with_default_plugins();
     let mid = train
@@ -304,4 +342,44 @@ fn time_retrieval(
         bail!("the retrieved snapshot differs from the input it was built from");
     }
     Ok((retrieve, cpp))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lossless_rows_only_against_the_floor() {
+        let floor = EntropyFloor {
+            frames: 2,
+            noise_bits: 8000.0,
+            people_bits: 800.0,
+            ..EntropyFloor::default()
+        };
+        let row = |name: &str, bytes| StorageRow {
+            name: name.into(),
+            bytes,
+            ..StorageRow::default()
+        };
+        let storage = [
+            row(crate::report::rows::ZSTD, 3300),
+            row(crate::report::rows::LOSSLESS, 2200),
+            row(&crate::report::rows::lossy(2), 100),
+        ];
+        let section = FloorSection::new(floor, &storage, Some(1000));
+        assert_eq!(section.floor_bytes, 1100.0);
+        let names: Vec<&str> = section.rows.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [crate::report::rows::ZSTD, crate::report::rows::LOSSLESS]
+        );
+        assert_eq!(section.rows[1].vs_floor, Some(2.0));
+        assert_eq!(with_base(4200, 1100.0, Some(1000)), Some(2.0));
+        let md = section.markdown();
+        assert!(
+            md.contains("| froctomap lossless (auto order ≤ 5) | 2,200 | 2.2 kB | 2.00× | 1.05× |"),
+            "{md}"
+        );
+        assert!(md.contains("| people (bound) | 100 |"), "{md}");
+    }
 }

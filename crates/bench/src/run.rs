@@ -752,7 +752,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
 
     note("entropy floor");
-    let floor = crate::floor::FloorSection::new(generator.entropy_floor(0..train_count), &storage);
+    let floor = crate::floor::FloorSection::new(
+        generator.entropy_floor(0..train_count),
+        &storage,
+        Some(crate::floor::base_map_bytes(&args.series.base)?),
+    );
 
     // One snapshot.
     note("timing one snapshot");
