@@ -147,7 +147,8 @@ impl FloorSection {
             let _ = writeln!(
                 out,
                 "
-Base map: {} bytes under `zstd -19` (static; the floor takes it as known,                  every file holds it once).",
+Base map: {} bytes under `zstd -19` (static; the floor takes it as known, every \
+                 file holds it once).",
                 group(base)
             );
         }
@@ -170,6 +171,10 @@ pub struct FloorArgs {
     /// time retrieving one snapshot, against the floor.
     #[arg(long)]
     measure: bool,
+    /// With --measure, leave out tar | zstd (slow on long series; its size does not depend
+    /// on froctomap's format, so a second measurement of the same series can skip it).
+    #[arg(long)]
+    no_archive: bool,
     /// Runs behind the retrieval median.
     #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeats: u32,
@@ -189,8 +194,8 @@ pub struct FloorTimes {
     pub retrieve_seconds: f64,
     /// Median seconds of one C++ read of that snapshot.
     pub cpp_read_one_seconds: f64,
-    /// Seconds of tar | zstd.
-    pub zstd_seconds: f64,
+    /// Seconds of tar | zstd (`None`: skipped).
+    pub zstd_seconds: Option<f64>,
 }
 
 /// `froctomap-bench floor`.
@@ -221,17 +226,22 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     if args.measure {
-        note("tar | zstd -19 --long=31 -T0");
-        let zstd = tar_through(
-            &args.data.join("train"),
-            "zstd",
-            &["-19", "--long=31", "-T0", "-q", "-c"],
-        )?;
-        storage.push(StorageRow {
-            name: crate::report::rows::ZSTD.into(),
-            bytes: zstd.bytes,
-            ..StorageRow::default()
-        });
+        let zstd = if args.no_archive {
+            None
+        } else {
+            note("tar | zstd -19 --long=31 -T0");
+            let zstd = tar_through(
+                &args.data.join("train"),
+                "zstd",
+                &["-19", "--long=31", "-T0", "-q", "-c"],
+            )?;
+            storage.push(StorageRow {
+                name: crate::report::rows::ZSTD.into(),
+                bytes: zstd.bytes,
+                ..StorageRow::default()
+            });
+            Some(zstd)
+        };
         note("building lossless");
         let lossless = args.out.join("lossless.froct");
         let build = crate::run::spawn_build(
@@ -256,7 +266,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
             build_peak_memory_bytes: build.peak_memory_bytes,
             retrieve_seconds,
             cpp_read_one_seconds,
-            zstd_seconds: zstd.seconds,
+            zstd_seconds: zstd.map(|z| z.seconds),
         });
     }
     let section = FloorSection::new(floor, &storage, Some(base_map_bytes(&args.series.base)?));
@@ -272,7 +282,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
             duration(t.retrieve_seconds),
             times(crate::report::ratio(t.retrieve_seconds, t.cpp_read_one_seconds)),
             duration(t.cpp_read_one_seconds),
-            duration(t.zstd_seconds),
+            t.zstd_seconds.map_or_else(|| "skipped".into(), duration),
         );
     }
     std::fs::write(
