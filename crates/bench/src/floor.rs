@@ -161,9 +161,11 @@ Base map: {} bytes under `zstd -19` (static; the floor takes it as known, every 
 pub struct FloorArgs {
     #[command(flatten)]
     series: SeriesArgs,
-    /// Where the series is (reused when it matches, else generated there).
-    #[arg(long)]
-    data: PathBuf,
+    /// Where the series is (reused when it matches, else generated there). Without it the
+    /// floor is computed from the generator alone, writing nothing (any size, e.g.
+    /// paper-week, in about a minute).
+    #[arg(long, required_if_eq("measure", "true"))]
+    data: Option<PathBuf>,
     /// Where floor.json, floor.md and (with --measure) the built file go.
     #[arg(long, default_value = "target/bench-floor")]
     out: PathBuf,
@@ -202,12 +204,18 @@ pub struct FloorTimes {
 pub fn floor_command(args: &FloorArgs) -> Result<()> {
     let started = Instant::now();
     let note = |m: &str| eprintln!("[{:>6.0} s] {m}", started.elapsed().as_secs_f64());
-    let series = args.series.prepare(&args.data, &note)?;
+    let Some(data) = &args.data else {
+        let (generator, _, _, train_count) = args.series.generator()?;
+        let floor = generator.entropy_floor(0..train_count);
+        let section = FloorSection::new(floor, &[], Some(base_map_bytes(&args.series.base)?));
+        return write_report(args, train_count as usize, &section, None);
+    };
+    let series = args.series.prepare(data, &note)?;
     let train = &series.written.train;
     note(&format!(
         "series: {} training snapshots in {}",
         train.len(),
-        args.data.display()
+        data.display()
     ));
     let floor = series.generator.entropy_floor(0..series.train_count);
     note(&format!("floor computed ({:.0} bytes)", floor.bytes()));
@@ -231,7 +239,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
         } else {
             note("tar | zstd -19 --long=31 -T0");
             let zstd = tar_through(
-                &args.data.join("train"),
+                &data.join("train"),
                 "zstd",
                 &["-19", "--long=31", "-T0", "-q", "-c"],
             )?;
@@ -246,7 +254,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
         let lossless = args.out.join("lossless.froct");
         let build = crate::run::spawn_build(
             crate::report::rows::LOSSLESS,
-            &args.data.join("train").join("manifest.csv"),
+            &data.join("train").join("manifest.csv"),
             &lossless,
             &crate::run::ChildModel::fremen(None, 5),
             false,
@@ -270,8 +278,20 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
         });
     }
     let section = FloorSection::new(floor, &storage, Some(base_map_bytes(&args.series.base)?));
+    write_report(args, train.len(), &section, measured.as_ref())
+}
+
+/// Prints the section (and the times) and writes floor.json and floor.md.
+fn write_report(
+    args: &FloorArgs,
+    train_frames: usize,
+    section: &FloorSection,
+    measured: Option<&FloorTimes>,
+) -> Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let mut markdown = section.markdown();
-    if let Some(t) = &measured {
+    if let Some(t) = measured {
         let _ =
             writeln!(
             markdown,
@@ -289,7 +309,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
         args.out.join("floor.json"),
         serde_json::to_string_pretty(&serde_json::json!({
             "size": args.series.size,
-            "train_frames": train.len(),
+            "train_frames": train_frames,
             "floor": section,
             "times": measured,
         }))?,

@@ -57,8 +57,9 @@ impl SeriesArgs {
         Ok((plan, step))
     }
 
-    /// Generates the series under `root`, or reuses it when `root` already holds it.
-    pub fn prepare(&self, root: &Path, progress: &dyn Fn(&str)) -> Result<Series> {
+    /// The generator of the series (placement done, nothing written), the base map, the
+    /// door recording and the number of training frames.
+    pub fn generator(&self) -> Result<(Generator, Snapshot, PathBuf, u64)> {
         let (plan, step) = self.plan()?;
         let doors = door_file(self.real_doors.as_deref())?;
         let base = FormatRegistry::with_default_formats()
@@ -79,6 +80,12 @@ impl SeriesArgs {
         for warning in generator.warnings() {
             eprintln!("warning: {warning}");
         }
+        Ok((generator, base, doors, train_count))
+    }
+
+    /// Generates the series under `root`, or reuses it when `root` already holds it.
+    pub fn prepare(&self, root: &Path, progress: &dyn Fn(&str)) -> Result<Series> {
+        let (generator, base, doors, train_count) = self.generator()?;
         std::fs::create_dir_all(root).with_context(|| format!("creating {}", root.display()))?;
         let written = dataset::write(&generator, &self.base, train_count, root, progress)?;
         Ok(Series {
