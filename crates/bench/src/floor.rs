@@ -118,31 +118,33 @@ impl FloorSection {
             &label_then_numbers(3),
             &terms,
         ));
-        out.push('\n');
-        let rows: Vec<Vec<String>> = self
-            .rows
-            .iter()
-            .map(|r| {
-                vec![
-                    r.name.clone(),
-                    group(r.bytes),
-                    megabytes(r.bytes),
-                    times(r.vs_floor),
-                    times(with_base(r.bytes, self.floor_bytes, self.base_map_bytes)),
-                ]
-            })
-            .collect();
-        out.push_str(&table(
-            &[
-                "lossless storage",
-                "bytes",
-                "size",
-                "× floor",
-                "× (floor + base map)",
-            ],
-            &label_then_numbers(5),
-            &rows,
-        ));
+        if !self.rows.is_empty() {
+            out.push('\n');
+            let rows: Vec<Vec<String>> = self
+                .rows
+                .iter()
+                .map(|r| {
+                    vec![
+                        r.name.clone(),
+                        group(r.bytes),
+                        megabytes(r.bytes),
+                        times(r.vs_floor),
+                        times(with_base(r.bytes, self.floor_bytes, self.base_map_bytes)),
+                    ]
+                })
+                .collect();
+            out.push_str(&table(
+                &[
+                    "lossless storage",
+                    "bytes",
+                    "size",
+                    "× floor",
+                    "× (floor + base map)",
+                ],
+                &label_then_numbers(5),
+                &rows,
+            ));
+        }
         if let Some(base) = self.base_map_bytes {
             let _ = writeln!(
                 out,
