@@ -51,6 +51,17 @@ pub struct TimeArgs {
 }
 
 /// `--time-source`.
+/// The format version `build` writes (`--toggle-block 0` writes 1.0 whatever it says).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum FormatVersionArg {
+    /// Range-coded toggle blocks.
+    #[value(name = "1.2")]
+    V1_2,
+    /// Toggle blocks as varints under zstd.
+    #[value(name = "1.1")]
+    V1_1,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum RecordedTimeArg {
     /// The header stamp of each message.
@@ -163,11 +174,15 @@ pub struct BuildArgs {
     /// zstd level for tiles (1-22; 0 stores tiles uncompressed).
     #[arg(long, default_value_t = 19, value_parser = clap::value_parser!(i8).range(0..=22))]
     zstd_level: i8,
-    /// Samples per block of stored toggles (format 1.1): a retrieval reads one block, so
-    /// smaller blocks make it faster and the file slightly larger. 0 stores whole toggle
-    /// lists (format 1.0, for readers that only know that version).
+    /// Samples per block of stored toggles (format 1.1 and later): a retrieval reads one
+    /// block, so smaller blocks make it faster and the file slightly larger. 0 stores whole
+    /// toggle lists (format 1.0, for readers that only know that version).
     #[arg(long, default_value_t = 256, value_name = "SAMPLES")]
     toggle_block: u32,
+    /// Format version to write: 1.2 range codes the toggle blocks (the smallest files);
+    /// 1.1 stores them as varints under zstd, for readers that only know 1.1.
+    #[arg(long, value_enum, default_value = "1.2", value_name = "VERSION")]
+    format_version: FormatVersionArg,
     /// Leave unreadable files and files of another resolution out (listed at the end)
     /// instead of stopping.
     #[arg(long)]
@@ -354,9 +369,10 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
                 level: args.zstd_level,
             }
         },
-        toggles: match args.toggle_block {
-            0 => ToggleLayout::Whole,
-            samples => ToggleLayout::Blocked(samples),
+        toggles: match (args.toggle_block, args.format_version) {
+            (0, _) => ToggleLayout::Whole,
+            (samples, FormatVersionArg::V1_1) => ToggleLayout::Blocked(samples),
+            (samples, FormatVersionArg::V1_2) => ToggleLayout::Coded(samples),
         },
         skip_bad: args.skip_bad,
         resolution: args.resolution,

@@ -146,10 +146,7 @@ pub fn describe(
         version: format!("{}.{}", header.version.0, header.version.1),
         resolution_m: header.resolution,
         tile_depth: header.tile_depth,
-        toggle_block: match header.toggles {
-            froctomap_file::ToggleLayout::Whole => None,
-            froctomap_file::ToggleLayout::Blocked(samples) => Some(samples),
-        },
+        toggle_block: header.toggles.block_len(),
         tiles: reader.tiles().len(),
         time: AxisInfo {
             kind: match axis.kind() {

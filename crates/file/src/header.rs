@@ -15,8 +15,8 @@ pub const MAGIC: [u8; 8] = *b"\x89FROCT\r\n";
 pub const END_MAGIC: [u8; 8] = *b"FROCTEND";
 /// Major version written and understood.
 pub const MAJOR_VERSION: u16 = 1;
-/// Minor version written.
-pub const MINOR_VERSION: u16 = 1;
+/// Minor version written by default (range-coded toggle blocks).
+pub const MINOR_VERSION: u16 = 2;
 /// Bytes before the header sections.
 pub const PREAMBLE_LEN: usize = 16;
 
@@ -26,6 +26,9 @@ pub(crate) const TAG_MODEL: u16 = 3;
 pub(crate) const TAG_CODEC: u16 = 4;
 pub(crate) const TAG_METADATA: u16 = 5;
 pub(crate) const TAG_TOGGLE_BLOCKS: u16 = 6;
+pub(crate) const TAG_TOGGLE_CODE: u16 = 7;
+/// The `TOGGLE_CODE` value of FORMAT.md §5.5's range coding.
+const TOGGLE_CODE_RANGE: u8 = 1;
 const FLAG_CRITICAL: u16 = 1;
 
 /// Everything a reader needs before touching a tile.
@@ -45,7 +48,8 @@ pub struct Header {
     pub codec: Codec,
     /// Free-form JSON metadata (creator, sources, tags).
     pub metadata: Map<String, Value>,
-    /// How tiles store toggle lists: [`ToggleLayout::Blocked`] needs version 1.1.
+    /// How tiles store toggle lists: [`ToggleLayout::Blocked`] needs version 1.1,
+    /// [`ToggleLayout::Coded`] 1.2.
     pub toggles: ToggleLayout,
     /// (major, minor) version of the file this header was read from; a writer writes the
     /// lowest version that expresses the file ([`Header::required_version`]).
@@ -75,11 +79,13 @@ impl Header {
         }
     }
 
-    /// The version a writer puts in the preamble: 1.1 for blocked toggle lists, else 1.0.
+    /// The version a writer puts in the preamble: 1.2 for range-coded toggle blocks, 1.1
+    /// for blocked toggle lists, else 1.0.
     pub fn required_version(&self) -> (u16, u16) {
         match self.toggles {
             ToggleLayout::Whole => (MAJOR_VERSION, 0),
             ToggleLayout::Blocked(_) => (MAJOR_VERSION, 1),
+            ToggleLayout::Coded(_) => (MAJOR_VERSION, 2),
         }
     }
 
@@ -98,7 +104,7 @@ impl Header {
         if !(1..=TREE_DEPTH).contains(&self.tile_depth) {
             return Err(HeaderError::TileDepth(self.tile_depth));
         }
-        if self.toggles == ToggleLayout::Blocked(0) {
+        if self.toggles.block_len() == Some(0) {
             return Err(HeaderError::EmptyToggleBlocks);
         }
         Ok(())
@@ -122,8 +128,11 @@ impl Header {
             Codec::Zstd { level } => [1, level.to_le_bytes()[0]],
         };
         push_section(&mut sections, TAG_CODEC, true, &codec);
-        if let ToggleLayout::Blocked(len) = self.toggles {
+        if let Some(len) = self.toggles.block_len() {
             push_section(&mut sections, TAG_TOGGLE_BLOCKS, true, &len.to_le_bytes());
+        }
+        if let ToggleLayout::Coded(_) = self.toggles {
+            push_section(&mut sections, TAG_TOGGLE_CODE, true, &[TOGGLE_CODE_RANGE]);
         }
         if !self.metadata.is_empty() {
             let json = Value::Object(self.metadata.clone()).to_string();
@@ -195,6 +204,7 @@ impl Header {
         let mut model = None;
         let mut codec = None;
         let mut toggle_blocks = None;
+        let mut toggle_code = None;
         let mut metadata = Map::new();
         for section in Sections::new(sections, "header") {
             let section = section?;
@@ -247,6 +257,15 @@ impl Header {
                     }
                     set_once(&mut toggle_blocks, len, "TOGGLE_BLOCKS")?;
                 }
+                TAG_TOGGLE_CODE => {
+                    let code = c.u8()?;
+                    if code != TOGGLE_CODE_RANGE {
+                        return Err(FormatViolation::UnsupportedFeature(format!(
+                            "toggle code {code}"
+                        )));
+                    }
+                    set_once(&mut toggle_code, code, "TOGGLE_CODE")?;
+                }
                 TAG_METADATA => {
                     metadata = match serde_json::from_slice(section.payload) {
                         Ok(Value::Object(object)) => object,
@@ -267,7 +286,17 @@ impl Header {
         let (resolution, tile_depth) = map.ok_or_else(|| missing("MAP"))?;
         let (model_id, model_parameters) = model.ok_or_else(|| missing("MODEL"))?;
         let axis = axis.ok_or_else(|| missing("TIME_AXIS"))?;
-        let toggles = toggle_blocks.map_or(ToggleLayout::Whole, ToggleLayout::Blocked);
+        let toggles = match (toggle_blocks, toggle_code) {
+            (None, None) => ToggleLayout::Whole,
+            (Some(len), None) => ToggleLayout::Blocked(len),
+            (Some(len), Some(_)) => ToggleLayout::Coded(len),
+            (None, Some(_)) => {
+                return Err(corrupt(
+                    "header",
+                    "TOGGLE_CODE section without TOGGLE_BLOCKS",
+                ))
+            }
+        };
         // Tiles keep a few values per toggle block: bound them before any tile is read.
         let blocks = u64::from(toggles.blocks(axis.len()));
         if blocks > limits.max_toggle_blocks {
@@ -331,6 +360,7 @@ impl<'a> Sections<'a> {
                 TAG_CODEC,
                 TAG_METADATA,
                 TAG_TOGGLE_BLOCKS,
+                TAG_TOGGLE_CODE,
             ],
         )
     }

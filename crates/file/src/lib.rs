@@ -65,9 +65,11 @@ mod index;
 mod layout;
 mod limits;
 mod query;
+mod range_coder;
 mod reader;
 mod source;
 mod tile;
+mod toggle_code;
 mod toggle_lists;
 mod writer;
 

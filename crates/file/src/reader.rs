@@ -7,7 +7,7 @@ use crate::limits::ReadLimits;
 use crate::source::{ByteSource, FileSource, MemorySource};
 use crate::tile::{
     block_parts, decode_frame, frame_table, visit_payload_cells, walk_payload, Cell, CellRef,
-    TileParts, WalkNeed,
+    PartKind, TileParts, WalkNeed,
 };
 use crate::toggle_lists::ToggleLayout;
 use froctomap_core::{Leaf, MortonCode, Occupancy, VoxelKey};
@@ -272,7 +272,7 @@ impl FroctReader {
         // block of the first block frame among them.
         let (frames, first_block) = match layout.toggles {
             ToggleLayout::Whole => (vec![(&stored[..], entry.raw_len, 0)], 0),
-            ToggleLayout::Blocked(_) => {
+            ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => {
                 let table = frame_table(stored, layout.toggles.blocks(axis_len), entry.raw_len)
                     .map_err(invalid)?;
                 let (block_frames, first_block) = table.frames_of(&blocks);
@@ -292,11 +292,12 @@ impl FroctReader {
         for ((frame, raw_len, _), out) in frames.iter().zip(parts.iter_mut()) {
             decode_frame(frame, *raw_len, layout.codec, zstd, out).map_err(invalid)?;
         }
+        let block_kind = PartKind::block_of(layout.toggles);
         // Every block part of the decoded frames, numbered, then those the walk needs.
         let mut numbered = Vec::new();
         let mut next_block = first_block;
         for (part, &(_, _, held)) in parts[1..frames.len()].iter().zip(&frames[1..]) {
-            for block in block_parts(part, held).map_err(invalid)? {
+            for block in block_parts(part, held, block_kind).map_err(invalid)? {
                 if blocks.contains(&next_block) {
                     numbered.push((next_block, block));
                 }

@@ -1,9 +1,11 @@
 //! A tile's toggle lists (observation masks, outliers) as stored streams
 //! ([FORMAT.md §5.4](../../../docs/FORMAT.md)): whole lists in format 1.0, lists cut into
-//! blocks of samples in format 1.1 so that a query at one sample reads one block.
+//! blocks of samples in format 1.1 so that a query at one sample reads one block, and those
+//! blocks range coded in format 1.2 ([`crate::toggle_code`]).
 
 use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
+use crate::toggle_code::{BlockEncoder, CodedListReader};
 use froctomap_temporal::varint;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -15,19 +17,41 @@ pub enum ToggleLayout {
     Whole,
     /// Format 1.1: the time axis cut into blocks of this many samples (at least 1); per block,
     /// each list's parity at the block's start, whether it has positions inside the block,
-    /// and those positions.
+    /// and those positions, as varint columns under the file's codec.
     Blocked(u32),
+    /// Format 1.2: blocks as in 1.1, each list set's block coded as events (one-sample
+    /// pulses as one) with an adaptive range coder instead of varints under the codec.
+    Coded(u32),
 }
 
 impl ToggleLayout {
-    /// froctomap's default: blocks of 256 samples.
-    pub const DEFAULT: ToggleLayout = ToggleLayout::Blocked(256);
+    /// froctomap's default: blocks of 256 samples, range coded (format 1.2).
+    pub const DEFAULT: ToggleLayout = ToggleLayout::Coded(256);
+
+    /// The layout of the latest format for blocks of `samples` samples: whole lists
+    /// (format 1.0) for 0, else range-coded blocks (format 1.2).
+    pub fn blocks_of(samples: u32) -> ToggleLayout {
+        match samples {
+            0 => ToggleLayout::Whole,
+            samples => ToggleLayout::Coded(samples),
+        }
+    }
+
+    /// Samples per block, `None` for whole lists.
+    pub fn block_len(self) -> Option<u32> {
+        match self {
+            ToggleLayout::Whole => None,
+            ToggleLayout::Blocked(len) | ToggleLayout::Coded(len) => Some(len),
+        }
+    }
 
     /// Number of blocks of an axis of `axis_len` samples (1 for the whole layout).
     pub(crate) fn blocks(self, axis_len: u32) -> u32 {
         match self {
             ToggleLayout::Whole => 1,
-            ToggleLayout::Blocked(len) => axis_len.div_ceil(len.max(1)).max(1),
+            ToggleLayout::Blocked(len) | ToggleLayout::Coded(len) => {
+                axis_len.div_ceil(len.max(1)).max(1)
+            }
         }
     }
 
@@ -35,7 +59,7 @@ impl ToggleLayout {
     pub(crate) fn block_span(self, b: u32, axis_len: u32) -> (u32, u32) {
         match self {
             ToggleLayout::Whole => (0, axis_len),
-            ToggleLayout::Blocked(len) => {
+            ToggleLayout::Blocked(len) | ToggleLayout::Coded(len) => {
                 let start = b.saturating_mul(len);
                 (start, len.min(axis_len.saturating_sub(start)))
             }
@@ -113,10 +137,12 @@ pub(crate) enum Column {
     Starts,
     /// Gaps before the toggles at odd positions.
     Lengths,
+    /// Format 1.2: the block's lists range coded.
+    Code,
 }
 
 /// One block's encoded columns, by [`Column`].
-pub(crate) struct ListColumns([Vec<u8>; 5]);
+pub(crate) struct ListColumns([Vec<u8>; 6]);
 
 impl ListColumns {
     pub(crate) fn get(&self, column: Column) -> &[u8] {
@@ -125,7 +151,7 @@ impl ListColumns {
 }
 
 /// The columns of a set of toggle lists (each strictly increasing, below `axis_len`), per
-/// block: the one block of the whole layout, or each block of the blocked one.
+/// block: the one block of the whole layout, or each block of the blocked ones.
 pub(crate) fn encode_lists(
     lists: &[&[u32]],
     layout: ToggleLayout,
@@ -135,12 +161,12 @@ pub(crate) fn encode_lists(
     let mut columns: Vec<ToggleColumns> = (0..blocks)
         .map(|_| match layout {
             ToggleLayout::Whole => ToggleColumns::default(),
-            ToggleLayout::Blocked(_) => ToggleColumns::sparse(),
+            ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => ToggleColumns::sparse(),
         })
         .collect();
     let parity_len = match layout {
         ToggleLayout::Whole => 0,
-        ToggleLayout::Blocked(_) => lists.len().div_ceil(8),
+        ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => lists.len().div_ceil(8),
     };
     let mut parity = vec![vec![0u8; parity_len]; blocks as usize];
     for (l, list) in lists.iter().enumerate() {
@@ -167,7 +193,41 @@ pub(crate) fn encode_lists(
                 column.counts,
                 column.starts,
                 column.lengths,
+                Vec::new(),
             ])
+        })
+        .collect()
+}
+
+/// A set of toggle lists range coded (format 1.2), per block of the layout: one stream each.
+pub(crate) fn encode_coded(
+    lists: &[&[u32]],
+    layout: ToggleLayout,
+    axis_len: u32,
+) -> Vec<ListColumns> {
+    let blocks = layout.blocks(axis_len);
+    let mut encoders: Vec<BlockEncoder> = (0..blocks)
+        .map(|b| BlockEncoder::new(layout.block_span(b, axis_len).1, b > 0))
+        .collect();
+    let mut relative = Vec::new();
+    for list in lists {
+        let mut rest = *list;
+        for (b, encoder) in encoders.iter_mut().enumerate() {
+            let (start, len) = layout.block_span(b as u32, axis_len);
+            let parity = (list.len() - rest.len()) % 2 == 1;
+            let inside = rest.partition_point(|&t| t < start + len);
+            relative.clear();
+            relative.extend(rest[..inside].iter().map(|&t| t - start));
+            encoder.push(parity, &relative);
+            rest = &rest[inside..];
+        }
+    }
+    encoders
+        .into_iter()
+        .map(|encoder| {
+            let mut columns: [Vec<u8>; 6] = Default::default();
+            columns[Column::Code as usize] = encoder.finish();
+            ListColumns(columns)
         })
         .collect()
 }
@@ -181,6 +241,8 @@ pub(crate) struct ListBlock<'a> {
     /// The sparse columns' lists stream (blocked layout only).
     pub(crate) present: Option<&'a [u8]>,
     pub(crate) columns: [&'a [u8]; 3],
+    /// The block's range-coded lists (coded layout only).
+    pub(crate) code: &'a [u8],
 }
 
 /// Bit `index` of a bitmap (bit `index mod 8` of byte `⌊index/8⌋`), `None` past its end.
@@ -236,7 +298,9 @@ impl<'a> ToggleListReader<'a> {
             .map(|block| {
                 let len = match layout {
                     ToggleLayout::Whole => axis_len,
-                    ToggleLayout::Blocked(len) => len.min(axis_len.saturating_sub(block.start)),
+                    ToggleLayout::Blocked(len) | ToggleLayout::Coded(len) => {
+                        len.min(axis_len.saturating_sub(block.start))
+                    }
                 };
                 let reader = ToggleColumnReader::new(block.columns, block.present, len, part);
                 (block.parity, block.start, reader)
@@ -258,7 +322,9 @@ impl<'a> ToggleListReader<'a> {
     pub(crate) fn max_lists(&self) -> usize {
         match (self.layout, self.blocks.first()) {
             (ToggleLayout::Whole, Some((_, _, reader))) => reader.max_lists(),
-            (ToggleLayout::Blocked(_), Some((parity, _, _))) => parity.len() * 8,
+            (ToggleLayout::Blocked(_) | ToggleLayout::Coded(_), Some((parity, _, _))) => {
+                parity.len() * 8
+            }
             _ => usize::MAX,
         }
     }
@@ -403,6 +469,92 @@ impl<'a> ToggleListReader<'a> {
             }
         }
         Ok(())
+    }
+}
+
+/// Reads a list set's lists, from varint columns or range-coded blocks (format 1.2's
+/// exceptions).
+pub(crate) enum ListReader<'a> {
+    Columns(ToggleListReader<'a>),
+    Coded(CodedListReader<'a>),
+}
+
+impl<'a> ListReader<'a> {
+    /// A reader over `blocks` (the one block of the whole layout, or the blocks at hand):
+    /// their range-coded streams when `coded`, else their columns.
+    pub(crate) fn new(
+        blocks: Vec<ListBlock<'a>>,
+        layout: ToggleLayout,
+        coded: bool,
+        axis_len: u32,
+        part: &'static str,
+        max_toggles: u64,
+    ) -> Self {
+        match (layout, coded) {
+            (ToggleLayout::Coded(len), true) => ListReader::Coded(CodedListReader::new(
+                blocks.into_iter().map(|block| {
+                    let samples = len.min(axis_len.saturating_sub(block.start));
+                    (block.start, samples, block.code)
+                }),
+                part,
+                max_toggles,
+            )),
+            // The coded layout keeps its other lists in 1.1's columns.
+            (ToggleLayout::Coded(len), false) => ListReader::Columns(ToggleListReader::new(
+                blocks,
+                ToggleLayout::Blocked(len),
+                axis_len,
+                part,
+                max_toggles,
+            )),
+            _ => ListReader::Columns(ToggleListReader::new(
+                blocks,
+                layout,
+                axis_len,
+                part,
+                max_toggles,
+            )),
+        }
+    }
+
+    /// Upper bound on the lists the streams can hold.
+    pub(crate) fn max_lists(&self) -> usize {
+        match self {
+            ListReader::Columns(reader) => reader.max_lists(),
+            ListReader::Coded(_) => usize::MAX,
+        }
+    }
+
+    pub(crate) fn skip_list(&mut self) -> Result<(), FormatViolation> {
+        match self {
+            ListReader::Columns(reader) => reader.skip_list(),
+            ListReader::Coded(reader) => reader.skip_list(),
+        }
+    }
+
+    #[inline]
+    pub(crate) fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
+        match self {
+            ListReader::Columns(reader) => reader.parity_at(sample),
+            ListReader::Coded(reader) => reader.parity_at(sample),
+        }
+    }
+
+    pub(crate) fn next_list_into(
+        &mut self,
+        positions: &mut Vec<u32>,
+    ) -> Result<(), FormatViolation> {
+        match self {
+            ListReader::Columns(reader) => reader.next_list_into(positions),
+            ListReader::Coded(reader) => reader.next_list_into(positions),
+        }
+    }
+
+    pub(crate) fn finish(&mut self) -> Result<(), FormatViolation> {
+        match self {
+            ListReader::Columns(reader) => reader.finish(),
+            ListReader::Coded(reader) => reader.finish(),
+        }
     }
 }
 
@@ -595,6 +747,7 @@ mod tests {
                     c.get(Column::Starts),
                     c.get(Column::Lengths),
                 ],
+                code: &[],
             })
             .collect()
     }

@@ -279,17 +279,19 @@ proptest! {
 /// The golden series stored raw (no zstd), so that damage reaches the tile parser instead
 /// of the decompressor, in each toggle layout.
 fn raw_golden(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
-    static RAW: OnceLock<[Vec<u8>; 2]> = OnceLock::new();
-    let [whole, blocked] = RAW.get_or_init(|| {
+    static RAW: OnceLock<[Vec<u8>; 3]> = OnceLock::new();
+    let [whole, blocked, coded] = RAW.get_or_init(|| {
         [
             froctomap_file::ToggleLayout::Whole,
             froctomap_file::ToggleLayout::Blocked(16),
+            froctomap_file::ToggleLayout::Coded(16),
         ]
         .map(raw_golden_file)
     });
     match toggles {
         froctomap_file::ToggleLayout::Whole => whole.clone(),
         froctomap_file::ToggleLayout::Blocked(16) => blocked.clone(),
+        froctomap_file::ToggleLayout::Coded(16) => coded.clone(),
         other => panic!("no raw golden file in layout {other:?}"),
     }
 }
@@ -309,10 +311,11 @@ fn read_every_way(bytes: &[u8]) -> Result<(), FileError> {
 }
 
 #[test]
-fn resealed_raw_files_read_back_in_both_layouts() {
+fn resealed_raw_files_read_back_in_every_layout() {
     for toggles in [
         froctomap_file::ToggleLayout::Whole,
         froctomap_file::ToggleLayout::Blocked(16),
+        froctomap_file::ToggleLayout::Coded(16),
     ] {
         let mut bytes = raw_golden(toggles);
         let sealed = bytes.clone();
@@ -333,13 +336,13 @@ proptest! {
     /// path ends in values or typed errors, never a panic or a huge allocation.
     #[test]
     fn damaged_tiles_with_valid_checksums_never_panic(
-        blocked in any::<bool>(),
+        layout in 0u8..3,
         flips in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..8), 1..6),
     ) {
-        let toggles = if blocked {
-            froctomap_file::ToggleLayout::Blocked(16)
-        } else {
-            froctomap_file::ToggleLayout::Whole
+        let toggles = match layout {
+            0 => froctomap_file::ToggleLayout::Whole,
+            1 => froctomap_file::ToggleLayout::Blocked(16),
+            _ => froctomap_file::ToggleLayout::Coded(16),
         };
         let mut bytes = raw_golden(toggles);
         let reader = open_bytes(&bytes).unwrap();

@@ -116,6 +116,7 @@ fn toggles_strategy() -> impl Strategy<Value = ToggleLayout> {
     prop_oneof![
         Just(ToggleLayout::Whole),
         (1u32..24).prop_map(ToggleLayout::Blocked),
+        (1u32..24).prop_map(ToggleLayout::Coded),
         Just(ToggleLayout::DEFAULT),
     ]
 }

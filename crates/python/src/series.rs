@@ -238,10 +238,7 @@ pub fn build<'py>(
         } else {
             Codec::Zstd { level: zstd_level }
         },
-        toggles: match toggle_block {
-            0 => ToggleLayout::Whole,
-            samples => ToggleLayout::Blocked(samples),
-        },
+        toggles: ToggleLayout::blocks_of(toggle_block),
         skip_bad,
         resolution,
         allow_mostly_skipped,

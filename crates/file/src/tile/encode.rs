@@ -4,10 +4,12 @@ use super::cell::{Cell, CellContent};
 use super::frames::{compress, store_frames};
 use super::model;
 use super::streams::{write_part, ListSet, PartKind, Stream, StreamSizes};
-use super::{CLASS_FREE, CLASS_HAS_MASK, CLASS_HAS_OUTLIERS, CLASS_MODELLED, CLASS_OCCUPIED};
+use super::{
+    CLASS_FREE, CLASS_HAS_MASK, CLASS_HAS_OUTLIERS, CLASS_KIND_MASK, CLASS_MODELLED, CLASS_OCCUPIED,
+};
 use crate::error::TileEncodeError;
 use crate::layout::TileLayout;
-use crate::toggle_lists::{encode_lists, Column, ListColumns, ToggleLayout};
+use crate::toggle_lists::{encode_coded, encode_lists, Column, ListColumns, ToggleLayout};
 use froctomap_core::{voxels_per_node, MortonCode, TREE_DEPTH};
 use froctomap_temporal::{varint, PreparedModel, Toggles};
 use std::collections::HashMap;
@@ -73,6 +75,8 @@ struct EncodedStreams {
     cells: CellStreams,
     masks: Vec<ListColumns>,
     outliers: Vec<ListColumns>,
+    /// Format 1.2: the coded exceptions of constant cells, per block.
+    exceptions: Vec<ListColumns>,
 }
 
 impl EncodedStreams {
@@ -90,6 +94,7 @@ impl EncodedStreams {
             Stream::Models => &self.cells.models,
             Stream::List(ListSet::Masks, column) => lists(&self.masks, block, column),
             Stream::List(ListSet::Outliers, column) => lists(&self.outliers, block, column),
+            Stream::List(ListSet::Exceptions, column) => lists(&self.exceptions, block, column),
         }
     }
 
@@ -101,9 +106,10 @@ impl EncodedStreams {
         sizes.add_part(cells, |s| self.get(s, 0));
         let mut parts = vec![write_part(cells, cell_count, |s| self.get(s, 0))];
         if cells == PartKind::Cells {
+            let kind = PartKind::block_of(layout);
             for block in 0..self.masks.len() {
-                sizes.add_part(PartKind::Block, |s| self.get(s, block));
-                parts.push(write_part(PartKind::Block, 0, |s| self.get(s, block)));
+                sizes.add_part(kind, |s| self.get(s, block));
+                parts.push(write_part(kind, 0, |s| self.get(s, block)));
             }
         }
         (parts, sizes)
@@ -129,7 +135,7 @@ pub fn encode_tile(
         ToggleLayout::Whole => {
             compress(parts.into_iter().next().unwrap_or_default(), layout.codec)?
         }
-        ToggleLayout::Blocked(_) => store_frames(parts, layout.codec)?,
+        ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => store_frames(parts, layout.codec)?,
     };
     let (first_sample, last_sample) = span;
     Ok(EncodedTile {
@@ -161,6 +167,11 @@ fn encode_streams(
     let mut mask_table: Vec<&Toggles> = Vec::new();
     let mut mask_ids: HashMap<&[u32], u64> = HashMap::new();
     let mut outliers: Vec<&[u32]> = Vec::new();
+    // Format 1.2 range codes the exceptions of constant cells (sensor noise: independent
+    // from cell to cell) and keeps the outliers of modelled cells (which neighbours share,
+    // and zstd finds) in columns.
+    let mut exceptions: Vec<&[u32]> = Vec::new();
+    let coded = matches!(layout.toggles, ToggleLayout::Coded(_));
     let mut previous_end = code.0;
     let mut span: Option<(u32, u32)> = None;
     let beyond_axis = |toggles: &Toggles| toggles.as_slice().last().is_some_and(|&t| t >= axis_len);
@@ -200,7 +211,11 @@ fn encode_streams(
                 });
             }
             class |= CLASS_HAS_OUTLIERS;
-            outliers.push(toggles.as_slice());
+            if coded && class & CLASS_KIND_MASK != CLASS_MODELLED {
+                exceptions.push(toggles.as_slice());
+            } else {
+                outliers.push(toggles.as_slice());
+            }
         }
         if let Some(mask) = &cell.mask {
             if beyond_axis(mask) {
@@ -230,6 +245,11 @@ fn encode_streams(
         cells: out,
         masks: encode_lists(&mask_lists, layout.toggles, axis_len),
         outliers: encode_lists(&outliers, layout.toggles, axis_len),
+        exceptions: if coded {
+            encode_coded(&exceptions, layout.toggles, axis_len)
+        } else {
+            Vec::new()
+        },
     };
     Ok((streams, span.unwrap_or((0, 0))))
 }

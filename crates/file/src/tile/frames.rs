@@ -174,15 +174,16 @@ fn block_ends(c: &mut Cursor<'_>, frames: usize, blocks: u32) -> Result<Vec<u32>
     Ok(block_ends)
 }
 
-/// The `count` block parts a decoded frame holds, in order.
+/// The `count` block parts (of `kind`) a decoded frame holds, in order.
 pub(crate) fn block_parts(
     frame: &[u8],
     count: usize,
+    kind: PartKind,
 ) -> Result<Vec<PartStreams<'_>>, FormatViolation> {
     let mut c = Cursor::new(frame, "tile block");
     let mut parts = Vec::with_capacity(count.min(frame.len()));
     for _ in 0..count {
-        parts.push(PartStreams::take(&mut c, PartKind::Block)?);
+        parts.push(PartStreams::take(&mut c, kind)?);
     }
     if !c.is_empty() {
         return Err(corrupt("tile block", "bytes after the last block"));

@@ -16,7 +16,7 @@ pub use cell::{mask_from_ranges, Cell, CellContent};
 pub use encode::{encode_tile, EncodedTile};
 pub(crate) use frames::{block_parts, decode_frame, frame_table};
 pub use streams::StreamSizes;
-pub(crate) use streams::TileParts;
+pub(crate) use streams::{PartKind, TileParts};
 pub(crate) use walk::{visit_payload_cells, walk_payload, CellRef, WalkNeed};
 
 // A cell's class byte: its kind in the low bits, then flags.

@@ -12,8 +12,11 @@ use froctomap_temporal::varint;
 pub(crate) enum ListSet {
     /// Observation masks (the tile's distinct masks).
     Masks,
-    /// Outliers of modelled cells and exceptions of nearly constant ones.
+    /// Outliers of modelled cells and exceptions of nearly constant ones (format 1.2:
+    /// outliers of modelled cells only).
     Outliers,
+    /// Format 1.2: exceptions of nearly constant cells, range coded.
+    Exceptions,
 }
 
 /// One stream of a tile payload.
@@ -35,8 +38,8 @@ pub(crate) enum Stream {
     List(ListSet, Column),
 }
 
-use Column::{Counts, Lengths, Lists, Parity, Starts};
-use ListSet::{Masks, Outliers};
+use Column::{Code, Counts, Lengths, Lists, Parity, Starts};
+use ListSet::{Exceptions, Masks, Outliers};
 use Stream::{Class, Depth, Geometry, List, MaskCount, MaskRefs, Models};
 
 /// The parts a tile payload is made of. Format 1.0 has one part; format 1.1 a part with
@@ -49,6 +52,8 @@ pub(crate) enum PartKind {
     Cells,
     /// Format 1.1: one toggle block of both list sets.
     Block,
+    /// Format 1.2: one toggle block of both list sets, range coded.
+    CodedBlock,
 }
 
 impl PartKind {
@@ -56,7 +61,15 @@ impl PartKind {
     pub(crate) fn cells_of(layout: ToggleLayout) -> Self {
         match layout {
             ToggleLayout::Whole => PartKind::Whole,
-            ToggleLayout::Blocked(_) => PartKind::Cells,
+            ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => PartKind::Cells,
+        }
+    }
+
+    /// The parts holding toggle blocks in a blocked layout.
+    pub(crate) fn block_of(layout: ToggleLayout) -> Self {
+        match layout {
+            ToggleLayout::Coded(_) => PartKind::CodedBlock,
+            ToggleLayout::Whole | ToggleLayout::Blocked(_) => PartKind::Block,
         }
     }
 
@@ -90,30 +103,50 @@ impl PartKind {
                 List(Outliers, Starts),
                 List(Outliers, Lengths),
             ],
+            PartKind::CodedBlock => &[
+                List(Masks, Parity),
+                List(Masks, Lists),
+                List(Masks, Counts),
+                List(Masks, Starts),
+                List(Masks, Lengths),
+                List(Outliers, Parity),
+                List(Outliers, Lists),
+                List(Outliers, Counts),
+                List(Outliers, Starts),
+                List(Outliers, Lengths),
+                List(Exceptions, Code),
+            ],
         }
+    }
+
+    /// `true` for the parts of one toggle block.
+    pub(crate) fn is_block(self) -> bool {
+        matches!(self, PartKind::Block | PartKind::CodedBlock)
     }
 
     /// What errors call the part.
     fn name(self) -> &'static str {
         match self {
             PartKind::Whole | PartKind::Cells => "tile",
-            PartKind::Block => "tile block",
+            PartKind::Block | PartKind::CodedBlock => "tile block",
         }
     }
 }
 
 /// Most streams in one part.
 const MAX_PART_STREAMS: usize = 12;
+const _: () = assert!(PartKind::CodedBlock.streams().len() <= MAX_PART_STREAMS);
 
 impl Stream {
     /// The name size analysis reports the stream by.
     pub(crate) fn name(self) -> &'static str {
-        let column = |column, names: [&'static str; 5]| match column {
+        let column = |column, names: [&'static str; 6]| match column {
             Parity => names[0],
             Lists => names[1],
             Counts => names[2],
             Starts => names[3],
             Lengths => names[4],
+            Code => names[5],
         };
         match self {
             Geometry => "geometry",
@@ -130,6 +163,7 @@ impl Stream {
                     "mask counts",
                     "mask starts",
                     "mask lengths",
+                    "mask code",
                 ],
             ),
             List(Outliers, c) => column(
@@ -140,8 +174,10 @@ impl Stream {
                     "outlier counts",
                     "outlier starts",
                     "outlier lengths",
+                    "outlier code",
                 ],
             ),
+            List(Exceptions, _) => "exception code",
         }
     }
 }
@@ -154,7 +190,7 @@ pub(crate) fn write_part<'s>(
     stream: impl Fn(Stream) -> &'s [u8],
 ) -> Vec<u8> {
     let mut out = Vec::new();
-    if kind != PartKind::Block {
+    if !kind.is_block() {
         varint::write_u64(&mut out, cell_count as u64);
     }
     for &name in kind.streams() {
@@ -192,7 +228,7 @@ impl<'a> PartStreams<'a> {
     ) -> Result<(usize, Self), FormatViolation> {
         let mut c = Cursor::new(bytes, kind.name());
         let count = match kind {
-            PartKind::Block => 0,
+            PartKind::Block | PartKind::CodedBlock => 0,
             PartKind::Whole | PartKind::Cells => c.count("cells per tile", max_cells, 1)?,
         };
         let part = Self::take(&mut c, kind)?;
@@ -221,8 +257,9 @@ impl<'a> PartStreams<'a> {
         ListBlock {
             start,
             parity: self.get(List(set, Parity)),
-            present: (self.kind == PartKind::Block).then(|| self.get(List(set, Lists))),
+            present: self.kind.is_block().then(|| self.get(List(set, Lists))),
             columns: [Counts, Starts, Lengths].map(|c| self.get(List(set, c))),
+            code: self.get(List(set, Code)),
         }
     }
 }
@@ -299,7 +336,7 @@ impl StreamSizes {
                 Class => &mut self.class,
                 MaskCount | MaskRefs | List(Masks, _) => &mut self.masks,
                 Models => &mut self.models,
-                List(Outliers, _) => &mut self.outliers,
+                List(Outliers | Exceptions, _) => &mut self.outliers,
             } += len;
         }
     }

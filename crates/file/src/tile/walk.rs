@@ -11,7 +11,7 @@ use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
 use crate::layout::TileLayout;
 use crate::limits::ReadLimits;
-use crate::toggle_lists::{ToggleLayout, ToggleListReader};
+use crate::toggle_lists::{ListReader, ToggleLayout};
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_temporal::{PreparedModel, TimeAxis, Toggles};
 use std::sync::Arc;
@@ -36,7 +36,7 @@ impl WalkNeed {
         match (self, toggles) {
             (_, ToggleLayout::Whole) | (WalkNeed::ModelOnly, _) => 0..0,
             (WalkNeed::Everything, _) => 0..count,
-            (WalkNeed::StateAt(sample), ToggleLayout::Blocked(len)) => {
+            (WalkNeed::StateAt(sample), ToggleLayout::Blocked(len) | ToggleLayout::Coded(len)) => {
                 let b = (sample / len.max(1)).min(count - 1);
                 b..b + 1
             }
@@ -107,7 +107,7 @@ struct MaskTable {
 impl MaskTable {
     fn read(
         mask_count: &[u8],
-        lists: &mut ToggleListReader<'_>,
+        lists: &mut ListReader<'_>,
         cells: usize,
         need: WalkNeed,
         axis: &TimeAxis,
@@ -217,27 +217,30 @@ impl Geometry<'_> {
     }
 }
 
-/// The list readers of both list sets over the blocks at hand.
+/// The list readers of the list sets (masks, outliers, format 1.2's coded exceptions) over
+/// the blocks at hand.
 fn list_readers<'a>(
     cells: &PartStreams<'a>,
     blocks: &[(u32, PartStreams<'a>)],
     toggles: ToggleLayout,
     axis_len: u32,
     max_toggles: u64,
-) -> [ToggleListReader<'a>; 2] {
+) -> [ListReader<'a>; 3] {
     [
         (ListSet::Masks, "tile masks"),
         (ListSet::Outliers, "tile outliers"),
+        (ListSet::Exceptions, "tile exceptions"),
     ]
     .map(|(set, part)| {
         let blocks = match toggles {
             ToggleLayout::Whole => vec![cells.list_block(set, 0)],
-            ToggleLayout::Blocked(_) => blocks
+            ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => blocks
                 .iter()
                 .map(|(b, p)| p.list_block(set, toggles.block_span(*b, axis_len).0))
                 .collect(),
         };
-        ToggleListReader::new(blocks, toggles, axis_len, part, max_toggles)
+        let coded = set == ListSet::Exceptions;
+        ListReader::new(blocks, toggles, coded, axis_len, part, max_toggles)
     })
 }
 
@@ -262,13 +265,14 @@ pub(crate) fn walk_payload(
     if count == 0 {
         return Err(corrupt("tile", "no cells"));
     }
-    let [mut masks, mut outliers] = list_readers(
+    let [mut masks, mut outliers, mut exceptions] = list_readers(
         &cells,
         &parts.blocks,
         layout.toggles,
         axis.len(),
         limits.max_toggles_per_tile,
     );
+    let coded = matches!(layout.toggles, ToggleLayout::Coded(_));
     let (depths, classes) = (cells.get(Stream::Depth), cells.get(Stream::Class));
     if depths.len() != count || classes.len() != count {
         return Err(corrupt(
@@ -299,10 +303,16 @@ pub(crate) fn walk_payload(
         let mut outlier_parity = false;
         let mut has_list = false;
         if class & CLASS_HAS_OUTLIERS != 0 {
+            // Format 1.2 codes the exceptions of constant cells apart.
+            let lists = if coded && class & CLASS_KIND_MASK != CLASS_MODELLED {
+                &mut exceptions
+            } else {
+                &mut outliers
+            };
             match need {
                 WalkNeed::Everything => {
                     has_list = true;
-                    outliers.next_list_into(&mut scratch)?;
+                    lists.next_list_into(&mut scratch)?;
                     if scratch.is_empty() {
                         return Err(corrupt(
                             "tile outliers",
@@ -310,8 +320,8 @@ pub(crate) fn walk_payload(
                         ));
                     }
                 }
-                WalkNeed::StateAt(sample) => outlier_parity = outliers.parity_at(sample)?,
-                WalkNeed::ModelOnly => outliers.skip_list()?,
+                WalkNeed::StateAt(sample) => outlier_parity = lists.parity_at(sample)?,
+                WalkNeed::ModelOnly => lists.skip_list()?,
             }
         }
         // A modelled cell passes its parameter bytes in place: the model delimits and
@@ -340,6 +350,7 @@ pub(crate) fn walk_payload(
     }
     masks.finish()?;
     outliers.finish()?;
+    exceptions.finish()?;
     Ok(count)
 }
 

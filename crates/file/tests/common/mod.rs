@@ -33,6 +33,28 @@ pub fn to_cell(axis: &TimeAxis, model: &dyn PreparedModel, cell: &SeriesCell) ->
     }
 }
 
+/// A cell stored as mostly occupied, with the samples where it was free as exceptions.
+pub fn to_noise_cell(axis: &TimeAxis, cell: &SeriesCell) -> Cell {
+    let mut toggles = Vec::new();
+    let mut free = false;
+    for sample in 0..axis.len() {
+        let now = cell.observations.state_at(sample) == Some(Occupancy::Free);
+        if now != free && cell.observations.state_at(sample).is_some() {
+            toggles.push(sample);
+            free = now;
+        }
+    }
+    Cell {
+        start: cell.start,
+        depth: cell.depth,
+        mask: mask_from_ranges(axis, &cell.observations.observed_ranges()),
+        content: CellContent::ConstantExcept {
+            state: Occupancy::Occupied,
+            exceptions: froctomap_temporal::Toggles::new(toggles).unwrap(),
+        },
+    }
+}
+
 /// Writes cells (sorted) to a file, grouping them into tiles.
 pub fn write_file(
     path: &Path,
@@ -41,6 +63,21 @@ pub fn write_file(
     config: &ModelConfig,
     layout: TileLayout,
     cells: &[SeriesCell],
+) -> Box<dyn PreparedModel> {
+    write_file_with(path, axis, model_name, config, layout, cells, |_| false)
+}
+
+/// [`write_file`], storing the cells for which `noise` holds as constant with exceptions
+/// (their usual state, the other samples as exceptions), as froctomap's build does for
+/// sensor noise.
+pub fn write_file_with(
+    path: &Path,
+    axis: &TimeAxis,
+    model_name: &str,
+    config: &ModelConfig,
+    layout: TileLayout,
+    cells: &[SeriesCell],
+    noise: impl Fn(&SeriesCell) -> bool,
 ) -> Box<dyn PreparedModel> {
     let TileLayout {
         tile_depth,
@@ -65,7 +102,13 @@ pub fn write_file(
     let mut writer = FroctWriter::create(path, &header).unwrap();
     let file_cells: Vec<Cell> = cells
         .iter()
-        .map(|c| to_cell(axis, prepared.as_ref(), c))
+        .map(|c| {
+            if noise(c) {
+                to_noise_cell(axis, c)
+            } else {
+                to_cell(axis, prepared.as_ref(), c)
+            }
+        })
         .collect();
     let mut start = 0;
     while start < file_cells.len() {
@@ -171,15 +214,24 @@ pub fn golden_config() -> ModelConfig {
 }
 
 /// The golden files: one per format version, each written with that version's layout.
-pub const GOLDENS: [(&str, ToggleLayout); 2] = [
+pub const GOLDENS: [(&str, ToggleLayout); 3] = [
     ("golden-v1.0.froct", ToggleLayout::Whole),
     // Blocks of 16 samples: the 72-sample axis has five, the last one short.
     ("golden-v1.1.froct", ToggleLayout::Blocked(16)),
+    ("golden-v1.2.froct", ToggleLayout::Coded(16)),
 ];
+
+/// The golden series' noisy surface voxel: format 1.2 files store it as constant with
+/// exceptions (its free samples), which 1.2 range codes; earlier ones fit it a model.
+pub fn is_golden_noise(toggles: ToggleLayout, cell: &SeriesCell) -> bool {
+    let o = 32768u16;
+    matches!(toggles, ToggleLayout::Coded(_))
+        && cell.start == VoxelKey::new(o + 5, o + 1, o).morton()
+}
 
 /// Writes a golden file to `path`.
 pub fn write_golden(path: &Path, toggles: ToggleLayout) -> Box<dyn PreparedModel> {
-    write_file(
+    write_file_with(
         path,
         &golden_axis(),
         "fremen-periods",
@@ -190,6 +242,7 @@ pub fn write_golden(path: &Path, toggles: ToggleLayout) -> Box<dyn PreparedModel
             toggles,
         },
         &golden_cells(),
+        |cell| is_golden_noise(toggles, cell),
     )
 }
 
@@ -262,7 +315,7 @@ pub fn index_entry(bytes: &[u8], t: usize) -> usize {
 pub fn raw_golden_file(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("raw.froct");
-    write_file(
+    write_file_with(
         &path,
         &golden_axis(),
         "fremen-periods",
@@ -273,6 +326,7 @@ pub fn raw_golden_file(toggles: froctomap_file::ToggleLayout) -> Vec<u8> {
             toggles,
         },
         &golden_cells(),
+        |cell| is_golden_noise(toggles, cell),
     );
     std::fs::read(&path).unwrap()
 }
