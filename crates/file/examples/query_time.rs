@@ -3,7 +3,7 @@
 //! noisy machine slows them alike. Prints the median and minimum per file.
 //!
 //! `cargo run --release -p froctomap-file --example query_time -- SAMPLE RUNS A.froct B.froct …`
-#![allow(clippy::unwrap_used, clippy::expect_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use froctomap_file::FroctReader;
 use std::time::Instant;

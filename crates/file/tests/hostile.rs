@@ -217,3 +217,67 @@ fn whole_toggle_lists_of_many_masks_over_many_blocks_read_back() {
         assert!(!std::mem::replace(&mut seen[on as usize], true));
     }
 }
+
+/// Format 1.2's header: `TOGGLE_CODE` names a coding this reader knows and needs
+/// `TOGGLE_BLOCKS`.
+#[test]
+fn a_toggle_code_of_another_kind_or_without_blocks_is_refused() {
+    let golden = std::fs::read(golden_path_of("golden-v1.2.froct")).unwrap();
+    assert!(open_with(&golden, ReadLimits::default()).is_ok());
+    let mut bytes = golden.clone();
+    let code = header_section(&bytes, 7);
+    bytes[code] = 2;
+    reseal_header(&mut bytes);
+    let err = open_with(&bytes, ReadLimits::default()).unwrap_err();
+    assert!(
+        matches!(err.violation(), Some(FormatViolation::UnsupportedFeature(what)) if what.contains("toggle code 2")),
+        "{err}"
+    );
+    // TOGGLE_BLOCKS turned into an unknown section that may be skipped.
+    let mut bytes = golden;
+    let blocks = header_section(&bytes, 6) - 8;
+    bytes[blocks..blocks + 4].copy_from_slice(&[99, 0, 0, 0]);
+    reseal_header(&mut bytes);
+    let err = open_with(&bytes, ReadLimits::default()).unwrap_err();
+    assert!(err.to_string().contains("without TOGGLE_BLOCKS"), "{err}");
+}
+
+/// Range-coded exceptions count against the toggle limit, one per list and block visited
+/// besides their toggles: an empty list costs the coder next to nothing.
+#[test]
+fn range_coded_exceptions_are_bounded_by_the_toggle_limit() {
+    let bytes = raw_golden_file(ToggleLayout::Coded(16));
+    let reader = open_with(&bytes, ReadLimits::default()).unwrap();
+    // The noisy voxel: the only cell with exceptions, alone in its list set.
+    let (tile, exceptions) = (0..reader.tiles().len())
+        .find_map(|t| {
+            reader
+                .read_tile(t)
+                .unwrap()
+                .into_iter()
+                .find_map(|c| match c.content {
+                    froctomap_file::CellContent::ConstantExcept { exceptions, .. } => {
+                        Some((t, exceptions.len() as u64))
+                    }
+                    _ => None,
+                })
+        })
+        .unwrap();
+    // 72 samples in blocks of 16: five blocks visited.
+    let needed = exceptions + 5;
+    let with_limit = |limit: u64| {
+        let limits = ReadLimits {
+            max_toggles_per_tile: limit,
+            ..ReadLimits::default()
+        };
+        open_with(&bytes, limits).unwrap().read_tile(tile)
+    };
+    let err = with_limit(needed - 1).unwrap_err();
+    assert_eq!(
+        limit_of(&err),
+        Some(("toggles in a tile's list set", needed)),
+        "{err}"
+    );
+    // The tile's other list sets hold fewer: at the exact limit the tile reads.
+    with_limit(needed).unwrap();
+}
