@@ -186,23 +186,26 @@ fn build_info_retrieve_predict_export_eval() {
     );
 }
 
-/// Every toggle layout (whole lists = format 1.0, blocks of 3 samples, the default) gives
-/// back every input exactly, through the tiled native `.bt` writer and through the C++
-/// library's writer alike.
+/// Every toggle layout (whole lists = format 1.0, blocks of 3 samples in 1.1 and 1.2, the
+/// default) gives back every input exactly, through the tiled native `.bt` writer and
+/// through the C++ library's writer alike.
 #[test]
 fn every_toggle_layout_retrieves_every_snapshot_exactly() {
     let (dir, inputs, files) = series_in_subdir(8);
-    for (block, version) in [
-        ("0", "FROctomap 1.0"),
-        ("3", "FROctomap 1.1"),
-        ("256", "FROctomap 1.1"),
+    for (block, format, version) in [
+        ("0", "1.2", "FROctomap 1.0"),
+        ("3", "1.1", "FROctomap 1.1"),
+        ("3", "1.2", "FROctomap 1.2"),
+        ("256", "1.2", "FROctomap 1.2"),
     ] {
-        let map = dir.path().join(format!("blocks-{block}.froct"));
+        let map = dir.path().join(format!("blocks-{block}-{format}.froct"));
         ok(&[
             "build",
             "--quiet",
             "--toggle-block",
             block,
+            "--format-version",
+            format,
             s(&inputs),
             "-o",
             s(&map),
@@ -212,7 +215,9 @@ fn every_toggle_layout_retrieves_every_snapshot_exactly() {
         for (i, file) in files.iter().enumerate() {
             let index = format!("index:{i}");
             for backend in ["native", "octomap"] {
-                let out = dir.path().join(format!("r-{block}-{i}-{backend}.bt"));
+                let out = dir
+                    .path()
+                    .join(format!("r-{block}-{format}-{i}-{backend}.bt"));
                 ok(&[
                     "--backend",
                     backend,

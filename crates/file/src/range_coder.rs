@@ -124,6 +124,15 @@ impl Encoder {
         }
     }
 
+    /// Codes `value < count` with probability `1 / count` each (`count ≤ 2^16`): the range
+    /// is cut into `count` parts of `⌊range / count⌋` (the remainder is not used).
+    pub(crate) fn uniform(&mut self, value: u32, count: u32) {
+        let part = self.range / count;
+        self.low += u64::from(value) * u64::from(part);
+        self.range = part;
+        self.normalize();
+    }
+
     #[inline]
     fn normalize(&mut self) {
         while self.range < TOP {
@@ -242,6 +251,20 @@ impl<'a> Decoder<'a> {
         value
     }
 
+    /// Decodes a value coded by [`Encoder::uniform`] (`1 ≤ count ≤ 2^16`); `None` when
+    /// the code lies in the unused remainder (damaged bytes).
+    pub(crate) fn uniform(&mut self, count: u32) -> Option<u32> {
+        let part = self.range / count;
+        let value = self.code / part;
+        if value >= count {
+            return None;
+        }
+        self.code -= value * part;
+        self.range = part;
+        self.normalize();
+        Some(value)
+    }
+
     #[inline]
     fn normalize(&mut self) {
         while self.range < TOP {
@@ -290,6 +313,9 @@ mod tests {
             encoder.bit(&mut probs[context], bit);
             if direct && i % 5 == 0 {
                 encoder.direct_bits(i as u32 & 0x3FF, 10);
+                encoder.uniform(i as u32 % 300, 300);
+                encoder.uniform(0, 1);
+                encoder.uniform(i as u32 % 65536, 65536);
             }
         }
         let bytes = encoder.finish();
@@ -299,6 +325,9 @@ mod tests {
             assert_eq!(decoder.bit(&mut probs[context]), bit, "bit {i}");
             if direct && i % 5 == 0 {
                 assert_eq!(decoder.direct_bits(10), i as u32 & 0x3FF);
+                assert_eq!(decoder.uniform(300), Some(i as u32 % 300));
+                assert_eq!(decoder.uniform(1), Some(0));
+                assert_eq!(decoder.uniform(65536), Some(i as u32 % 65536));
             }
             assert!(!decoder.overrun());
         }
@@ -348,6 +377,7 @@ mod tests {
         while !decoder.overrun() {
             decoder.bit(&mut prob);
             decoder.direct_bits(31);
+            let _ = decoder.uniform(65536);
             steps += 1;
         }
         assert!(steps < 100);

@@ -14,6 +14,9 @@
 use crate::error::{corrupt, FormatViolation};
 use crate::range_coder::{Decoder, Encoder, Prob};
 
+/// Gaps before a flip away from the usual state are coded uniformly below this many
+/// samples: sensor noise flips anywhere alike.
+const UNIFORM_LIMIT: u32 = 1 << 16;
 /// Bits of a gap's exponent, its bit length `0..=32`.
 const EXPONENT_BITS: u32 = 6;
 
@@ -90,12 +93,12 @@ impl BlockEncoder {
             if first == 1 || at > 0 {
                 self.coder.bit(&mut ctx.more[state][first], true);
             }
-            encode_gap(
-                &mut self.coder,
-                &mut ctx.exponent[state],
-                t - at,
-                self.len - 1 - at,
-            );
+            let max_gap = self.len - 1 - at;
+            if state == 0 && max_gap < UNIFORM_LIMIT {
+                self.coder.uniform(t - at, max_gap + 1);
+            } else {
+                encode_gap(&mut self.coder, &mut ctx.exponent[state], t - at, max_gap);
+            }
             state ^= 1;
             rest = after;
             at = t + 1;
@@ -196,7 +199,11 @@ impl<'a> BlockDecoder<'a> {
             }
             // `at < len`, so `len − 1 − at` cannot underflow.
             let max_gap = self.len - 1 - at;
-            let gap = decode_gap(&mut self.coder, &mut ctx.exponent[state], max_gap);
+            let gap = if state == 0 && max_gap < UNIFORM_LIMIT {
+                self.coder.uniform(max_gap + 1)
+            } else {
+                decode_gap(&mut self.coder, &mut ctx.exponent[state], max_gap)
+            };
             let Some(gap) = gap.filter(|&gap| gap <= max_gap) else {
                 return Err(corrupt(self.part, "toggle beyond its block"));
             };
