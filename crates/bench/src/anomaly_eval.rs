@@ -10,7 +10,7 @@
 //! every other region of an injected frame is a false alarm, including real but expected
 //! changes (people, chairs) the method flags. The clean frame is scored too.
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
 use clap::Args;
 use froctomap_convert::{
     anomalies, build, collect_inputs, probabilities, voxel_history, AnomalyOptions, AnomalyReport,
@@ -18,7 +18,7 @@ use froctomap_convert::{
 };
 use froctomap_core::{Leaf, MortonCode, Occupancy, Snapshot, Timestamp, VoxelKey, TREE_DEPTH};
 use froctomap_file::FroctReader;
-use froctomap_synth::{ElementKind, Generator, SeriesSpec};
+use froctomap_synth::{ElementKind, Generator};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -44,27 +44,11 @@ const METHODS: [(&str, Expectation); 3] = [
 /// generate).
 #[derive(Args, Debug)]
 pub struct AnomalyEvalArgs {
-    /// Training span, as for `run`.
-    #[arg(long, default_value = "ci")]
-    size: String,
-    /// Time between snapshots.
-    #[arg(long, default_value = "10min")]
-    step: String,
-    /// Held-out days (default as for `run`).
-    #[arg(long)]
-    heldout_days: Option<f64>,
+    #[command(flatten)]
+    series: crate::series_args::SeriesArgs,
     /// Where the series and the lossless file are (reused when they match).
     #[arg(long)]
     data: PathBuf,
-    /// Seed of the generator.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Base map.
-    #[arg(long, default_value = crate::generate::DEFAULT_BASE)]
-    base: PathBuf,
-    /// Real door series.
-    #[arg(long)]
-    real_doors: Option<PathBuf>,
     /// Held-out frames to inject into.
     #[arg(long, default_value_t = DEFAULT_FRAMES)]
     frames: usize,
@@ -524,24 +508,10 @@ impl AnomalyEval {
 /// `froctomap-bench anomalies`: the series of `run` (generated or reused under `--data`),
 /// its lossless file (built when missing), then the evaluation alone.
 pub fn anomalies_command(args: &AnomalyEvalArgs) -> Result<()> {
-    let plan = crate::size::plan(&args.size, args.heldout_days)?;
-    let step = crate::generate::step_seconds(plan.step.unwrap_or(&args.step))?;
-    let doors = crate::generate::door_file(args.real_doors.as_deref())?;
-    let base = froctomap_formats::FormatRegistry::with_default_formats()
-        .read_file(&args.base, froctomap_formats::ReadOptions::default())
-        .with_context(|| format!("reading the base map {}", args.base.display()))?
-        .map
-        .snapshot;
-    let spec = SeriesSpec {
-        seed: args.seed,
-        door_file: Some(doors),
-        ..SeriesSpec::with_duration(plan.train_days + plan.heldout_days, step)
-    };
-    let train_count = froctomap_synth::frames_for(plan.train_days, step);
-    let generator = Generator::new(&base, spec, None)?;
     let note = |m: &str| eprintln!("{m}");
-    std::fs::create_dir_all(&args.data)?;
-    let written = crate::dataset::write(&generator, &args.base, train_count, &args.data, &note)?;
+    let crate::series_args::Series {
+        generator, written, ..
+    } = args.series.prepare(&args.data, &note)?;
     let froct = args.data.join("lossless.froct");
     if !froct.exists() {
         note("building lossless.froct");

@@ -21,11 +21,13 @@
 
 mod anomaly_eval;
 mod dataset;
+mod floor;
 mod generate;
 mod plots;
 mod recording;
 mod report;
 mod run;
+mod series_args;
 mod size;
 mod system;
 
@@ -67,6 +69,11 @@ enum Command {
     ///
     /// Example: froctomap-bench mcap --series /work/data-18/4weeks/train --out target/mcap-row
     Mcap(recording::McapRowArgs),
+    /// The entropy floor of a series (the bits the generator's random draws put into the
+    /// observed training snapshots), optionally against the lossless file and tar | zstd.
+    ///
+    /// Example: froctomap-bench floor --size 4weeks --data /work/data/w4 --measure
+    Floor(floor::FloorArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(run::BuildChildArgs),
@@ -79,6 +86,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(&args),
         Command::Anomalies(args) => anomaly_eval::anomalies_command(&args),
         Command::Mcap(args) => recording::mcap_row(&args),
+        Command::Floor(args) => floor::floor_command(&args),
         Command::BuildChild(args) => run::build_child(&args),
     };
     match result {

@@ -28,6 +28,8 @@ pub struct Results {
     pub targets: Vec<Target>,
     /// Wall time of the whole run, seconds.
     pub total_seconds: f64,
+    /// The generator's entropy floor and the lossless sizes against it.
+    pub floor: Option<crate::floor::FloorSection>,
 }
 
 /// The machine a run was measured on.
@@ -221,7 +223,7 @@ pub enum Align {
 
 /// A markdown table. Cells containing `|` are escaped; short rows are padded.
 /// Alignment of a table whose first column names the row and the others hold numbers.
-fn label_then_numbers(columns: usize) -> Vec<Align> {
+pub fn label_then_numbers(columns: usize) -> Vec<Align> {
     let mut align = vec![Align::Right; columns];
     if let Some(first) = align.first_mut() {
         *first = Align::Left;

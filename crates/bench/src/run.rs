@@ -1,13 +1,13 @@
 //! `froctomap-bench run`: one series, every measurement, one report.
 
 use crate::dataset::{self, spread};
-use crate::generate::{door_file, step_seconds, DEFAULT_BASE};
 use crate::plots::{self, Level, Line};
 use crate::report::{
     median, rows, AccuracyRow, BuildRow, Dataset, Errors, MemoryRow, Results, StorageRow,
     TimeResults,
 };
-use crate::size::{plan, Plan};
+use crate::series_args::{Series, SeriesArgs};
+use crate::size::Plan;
 use crate::system::{self, peak_memory_bytes, tar_through, FONT};
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -18,9 +18,9 @@ use froctomap_convert::{
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{MortonCode, Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
-use froctomap_formats::{Backend, FormatRegistry, ReadOptions, WriteOptions};
+use froctomap_formats::{Backend, ReadOptions, WriteOptions};
 use froctomap_render::{voxel_plot, VoxelPlot};
-use froctomap_synth::{DoorDriver, ElementKind, Generator, SeriesSpec};
+use froctomap_synth::{DoorDriver, ElementKind, Generator};
 use froctomap_temporal::{ModelConfig, Order, OutlierMode};
 use rayon::prelude::*;
 use serde_json::Value;
@@ -32,15 +32,8 @@ use std::time::Instant;
 /// Options of `run`.
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Training span: ci (2 days, 1 held out), week, 4weeks, `<n>weeks`, `<n>d`, or days.
-    #[arg(long, default_value = "ci")]
-    size: String,
-    /// Time between snapshots (e.g. 10min, 600, 1h).
-    #[arg(long, default_value = "10min")]
-    step: String,
-    /// Held-out days after the training span (default 1 for ci, else 2).
-    #[arg(long)]
-    heldout_days: Option<f64>,
+    #[command(flatten)]
+    series: SeriesArgs,
     /// Where results.json, results.md and the PNG plots go.
     #[arg(long, default_value = "target/bench")]
     out: PathBuf,
@@ -51,16 +44,6 @@ pub struct RunArgs {
     /// Keep the temporary data directory.
     #[arg(long)]
     keep_data: bool,
-    /// Seed of the generator.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Base map (.bt or .ot).
-    #[arg(long, default_value = DEFAULT_BASE)]
-    base: PathBuf,
-    /// Real door series (default: shared/data/greg_door_2016_min/training_data.txt beside
-    /// the checkout).
-    #[arg(long)]
-    real_doors: Option<PathBuf>,
     /// The froctomap CLI to time as a process (default: `froctomap` beside this binary;
     /// skipped when absent).
     #[arg(long)]
@@ -88,6 +71,10 @@ pub struct RunArgs {
     /// build's own default, 64 MiB).
     #[arg(long)]
     memory_mib: Option<u64>,
+    /// Only generate (or check and reuse) the series under --data, then stop: a shared
+    /// series that later runs with the same size, step and seed reuse.
+    #[arg(long, requires = "data")]
+    generate_only: bool,
 }
 
 /// Options of the hidden `build-child`.
@@ -181,7 +168,7 @@ pub fn build_child(args: &BuildChildArgs) -> Result<()> {
 }
 
 /// The model of a child build: a registered name, and the order for models with orders.
-struct ChildModel<'a> {
+pub(crate) struct ChildModel<'a> {
     name: &'a str,
     order: Option<u8>,
     max_order: u8,
@@ -189,7 +176,7 @@ struct ChildModel<'a> {
 
 impl ChildModel<'_> {
     /// The default model (FreMEn at candidate periods).
-    fn fremen(order: Option<u8>, max_order: u8) -> Self {
+    pub(crate) fn fremen(order: Option<u8>, max_order: u8) -> Self {
         ChildModel {
             name: "fremen-periods",
             order,
@@ -199,7 +186,7 @@ impl ChildModel<'_> {
 }
 
 /// Runs `build-child` as a process and reads its report.
-fn spawn_build(
+pub(crate) fn spawn_build(
     name: &str,
     input: &Path,
     output: &Path,
@@ -464,18 +451,19 @@ fn plot_voxel(
 /// Everything `run` does.
 pub fn run(args: &RunArgs) -> Result<()> {
     let started = Instant::now();
-    let Plan {
-        train_days,
-        heldout_days,
-        short_days,
-        step: size_step,
-        half_too,
-    } = plan(&args.size, args.heldout_days)?;
+    let (
+        Plan {
+            train_days,
+            heldout_days,
+            short_days,
+            half_too,
+            ..
+        },
+        step,
+    ) = args.series.plan()?;
     let memory_mib = args.memory_mib;
-    let step = step_seconds(size_step.unwrap_or(&args.step))?;
     let tools = system::check_tools()?;
     plots::register_font(system::load_font(Path::new(FONT))?)?;
-    let doors = door_file(args.real_doors.as_deref())?;
     let threads = rayon::current_num_threads();
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -499,31 +487,23 @@ pub fn run(args: &RunArgs) -> Result<()> {
     note(&format!("data in {}", root.display()));
 
     // The series.
-    let base = FormatRegistry::with_default_formats()
-        .read_file(&args.base, ReadOptions::default())
-        .with_context(|| format!("reading the base map {}", args.base.display()))?
-        .map
-        .snapshot;
-    let spec = SeriesSpec {
-        seed: args.seed,
-        door_file: Some(doors.clone()),
-        ..SeriesSpec::with_duration(train_days + heldout_days, step)
-    };
-    let train_count = froctomap_synth::frames_for(train_days, step);
-    if train_count >= spec.count {
-        bail!("the held-out span is shorter than one step");
-    }
-    let generator = Generator::new(&base, spec, None)?;
-    for warning in generator.warnings() {
-        eprintln!("warning: {warning}");
-    }
-    let written = dataset::write(&generator, &args.base, train_count, &root, &|m| note(m))?;
+    let Series {
+        doors,
+        base,
+        generator,
+        train_count,
+        written,
+        ..
+    } = args.series.prepare(&root, &|m| note(m))?;
     note(&format!(
         "series: {} training snapshots, {} held-out maps{}",
         written.train.len(),
         written.heldout.len(),
         if written.reused { " (reused)" } else { "" }
     ));
+    if args.generate_only {
+        return Ok(());
+    }
     let train = &written.train;
     let train_dir = root.join("train");
     let mut bt_bytes = 0u64;
@@ -771,6 +751,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
         }
     }
 
+    note("entropy floor");
+    let floor = crate::floor::FloorSection::new(
+        generator.entropy_floor(0..train_count),
+        &storage,
+        Some(crate::floor::base_map_bytes(&args.series.base)?),
+    );
+
     // One snapshot.
     note("timing one snapshot");
     let mid = &train[train.len() / 2];
@@ -1000,9 +987,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let mut results = Results {
         machine: system::machine(threads, tools),
         dataset: Dataset {
-            base: args.base.display().to_string(),
+            base: args.series.base.display().to_string(),
             door_file: doors.display().to_string(),
-            seed: args.seed,
+            seed: args.series.seed,
             step_seconds: step,
             train_days,
             heldout_days,
@@ -1038,10 +1025,14 @@ pub fn run(args: &RunArgs) -> Result<()> {
         baselines,
         targets: Vec::new(),
         total_seconds: 0.0,
+        floor: Some(floor),
     };
     results.targets = results.judge();
     results.total_seconds = started.elapsed().as_secs_f64();
     let mut markdown = results.markdown();
+    if let Some(floor) = &results.floor {
+        markdown.push_str(&floor.markdown());
+    }
     markdown.push_str(&format!(
         "\nPlots: `error_vs_order.png`, `size_vs_order.png`, `voxel_pt.png`{}.\n",
         voxel_title.map_or_else(String::new, |t| format!(" ({t})"))

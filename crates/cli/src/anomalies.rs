@@ -226,10 +226,7 @@ fn print_table(args: &AnomaliesArgs, report: &AnomalyReport) -> Result<()> {
     };
     let corner = |c: [f64; 3]| format!("({:.2}, {:.2}, {:.2})", c[0], c[1], c[2]);
     for (rank, region) in report.regions.iter().take(shown).enumerate() {
-        let kind = serde_json::to_value(region.kind)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
+        let kind = region.kind.name();
         outln!(
             "{:>4}  {:<8}  {:>9.1}  {:>7}  {:<26}  {:<26}",
             rank + 1,

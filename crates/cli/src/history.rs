@@ -49,11 +49,7 @@ fn point(text: &str) -> Result<Point, String> {
 }
 
 fn class_name(history: &VoxelHistory) -> String {
-    let text = serde_json::to_value(history.class)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
-    text.replace('_', " ")
+    history.class.name().replace('_', " ")
 }
 
 fn state_name(state: Option<Occupancy>) -> &'static str {

@@ -81,6 +81,24 @@ pub enum CellClass {
     Dynamic,
 }
 
+impl CellClass {
+    /// The class as in JSON (`static_free`, `static_occupied`, `noisy`, `dynamic`).
+    pub fn name(self) -> &'static str {
+        match self {
+            CellClass::StaticFree => "static_free",
+            CellClass::StaticOccupied => "static_occupied",
+            CellClass::Noisy => "noisy",
+            CellClass::Dynamic => "dynamic",
+        }
+    }
+}
+
+impl std::fmt::Display for CellClass {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The cell of a file that holds a voxel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CellGeometry {
@@ -292,4 +310,23 @@ fn extent(reader: &FroctReader) -> Option<([f64; 3], [f64; 3])> {
                 [0, 1, 2].map(|a| hi[a].max(max[a])),
             )
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::CellClass;
+
+    #[test]
+    fn class_names_are_the_json_names() {
+        for class in [
+            CellClass::StaticFree,
+            CellClass::StaticOccupied,
+            CellClass::Noisy,
+            CellClass::Dynamic,
+        ] {
+            let json = serde_json::to_value(class).unwrap_or_default();
+            assert_eq!(json.as_str(), Some(class.name()));
+            assert_eq!(class.to_string(), class.name());
+        }
+    }
 }

@@ -381,11 +381,7 @@ fn anomaly_dict<'py>(py: Python<'py>, report: &AnomalyReport) -> PyResult<Bound<
         item.set_item("max", region.max.to_vec())?;
         item.set_item("voxels", region.voxels)?;
         item.set_item("score", region.score)?;
-        let kind = serde_json::to_value(region.kind)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
-        item.set_item("kind", kind)?;
+        item.set_item("kind", region.kind.name())?;
         regions.append(item)?;
     }
     dict.set_item("regions", regions)?;
@@ -405,11 +401,7 @@ fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'p
     cell.set_item("min", story.cell.min.to_vec())?;
     cell.set_item("max", story.cell.max.to_vec())?;
     dict.set_item("cell", cell)?;
-    let class = serde_json::to_value(story.class)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
-    dict.set_item("class", class)?;
+    dict.set_item("class", story.class.name())?;
     dict.set_item("sometimes_unknown", story.sometimes_unknown)?;
     match &story.model {
         None => dict.set_item("model", py.None())?,
@@ -432,19 +424,8 @@ fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'p
         }
     }
     let samples = &story.samples;
+    set_sample_columns(&dict, "", samples)?;
     let column = |f: &dyn Fn(&HistorySample) -> f64| samples.iter().map(f).collect::<Vec<f64>>();
-    dict.set_item(
-        "samples",
-        samples
-            .iter()
-            .map(|s| i64::from(s.sample))
-            .collect::<Vec<_>>()
-            .into_pyarray(py),
-    )?;
-    dict.set_item(
-        "times",
-        column(&|s| crate::times::unix_seconds(s.time)).into_pyarray(py),
-    )?;
     dict.set_item(
         "states",
         column(&|s| {
@@ -454,24 +435,25 @@ fn history_dict<'py>(py: Python<'py>, story: &VoxelHistory) -> PyResult<Bound<'p
         .into_pyarray(py),
     )?;
     dict.set_item("p", column(&|s| s.p).into_pyarray(py))?;
-    let outliers = &story.outliers;
-    dict.set_item(
-        "outlier_samples",
-        outliers
-            .iter()
-            .map(|s| i64::from(s.sample))
-            .collect::<Vec<_>>()
-            .into_pyarray(py),
-    )?;
-    dict.set_item(
-        "outlier_times",
-        outliers
-            .iter()
-            .map(|s| crate::times::unix_seconds(s.time))
-            .collect::<Vec<_>>()
-            .into_pyarray(py),
-    )?;
+    set_sample_columns(&dict, "outlier_", &story.outliers)?;
     Ok(dict)
+}
+
+/// Sets `{prefix}samples` (sample indices) and `{prefix}times` (Unix seconds) of `dict`,
+/// in one pass over `samples`.
+fn set_sample_columns(
+    dict: &Bound<'_, PyDict>,
+    prefix: &str,
+    samples: &[HistorySample],
+) -> PyResult<()> {
+    let py = dict.py();
+    let (indices, times): (Vec<i64>, Vec<f64>) = samples
+        .iter()
+        .map(|s| (i64::from(s.sample), crate::times::unix_seconds(s.time)))
+        .unzip();
+    dict.set_item(format!("{prefix}samples"), indices.into_pyarray(py))?;
+    dict.set_item(format!("{prefix}times"), times.into_pyarray(py))?;
+    Ok(())
 }
 
 /// JSON text as Python values (`json.loads`).

@@ -238,16 +238,36 @@ impl Door {
     }
 }
 
+/// Minutes of the working day's first hour in which an arrival falls, and of its last
+/// hour and a half in which a departure falls (uniform draws).
+pub(crate) const ARRIVAL_MINUTES: u64 = 60;
+pub(crate) const DEPARTURE_MINUTES: u64 = 90;
+
+/// The arrival and departure (seconds of day) of one occupant (`purpose` = person or office
+/// door) on day `day`: one draw per day.
+pub(crate) fn day_window(clock: &Clock, purpose: u64, id: u64, day: i64) -> (i64, i64) {
+    let r = mix(clock.seed, purpose, id, day as u64);
+    let arrive = clock.work_start + 60 * below(r, ARRIVAL_MINUTES) as i64;
+    let leave = clock.work_end - 60 * below(splitmix(r), DEPARTURE_MINUTES) as i64;
+    (arrive, leave)
+}
+
+/// Share of office hours with a call (door shut at the start of the hour), and the
+/// shortest call and the number of call lengths, in minutes.
+pub(crate) const CALL_CHANCE: f64 = 0.15;
+pub(crate) const CALL_MIN_MINUTES: i64 = 10;
+pub(crate) const CALL_LENGTHS: u64 = 35;
+/// Share of weekend days with a visit (10:00-14:00) to an office.
+pub(crate) const WEEKEND_VISIT_CHANCE: f64 = 0.1;
+
 fn office_open(id: usize, day: i64, sod: i64, clock: &Clock) -> bool {
     let id = id as u64;
     if !is_weekday(day) {
         // Someone drops by on one weekend day in ten, 10:00-14:00.
         let r = mix(clock.seed, tag::WEEKEND_VISIT, id, day as u64);
-        return chance(r, 0.1) && (10 * 3600..14 * 3600).contains(&sod);
+        return chance(r, WEEKEND_VISIT_CHANCE) && (10 * 3600..14 * 3600).contains(&sod);
     }
-    let r = mix(clock.seed, tag::OFFICE_DOOR, id, day as u64);
-    let arrive = clock.work_start + 60 * below(r, 60) as i64;
-    let leave = clock.work_end - 60 * below(splitmix(r), 90) as i64;
+    let (arrive, leave) = day_window(clock, tag::OFFICE_DOOR, id, day);
     if sod < arrive || sod >= leave {
         return false;
     }
@@ -259,12 +279,22 @@ fn office_open(id: usize, day: i64, sod: i64, clock: &Clock) -> bool {
         id,
         (day * 24 + hour) as u64,
     );
-    let shut_minutes = 10 + below(splitmix(h), 35) as i64;
-    !(chance(h, 0.15) && sod % 3600 < shut_minutes * 60)
+    let shut_minutes = CALL_MIN_MINUTES + below(splitmix(h), CALL_LENGTHS) as i64;
+    !(chance(h, CALL_CHANCE) && sod % 3600 < shut_minutes * 60)
 }
 
 /// Time slots of people, in seconds.
-const PERSON_SLOT: i64 = 15 * 60;
+pub(crate) const PERSON_SLOT: i64 = 15 * 60;
+
+/// Percent chance that a person is away in the slot holding second of day `sod` (mostly
+/// away at lunch, 12-13 h); when not away, at the desk in two thirds of the slots.
+pub(crate) fn away_percent(sod: i64) -> i64 {
+    if (12 * 3600..13 * 3600).contains(&sod) {
+        60
+    } else {
+        15
+    }
+}
 
 pub(crate) struct Person {
     /// Spot 0 is the desk.
@@ -279,16 +309,13 @@ impl Person {
             return None;
         }
         let id = id as u64;
-        let r = mix(clock.seed, tag::PERSON_DAY, id, day as u64);
-        let arrive = clock.work_start + 60 * below(r, 60) as i64;
-        let leave = clock.work_end - 60 * below(splitmix(r), 90) as i64;
+        let (arrive, leave) = day_window(clock, tag::PERSON_DAY, id, day);
         if sod < arrive || sod >= leave {
             return None;
         }
         let slot = sod / PERSON_SLOT;
         let s = mix(clock.seed, tag::PERSON_SLOT, id, (day * 96 + slot) as u64);
-        let lunch = (12 * 3600..13 * 3600).contains(&sod);
-        let away = if lunch { 60 } else { 15 };
+        let away = away_percent(sod);
         let roll = below(s, 100) as i64;
         if roll < away {
             None
@@ -323,6 +350,9 @@ impl Chair {
     }
 }
 
+/// Probability that an object slot has a stay in a period.
+pub(crate) const OBJECT_CHANCE: f64 = 0.8;
+
 /// The object slots' shared parameters.
 pub(crate) struct ObjectModel {
     /// Free floor boxes of the largest object size; each appearance picks one.
@@ -352,7 +382,7 @@ impl ObjectModel {
         }
         let phase = *self.phases.get(slot)?;
         let r = mix(seed, tag::OBJECT_PERIOD, slot as u64, period as u64);
-        if !chance(r, 0.8) {
+        if !chance(r, OBJECT_CHANCE) {
             return None;
         }
         let r1 = splitmix(r);

@@ -15,6 +15,9 @@ use crate::spec::{SeriesSpec, Shift, Timing};
 use froctomap_core::{MortonCode, Occupancy, Snapshot, Timestamp, VoxelKey};
 use std::fmt;
 
+mod floor;
+pub use floor::EntropyFloor;
+
 /// A frame of the series: its grid index and its time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct FrameInfo {

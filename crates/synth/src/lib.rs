@@ -84,7 +84,9 @@ mod spec;
 pub use doors::DoorSeries;
 pub use elements::{DoorDriver, ElementKind, WeeklySlot};
 pub use error::SynthError;
-pub use generator::{ChangeSummary, ElementInfo, FrameInfo, FrameStats, Generator, KindSummary};
+pub use generator::{
+    ChangeSummary, ElementInfo, EntropyFloor, FrameInfo, FrameStats, Generator, KindSummary,
+};
 pub use geometry::KeyBox;
 pub use overrides::SpecOverrides;
 pub use series::{write_series, ManifestEntry, SeriesManifest, WriteSeriesOptions, MANIFEST_NAME};

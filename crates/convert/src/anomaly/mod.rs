@@ -39,6 +39,22 @@ pub enum AnomalyKind {
     Vanished,
 }
 
+impl AnomalyKind {
+    /// The kind as in JSON (`appeared`, `vanished`).
+    pub fn name(self) -> &'static str {
+        match self {
+            AnomalyKind::Appeared => "appeared",
+            AnomalyKind::Vanished => "vanished",
+        }
+    }
+}
+
+impl std::fmt::Display for AnomalyKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// What a snapshot is compared with: the model at its time, or one of the simple
 /// baselines the model has to beat.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -278,4 +294,18 @@ fn check_time(reader: &FroctReader, t: Timestamp) -> Result<(), ConvertError> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod kind_tests {
+    use super::AnomalyKind;
+
+    #[test]
+    fn kind_names_are_the_json_names() {
+        for kind in [AnomalyKind::Appeared, AnomalyKind::Vanished] {
+            let json = serde_json::to_value(kind).unwrap_or_default();
+            assert_eq!(json.as_str(), Some(kind.name()));
+            assert_eq!(kind.to_string(), kind.name());
+        }
+    }
 }
