@@ -88,6 +88,11 @@ pub struct RunArgs {
     /// build's own default, 64 MiB).
     #[arg(long)]
     memory_mib: Option<u64>,
+    /// Only write the series into --data (or reuse it) and stop: the paper sizes take longer
+    /// to generate than some measurements, and a later run with the same --data, --size,
+    /// --step, --seed and base reuses it.
+    #[arg(long, requires = "data")]
+    generate_only: bool,
 }
 
 /// Options of the hidden `build-child`.
@@ -524,6 +529,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
         written.heldout.len(),
         if written.reused { " (reused)" } else { "" }
     ));
+    if args.generate_only {
+        note("--generate-only: stopping here");
+        return Ok(());
+    }
     let train = &written.train;
     let train_dir = root.join("train");
     let mut bt_bytes = 0u64;
