@@ -251,9 +251,13 @@ impl SpillReader {
         if self.tile != Some(tile) {
             self.tile = Some(tile);
             let segments = self.segments.remove(&tile).unwrap_or_default();
+            // A long series spills many times: the buffers of all the tile's segments
+            // together stay within READ_BACK_BUFFERS, whatever the number of spills.
+            let chunk = (READ_BACK_BUFFERS / segments.len().max(1))
+                .clamp(MIN_SEGMENT_BUFFER, SEGMENT_BUFFER);
             self.cursors = segments
                 .into_iter()
-                .map(|(offset, len)| SegmentCursor::new(tile, offset, len))
+                .map(|(offset, len)| SegmentCursor::new(tile, offset, len).buffering(chunk))
                 .collect();
         }
         let fail = |source| ConvertError::Spill {
@@ -422,6 +426,11 @@ impl Drop for CellFileReader {
 
 /// Bytes read from a segment at a time.
 const SEGMENT_BUFFER: usize = 16 << 10;
+/// Bytes read from a segment at a time at least.
+const MIN_SEGMENT_BUFFER: usize = 1 << 10;
+/// Bytes of buffers for all the segments of a tile (one per spill) together, as long as
+/// each gets [`MIN_SEGMENT_BUFFER`].
+const READ_BACK_BUFFERS: usize = 1 << 20;
 
 /// A position in one spill's segment of a tile, read a few kilobytes at a time: the cells
 /// of the segment are passed in Morton order, holding one cell's runs (packed) at a time,
@@ -429,6 +438,8 @@ const SEGMENT_BUFFER: usize = 16 << 10;
 /// history.
 #[derive(Debug)]
 struct SegmentCursor {
+    /// Bytes read at a time.
+    chunk: usize,
     tile: u64,
     /// File offset of the bytes not yet in `buffer`, and the segment's end.
     next: u64,
@@ -442,6 +453,7 @@ struct SegmentCursor {
 impl SegmentCursor {
     fn new(tile: u64, offset: u64, len: u64) -> Self {
         Self {
+            chunk: SEGMENT_BUFFER,
             tile,
             next: offset,
             end: offset.saturating_add(len),
@@ -456,6 +468,11 @@ impl SegmentCursor {
         (self.end - self.next) + (self.buffer.len() - self.at) as u64
     }
 
+    /// The same, reading `chunk` bytes at a time.
+    fn buffering(self, chunk: usize) -> Self {
+        Self { chunk, ..self }
+    }
+
     /// Reads on until `need` bytes are buffered or the segment ends.
     fn fill(&mut self, source: &mut (impl Read + Seek), need: usize) -> io::Result<()> {
         if self.buffer.len() - self.at >= need || self.next >= self.end {
@@ -463,7 +480,7 @@ impl SegmentCursor {
         }
         self.buffer.drain(..self.at);
         self.at = 0;
-        let more = (self.end - self.next).min(SEGMENT_BUFFER.max(need) as u64) as usize;
+        let more = (self.end - self.next).min(self.chunk.max(need) as u64) as usize;
         let have = self.buffer.len();
         self.buffer.resize(have + more, 0);
         source.seek(SeekFrom::Start(self.next))?;
@@ -611,7 +628,7 @@ mod tests {
         encode_cell(&mut segment, 9 * cell, 14, &long);
         let len = (segment.len() - pad) as u64;
         let mut source = io::Cursor::new(segment.clone());
-        let mut cursor = SegmentCursor::new(tile, pad as u64, len);
+        let mut cursor = SegmentCursor::new(tile, pad as u64, len).buffering(MIN_SEGMENT_BUFFER);
         let mut runs_of = |start| {
             let mut runs = Vec::new();
             if let Some(bytes) = cursor.runs_for(tile + start, &mut source).unwrap() {
