@@ -475,6 +475,19 @@ impl PackedObservations {
         }
     }
 
+    /// The packed bytes (for [`from_packed`](Self::from_packed)).
+    pub(crate) fn packed_bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+
+    /// Observations packed before (`bytes` and `runs` as [`packed_bytes`](Self::packed_bytes)
+    /// and [`run_count`](Self::run_count) gave them), e.g. read back from disk. `None` when
+    /// `runs` cannot be right (every run takes two bytes at least), so that a damaged count
+    /// never reserves a huge vector when unpacked; the bytes are checked when unpacked.
+    pub(crate) fn from_packed(bytes: Box<[u8]>, runs: usize) -> Option<Self> {
+        (runs <= bytes.len() / 2 && (runs > 0 || bytes.is_empty())).then_some(Self { bytes, runs })
+    }
+
     /// Runs packed.
     pub fn run_count(&self) -> usize {
         self.runs

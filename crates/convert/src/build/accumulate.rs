@@ -12,13 +12,15 @@
 //! **Bounded memory.** Given a budget ([`Accumulator::spill_into`]), each thread keeps its
 //! histories within its share of it: after a snapshot that takes them over, what grows with
 //! the series (closed runs, unobserved gaps) is spilled to the thread's file in a spill
-//! directory ([`super::spill`]), and `into_tiles` reads the files back one tile at a time,
-//! merged with what is still in memory, yielding exactly the [`TileHistory`] values an
-//! accumulator without a budget yields, so the fitter and writer do not change. Without a
-//! budget everything stays in memory.
+//! directory ([`super::spill`]). Once the series is read, every cell is finished (the runs
+//! read back one tile at a time, merged with what is still in memory) and written out to a
+//! cell file, freeing the cells, which the fit stage then reads back one at a time: the
+//! same cells, in the same order, as an accumulator without a budget yields, so the fitter
+//! and writer do not change, and they work beside none of the accumulator's memory.
+//! Without a budget everything stays in memory.
 
 use super::extract::ChangeBatch;
-use super::spill::{SpillPlace, SpillReader, SpillWriter};
+use super::spill::{CellFileWriter, SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
 use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
@@ -35,6 +37,9 @@ pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
 
 /// A cell with its observations packed ([`PackedObservations`]).
 pub(crate) type PackedCell = (MortonCode, u8, PackedObservations);
+
+/// The cells of [`Accumulated::into_cells`], in Morton order.
+pub(crate) type Cells<'a> = Box<dyn Iterator<Item = Result<PackedCell, ConvertError>> + Send + 'a>;
 
 /// The cells of one tile of the output, in Morton order, with their observations — kept
 /// packed, since the tiles waiting to be fitted would otherwise hold most of a long
@@ -295,11 +300,7 @@ impl Accumulated {
 
     /// The histories closed at the end of an axis of `axis_len` samples, tile by tile in
     /// Morton order, with the samples in `absent` (sorted: no snapshot) cut out.
-    pub fn into_tiles(
-        self,
-        axis_len: u32,
-        absent: &[u32],
-    ) -> TileHistories<impl Iterator<Item = Result<PackedCell, ConvertError>> + Send + '_> {
+    pub fn into_tiles(self, axis_len: u32, absent: &[u32]) -> TileHistories<Cells<'_>> {
         let tile_depth = self.tile_depth;
         TileHistories {
             cells: self.into_cells(axis_len, absent),
@@ -310,9 +311,40 @@ impl Accumulated {
 
     /// The histories closed at the end of an axis of `axis_len` samples, cell by cell in
     /// Morton order (a tile's cells one after the other), with the samples in `absent`
-    /// (sorted: no snapshot) cut out. Only the cell being handed out, and the spilled runs
-    /// of its tile, are read back at a time.
-    pub fn into_cells(
+    /// (sorted: no snapshot) cut out.
+    ///
+    /// When the histories were spilled (a long series), every cell is first written out,
+    /// finished, into a file in the spill directory ([`CellFileWriter`]), each range's
+    /// cells freed as they go, and the cells are then read back one at a time: the fit stage
+    /// that follows holds none of the accumulator's cells beside its own work, so that the
+    /// peak of the build is the larger of the accumulation's and the fit's, not their sum.
+    /// Otherwise the cells are handed out from memory. Either way only the cell being
+    /// handed out, and the spilled runs of its tile, are read back at a time.
+    pub fn into_cells(self, axis_len: u32, absent: &[u32]) -> Cells<'_> {
+        let spill_dir = self
+            .parts
+            .iter()
+            .find_map(|(_, spilled)| spilled.as_ref().map(SpillReader::dir));
+        match spill_dir {
+            None => Box::new(self.cells_in_memory(axis_len, absent)),
+            Some(dir) => {
+                let settled = (|| {
+                    let mut file = CellFileWriter::create(&dir)?;
+                    for cell in self.cells_in_memory(axis_len, absent) {
+                        file.push(&cell?)?;
+                    }
+                    file.into_reader()
+                })();
+                match settled {
+                    Ok(cells) => Box::new(cells),
+                    Err(e) => Box::new(std::iter::once(Err(e))),
+                }
+            }
+        }
+    }
+
+    /// [`into_cells`](Self::into_cells) from the histories in memory and the spilled runs.
+    fn cells_in_memory(
         self,
         axis_len: u32,
         absent: &[u32],

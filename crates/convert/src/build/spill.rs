@@ -14,13 +14,14 @@
 //! The files are this build's own, but are still read with checks: damage gives an error,
 //! never a panic or a huge allocation.
 
+use super::accumulate::PackedCell;
 use crate::error::ConvertError;
-use crate::history::SeriesHistory;
+use crate::history::{PackedObservations, SeriesHistory};
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_temporal::{varint, Run};
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// Where a build spills: a directory in which a [`SpillDir`] is made at the first spill
@@ -235,6 +236,14 @@ impl SpillReader {
         self.bytes
     }
 
+    /// The directory its file is in.
+    pub fn dir(&self) -> PathBuf {
+        self.path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
+    }
+
     /// Appends to `out` the runs spilled for the cell at `start` (or the coarser cells it
     /// was split from), oldest first. Cells are asked for in Morton order.
     pub fn runs_for(&mut self, start: u64, out: &mut Vec<Run>) -> Result<(), ConvertError> {
@@ -242,9 +251,13 @@ impl SpillReader {
         if self.tile != Some(tile) {
             self.tile = Some(tile);
             let segments = self.segments.remove(&tile).unwrap_or_default();
+            // A long series spills many times: the buffers of all the tile's segments
+            // together stay within READ_BACK_BUFFERS, whatever the number of spills.
+            let chunk = (READ_BACK_BUFFERS / segments.len().max(1))
+                .clamp(MIN_SEGMENT_BUFFER, SEGMENT_BUFFER);
             self.cursors = segments
                 .into_iter()
-                .map(|(offset, len)| SegmentCursor::new(tile, offset, len))
+                .map(|(offset, len)| SegmentCursor::new(tile, offset, len).buffering(chunk))
                 .collect();
         }
         let fail = |source| ConvertError::Spill {
@@ -260,8 +273,164 @@ impl SpillReader {
     }
 }
 
+impl Drop for SpillReader {
+    /// What was spilled is read back once: the file goes as soon as it is no longer read,
+    /// rather than with the spill directory at the end of the build.
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// The finished cells of a build that spilled, written out in Morton order once the
+/// series is read (see `Accumulated::into_cells`), so that the accumulator's cells are
+/// freed before the fit stage, which then reads them back one at a time
+/// ([`CellFileReader`]). A record per cell: its start (u64), depth (u8), number of runs
+/// and bytes of packed runs (u64 each, little-endian), then the packed runs.
+#[derive(Debug)]
+pub(crate) struct CellFileWriter {
+    path: PathBuf,
+    file: BufWriter<File>,
+}
+
+/// Bytes of a cell record before its packed runs.
+const CELL_RECORD_HEAD: usize = 8 + 1 + 8 + 8;
+
+impl CellFileWriter {
+    /// A new, empty cell file in `dir`.
+    pub fn create(dir: &Path) -> Result<Self, ConvertError> {
+        let path = dir.join("cells.spill");
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(|source| ConvertError::Spill {
+                path: path.clone(),
+                source,
+            })?;
+        Ok(Self {
+            path,
+            file: BufWriter::with_capacity(1 << 20, file),
+        })
+    }
+
+    /// Appends a cell (after the ones before, in Morton order).
+    pub fn push(&mut self, (start, depth, packed): &PackedCell) -> Result<(), ConvertError> {
+        let bytes = packed.packed_bytes();
+        let mut head = [0u8; CELL_RECORD_HEAD];
+        head[..8].copy_from_slice(&start.0.to_le_bytes());
+        head[8] = *depth;
+        head[9..17].copy_from_slice(&(packed.run_count() as u64).to_le_bytes());
+        head[17..].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+        self.file
+            .write_all(&head)
+            .and_then(|()| self.file.write_all(bytes))
+            .map_err(|source| ConvertError::Spill {
+                path: self.path.clone(),
+                source,
+            })
+    }
+
+    /// The file, written out, to be read back from its start.
+    pub fn into_reader(self) -> Result<CellFileReader, ConvertError> {
+        let path = self.path;
+        let fail = |source| ConvertError::Spill {
+            path: path.clone(),
+            source,
+        };
+        let mut file = self.file.into_inner().map_err(|e| fail(e.into_error()))?;
+        let len = file.seek(SeekFrom::End(0)).map_err(fail)?;
+        file.seek(SeekFrom::Start(0)).map_err(fail)?;
+        Ok(CellFileReader {
+            file: BufReader::with_capacity(1 << 18, file),
+            left: len,
+            end_of_last: 0,
+            failed: false,
+            path,
+        })
+    }
+}
+
+/// A cell file read back, cell by cell; removed when dropped. Read with checks (damage gives
+/// an error, never a panic or a huge allocation).
+#[derive(Debug)]
+pub(crate) struct CellFileReader {
+    path: PathBuf,
+    file: BufReader<File>,
+    /// Bytes not read yet.
+    left: u64,
+    /// One past the last voxel of the cell read before.
+    end_of_last: u64,
+    failed: bool,
+}
+
+impl CellFileReader {
+    fn read_cell(&mut self) -> io::Result<PackedCell> {
+        let mut head = [0u8; CELL_RECORD_HEAD];
+        if self.left < CELL_RECORD_HEAD as u64 {
+            return Err(damaged("a cell cut short"));
+        }
+        self.file.read_exact(&mut head)?;
+        self.left -= CELL_RECORD_HEAD as u64;
+        let word = |at: usize| {
+            let mut bytes = [0u8; 8];
+            bytes.copy_from_slice(&head[at..at + 8]);
+            u64::from_le_bytes(bytes)
+        };
+        let (start, depth, runs, len) = (word(0), head[8], word(9), word(17));
+        if depth > TREE_DEPTH {
+            return Err(damaged("a cell deeper than the tree"));
+        }
+        if start < self.end_of_last {
+            return Err(damaged("cells out of order"));
+        }
+        self.end_of_last = start
+            .checked_add(voxels_per_node(depth))
+            .ok_or_else(|| damaged("a cell beyond space"))?;
+        if len > self.left {
+            return Err(damaged("a cell cut short"));
+        }
+        let mut bytes = vec![0u8; len as usize];
+        self.file.read_exact(&mut bytes)?;
+        self.left -= len;
+        let runs = usize::try_from(runs).map_err(|_| damaged("more runs than bytes"))?;
+        let packed = PackedObservations::from_packed(bytes.into_boxed_slice(), runs)
+            .ok_or_else(|| damaged("more runs than bytes"))?;
+        Ok((MortonCode(start), depth, packed))
+    }
+}
+
+impl Iterator for CellFileReader {
+    type Item = Result<PackedCell, ConvertError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed || self.left == 0 {
+            return None;
+        }
+        let cell = self.read_cell().map_err(|source| {
+            self.failed = true;
+            ConvertError::Spill {
+                path: self.path.clone(),
+                source,
+            }
+        });
+        Some(cell)
+    }
+}
+
+impl Drop for CellFileReader {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
 /// Bytes read from a segment at a time.
 const SEGMENT_BUFFER: usize = 16 << 10;
+/// Bytes read from a segment at a time at least.
+const MIN_SEGMENT_BUFFER: usize = 1 << 10;
+/// Bytes of buffers for all the segments of a tile (one per spill) together, as long as
+/// each gets [`MIN_SEGMENT_BUFFER`].
+const READ_BACK_BUFFERS: usize = 1 << 20;
 
 /// A position in one spill's segment of a tile, read a few kilobytes at a time: the cells
 /// of the segment are passed in Morton order, holding one cell's runs (packed) at a time,
@@ -269,6 +438,8 @@ const SEGMENT_BUFFER: usize = 16 << 10;
 /// history.
 #[derive(Debug)]
 struct SegmentCursor {
+    /// Bytes read at a time.
+    chunk: usize,
     tile: u64,
     /// File offset of the bytes not yet in `buffer`, and the segment's end.
     next: u64,
@@ -282,6 +453,7 @@ struct SegmentCursor {
 impl SegmentCursor {
     fn new(tile: u64, offset: u64, len: u64) -> Self {
         Self {
+            chunk: SEGMENT_BUFFER,
             tile,
             next: offset,
             end: offset.saturating_add(len),
@@ -296,6 +468,11 @@ impl SegmentCursor {
         (self.end - self.next) + (self.buffer.len() - self.at) as u64
     }
 
+    /// The same, reading `chunk` bytes at a time.
+    fn buffering(self, chunk: usize) -> Self {
+        Self { chunk, ..self }
+    }
+
     /// Reads on until `need` bytes are buffered or the segment ends.
     fn fill(&mut self, source: &mut (impl Read + Seek), need: usize) -> io::Result<()> {
         if self.buffer.len() - self.at >= need || self.next >= self.end {
@@ -303,7 +480,7 @@ impl SegmentCursor {
         }
         self.buffer.drain(..self.at);
         self.at = 0;
-        let more = (self.end - self.next).min(SEGMENT_BUFFER.max(need) as u64) as usize;
+        let more = (self.end - self.next).min(self.chunk.max(need) as u64) as usize;
         let have = self.buffer.len();
         self.buffer.resize(have + more, 0);
         source.seek(SeekFrom::Start(self.next))?;
@@ -451,7 +628,7 @@ mod tests {
         encode_cell(&mut segment, 9 * cell, 14, &long);
         let len = (segment.len() - pad) as u64;
         let mut source = io::Cursor::new(segment.clone());
-        let mut cursor = SegmentCursor::new(tile, pad as u64, len);
+        let mut cursor = SegmentCursor::new(tile, pad as u64, len).buffering(MIN_SEGMENT_BUFFER);
         let mut runs_of = |start| {
             let mut runs = Vec::new();
             if let Some(bytes) = cursor.runs_for(tile + start, &mut source).unwrap() {
@@ -488,6 +665,58 @@ mod tests {
         assert!(read(&forged).is_err());
         forged[1] = TREE_DEPTH + 1;
         assert!(read(&forged).is_err());
+    }
+
+    #[test]
+    fn cell_files_give_back_their_cells_and_refuse_damage() {
+        let dir = tempfile::tempdir().unwrap();
+        let packed = |runs: &[(u32, u32, bool)]| {
+            PackedObservations::pack(runs.iter().map(|&(f, l, o)| (f, l, Occupancy::from(o))))
+        };
+        let cells: Vec<PackedCell> = vec![
+            (MortonCode(0), 15, packed(&[(0, 3, false), (5, 2, true)])),
+            (MortonCode(8), 16, packed(&[])),
+            (MortonCode(64), 14, packed(&[(1, 1, true)])),
+        ];
+        let mut writer = CellFileWriter::create(dir.path()).unwrap();
+        for cell in &cells {
+            writer.push(cell).unwrap();
+        }
+        let reader = writer.into_reader().unwrap();
+        let path = dir.path().join("cells.spill");
+        let bytes = std::fs::read(&path).unwrap();
+        let back: Vec<PackedCell> = reader.map(Result::unwrap).collect();
+        assert_eq!(back, cells);
+        assert!(!path.exists(), "the file goes with its reader");
+        // Cut anywhere, or with a forged count, depth or order: an error, never a panic.
+        let read_back = |bytes: &[u8]| -> Result<usize, ConvertError> {
+            std::fs::write(&path, bytes).unwrap();
+            let file = File::options().read(true).write(true).open(&path).unwrap();
+            let reader = CellFileWriter {
+                path: path.clone(),
+                file: BufWriter::new(file),
+            }
+            .into_reader()?;
+            reader
+                .collect::<Result<Vec<_>, _>>()
+                .map(|cells| cells.len())
+        };
+        assert_eq!(read_back(&bytes).unwrap(), 3);
+        for cut in 1..bytes.len() {
+            let whole = [0, CELL_RECORD_HEAD + 4, 2 * CELL_RECORD_HEAD + 4];
+            if !whole.contains(&cut) {
+                assert!(read_back(&bytes[..cut]).is_err(), "cut at {cut}");
+            }
+        }
+        let mut forged = bytes.clone();
+        forged[9..17].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert!(read_back(&forged).is_err());
+        let mut forged = bytes.clone();
+        forged[8] = TREE_DEPTH + 1;
+        assert!(read_back(&forged).is_err());
+        let mut forged = bytes.clone();
+        forged[CELL_RECORD_HEAD + 4..CELL_RECORD_HEAD + 12].copy_from_slice(&0u64.to_le_bytes());
+        assert!(read_back(&forged).is_err(), "cells out of order");
     }
 
     #[test]
