@@ -6,7 +6,7 @@
 //! with `--measure`, builds the lossless file, `tar | zstd` and times a retrieval, for a
 //! quick before/after comparison of file formats on one series).
 
-use crate::report::{duration, label_then_numbers, median, megabytes, table, times, StorageRow};
+use crate::report::{duration, label_then_numbers, megabytes, table, times, StorageRow};
 use crate::series_args::SeriesArgs;
 use crate::system::tar_through;
 use anyhow::{bail, Context, Result};
@@ -339,17 +339,7 @@ fn time_retrieval(
         .index_of(mid.time)
         .context("the middle snapshot is not on the file's axis")?;
     let retrieved = scratch.join("retrieved.bt");
-    let time = |f: &mut dyn FnMut() -> Result<()>| -> Result<f64> {
-        f()?;
-        let mut times = Vec::new();
-        for _ in 0..repeats {
-            let t = Instant::now();
-            f()?;
-            times.push(t.elapsed().as_secs_f64());
-        }
-        median(&times).context("no timing")
-    };
-    let retrieve = time(&mut || {
+    let retrieve = crate::run::timed(repeats, || {
         let reader = FroctReader::open(file)?;
         write_observed_map(
             &context,
@@ -360,7 +350,7 @@ fn time_retrieval(
         )?;
         Ok(())
     })?;
-    let cpp = time(&mut || {
+    let cpp = crate::run::timed(repeats, || {
         let bytes = std::fs::read(&mid.path)?;
         std::hint::black_box(froctomap_octomap_ffi::OcTree::read_binary(&bytes)?);
         Ok(())

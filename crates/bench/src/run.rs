@@ -249,7 +249,8 @@ pub(crate) fn spawn_build(
 }
 
 /// Median seconds of `repeats` runs of `f` after one warm-up run.
-fn timed(repeats: u32, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
+/// Median seconds of `repeats` runs of `f`, after one untimed warm-up run.
+pub(crate) fn timed(repeats: u32, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
     f()?;
     let mut times = Vec::with_capacity(repeats as usize);
     for _ in 0..repeats {

@@ -108,19 +108,24 @@ pub(crate) struct SpillWriter {
     spills: usize,
 }
 
+/// A new spill file at `path`, readable and writable; never one that already exists.
+fn create_spill_file(path: &Path) -> Result<File, ConvertError> {
+    File::options()
+        .read(true)
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .map_err(|source| ConvertError::Spill {
+            path: path.to_path_buf(),
+            source,
+        })
+}
+
 impl SpillWriter {
     /// A new spill file `part` in `dir`, for tiles of depth `tile_depth`.
     pub fn create(dir: &Path, part: usize, tile_depth: u8) -> Result<Self, ConvertError> {
         let path = dir.join(format!("part-{part}.spill"));
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(|source| ConvertError::Spill {
-                path: path.clone(),
-                source,
-            })?;
+        let file = create_spill_file(&path)?;
         Ok(Self {
             path,
             file: BufWriter::with_capacity(1 << 20, file),
@@ -299,15 +304,7 @@ impl CellFileWriter {
     /// A new, empty cell file in `dir`.
     pub fn create(dir: &Path) -> Result<Self, ConvertError> {
         let path = dir.join("cells.spill");
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(|source| ConvertError::Spill {
-                path: path.clone(),
-                source,
-            })?;
+        let file = create_spill_file(&path)?;
         Ok(Self {
             path,
             file: BufWriter::with_capacity(1 << 20, file),
