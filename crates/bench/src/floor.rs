@@ -11,9 +11,9 @@ use crate::series_args::SeriesArgs;
 use crate::system::tar_through;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use froctomap_convert::{group_thousands as group, write_observed_map};
+use froctomap_convert::group_thousands as group;
 use froctomap_file::FroctReader;
-use froctomap_formats::{ReadOptions, WriteOptions};
+use froctomap_formats::ReadOptions;
 use froctomap_synth::EntropyFloor;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -340,15 +340,7 @@ fn time_retrieval(
         .context("the middle snapshot is not on the file's axis")?;
     let retrieved = scratch.join("retrieved.bt");
     let retrieve = crate::run::timed(repeats, || {
-        let reader = FroctReader::open(file)?;
-        write_observed_map(
-            &context,
-            &reader,
-            sample,
-            &retrieved,
-            WriteOptions::default(),
-        )?;
-        Ok(())
+        crate::run::retrieve_once(&context, file, sample, &retrieved)
     })?;
     let cpp = crate::run::timed(repeats, || {
         let bytes = std::fs::read(&mid.path)?;

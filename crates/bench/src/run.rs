@@ -248,6 +248,19 @@ pub(crate) fn spawn_build(
     })
 }
 
+/// What `froctomap retrieve` does, in this process: open `file` and write the map observed
+/// at `sample` to `out` as `.bt`.
+pub(crate) fn retrieve_once(
+    context: &froctomap_convert::Context,
+    file: &Path,
+    sample: u32,
+    out: &Path,
+) -> Result<()> {
+    let reader = FroctReader::open(file)?;
+    write_observed_map(context, &reader, sample, out, WriteOptions::default())?;
+    Ok(())
+}
+
 /// Median seconds of `repeats` runs of `f` after one warm-up run.
 /// Median seconds of `repeats` runs of `f`, after one untimed warm-up run.
 pub(crate) fn timed(repeats: u32, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
@@ -805,15 +818,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     std::fs::create_dir_all(&scratch)?;
     let retrieved = scratch.join("retrieved.bt");
     let retrieve_seconds = timed(args.repeats, || {
-        let reader = FroctReader::open(&lossless)?;
-        write_observed_map(
-            &context,
-            &reader,
-            sample,
-            &retrieved,
-            WriteOptions::default(),
-        )?;
-        Ok(())
+        retrieve_once(&context, &lossless, sample, &retrieved)
     })?;
     // The retrieved map must be the input snapshot (lossless).
     let back = registry.read_file(&retrieved, ReadOptions::default())?;

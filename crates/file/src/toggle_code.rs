@@ -13,6 +13,7 @@
 
 use crate::error::{corrupt, FormatViolation};
 use crate::range_coder::{Decoder, Encoder, Prob};
+use crate::toggle_lists::ToggleBudget;
 
 /// Gaps before a flip away from the usual state are coded uniformly below this many
 /// samples: sensor noise flips anywhere alike.
@@ -264,8 +265,7 @@ pub(crate) struct CodedListReader<'a> {
     /// Each block's first sample and decoder.
     blocks: Vec<(u32, BlockDecoder<'a>)>,
     part: &'static str,
-    toggles: u64,
-    max_toggles: u64,
+    budget: ToggleBudget,
 }
 
 impl<'a> CodedListReader<'a> {
@@ -281,8 +281,7 @@ impl<'a> CodedListReader<'a> {
                 .map(|(start, len, code)| (start, BlockDecoder::new(code, len, start > 0, part)))
                 .collect(),
             part,
-            toggles: 0,
-            max_toggles,
+            budget: ToggleBudget::new(max_toggles),
         }
     }
 
@@ -299,15 +298,7 @@ impl<'a> CodedListReader<'a> {
     /// Counts the toggles of a list in one block, plus one for the visit: an empty list
     /// costs the coder next to nothing, so visits are bounded like toggles (FORMAT.md §9).
     fn count(&mut self, toggles: u64) -> Result<(), FormatViolation> {
-        self.toggles += toggles + 1;
-        if self.toggles > self.max_toggles {
-            return Err(FormatViolation::Limit {
-                what: "toggles in a tile's list set",
-                value: self.toggles,
-                limit: self.max_toggles,
-            });
-        }
-        Ok(())
+        self.budget.spend(toggles + 1)
     }
 
     /// Whether an odd number of the next list's positions are `≤ sample`, from the first

@@ -279,8 +279,35 @@ pub(crate) struct ToggleListReader<'a> {
     /// consecutive blocks must differ in exactly those lists (checked by [`finish`](Self::finish)).
     odd_lists: Vec<u64>,
     /// Toggles decoded so far, and the most allowed.
-    toggles: u64,
-    max_toggles: u64,
+    budget: ToggleBudget,
+}
+
+/// Toggles (and, for coded lists, visits) decoded from one tile's list set against the
+/// most a reader allows (FORMAT.md §9), so that hostile counts cannot make it work without end.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ToggleBudget {
+    spent: u64,
+    max: u64,
+}
+
+impl ToggleBudget {
+    /// Nothing spent yet, at most `max`.
+    pub(crate) fn new(max: u64) -> Self {
+        Self { spent: 0, max }
+    }
+
+    /// Spends `count` more; an error once more than the most allowed are spent.
+    pub(crate) fn spend(&mut self, count: u64) -> Result<(), FormatViolation> {
+        self.spent = self.spent.saturating_add(count);
+        if self.spent > self.max {
+            return Err(FormatViolation::Limit {
+                what: "toggles in a tile's list set",
+                value: self.spent,
+                limit: self.max,
+            });
+        }
+        Ok(())
+    }
 }
 
 impl<'a> ToggleListReader<'a> {
@@ -313,8 +340,7 @@ impl<'a> ToggleListReader<'a> {
             read: 0,
             part,
             pending: None,
-            toggles: 0,
-            max_toggles,
+            budget: ToggleBudget::new(max_toggles),
         }
     }
 
@@ -377,7 +403,7 @@ impl<'a> ToggleListReader<'a> {
             if let Some((_, _, reader)) = self.blocks.first_mut() {
                 reader.next_list_into(positions)?;
             }
-            return self.count_toggles(positions.len());
+            return self.budget.spend(positions.len() as u64);
         }
         let pending = match &mut self.pending {
             Some(pending) => pending,
@@ -415,19 +441,7 @@ impl<'a> ToggleListReader<'a> {
                 pending.push(Reverse((next, b)));
             }
         }
-        self.count_toggles(positions.len())
-    }
-
-    fn count_toggles(&mut self, count: usize) -> Result<(), FormatViolation> {
-        self.toggles += count as u64;
-        if self.toggles > self.max_toggles {
-            return Err(FormatViolation::Limit {
-                what: "toggles in a tile's list set",
-                value: self.toggles,
-                limit: self.max_toggles,
-            });
-        }
-        Ok(())
+        self.budget.spend(positions.len() as u64)
     }
 
     /// Checks that the blocks at hand held exactly the lists read.

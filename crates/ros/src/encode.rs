@@ -45,14 +45,14 @@ pub fn encode_octomap_cdr(
     resolution: f64,
     data: &[u8],
 ) -> Option<Vec<u8>> {
-    let too_long = |len: usize| u32::try_from(len.saturating_add(1)).is_err();
-    if too_long(frame_id.len()) || too_long(id.len()) || too_long(data.len()) {
+    if [frame_id.len(), id.len(), data.len()]
+        .into_iter()
+        .any(too_long)
+    {
         return None;
     }
     let mut out = CdrWriter::with_capacity(64 + frame_id.len() + id.len() + data.len());
-    out.u32(stamp.0 as u32);
-    out.u32(stamp.1);
-    out.string(frame_id);
+    out.header(stamp, frame_id);
     out.bytes.push(u8::from(binary));
     out.string(id);
     out.align(8);
@@ -116,13 +116,11 @@ pub fn encode_point_cloud2_cdr(
 ) -> Option<Vec<u8>> {
     let width = u32::try_from(data.len() / point_step.max(1) as usize).ok()?;
     let row_step = u32::try_from(data.len()).ok()?;
-    if u32::try_from(frame_id.len().saturating_add(1)).is_err() {
+    if too_long(frame_id.len()) {
         return None;
     }
     let mut out = CdrWriter::with_capacity(128 + frame_id.len() + data.len());
-    out.u32(stamp.0 as u32);
-    out.u32(stamp.1);
-    out.string(frame_id);
+    out.header(stamp, frame_id);
     out.u32(1);
     out.u32(width);
     out.u32(u32::try_from(fields.len()).ok()?);
@@ -139,6 +137,12 @@ pub fn encode_point_cloud2_cdr(
     out.bytes.extend_from_slice(data);
     out.bytes.push(1); // is_dense
     Some(out.bytes)
+}
+
+/// Whether a string or sequence of `len` bytes is too long for a CDR length (a `u32`
+/// that, for strings, also counts the terminating NUL).
+fn too_long(len: usize) -> bool {
+    u32::try_from(len.saturating_add(1)).is_err()
 }
 
 /// Little-endian CDR: a 4-byte encapsulation header, then each primitive aligned to its size
@@ -165,6 +169,13 @@ impl CdrWriter {
     fn u32(&mut self, value: u32) {
         self.align(4);
         self.bytes.extend_from_slice(&value.to_le_bytes());
+    }
+
+    /// A `std_msgs/Header`: the stamp's `sec` and `nanosec`, then `frame_id`.
+    fn header(&mut self, stamp: (i32, u32), frame_id: &str) {
+        self.u32(stamp.0 as u32);
+        self.u32(stamp.1);
+        self.string(frame_id);
     }
 
     /// A string: its length counting a terminating NUL, the bytes, the NUL.
