@@ -38,6 +38,15 @@ use std::process::ExitCode;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
+/// As the CLI does for `build` (its `purge_freed_memory_at_once`): mimalloc's
+/// `mi_option_purge_delay` (index 15) set to 0, so freed memory leaves the resident set at once.
+// The one call into mimalloc's C API, which has no safe binding for options.
+#[allow(unsafe_code)]
+fn purge_freed_memory_at_once() {
+    // SAFETY: a plain option setter, called before the build starts.
+    unsafe { libmimalloc_sys::mi_option_set(15, 0) }
+}
+
 /// Long-term benchmark of froctomap: realistic series, storage, time and accuracy against
 /// tar | zstd, xz and the upstream OctoMap library.
 #[derive(Parser)]
@@ -87,7 +96,10 @@ fn main() -> ExitCode {
         Command::Anomalies(args) => anomaly_eval::anomalies_command(&args),
         Command::Mcap(args) => recording::mcap_row(&args),
         Command::Floor(args) => floor::floor_command(&args),
-        Command::BuildChild(args) => run::build_child(&args),
+        Command::BuildChild(args) => {
+            purge_freed_memory_at_once();
+            run::build_child(&args)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

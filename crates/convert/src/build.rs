@@ -16,7 +16,8 @@
 //! 4. [`fit`] — `TileFitter`: a `TileHistory` → a `FittedTile` (cells as stored, counts by
 //!    class); `fit_and_write` drives stages 4 and 5 over the cell stream in parallel steps
 //!    of bounded chunks of cells (both cores within one tile; memory bounded per step).
-//! 5. [`write`](mod@write) — `TileEncoder` (a tile's cells → bytes, in parallel) and `TileWriter` (the
+//! 5. [`write`](mod@write) — `TileEncoder` (fitted cells pushed into their tile's streams as
+//!    their chunk is fitted, complete tiles compressed in parallel) and `TileWriter` (the
 //!    tiles in order into the file, atomically, summing the counts).
 //!
 //! [`build()`] wires them: the stages pass values, never reach into each other, and report

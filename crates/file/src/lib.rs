@@ -13,7 +13,8 @@
 //! A reader reads its bytes from a [`ByteSource`]: a file ([`FroctReader::open`]), memory
 //! ([`FroctReader::from_bytes`]) or anything that serves byte ranges
 //! ([`FroctReader::from_source`]). A writer takes only [`EncodedTile`]s made by
-//! [`encode_tile`] and seals them itself (checksums of the bytes it writes).
+//! [`encode_tile`] (or cell by cell, [`TileStreamEncoder`]) and seals them itself
+//! (checksums of the bytes it writes).
 //!
 //! Cells that never changed cost a class byte. Cells that changed carry a temporal model
 //! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
@@ -83,6 +84,8 @@ pub use limits::ReadLimits;
 pub use query::CellValue;
 pub use reader::FroctReader;
 pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
-pub use tile::{encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes};
+pub use tile::{
+    encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileStreamEncoder,
+};
 pub use toggle_lists::ToggleLayout;
 pub use writer::{FroctWriter, WrittenFile};

@@ -142,6 +142,7 @@ pub(crate) enum Column {
 }
 
 /// One block's encoded columns, by [`Column`].
+#[derive(Default)]
 pub(crate) struct ListColumns([Vec<u8>; 6]);
 
 impl ListColumns {
@@ -152,84 +153,134 @@ impl ListColumns {
 
 /// The columns of a set of toggle lists (each strictly increasing, below `axis_len`), per
 /// block: the one block of the whole layout, or each block of the blocked ones.
+#[cfg(test)]
 pub(crate) fn encode_lists(
     lists: &[&[u32]],
     layout: ToggleLayout,
     axis_len: u32,
 ) -> Vec<ListColumns> {
-    let blocks = layout.blocks(axis_len);
-    let mut columns: Vec<ToggleColumns> = (0..blocks)
-        .map(|_| match layout {
-            ToggleLayout::Whole => ToggleColumns::default(),
-            ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => ToggleColumns::sparse(),
-        })
-        .collect();
-    let parity_len = match layout {
-        ToggleLayout::Whole => 0,
-        ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => lists.len().div_ceil(8),
-    };
-    let mut parity = vec![vec![0u8; parity_len]; blocks as usize];
-    for (l, list) in lists.iter().enumerate() {
-        let mut rest = *list;
-        for (b, column) in columns.iter_mut().enumerate() {
-            let (start, len) = layout.block_span(b as u32, axis_len);
-            if (list.len() - rest.len()) % 2 == 1 {
-                if let Some(byte) = parity[b].get_mut(l / 8) {
-                    *byte |= 1 << (l % 8);
-                }
-            }
-            let inside = rest.partition_point(|&t| t < start + len);
-            column.push(&rest[..inside], start);
-            rest = &rest[inside..];
-        }
+    let mut encoder = ListsEncoder::columns(layout, axis_len);
+    for list in lists {
+        encoder.push(list);
     }
-    columns
-        .into_iter()
-        .zip(parity)
-        .map(|(column, parity)| {
-            ListColumns([
-                parity,
-                column.present,
-                column.counts,
-                column.starts,
-                column.lengths,
-                Vec::new(),
-            ])
-        })
-        .collect()
+    encoder.finish()
 }
 
-/// A set of toggle lists range coded (format 1.2), per block of the layout: one stream each.
-pub(crate) fn encode_coded(
-    lists: &[&[u32]],
+/// A set of toggle lists (each strictly increasing, below the axis' length) encoded one list
+/// at a time, per block of the layout: as varint columns ([`columns`](Self::columns)), or
+/// range coded (format 1.2, [`coded`](Self::coded)). A list is cut into its blocks as it is
+/// pushed, so a tile's lists need not be held until the tile is complete.
+pub(crate) struct ListsEncoder {
     layout: ToggleLayout,
     axis_len: u32,
-) -> Vec<ListColumns> {
-    let blocks = layout.blocks(axis_len);
-    let mut encoders: Vec<BlockEncoder> = (0..blocks)
-        .map(|b| BlockEncoder::new(layout.block_span(b, axis_len).1, b > 0))
-        .collect();
-    let mut relative = Vec::new();
-    for list in lists {
-        let mut rest = *list;
-        for (b, encoder) in encoders.iter_mut().enumerate() {
-            let (start, len) = layout.block_span(b as u32, axis_len);
-            let parity = (list.len() - rest.len()) % 2 == 1;
-            let inside = rest.partition_point(|&t| t < start + len);
-            relative.clear();
-            relative.extend(rest[..inside].iter().map(|&t| t - start));
-            encoder.push(parity, &relative);
-            rest = &rest[inside..];
+    /// Lists pushed so far.
+    lists: usize,
+    blocks: BlockEncoders,
+}
+
+enum BlockEncoders {
+    /// Per block, the toggle columns and the lists' parity bitmap (empty in the whole layout).
+    Columns(Vec<(ToggleColumns, Vec<u8>)>),
+    /// Per block, the range coder; and a buffer for positions relative to a block's start.
+    Coded(Vec<BlockEncoder>, Vec<u32>),
+}
+
+impl ListsEncoder {
+    /// Lists stored as varint columns under the file's codec.
+    pub(crate) fn columns(layout: ToggleLayout, axis_len: u32) -> Self {
+        let blocks = (0..layout.blocks(axis_len))
+            .map(|_| match layout {
+                ToggleLayout::Whole => (ToggleColumns::default(), Vec::new()),
+                ToggleLayout::Blocked(_) | ToggleLayout::Coded(_) => {
+                    (ToggleColumns::sparse(), Vec::new())
+                }
+            })
+            .collect();
+        Self {
+            layout,
+            axis_len,
+            lists: 0,
+            blocks: BlockEncoders::Columns(blocks),
         }
     }
-    encoders
-        .into_iter()
-        .map(|encoder| {
-            let mut columns: [Vec<u8>; 6] = Default::default();
-            columns[Column::Code as usize] = encoder.finish();
-            ListColumns(columns)
-        })
-        .collect()
+
+    /// Lists range coded per block (format 1.2).
+    pub(crate) fn coded(layout: ToggleLayout, axis_len: u32) -> Self {
+        let encoders = (0..layout.blocks(axis_len))
+            .map(|b| BlockEncoder::new(layout.block_span(b, axis_len).1, b > 0))
+            .collect();
+        Self {
+            layout,
+            axis_len,
+            lists: 0,
+            blocks: BlockEncoders::Coded(encoders, Vec::new()),
+        }
+    }
+
+    /// Adds the next list.
+    pub(crate) fn push(&mut self, list: &[u32]) {
+        let l = self.lists;
+        self.lists += 1;
+        let (layout, axis_len) = (self.layout, self.axis_len);
+        let mut rest = list;
+        match &mut self.blocks {
+            BlockEncoders::Columns(blocks) => {
+                let has_parity = layout != ToggleLayout::Whole;
+                for (b, (column, parity)) in blocks.iter_mut().enumerate() {
+                    let (start, len) = layout.block_span(b as u32, axis_len);
+                    if has_parity && l % 8 == 0 {
+                        parity.push(0);
+                    }
+                    if (list.len() - rest.len()) % 2 == 1 {
+                        if let Some(byte) = parity.get_mut(l / 8) {
+                            *byte |= 1 << (l % 8);
+                        }
+                    }
+                    let inside = rest.partition_point(|&t| t < start + len);
+                    column.push(&rest[..inside], start);
+                    rest = &rest[inside..];
+                }
+            }
+            BlockEncoders::Coded(encoders, relative) => {
+                for (b, encoder) in encoders.iter_mut().enumerate() {
+                    let (start, len) = layout.block_span(b as u32, axis_len);
+                    let parity = (list.len() - rest.len()) % 2 == 1;
+                    let inside = rest.partition_point(|&t| t < start + len);
+                    relative.clear();
+                    relative.extend(rest[..inside].iter().map(|&t| t - start));
+                    encoder.push(parity, relative.as_slice());
+                    rest = &rest[inside..];
+                }
+            }
+        }
+    }
+
+    /// The columns of each block.
+    pub(crate) fn finish(self) -> Vec<ListColumns> {
+        match self.blocks {
+            BlockEncoders::Columns(blocks) => blocks
+                .into_iter()
+                .map(|(column, parity)| {
+                    ListColumns([
+                        parity,
+                        column.present,
+                        column.counts,
+                        column.starts,
+                        column.lengths,
+                        Vec::new(),
+                    ])
+                })
+                .collect(),
+            BlockEncoders::Coded(encoders, _) => encoders
+                .into_iter()
+                .map(|encoder| {
+                    let mut columns: [Vec<u8>; 6] = Default::default();
+                    columns[Column::Code as usize] = encoder.finish();
+                    ListColumns(columns)
+                })
+                .collect(),
+        }
+    }
 }
 
 /// One block's streams of a list set, as read from a tile: its first sample, its parity

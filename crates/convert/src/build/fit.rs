@@ -11,12 +11,9 @@ use crate::build::ClassCounts;
 use crate::error::ConvertError;
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, Occupancy};
-use froctomap_file::{mask_from_ranges, Cell, CellContent, EncodedTile};
-use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, Toggles, VoxelObservations};
+use froctomap_file::{mask_from_ranges, Cell, CellContent, EncodedTile, TileStreamEncoder};
+use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
-use std::sync::Arc;
 
 /// Counts of a tile's (or a file's) cells, voxels and stored toggles.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -168,9 +165,11 @@ struct Chunk {
 /// Memory is bounded whatever the length of the series: a thread of its own pulls the
 /// cells and cuts them into chunks of a few thousand cells or runs (never across tiles);
 /// each parallel step fits a bounded number of chunks (both cores work within one tile of
-/// a long series) and encodes the tiles completed before it, and a tile waiting to be
-/// encoded holds only its fitted cells, whose observation masks are shared between cells
-/// with the same mask (as the file stores them). The output does not depend on the
+/// a long series) and compresses the tiles completed before it. A fitted cell is turned
+/// into its tile's streams ([`TileStreamEncoder`](froctomap_file::TileStreamEncoder)) as
+/// soon as its chunk is fitted, and dropped: a tile waiting to be compressed holds its
+/// streams (varint and range-coded toggles), not its cells (4-byte toggles each), which is
+/// what a large tile of a long series held before. The output does not depend on the
 /// chunking: cells reach the encoder in the same order, grouped in the same tiles.
 pub(crate) fn fit_and_write(
     cells: impl Iterator<Item = Result<PackedCell, ConvertError>> + Send,
@@ -239,7 +238,7 @@ pub(crate) fn fit_and_write(
                 || {
                     complete
                         .into_par_iter()
-                        .map(|tile| Ok((encoder.encode(&tile.cells)?, tile.stats)))
+                        .map(|(tile, stats)| Ok((encoder.finish(tile)?, stats)))
                         .collect::<Result<Vec<(EncodedTile, TileStats)>, ConvertError>>()
                 },
                 || {
@@ -256,7 +255,7 @@ pub(crate) fn fit_and_write(
                 writer.write(&tile, &stats)?;
             }
             for (tile, fitted) in fitted? {
-                pending.add(tile, fitted);
+                pending.add(tile, fitted, encoder)?;
             }
             if chunks.peek().is_none() {
                 pending.close();
@@ -266,66 +265,41 @@ pub(crate) fn fit_and_write(
     })
 }
 
-/// The tiles between fitting and encoding: the one whose cells are still arriving, and
-/// the completed ones waiting for the next step.
+/// The tiles between fitting and compression: the one whose cells are still arriving, and
+/// the completed ones waiting for the next step, each as its streams and counts.
 #[derive(Default)]
 struct PendingTiles {
-    current: Option<(u64, FittedTile, SharedMasks)>,
-    complete: Vec<FittedTile>,
+    current: Option<(u64, TileStreamEncoder, TileStats)>,
+    complete: Vec<(TileStreamEncoder, TileStats)>,
 }
 
 impl PendingTiles {
-    /// Adds the fitted cells of a chunk of `tile` (chunks arrive in Morton order).
-    fn add(&mut self, tile: u64, mut fitted: FittedTile) {
+    /// Adds the fitted cells of a chunk of `tile` (chunks arrive in Morton order) to its
+    /// streams, and drops them.
+    fn add(
+        &mut self,
+        tile: u64,
+        fitted: FittedTile,
+        encoder: &TileEncoder<'_>,
+    ) -> Result<(), ConvertError> {
         if self.current.as_ref().is_some_and(|(t, ..)| *t != tile) {
             self.close();
         }
-        let (_, cells, masks) = self.current.get_or_insert_with(|| {
-            (
-                tile,
-                FittedTile {
-                    cells: Vec::new(),
-                    stats: TileStats::default(),
-                },
-                SharedMasks::default(),
-            )
-        });
-        for cell in &mut fitted.cells {
-            if let Some(mask) = cell.mask.take() {
-                cell.mask = Some(masks.share(mask));
-            }
+        let (_, streams, stats) = self
+            .current
+            .get_or_insert_with(|| (tile, encoder.start(), TileStats::default()));
+        for cell in &fitted.cells {
+            encoder.push(streams, cell)?;
         }
-        cells.cells.append(&mut fitted.cells);
-        cells.stats.add(&fitted.stats);
+        stats.add(&fitted.stats);
+        Ok(())
     }
 
     /// The tile whose cells were arriving is complete.
     fn close(&mut self) {
-        if let Some((_, mut tile, _)) = self.current.take() {
-            tile.cells.shrink_to_fit();
-            self.complete.push(tile);
+        if let Some((_, streams, stats)) = self.current.take() {
+            self.complete.push((streams, stats));
         }
-    }
-}
-
-/// A tile's distinct observation masks: neighbouring cells are usually hidden by the same
-/// partial views, so a tile of a long series holds one copy of each mask, not one a cell.
-#[derive(Default)]
-struct SharedMasks {
-    by_hash: HashMap<u64, Vec<Arc<Toggles>>>,
-}
-
-impl SharedMasks {
-    /// The mask already held equal to `mask`, or `mask`, now held.
-    fn share(&mut self, mask: Arc<Toggles>) -> Arc<Toggles> {
-        let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        mask.as_slice().hash(&mut hasher);
-        let same = self.by_hash.entry(hasher.finish()).or_default();
-        if let Some(held) = same.iter().find(|m| m.as_slice() == mask.as_slice()) {
-            return held.clone();
-        }
-        same.push(mask.clone());
-        mask
     }
 }
 

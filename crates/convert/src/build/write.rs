@@ -4,14 +4,18 @@
 
 use super::fit::TileStats;
 use crate::error::ConvertError;
+#[cfg(test)]
+use froctomap_file::encode_tile;
 use froctomap_file::{
-    encode_tile, Cell, EncodedTile, FroctWriter, Header, TileLayout, WrittenFile,
+    Cell, EncodedTile, FroctWriter, Header, TileLayout, TileStreamEncoder, WrittenFile,
 };
 use froctomap_temporal::PreparedModel;
 use serde_json::{Map, Value};
 use std::path::Path;
 
-/// Encodes the cells of a tile as the file stores them.
+/// Encodes the cells of a tile as the file stores them: whole ([`encode`](Self::encode)), or
+/// pushed one at a time into a tile's streams ([`start`](Self::start), [`push`](Self::push),
+/// [`finish`](Self::finish)).
 pub(crate) struct TileEncoder<'a> {
     layout: TileLayout,
     model: &'a dyn PreparedModel,
@@ -24,11 +28,32 @@ impl<'a> TileEncoder<'a> {
     }
 
     /// One tile's cells (in Morton order), encoded.
+    #[cfg(test)]
     pub fn encode(&self, cells: &[Cell]) -> Result<EncodedTile, ConvertError> {
-        encode_tile(&self.layout, cells, self.model).map_err(|e| ConvertError::Internal {
-            what: "a tile could not be encoded",
-            source: Some(e.into()),
-        })
+        encode_tile(&self.layout, cells, self.model).map_err(not_encoded)
+    }
+
+    /// The streams of a tile with no cells yet.
+    pub fn start(&self) -> TileStreamEncoder {
+        TileStreamEncoder::new(&self.layout, self.model)
+    }
+
+    /// Adds the next cell of the tile (in Morton order) to its streams.
+    pub fn push(&self, tile: &mut TileStreamEncoder, cell: &Cell) -> Result<(), ConvertError> {
+        tile.push(cell).map_err(not_encoded)
+    }
+
+    /// The tile whose cells were pushed, encoded.
+    pub fn finish(&self, tile: TileStreamEncoder) -> Result<EncodedTile, ConvertError> {
+        tile.finish().map_err(not_encoded)
+    }
+}
+
+/// Cells the fit stage made that the file cannot hold: a bug, not bad input.
+fn not_encoded(e: froctomap_file::TileEncodeError) -> ConvertError {
+    ConvertError::Internal {
+        what: "a tile could not be encoded",
+        source: Some(e.into()),
     }
 }
 
@@ -157,6 +182,74 @@ mod tests {
             .map(|t| t.unwrap().unpacked()[0].0 .0)
             .collect();
         assert_eq!(starts, expected);
+    }
+
+    /// A tile of depth 10 holding `cells` voxels observed over `samples` samples: constant,
+    /// flipping and noisy cells, some seen late or with gaps (masked), in Morton order.
+    fn varied_tile(cells: u64, samples: u32) -> TileHistory {
+        TileHistory::new(
+            (0..cells)
+                .map(|i| {
+                    let mut runs = Vec::new();
+                    let mut t = (i % 3) as u32;
+                    let mut occupied = i % 2 == 0;
+                    while t < samples {
+                        let len = (1 + ((i * 7 + u64::from(t)) % 5) as u32).min(samples - t);
+                        let state = if occupied {
+                            Occupancy::Occupied
+                        } else {
+                            Occupancy::Free
+                        };
+                        runs.push((t, len, state));
+                        t += len + u32::from(i % 4 == 0);
+                        occupied ^= i % 7 != 0;
+                    }
+                    let observations = VoxelObservations::from_runs(runs).unwrap();
+                    (MortonCode(i), 16, observations)
+                })
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn cells_streamed_chunk_by_chunk_encode_as_the_whole_tile() {
+        // More cells than a fitting chunk, so one tile's streams grow over several chunks.
+        let tile = varied_tile(5_000, 64);
+        let setup = default_model(64);
+        let header = Header::new(
+            0.1,
+            10,
+            setup.axis.clone(),
+            setup.id,
+            setup.model.encode_parameters(),
+            Codec::default(),
+        );
+        let prepared = setup.model.as_ref();
+        let fitter = TileFitter::new(&header.axis, prepared);
+        let encoder = TileEncoder::new(header.tile_layout(), prepared);
+        let dir = tempfile::tempdir().unwrap();
+        let streamed = dir.path().join("streamed.froct");
+        let mut writer = TileWriter::create(&streamed, &header).unwrap();
+        let cells = cells_of_tiles(std::iter::once(Ok(varied_tile(5_000, 64))));
+        fit_and_write(cells, 10, &fitter, &encoder, &mut writer, &Silent).unwrap();
+        let counts = writer.stats().clone();
+        writer.finish(Map::new()).unwrap();
+
+        let whole = dir.path().join("whole.froct");
+        let fitted = fitter.fit(&tile).unwrap();
+        assert!(fitted.stats.cells.dynamic > 1_000 && fitted.stats.cells.unknown_sometimes > 1_000);
+        assert_eq!(counts, fitted.stats);
+        let mut writer = TileWriter::create(&whole, &header).unwrap();
+        writer
+            .write(&encoder.encode(&fitted.cells).unwrap(), &fitted.stats)
+            .unwrap();
+        writer.finish(Map::new()).unwrap();
+        assert_eq!(
+            std::fs::read(&streamed).unwrap(),
+            std::fs::read(&whole).unwrap()
+        );
+        let reader = FroctReader::open(&streamed).unwrap();
+        assert_eq!(reader.read_tile(0).unwrap(), fitted.cells);
     }
 
     #[test]

@@ -13,7 +13,7 @@ mod streams;
 mod walk;
 
 pub use cell::{mask_from_ranges, Cell, CellContent};
-pub use encode::{encode_tile, EncodedTile};
+pub use encode::{encode_tile, EncodedTile, TileStreamEncoder};
 pub(crate) use frames::{block_parts, decode_frame, frame_table};
 pub use streams::StreamSizes;
 pub(crate) use streams::{PartKind, TileParts};
