@@ -20,7 +20,7 @@
 //! Without a budget everything stays in memory.
 
 use super::extract::ChangeBatch;
-use super::spill::{CellFileWriter, SpillPlace, SpillReader, SpillWriter};
+use super::spill::{CellFileReader, CellFileWriter, SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
 use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
@@ -315,7 +315,8 @@ impl Accumulated {
     ///
     /// When the histories were spilled (a long series), every cell is first written out,
     /// finished, into a file in the spill directory ([`CellFileWriter`]), each range's
-    /// cells freed as they go, and the cells are then read back one at a time: the fit stage
+    /// cells by a thread of their own (into a file per range, read back one after the other)
+    /// and freed as they go, and the cells are then read back one at a time: the fit stage
     /// that follows holds none of the accumulator's cells beside its own work, so that the
     /// peak of the build is the larger of the accumulation's and the fit's, not their sum.
     /// Otherwise the cells are handed out from memory. Either way only the cell being
@@ -325,21 +326,43 @@ impl Accumulated {
             .parts
             .iter()
             .find_map(|(_, spilled)| spilled.as_ref().map(SpillReader::dir));
-        match spill_dir {
-            None => Box::new(self.cells_in_memory(axis_len, absent)),
-            Some(dir) => {
-                let settled = (|| {
-                    let mut file = CellFileWriter::create(&dir)?;
-                    for cell in self.cells_in_memory(axis_len, absent) {
-                        file.push(&cell?)?;
-                    }
-                    file.into_reader()
-                })();
-                match settled {
-                    Ok(cells) => Box::new(cells),
-                    Err(e) => Box::new(std::iter::once(Err(e))),
-                }
-            }
+        let Some(dir) = spill_dir else {
+            return Box::new(self.cells_in_memory(axis_len, absent));
+        };
+        let settled = std::thread::scope(|scope| {
+            let settling: Vec<_> = self
+                .parts
+                .into_iter()
+                .enumerate()
+                .map(|(part, (history, mut spilled))| {
+                    let dir = &dir;
+                    scope.spawn(move || -> Result<CellFileReader, ConvertError> {
+                        let mut file = CellFileWriter::create(dir, part)?;
+                        let cells = history.finish_with(axis_len, absent, |start, _, runs| {
+                            match &mut spilled {
+                                Some(spilled) => spilled.runs_for(start, runs),
+                                None => Ok(()),
+                            }
+                        });
+                        for cell in cells {
+                            file.push(&cell?)?;
+                        }
+                        file.into_reader()
+                    })
+                })
+                .collect();
+            settling
+                .into_iter()
+                .map(|thread| {
+                    thread
+                        .join()
+                        .map_err(|_| ConvertError::internal("a thread settling cells panicked"))?
+                })
+                .collect::<Result<Vec<CellFileReader>, ConvertError>>()
+        });
+        match settled {
+            Ok(ranges) => Box::new(ranges.into_iter().flatten()),
+            Err(e) => Box::new(std::iter::once(Err(e))),
         }
     }
 

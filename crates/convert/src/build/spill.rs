@@ -301,9 +301,9 @@ pub(crate) struct CellFileWriter {
 const CELL_RECORD_HEAD: usize = 8 + 1 + 8 + 8;
 
 impl CellFileWriter {
-    /// A new, empty cell file in `dir`.
-    pub fn create(dir: &Path) -> Result<Self, ConvertError> {
-        let path = dir.join("cells.spill");
+    /// A new, empty cell file in `dir` for the cells of range `part` of the accumulation.
+    pub fn create(dir: &Path, part: usize) -> Result<Self, ConvertError> {
+        let path = dir.join(format!("cells-{part}.spill"));
         let file = create_spill_file(&path)?;
         Ok(Self {
             path,
@@ -675,12 +675,12 @@ mod tests {
             (MortonCode(8), 16, packed(&[])),
             (MortonCode(64), 14, packed(&[(1, 1, true)])),
         ];
-        let mut writer = CellFileWriter::create(dir.path()).unwrap();
+        let mut writer = CellFileWriter::create(dir.path(), 3).unwrap();
         for cell in &cells {
             writer.push(cell).unwrap();
         }
         let reader = writer.into_reader().unwrap();
-        let path = dir.path().join("cells.spill");
+        let path = dir.path().join("cells-3.spill");
         let bytes = std::fs::read(&path).unwrap();
         let back: Vec<PackedCell> = reader.map(Result::unwrap).collect();
         assert_eq!(back, cells);
