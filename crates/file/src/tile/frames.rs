@@ -6,6 +6,7 @@ use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation, TileEncodeError};
 use crate::layout::Codec;
 use froctomap_temporal::varint;
+use rayon::prelude::*;
 
 /// Raw bytes after which a frame of block parts is closed (format 1.1): frames of a few
 /// kilobytes cost zstd's tables many times over, frames of many blocks make a query at one
@@ -43,8 +44,10 @@ pub(crate) fn store_frames(parts: Vec<Vec<u8>>, codec: Codec) -> Result<Vec<u8>,
         }
     }
     let raw_lens: Vec<usize> = raw_parts.iter().map(Vec::len).collect();
+    // In parallel: a large tile of a long series has hundreds of frames, and compressing
+    // them one after another left the other cores idle once the fits beside it were done.
     let frames = raw_parts
-        .into_iter()
+        .into_par_iter()
         .map(|part| compress(part, codec))
         .collect::<Result<Vec<_>, _>>()?;
     let mut stored = Vec::new();
