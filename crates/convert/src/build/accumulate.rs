@@ -25,7 +25,9 @@ use crate::error::ConvertError;
 use crate::history::{PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
-use froctomap_temporal::{TemporalError, VoxelObservations};
+#[cfg(test)]
+use froctomap_temporal::TemporalError;
+use froctomap_temporal::VoxelObservations;
 use std::borrow::Cow;
 use std::sync::mpsc::SyncSender;
 use std::sync::Arc;
@@ -37,6 +39,16 @@ pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
 
 /// A cell with its observations packed ([`PackedObservations`]).
 pub(crate) type PackedCell = (MortonCode, u8, PackedObservations);
+
+/// Observations packed.
+pub(crate) fn pack(observations: &VoxelObservations) -> PackedObservations {
+    PackedObservations::pack(
+        observations
+            .runs()
+            .iter()
+            .map(|run| (run.first, run.len, run.state)),
+    )
+}
 
 /// The cells of [`Accumulated::into_cells`], in Morton order.
 pub(crate) type Cells<'a> = Box<dyn Iterator<Item = Result<PackedCell, ConvertError>> + Send + 'a>;
@@ -52,16 +64,20 @@ pub(crate) struct TileHistory {
 
 impl TileHistory {
     /// A tile of these cells (in Morton order).
+    #[cfg(test)]
     pub fn new(cells: Vec<ObservedCell>) -> Self {
-        let mut tile = Self::default();
-        for (start, depth, observations) in cells {
-            let runs = observations
-                .runs()
-                .iter()
-                .map(|run| (run.first, run.len, run.state));
-            tile.push((start, depth, PackedObservations::pack(runs)));
-        }
-        tile
+        Self::from_packed(
+            cells
+                .into_iter()
+                .map(|(start, depth, observations)| (start, depth, pack(&observations)))
+                .collect(),
+        )
+    }
+
+    /// A tile of these packed cells (in Morton order).
+    pub fn from_packed(cells: Vec<PackedCell>) -> Self {
+        let runs = cells.iter().map(|cell| cell.2.run_count()).sum();
+        Self { cells, runs }
     }
 
     fn push(&mut self, cell: PackedCell) {
@@ -82,6 +98,7 @@ impl TileHistory {
     }
 
     /// The cells, unpacked one at a time.
+    #[cfg(test)]
     pub fn cells(&self) -> impl Iterator<Item = Result<ObservedCell, TemporalError>> + '_ {
         self.cells
             .iter()
@@ -96,11 +113,6 @@ impl TileHistory {
     /// The cells, packed.
     pub fn into_packed(self) -> Vec<PackedCell> {
         self.cells
-    }
-
-    /// All the cells, unpacked (an append's merge works on whole tiles).
-    pub fn into_cells(self) -> Result<Vec<ObservedCell>, TemporalError> {
-        self.cells().collect()
     }
 
     /// All the cells, unpacked.

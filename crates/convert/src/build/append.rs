@@ -17,7 +17,7 @@
 //! A lossy file knows its past only as the model's reconstruction: that reconstruction is
 //! taken as what was observed, and the result is lossy too.
 
-use super::accumulate::{ObservedCell, TileHistory};
+use super::accumulate::{pack, ObservedCell, PackedCell, TileHistory};
 use super::check::{InputCheck, TileBudget};
 use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
@@ -544,13 +544,12 @@ fn old_observations(
     Ok((cell.start, cell.depth, observations))
 }
 
-/// A file's tiles as [`TileHistory`] values on the new axis, in Morton order, decoded a few
-/// at a time in parallel.
+/// A file's tiles as [`TileHistory`] values on the new axis, in Morton order, decoded one
+/// at a time (each tile's cells in parallel).
 struct OldTiles<'a> {
     reader: &'a FroctReader,
     samples: &'a SampleMap<'a>,
     next: usize,
-    ready: std::vec::IntoIter<Result<TileHistory, ConvertError>>,
 }
 
 impl<'a> OldTiles<'a> {
@@ -559,7 +558,6 @@ impl<'a> OldTiles<'a> {
             reader,
             samples,
             next: 0,
-            ready: Vec::new().into_iter(),
         }
     }
 }
@@ -567,31 +565,28 @@ impl<'a> OldTiles<'a> {
 impl Iterator for OldTiles<'_> {
     type Item = Result<TileHistory, ConvertError>;
 
+    // One tile at a time, its cells packed as they are made: a tile of a long series
+    // unpacked takes hundreds of MB.
     fn next(&mut self) -> Option<Self::Item> {
-        if let Some(tile) = self.ready.next() {
-            return Some(tile);
-        }
-        let count = self.reader.tiles().len();
-        if self.next >= count {
+        let i = self.next;
+        if i >= self.reader.tiles().len() {
             return None;
         }
-        let end = (self.next + 4 * rayon::current_num_threads().max(1)).min(count);
+        self.next += 1;
         let (reader, samples) = (self.reader, self.samples);
         let model = reader.model();
-        let decoded: Vec<Result<TileHistory, ConvertError>> = (self.next..end)
-            .into_par_iter()
-            .map(|i| {
-                let cells = reader.read_tile(i)?;
-                let cells = cells
-                    .iter()
-                    .map(|cell| old_observations(cell, model, samples))
-                    .collect::<Result<Vec<ObservedCell>, ConvertError>>()?;
-                Ok(TileHistory::new(cells))
-            })
-            .collect();
-        self.next = end;
-        self.ready = decoded.into_iter();
-        self.ready.next()
+        let tile = (|| {
+            let cells = reader.read_tile(i)?;
+            let cells = cells
+                .par_iter()
+                .map(|cell| {
+                    let (start, depth, observations) = old_observations(cell, model, samples)?;
+                    Ok((start, depth, pack(&observations)))
+                })
+                .collect::<Result<Vec<PackedCell>, ConvertError>>()?;
+            Ok(TileHistory::from_packed(cells))
+        })();
+        Some(tile)
     }
 }
 

@@ -9,7 +9,7 @@
 //! (the file's last observed map starts the new history), the old side's observation is kept;
 //! a run that continues across the seam becomes one run.
 
-use super::accumulate::{ObservedCell, TileHistory};
+use super::accumulate::{pack, PackedCell, TileHistory};
 use crate::error::ConvertError;
 use froctomap_core::{voxels_per_node, MortonCode, TREE_DEPTH};
 use froctomap_temporal::{TemporalError, VoxelObservations};
@@ -65,10 +65,8 @@ where
                     return Some(Err(ConvertError::internal("a peeked tile went missing")));
                 };
                 Some(
-                    old.into_cells()
-                        .and_then(|old| Ok((old, new.into_cells()?)))
-                        .and_then(|(old, new)| merge_cells(old, new))
-                        .map(TileHistory::new)
+                    merge_cells(old.into_packed(), new.into_packed())
+                        .map(TileHistory::from_packed)
                         .map_err(ConvertError::from),
                 )
             }
@@ -78,16 +76,17 @@ where
 
 /// The common refinement of two sets of disjoint cells (each in Morton order), with each
 /// cell's observations from `old` followed by those of `new` after the last sample `old`
-/// observed.
+/// observed. The cells stay packed: only a cell on both sides is unpacked, to be joined
+/// (a tile of a long series unpacked takes several times its packed size).
 pub(crate) fn merge_cells(
-    old: Vec<ObservedCell>,
-    new: Vec<ObservedCell>,
-) -> Result<Vec<ObservedCell>, TemporalError> {
+    mut old: Vec<PackedCell>,
+    mut new: Vec<PackedCell>,
+) -> Result<Vec<PackedCell>, TemporalError> {
     // Stacks: the next cell is at the end.
-    let mut old: Vec<ObservedCell> = old.into_iter().rev().collect();
-    let mut new: Vec<ObservedCell> = new.into_iter().rev().collect();
+    old.reverse();
+    new.reverse();
     let mut out = Vec::with_capacity(old.len().max(new.len()));
-    let span = |cell: &ObservedCell| (cell.0 .0, cell.0 .0 + voxels_per_node(cell.1));
+    let span = |cell: &PackedCell| (cell.0 .0, cell.0 .0 + voxels_per_node(cell.1));
     loop {
         let (a, b) = match (old.last(), new.last()) {
             (None, None) => break,
@@ -111,7 +110,7 @@ pub(crate) fn merge_cells(
             }
         };
         out.push(match (a, b) {
-            (Some(a), Some(b)) => (a.0, a.1, joined(&a.2, &b.2)?),
+            (Some(a), Some(b)) => (a.0, a.1, pack(&joined(&a.2.unpack()?, &b.2.unpack()?)?)),
             (Some(cell), None) | (None, Some(cell)) => cell,
             (None, None) => break,
         });
@@ -122,7 +121,7 @@ pub(crate) fn merge_cells(
 /// Replaces the cell on top of `stack` by its eight children (the first on top), which
 /// inherit its observations. Two overlapping cells are nested, so the coarser one is never
 /// a single voxel.
-fn split_last(stack: &mut Vec<ObservedCell>) -> Result<(), TemporalError> {
+fn split_last(stack: &mut Vec<PackedCell>) -> Result<(), TemporalError> {
     let Some((start, depth, observations)) = stack.pop() else {
         return Ok(());
     };
@@ -166,6 +165,24 @@ fn joined(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::build::accumulate::ObservedCell;
+
+    /// [`merge_cells`] on unpacked cells.
+    fn merge(
+        old: Vec<ObservedCell>,
+        new: Vec<ObservedCell>,
+    ) -> Result<Vec<ObservedCell>, TemporalError> {
+        let packed = |cells: Vec<ObservedCell>| {
+            cells
+                .into_iter()
+                .map(|(start, depth, obs)| (start, depth, pack(&obs)))
+                .collect()
+        };
+        merge_cells(packed(old), packed(new))?
+            .into_iter()
+            .map(|(start, depth, packed)| Ok((start, depth, packed.unpack()?)))
+            .collect()
+    }
     use froctomap_core::Occupancy::{self, Free, Occupied};
 
     fn cell(start: u64, depth: u8, runs: &[(u32, u32, Occupancy)]) -> ObservedCell {
@@ -200,7 +217,7 @@ mod tests {
         new.extend((10..16).map(|v| cell(v, 16, &[(3, 4, Free)])));
         new.extend((2..8).map(|k| cell(k * 8, 15, &[(3, 4, Free)])));
         new.push(cell(300, 16, &[(6, 1, Occupied)]));
-        let merged = merge_cells(old.clone(), new.clone()).unwrap();
+        let merged = merge(old.clone(), new.clone()).unwrap();
         assert!(merged
             .windows(2)
             .all(|w| w[0].0 .0 + voxels_per_node(w[0].1) <= w[1].0 .0));
@@ -227,15 +244,15 @@ mod tests {
         assert_eq!(whole.2.runs().len(), 1);
         assert_eq!((whole.2.runs()[0].first, whole.2.runs()[0].len), (0, 7));
         // Nothing on one side: the other passes unchanged.
-        assert_eq!(merge_cells(old.clone(), Vec::new()).unwrap(), old);
-        assert_eq!(merge_cells(Vec::new(), new.clone()).unwrap(), new);
+        assert_eq!(merge(old.clone(), Vec::new()).unwrap(), old);
+        assert_eq!(merge(Vec::new(), new.clone()).unwrap(), new);
     }
 
     #[test]
     fn the_old_side_decides_the_samples_both_observed() {
         let old = vec![cell(0, 16, &[(0, 2, Free), (2, 2, Occupied)])];
         let new = vec![cell(0, 16, &[(2, 3, Occupied)])];
-        let merged = merge_cells(old, new).unwrap();
+        let merged = merge(old, new).unwrap();
         assert_eq!(
             merged[0].2,
             VoxelObservations::from_runs([(0, 2, Free), (2, 3, Occupied)]).unwrap()
@@ -243,7 +260,7 @@ mod tests {
         // Old unobserved at the seam: the new runs follow the old ones' end.
         let old = vec![cell(0, 16, &[(0, 1, Free)])];
         let new = vec![cell(0, 16, &[(4, 2, Free)])];
-        let merged = merge_cells(old, new).unwrap();
+        let merged = merge(old, new).unwrap();
         assert_eq!(
             merged[0].2,
             VoxelObservations::from_runs([(0, 1, Free), (4, 2, Free)]).unwrap()
