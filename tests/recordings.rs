@@ -6,8 +6,8 @@
 
 use froctomap_convert::{
     append, build, collect_inputs, evaluate, export, observed_map, resolve_observed, AppendOptions,
-    BuildOptions, Context, ExportMode, ExportOptions, RecordedTime, RecordingOptions, SeriesInput,
-    Silent, TimeQuery, TimeSource,
+    BuildOptions, BuildReport, Context, ExportMode, ExportOptions, RecordedTime, RecordingOptions,
+    SeriesInput, Silent, TimeQuery, TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
@@ -115,14 +115,7 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
     let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
     let plain = Context::with_default_plugins();
     let from_files = dir.path().join("files.froct");
-    build(
-        &plain,
-        &inputs,
-        &from_files,
-        &BuildOptions::default(),
-        &Silent,
-    )
-    .unwrap();
+    build_with_defaults(&plain, &inputs, &from_files);
     let expected = observed(&from_files, &times);
     // Even frames in a ROS 1 bag (lz4), odd ones in an MCAP file: merged in time order.
     let even: Vec<&SeriesInput> = inputs.iter().step_by(2).collect();
@@ -146,14 +139,7 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
         let got: Vec<Timestamp> = collected.iter().map(|i| i.time).collect();
         assert_eq!(got, times, "{sources:?}");
         let out = dir.path().join("recorded.froct");
-        let report = build(
-            &context,
-            &collected,
-            &out,
-            &BuildOptions::default(),
-            &Silent,
-        )
-        .unwrap();
+        let report = build_with_defaults(&context, &collected, &out);
         assert_eq!(report.used, inputs.len());
         assert!(report.warnings.is_empty(), "{:?}", report.warnings);
         assert!(observed(&out, &times) == expected, "{sources:?}");
@@ -180,7 +166,7 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     let inputs = series(&dir.path().join("maps"));
     let plain = Context::with_default_plugins();
     let froct = dir.path().join("series.froct");
-    build(&plain, &inputs, &froct, &BuildOptions::default(), &Silent).unwrap();
+    build_with_defaults(&plain, &inputs, &froct);
     let reader = FroctReader::open(&froct).unwrap();
     let minute = 60_000_000_000;
     let first = inputs.first().unwrap().time;
@@ -491,14 +477,7 @@ fn append_and_eval_take_recordings() {
     );
     let plain = Context::with_default_plugins();
     let from_files = dir.path().join("files.froct");
-    build(
-        &plain,
-        early,
-        &from_files,
-        &BuildOptions::default(),
-        &Silent,
-    )
-    .unwrap();
+    build_with_defaults(&plain, early, &from_files);
     let from_recording = dir.path().join("recording.froct");
     std::fs::copy(&from_files, &from_recording).unwrap();
 
@@ -534,6 +513,11 @@ fn append_and_eval_take_recordings() {
     .unwrap();
     let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
     assert!(observed(&from_recording, &times) == observed(&from_files, &times));
+}
+
+/// `build` with default options, which must succeed.
+fn build_with_defaults(context: &Context, inputs: &[SeriesInput], out: &Path) -> BuildReport {
+    build(context, inputs, out, &BuildOptions::default(), &Silent).unwrap()
 }
 
 /// Where `needle` occurs in `haystack`.
@@ -656,14 +640,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     let from_bt = |kept: &[usize], name: &str| {
         let files: Vec<SeriesInput> = kept.iter().map(|&k| inputs[k].clone()).collect();
         let out = path(&format!("{name}-bt.froct"));
-        build(
-            &Context::with_default_plugins(),
-            &files,
-            &out,
-            &BuildOptions::default(),
-            &Silent,
-        )
-        .unwrap();
+        build_with_defaults(&Context::with_default_plugins(), &files, &out);
         let times: Vec<Timestamp> = files.iter().map(|i| i.time).collect();
         (observed(&out, &times), times)
     };
@@ -699,14 +676,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         seen.push((name.to_string(), lost));
         // The rest builds what their .bt files build.
         let out = path(&format!("{name}.froct"));
-        build(
-            &context,
-            &lenient.series,
-            &out,
-            &BuildOptions::default(),
-            &Silent,
-        )
-        .unwrap();
+        build_with_defaults(&context, &lenient.series, &out);
         let kept: Vec<usize> = (0..4).filter(|&k| k != lost).collect();
         let (expected, times) = from_bt(&kept, name);
         assert!(observed(&out, &times) == expected, "{name}");
@@ -751,14 +721,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
             "{name}: {warnings:?}"
         );
         let out = path(&format!("{name}.froct"));
-        build(
-            &context,
-            &collected.series,
-            &out,
-            &BuildOptions::default(),
-            &Silent,
-        )
-        .unwrap();
+        build_with_defaults(&context, &collected.series, &out);
         let (expected, times) = from_bt(&[0, 1], name);
         assert!(observed(&out, &times) == expected, "{name}");
     }
