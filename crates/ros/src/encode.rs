@@ -2,14 +2,11 @@
 //! of [`decode_message`](crate::decode_message) for [`Encoding::Cdr`](crate::Encoding)),
 //! and the message definition MCAP files embed as the channel's `ros2msg` schema.
 
-/// The `ros2msg` schema of `octomap_msgs/msg/Octomap`: its fields, then each nested type's
-/// definition after a separator line, as `ros2 bag record` embeds them in MCAP.
-pub const OCTOMAP_ROS2MSG: &str = "\
-std_msgs/Header header
-bool binary
-string id
-float64 resolution
-int8[] data
+/// The `ros2msg` definitions of `std_msgs/Header` and the `builtin_interfaces/Time` in it,
+/// each after a separator line: the nested types every stamped message's schema ends with.
+macro_rules! header_definitions {
+    () => {
+        "\
 ================================================================================
 MSG: std_msgs/Header
 builtin_interfaces/Time stamp
@@ -18,7 +15,22 @@ string frame_id
 MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec
-";
+"
+    };
+}
+
+/// The `ros2msg` schema of `octomap_msgs/msg/Octomap`: its fields, then each nested type's
+/// definition after a separator line, as `ros2 bag record` embeds them in MCAP.
+pub const OCTOMAP_ROS2MSG: &str = concat!(
+    "\
+std_msgs/Header header
+bool binary
+string id
+float64 resolution
+int8[] data
+",
+    header_definitions!()
+);
 
 /// The ROS 2 type name of the messages [`encode_octomap_cdr`] writes.
 pub const OCTOMAP_TYPE: &str = "octomap_msgs/msg/Octomap";
@@ -63,7 +75,8 @@ pub fn encode_octomap_cdr(
 }
 
 /// The `ros2msg` schema of `sensor_msgs/msg/PointCloud2`, with its nested types.
-pub const POINT_CLOUD2_ROS2MSG: &str = "\
+pub const POINT_CLOUD2_ROS2MSG: &str = concat!(
+    "\
 std_msgs/Header header
 uint32 height
 uint32 width
@@ -73,14 +86,9 @@ uint32 point_step
 uint32 row_step
 uint8[] data
 bool is_dense
-================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
+",
+    header_definitions!(),
+    "\
 ================================================================================
 MSG: sensor_msgs/PointField
 uint8 INT8    = 1
@@ -95,7 +103,8 @@ string name
 uint32 offset
 uint8 datatype
 uint32 count
-";
+"
+);
 
 /// The ROS 2 type name of the messages [`encode_point_cloud2_cdr`] writes.
 pub const POINT_CLOUD2_TYPE: &str = "sensor_msgs/msg/PointCloud2";
