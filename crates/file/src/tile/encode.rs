@@ -195,22 +195,20 @@ impl TileStreamEncoder {
         }
     }
 
-    /// Cells pushed so far.
-    pub fn cell_count(&self) -> usize {
-        self.cell_count
-    }
-
     /// Adds the next cell of the tile (after the ones before it, inside the tile of the
     /// first).
     pub fn push(&mut self, cell: &Cell) -> Result<(), TileEncodeError> {
         let tile_depth = self.layout.tile_depth;
-        let (_, tile_end) = *self.tile.get_or_insert_with(|| {
-            let code = cell.start.node_start(tile_depth);
-            (code, code.0 + voxels_per_node(tile_depth))
-        });
-        if self.cell_count == 0 {
-            self.previous_end = cell.start.node_start(tile_depth).0;
-        }
+        let (_, tile_end) = match self.tile {
+            Some(tile) => tile,
+            None => {
+                let code = cell.start.node_start(tile_depth);
+                self.previous_end = code.0;
+                *self
+                    .tile
+                    .insert((code, code.0 + voxels_per_node(tile_depth)))
+            }
+        };
         let start = cell.start.0;
         if !(tile_depth..=TREE_DEPTH).contains(&cell.depth)
             || cell.start.node_start(cell.depth) != cell.start
