@@ -65,9 +65,12 @@ mod header;
 mod index;
 mod layout;
 mod limits;
+mod living;
 mod query;
 mod range_coder;
 mod reader;
+mod root;
+mod segment;
 mod source;
 mod tile;
 mod toggle_code;
@@ -81,8 +84,11 @@ pub use header::{
 pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
 pub use layout::{Codec, TileLayout};
 pub use limits::ReadLimits;
+pub use living::{CellState, LivingReader, LivingWriter, SegmentWriter};
 pub use query::CellValue;
 pub use reader::FroctReader;
+pub use root::{Root, LIVING_MAJOR_VERSION, LIVING_MINOR_VERSION, ROOT_SLOTS_AT, ROOT_SLOT_LEN};
+pub use segment::{SegmentCell, SegmentContent, SegmentTileEncoder, SEGMENT_MAGIC};
 pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
 pub use tile::{
     encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileStreamEncoder,
