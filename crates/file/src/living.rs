@@ -971,6 +971,16 @@ pub struct SegmentWriter<'w> {
     entries: Vec<TileEntry>,
 }
 
+impl std::fmt::Debug for SegmentWriter<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SegmentWriter")
+            .field("path", &self.writer.path)
+            .field("first_sample", &self.first_sample)
+            .field("tiles", &self.entries.len())
+            .finish()
+    }
+}
+
 impl SegmentWriter<'_> {
     /// The segment's own samples.
     pub fn axis(&self) -> &TimeAxis {
