@@ -100,6 +100,16 @@ pub enum FileError {
         /// Tiles in the file.
         tiles: usize,
     },
+    /// A segment was asked for that the file (as the reader sees it) does not have.
+    #[error("{}: no segment {segment} (the reader sees {segments})", path.display())]
+    NoSegment {
+        /// The file.
+        path: PathBuf,
+        /// The segment asked for.
+        segment: usize,
+        /// Segments the reader sees.
+        segments: usize,
+    },
     /// Tiles were handed to a writer out of Morton order.
     #[error("{}: tiles must be written in increasing Morton order ({code:#x} after {previous:#x})", path.display())]
     TileOrder {

@@ -16,6 +16,11 @@
 //! [`encode_tile`] (or cell by cell, [`TileStreamEncoder`]) and seals them itself
 //! (checksums of the bytes it writes).
 //!
+//! Format 2.0 grows by commits ([`LivingWriter`], [`LivingReader`]): the body above becomes
+//! the *base*, each commit appends a *segment* (the cells its maps observed, over its own
+//! samples) and then rewrites one of two checksummed root slots; one writer at a time holds
+//! the file's lock, and readers see the root they opened until they refresh.
+//!
 //! Cells that never changed cost a class byte. Cells that changed carry a temporal model
 //! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
 //! is reproduced exactly. Unknown stays unknown: each cell has an observation mask unless it

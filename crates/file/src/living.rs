@@ -48,7 +48,8 @@ use crate::root::{
     ROOT_SLOT_LEN,
 };
 use crate::segment::{
-    encode_record, InheritedModel, RawRecord, SegmentCell, SegmentRecord, SegmentTileEncoder,
+    encode_record, InheritedModel, RawRecord, SegmentCell, SegmentContent, SegmentRecord,
+    SegmentTileEncoder,
 };
 use crate::source::{ByteSource, FileSource};
 use crate::tile::{EncodedTile, WalkNeed};
@@ -363,10 +364,10 @@ impl LivingReader {
     }
 
     fn segment(&self, k: usize) -> Result<&Segment, FileError> {
-        self.segments.get(k).ok_or_else(|| FileError::NoTile {
+        self.segments.get(k).ok_or_else(|| FileError::NoSegment {
             path: self.path.clone(),
-            tile: k,
-            tiles: self.segments.len(),
+            segment: k,
+            segments: self.segments.len(),
         })
     }
 
@@ -997,7 +998,8 @@ impl SegmentWriter<'_> {
         SegmentTileEncoder::new(&self.writer.reader.header().tile_layout(), &self.axis)
     }
 
-    /// Encodes and writes one tile's cells (sorted, inside one tile).
+    /// Encodes and writes one tile's cells (sorted, inside one tile), after checking that
+    /// each inherited cell lies inside one base cell (reading the base tile's cells).
     pub fn push_tile(
         &mut self,
         cells: impl IntoIterator<Item = SegmentCell>,
@@ -1007,15 +1009,27 @@ impl SegmentWriter<'_> {
             source,
         };
         let mut encoder = self.tile_encoder();
+        let mut inherited = Vec::new();
         for cell in cells {
+            if let SegmentContent::Inherited { .. } = cell.content {
+                inherited.push((cell.start.0, cell.start.0 + voxels_per_node(cell.depth)));
+            }
             encoder.push(cell).map_err(encode_error)?;
         }
         let tile = encoder.finish().map_err(encode_error)?;
+        if !inherited.is_empty() {
+            // The states are not needed, only that every inherited cell has a base cell.
+            self.writer
+                .reader
+                .base_predictions(tile.code(), &inherited, 0.0)?;
+        }
         self.write_tile(&tile)
     }
 
     /// Writes a tile made by [`tile_encoder`](Self::tile_encoder); tiles must come in
-    /// strictly increasing Morton order.
+    /// strictly increasing Morton order. Unlike [`push_tile`](Self::push_tile) it does not
+    /// check inherited cells against the base: a reader reports one outside every base cell
+    /// as corrupt when it reads that tile.
     pub fn write_tile(&mut self, tile: &EncodedTile) -> Result<(), FileError> {
         let path = &self.writer.path;
         let entry = seal_tile(path, self.entries.last(), tile, self.offset)?;

@@ -569,19 +569,43 @@ fn an_inherited_cell_outside_the_base_is_a_typed_error() {
     let axis = golden_segment_axes()[0].clone();
     let mut segment = writer.begin_segment(axis).unwrap();
     let nowhere = VoxelKey::new(1000, 1000, 1000).morton();
-    segment
-        .push_tile([SegmentCell {
-            start: nowhere,
-            depth: 16,
-            mask: None,
-            content: SegmentContent::Inherited {
-                outliers: Toggles::empty(),
-            },
-        }])
-        .unwrap();
+    let orphan = SegmentCell {
+        start: nowhere,
+        depth: 16,
+        mask: None,
+        content: SegmentContent::Inherited {
+            outliers: Toggles::empty(),
+        },
+    };
+    // The checked path refuses it before writing.
+    let err = segment.push_tile([orphan.clone()]).unwrap_err();
+    assert!(
+        matches!(violation(&err), FormatViolation::Corrupt { detail, .. }
+            if detail.contains("inside no base cell")),
+        "{err}"
+    );
+    // A cell that splits a base cell is fine (the door's neighbour block, depth 14 → 16).
+    let o = 32768u16;
+    let split = SegmentCell {
+        start: VoxelKey::new(o + 1, o + 1, o + 1).morton(),
+        ..orphan.clone()
+    };
+    // The unchecked path writes it (its tile comes first in Morton order); readers report it.
+    let mut encoder = segment.tile_encoder();
+    encoder.push(orphan).unwrap();
+    segment.write_tile(&encoder.finish().unwrap()).unwrap();
+    segment.push_tile([split.clone()]).unwrap();
     segment.commit().unwrap();
     let reader = LivingReader::open(&path).unwrap();
     let g = golden_axis().len();
+    let mut split_state = Vec::new();
+    reader
+        .visit_observed_states(g, 1, |start, depth, state| {
+            split_state.push((start, depth, state))
+        })
+        .unwrap();
+    // The block (o, o, o) at depth 14 is free throughout the base: so is its piece.
+    assert_eq!(split_state, vec![(split.start, 16, Occupancy::Free)]);
     for err in [
         reader.observed_states(g).unwrap_err(),
         reader.predicted_states(0.0).unwrap_err(),
@@ -593,4 +617,57 @@ fn an_inherited_cell_outside_the_base_is_a_typed_error() {
         );
     }
     let _: MortonCode = nowhere;
+}
+
+#[test]
+fn a_file_converted_in_place_keeps_its_base() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("upgraded.froct");
+    std::fs::copy(golden_path_of("golden-v1.1.froct"), &path).unwrap();
+    let root = LivingWriter::convert(&path, &path).unwrap();
+    assert_eq!(root.segment_count, 0);
+    assert_eq!(root.committed_len, std::fs::metadata(&path).unwrap().len());
+    let reader = LivingReader::open(&path).unwrap();
+    let original = FroctReader::open(&golden_path_of("golden-v1.1.froct")).unwrap();
+    assert_eq!(reader.header().toggles, original.header().toggles);
+    assert_eq!(reader.header().version, (LIVING_MAJOR_VERSION, 0));
+    assert_eq!(all_cells(reader.base()), all_cells(&original));
+    assert_eq!(all_maps(&reader).unwrap(), expected_maps(&[]));
+    // No temporary file is left beside it.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn resealed_hostile_segment_tiles_never_panic() {
+    let (_dir, path, _) = living_file(2);
+    let bytes = std::fs::read(&path).unwrap();
+    let (at, body) = newest_record(&bytes);
+    let reader = open_bytes(&bytes, ReadLimits::default()).unwrap();
+    let entry = reader.segment_tiles(1)[0];
+    let first = reader.segment_axis(1).unwrap().0;
+    let samples = first..reader.sample_count();
+    // The tile entry's crc field, inside the record's index (after the axis piece).
+    let index = at + 24 + body - (reader.segment_tiles(1).len() * 40 + 4);
+    let crc_at = index + 4 + 24;
+    assert_eq!(
+        u64::from_le_bytes(bytes[index + 4 + 8..index + 4 + 16].try_into().unwrap()),
+        entry.offset
+    );
+    let tile = entry.offset as usize..entry.offset as usize + entry.stored_len as usize;
+    for byte in tile.clone() {
+        for flip in [0x01u8, 0x80] {
+            let mut hostile = bytes.clone();
+            hostile[byte] ^= flip;
+            let crc = crc32c::crc32c(&hostile[tile.clone()]);
+            hostile[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
+            reseal_record(&mut hostile, at, body);
+            let reader = open_bytes(&hostile, ReadLimits::default()).unwrap();
+            for g in samples.clone() {
+                if let Err(err) = reader.observed_states(g) {
+                    assert!(err.violation().is_some(), "{err}");
+                }
+            }
+            let _ = reader.predicted_states(0.0);
+        }
+    }
 }
