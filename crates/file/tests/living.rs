@@ -671,3 +671,95 @@ fn resealed_hostile_segment_tiles_never_panic() {
         }
     }
 }
+
+/// Recomputes the header, root slot and segment record checksums (along the chain from the
+/// newer slot) where the bytes let it find them.
+fn reseal_living(bytes: &mut [u8]) -> Option<()> {
+    let le32 = |b: &[u8], at: usize| {
+        Some(u32::from_le_bytes(
+            b.get(at..at.checked_add(4)?)?.try_into().ok()?,
+        ))
+    };
+    let le64 = |b: &[u8], at: usize| {
+        Some(u64::from_le_bytes(
+            b.get(at..at.checked_add(8)?)?.try_into().ok()?,
+        ))
+    };
+    let put = |b: &mut [u8], at: usize, crc: u32| -> Option<()> {
+        b.get_mut(at..at.checked_add(4)?)?
+            .copy_from_slice(&crc.to_le_bytes());
+        Some(())
+    };
+    let slots = ROOT_SLOTS_AT as usize;
+    let header_at = slots + 2 * ROOT_SLOT_LEN;
+    let sections = le32(bytes, 12)? as usize;
+    let mut covered = bytes.get(..16)?.to_vec();
+    covered.extend_from_slice(bytes.get(header_at..header_at.checked_add(sections)?)?);
+    put(bytes, header_at + sections, crc32c::crc32c(&covered))?;
+    let mut newest = (0u64, 0u64);
+    for slot in 0..2 {
+        let at = slots + slot * ROOT_SLOT_LEN;
+        let crc = crc32c::crc32c(bytes.get(at..at + ROOT_SLOT_LEN - 4)?);
+        put(bytes, at + ROOT_SLOT_LEN - 4, crc)?;
+        let sequence = le64(bytes, at)?;
+        if sequence >= newest.0 {
+            newest = (sequence, le64(bytes, at + 24)?);
+        }
+    }
+    let mut record = usize::try_from(newest.1).ok()?;
+    for _ in 0..16 {
+        if record == 0 {
+            break;
+        }
+        let body = le32(bytes, record.checked_add(20)?)? as usize;
+        let end = record.checked_add(24)?.checked_add(body)?;
+        let crc = crc32c::crc32c(bytes.get(record..end)?);
+        put(bytes, end, crc)?;
+        record = usize::try_from(le64(bytes, record + 8)?).ok()?;
+    }
+    Some(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    /// Random damage to the golden 2.0 file, resealed: a typed error or a reader that
+    /// answers every query with a typed error or a map, never a panic or a huge allocation.
+    #[test]
+    fn resealed_random_damage_is_survived(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
+    ) {
+        let mut bytes = std::fs::read(golden_path_of("golden-v2.0.froct")).unwrap();
+        for (at, value) in edits {
+            let at = at.index(bytes.len());
+            bytes[at] = value;
+        }
+        reseal_living(&mut bytes);
+        let small = ReadLimits {
+            max_samples: 1 << 12,
+            max_tiles: 1 << 8,
+            max_cells_per_tile: 1 << 12,
+            max_index_bytes: 1 << 16,
+            max_toggle_blocks: 1 << 10,
+            max_total_cells: 1 << 14,
+            max_toggles_per_tile: 1 << 16,
+            max_segments: 1 << 6,
+            ..ReadLimits::DEFAULT
+        };
+        let Ok(mut reader) = open_bytes(&bytes, small) else {
+            return Ok(());
+        };
+        for g in 0..reader.sample_count() {
+            if let Err(err) = reader.observed_states(g) {
+                prop_assert!(err.violation().is_some(), "{}", err);
+            }
+        }
+        for k in 0..reader.segment_count() {
+            for t in 0..reader.segment_tiles(k).len() {
+                let _ = reader.read_segment_tile(k, t);
+            }
+        }
+        let _ = reader.predicted_states(3600.0);
+        prop_assert!(!reader.refresh().unwrap());
+    }
+}
