@@ -648,6 +648,9 @@ fn read_root(source: &dyn ByteSource, limits: &ReadLimits) -> Result<(Root, usiz
         .try_into()
         .map_err(|_| invalid(corrupt("root", "truncated")))?;
     let (root, slot) = Root::current(&slots).map_err(invalid)?;
+    // Measured after the slots were read: a writer makes a commit's bytes visible before its
+    // slot, so a root read while it commits never runs past them.
+    let size = source.current_size().map_err(io)?;
     if root.committed_len > size {
         return Err(invalid(corrupt(
             "root",

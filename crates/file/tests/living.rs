@@ -763,3 +763,60 @@ proptest! {
         prop_assert!(!reader.refresh().unwrap());
     }
 }
+
+#[test]
+fn readers_refreshing_while_a_writer_commits_see_whole_commits_only() {
+    let (_dir, path, _) = living_file(0);
+    let base_samples = golden_axis().len();
+    let segments = 40u32;
+    let voxel = |k: u32| MortonCode(0x7000_0000_0000 + u64::from(k % 5));
+    let state = |k: u32| Occupancy::from(k % 3 == 0);
+    let expected = |k: u32| vec![(voxel(k), 16, state(k))];
+    let done = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        scope.spawn(|| {
+            let mut writer = LivingWriter::open(&path).unwrap();
+            let step = 60_000_000_000;
+            let mut next = golden_axis().end().0;
+            for k in 0..segments {
+                next += step;
+                let axis = TimeAxis::regular(Timestamp(next), step, 1, vec![]).unwrap();
+                let mut segment = writer.begin_segment(axis).unwrap();
+                segment
+                    .push_tile([SegmentCell {
+                        start: voxel(k),
+                        depth: 16,
+                        mask: None,
+                        content: SegmentContent::Constant(state(k)),
+                    }])
+                    .unwrap();
+                segment.commit().unwrap();
+            }
+            done.store(true, std::sync::atomic::Ordering::SeqCst);
+        });
+        for _ in 0..2 {
+            scope.spawn(|| {
+                let mut reader = LivingReader::open(&path).unwrap();
+                let mut seen = 0;
+                loop {
+                    let finished = done.load(std::sync::atomic::Ordering::SeqCst);
+                    reader.refresh().unwrap();
+                    let count = reader.segment_count() as u32;
+                    assert!(count >= seen);
+                    assert_eq!(reader.sample_count(), base_samples + count);
+                    for k in seen.saturating_sub(1)..count {
+                        assert_eq!(
+                            reader.observed_states(base_samples + k).unwrap(),
+                            expected(k)
+                        );
+                    }
+                    seen = count;
+                    if finished {
+                        break;
+                    }
+                }
+                assert_eq!(seen, segments);
+            });
+        }
+    });
+}
