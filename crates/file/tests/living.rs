@@ -620,21 +620,34 @@ fn an_inherited_cell_outside_the_base_is_a_typed_error() {
 }
 
 #[test]
-fn a_file_converted_in_place_keeps_its_base() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("upgraded.froct");
-    std::fs::copy(golden_path_of("golden-v1.1.froct"), &path).unwrap();
-    let root = LivingWriter::convert(&path, &path).unwrap();
-    assert_eq!(root.segment_count, 0);
-    assert_eq!(root.committed_len, std::fs::metadata(&path).unwrap().len());
-    let reader = LivingReader::open(&path).unwrap();
-    let original = FroctReader::open(&golden_path_of("golden-v1.1.froct")).unwrap();
-    assert_eq!(reader.header().toggles, original.header().toggles);
-    assert_eq!(reader.header().version, (LIVING_MAJOR_VERSION, 0));
-    assert_eq!(all_cells(reader.base()), all_cells(&original));
-    assert_eq!(all_maps(&reader).unwrap(), expected_maps(&[]));
-    // No temporary file is left beside it.
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+fn files_of_every_1x_layout_convert_in_place_and_grow() {
+    for name in ["golden-v1.0.froct", "golden-v1.1.froct"] {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("upgraded.froct");
+        std::fs::copy(golden_path_of(name), &path).unwrap();
+        let root = LivingWriter::convert(&path, &path).unwrap();
+        assert_eq!(root.segment_count, 0);
+        assert_eq!(root.committed_len, std::fs::metadata(&path).unwrap().len());
+        let reader = LivingReader::open(&path).unwrap();
+        let original = FroctReader::open(&golden_path_of(name)).unwrap();
+        assert_eq!(reader.header().toggles, original.header().toggles, "{name}");
+        assert_eq!(reader.header().version, (LIVING_MAJOR_VERSION, 0));
+        assert_eq!(all_cells(reader.base()), all_cells(&original), "{name}");
+        assert_eq!(all_maps(&reader).unwrap(), expected_maps(&[]), "{name}");
+        // No temporary file is left beside it.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        // Segments take the base's toggle layout (whole lists, or blocks in columns).
+        let plans: Vec<_> = golden_segment_axes()
+            .iter()
+            .enumerate()
+            .map(|(k, axis)| golden_segment(k as u64, axis))
+            .collect();
+        for plan in &plans {
+            append_planned(&path, plan);
+        }
+        let reader = LivingReader::open(&path).unwrap();
+        assert_eq!(all_maps(&reader).unwrap(), expected_maps(&plans), "{name}");
+    }
 }
 
 #[test]
