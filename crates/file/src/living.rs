@@ -321,7 +321,8 @@ impl LivingReader {
         self.root
     }
 
-    /// The base: header (its time axis is the base's samples), tiles, model.
+    /// The base, as a 1.x reader of its part of the file: header (its time axis is the
+    /// base's samples), tiles, model; its `file_len` is the base's end.
     pub fn base(&self) -> &FroctReader {
         &self.base
     }
