@@ -402,10 +402,27 @@ impl LivingReader {
         }
     }
 
-    fn last_instant(&self) -> Timestamp {
+    /// The instant of the series' last sample: a new segment must start after it.
+    pub fn last_instant(&self) -> Timestamp {
         self.segments
             .last()
             .map_or_else(|| self.base.header().axis.end(), |s| s.record.axis.end())
+    }
+
+    /// The last global sample with a map at or before `t` (missing samples skipped), `None`
+    /// before the first one.
+    pub fn sample_at_or_before(&self, t: Timestamp) -> Option<u32> {
+        let k = self
+            .segments
+            .partition_point(|s| s.record.axis.start() <= t);
+        self.segments[..k]
+            .iter()
+            .rev()
+            .find_map(|s| {
+                let local = s.record.axis.last_at_or_before(t)?;
+                Some(s.record.first_sample + local)
+            })
+            .or_else(|| self.base.header().axis.last_at_or_before(t))
     }
 
     /// The tiles that hold the map at a global sample: the base's or its segment's (empty

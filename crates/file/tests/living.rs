@@ -65,6 +65,19 @@ fn every_sample_reads_back_what_was_put_in() {
         g += plan.axis.len();
     }
     assert!(reader.observed_states(g).unwrap().is_empty());
+    assert_eq!(reader.last_instant(), plans[2].axis.end());
+    // Instants map to the last sample with a map at or before them, across the seams.
+    for sample in 0..g {
+        let t = reader.sample_time(sample).unwrap();
+        let present = (0..=sample).rev().find(|&s| !reader.is_missing(s));
+        assert_eq!(reader.sample_at_or_before(t), present, "sample {sample}");
+        assert_eq!(reader.sample_at_or_before(Timestamp(t.0 + 1)), present);
+    }
+    assert_eq!(
+        reader.sample_at_or_before(Timestamp(golden_axis().start().0 - 1)),
+        None
+    );
+    assert_eq!(reader.sample_at_or_before(Timestamp(i64::MAX)), Some(g - 1));
     // The segment cells read back as written.
     let base_cells = all_cells(reader.base());
     let cells = segment_cells(&plans[1], reader.base(), &base_cells);
