@@ -38,10 +38,10 @@ FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pyt
 cargo build --locked --manifest-path fuzz/Cargo.toml
 corpus=$(mktemp -d)
 trap 'rm -rf "$corpus"' EXIT
-for target in read_bt read_ot roundtrip read_froct; do
+for target in read_bt read_ot roundtrip read_froct read_living; do
   mkdir -p "$corpus/$target"
   case $target in
-    read_froct) cp fixtures/froct/*.froct "$corpus/$target/" ;;
+    read_froct | read_living) cp fixtures/froct/*.froct "$corpus/$target/" ;;
     *) cp fixtures/octomap/* "$corpus/$target/" ;;
   esac
   fuzz/target/debug/$target -runs=50000 -max_len=4096 -seed=1 "$corpus/$target" 2>&1 | tail -n 1

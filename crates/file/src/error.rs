@@ -100,6 +100,16 @@ pub enum FileError {
         /// Tiles in the file.
         tiles: usize,
     },
+    /// A segment was asked for that the file (as the reader sees it) does not have.
+    #[error("{}: no segment {segment} (the reader sees {segments})", path.display())]
+    NoSegment {
+        /// The file.
+        path: PathBuf,
+        /// The segment asked for.
+        segment: usize,
+        /// Segments the reader sees.
+        segments: usize,
+    },
     /// Tiles were handed to a writer out of Morton order.
     #[error("{}: tiles must be written in increasing Morton order ({code:#x} after {previous:#x})", path.display())]
     TileOrder {
@@ -109,6 +119,43 @@ pub enum FileError {
         code: u64,
         /// Morton code of the tile before it.
         previous: u64,
+    },
+    /// Another writer holds the file (format 2.0 files have one writer at a time).
+    #[error("{}: another writer holds this file's lock (an `append` or `record` still running?)", path.display())]
+    Locked {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Cells could not be encoded as a tile.
+    #[error("{}: {source}", path.display())]
+    TileEncode {
+        /// The file being written.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: TileEncodeError,
+    },
+    /// A segment's samples must come after every sample of the file.
+    #[error("{}: a segment starting at {first} does not follow the file's last sample at {last}", path.display())]
+    SegmentTime {
+        /// The file.
+        path: PathBuf,
+        /// The segment's first instant.
+        first: froctomap_core::Timestamp,
+        /// The file's last instant.
+        last: froctomap_core::Timestamp,
+    },
+    /// More samples or segments than a reader accepts ([`ReadLimits`](crate::ReadLimits)).
+    #[error("{}: {what} would be {value}, at most {limit} (see ReadLimits)", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Which quantity.
+        what: &'static str,
+        /// Its value after the write.
+        value: u64,
+        /// The maximum.
+        limit: u64,
     },
     /// A stored tile too large for the index's 32-bit lengths.
     #[error("{}: a stored tile of {len} bytes exceeds 4 GiB", path.display())]

@@ -112,6 +112,12 @@ impl Header {
 
     /// Preamble, sections and header crc: the bytes a file starts with.
     pub fn encode(&self) -> Vec<u8> {
+        self.encode_as(self.required_version())
+    }
+
+    /// [`encode`](Self::encode) with another version in the preamble (format 2.0 keeps the
+    /// sections of 1.x).
+    pub(crate) fn encode_as(&self, (major, minor): (u16, u16)) -> Vec<u8> {
         let mut sections = Vec::new();
         let mut map = Vec::new();
         map.extend(self.resolution.to_le_bytes());
@@ -140,7 +146,6 @@ impl Header {
         }
         let mut out = Vec::with_capacity(PREAMBLE_LEN + sections.len() + 4);
         out.extend(MAGIC);
-        let (major, minor) = self.required_version();
         out.extend(major.to_le_bytes());
         out.extend(minor.to_le_bytes());
         out.extend((sections.len() as u32).to_le_bytes());
@@ -150,10 +155,12 @@ impl Header {
         out
     }
 
-    /// Reads the preamble: checks magic and version and returns the header section length.
+    /// Reads the preamble: checks magic and that the major version is `major`, and returns
+    /// the version and the header section length.
     pub(crate) fn decode_preamble(
         preamble: &[u8; PREAMBLE_LEN],
         limits: &ReadLimits,
+        supported: u16,
     ) -> Result<((u16, u16), usize), FormatViolation> {
         if preamble[..8] != MAGIC {
             return Err(corrupt(
@@ -164,11 +171,11 @@ impl Header {
         let mut cursor = Cursor::new(&preamble[8..], "preamble");
         let major = cursor.u16()?;
         let minor = cursor.u16()?;
-        if major != MAJOR_VERSION {
+        if major != supported {
             return Err(FormatViolation::UnsupportedVersion {
                 major,
                 minor,
-                supported: MAJOR_VERSION,
+                supported,
             });
         }
         let len = u64::from(cursor.u32()?);
@@ -182,13 +189,15 @@ impl Header {
         Ok(((major, minor), len as usize))
     }
 
-    /// Decodes the header from the preamble, the sections and the header crc.
+    /// Decodes the header of a file of major version `supported` from the preamble, the
+    /// sections and the header crc.
     pub(crate) fn decode(
         preamble: &[u8; PREAMBLE_LEN],
         sections_and_crc: &[u8],
         limits: &ReadLimits,
+        supported: u16,
     ) -> Result<Header, FormatViolation> {
-        let (version, len) = Self::decode_preamble(preamble, limits)?;
+        let (version, len) = Self::decode_preamble(preamble, limits, supported)?;
         if sections_and_crc.len() != len + 4 {
             return Err(corrupt("header", "truncated"));
         }
@@ -456,7 +465,10 @@ pub(crate) fn write_positions(out: &mut Vec<u8>, positions: &[u32]) {
     }
 }
 
-fn decode_axis(c: &mut Cursor<'_>, limits: &ReadLimits) -> Result<TimeAxis, FormatViolation> {
+pub(crate) fn decode_axis(
+    c: &mut Cursor<'_>,
+    limits: &ReadLimits,
+) -> Result<TimeAxis, FormatViolation> {
     let invalid =
         |e: froctomap_temporal::TemporalError| corrupt("TIME_AXIS section", e.to_string());
     match c.u8()? {
@@ -552,16 +564,26 @@ mod tests {
             .insert("creator".into(), Value::from("test"));
         let bytes = header.encode();
         let preamble: [u8; PREAMBLE_LEN] = bytes[..PREAMBLE_LEN].try_into().unwrap();
-        let decoded =
-            Header::decode(&preamble, &bytes[PREAMBLE_LEN..], &ReadLimits::default()).unwrap();
+        let decoded = Header::decode(
+            &preamble,
+            &bytes[PREAMBLE_LEN..],
+            &ReadLimits::default(),
+            MAJOR_VERSION,
+        )
+        .unwrap();
         assert_eq!(decoded, header);
         for i in 0..bytes.len() {
             let mut damaged = bytes.clone();
             damaged[i] ^= 0x10;
             let preamble: [u8; PREAMBLE_LEN] = damaged[..PREAMBLE_LEN].try_into().unwrap();
             assert!(
-                Header::decode(&preamble, &damaged[PREAMBLE_LEN..], &ReadLimits::default())
-                    .is_err(),
+                Header::decode(
+                    &preamble,
+                    &damaged[PREAMBLE_LEN..],
+                    &ReadLimits::default(),
+                    MAJOR_VERSION
+                )
+                .is_err(),
                 "byte {i}"
             );
         }

@@ -16,6 +16,11 @@
 //! [`encode_tile`] (or cell by cell, [`TileStreamEncoder`]) and seals them itself
 //! (checksums of the bytes it writes).
 //!
+//! Format 2.0 grows by commits ([`LivingWriter`], [`LivingReader`]): the body above becomes
+//! the *base*, each commit appends a *segment* (the cells its maps observed, over its own
+//! samples) and then rewrites one of two checksummed root slots; one writer at a time holds
+//! the file's lock, and readers see the root they opened until they refresh.
+//!
 //! Cells that never changed cost a class byte. Cells that changed carry a temporal model
 //! from `froctomap-temporal`, with its outlier set in lossless files, so every observed state
 //! is reproduced exactly. Unknown stays unknown: each cell has an observation mask unless it
@@ -65,9 +70,12 @@ mod header;
 mod index;
 mod layout;
 mod limits;
+mod living;
 mod query;
 mod range_coder;
 mod reader;
+mod root;
+mod segment;
 mod source;
 mod tile;
 mod toggle_code;
@@ -81,8 +89,11 @@ pub use header::{
 pub use index::{TileEntry, FOOTER_LEN, TILE_ENTRY_LEN};
 pub use layout::{Codec, TileLayout};
 pub use limits::ReadLimits;
+pub use living::{CellState, LivingReader, LivingWriter, SegmentWriter};
 pub use query::CellValue;
 pub use reader::FroctReader;
+pub use root::{Root, LIVING_MAJOR_VERSION, LIVING_MINOR_VERSION, ROOT_SLOTS_AT, ROOT_SLOT_LEN};
+pub use segment::{SegmentCell, SegmentContent, SegmentTileEncoder, SEGMENT_MAGIC};
 pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
 pub use tile::{
     encode_tile, mask_from_ranges, Cell, CellContent, EncodedTile, StreamSizes, TileStreamEncoder,

@@ -29,6 +29,9 @@ pub struct ReadLimits {
     /// Toggles (observation changes, outliers, exceptions) a reader decodes from one tile
     /// (default 2^28): whole toggle lists are built from them.
     pub max_toggles_per_tile: u64,
+    /// Segments of a format 2.0 file (default 2^16): a reader keeps each segment's index.
+    /// The segment indexes count, summed, against `max_index_bytes`.
+    pub max_segments: u64,
 }
 
 impl ReadLimits {
@@ -44,6 +47,7 @@ impl ReadLimits {
         max_index_bytes: 1 << 30,
         max_total_cells: 1 << 26,
         max_toggles_per_tile: 1 << 28,
+        max_segments: 1 << 16,
     };
 }
 

@@ -1,7 +1,7 @@
 //! Random-access reading: header and index on open, any tile on demand.
 
 use crate::error::{corrupt, FileError, FormatViolation};
-use crate::header::{Header, PREAMBLE_LEN};
+use crate::header::{Header, MAJOR_VERSION, PREAMBLE_LEN};
 use crate::index::{decode_footer, decode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
 use crate::source::{ByteSource, FileSource, MemorySource};
@@ -26,6 +26,14 @@ struct TileScratch {
 
 thread_local! {
     static TILE_SCRATCH: RefCell<TileScratch> = RefCell::default();
+}
+
+/// Where a file body lies in its source: the header's offset (after the preamble and, in
+/// format 2.0, the root slots), the end of the footer, and the major version it must have.
+pub(crate) struct Body {
+    pub(crate) header_at: u64,
+    pub(crate) end: u64,
+    pub(crate) major: u16,
 }
 
 /// An open FROctomap file. Opening reads only the header, the footer and the index; tiles
@@ -111,6 +119,23 @@ impl FroctReader {
         limits: ReadLimits,
         models: &ModelRegistry,
     ) -> Result<Self, FileError> {
+        let file_len = source.size();
+        let body = Body {
+            header_at: PREAMBLE_LEN as u64,
+            end: file_len,
+            major: MAJOR_VERSION,
+        };
+        Self::open_body(Box::new(source), body, limits, models)
+    }
+
+    /// Opens a file body (preamble, header, tiles, index and footer) that lies in the source
+    /// as `body` says: a whole 1.x file, or the base of a 2.0 file.
+    pub(crate) fn open_body(
+        source: Box<dyn ByteSource>,
+        body: Body,
+        limits: ReadLimits,
+        models: &ModelRegistry,
+    ) -> Result<Self, FileError> {
         let path = source.name().to_path_buf();
         let io = |source| FileError::Io {
             path: path.clone(),
@@ -120,8 +145,8 @@ impl FroctReader {
             path: path.clone(),
             violation,
         };
-        let file_len = source.size();
-        let min_len = (PREAMBLE_LEN + 4 + FOOTER_LEN) as u64;
+        let file_len = body.end;
+        let min_len = body.header_at + (4 + FOOTER_LEN) as u64;
         if file_len < min_len {
             let violation = if file_len == 0 {
                 corrupt("file", "the file is empty")
@@ -141,8 +166,9 @@ impl FroctReader {
         };
         let mut preamble = [0u8; PREAMBLE_LEN];
         source.read_exact_at(0, &mut preamble).map_err(io)?;
-        let (_, header_len) = Header::decode_preamble(&preamble, &limits).map_err(invalid)?;
-        let data_start = (PREAMBLE_LEN + header_len + 4) as u64;
+        let (_, header_len) =
+            Header::decode_preamble(&preamble, &limits, body.major).map_err(invalid)?;
+        let data_start = body.header_at + (header_len + 4) as u64;
         if data_start + FOOTER_LEN as u64 > file_len {
             return Err(invalid(corrupt(
                 "header",
@@ -151,8 +177,9 @@ impl FroctReader {
         }
         let header = Header::decode(
             &preamble,
-            &read(PREAMBLE_LEN as u64, header_len + 4)?,
+            &read(body.header_at, header_len + 4)?,
             &limits,
+            body.major,
         )
         .map_err(invalid)?;
         let mut footer_bytes = [0u8; FOOTER_LEN];
@@ -179,7 +206,7 @@ impl FroctReader {
             .map_err(|e| invalid(FormatViolation::Model(e)))?;
         Ok(Self {
             path,
-            source: Box::new(source),
+            source,
             file_len,
             header,
             tiles,
@@ -187,6 +214,26 @@ impl FroctReader {
             model,
             limits,
         })
+    }
+
+    /// A reader over tiles already located (a format 2.0 segment, [`crate::living`]).
+    pub(crate) fn from_parts(
+        source: Box<dyn ByteSource>,
+        header: Header,
+        tiles: Vec<TileEntry>,
+        model: Box<dyn PreparedModel>,
+        limits: ReadLimits,
+    ) -> Self {
+        Self {
+            path: source.name().to_path_buf(),
+            file_len: source.size(),
+            source,
+            header,
+            tiles,
+            summary: Map::new(),
+            model,
+            limits,
+        }
     }
 
     /// The file's path (the source's name for other sources).
@@ -362,7 +409,7 @@ impl FroctReader {
     }
 
     /// Walks one tile's cells without building them.
-    fn walk_tile(
+    pub(crate) fn walk_tile(
         &self,
         tile: usize,
         need: WalkNeed,

@@ -60,6 +60,13 @@ pub trait ByteSource: Send + Sync {
     /// Total length in bytes.
     fn size(&self) -> u64;
 
+    /// The length now, for sources that grow (a format 2.0 file being appended to, read
+    /// again by [`LivingReader::refresh`](crate::LivingReader::refresh)); by default
+    /// [`size`](Self::size).
+    fn current_size(&self) -> io::Result<u64> {
+        Ok(self.size())
+    }
+
     /// What errors name the bytes by: a file's path, a URL, a label.
     fn name(&self) -> &Path;
 }
@@ -75,6 +82,10 @@ macro_rules! forward_byte_source {
 
             fn size(&self) -> u64 {
                 (**self).size()
+            }
+
+            fn current_size(&self) -> io::Result<u64> {
+                (**self).current_size()
             }
 
             fn name(&self) -> &Path {
@@ -128,6 +139,22 @@ impl ByteSource for FileSource {
 
     fn size(&self) -> u64 {
         self.size
+    }
+
+    fn current_size(&self) -> io::Result<u64> {
+        #[cfg(unix)]
+        {
+            Ok(self.file.metadata()?.len())
+        }
+        #[cfg(not(unix))]
+        {
+            let file = self
+                .file
+                .inner
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            Ok(file.metadata()?.len())
+        }
     }
 
     fn name(&self) -> &Path {

@@ -78,35 +78,16 @@ impl FroctWriter {
 
     /// Appends a tile; tiles must come in strictly increasing Morton order.
     pub fn write_tile(&mut self, tile: &EncodedTile) -> Result<(), FileError> {
-        if let Some(last) = self.entries.last().filter(|last| last.code >= tile.code()) {
-            return Err(FileError::TileOrder {
+        let entry = seal_tile(&self.path, self.entries.last(), tile, self.offset)?;
+        self.out
+            .write_all(tile.stored())
+            .map_err(|source| FileError::Io {
                 path: self.path.clone(),
-                code: tile.code().0,
-                previous: last.code.0,
-            });
-        }
-        let stored = tile.stored();
-        let stored_len = u32::try_from(stored.len()).map_err(|_| FileError::TileTooLarge {
-            path: self.path.clone(),
-            len: stored.len(),
-        })?;
-        self.out.write_all(stored).map_err(|source| FileError::Io {
-            path: self.path.clone(),
-            source,
-        })?;
-        let (first_sample, last_sample) = tile.sample_span();
-        self.entries.push(TileEntry {
-            code: tile.code(),
-            offset: self.offset,
-            stored_len,
-            raw_len: tile.raw_len(),
-            crc: crc32c::crc32c(stored),
-            cell_count: tile.cell_count(),
-            first_sample,
-            last_sample,
-        });
-        self.offset += u64::from(stored_len);
-        self.stored_bytes += u64::from(stored_len);
+                source,
+            })?;
+        self.entries.push(entry);
+        self.offset += u64::from(entry.stored_len);
+        self.stored_bytes += u64::from(entry.stored_len);
         self.streams.add(tile.streams());
         self.cells += u64::from(tile.cell_count());
         Ok(())
@@ -155,4 +136,37 @@ impl FroctWriter {
         })?;
         Ok(result)
     }
+}
+
+/// The index entry of `tile` written at `offset` after the tile `last`: checks the Morton
+/// order and the stored length, and checksums the bytes to be written.
+pub(crate) fn seal_tile(
+    path: &Path,
+    last: Option<&TileEntry>,
+    tile: &EncodedTile,
+    offset: u64,
+) -> Result<TileEntry, FileError> {
+    if let Some(last) = last.filter(|last| last.code >= tile.code()) {
+        return Err(FileError::TileOrder {
+            path: path.to_path_buf(),
+            code: tile.code().0,
+            previous: last.code.0,
+        });
+    }
+    let stored = tile.stored();
+    let stored_len = u32::try_from(stored.len()).map_err(|_| FileError::TileTooLarge {
+        path: path.to_path_buf(),
+        len: stored.len(),
+    })?;
+    let (first_sample, last_sample) = tile.sample_span();
+    Ok(TileEntry {
+        code: tile.code(),
+        offset,
+        stored_len,
+        raw_len: tile.raw_len(),
+        crc: crc32c::crc32c(stored),
+        cell_count: tile.cell_count(),
+        first_sample,
+        last_sample,
+    })
 }

@@ -178,3 +178,54 @@ fn region_queries_read_only_what_they_need() {
     assert!(reader.region_states(far, far, 0).unwrap().is_empty());
     assert_eq!(take_reads(), vec![]);
 }
+
+/// The format 2.0 golden file: the 1.2 golden file converted, then three segments (regular
+/// with a missing sample, jittered explicit instants, regular off the base's grid) appended
+/// by the one writer. Regenerated like the others.
+const LIVING_GOLDEN: &str = "golden-v2.0.froct";
+
+#[test]
+fn writer_reproduces_the_living_golden_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fresh = dir.path().join(LIVING_GOLDEN);
+    common::living::write_living_golden(&fresh, 3);
+    let fresh = std::fs::read(&fresh).unwrap();
+    if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
+        froctomap_core::write_atomically(&golden_path_of(LIVING_GOLDEN), |out| {
+            out.write_all(&fresh)
+        })
+        .unwrap();
+    }
+    let committed =
+        std::fs::read(golden_path_of(LIVING_GOLDEN)).expect("the golden file is committed");
+    assert!(
+        committed == fresh,
+        "the writer's output differs from fixtures/froct/{LIVING_GOLDEN}; if the format \
+         changed on purpose, bump the version, keep reading the old golden file, and add a new one"
+    );
+}
+
+#[test]
+fn living_golden_file_reads_back_every_observed_state() {
+    let reader = froctomap_file::LivingReader::open(&golden_path_of(LIVING_GOLDEN)).unwrap();
+    assert_eq!(
+        reader.header().version,
+        (froctomap_file::LIVING_MAJOR_VERSION, 0)
+    );
+    assert_eq!(reader.header().axis, golden_axis());
+    assert_eq!(reader.segment_count(), 3);
+    let plans: Vec<_> = common::living::golden_segment_axes()
+        .iter()
+        .enumerate()
+        .map(|(k, axis)| common::living::golden_segment(k as u64, axis))
+        .collect();
+    let expected = common::living::expected_maps(&plans);
+    assert_eq!(reader.sample_count() as usize, expected.len());
+    for (sample, map) in expected.iter().enumerate() {
+        assert_eq!(
+            &reader.observed_states(sample as u32).unwrap(),
+            map,
+            "sample {sample}"
+        );
+    }
+}
