@@ -33,13 +33,20 @@
 
 mod error;
 mod file_kind;
+mod natural;
 pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
 pub mod octomap_upstream;
+mod recording;
 mod registry;
 
-pub use error::{FormatError, PluginError};
+pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
+pub use natural::natural_cmp;
+pub use recording::{
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
+};
 pub use registry::{
     Backend, Capabilities, Confidence, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff,
     MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,
@@ -48,12 +55,13 @@ pub use registry::{
 
 /// Registers every format enabled at compile time, preferred backends first: the native
 /// Rust codec is the default for `.bt`/`.ot`, the upstream C++ library stays selectable
-/// with backend `octomap`.
-pub fn register_default_formats(registry: &mut FormatRegistry) {
-    registry.register(octomap_native::BINARY);
-    registry.register(octomap_native::FULL);
+/// with backend `octomap`. Refuses (like every registration) a name already registered.
+pub fn register_default_formats(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
+    registry.register(octomap_native::BINARY)?;
+    registry.register(octomap_native::FULL)?;
     #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::BINARY);
+    registry.register(octomap_upstream::BINARY)?;
     #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::FULL);
+    registry.register(octomap_upstream::FULL)?;
+    Ok(())
 }
