@@ -376,6 +376,9 @@ impl FormatRegistry {
                 .iter()
                 .find(|f| f.probe_dir.is_some_and(|probe| probe(path)));
         }
+        if self.recordings.is_empty() {
+            return None;
+        }
         let head = file_head(path).ok()?;
         // The most confident; the earliest registered on ties.
         let best = self
