@@ -230,8 +230,8 @@ fn push_file(
 /// through symbolic links (a link to an ancestor would make the walk endless). A FIFO,
 /// device or socket among the inputs or a manifest's rows is refused before it is opened.
 ///
-/// A *recording* (a file or directory of a [`RecordingFormat`](crate::RecordingFormat)
-/// registered in `context`, such as a ROS bag) given directly or matched by a glob is
+/// A *recording* (a file or directory of a [`RecordingFormat`](froctomap_formats::RecordingFormat)
+/// registered in `context`'s format registry, such as a ROS bag) given directly or matched by a glob is
 /// expanded into its maps, one input each with the recording's path and the map's time
 /// (read as `context`'s [`RecordingOptions`](crate::RecordingOptions) say); each such input
 /// holds the opened recording, so the series can be built with any context. Their times are their own: `--start/--step`

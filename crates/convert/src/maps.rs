@@ -514,7 +514,7 @@ pub struct ExportReport {
 /// `output` as one recording, written atomically, one map at a time. A failure leaves only
 /// complete files behind. At most [`Limits::max_exports`](crate::Limits) maps are written.
 ///
-/// [`RecordingFormat::create`]: crate::RecordingFormat::create
+/// [`RecordingFormat::create`]: froctomap_formats::RecordingFormat::create
 pub fn export(
     context: &Context,
     reader: &FroctReader,

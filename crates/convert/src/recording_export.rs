@@ -4,7 +4,7 @@
 //! so memory holds one map. The recording goes to a temporary file beside the output,
 //! renamed over it once the writer finished.
 //!
-//! [`RecordingWriter`]: crate::RecordingWriter
+//! [`RecordingWriter`]: froctomap_formats::RecordingWriter
 
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;

@@ -15,7 +15,10 @@
 //! What callers may rely on beyond reading and writing is data on the descriptor
 //! ([`Capabilities`]), never a check of its name. Files that hold a *series* of maps are
 //! recognised by the same probe through [`SeriesFormat`] descriptors
-//! ([`FormatRegistry::identify`]). A format may have several implementations (backends) under
+//! ([`FormatRegistry::identify`]); *recordings* of timed maps (ROS bags, MCAP…) are plugins
+//! of their own ([`RecordingFormat`]: one descriptor recognises, opens and optionally writes
+//! a container), registered here too. Every `register…` call returns a `Result` and refuses
+//! a name already registered ([`DuplicateName`]). A format may have several implementations (backends) under
 //! one name: OctoMap's `.bt`/`.ot` are read and written by the native Rust codec
 //! ([`octomap_native`], the default) or by the upstream C++ library (`octomap_upstream`,
 //! chosen with [`Backend::Octomap`] in [`ReadOptions`]/[`WriteOptions`]).
