@@ -19,7 +19,7 @@ use std::process::Command;
 
 fn context(time: RecordedTime) -> Context {
     let mut context = Context::with_default_plugins();
-    froctomap_ros::register(&mut context);
+    froctomap_ros::register(context.formats_mut()).unwrap();
     context.with_recording_options(RecordingOptions::new(None, time))
 }
 
@@ -134,12 +134,14 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
         ],
     );
     for sources in [vec![bag.clone(), mcap.clone()], vec![ros2], vec![bz2]] {
-        let context = context(RecordedTime::Header);
-        let collected = collect_inputs(&context, &sources, TimeSource::Auto).unwrap();
+        let collected =
+            collect_inputs(&context(RecordedTime::Header), &sources, TimeSource::Auto).unwrap();
         let got: Vec<Timestamp> = collected.iter().map(|i| i.time).collect();
         assert_eq!(got, times, "{sources:?}");
         let out = dir.path().join("recorded.froct");
-        let report = build_with_defaults(&context, &collected, &out);
+        // The collected series holds its opened recordings: the context that collected it is
+        // gone, and one without the ROS plugin builds it.
+        let report = build_with_defaults(&plain, &collected, &out);
         assert_eq!(report.used, inputs.len());
         assert!(report.warnings.is_empty(), "{:?}", report.warnings);
         assert!(observed(&out, &times) == expected, "{sources:?}");
@@ -316,10 +318,7 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
     std::fs::write(&bad, not_a_map).unwrap();
     let second = 1_000_000_000;
     let t0 = 1_700_000_000 * second;
-    let input = |path: &Path, t: i64| SeriesInput {
-        path: path.to_path_buf(),
-        time: Timestamp(t),
-    };
+    let input = |path: &Path, t: i64| SeriesInput::new(path.to_path_buf(), Timestamp(t));
     let three = [
         input(&good[0], t0),
         input(&bad, t0 + 60 * second),
@@ -349,7 +348,6 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
     let context = || context(RecordedTime::Header);
     let out = path("out.froct");
     for name in ["not_a_map.bag", "not_a_map.mcap"] {
-        // Recorded inputs are built with the context that collected them.
         let context = context();
         let inputs = collect_inputs(&context, &[path(name)], TimeSource::Auto).unwrap();
         let err = build(&context, &inputs, &out, &BuildOptions::default(), &Silent)
@@ -433,14 +431,11 @@ fn maps_stamped_out_of_recording_order_are_sorted_with_a_warning() {
     let t0 = 1_700_000_000_000_000_000;
     let minute = 60_000_000_000;
     // Logged in this order (log time = stamp + 1 s), stamped later then earlier.
-    let late = SeriesInput {
-        path: fixtures.join("few_voxels.bt"),
-        time: Timestamp(t0 + minute),
-    };
-    let early = SeriesInput {
-        path: fixtures.join("coarse_leaves.bt"),
-        time: Timestamp(t0 - 2 * minute),
-    };
+    let late = SeriesInput::new(fixtures.join("few_voxels.bt"), Timestamp(t0 + minute));
+    let early = SeriesInput::new(
+        fixtures.join("coarse_leaves.bt"),
+        Timestamp(t0 - 2 * minute),
+    );
     let bag = dir.path().join("unordered.bag");
     write_recordings(
         dir.path(),
@@ -543,9 +538,11 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     let second = 1_000_000_000;
     let t0 = 1_700_000_000 * second;
     let inputs: Vec<SeriesInput> = (0..4)
-        .map(|k| SeriesInput {
-            path: fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
-            time: Timestamp(t0 + 60 * second * k as i64),
+        .map(|k| {
+            SeriesInput::new(
+                fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
+                Timestamp(t0 + 60 * second * k as i64),
+            )
         })
         .collect();
     let path = |name: &str| dir.path().join(name);
@@ -623,7 +620,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         .collect();
     let context_for = |skip_bad: bool| {
         let mut context = Context::with_default_plugins();
-        froctomap_ros::register(&mut context);
+        froctomap_ros::register(context.formats_mut()).unwrap();
         context.with_recording_options(
             RecordingOptions::new(None, RecordedTime::Header).with_skip_bad(skip_bad),
         )
@@ -648,7 +645,6 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     for (name, bytes, problem) in &cases {
         std::fs::write(path(name), bytes).unwrap();
         let strict = collect(&context_for(false), &path(name));
-        // Recorded inputs are built with the context that collected them.
         let context = context_for(true);
         let lenient = collect(&context, &path(name)).unwrap();
         if lenient.series.len() == inputs.len() {

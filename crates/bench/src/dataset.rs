@@ -78,20 +78,14 @@ pub fn write(
     let train: Vec<SeriesInput> = frames
         .iter()
         .filter(|(i, _)| *i < train_count)
-        .map(|&(_, time)| SeriesInput {
-            path: name(&dirs.train, "frame", time),
-            time,
-        })
+        .map(|&(_, time)| SeriesInput::new(name(&dirs.train, "frame", time), time))
         .collect();
     let heldout: Vec<(SeriesInput, u64)> = frames
         .iter()
         .filter(|(i, _)| *i >= train_count)
         .map(|&(i, time)| {
             (
-                SeriesInput {
-                    path: name(&dirs.heldout, "truth", time),
-                    time,
-                },
+                SeriesInput::new(name(&dirs.heldout, "truth", time), time),
                 i,
             )
         })

@@ -273,16 +273,18 @@ mod tests {
         let inputs: Vec<SeriesInput> = ["few_voxels.bt", "coarse_leaves.bt", "few_voxels.bt"]
             .iter()
             .enumerate()
-            .map(|(i, name)| SeriesInput {
-                path: fixtures.join(name),
-                time: Timestamp::from_secs(1_700_000_000 + 600 * i as i64),
+            .map(|(i, name)| {
+                SeriesInput::new(
+                    fixtures.join(name),
+                    Timestamp::from_secs(1_700_000_000 + 600 * i as i64),
+                )
             })
             .collect();
         let dir = tempfile::tempdir()?;
         let mcap = dir.path().join("series.mcap");
         assert!(write_mcap(&inputs, &mcap)? > 0);
         let mut context = Context::with_default_plugins();
-        froctomap_ros::register(&mut context);
+        froctomap_ros::register(context.formats_mut())?;
         let recorded = collect_inputs(&context, &[mcap], TimeSource::Auto)?;
         let times: Vec<Timestamp> = recorded.iter().map(|i| i.time).collect();
         assert_eq!(times, inputs.iter().map(|i| i.time).collect::<Vec<_>>());

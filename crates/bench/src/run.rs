@@ -111,7 +111,7 @@ pub struct BuildChildArgs {
 pub fn build_child(args: &BuildChildArgs) -> Result<()> {
     let mut context = froctomap_convert::Context::with_default_plugins();
     // Recordings too (the MCAP row), as the CLI reads them.
-    froctomap_ros::register(&mut context);
+    froctomap_ros::register(context.formats_mut())?;
     let inputs = collect_inputs(
         &context,
         std::slice::from_ref(&args.input),

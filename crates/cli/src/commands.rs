@@ -231,15 +231,23 @@ pub fn formats(ui: &Ui) -> Result<()> {
             format.description
         )?;
     }
-    for format in registry.series_formats() {
-        let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
+    let series = registry
+        .series_formats()
+        .iter()
+        .map(|f| (f.name, f.extensions, "series", f.description));
+    let recordings = registry.recording_formats().iter().map(|f| {
+        let modes = if f.create.is_some() { "rec,w" } else { "rec" };
+        (f.name, f.extensions, modes, f.description)
+    });
+    for (name, extensions, modes, description) in series.chain(recordings) {
+        let extensions: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
         outln!(
             "{:<6} {:<8} {:<12} {:<6} {}",
-            format.name,
+            name,
             "-",
             extensions.join(","),
-            "series",
-            format.description
+            modes,
+            description
         )?;
     }
     Ok(())

@@ -10,7 +10,8 @@ pub fn context() -> &'static Context {
     CONTEXT.get_or_init(|| {
         let mut context = Context::with_default_plugins();
         // ROS 1 bags, MCAP files and ROS 2 bag directories as sources of timed maps.
-        froctomap_ros::register(&mut context);
+        // Distinct names: a clash would be a bug of this program, seen by its tests.
+        let _ = froctomap_ros::register(context.formats_mut());
         context
     })
 }
@@ -27,6 +28,7 @@ pub fn export_format() -> clap::builder::PossibleValuesParser {
     let mut names = context().formats().writable_names();
     names.extend(
         context()
+            .formats()
             .recording_formats()
             .iter()
             .filter(|f| f.create.is_some())
@@ -39,6 +41,7 @@ pub fn export_format() -> clap::builder::PossibleValuesParser {
 pub fn recording_format_of(path: &std::path::Path) -> Option<&'static str> {
     let extension = path.extension()?.to_str()?;
     context()
+        .formats()
         .recording_formats()
         .iter()
         .find(|f| {

@@ -721,8 +721,7 @@ pub struct EvalArgs {
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = ui.context.open_froct(&args.file)?;
-    // Recordings among the ground truths are read with --topic/--time-source, and their maps
-    // fetched through the context that collected them.
+    // Recordings among the ground truths are read with --topic/--time-source.
     let context = args.times.context(ui, false);
     let collected =
         collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;

@@ -207,6 +207,18 @@ fn formats_lists_both_backends_native_first() {
             "native is the default, listed first:\n{stdout}"
         );
     }
+    // Recording formats are listed once each, MCAP as writable too.
+    assert!(stdout
+        .lines()
+        .nth(line_of("rosbag "))
+        .unwrap()
+        .contains(" rec "));
+    assert!(stdout
+        .lines()
+        .nth(line_of("mcap "))
+        .unwrap()
+        .contains(" rec,w "));
+    assert_eq!(stdout.matches("\nmcap ").count(), 1, "{stdout}");
 }
 
 /// `--backend octomap` selects the C++ library; it must tell exactly the same story as the

@@ -335,11 +335,7 @@ pub fn build(
         resolution: options.resolution,
         allow_mostly_skipped: options.allow_mostly_skipped,
     }
-    .run(
-        inputs,
-        &|input| crate::recording::is_recorded(context, input),
-        progress,
-    )?;
+    .run(inputs, &SeriesInput::is_recorded, progress)?;
 
     progress.stage("reading snapshots", inputs.len() as u64);
     let extract = ExtractOptions {
@@ -562,10 +558,7 @@ mod tests {
         assert_eq!(axis.missing(), &[3]);
         let inputs: Vec<SeriesInput> = times
             .iter()
-            .map(|&time| SeriesInput {
-                path: PathBuf::from("map.bt"),
-                time,
-            })
+            .map(|&time| SeriesInput::new(PathBuf::from("map.bt"), time))
             .collect();
         let usable = [true, false, true, true, true];
         // Sample 5 was refused by extraction, sample 1 by the check (and reported twice).

@@ -4,8 +4,8 @@
 //! reaches every path.
 
 use crate::error::ConvertError;
-use crate::recording::{OpenRecordings, RecordingFormat, RecordingOptions};
 use froctomap_file::{FroctReader, ReadLimits};
+use froctomap_formats::RecordingOptions;
 use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
 use froctomap_temporal::ModelRegistry;
 use std::path::Path;
@@ -42,7 +42,8 @@ impl Default for Limits {
     }
 }
 
-/// Registries and limits handed to the converters ([`build`](crate::build),
+/// Registries and limits handed to the converters — and nothing opened: a series collected
+/// with one context owns its inputs and may be built with another ([`build`](crate::build),
 /// [`export`](crate::export), [`evaluate`](crate::evaluate), [`collect_inputs`](crate::collect_inputs), the map writers).
 /// Library code never builds default registries itself.
 ///
@@ -52,23 +53,23 @@ impl Default for Limits {
 ///
 /// // A program's own format: the native `.bt` codec under another name and extension.
 /// let mut context = Context::with_default_plugins();
-/// context.formats_mut().register(MapFormat { name: "tree", extensions: &["tree"], ..octomap_native::BINARY });
+/// context.formats_mut().register(MapFormat { name: "tree", extensions: &["tree"], ..octomap_native::BINARY })?;
+/// // Every registry refuses a name it holds.
+/// assert!(context.formats_mut().register(octomap_native::BINARY).is_err());
 /// assert!(context.formats().by_name("tree", None).is_ok());
 ///
 /// let mut limits = Limits::default();
 /// limits.max_exports = 100;
 /// let context = context.with_limits(limits);
 /// assert_eq!(context.limits().max_exports, 100);
+/// # Ok::<(), froctomap_formats::DuplicateName>(())
 /// ```
 #[derive(Clone, Debug)]
 pub struct Context {
     formats: FormatRegistry,
     models: ModelRegistry,
     limits: Limits,
-    recordings: Vec<RecordingFormat>,
     recording_options: RecordingOptions,
-    /// Recordings opened while collecting inputs, shared by clones.
-    open_recordings: OpenRecordings,
 }
 
 impl Context {
@@ -78,9 +79,7 @@ impl Context {
             formats,
             models,
             limits: Limits::default(),
-            recordings: Vec::new(),
             recording_options: RecordingOptions::default(),
-            open_recordings: OpenRecordings::default(),
         }
     }
 
@@ -88,7 +87,8 @@ impl Context {
     /// format ([`FROCT`]), with default limits: what binaries, tests and examples start from.
     pub fn with_default_plugins() -> Self {
         let mut formats = FormatRegistry::with_default_formats();
-        formats.register_series(FROCT);
+        // The built-in formats do not use this name (a test registers it twice).
+        let _ = formats.register_series(FROCT);
         Self::new(formats, ModelRegistry::with_default_models())
     }
 
@@ -123,17 +123,6 @@ impl Context {
         &self.limits
     }
 
-    /// Adds a format of recordings (ROS bags…), which
-    /// [`collect_inputs`](crate::collect_inputs) then expands into their maps.
-    pub fn register_recording(&mut self, format: RecordingFormat) {
-        self.recordings.push(format);
-    }
-
-    /// The registered formats of recordings, in registration order.
-    pub fn recording_formats(&self) -> &[RecordingFormat] {
-        &self.recordings
-    }
-
     /// The same context reading recordings with these options (topic, time).
     pub fn with_recording_options(mut self, options: RecordingOptions) -> Self {
         self.recording_options = options;
@@ -143,11 +132,6 @@ impl Context {
     /// How recordings are read.
     pub fn recording_options(&self) -> &RecordingOptions {
         &self.recording_options
-    }
-
-    /// The recordings opened while collecting inputs.
-    pub(crate) fn open_recordings(&self) -> &OpenRecordings {
-        &self.open_recordings
     }
 
     /// Opens a FROctomap file with this context's models (so a model the program registered
@@ -202,5 +186,8 @@ mod tests {
         let bare = Context::new(FormatRegistry::with_default_formats(), ModelRegistry::new());
         assert!(bare.formats().identify(&head).is_none());
         assert!(context.formats().identify(&head[..4]).is_none());
+        // Registered once only.
+        let mut formats = context.formats().clone();
+        assert!(formats.register_series(FROCT).is_err());
     }
 }

@@ -3,20 +3,53 @@
 use crate::context::Context;
 use crate::error::{ConvertError, ManifestProblem};
 use crate::glob_walk::recursive_matches;
+use crate::recording::RecordedMap;
 use crate::time::{
     check_range, read_time, read_time_from_file_name, TimeError, Zone, EARLIEST_IN_NAME,
 };
 use froctomap_core::{calendar, Timestamp};
-use std::cmp::Ordering;
+use froctomap_formats::natural_cmp;
 use std::path::{Path, PathBuf};
 
-/// One snapshot file of a series.
+/// One snapshot of a series: a map file, or a map of a recording the input holds open.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SeriesInput {
-    /// The file.
+    /// The file (for a recorded map, the recording).
     pub path: PathBuf,
     /// When the snapshot was taken.
     pub time: Timestamp,
+    /// The recorded map, when `path` is a recording.
+    recorded: Option<RecordedMap>,
+}
+
+impl SeriesInput {
+    /// The map file `path`, taken at `time`.
+    pub fn new(path: PathBuf, time: Timestamp) -> Self {
+        Self {
+            path,
+            time,
+            recorded: None,
+        }
+    }
+
+    /// Map `map` of the recording at `path`, taken at `time`.
+    pub fn recorded_map(path: PathBuf, time: Timestamp, map: RecordedMap) -> Self {
+        Self {
+            path,
+            time,
+            recorded: Some(map),
+        }
+    }
+
+    /// The recorded map this input stands for, if it is one.
+    pub fn recorded(&self) -> Option<&RecordedMap> {
+        self.recorded.as_ref()
+    }
+
+    /// `true` for a map of a recording (its header is not read by path).
+    pub fn is_recorded(&self) -> bool {
+        self.recorded.is_some()
+    }
 }
 
 /// Where snapshot times come from.
@@ -120,7 +153,7 @@ struct Candidate {
     /// The manifest's time had no zone.
     manifest_zoneless: bool,
     /// A map of a recording (at `path`), at this time.
-    recorded_time: Option<Timestamp>,
+    recorded: Option<(Timestamp, RecordedMap)>,
 }
 
 impl Candidate {
@@ -130,7 +163,7 @@ impl Candidate {
             path,
             manifest_time: None,
             manifest_zoneless: false,
-            recorded_time: None,
+            recorded: None,
         }
     }
 }
@@ -150,7 +183,7 @@ fn push_file(
     candidates: &mut Vec<Candidate>,
     notes: &mut InputNotes,
 ) -> Result<(), ConvertError> {
-    let Some(format) = crate::recording::recording_format(context, &path) else {
+    let Some(format) = context.formats().recording_for(&path) else {
         candidates.push(Candidate::file(path));
         return Ok(());
     };
@@ -170,10 +203,17 @@ fn push_file(
                 message,
             }),
     );
-    candidates.extend(recording.times.into_iter().map(|time| Candidate {
-        recorded_time: Some(time),
-        ..Candidate::file(path.clone())
-    }));
+    let maps = recording.maps;
+    candidates.extend(
+        recording
+            .times
+            .into_iter()
+            .enumerate()
+            .map(|(index, time)| Candidate {
+                recorded: Some((time, RecordedMap::new(maps.clone(), index))),
+                ..Candidate::file(path.clone())
+            }),
+    );
     Ok(())
 }
 
@@ -190,11 +230,11 @@ fn push_file(
 /// through symbolic links (a link to an ancestor would make the walk endless). A FIFO,
 /// device or socket among the inputs or a manifest's rows is refused before it is opened.
 ///
-/// A *recording* (a file or directory of a [`RecordingFormat`](crate::RecordingFormat)
-/// registered in `context`, such as a ROS bag) given directly or matched by a glob is
+/// A *recording* (a file or directory of a [`RecordingFormat`](froctomap_formats::RecordingFormat)
+/// registered in `context`'s format registry, such as a ROS bag) given directly or matched by a glob is
 /// expanded into its maps, one input each with the recording's path and the map's time
-/// (read as `context`'s [`RecordingOptions`](crate::RecordingOptions) say); such inputs
-/// are read back through the same `context`. Their times are their own: `--start/--step`
+/// (read as `context`'s [`RecordingOptions`](crate::RecordingOptions) say); each such input
+/// holds the opened recording, so the series can be built with any context. Their times are their own: `--start/--step`
 /// and times files are refused with them.
 pub fn collect_inputs(
     context: &Context,
@@ -249,7 +289,7 @@ pub fn collect_inputs_explained(
             for path in matched {
                 push_file(context, path, &mut candidates, &mut notes)?;
             }
-        } else if input.is_dir() && crate::recording::recording_format(context, input).is_some() {
+        } else if input.is_dir() && context.formats().recording_for(input).is_some() {
             push_file(context, input.clone(), &mut candidates, &mut notes)?;
         } else if input.is_dir() {
             let manifest = input.join(MANIFEST_NAME);
@@ -299,7 +339,7 @@ pub fn collect_inputs_explained(
     // Manifest rows too: a FIFO among them would stall the build.
     if let Some((path, kind)) = candidates
         .iter()
-        .filter(|c| c.recorded_time.is_none())
+        .filter(|c| c.recorded.is_none())
         .find_map(|c| special_kind(&c.path).map(|kind| (&c.path, kind)))
     {
         return Err(ConvertError::NotAFile {
@@ -308,10 +348,9 @@ pub fn collect_inputs_explained(
         });
     }
     let zoneless = candidates.iter().any(|c| c.manifest_zoneless);
-    if let (TimeSource::StartStep { .. } | TimeSource::TimesFile(_), Some(recorded)) = (
-        &times,
-        candidates.iter().find(|c| c.recorded_time.is_some()),
-    ) {
+    if let (TimeSource::StartStep { .. } | TimeSource::TimesFile(_), Some(recorded)) =
+        (&times, candidates.iter().find(|c| c.recorded.is_some()))
+    {
         return Err(ConvertError::RecordingTimes {
             path: recorded.path.clone(),
         });
@@ -333,37 +372,6 @@ pub fn collect_inputs_explained(
         warnings: notes.warnings,
         skipped: notes.skipped,
     })
-}
-
-/// Orders names as people number them: runs of digits compare by value (`map_2` before
-/// `map_10`), everything else by character; equal values with different zero padding, and
-/// then the plain text, break ties so the order is total.
-pub fn natural_cmp(a: &Path, b: &Path) -> Ordering {
-    let (a, b) = (a.to_string_lossy(), b.to_string_lossy());
-    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
-    while let (Some(&p), Some(&q)) = (x.first(), y.first()) {
-        if p.is_ascii_digit() && q.is_ascii_digit() {
-            let run = |s: &[u8]| s.iter().take_while(|c| c.is_ascii_digit()).count();
-            let (m, n) = (run(x), run(y));
-            let strip = |s: &[u8]| {
-                let zeros = s.iter().take_while(|&&c| c == b'0').count();
-                s[zeros..].to_vec()
-            };
-            let (u, v) = (strip(&x[..m]), strip(&y[..n]));
-            let by_value = u.len().cmp(&v.len()).then_with(|| u.cmp(&v));
-            if by_value != Ordering::Equal {
-                return by_value;
-            }
-            x = &x[m..];
-            y = &y[n..];
-        } else if p != q {
-            return p.cmp(&q);
-        } else {
-            x = &x[1..];
-            y = &y[1..];
-        }
-    }
-    x.len().cmp(&y.len()).then_with(|| a.cmp(&b))
 }
 
 /// The times of `candidates`, and whether a name's time had no zone.
@@ -389,13 +397,7 @@ fn assign_times(
                         },
                     })?;
                 check_range(&c.path.to_string_lossy(), t)?;
-                Ok((
-                    SeriesInput {
-                        path: c.path,
-                        time: t,
-                    },
-                    TimeOrigin::StartStep,
-                ))
+                Ok((SeriesInput::new(c.path, t), TimeOrigin::StartStep))
             })
             .collect::<Result<_, _>>()
             .map(|timed| (timed, false)),
@@ -412,7 +414,7 @@ fn assign_times(
                 .into_iter()
                 .zip(listed)
                 .map(|(c, time)| {
-                    let input = SeriesInput { path: c.path, time };
+                    let input = SeriesInput::new(c.path, time);
                     (input, TimeOrigin::TimesFile)
                 })
                 .collect();
@@ -424,8 +426,9 @@ fn assign_times(
             let mut unnamed = Vec::new();
             let mut zoneless = false;
             for c in candidates {
-                if let Some(time) = c.recorded_time {
-                    out.push((SeriesInput { path: c.path, time }, TimeOrigin::Recorded));
+                if let Some((time, map)) = c.recorded {
+                    let input = SeriesInput::recorded_map(c.path, time, map);
+                    out.push((input, TimeOrigin::Recorded));
                     continue;
                 }
                 let from_manifest = c.manifest_time.filter(|_| use_manifest);
@@ -436,9 +439,7 @@ fn assign_times(
                         .and_then(|name| read_time_from_file_name(name, zone))
                 };
                 match from_manifest {
-                    Some(time) => {
-                        out.push((SeriesInput { path: c.path, time }, TimeOrigin::Manifest))
-                    }
+                    Some(time) => out.push((SeriesInput::new(c.path, time), TimeOrigin::Manifest)),
                     None => match from_name() {
                         Some(read) if read.time < EARLIEST_IN_NAME => {
                             return Err(ConvertError::EarlyNameTime {
@@ -448,10 +449,7 @@ fn assign_times(
                         }
                         Some(read) => {
                             zoneless |= read.zoneless;
-                            let input = SeriesInput {
-                                path: c.path,
-                                time: read.time,
-                            };
+                            let input = SeriesInput::new(c.path, read.time);
                             out.push((input, TimeOrigin::FileName))
                         }
                         None => unnamed.push(c.path),
@@ -687,20 +685,6 @@ mod tests {
         for name in names {
             std::fs::write(dir.join(name), b"").unwrap();
         }
-    }
-
-    #[test]
-    fn numbered_names_sort_naturally() {
-        let mut names: Vec<PathBuf> = ["map_10.bt", "map_2.bt", "map_1.bt", "map_02.bt", "a.bt"]
-            .iter()
-            .map(PathBuf::from)
-            .collect();
-        names.sort_by(|a, b| natural_cmp(a, b));
-        let names: Vec<_> = names.iter().map(|p| p.to_str().unwrap()).collect();
-        assert_eq!(
-            names,
-            ["a.bt", "map_1.bt", "map_02.bt", "map_2.bt", "map_10.bt"]
-        );
     }
 
     #[test]

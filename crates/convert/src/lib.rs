@@ -71,11 +71,12 @@ pub use dynamics::{
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
 pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
 pub use froctomap_core::calendar::unix_seconds;
+pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
 pub use inputs::{
-    collect_inputs, collect_inputs_explained, manifest_text, natural_cmp, CollectedInputs,
-    InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
+    collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
+    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
 };
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed,
@@ -87,10 +88,7 @@ pub use progress::{Progress, Silent};
 pub use query::{
     probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
 };
-pub use recording::{
-    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
-    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
-};
+pub use recording::RecordedMap;
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,

@@ -514,7 +514,7 @@ pub struct ExportReport {
 /// `output` as one recording, written atomically, one map at a time. A failure leaves only
 /// complete files behind. At most [`Limits::max_exports`](crate::Limits) maps are written.
 ///
-/// [`RecordingFormat::create`]: crate::RecordingFormat::create
+/// [`RecordingFormat::create`]: froctomap_formats::RecordingFormat::create
 pub fn export(
     context: &Context,
     reader: &FroctReader,
@@ -523,7 +523,7 @@ pub fn export(
     progress: &dyn Progress,
 ) -> Result<ExportReport, ConvertError> {
     let (times, samples) = export_instants(context, reader, options)?;
-    if let Some(format) = crate::recording::writable_recording(context, &options.format) {
+    if let Some(format) = context.formats().writable_recording(&options.format) {
         return crate::recording_export::export_recording(
             reader, output, format, &times, &samples, progress,
         );
@@ -556,7 +556,7 @@ pub fn export(
         };
         let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
         progress.advance(1);
-        Ok((SeriesInput { path, time: t }, bytes))
+        Ok((SeriesInput::new(path, t), bytes))
     };
     // A format written tile by tile holds little of each map, so maps are made in
     // parallel; others hold a whole map while writing it, so one map at a time (each built

@@ -4,16 +4,16 @@
 //! so memory holds one map. The recording goes to a temporary file beside the output,
 //! renamed over it once the writer finished.
 //!
-//! [`RecordingWriter`]: crate::RecordingWriter
+//! [`RecordingWriter`]: froctomap_formats::RecordingWriter
 
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
 use crate::maps::{observed_bt, predicted_bt, ExportReport};
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
-use crate::recording::{CellShade, ExportedKind, ExportedMap, OccupiedCell, RecordingFormat};
 use froctomap_core::{temporary_beside, AtomicWriteError, Occupancy, Timestamp};
 use froctomap_file::{CellContent, FroctReader};
+use froctomap_formats::{CellShade, ExportedKind, ExportedMap, OccupiedCell, RecordingFormat};
 use rayon::prelude::*;
 use std::io::BufWriter;
 use std::path::Path;
@@ -68,10 +68,7 @@ pub(crate) fn export_recording(
     let bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
     let files = times
         .iter()
-        .map(|&time| SeriesInput {
-            path: output.to_path_buf(),
-            time,
-        })
+        .map(|&time| SeriesInput::new(output.to_path_buf(), time))
         .collect();
     Ok(ExportReport {
         files,

@@ -201,10 +201,7 @@ fn counting_and_evaluating_hold_one_tile_not_the_map() {
     .unwrap();
     let truth_path = dir.path().join("truth.bt");
     write_map(&context, &truth, &truth_path, WriteOptions::default()).unwrap();
-    let truths = [SeriesInput {
-        path: truth_path,
-        time: axis.end(),
-    }];
+    let truths = [SeriesInput::new(truth_path, axis.end())];
     let (report, peak) = peak_during(|| {
         pool.install(|| evaluate(&context, &reader, &truths, ReadOptions::default(), &Silent))
     });

@@ -311,10 +311,12 @@ fn byte_level_and_leaf_level_comparison_build_the_same_cells() {
     // byte-level differs.
     let mut decoding = FormatRegistry::new();
     for format in context.formats().formats() {
-        decoding.register(MapFormat {
-            differ: None,
-            ..*format
-        });
+        decoding
+            .register(MapFormat {
+                differ: None,
+                ..*format
+            })
+            .unwrap();
     }
     let decoding = Context::new(decoding, ModelRegistry::with_default_models());
     let (reference, decoded) = build_with(&decoding, Backend::Native, 64);
@@ -368,7 +370,7 @@ fn a_format_registered_by_the_caller_is_used_by_build_and_export() {
         ..octomap_native::BINARY
     };
     let mut formats = FormatRegistry::new();
-    formats.register(renamed);
+    formats.register(renamed).unwrap();
     let context = Context::new(formats, ModelRegistry::with_default_models());
     let series = write_series(dir.path(), 3);
     let inputs_dir = dir.path().join("renamed");

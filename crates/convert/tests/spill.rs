@@ -47,10 +47,10 @@ fn write_series(dir: &Path, frames: &[Frame], missing: &[u32]) -> Vec<SeriesInpu
             .formats()
             .write_file(&snapshot(frame), &path, WriteOptions::default())
             .unwrap();
-        inputs.push(SeriesInput {
+        inputs.push(SeriesInput::new(
             path,
-            time: Timestamp::from_secs(1_451_865_600 + i64::from(second)),
-        });
+            Timestamp::from_secs(1_451_865_600 + i64::from(second)),
+        ));
         second += 1;
     }
     inputs

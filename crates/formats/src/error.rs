@@ -93,3 +93,15 @@ pub enum FormatError {
         action: &'static str,
     },
 }
+
+/// A plugin registered under a name its registry already holds: every registry
+/// (map formats, series and recording formats, map sources) refuses it rather than let one
+/// plugin shadow another.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("a {kind} named `{name}` is already registered")]
+pub struct DuplicateName {
+    /// What the registry holds ("map format", "recording format"…).
+    pub kind: &'static str,
+    /// The name (for a map format, with its backend).
+    pub name: String,
+}

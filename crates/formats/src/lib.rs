@@ -15,7 +15,10 @@
 //! What callers may rely on beyond reading and writing is data on the descriptor
 //! ([`Capabilities`]), never a check of its name. Files that hold a *series* of maps are
 //! recognised by the same probe through [`SeriesFormat`] descriptors
-//! ([`FormatRegistry::identify`]). A format may have several implementations (backends) under
+//! ([`FormatRegistry::identify`]); *recordings* of timed maps (ROS bags, MCAP…) are plugins
+//! of their own ([`RecordingFormat`]: one descriptor recognises, opens and optionally writes
+//! a container), registered here too. Every `register…` call returns a `Result` and refuses
+//! a name already registered ([`DuplicateName`]). A format may have several implementations (backends) under
 //! one name: OctoMap's `.bt`/`.ot` are read and written by the native Rust codec
 //! ([`octomap_native`], the default) or by the upstream C++ library (`octomap_upstream`,
 //! chosen with [`Backend::Octomap`] in [`ReadOptions`]/[`WriteOptions`]).
@@ -33,13 +36,20 @@
 
 mod error;
 mod file_kind;
+mod natural;
 pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
 pub mod octomap_upstream;
+mod recording;
 mod registry;
 
-pub use error::{FormatError, PluginError};
+pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
+pub use natural::natural_cmp;
+pub use recording::{
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
+};
 pub use registry::{
     Backend, Capabilities, Confidence, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff,
     MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,
@@ -48,12 +58,13 @@ pub use registry::{
 
 /// Registers every format enabled at compile time, preferred backends first: the native
 /// Rust codec is the default for `.bt`/`.ot`, the upstream C++ library stays selectable
-/// with backend `octomap`.
-pub fn register_default_formats(registry: &mut FormatRegistry) {
-    registry.register(octomap_native::BINARY);
-    registry.register(octomap_native::FULL);
+/// with backend `octomap`. Refuses (like every registration) a name already registered.
+pub fn register_default_formats(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
+    registry.register(octomap_native::BINARY)?;
+    registry.register(octomap_native::FULL)?;
     #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::BINARY);
+    registry.register(octomap_upstream::BINARY)?;
     #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::FULL);
+    registry.register(octomap_upstream::FULL)?;
+    Ok(())
 }

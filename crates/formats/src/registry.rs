@@ -1,7 +1,8 @@
 //! Map formats as data, and the registry that picks one for a file.
 
-use crate::error::{FormatError, PluginError};
+use crate::error::{DuplicateName, FormatError, PluginError};
 use crate::file_kind::check_regular_file;
+use crate::recording::RecordingFormat;
 use froctomap_core::{write_atomically, Snapshot, StateChange};
 use std::io::Write;
 use std::path::Path;
@@ -191,6 +192,29 @@ pub enum Identified<'a> {
     Map(&'a MapFormat),
     /// A series of maps, of a format registered with [`FormatRegistry::register_series`].
     Series(&'a SeriesFormat),
+    /// A recording of timed maps (a ROS bag…), of a format registered with
+    /// [`FormatRegistry::register_recording`].
+    Recording(&'a RecordingFormat),
+}
+
+impl Identified<'_> {
+    /// The format's short name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Map(f) => f.name,
+            Self::Series(f) => f.name,
+            Self::Recording(f) => f.name,
+        }
+    }
+
+    /// The format's one-line description.
+    pub fn description(&self) -> &'static str {
+        match self {
+            Self::Map(f) => f.description,
+            Self::Series(f) => f.description,
+            Self::Recording(f) => f.description,
+        }
+    }
 }
 
 /// How many bytes of a file [`FormatRegistry::identify_file`] reads: every probe needs at
@@ -270,6 +294,7 @@ pub struct DiffOutcome {
 pub struct FormatRegistry {
     formats: Vec<MapFormat>,
     series: Vec<SeriesFormat>,
+    recordings: Vec<RecordingFormat>,
 }
 
 impl FormatRegistry {
@@ -281,13 +306,26 @@ impl FormatRegistry {
     /// A registry with every format enabled at compile time.
     pub fn with_default_formats() -> Self {
         let mut registry = Self::new();
-        crate::register_default_formats(&mut registry);
+        // Built-in names and backends are distinct (a test registers them twice).
+        let _ = crate::register_default_formats(&mut registry);
         registry
     }
 
-    /// Adds a format.
-    pub fn register(&mut self, format: MapFormat) {
+    /// Adds a format. Several backends may share a name (OctoMap's `bt` is native or
+    /// upstream); a name and backend already registered are refused.
+    pub fn register(&mut self, format: MapFormat) -> Result<(), DuplicateName> {
+        if self
+            .formats
+            .iter()
+            .any(|f| f.name == format.name && f.backend == format.backend)
+        {
+            return Err(DuplicateName {
+                kind: "map format",
+                name: format!("{} (backend {})", format.name, format.backend.name()),
+            });
+        }
         self.formats.push(format);
+        Ok(())
     }
 
     /// Every registered format, in registration order.
@@ -295,9 +333,68 @@ impl FormatRegistry {
         &self.formats
     }
 
-    /// Adds a format of series files, so that [`identify`](Self::identify) recognises them.
-    pub fn register_series(&mut self, format: SeriesFormat) {
+    /// Adds a format of series files, so that [`identify`](Self::identify) recognises them;
+    /// a name already registered (as a series or recording format) is refused.
+    pub fn register_series(&mut self, format: SeriesFormat) -> Result<(), DuplicateName> {
+        self.refuse_taken("series format", format.name)?;
         self.series.push(format);
+        Ok(())
+    }
+
+    /// Adds a format of recordings (ROS bags…), which input collection then expands into
+    /// their maps and [`identify`](Self::identify) recognises; a name already registered
+    /// (as a series or recording format) is refused.
+    pub fn register_recording(&mut self, format: RecordingFormat) -> Result<(), DuplicateName> {
+        self.refuse_taken("recording format", format.name)?;
+        self.recordings.push(format);
+        Ok(())
+    }
+
+    fn refuse_taken(&self, kind: &'static str, name: &str) -> Result<(), DuplicateName> {
+        let taken = self.series.iter().any(|f| f.name == name)
+            || self.recordings.iter().any(|f| f.name == name);
+        if taken {
+            return Err(DuplicateName {
+                kind,
+                name: name.to_string(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Every registered recording format, in registration order.
+    pub fn recording_formats(&self) -> &[RecordingFormat] {
+        &self.recordings
+    }
+
+    /// The recording format that recognises `path` (a file by its first bytes, a directory
+    /// by its layout), if any.
+    pub fn recording_for(&self, path: &Path) -> Option<&RecordingFormat> {
+        if path.is_dir() {
+            return self
+                .recordings
+                .iter()
+                .find(|f| f.probe_dir.is_some_and(|probe| probe(path)));
+        }
+        if self.recordings.is_empty() {
+            return None;
+        }
+        let head = file_head(path).ok()?;
+        // The most confident; the earliest registered on ties.
+        let best = self
+            .recordings
+            .iter()
+            .map(|f| (f.probe)(&head))
+            .max()
+            .filter(|&c| c > Confidence::No)?;
+        self.recordings.iter().find(|f| (f.probe)(&head) == best)
+    }
+
+    /// The recording format named `name`, if it can be written.
+    pub fn writable_recording(&self, name: &str) -> Option<&RecordingFormat> {
+        self.recordings
+            .iter()
+            .find(|f| f.name == name && f.create.is_some())
     }
 
     /// Every registered series format, in registration order.
@@ -306,7 +403,7 @@ impl FormatRegistry {
     }
 
     /// What `bytes` (the start of a file) are: the most confident of the readable map
-    /// formats and the series formats (map formats win ties).
+    /// formats, the series and the recording formats (map formats win ties).
     ///
     /// ```
     /// use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
@@ -316,19 +413,27 @@ impl FormatRegistry {
     ///     description: "a demo series",
     ///     extensions: &["demo"],
     ///     probe: |bytes| if bytes.starts_with(b"DEMO") { Confidence::Certain } else { Confidence::No },
-    /// });
+    /// })?;
     /// assert!(matches!(registry.identify(b"DEMO..."), Some(Identified::Series(f)) if f.name == "demo"));
     /// assert!(matches!(registry.identify(b"# Octomap OcTree binary file\n"), Some(Identified::Map(_))));
+    /// # Ok::<(), froctomap_formats::DuplicateName>(())
     /// ```
     pub fn identify(&self, bytes: &[u8]) -> Option<Identified<'_>> {
         let map = self
             .probe_with(bytes, None)
             .map(|f| (Identified::Map(f), (f.probe)(bytes)));
         let mut best = map;
-        for format in &self.series {
-            let confidence = (format.probe)(bytes);
+        let series = self
+            .series
+            .iter()
+            .map(|f| (Identified::Series(f), (f.probe)(bytes)));
+        let recordings = self
+            .recordings
+            .iter()
+            .map(|f| (Identified::Recording(f), (f.probe)(bytes)));
+        for (identified, confidence) in series.chain(recordings) {
             if confidence > Confidence::No && best.as_ref().is_none_or(|(_, c)| confidence > *c) {
-                best = Some((Identified::Series(format), confidence));
+                best = Some((identified, confidence));
             }
         }
         best.map(|(identified, _)| identified)
@@ -336,16 +441,7 @@ impl FormatRegistry {
 
     /// [`identify`](Self::identify) on the first [`PROBE_BYTES`] of a file.
     pub fn identify_file(&self, path: &Path) -> Result<Option<Identified<'_>>, FormatError> {
-        use std::io::Read;
-        check_regular_file(path)?;
-        let mut head = Vec::new();
-        std::fs::File::open(path)
-            .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
-            .map_err(|source| FormatError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-        Ok(self.identify(&head))
+        Ok(self.identify(&file_head(path)?))
     }
 
     /// Formats of the preferred backend first, then the rest, each in registration order.
@@ -460,11 +556,13 @@ impl FormatRegistry {
     /// Why `bytes` cannot be read as a map: a series file, or nothing known.
     fn not_a_map(&self, path: &Path, bytes: &[u8]) -> FormatError {
         match self.identify(bytes) {
-            Some(Identified::Series(series)) => FormatError::SeriesNotMap {
-                path: path.to_path_buf(),
-                format: series.name,
-                description: series.description,
-            },
+            Some(series @ (Identified::Series(_) | Identified::Recording(_))) => {
+                FormatError::SeriesNotMap {
+                    path: path.to_path_buf(),
+                    format: series.name(),
+                    description: series.description(),
+                }
+            }
             _ => FormatError::Unrecognized {
                 path: path.to_path_buf(),
                 reason: describe_start(bytes),
@@ -644,6 +742,20 @@ impl FormatRegistry {
 }
 
 /// A short description of unrecognised content for error messages.
+/// The first [`PROBE_BYTES`] of a regular file, for the probes.
+pub(crate) fn file_head(path: &Path) -> Result<Vec<u8>, FormatError> {
+    use std::io::Read;
+    check_regular_file(path)?;
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
+        .map_err(|source| FormatError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    Ok(head)
+}
+
 fn describe_start(bytes: &[u8]) -> String {
     if bytes.is_empty() {
         return "the file is empty".to_string();
@@ -683,5 +795,59 @@ mod tests {
         // Names and extensions shared by several backends are listed once.
         assert_eq!(registry.known_names(), "bt, ot");
         assert_eq!(registry.known_extensions(), ".bt, .ot");
+    }
+}
+
+#[cfg(test)]
+mod registration_tests {
+    use super::*;
+    use crate::{octomap_native, RecordingFormat};
+
+    #[test]
+    fn every_registration_refuses_a_taken_name() {
+        let mut registry = FormatRegistry::with_default_formats();
+        let before = registry.formats().len();
+        // The defaults are distinct, so registering them again is refused at the first.
+        let again = crate::register_default_formats(&mut registry).unwrap_err();
+        assert_eq!(again.name, "bt (backend native)");
+        assert_eq!(registry.formats().len(), before);
+        // Another backend of a name is a new registration, a new name too.
+        let renamed = MapFormat {
+            name: "tree",
+            ..octomap_native::BINARY
+        };
+        registry.register(renamed).unwrap();
+        assert!(registry.register(renamed).is_err());
+
+        let series = SeriesFormat {
+            name: "demo",
+            description: "a demo series",
+            extensions: &["demo"],
+            probe: |_| Confidence::No,
+        };
+        let recording = RecordingFormat {
+            name: "demo",
+            description: "a demo recording",
+            extensions: &["demo"],
+            probe: |_| Confidence::No,
+            probe_dir: None,
+            open: |_, _, _| Err("not opened".into()),
+            create: None,
+        };
+        registry.register_series(series).unwrap();
+        // Series and recordings share one namespace: `identify` names either.
+        let taken = registry.register_recording(recording).unwrap_err();
+        assert_eq!(
+            taken.to_string(),
+            "a recording format named `demo` is already registered"
+        );
+        assert!(registry.register_series(series).is_err());
+        registry
+            .register_recording(RecordingFormat {
+                name: "demo2",
+                ..recording
+            })
+            .unwrap();
+        assert_eq!(registry.recording_formats().len(), 1);
     }
 }

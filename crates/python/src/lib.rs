@@ -26,7 +26,8 @@ pub(crate) fn context() -> &'static Context {
     static CONTEXT: OnceLock<Context> = OnceLock::new();
     CONTEXT.get_or_init(|| {
         let mut context = Context::with_default_plugins();
-        froctomap_ros::register(&mut context);
+        // Distinct names: a clash would be a bug of this program, seen by its tests.
+        let _ = froctomap_ros::register(context.formats_mut());
         context
     })
 }

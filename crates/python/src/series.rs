@@ -248,7 +248,6 @@ pub fn build<'py>(
         tmp_dir,
         ..BuildOptions::default()
     };
-    // Recordings among the inputs are read back through the context that expanded them.
     let context = crate::context()
         .clone()
         .with_recording_options(RecordingOptions::new(topic, recorded).with_skip_bad(skip_bad));

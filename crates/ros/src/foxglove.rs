@@ -11,8 +11,8 @@
 use crate::encode::encode_point_cloud2_cdr;
 use crate::error::McapWriteError;
 use base64::Engine;
-use froctomap_convert::{CellShade, ExportedKind, OccupiedCell};
 use froctomap_core::{voxels_per_node, MortonCode, Timestamp};
+use froctomap_formats::{CellShade, ExportedKind, OccupiedCell};
 
 /// The schema name Foxglove recognises.
 pub const POINT_CLOUD_SCHEMA: &str = "foxglove.PointCloud";

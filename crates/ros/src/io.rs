@@ -77,12 +77,3 @@ impl RecordingFile {
         &self.file
     }
 }
-
-/// Whether the file at `path` starts with `magic`.
-pub(crate) fn starts_with(path: &Path, magic: &[u8]) -> bool {
-    let Ok(file) = File::open(path) else {
-        return false;
-    };
-    let mut head = vec![0u8; magic.len()];
-    file.read_exact_at(&mut head, 0).is_ok() && head == magic
-}

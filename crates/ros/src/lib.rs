@@ -2,12 +2,12 @@
 //! publishes on `/octomap_binary` and `/octomap_full`) from ROS 1 bags, MCAP files and ROS 2
 //! bag directories (MCAP storage), as timed snapshots of a froctomap series.
 //!
-//! The crate is a plugin: [`register`] adds its [`RecordingFormat`]s (and, for `identify`,
-//! their [`SeriesFormat`]s) to a [`Context`], after which
-//! [`collect_inputs`](froctomap_convert::collect_inputs) expands a recording into one input
-//! per map and `build` reads it like a directory of `.bt` files.
+//! The crate is a plugin: [`register`] adds its [`RecordingFormat`]s to a
+//! [`FormatRegistry`] (one descriptor per container recognises, opens and, for MCAP, writes
+//! it), after which froctomap's input collection expands a recording into one input per map
+//! and `build` reads it like a directory of `.bt` files.
 //!
-//! * Which topic: [`RecordingOptions::topic`](froctomap_convert::RecordingOptions), else the
+//! * Which topic: [`RecordingOptions::topic`], else the
 //!   one topic of type `octomap_msgs/Octomap` (`octomap_msgs/msg/Octomap`) or
 //!   `OctomapWithPose`; none or several are errors that list the topics.
 //! * Which time: the header stamp (default; zero stamps take the log time, with a warning)
@@ -19,10 +19,13 @@
 //!   header when a publisher put one in `data`.
 //!
 //! ```
-//! use froctomap_convert::Context;
-//! let mut context = Context::with_default_plugins();
-//! froctomap_ros::register(&mut context);
-//! assert!(context.recording_formats().iter().any(|f| f.name == "rosbag"));
+//! use froctomap_formats::FormatRegistry;
+//! let mut registry = FormatRegistry::with_default_formats();
+//! froctomap_ros::register(&mut registry)?;
+//! assert!(registry.recording_formats().iter().any(|f| f.name == "rosbag"));
+//! // Registered once: a second registration is refused.
+//! assert!(froctomap_ros::register(&mut registry).is_err());
+//! # Ok::<(), froctomap_formats::DuplicateName>(())
 //! ```
 
 mod bag;
@@ -44,17 +47,19 @@ pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
 pub use mcap_export::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 
-use froctomap_convert::{Context, Recording, RecordingFormat, RecordingOptions};
-use froctomap_formats::{Confidence, SeriesFormat};
+use froctomap_formats::{
+    Confidence, DuplicateName, FormatRegistry, Recording, RecordingFormat, RecordingOptions,
+};
 use std::path::{Path, PathBuf};
 
 /// ROS 1 bags (format 2.0; chunks uncompressed, bz2 or lz4).
 pub const ROSBAG: RecordingFormat = RecordingFormat {
     name: "rosbag",
     description: "ROS 1 bag",
-    probe: |path| path.is_file() && io::starts_with(path, bag::MAGIC),
-    open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     extensions: &["bag"],
+    probe: |head| confidence(head.starts_with(bag::MAGIC)),
+    probe_dir: None,
+    open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     create: None,
 };
 
@@ -66,7 +71,9 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
 pub const MCAP: RecordingFormat = RecordingFormat {
     name: "mcap",
     description: "MCAP recording",
-    probe: |path| path.is_file() && io::starts_with(path, mcap_file::MAGIC),
+    extensions: &["mcap"],
+    probe: |head| confidence(head.starts_with(mcap_file::MAGIC)),
+    probe_dir: None,
     open: |path, options, limit| {
         Ok(source::open_mcap(
             path,
@@ -75,7 +82,6 @@ pub const MCAP: RecordingFormat = RecordingFormat {
             limit,
         )?)
     },
-    extensions: &["mcap"],
     create: Some(mcap_export::create),
 };
 
@@ -83,27 +89,11 @@ pub const MCAP: RecordingFormat = RecordingFormat {
 pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     name: "ros2bag",
     description: "ROS 2 bag directory",
-    probe: |path| path.is_dir() && path.join("metadata.yaml").is_file(),
-    open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     extensions: &[],
+    probe: |_| Confidence::No,
+    probe_dir: Some(|path| path.join("metadata.yaml").is_file()),
+    open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     create: None,
-};
-
-/// The recording formats for [`SeriesFormat`] identification (so that other commands say
-/// what a bag is rather than "unknown format").
-pub const ROSBAG_SERIES: SeriesFormat = SeriesFormat {
-    name: "rosbag",
-    description: "ROS 1 bag",
-    extensions: &["bag"],
-    probe: |bytes| confidence(bytes.starts_with(bag::MAGIC)),
-};
-
-/// MCAP for [`SeriesFormat`] identification.
-pub const MCAP_SERIES: SeriesFormat = SeriesFormat {
-    name: "mcap",
-    description: "MCAP recording",
-    extensions: &["mcap"],
-    probe: |bytes| confidence(bytes.starts_with(mcap_file::MAGIC)),
 };
 
 fn confidence(certain: bool) -> Confidence {
@@ -114,14 +104,13 @@ fn confidence(certain: bool) -> Confidence {
     }
 }
 
-/// Registers the recording formats of this crate in `context`.
-pub fn register(context: &mut Context) {
+/// Registers the recording formats of this crate in `registry` (refused, like every
+/// registration, when one of their names is taken).
+pub fn register(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
     for format in [ROSBAG, MCAP, ROS2_BAG] {
-        context.register_recording(format);
+        registry.register_recording(format)?;
     }
-    for series in [ROSBAG_SERIES, MCAP_SERIES] {
-        context.formats_mut().register_series(series);
-    }
+    Ok(())
 }
 
 /// A ROS 2 bag directory: its `.mcap` files in name order, read as one recording.
@@ -150,6 +139,6 @@ fn open_ros2_bag(
             sqlite,
         });
     }
-    files.sort_by(|a, b| froctomap_convert::natural_cmp(a, b));
+    files.sort_by(|a, b| froctomap_formats::natural_cmp(a, b));
     source::open_mcap(path, &files, options, limit)
 }

@@ -12,9 +12,9 @@ use crate::encode::{
 };
 use crate::error::McapWriteError;
 use crate::foxglove::{point_cloud, point_cloud2, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
-use froctomap_convert::{Cause, ExportedMap, RecordingSink, RecordingWriter};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
+use froctomap_formats::{ExportedMap, PluginError as Cause, RecordingSink, RecordingWriter};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use mcap::records::MessageHeader;
 use std::collections::BTreeMap;
@@ -38,7 +38,7 @@ struct McapMapWriter {
     sequence: u32,
 }
 
-/// [`RecordingFormat::create`](froctomap_convert::RecordingFormat::create) of MCAP.
+/// [`RecordingFormat::create`](froctomap_formats::RecordingFormat::create) of MCAP.
 pub(crate) fn create(sink: Box<dyn RecordingSink>) -> Result<Box<dyn RecordingWriter>, Cause> {
     Ok(Box::new(McapMapWriter::new(sink)?))
 }

@@ -5,9 +5,11 @@ use crate::bag::{Bag, BagMessage};
 use crate::error::{span, RosError};
 use crate::mcap_file::{McapFile, McapMessage};
 use crate::message::{decode_message, decode_stamp, Encoding, MessageType};
-use froctomap_convert::{Cause, RecordedMaps, RecordedTime, Recording, RecordingOptions};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
+use froctomap_formats::{
+    PluginError as Cause, RecordedMaps, RecordedTime, Recording, RecordingOptions,
+};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -230,7 +232,7 @@ impl TopicMaps {
 }
 
 impl RecordedMaps for TopicMaps {
-    fn map_bytes(&self, index: usize, limit: u64) -> Result<Vec<u8>, froctomap_convert::Cause> {
+    fn map_bytes(&self, index: usize, limit: u64) -> Result<Vec<u8>, Cause> {
         Ok(self.fetch(index, limit)?)
     }
 

@@ -3,9 +3,10 @@
 //! damaged copies give errors, never panics.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
-use froctomap_convert::{Context, RecordedTime, Recording, RecordingFormat, RecordingOptions};
 use froctomap_core::Timestamp;
-use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_formats::{
+    FormatRegistry, ReadOptions, RecordedTime, Recording, RecordingFormat, RecordingOptions,
+};
 use froctomap_ros::{RosError, MCAP, ROS2_BAG, ROSBAG};
 use std::path::{Path, PathBuf};
 
@@ -50,7 +51,7 @@ fn every_kind_of_recording_gives_its_maps_at_their_stamps() {
         (&MCAP, "ros/two_maps_zstd.mcap"),
     ] {
         let path = fixture(name);
-        assert!((format.probe)(&path), "{name}");
+        assert!(format.recognises(&path), "{name}");
         let recording = open(format, &path, None, RecordedTime::Header).unwrap();
         assert_eq!(recording.times, STAMPS.map(Timestamp), "{name}");
         assert!(recording.warnings.is_empty());
@@ -71,9 +72,9 @@ fn every_kind_of_recording_gives_its_maps_at_their_stamps() {
         assert!(recording.maps.map_bytes(0, 10).is_err());
     }
     // Formats recognise their own kind only.
-    assert!(!(ROSBAG.probe)(&fixture("ros/two_maps_zstd.mcap")));
-    assert!(!(MCAP.probe)(&fixture("ros/two_maps_lz4.bag")));
-    assert!(!(ROS2_BAG.probe)(&fixture("ros/two_maps_lz4.bag")));
+    assert!(!ROSBAG.recognises(&fixture("ros/two_maps_zstd.mcap")));
+    assert!(!MCAP.recognises(&fixture("ros/two_maps_lz4.bag")));
+    assert!(!ROS2_BAG.recognises(&fixture("ros/two_maps_lz4.bag")));
 }
 
 #[test]
@@ -119,14 +120,14 @@ fn topics_are_chosen_or_listed() {
 #[test]
 fn a_directory_of_bags_is_not_a_ros2_bag_and_a_ros2_bag_without_mcap_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    assert!(!(ROS2_BAG.probe)(dir.path()));
+    assert!(!ROS2_BAG.recognises(dir.path()));
     std::fs::write(
         dir.path().join("metadata.yaml"),
         "rosbag2_bagfile_information:\n",
     )
     .unwrap();
     std::fs::write(dir.path().join("x_0.db3"), b"SQLite format 3\0").unwrap();
-    assert!((ROS2_BAG.probe)(dir.path()));
+    assert!(ROS2_BAG.recognises(dir.path()));
     let err = open(&ROS2_BAG, dir.path(), None, RecordedTime::Header).unwrap_err();
     assert!(
         matches!(
@@ -177,14 +178,33 @@ fn truncated_and_damaged_recordings_give_errors_naming_the_file() {
 }
 
 #[test]
-fn the_plugin_registers_in_a_context() {
-    let mut context = Context::with_default_plugins();
-    froctomap_ros::register(&mut context);
-    let names: Vec<&str> = context.recording_formats().iter().map(|f| f.name).collect();
+fn the_plugin_registers_once_in_a_format_registry() {
+    let mut registry = FormatRegistry::with_default_formats();
+    froctomap_ros::register(&mut registry).unwrap();
+    let names: Vec<&str> = registry
+        .recording_formats()
+        .iter()
+        .map(|f| f.name)
+        .collect();
     assert_eq!(names, ["rosbag", "mcap", "ros2bag"]);
+    // One descriptor per container both opens and identifies it.
     let head = std::fs::read(fixture("ros/one_map.bag")).unwrap();
     assert!(matches!(
-        context.formats().identify(&head),
-        Some(froctomap_formats::Identified::Series(f)) if f.name == "rosbag"
+        registry.identify(&head),
+        Some(froctomap_formats::Identified::Recording(f)) if f.name == "rosbag"
     ));
+    assert_eq!(
+        registry
+            .recording_for(&fixture("ros/two_maps_ros2"))
+            .map(|f| f.name),
+        Some("ros2bag")
+    );
+    assert_eq!(
+        registry
+            .recording_for(&fixture("ros/two_maps_zstd.mcap"))
+            .map(|f| f.name),
+        Some("mcap")
+    );
+    let again = froctomap_ros::register(&mut registry).unwrap_err();
+    assert_eq!(again.name, "rosbag");
 }

@@ -210,11 +210,7 @@ pub fn append(
         resolution: Some(old.resolution),
         allow_mostly_skipped: false,
     }
-    .run(
-        inputs,
-        &|input| crate::recording::is_recorded(context, input),
-        progress,
-    )
+    .run(inputs, &SeriesInput::is_recorded, progress)
     .map_err(|e| match e {
         ConvertError::Snapshot { path, source } => match *source {
             SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {

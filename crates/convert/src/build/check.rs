@@ -241,9 +241,11 @@ mod tests {
 
     fn series(n: usize) -> Vec<SeriesInput> {
         (0..n)
-            .map(|i| SeriesInput {
-                path: PathBuf::from(format!("map{i}.bt")),
-                time: Timestamp::from_secs(i as i64),
+            .map(|i| {
+                SeriesInput::new(
+                    PathBuf::from(format!("map{i}.bt")),
+                    Timestamp::from_secs(i as i64),
+                )
             })
             .collect()
     }

@@ -139,10 +139,9 @@ impl<'a> ChangeExtractor<'a> {
         let registry = self.context.formats();
         let limit = self.context.limits().max_map_file_bytes;
         let inputs = self.inputs;
-        let context = self.context;
         let raw: Vec<Result<Vec<u8>, Refusal>> = chunk
             .par_iter()
-            .map(|&i| snapshot_bytes(context, &inputs[i], limit).map_err(Arc::new))
+            .map(|&i| snapshot_bytes(&inputs[i], limit).map_err(Arc::new))
             .collect();
         // When the series' resolution is not known from the headers, the first file sets it.
         if self.tally.resolution.is_none() {
@@ -157,10 +156,7 @@ impl<'a> ChangeExtractor<'a> {
             options: self.options.read,
             resolution: self.tally.resolution,
         };
-        let names: Vec<PathBuf> = chunk
-            .iter()
-            .map(|&i| input_name(context, &inputs[i]))
-            .collect();
+        let names: Vec<PathBuf> = chunk.iter().map(|&i| input_name(&inputs[i])).collect();
         let paths: Vec<&Path> = names.iter().map(PathBuf::as_path).collect();
         let outcomes = reader.batch(&paths, &raw, &mut self.previous);
         let mut accepted = Vec::with_capacity(outcomes.len());
@@ -266,10 +262,7 @@ mod tests {
                     .formats()
                     .write_file(snapshot, &path, WriteOptions::default())
                     .unwrap();
-                SeriesInput {
-                    path,
-                    time: Timestamp::from_secs(i as i64),
-                }
+                SeriesInput::new(path, Timestamp::from_secs(i as i64))
             })
             .collect()
     }

@@ -1,0 +1,226 @@
+//! Recordings: one file (or directory) holding many timed maps, such as a ROS bag or an MCAP
+//! file. A format of recordings is a plugin described by data ([`RecordingFormat`]: its name,
+//! how its content is recognised, how it is opened and, optionally, written), registered in
+//! the [`FormatRegistry`](crate::FormatRegistry) beside the map formats. Opening a recording
+//! reads what its index tells (the maps' times) and hands back a [`Recording`] that owns its
+//! files; each map's bytes are fetched when that map is read.
+
+use crate::error::PluginError;
+use crate::registry::Confidence;
+use froctomap_core::Timestamp;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Which time a recorded map is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum RecordedTime {
+    /// The time the map's message carries (a ROS header stamp); messages without one
+    /// (a zero stamp) take the recording time, with a warning.
+    #[default]
+    Header,
+    /// The time the recorder logged the message.
+    Log,
+}
+
+/// How recordings are read: which topic and which time.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct RecordingOptions {
+    /// The topic to read; `None`: the one topic of a map message type.
+    pub topic: Option<String>,
+    /// Which time each map gets.
+    pub time: RecordedTime,
+    /// Leave out the damaged parts of a recording (a chunk that does not decompress or
+    /// whose checksum fails, a message whose stamp cannot be read) and list them in
+    /// [`Recording::skipped`], instead of refusing the recording.
+    pub skip_bad: bool,
+}
+
+impl RecordingOptions {
+    /// Options reading `topic` (or the one map topic) with `time`.
+    pub fn new(topic: Option<String>, time: RecordedTime) -> Self {
+        Self {
+            topic,
+            time,
+            skip_bad: false,
+        }
+    }
+
+    /// The same options, leaving damaged parts out when `skip_bad` (see
+    /// [`RecordingOptions::skip_bad`]).
+    pub fn with_skip_bad(self, skip_bad: bool) -> Self {
+        Self { skip_bad, ..self }
+    }
+}
+
+/// The maps of an opened recording, fetched one at a time.
+pub trait RecordedMaps: Send + Sync + std::fmt::Debug {
+    /// The bytes of map `index` (an index into [`Recording::times`]) as a map file of a
+    /// format in the registry (e.g. a `.bt` file). Refuses a map above `limit` bytes
+    /// before reading it.
+    fn map_bytes(&self, index: usize, limit: u64) -> Result<Vec<u8>, PluginError>;
+
+    /// What the maps are within the recording (a topic name), for messages.
+    fn topic(&self) -> &str;
+}
+
+/// A recording as its format's plugin opened it.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct Recording {
+    /// The time of each recorded map, in the recording's order.
+    pub times: Vec<Timestamp>,
+    /// Things to tell the user (e.g. zero stamps replaced by recording times).
+    pub warnings: Vec<String>,
+    /// Parts of the recording left out with [`RecordingOptions::skip_bad`], each an error
+    /// naming the recording, what was lost (a chunk and its messages' times) and why.
+    pub skipped: Vec<PluginError>,
+    /// Where the maps are fetched from.
+    pub maps: Arc<dyn RecordedMaps>,
+}
+
+impl Recording {
+    /// A recording of these maps at these times.
+    pub fn new(times: Vec<Timestamp>, warnings: Vec<String>, maps: Arc<dyn RecordedMaps>) -> Self {
+        Self {
+            times,
+            warnings,
+            skipped: Vec::new(),
+            maps,
+        }
+    }
+
+    /// The same recording, with these parts left out.
+    pub fn with_skipped(self, skipped: Vec<PluginError>) -> Self {
+        Self { skipped, ..self }
+    }
+}
+
+/// A format of recordings, described by data like a map format — once: the same
+/// descriptor recognises, opens and (optionally) writes the format.
+#[derive(Clone, Copy, Debug)]
+pub struct RecordingFormat {
+    /// Short name (e.g. `rosbag`).
+    pub name: &'static str,
+    /// One line for listings.
+    pub description: &'static str,
+    /// Extensions of its files, lower case, without dot, the usual first (for outputs named
+    /// without `--format`).
+    pub extensions: &'static [&'static str],
+    /// Recognises a recording file from its first bytes (at most
+    /// [`PROBE_BYTES`](crate::PROBE_BYTES)).
+    pub probe: fn(&[u8]) -> Confidence,
+    /// Recognises a recording that is a directory (a ROS 2 bag) from its layout; `None`:
+    /// recordings of this format are single files.
+    pub probe_dir: Option<fn(&Path) -> bool>,
+    /// Opens a recording: its maps' times (from its index where it has one) and a handle,
+    /// owning the opened files, to fetch the maps. The `u64` is the largest map read whole.
+    pub open: fn(&Path, &RecordingOptions, u64) -> Result<Recording, PluginError>,
+    /// Writes a new recording of exported maps, if the format can be written.
+    pub create: Option<CreateRecording>,
+}
+
+impl RecordingFormat {
+    /// `true` when this format recognises `path`: a directory by its layout, a file by its
+    /// first bytes. A file that cannot be read is nobody's recording (its reader says why).
+    pub fn recognises(&self, path: &Path) -> bool {
+        if path.is_dir() {
+            return self.probe_dir.is_some_and(|probe| probe(path));
+        }
+        crate::registry::file_head(path).is_ok_and(|head| (self.probe)(&head) > Confidence::No)
+    }
+}
+
+/// Where a [`RecordingWriter`] writes: a temporary file beside the output, renamed over it
+/// once the writer finished, so a failed export leaves no partial recording.
+pub trait RecordingSink: std::io::Write + std::io::Seek + Send {}
+
+impl<T: std::io::Write + std::io::Seek + Send> RecordingSink for T {}
+
+/// Makes a writer of a new recording into a sink.
+pub type CreateRecording =
+    fn(Box<dyn RecordingSink>) -> Result<Box<dyn RecordingWriter>, PluginError>;
+
+/// A recording being written, one map at a time in time order (an export
+/// to a recording format that has [`RecordingFormat::create`]).
+pub trait RecordingWriter {
+    /// Adds one map.
+    fn write_map(&mut self, map: &ExportedMap<'_>) -> Result<(), PluginError>;
+
+    /// Completes the recording (its index, summary…) and flushes the sink.
+    fn finish(self: Box<Self>) -> Result<(), PluginError>;
+}
+
+/// What an exported map is.
+/// A closed set: a map is observed or predicted, so writers match it exhaustively.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ExportedKind {
+    /// The map as observed at this sample of the file's axis.
+    Retrieved {
+        /// The sample.
+        sample: u32,
+    },
+    /// The map predicted for the instant (occupied where `p(t) > 0.5`).
+    Predicted,
+}
+
+/// How an occupied cell of an exported map is to be shown.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum CellShade {
+    /// A predicted cell, with its probability of being occupied (above 0.5).
+    Probability(f32),
+    /// A retrieved cell whose state changes over the file's span.
+    Dynamic,
+    /// A retrieved cell occupied over the whole span (wherever it was observed).
+    Static,
+}
+
+/// An occupied cell of an exported map: `8^(16 − depth)` voxels from `start` in Morton
+/// order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OccupiedCell {
+    /// Morton code of its first voxel.
+    pub start: froctomap_core::MortonCode,
+    /// Its depth in the octree (16: one voxel).
+    pub depth: u8,
+    /// How to show it.
+    pub shade: CellShade,
+}
+
+/// One map handed to a [`RecordingWriter`]: its time, what it is, its canonical `.bt` file
+/// (the bytes a `.bt` export of the same time writes) and its occupied cells.
+#[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
+pub struct ExportedMap<'a> {
+    /// The instant the map is for.
+    pub time: Timestamp,
+    /// Retrieved or predicted.
+    pub kind: ExportedKind,
+    /// Voxel edge length, metres.
+    pub resolution: f64,
+    /// The map as a `.bt` file.
+    pub bt: &'a [u8],
+    /// The occupied cells, in Morton order.
+    pub occupied: &'a [OccupiedCell],
+}
+
+impl<'a> ExportedMap<'a> {
+    /// A map for a writer (writers' tests build their own).
+    pub fn new(
+        time: Timestamp,
+        kind: ExportedKind,
+        resolution: f64,
+        bt: &'a [u8],
+        occupied: &'a [OccupiedCell],
+    ) -> Self {
+        Self {
+            time,
+            kind,
+            resolution,
+            bt,
+            occupied,
+        }
+    }
+}
