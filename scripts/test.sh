@@ -14,6 +14,16 @@ cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo test --workspace --locked "$@"
 
+# The README's Install section: `cargo install` of the CLI (debug profile, reusing this
+# build's artifacts), then the installed binary runs from outside the checkout; the pure-Rust
+# route (no liboctomap) must keep compiling.
+cargo install --locked --quiet --debug --force --path crates/cli --root target/install --target-dir target
+installed="$PWD/target/install/bin/froctomap"
+(cd / && "$installed" --version && "$installed" formats >/dev/null)
+[[ $(cd / && "$installed" man) == *".TH froctomap"* ]] || { echo "installed froctomap: no manual page" >&2; exit 1; }
+[[ $(cd / && "$installed" completions bash) == *"_froctomap"* ]] || { echo "installed froctomap: no completions" >&2; exit 1; }
+cargo check --locked --quiet -p froctomap-cli --no-default-features
+
 # The library crates build and test without liboctomap: the C++ backend is an opt-in
 # feature that only the CLI, the benchmark and the interop tests turn on.
 libraries=(-p froctomap-core -p froctomap-octomap-codec -p froctomap-formats -p froctomap-temporal
