@@ -415,6 +415,58 @@ impl TopK {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::FremenPeriods;
+    use crate::{ModelConfig, ObservationsBuilder, SpectralParameters, TemporalModel, TimeAxis};
+    use froctomap_core::{Occupancy, Timestamp};
+
+    /// Occupied 09:00-17:00 every day for three weeks, then on every other day only: the
+    /// daily rhythm weakens in the held-out week.
+    #[test]
+    fn shrink_auto_softens_amplitudes_that_overshoot_the_held_out_part() {
+        let n = 4 * 7 * 24;
+        let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, n, vec![]).unwrap();
+        let mut b = ObservationsBuilder::new();
+        for i in 0..n {
+            let (day, hour) = (i / 24, i % 24);
+            let active = day < 21 || day % 2 == 0;
+            b.push(i, Some(Occupancy::from(active && (9..17).contains(&hour))))
+                .unwrap();
+        }
+        let obs = b.finish();
+        let components = |options: &[(&str, &str)]| {
+            let mut config = ModelConfig::default();
+            for (k, v) in options {
+                config = config.with_option(k, v);
+            }
+            let model = FremenPeriods.prepare(&axis, &config).unwrap();
+            let voxel = model.fit(&obs).unwrap();
+            SpectralParameters::decode(voxel.parameters())
+                .unwrap()
+                .components
+        };
+        // Unshrunk, no component predicts the weaker held-out week well enough: the mean alone.
+        assert!(components(&[("shrink", "off")]).is_empty());
+        // Shrunk, the daily rhythm validates: the same components as a fixed order gives,
+        // with every amplitude scaled by one factor of the grid below 1.
+        let auto = components(&[("shrink", "auto")]);
+        assert!(!auto.is_empty());
+        let order = auto.len().to_string();
+        let fixed = components(&[("order", order.as_str())]);
+        let mut ratios = Vec::new();
+        for (a, b) in fixed.iter().zip(&auto) {
+            assert_eq!((a.frequency, a.phase_q), (b.frequency, b.phase_q));
+            ratios.push(f64::from(b.amplitude_q) / f64::from(a.amplitude_q));
+        }
+        let factor = ratios[0];
+        assert!(
+            factor < 0.9 && SHRINKS.iter().any(|s| (s - factor).abs() < 1e-3),
+            "{ratios:?}"
+        );
+        assert!(
+            ratios.iter().all(|r| (r - factor).abs() < 1e-3),
+            "{ratios:?}"
+        );
+    }
 
     #[test]
     fn top_k_keeps_strongest_in_order() {
