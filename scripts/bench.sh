@@ -10,6 +10,10 @@
 #   scripts/bench.sh                        # CI size: 2 days + 1 held-out day, a few minutes
 #   scripts/bench.sh --size 4weeks --out docs/benchmarks   # the documented run
 #   scripts/bench.sh --help                 # every option
+#
+# At the CI size it also runs the real-data prediction benchmark at its CI size (the
+# greg_door recording as a small room, 3 training weeks, 2 test weeks, against a plain FreMEn
+# computed in numpy); the full run is `froctomap-bench greg-door` (docs/BENCHMARKS.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -17,4 +21,22 @@ scripts/install-deps.sh
 # The CLI is built too, so that the benchmark can time `froctomap retrieve`/`predict` as
 # processes (it looks for `froctomap` beside its own binary).
 cargo build --release --locked -q -p froctomap-cli -p froctomap-bench
-exec cargo run --release --locked -q -p froctomap-bench -- run "$@"
+cargo run --release --locked -q -p froctomap-bench -- run "$@"
+
+size=ci
+previous=
+for arg in "$@"; do
+  case "$previous" in --size) size=$arg ;; esac
+  case "$arg" in --size=*) size=${arg#--size=} ;; esac
+  previous=$arg
+done
+greg_door=${GREG_DOOR_DATA:-/work/shared/data/greg_door_2016_min}
+if [ "$size" = ci ]; then
+  if [ -f "$greg_door/training_data.txt" ]; then
+    scripts/python-client.sh target/interop-venv
+    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci \
+      --data "$greg_door" --python target/interop-venv/bin/python --out target/greg-door-ci
+  else
+    echo "bench.sh: $greg_door/training_data.txt is missing: the greg_door benchmark is skipped" >&2
+  fi
+fi

@@ -23,6 +23,7 @@ mod anomaly_eval;
 mod dataset;
 mod floor;
 mod generate;
+mod greg_door;
 mod plots;
 mod recording;
 mod report;
@@ -83,6 +84,12 @@ enum Command {
     ///
     /// Example: froctomap-bench floor --size 4weeks --data /work/data/w4 --measure
     Floor(floor::FloorArgs),
+    /// Prediction on the real greg_door recording made into a small room: per test week,
+    /// the model, static mean, last seen and a plain FreMEn computed in numpy
+    /// (scripts/fremen_reference.py): thresholded error, Brier score, log loss.
+    ///
+    /// Example: froctomap-bench greg-door --size full --out target/greg-door
+    GregDoor(greg_door::GregDoorArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(run::BuildChildArgs),
@@ -96,6 +103,7 @@ fn main() -> ExitCode {
         Command::Anomalies(args) => anomaly_eval::anomalies_command(&args),
         Command::Mcap(args) => recording::mcap_row(&args),
         Command::Floor(args) => floor::floor_command(&args),
+        Command::GregDoor(args) => greg_door::greg_door_command(&args),
         Command::BuildChild(args) => {
             purge_freed_memory_at_once();
             run::build_child(&args)

@@ -717,6 +717,11 @@ pub struct EvalArgs {
     /// Print JSON.
     #[arg(long)]
     json: bool,
+    /// Also draw the reliability diagram of the dynamic voxels (observed occupied fraction
+    /// per bin of p, per method; of the prediction maps, else of the reconstruction ones)
+    /// into this PNG.
+    #[arg(long, value_name = "PNG")]
+    png: Option<PathBuf>,
 }
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
@@ -742,6 +747,12 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
         &bars,
     )?;
     drop(bars);
+    if let Some(png) = &args.png {
+        let mut inputs: Vec<&std::path::Path> = vec![args.file.as_path()];
+        inputs.extend(args.against.iter().map(PathBuf::as_path));
+        reliability_diagram(&report)?.write_png(png, &inputs)?;
+        ui.note(&format!("{}: reliability diagram", escaped(png.display())));
+    }
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
@@ -750,12 +761,60 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// The calibration of the prediction maps (of the reconstruction ones when there are none)
+/// and its title.
+fn calibration_shown(
+    report: &EvalReport,
+) -> (&'static str, &[(String, froctomap_convert::Calibration)]) {
+    if report.outside > 0 {
+        ("prediction", &report.prediction_calibration)
+    } else {
+        ("reconstruction", &report.reconstruction_calibration)
+    }
+}
+
+/// Observed occupied fraction against mean p per non-empty bin, per method, with the
+/// diagonal of perfect calibration.
+fn reliability_diagram(report: &EvalReport) -> Result<froctomap_render::Picture> {
+    use froctomap_render::{voxel_plot, Line, VoxelPlot};
+    let (section, calibration) = calibration_shown(report);
+    let mut curves = vec![Line {
+        name: "perfectly calibrated".into(),
+        points: vec![(0.0, 0.0), (1.0, 1.0)],
+    }];
+    curves.extend(calibration.iter().map(|(method, c)| {
+        Line {
+            name: method.clone(),
+            points: c
+                .bins()
+                .iter()
+                .filter_map(|b| Some((b.mean_p?, b.occupied_fraction?)))
+                .collect(),
+        }
+    }));
+    let title = format!("reliability of p, dynamic voxels, {section}");
+    Ok(voxel_plot(&VoxelPlot {
+        title: &title,
+        x_label: "predicted p (mean of the bin)",
+        curves: &curves,
+        ..VoxelPlot::default()
+    })?)
+}
+
 fn print_eval(report: &EvalReport) -> std::io::Result<()> {
     let cell = |rate: &froctomap_convert::Rate| {
         rate.percent()
             .map_or_else(|| "-".to_string(), |p| format!("{p:.2} %"))
     };
-    outln!("error rates (wrong voxels / compared voxels):\n")?;
+    let scores = |rate: &froctomap_convert::Rate| match (rate.brier(), rate.log_loss()) {
+        (Some(b), Some(l)) => format!("{b:.4} / {l:.4}"),
+        _ => "-".to_string(),
+    };
+    outln!(
+        "error rates (wrong voxels / compared voxels), then Brier score / log loss \
+         (p clipped to [{e}, 1 - {e}]):\n",
+        e = report.log_loss_epsilon
+    )?;
     for (title, rows, n) in [
         (
             "reconstruction (inside the modelled span)",
@@ -781,6 +840,47 @@ fn print_eval(report: &EvalReport) -> std::io::Result<()> {
                 cell(&rates.all),
                 cell(&rates.non_empty),
                 cell(&rates.dynamic)
+            )?;
+        }
+        outln!()?;
+        outln!("| method | Brier / log loss, all | non-empty | dynamic |")?;
+        outln!("| --- | ---: | ---: | ---: |")?;
+        for (method, rates) in rows.iter() {
+            outln!(
+                "| {method} | {} | {} | {} |",
+                scores(&rates.all),
+                scores(&rates.non_empty),
+                scores(&rates.dynamic)
+            )?;
+        }
+        outln!()?;
+    }
+    let (section, calibration) = calibration_shown(report);
+    if report.inside + report.outside > 0 {
+        outln!("calibration, {section}, dynamic voxels (mean p → occupied fraction, voxels):")?;
+        let names: Vec<&str> = calibration.iter().map(|(m, _)| m.as_str()).collect();
+        outln!("| p | {} |", names.join(" | "))?;
+        outln!("| --- |{}", " ---: |".repeat(names.len()))?;
+        let bins: Vec<_> = calibration.iter().map(|(_, c)| c.bins()).collect();
+        for i in 0..froctomap_convert::CALIBRATION_BINS {
+            let Some(first) = bins.first().and_then(|b| b.get(i)) else {
+                break;
+            };
+            let row: Vec<String> = bins
+                .iter()
+                .filter_map(|b| b.get(i))
+                .map(|b| match (b.mean_p, b.occupied_fraction) {
+                    (Some(p), Some(f)) => {
+                        format!("{p:.2} → {f:.2} ({})", group_thousands(b.voxels))
+                    }
+                    _ => "-".to_string(),
+                })
+                .collect();
+            outln!(
+                "| {:.1}-{:.1} | {} |",
+                first.lower,
+                first.upper,
+                row.join(" | ")
             )?;
         }
         outln!()?;

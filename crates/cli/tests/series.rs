@@ -179,11 +179,35 @@ fn build_info_retrieve_predict_export_eval() {
         .find(|r| r[0] == "stored")
         .unwrap();
     assert_eq!(stored[1]["all"]["wrong"], 0);
-    let table = ok(&["eval", "--quiet", s(&map), "--against", s(&inputs)]);
+    // Exact 0/1 states: no squared error, and −ln(1 − ε) of log loss per voxel.
+    assert_eq!(stored[1]["dynamic"]["brier"], 0.0);
+    let epsilon = eval["log_loss_epsilon"].as_f64().unwrap();
+    let loss = stored[1]["dynamic"]["log_loss"].as_f64().unwrap();
+    assert!((loss + (1.0 - epsilon).ln()).abs() < 1e-9, "{loss}");
+    let png = dir.path().join("reliability.png");
+    let table = ok(&[
+        "eval",
+        "--quiet",
+        s(&map),
+        "--against",
+        s(&inputs),
+        "--png",
+        s(&png),
+    ]);
     assert!(
         table.contains("| method | all voxels | non-empty | dynamic |"),
         "{table}"
     );
+    assert!(
+        table.contains("| method | Brier / log loss, all |"),
+        "{table}"
+    );
+    assert!(
+        table.contains("calibration, reconstruction, dynamic voxels"),
+        "{table}"
+    );
+    let picture = image::open(&png).unwrap();
+    assert!(picture.width() > 100 && picture.height() > 100);
 }
 
 /// Every toggle layout (whole lists = format 1.0, blocks of 3 samples in 1.1 and 1.2, the

@@ -15,6 +15,18 @@
 //!   this is the retrieval error); outside the span it is not defined.
 //! * `static mean`: each voxel's mean occupancy over its observations, `> 0.5`.
 //! * `last seen`: each voxel's latest observed state strictly before the time.
+//!
+//! Beside the thresholded error, every [`Rate`] carries the probabilistic scores the
+//! FreMEn literature uses, with the same voxel weights: the Brier score (mean of
+//! `(p − s)²`, `s` the true 0/1 state) and the log loss (mean of `−ln p` for occupied and
+//! `−ln(1 − p)` for free voxels, `p` clipped to `[ε, 1 − ε]`, [`LOG_LOSS_EPSILON`]). The
+//! `p` of each method: the model's `p(t)`; the static mean's mean occupancy; 0 or 1 for
+//! `stored` and `last seen`. Cells stored as constant (with or without rare exceptions)
+//! have `p` = their usual state for every method. A [`Calibration`] table per method bins
+//! `p` over the dynamic voxels (reliability diagram).
+//!
+//! Sums are kept in fixed point (2⁻³² units) so that they add associatively: the report is
+//! the same whatever the order the tiles were tallied in.
 
 use crate::context::Context;
 use crate::error::ConvertError;
@@ -27,13 +39,44 @@ use froctomap_temporal::{PreparedModel, TimeAxis};
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Wrong voxels out of compared voxels.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+/// `p` is clipped to `[ε, 1 − ε]` for the log loss (reported as `log_loss_epsilon`).
+pub const LOG_LOSS_EPSILON: f64 = 1e-3;
+
+/// Bins of a [`Calibration`] table: `[0, 0.1)`, `[0.1, 0.2)`, …, `[0.9, 1]`.
+pub const CALIBRATION_BINS: usize = 10;
+
+/// Fixed-point scale of the score sums (2³²).
+const SCALE: f64 = 4_294_967_296.0;
+
+fn fixed(x: f64) -> u128 {
+    // x ∈ [0, −ln ε]: the product fits easily.
+    (x * SCALE).round().max(0.0) as u128
+}
+
+fn unfixed(x: u128) -> f64 {
+    x as f64 / SCALE
+}
+
+/// The log loss of probability `p` for the true state `occupied`, `p` clipped to
+/// `[ε, 1 − ε]` ([`LOG_LOSS_EPSILON`]).
+pub fn log_loss(p: f64, occupied: bool) -> f64 {
+    let p = p.clamp(LOG_LOSS_EPSILON, 1.0 - LOG_LOSS_EPSILON);
+    -(if occupied { p } else { 1.0 - p }).ln()
+}
+
+/// Wrong voxels out of compared voxels, with the probabilistic scores of the same voxels
+/// (serialised as `{wrong, total, brier, log_loss}`; the scores are `null` when nothing was
+/// compared).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Rate {
     /// Voxels whose state was wrong.
     pub wrong: u64,
     /// Voxels compared.
     pub total: u64,
+    /// Σ weight·(p − s)², fixed point.
+    squared_error: u128,
+    /// Σ weight·log loss, fixed point.
+    log_loss: u128,
 }
 
 impl Rate {
@@ -42,16 +85,122 @@ impl Rate {
         (self.total > 0).then(|| 100.0 * self.wrong as f64 / self.total as f64)
     }
 
-    fn add(&mut self, wrong: bool, weight: u64) {
+    /// The Brier score: the voxel-weighted mean of `(p − s)²` (`None` when nothing was
+    /// compared).
+    pub fn brier(&self) -> Option<f64> {
+        (self.total > 0).then(|| unfixed(self.squared_error) / self.total as f64)
+    }
+
+    /// The voxel-weighted mean log loss, `p` clipped to `[ε, 1 − ε]` ([`LOG_LOSS_EPSILON`]).
+    pub fn log_loss(&self) -> Option<f64> {
+        (self.total > 0).then(|| unfixed(self.log_loss) / self.total as f64)
+    }
+
+    /// Adds `weight` voxels for which a method said `state` with probability `p`, when the
+    /// truth was `truth`.
+    fn add(&mut self, verdict: Verdict, truth: bool, weight: u64) {
         self.total += weight;
-        if wrong {
+        if verdict.occupied != truth {
             self.wrong += weight;
         }
+        let s = if truth { 1.0 } else { 0.0 };
+        let w = u128::from(weight);
+        self.squared_error += fixed((verdict.p - s).powi(2)) * w;
+        self.log_loss += fixed(log_loss(verdict.p, truth)) * w;
     }
 
     fn merge(&mut self, other: &Rate) {
         self.wrong += other.wrong;
         self.total += other.total;
+        self.squared_error += other.squared_error;
+        self.log_loss += other.log_loss;
+    }
+}
+
+impl Serialize for Rate {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut out = serializer.serialize_struct("Rate", 4)?;
+        out.serialize_field("wrong", &self.wrong)?;
+        out.serialize_field("total", &self.total)?;
+        out.serialize_field("brier", &self.brier())?;
+        out.serialize_field("log_loss", &self.log_loss())?;
+        out.end()
+    }
+}
+
+/// One bin of a [`Calibration`] table.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CalibrationBin {
+    /// Lowest `p` of the bin.
+    pub lower: f64,
+    /// Highest `p` (exclusive, except for the last bin).
+    pub upper: f64,
+    /// Voxels whose `p` fell in the bin.
+    pub voxels: u64,
+    /// Their mean `p` (`None` for an empty bin).
+    pub mean_p: Option<f64>,
+    /// The fraction of them that was occupied (`None` for an empty bin).
+    pub occupied_fraction: Option<f64>,
+}
+
+/// A method's reliability over the dynamic voxels: how often voxels given `p` were occupied,
+/// per bin of `p` ([`CALIBRATION_BINS`] equal bins). A calibrated method has
+/// `occupied_fraction ≈ mean_p` in every bin.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Calibration {
+    bins: [BinSum; CALIBRATION_BINS],
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct BinSum {
+    voxels: u64,
+    occupied: u64,
+    /// Σ weight·p, fixed point.
+    p_sum: u128,
+}
+
+impl Calibration {
+    fn add(&mut self, p: f64, truth: bool, weight: u64) {
+        let bin = ((p * CALIBRATION_BINS as f64) as usize).min(CALIBRATION_BINS - 1);
+        if let Some(b) = self.bins.get_mut(bin) {
+            b.voxels += weight;
+            b.occupied += if truth { weight } else { 0 };
+            b.p_sum += fixed(p) * u128::from(weight);
+        }
+    }
+
+    fn merge(&mut self, other: &Calibration) {
+        for (a, b) in self.bins.iter_mut().zip(&other.bins) {
+            a.voxels += b.voxels;
+            a.occupied += b.occupied;
+            a.p_sum += b.p_sum;
+        }
+    }
+
+    /// The bins, lowest `p` first.
+    pub fn bins(&self) -> Vec<CalibrationBin> {
+        let width = 1.0 / CALIBRATION_BINS as f64;
+        self.bins
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let n = (b.voxels > 0).then_some(b.voxels as f64);
+                CalibrationBin {
+                    lower: i as f64 * width,
+                    upper: (i + 1) as f64 * width,
+                    voxels: b.voxels,
+                    mean_p: n.map(|n| unfixed(b.p_sum) / n),
+                    occupied_fraction: n.map(|n| b.occupied as f64 / n),
+                }
+            })
+            .collect()
+    }
+}
+
+impl Serialize for Calibration {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        self.bins().serialize(serializer)
     }
 }
 
@@ -88,6 +237,12 @@ pub struct EvalReport {
     pub reconstruction: Vec<(String, ErrorRates)>,
     /// Per method: errors outside the span (`stored` is absent).
     pub prediction: Vec<(String, ErrorRates)>,
+    /// Per method: reliability of `p` on the dynamic voxels inside the span.
+    pub reconstruction_calibration: Vec<(String, Calibration)>,
+    /// Per method: reliability of `p` on the dynamic voxels outside the span.
+    pub prediction_calibration: Vec<(String, Calibration)>,
+    /// The `ε` of the log loss ([`LOG_LOSS_EPSILON`]).
+    pub log_loss_epsilon: f64,
     /// Ground-truth voxels the file has no cell for (never observed in the file's data).
     pub unmodelled_voxels: u64,
 }
@@ -96,6 +251,7 @@ pub struct EvalReport {
 #[derive(Clone, Copy, Default)]
 struct Tally {
     methods: [ErrorRates; 4],
+    calibration: [Calibration; 4],
     /// Ground-truth voxels a cell covers.
     matched: u64,
     unmodelled: u64,
@@ -104,6 +260,9 @@ struct Tally {
 impl Tally {
     fn merge(&mut self, other: &Tally) {
         for (a, b) in self.methods.iter_mut().zip(&other.methods) {
+            a.merge(b);
+        }
+        for (a, b) in self.calibration.iter_mut().zip(&other.calibration) {
             a.merge(b);
         }
         self.matched += other.matched;
@@ -127,22 +286,45 @@ fn last_observed(cell: &Cell, axis: &TimeAxis, mut k: u32) -> Option<u32> {
     }
 }
 
-fn mean_state(cell: &Cell, model: &dyn PreparedModel) -> Occupancy {
-    match &cell.content {
-        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
-        CellContent::Modelled(voxel) => {
-            Occupancy::from_log_odds(if model.mean(voxel.parameters()) > 0.5 {
-                1.0
-            } else {
-                -1.0
-            })
+/// What one method says about a cell: its state and its probability of occupancy.
+#[derive(Clone, Copy, Debug)]
+struct Verdict {
+    occupied: bool,
+    p: f64,
+}
+
+impl Verdict {
+    fn state(state: Occupancy) -> Self {
+        Self::certain(state.is_occupied())
+    }
+
+    fn certain(occupied: bool) -> Self {
+        Self {
+            occupied,
+            p: if occupied { 1.0 } else { 0.0 },
         }
+    }
+
+    fn probability(p: f64) -> Self {
+        Self {
+            occupied: p > 0.5,
+            p,
+        }
+    }
+}
+
+fn mean_verdict(cell: &Cell, model: &dyn PreparedModel) -> Verdict {
+    match &cell.content {
+        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => {
+            Verdict::state(*state)
+        }
+        CellContent::Modelled(voxel) => Verdict::probability(model.mean(voxel.parameters())),
     }
 }
 
 /// What each method says about one cell at the evaluated time.
 struct Verdicts {
-    states: [Option<Occupancy>; 4],
+    states: [Option<Verdict>; 4],
     dynamic: bool,
     ever_occupied: bool,
 }
@@ -156,14 +338,19 @@ fn verdicts(
 ) -> Verdicts {
     let seconds = t.secs_since(axis.start());
     let predicted = match &cell.content {
-        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => *state,
-        CellContent::Modelled(voxel) => model.predicted_state(voxel.parameters(), seconds),
+        CellContent::Constant(state) | CellContent::ConstantExcept { state, .. } => {
+            Verdict::state(*state)
+        }
+        CellContent::Modelled(voxel) => {
+            Verdict::probability(model.probability(voxel.parameters(), seconds))
+        }
     };
     let at_or_before = axis.last_at_or_before(t);
     let stored = if inside {
         at_or_before
             .and_then(|k| last_observed(cell, axis, k))
             .and_then(|k| cell.state_at(axis, model, k))
+            .map(Verdict::state)
     } else {
         None
     };
@@ -173,12 +360,13 @@ fn verdicts(
     };
     let last_seen = strictly_before
         .and_then(|k| last_observed(cell, axis, k))
-        .and_then(|k| cell.state_at(axis, model, k));
+        .and_then(|k| cell.state_at(axis, model, k))
+        .map(Verdict::state);
     Verdicts {
         states: [
             Some(predicted),
             stored,
-            Some(mean_state(cell, model)),
+            Some(mean_verdict(cell, model)),
             last_seen,
         ],
         dynamic: !matches!(cell.content, CellContent::Constant(_)),
@@ -209,16 +397,21 @@ fn tally_cell(
                 .get_or_insert_with(|| verdicts(cell, axis, model, truth.time, truth.inside));
             let weight = end - start;
             out.matched += weight;
-            let truth_state = leaf.occupancy();
-            for (rates, state) in out.methods.iter_mut().zip(v.states) {
-                let Some(state) = state else { continue };
-                let wrong = state != truth_state;
-                rates.all.add(wrong, weight);
-                if v.ever_occupied || truth_state.is_occupied() {
-                    rates.non_empty.add(wrong, weight);
+            let truth = leaf.occupancy().is_occupied();
+            for ((rates, calibration), verdict) in out
+                .methods
+                .iter_mut()
+                .zip(&mut out.calibration)
+                .zip(v.states)
+            {
+                let Some(verdict) = verdict else { continue };
+                rates.all.add(verdict, truth, weight);
+                if v.ever_occupied || truth {
+                    rates.non_empty.add(verdict, truth, weight);
                 }
                 if v.dynamic {
-                    rates.dynamic.add(wrong, weight);
+                    rates.dynamic.add(verdict, truth, weight);
+                    calibration.add(verdict.p, truth, weight);
                 }
             }
         }
@@ -315,6 +508,16 @@ fn tally_group(reader: &FroctReader, truths: &[GroundTruth]) -> Result<Vec<Tally
     Ok(tallies)
 }
 
+/// Per method of [`METHODS`], named; `stored` left out unless `keep_stored`.
+fn named<T: Copy>(values: &[T; 4], keep_stored: bool) -> Vec<(String, T)> {
+    METHODS
+        .iter()
+        .zip(values.iter().copied())
+        .filter(|(m, _)| keep_stored || **m != "stored")
+        .map(|(m, r)| (m.to_string(), r))
+        .collect()
+}
+
 /// Compares a file with ground-truth maps (map files of any format of `context`, with their
 /// times).
 ///
@@ -340,32 +543,25 @@ pub fn evaluate(
         tallies.extend(loaded.iter().map(|t| t.inside).zip(group_tallies));
         progress.advance(inputs.len() as u64);
     }
-    let mut report = EvalReport::default();
-    let mut inside_rates = [ErrorRates::default(); 4];
-    let mut outside_rates = [ErrorRates::default(); 4];
-    for (inside, t) in &tallies {
-        let target = if *inside {
+    let mut report = EvalReport {
+        log_loss_epsilon: LOG_LOSS_EPSILON,
+        ..EvalReport::default()
+    };
+    let mut inside = Tally::default();
+    let mut outside = Tally::default();
+    for (is_inside, t) in &tallies {
+        if *is_inside {
             report.inside += 1;
-            &mut inside_rates
+            inside.merge(t);
         } else {
             report.outside += 1;
-            &mut outside_rates
-        };
-        for (sum, r) in target.iter_mut().zip(&t.methods) {
-            sum.merge(r);
+            outside.merge(t);
         }
         report.unmodelled_voxels += t.unmodelled;
     }
-    report.reconstruction = METHODS
-        .iter()
-        .zip(inside_rates)
-        .map(|(m, r)| (m.to_string(), r))
-        .collect();
-    report.prediction = METHODS
-        .iter()
-        .zip(outside_rates)
-        .filter(|(m, _)| **m != "stored")
-        .map(|(m, r)| (m.to_string(), r))
-        .collect();
+    report.reconstruction = named(&inside.methods, true);
+    report.prediction = named(&outside.methods, false);
+    report.reconstruction_calibration = named(&inside.calibration, true);
+    report.prediction_calibration = named(&outside.calibration, false);
     Ok(report)
 }

@@ -69,7 +69,10 @@ pub use dynamics::{
     KeyExtent, MetricBox, PeriodCount,
 };
 pub use error::{Cause, ConvertError, ManifestProblem, SnapshotError};
-pub use eval::{evaluate, ErrorRates, EvalReport, Rate, METHODS};
+pub use eval::{
+    evaluate, log_loss, Calibration, CalibrationBin, ErrorRates, EvalReport, Rate,
+    CALIBRATION_BINS, LOG_LOSS_EPSILON, METHODS,
+};
 pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;

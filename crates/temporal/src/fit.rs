@@ -13,6 +13,11 @@ pub(crate) const ORDER_TOLERANCE: f64 = 0.01;
 /// Most held-out samples scored when choosing an order by prediction (see `holdout_order`).
 pub(crate) const MAX_HOLDOUT_SAMPLES: u64 = 512;
 
+/// Factors the amplitudes may be shrunk by (option `shrink=auto`) when choosing an order by
+/// prediction, weakest shrinkage first: amplitudes estimated on the training span overshoot
+/// when the behaviour drifts, and the held-out samples say by how much.
+pub(crate) const SHRINKS: [f64; 4] = [1.0, 0.8, 0.6, 0.4];
+
 /// Margin below which a bound on `p` is not trusted to decide the threshold (float error of
 /// the summation is many orders of magnitude smaller).
 const BOUND_MARGIN: f64 = 1e-9;
@@ -60,6 +65,8 @@ pub(crate) struct FitSettings {
     pub mode: OutlierMode,
     pub criterion: crate::OrderCriterion,
     pub holdout_fraction: f64,
+    /// Whether the held-out samples may shrink the amplitudes (option `shrink`).
+    pub shrink: bool,
 }
 
 fn quantise(cands: &[Candidate]) -> Vec<Component> {
@@ -117,39 +124,52 @@ pub(crate) fn fit_voxel<S: Spectral>(
             )
         }
         (Order::Auto { .. }, mode) => {
-            let m = holdout_order(model, obs, max, settings.holdout_fraction);
-            let comps = quantise(&model.candidates(obs, mean, m));
+            let shrinks = if settings.shrink {
+                &SHRINKS[..]
+            } else {
+                &SHRINKS[..1]
+            };
+            let (m, shrink) = holdout_order(model, obs, max, settings.holdout_fraction, shrinks);
+            let mut cands = model.candidates(obs, mean, m);
+            for c in &mut cands {
+                c.amplitude *= shrink;
+            }
+            let comps = quantise(&cands);
             finish(model, mean_q, comps, obs, OrderChoice::Single(m), mode)
         }
     }
 }
 
-/// The order (≤ `max`) whose fit on the earlier observed samples best predicts the later
-/// ones (smallest Brier score); 0 when there is nothing to hold out or learn from.
+/// The order (≤ `max`) and amplitude factor (one of `shrinks`, the first being 1) whose fit
+/// on the earlier observed samples best predicts the later ones (smallest Brier score);
+/// order 0 when there is nothing to hold out or learn from.
 fn holdout_order<S: Spectral>(
     model: &S,
     obs: &VoxelObservations,
     max: usize,
     fraction: f64,
-) -> usize {
+    shrinks: &[f64],
+) -> (usize, f64) {
     let n = obs.observed_count();
     let train_count = ((1.0 - fraction) * n as f64).ceil() as u64;
     let split = obs.sample_after_observed(train_count.min(n));
     let train = obs.truncated(split);
     let test_count = n - train.observed_count();
     if train.observed_count() == 0 || test_count == 0 || train.is_constant().is_some() {
-        return 0;
+        return (0, 1.0);
     }
     let train_mean = train.occupied_count() as f64 / train.observed_count() as f64;
     let comps = quantise(&model.candidates(&train, train_mean, max));
     if comps.is_empty() {
-        return 0;
+        return (0, 1.0);
     }
     let mean = f64::from(quantise_unit(train_mean)) / 65535.0;
     let evaluables: Vec<Evaluable> = comps.iter().map(Evaluable::new).collect();
     let mut eval = model.evaluator(&comps);
     let mut angles = vec![(0.0, 0.0); comps.len()];
-    let mut sq_err = vec![0.0f64; comps.len() + 1];
+    // Per order m, per factor s: squared error, and samples on the wrong side of 0.5.
+    let mut sq_err = vec![vec![0.0f64; shrinks.len()]; comps.len() + 1];
+    let mut wrong = vec![vec![0u64; shrinks.len()]; comps.len() + 1];
     // Scoring every held-out sample costs (samples × orders) evaluations per voxel; an
     // evenly spaced subset ranks the orders as well and bounds the cost on long series.
     let stride = test_count.div_ceil(MAX_HOLDOUT_SAMPLES).max(1);
@@ -166,25 +186,46 @@ fn holdout_order<S: Spectral>(
         while i < end {
             let sample = i as u32;
             eval.angles(sample, &mut angles);
-            let mut p = mean;
-            for (m, err) in sq_err.iter_mut().enumerate() {
-                let d = p.clamp(0.0, 1.0) - target;
-                *err += d * d;
+            let mut periodic = 0.0;
+            for (m, (errs, wrongs)) in sq_err.iter_mut().zip(&mut wrong).enumerate() {
+                for ((err, w), shrink) in errs.iter_mut().zip(wrongs.iter_mut()).zip(shrinks) {
+                    let p = (mean + shrink * periodic).clamp(0.0, 1.0);
+                    let d = p - target;
+                    *err += d * d;
+                    *w += u64::from((p > 0.5) != run.state.is_occupied());
+                }
                 if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
-                    p += e.value(*a);
+                    periodic += e.value(*a);
                 }
             }
             i += stride;
         }
     }
-    // The lowest order within 1 % of the best score: a component must earn its place, so
-    // noise-like voxels (whose spurious components fit the held-out samples by chance) keep
-    // the mean alone instead of paying for components that do not predict.
-    let best = sq_err.iter().copied().fold(f64::INFINITY, f64::min);
+    // The lowest order, then the weakest shrinkage, within 1 % of the best score: a
+    // component must earn its place, so noise-like voxels (whose spurious components fit
+    // the held-out samples by chance) keep the mean alone instead of paying for components
+    // that do not predict. A shrinkage must not put more held-out samples on the wrong
+    // side of 0.5 than the unshrunk order does: it may soften p, not the decisions.
+    let best = sq_err
+        .iter()
+        .flatten()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let good = |e: f64| e <= best * (1.0 + ORDER_TOLERANCE) + f64::EPSILON;
     sq_err
         .iter()
-        .position(|&e| e <= best * (1.0 + ORDER_TOLERANCE) + f64::EPSILON)
-        .unwrap_or(0)
+        .zip(&wrong)
+        .enumerate()
+        .find_map(|(m, (errs, wrongs))| {
+            let unshrunk = wrongs.first().copied().unwrap_or(0);
+            let s = errs
+                .iter()
+                .zip(wrongs)
+                .position(|(&e, &w)| good(e) && w <= unshrunk)?;
+            let shrink = shrinks.get(s).copied()?;
+            Some((m, if m == 0 { 1.0 } else { shrink }))
+        })
+        .unwrap_or((0, 1.0))
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -374,6 +415,58 @@ impl TopK {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::FremenPeriods;
+    use crate::{ModelConfig, ObservationsBuilder, SpectralParameters, TemporalModel, TimeAxis};
+    use froctomap_core::{Occupancy, Timestamp};
+
+    /// Occupied 09:00-17:00 every day for three weeks, then on every other day only: the
+    /// daily rhythm weakens in the held-out week.
+    #[test]
+    fn shrink_auto_softens_amplitudes_that_overshoot_the_held_out_part() {
+        let n = 4 * 7 * 24;
+        let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, n, vec![]).unwrap();
+        let mut b = ObservationsBuilder::new();
+        for i in 0..n {
+            let (day, hour) = (i / 24, i % 24);
+            let active = day < 21 || day % 2 == 0;
+            b.push(i, Some(Occupancy::from(active && (9..17).contains(&hour))))
+                .unwrap();
+        }
+        let obs = b.finish();
+        let components = |options: &[(&str, &str)]| {
+            let mut config = ModelConfig::default();
+            for (k, v) in options {
+                config = config.with_option(k, v);
+            }
+            let model = FremenPeriods.prepare(&axis, &config).unwrap();
+            let voxel = model.fit(&obs).unwrap();
+            SpectralParameters::decode(voxel.parameters())
+                .unwrap()
+                .components
+        };
+        // Unshrunk, no component predicts the weaker held-out week well enough: the mean alone.
+        assert!(components(&[("shrink", "off")]).is_empty());
+        // Shrunk, the daily rhythm validates: the same components as a fixed order gives,
+        // with every amplitude scaled by one factor of the grid below 1.
+        let auto = components(&[("shrink", "auto")]);
+        assert!(!auto.is_empty());
+        let order = auto.len().to_string();
+        let fixed = components(&[("order", order.as_str())]);
+        let mut ratios = Vec::new();
+        for (a, b) in fixed.iter().zip(&auto) {
+            assert_eq!((a.frequency, a.phase_q), (b.frequency, b.phase_q));
+            ratios.push(f64::from(b.amplitude_q) / f64::from(a.amplitude_q));
+        }
+        let factor = ratios[0];
+        assert!(
+            factor < 0.9 && SHRINKS.iter().any(|s| (s - factor).abs() < 1e-3),
+            "{ratios:?}"
+        );
+        assert!(
+            ratios.iter().all(|r| (r - factor).abs() < 1e-3),
+            "{ratios:?}"
+        );
+    }
 
     #[test]
     fn top_k_keeps_strongest_in_order() {

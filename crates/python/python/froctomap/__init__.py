@@ -154,8 +154,11 @@ def evaluate(
     prediction, each against the static-mean and last-seen baselines. Returns a dict with
     ``inside``/``outside`` (numbers of maps), ``reconstruction`` and ``prediction`` (lists of
     ``[method, rates]`` pairs; ``rates`` over all, non-empty and dynamic voxels, each
-    ``{"wrong": n, "total": n}``) and ``unmodelled_voxels``: the fields of
-    ``froctomap eval --json``.
+    ``{"wrong": n, "total": n, "brier": x, "log_loss": x}``: thresholded errors, Brier score
+    and log loss with p clipped to ``[log_loss_epsilon, 1 - log_loss_epsilon]``),
+    ``reconstruction_calibration`` and ``prediction_calibration`` (per method, bins of p over
+    the dynamic voxels: ``lower``, ``upper``, ``voxels``, ``mean_p``, ``occupied_fraction``),
+    ``log_loss_epsilon`` and ``unmodelled_voxels``: the fields of ``froctomap eval --json``.
     """
     callback = _progress.reporter(progress)
     try:

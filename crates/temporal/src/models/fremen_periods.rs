@@ -5,7 +5,7 @@ use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, BASE_PERIOD, CRITERION, HARMONICS, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES,
-    ORDER, PERIODS,
+    ORDER, PERIODS, SHRINK,
 };
 use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::trig::cos_sin_turns;
@@ -30,6 +30,7 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
         HARMONICS,
         MIN_CYCLES,
         HOLDOUT_FRACTION,
+        SHRINK,
     ],
     factory: || Box::new(FremenPeriods),
 };
@@ -185,6 +186,7 @@ impl PreparedFremenPeriods {
                 mode,
                 criterion: config.criterion,
                 holdout_fraction: config.holdout_fraction,
+                shrink: config.shrink,
             },
             min_cycles: config.min_cycles,
         }

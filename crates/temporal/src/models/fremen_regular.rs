@@ -4,7 +4,7 @@ use super::SpectralLine;
 use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
 use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::options::{
-    SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER,
+    SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER, SHRINK,
 };
 use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::trig::cos_sin_turns;
@@ -22,7 +22,14 @@ pub const DESCRIPTOR: ModelDescriptor = ModelDescriptor {
     id: ModelId::FREMEN_REGULAR,
     name: "fremen-regular",
     description: "FreMEn over all DFT bins of a regular time axis (real FFT per voxel)",
-    options: &[ORDER, MAX_ORDER, CRITERION, MIN_CYCLES, HOLDOUT_FRACTION],
+    options: &[
+        ORDER,
+        MAX_ORDER,
+        CRITERION,
+        MIN_CYCLES,
+        HOLDOUT_FRACTION,
+        SHRINK,
+    ],
     factory: || Box::new(FremenRegular),
 };
 
@@ -169,6 +176,7 @@ impl PreparedFremenRegular {
                 mode,
                 criterion: config.criterion,
                 holdout_fraction: config.holdout_fraction,
+                shrink: config.shrink,
             },
             min_cycles: config.min_cycles,
         })

@@ -118,6 +118,7 @@ impl PreparedModel for PreparedStaticMean {
             mode: self.mode,
             criterion: crate::OrderCriterion::Prediction,
             holdout_fraction: 0.5,
+            shrink: false,
         };
         Ok(fit_voxel(self, &settings, obs))
     }

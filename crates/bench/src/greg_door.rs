@@ -1,0 +1,432 @@
+//! Prediction on the one real series in the project: the greg_door recording (a door's
+//! state once a minute for 67 days, then 9 held-out test weeks) made into a small OctoMap
+//! room, built into a `.froct` and evaluated week by week against the static mean, last
+//! seen and a plain FreMEn computed independently in numpy (`scripts/fremen_reference.py`).
+//!
+//! The room (0.1 m voxels, keys from 32768): a 16 × 16 floor at z = 0; a wall at y = 0,
+//! 16 wide and 12 high; in the wall a door panel 4 × 1 × 10 voxels (x 6..10, z 1..11),
+//! occupied while the door is closed (state 0 in the data) and free while it is open; the
+//! rest of the 16 × 15 × 12 box in front of the wall free. Every map shows the whole room,
+//! so the panel's 40 voxels are the only dynamic ones.
+
+use anyhow::{bail, Context as _, Result};
+use clap::Args;
+use froctomap_convert::{build, evaluate, BuildOptions, Context, EvalReport, SeriesInput, Silent};
+use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
+use froctomap_file::FroctReader;
+use froctomap_formats::{ReadOptions, WriteOptions};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// Voxel edge, metres.
+const RESOLUTION: f64 = 0.1;
+const ORIGIN: u16 = 32768;
+const SIDE: u16 = 16;
+const HEIGHT: u16 = 12;
+/// The FreMEn orders the numpy reference is computed at (the best is k = 4).
+const REFERENCE_ORDERS: &str = "0,1,2,3,4,5";
+/// The reference order shown beside the model in the table.
+const REFERENCE_SHOWN: &str = "fremen k=4";
+
+#[derive(Args)]
+pub struct GregDoorArgs {
+    /// The greg_door directory (training_data.txt, test_times_W.txt, test_data_W.txt).
+    #[arg(long, default_value = "/work/shared/data/greg_door_2016_min")]
+    data: PathBuf,
+    /// `full`: all 96,480 training minutes and the 9 test weeks; `ci`: the last 3 weeks of
+    /// training and test weeks 1 and 2, every 60th minute.
+    #[arg(long, default_value = "full")]
+    size: String,
+    /// Evaluate every n-th test minute (default 10; `ci`: 60).
+    #[arg(long)]
+    stride: Option<usize>,
+    /// Model options for the build (`key=value`, as `froctomap build --option`).
+    #[arg(long = "option", value_name = "KEY=VALUE")]
+    options: Vec<String>,
+    /// Python with numpy for the reference (default target/interop-venv/bin/python, made by
+    /// scripts/python-client.sh).
+    #[arg(long, default_value = "target/interop-venv/bin/python")]
+    python: PathBuf,
+    /// Where the room's maps, the file and results.json/results.md go.
+    #[arg(long, default_value = "target/greg-door")]
+    out: PathBuf,
+}
+
+/// One method's scores on one test week (dynamic voxels).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Scores {
+    pub error_percent: Option<f64>,
+    pub brier: Option<f64>,
+    pub log_loss: Option<f64>,
+}
+
+/// One test week.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct WeekRow {
+    pub week: u32,
+    pub maps: usize,
+    pub model: Scores,
+    pub static_mean: Scores,
+    pub last_seen: Scores,
+    /// Every order of the numpy reference, and its static mean.
+    pub reference: serde_json::Value,
+}
+
+/// The whole run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct GregDoorResults {
+    pub size: String,
+    pub stride: usize,
+    pub training_maps: usize,
+    pub options: Vec<String>,
+    pub file_bytes: u64,
+    pub build_seconds: f64,
+    /// The periods the model kept for the door panel, strongest first (seconds).
+    pub door_periods: Vec<f64>,
+    pub weeks: Vec<WeekRow>,
+    pub reference_periods_strongest_first: serde_json::Value,
+}
+
+fn is_door(k: VoxelKey) -> bool {
+    (ORIGIN + 6..ORIGIN + 10).contains(&k.x)
+        && k.y == ORIGIN
+        && (ORIGIN + 1..ORIGIN + 11).contains(&k.z)
+}
+
+/// The room with the door closed or open.
+fn room(closed: bool) -> Result<Snapshot> {
+    let mut leaves = Vec::new();
+    for x in ORIGIN..ORIGIN + SIDE {
+        for y in ORIGIN..ORIGIN + SIDE {
+            for z in ORIGIN..ORIGIN + HEIGHT {
+                let k = VoxelKey::new(x, y, z);
+                let occupied = if is_door(k) {
+                    closed
+                } else {
+                    z == ORIGIN || y == ORIGIN
+                };
+                leaves.push(Leaf::voxel(k, Occupancy::from(occupied).log_odds()));
+            }
+        }
+    }
+    Ok(Snapshot::from_leaves(RESOLUTION, leaves)?.canonical())
+}
+
+/// `(unix seconds, state)` pairs of a two-column file, or two one-column files.
+fn read_pairs(times: &Path, states: Option<&Path>) -> Result<Vec<(i64, u8)>> {
+    let text =
+        |p: &Path| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()));
+    let parse = |p: &Path, line: usize, field: Option<&str>| -> Result<i64> {
+        field
+            .and_then(|f| f.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .map(|v| v as i64)
+            .with_context(|| format!("{}:{}: not a number", p.display(), line + 1))
+    };
+    let first = text(times)?;
+    let mut out = Vec::new();
+    match states {
+        None => {
+            for (i, line) in first
+                .lines()
+                .enumerate()
+                .filter(|(_, l)| !l.trim().is_empty())
+            {
+                let mut fields = line.split_whitespace();
+                let t = parse(times, i, fields.next())?;
+                let s = parse(times, i, fields.next())?;
+                out.push((t, u8::from(s != 0)));
+            }
+        }
+        Some(states_path) => {
+            let second = text(states_path)?;
+            let t = first.lines().filter(|l| !l.trim().is_empty());
+            let s = second.lines().filter(|l| !l.trim().is_empty());
+            for (i, (t, s)) in t.zip(s).enumerate() {
+                out.push((
+                    parse(times, i, Some(t))?,
+                    u8::from(parse(states_path, i, Some(s))? != 0),
+                ));
+            }
+        }
+    }
+    if out.is_empty() {
+        bail!("{}: no samples", times.display());
+    }
+    Ok(out)
+}
+
+fn inputs(pairs: &[(i64, u8)], closed: &Path, open: &Path) -> Vec<SeriesInput> {
+    pairs
+        .iter()
+        .map(|&(t, state)| SeriesInput {
+            path: if state == 0 { closed } else { open }.to_path_buf(),
+            time: Timestamp::from_secs(t),
+        })
+        .collect()
+}
+
+fn scores(report: &EvalReport, method: &str) -> Scores {
+    report
+        .prediction
+        .iter()
+        .find(|(m, _)| m == method)
+        .map(|(_, r)| Scores {
+            error_percent: r.dynamic.percent(),
+            brier: r.dynamic.brier(),
+            log_loss: r.dynamic.log_loss(),
+        })
+        .unwrap_or_default()
+}
+
+/// Runs the numpy reference; its JSON.
+fn reference(
+    args: &GregDoorArgs,
+    weeks: &[u32],
+    stride: usize,
+    train_from: Option<i64>,
+) -> Result<serde_json::Value> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/fremen_reference.py");
+    let weeks: Vec<String> = weeks.iter().map(u32::to_string).collect();
+    let mut command = Command::new(&args.python);
+    command
+        .arg(&script)
+        .arg(&args.data)
+        .arg("--weeks")
+        .arg(weeks.join(","))
+        .arg("--stride")
+        .arg(stride.to_string())
+        .arg("--orders")
+        .arg(REFERENCE_ORDERS)
+        .arg("--eps")
+        .arg(froctomap_convert::LOG_LOSS_EPSILON.to_string());
+    if let Some(t) = train_from {
+        command.arg("--train-from").arg(t.to_string());
+    }
+    let output = command.output().with_context(|| {
+        format!(
+            "running the numpy reference with {} (make it with scripts/python-client.sh target/interop-venv)",
+            args.python.display()
+        )
+    })?;
+    if !output.status.success() {
+        bail!(
+            "the numpy reference failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    Ok(serde_json::from_slice(&output.stdout)?)
+}
+
+fn cell(x: Option<f64>, digits: usize) -> String {
+    x.map_or_else(|| "-".into(), |v| format!("{v:.digits$}"))
+}
+
+fn reference_scores(value: &serde_json::Value, method: &str) -> Scores {
+    let get = |k: &str| {
+        value
+            .get(method)
+            .and_then(|m| m.get(k))
+            .and_then(serde_json::Value::as_f64)
+    };
+    Scores {
+        error_percent: get("error_percent"),
+        brier: get("brier"),
+        log_loss: get("log_loss"),
+    }
+}
+
+/// The markdown table of a run.
+pub fn markdown(results: &GregDoorResults) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "greg_door room, size {}, {} training maps, every {}th test minute, options [{}]; file {} bytes, built in {:.1} s; door periods kept (h): {}\n",
+        results.size,
+        results.training_maps,
+        results.stride,
+        results.options.join(", "),
+        results.file_bytes,
+        results.build_seconds,
+        results
+            .door_periods
+            .iter()
+            .map(|p| format!("{:.1}", p / 3600.0))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let _ = writeln!(
+        out,
+        "Dynamic voxels (the door panel). Error = thresholded at 0.5, %; Brier; log loss (ε = {}).\n",
+        froctomap_convert::LOG_LOSS_EPSILON
+    );
+    let _ = writeln!(out, "| week | maps | model error | static | last seen | FreMEn k=4 (numpy) | model Brier | static | last seen | FreMEn k=4 | model log loss | static | last seen | FreMEn k=4 |");
+    let _ = writeln!(out, "| ---: | ---: |{}", " ---: |".repeat(12));
+    let mut sums = [0.0f64; 4];
+    for w in &results.weeks {
+        let fremen = reference_scores(&w.reference, REFERENCE_SHOWN);
+        let rows = [&w.model, &w.static_mean, &w.last_seen, &fremen];
+        let _ = write!(out, "| {} | {} |", w.week, w.maps);
+        for s in rows {
+            let _ = write!(out, " {} |", cell(s.error_percent, 2));
+        }
+        for (sum, s) in sums.iter_mut().zip(rows) {
+            *sum += s.brier.unwrap_or(f64::NAN);
+            let _ = write!(out, " {} |", cell(s.brier, 4));
+        }
+        for s in rows {
+            let _ = write!(out, " {} |", cell(s.log_loss, 3));
+        }
+        let _ = writeln!(out);
+    }
+    let n = results.weeks.len().max(1) as f64;
+    let _ = writeln!(
+        out,
+        "\nMean Brier over the weeks: model {:.4}, static mean {:.4}, last seen {:.4}, FreMEn k=4 {:.4}; model / static mean = {:.3}, FreMEn k=4 / static mean = {:.3}.",
+        sums[0] / n,
+        sums[1] / n,
+        sums[2] / n,
+        sums[3] / n,
+        sums[0] / sums[1],
+        sums[3] / sums[1]
+    );
+    let worst = results
+        .weeks
+        .iter()
+        .filter_map(|w| Some(w.model.error_percent? - w.static_mean.error_percent?))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let _ = writeln!(
+        out,
+        "Largest weekly excess of the model's error over the static mean's: {worst:+.2} percentage points."
+    );
+    // Every reference order, mean Brier over the weeks.
+    let mut orders: Vec<String> = results
+        .weeks
+        .first()
+        .and_then(|w| w.reference.as_object())
+        .map(|o| o.keys().cloned().collect())
+        .unwrap_or_default();
+    orders.sort();
+    let means: Vec<String> = orders
+        .iter()
+        .map(|k| {
+            let b: f64 = results
+                .weeks
+                .iter()
+                .filter_map(|w| reference_scores(&w.reference, k).brier)
+                .sum();
+            format!("{k}: {:.4}", b / n)
+        })
+        .collect();
+    let _ = writeln!(
+        out,
+        "Numpy reference, mean Brier per order: {}.",
+        means.join(", ")
+    );
+    out
+}
+
+pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
+    let (weeks, default_stride, train_days): (Vec<u32>, usize, Option<i64>) =
+        match args.size.as_str() {
+            "full" => ((1..=9).collect(), 10, None),
+            "ci" => (vec![1, 2], 60, Some(21)),
+            other => bail!("--size {other}: expected `full` or `ci`"),
+        };
+    let stride = args.stride.unwrap_or(default_stride).max(1);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let context = Context::with_default_plugins();
+    let closed = args.out.join("door-closed.bt");
+    let open = args.out.join("door-open.bt");
+    for (path, is_closed) in [(&closed, true), (&open, false)] {
+        context
+            .formats()
+            .write_file(&room(is_closed)?, path, WriteOptions::default())?;
+    }
+
+    let mut training = read_pairs(&args.data.join("training_data.txt"), None)?;
+    let train_from =
+        train_days.and_then(|days| training.last().map(|&(t, _)| t - days * 86_400 + 60));
+    if let Some(from) = train_from {
+        training.retain(|&(t, _)| t >= from);
+    }
+    eprintln!("greg-door: building from {} maps", training.len());
+    let file = args.out.join("greg_door.froct");
+    let mut config = froctomap_temporal::ModelConfig::default();
+    for option in &args.options {
+        config.options.set_assignment(option)?;
+    }
+    let options = BuildOptions {
+        config,
+        created: Some(Timestamp::from_secs(0)),
+        ..BuildOptions::default()
+    };
+    let started = Instant::now();
+    build(
+        &context,
+        &inputs(&training, &closed, &open),
+        &file,
+        &options,
+        &Silent,
+    )?;
+    let build_seconds = started.elapsed().as_secs_f64();
+    let reader = FroctReader::open(&file)?;
+    let door_centre = VoxelKey::new(ORIGIN + 7, ORIGIN, ORIGIN + 5).center(RESOLUTION);
+    let door_periods = froctomap_convert::voxel_history(&reader, door_centre, None)?
+        .model
+        .map(|m| m.periodic.iter().map(|t| t.period_seconds).collect())
+        .unwrap_or_default();
+
+    eprintln!("greg-door: numpy reference");
+    let reference = reference(args, &weeks, stride, train_from)?;
+    let mut rows = Vec::new();
+    for &week in &weeks {
+        let pairs = read_pairs(
+            &args.data.join(format!("test_times_{week}.txt")),
+            Some(&args.data.join(format!("test_data_{week}.txt"))),
+        )?;
+        let truths: Vec<SeriesInput> = inputs(&pairs, &closed, &open)
+            .into_iter()
+            .step_by(stride)
+            .collect();
+        let report = evaluate(&context, &reader, &truths, ReadOptions::default(), &Silent)?;
+        if report.inside > 0 {
+            bail!(
+                "test week {week}: {} maps inside the training span",
+                report.inside
+            );
+        }
+        eprintln!("greg-door: week {week} evaluated ({} maps)", truths.len());
+        rows.push(WeekRow {
+            week,
+            maps: truths.len(),
+            model: scores(&report, "model"),
+            static_mean: scores(&report, "static mean"),
+            last_seen: scores(&report, "last seen"),
+            reference: reference["weeks"][week.to_string()].clone(),
+        });
+    }
+    let results = GregDoorResults {
+        size: args.size.clone(),
+        stride,
+        training_maps: training.len(),
+        options: args.options.clone(),
+        file_bytes: std::fs::metadata(&file)?.len(),
+        build_seconds,
+        door_periods,
+        weeks: rows,
+        reference_periods_strongest_first: reference["strongest_first"].clone(),
+    };
+    let md = markdown(&results);
+    println!("{md}");
+    std::fs::write(args.out.join("results.md"), &md)?;
+    std::fs::write(
+        args.out.join("results.json"),
+        serde_json::to_string_pretty(&results)?,
+    )?;
+    Ok(())
+}
