@@ -30,7 +30,7 @@ for arg in "$@"; do
   case "$arg" in --size=*) size=${arg#--size=} ;; esac
   previous=$arg
 done
-greg_door=${GREG_DOOR_DATA:-/work/shared/data/greg_door_2016_min}
+greg_door=${GREG_DOOR_DATA:-../shared/data/greg_door_2016_min}
 if [ "$size" = ci ]; then
   if [ -f "$greg_door/training_data.txt" ]; then
     scripts/python-client.sh target/interop-venv

@@ -33,8 +33,9 @@ const REFERENCE_SHOWN: &str = "fremen k=4";
 
 #[derive(Args)]
 pub struct GregDoorArgs {
-    /// The greg_door directory (training_data.txt, test_times_W.txt, test_data_W.txt).
-    #[arg(long, default_value = "/work/shared/data/greg_door_2016_min")]
+    /// The greg_door directory (training_data.txt, test_times_W.txt, test_data_W.txt);
+    /// by default the one in `shared/` beside the checkout.
+    #[arg(long, default_value = "../shared/data/greg_door_2016_min")]
     data: PathBuf,
     /// `full`: all 96,480 training minutes and the 9 test weeks; `ci`: the last 3 weeks of
     /// training and test weeks 1 and 2, every 60th minute.
@@ -162,9 +163,11 @@ fn read_pairs(times: &Path, states: Option<&Path>) -> Result<Vec<(i64, u8)>> {
 fn inputs(pairs: &[(i64, u8)], closed: &Path, open: &Path) -> Vec<SeriesInput> {
     pairs
         .iter()
-        .map(|&(t, state)| SeriesInput {
-            path: if state == 0 { closed } else { open }.to_path_buf(),
-            time: Timestamp::from_secs(t),
+        .map(|&(t, state)| {
+            SeriesInput::new(
+                if state == 0 { closed } else { open }.to_path_buf(),
+                Timestamp::from_secs(t),
+            )
         })
         .collect()
 }
