@@ -11,6 +11,8 @@ use froctomap_temporal::{
 };
 use std::path::Path;
 
+pub mod resealed;
+
 /// A cell and what was observed of it.
 pub struct SeriesCell {
     pub start: MortonCode,
