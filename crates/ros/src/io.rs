@@ -71,11 +71,6 @@ impl RecordingFile {
         }
         Ok(bytes)
     }
-
-    /// The file itself, for sequential readers that seek.
-    pub fn file(&self) -> &File {
-        &self.file
-    }
 }
 
 /// Whether the file at `path` starts with `magic`.
