@@ -661,6 +661,84 @@ pub struct ExportArgs {
     /// Write into a directory that already holds files, replacing those of the same names.
     #[arg(long)]
     overwrite: bool,
+    /// The most the export may write (e.g. 20GiB): an export whose estimated size is larger
+    /// is refused before it starts (docs/LIMITS.md).
+    #[arg(long, value_name = "SIZE", default_value = "2GiB", value_parser = byte_size)]
+    max_output: u64,
+}
+
+/// A rough size of one exported map: a `.bt` costs about half a byte per leaf (the
+/// file's cells are an upper bound on a map's leaves); an MCAP file adds the occupied
+/// voxels' two point clouds (about five times the map in the generated office).
+fn estimated_map_bytes(reader: &froctomap_file::FroctReader, format: &str) -> u64 {
+    let cells: u64 = reader.tiles().iter().map(|t| u64::from(t.cell_count)).sum();
+    let bt = cells / 2 + 64;
+    if format == "mcap" {
+        bt * 5
+    } else {
+        bt
+    }
+}
+
+/// Refuses what cannot be exported: ROS bags, and an export larger than `--max-output` or
+/// than the free space where it goes. Says how many maps and about how many bytes first.
+fn check_export(
+    ui: &Ui,
+    args: &ExportArgs,
+    reader: &froctomap_file::FroctReader,
+    options: &ExportOptions,
+) -> Result<()> {
+    let extension = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if matches!(extension.as_deref(), Some("bag" | "db3")) {
+        anyhow::bail!(
+            "{}: froctomap does not write ROS bags; export to a .mcap file (`ros2 bag play` \
+             reads it) or to a directory of maps",
+            escaped(args.output.display())
+        );
+    }
+    let span = options.to.secs_since(options.from).max(0.0);
+    let every = options.every_ns.max(1) as f64 / 1e9;
+    // Saturating: a span of centuries at 1 ns counts u64::MAX maps, and is refused.
+    let maps = (span / every).floor() as u64 + 1;
+    let bytes = maps.saturating_mul(estimated_map_bytes(reader, &options.format));
+    ui.note(&format!(
+        "exporting up to {} maps, about {}",
+        group_thousands(maps),
+        mib(bytes)
+    ));
+    if bytes > args.max_output {
+        anyhow::bail!(
+            "{}: the export would write about {} ({} maps), more than --max-output {}; \
+             pass a larger --max-output, or a shorter span or longer --every",
+            escaped(args.output.display()),
+            mib(bytes),
+            group_thousands(maps),
+            mib(args.max_output)
+        );
+    }
+    if !froctomap_core::is_stream_output(&args.output) {
+        let dir = match args.output.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent,
+            _ => std::path::Path::new("."),
+        };
+        if let Ok(stat) = rustix::fs::statvfs(dir) {
+            let free = stat.f_bavail.saturating_mul(stat.f_frsize);
+            if bytes > free {
+                anyhow::bail!(
+                    "{}: the export would write about {}, and {} holds {} free",
+                    escaped(args.output.display()),
+                    mib(bytes),
+                    escaped(dir.display()),
+                    mib(free)
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
@@ -683,6 +761,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         prefix: args.prefix.clone(),
         overwrite: args.overwrite,
     };
+    check_export(ui, args, &reader, &options)?;
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;
     drop(bars);

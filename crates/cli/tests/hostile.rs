@@ -53,3 +53,79 @@ fn build_of_an_mcap_with_a_hostile_length_is_a_typed_error() {
     );
     assert!(!output.exists());
 }
+
+/// A ROS 1 bag whose record `index` has a header length of 0 (no fields, no `op`).
+fn bag_with_empty_header(index: usize) -> Vec<u8> {
+    let mut bytes = std::fs::read(fixture("ros/one_map.bag")).unwrap();
+    let le32 = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
+    let mut pos = b"#ROSBAG V2.0\n".len();
+    for _ in 0..index {
+        let header = le32(&bytes, pos);
+        pos += 8 + header + le32(&bytes, pos + 4 + header);
+    }
+    bytes[pos..pos + 4].fill(0);
+    bytes
+}
+
+#[test]
+fn a_bag_record_without_header_fields_is_named_as_such() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("empty-header.bag");
+    std::fs::write(&input, bag_with_empty_header(4)).unwrap();
+    let output = dir.path().join("out.froct");
+    let run = froctomap_bounded(&[Path::new("build"), &input, Path::new("-o"), &output]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("empty-header.bag") && stderr.contains("no `op` field"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn export_refuses_bags_and_sizes_beyond_max_output_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
+    for name in ["x.bag", "x.db3"] {
+        let output = dir.path().join(name);
+        let run = froctomap_bounded(&[
+            Path::new("export"),
+            &file,
+            Path::new("--from"),
+            Path::new("1700000000"),
+            Path::new("--to"),
+            Path::new("1700003600"),
+            Path::new("--every"),
+            Path::new("10min"),
+            Path::new("-o"),
+            &output,
+        ]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("does not write ROS bags"), "{stderr}");
+        assert!(!output.exists(), "{name}");
+    }
+    // A year every minute: refused with the count and the size, nothing written.
+    let output = dir.path().join("year.mcap");
+    let run = froctomap_bounded(&[
+        Path::new("export"),
+        &file,
+        Path::new("--from"),
+        Path::new("1700000000"),
+        Path::new("--to"),
+        Path::new("1731536000"),
+        Path::new("--every"),
+        Path::new("1min"),
+        Path::new("--max-output"),
+        Path::new("1MiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("525,601 maps") && stderr.contains("--max-output"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
