@@ -34,6 +34,7 @@ mod froct_info;
 mod generate;
 mod history;
 mod manual;
+mod memory_guard;
 mod plugins;
 mod progress;
 mod render;

@@ -226,6 +226,11 @@ pub(crate) struct SpillArgs {
     /// Reading and fitting need memory on top of it.
     #[arg(long, value_name = "SIZE", default_value = "64MiB", value_parser = byte_size)]
     pub(crate) memory: u64,
+    /// The most resident memory the whole command may use (reading, accumulating, fitting;
+    /// e.g. 2GiB): past it, it stops with an error and writes nothing, instead of failing
+    /// an allocation. Default: no bound beyond the system's.
+    #[arg(long, value_name = "SIZE", value_parser = byte_size)]
+    pub(crate) max_memory: Option<u64>,
     /// Directory for the spill data (default: the output's directory). It goes into a
     /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
     /// stopped by Ctrl-C/SIGTERM.
@@ -330,6 +335,9 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
+    if let Some(limit) = args.spill.max_memory {
+        crate::memory_guard::watch(limit, "build");
+    }
     // Recordings among the inputs are read back through the context that expanded them.
     let series_context = &args.times.context(ui, args.skip_bad);
     let collected = collect_inputs_explained(

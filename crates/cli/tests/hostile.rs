@@ -129,3 +129,64 @@ fn export_refuses_bags_and_sizes_beyond_max_output_before_writing() {
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+/// Issue 29, item 3: a map whose build needs more memory than allowed ends in an error
+/// naming --max-memory (here a map of 2^15 leaves at --tile-depth 1 under a bound below what
+/// the command needs just to start), never an allocation failure; nothing is written.
+#[test]
+fn a_build_past_max_memory_is_an_error_naming_the_limit() {
+    use froctomap_core::{Leaf, Snapshot, VoxelKey};
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    std::fs::create_dir(&maps).unwrap();
+    let registry = froctomap_formats::FormatRegistry::with_default_formats();
+    for (i, time) in [1_451_865_600u32, 1_451_866_200].into_iter().enumerate() {
+        let leaves = (0..1u16 << 15)
+            .map(|k| {
+                let (x, y, z) = (k & 31, (k >> 5) & 31, k >> 10);
+                let occupied = (k as usize + i) % 3 == 0;
+                Leaf::voxel(
+                    VoxelKey::new(32768 + 2 * x, 32768 + 2 * y, 32768 + 2 * z),
+                    if occupied { 3.5 } else { -2.0 },
+                )
+            })
+            .collect();
+        let map = Snapshot::from_leaves(0.1, leaves).unwrap();
+        registry
+            .write_file(&map, &maps.join(format!("m_{time}.bt")), Default::default())
+            .unwrap();
+    }
+    let output = dir.path().join("out.froct");
+    let run = froctomap_bounded(&[
+        Path::new("build"),
+        &maps,
+        Path::new("--tile-depth"),
+        Path::new("1"),
+        Path::new("--max-memory"),
+        Path::new("1MiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--max-memory 1 MiB"), "{stderr}");
+    assert!(!output.exists());
+    // Within a sufficient bound the same build succeeds.
+    let run = froctomap_bounded(&[
+        Path::new("-q"),
+        Path::new("build"),
+        &maps,
+        Path::new("--tile-depth"),
+        Path::new("1"),
+        Path::new("--max-memory"),
+        Path::new("3GiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(output.exists());
+}

@@ -243,13 +243,13 @@ pub enum ConvertError {
     },
     /// An instant before the first snapshot, where nothing was observed.
     #[error(
-        "{}: {} is before its first snapshot ({}); its time axis spans {} .. {}{}",
+        "{}: {} is before the first snapshot ({}); the time axis spans {} .. {}{}",
         path.display(),
         iso8601(*time),
         first.map_or_else(|| "none".to_string(), iso8601),
         iso8601(*start),
         iso8601(*end),
-        if first.is_some_and(|f| f > *start) { ", the samples before its first snapshot are missing" } else { "" }
+        if first.is_some_and(|f| f > *start) { ", the samples before the first snapshot are missing" } else { "" }
     )]
     BeforeFirstSnapshot {
         /// The file.
