@@ -48,11 +48,15 @@ FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pyt
 cargo build --locked --manifest-path fuzz/Cargo.toml
 corpus=$(mktemp -d)
 trap 'rm -rf "$corpus"' EXIT
-for target in read_bt read_ot roundtrip read_froct read_living; do
+for target in read_bt read_ot roundtrip read_froct read_living read_mcap read_bag; do
   mkdir -p "$corpus/$target"
+  runs=50000 max_len=4096
   case $target in
     read_froct | read_living) cp fixtures/froct/*.froct "$corpus/$target/" ;;
+    # The recordings' readers take files (each run writes one): fewer, larger runs.
+    read_mcap) cp fixtures/ros/*.mcap "$corpus/$target/"; runs=5000 max_len=16384 ;;
+    read_bag) cp fixtures/ros/*.bag "$corpus/$target/"; runs=5000 max_len=16384 ;;
     *) cp fixtures/octomap/* "$corpus/$target/" ;;
   esac
-  fuzz/target/debug/$target -runs=50000 -max_len=4096 -seed=1 "$corpus/$target" 2>&1 | tail -n 1
+  fuzz/target/debug/$target -runs=$runs -max_len=$max_len -seed=1 "$corpus/$target" 2>&1 | tail -n 1
 done

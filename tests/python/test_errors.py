@@ -10,7 +10,7 @@ import warnings
 import pytest
 
 import froctomap
-from conftest import cli_error, snapshot_files
+from conftest import cli_error, run_cli, snapshot_files
 
 
 def test_a_missing_file_is_an_os_error_with_the_cli_message(tmp_path):
@@ -118,3 +118,41 @@ def test_evaluate_of_a_missing_file_raises(tmp_path, series):
     with pytest.raises(froctomap.FroctError) as caught:
         froctomap.evaluate(tmp_path / "none.froct", series)
     assert str(caught.value) == cli_error("eval", tmp_path / "none.froct", "--against", series)
+
+
+def test_a_resealed_huge_outlier_varint_raises_instead_of_a_wrong_map(series, tmp_path):
+    # Issue 29: the query path skipped the check the full walk makes, and `retrieve`
+    # returned a map with extra leaves.
+    from hostile import with_huge_outlier_varint
+
+    raw = tmp_path / "raw.froct"
+    run_cli("-q", "build", series, "-o", raw, "--zstd-level", "0", "--toggle-block", "4")
+    bad = tmp_path / "resealed.froct"
+    bad.write_bytes(with_huge_outlier_varint(raw.read_bytes()))
+    f = froctomap.open(bad)  # the header, index and checksums are intact
+    m = f.retrieve("index:0")  # maps are read when used
+    with pytest.raises(froctomap.FroctError) as caught:
+        m.to_bt_bytes()
+    assert "resealed.froct" in str(caught.value)
+    assert "toggle beyond the time axis" in str(caught.value)
+    assert str(caught.value) == cli_error("retrieve", bad, "--time", "index:0", "-o",
+                                          tmp_path / "x.bt")
+    with pytest.raises(froctomap.FroctError):
+        len(f.retrieve("index:-1"))
+    with pytest.raises(froctomap.FroctError):
+        f.predict("2016-01-04T05:00:00Z").to_bt_bytes()
+
+
+def test_a_hostile_mcap_length_raises_instead_of_aborting_the_interpreter(tmp_path):
+    # Issue 29: a record length of 0xFFFFFFFF inside an MCAP file reached the `mcap`
+    # crate's reserve and aborted the process (a notebook kernel died).
+    from hostile import ROOT_FIXTURES, with_chunk_compression_length
+
+    bad = tmp_path / "hostile.mcap"
+    bad.write_bytes(with_chunk_compression_length((ROOT_FIXTURES / "ros" / "two_maps_zstd.mcap").read_bytes()))
+    with pytest.raises(froctomap.FroctError) as caught:
+        froctomap.build(bad, tmp_path / "x.froct", progress=False)
+    assert "hostile.mcap" in str(caught.value)
+    assert "a string runs past its record" in str(caught.value)
+    assert str(caught.value) == cli_error("build", bad, "-o", tmp_path / "x.froct")
+    assert not (tmp_path / "x.froct").exists()

@@ -2,11 +2,28 @@
 
 /// `println!` that returns the write's error instead of panicking, so that a closed pipe
 /// (`froctomap info x | head -1`) ends the command quietly (see `main`).
+/// Reports go to standard error when a map is written to standard output (`-o -`).
 macro_rules! outln {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        writeln!(std::io::stdout().lock(), $($arg)*)
+        if $crate::REPORTS_TO_STDERR.load(std::sync::atomic::Ordering::Relaxed) {
+            writeln!(std::io::stderr().lock(), $($arg)*)
+        } else {
+            writeln!(std::io::stdout().lock(), $($arg)*)
+        }
     }};
+}
+
+/// Set when an output is standard output (`-o -`, [`froctomap_core::STDOUT`]): what the
+/// command would print goes to standard error instead, so the map's bytes stay alone.
+static REPORTS_TO_STDERR: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether the arguments name standard output as an output (`-o -`, `--output -`,
+/// `--output=-`, `-o-`).
+fn writes_to_stdout(args: &[std::ffi::OsString]) -> bool {
+    args.windows(2)
+        .any(|pair| (pair[0] == "-o" || pair[0] == "--output") && pair[1] == "-")
+        || args.iter().any(|a| a == "--output=-" || a == "-o-")
 }
 
 mod anomalies;
@@ -17,6 +34,7 @@ mod froct_info;
 mod generate;
 mod history;
 mod manual;
+mod memory_guard;
 mod plugins;
 mod progress;
 mod render;
@@ -206,7 +224,11 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    if writes_to_stdout(&args) {
+        REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+    let cli = Cli::parse_from(args);
     signals::clean_up_on_signals();
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
         None => froctomap_convert::Zone::utc(),

@@ -226,6 +226,11 @@ pub(crate) struct SpillArgs {
     /// Reading and fitting need memory on top of it.
     #[arg(long, value_name = "SIZE", default_value = "64MiB", value_parser = byte_size)]
     pub(crate) memory: u64,
+    /// The most resident memory the whole command may use (reading, accumulating, fitting;
+    /// e.g. 2GiB): past it, it stops with an error and writes nothing, instead of failing
+    /// an allocation. Default: no bound beyond the system's.
+    #[arg(long, value_name = "SIZE", value_parser = byte_size)]
+    pub(crate) max_memory: Option<u64>,
     /// Directory for the spill data (default: the output's directory). It goes into a
     /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
     /// stopped by Ctrl-C/SIGTERM.
@@ -330,6 +335,9 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
+    if let Some(limit) = args.spill.max_memory {
+        crate::memory_guard::watch(limit, "build");
+    }
     // Recordings among the inputs are read back through the context that expanded them.
     let series_context = &args.times.context(ui, args.skip_bad);
     let collected = collect_inputs_explained(
@@ -661,6 +669,84 @@ pub struct ExportArgs {
     /// Write into a directory that already holds files, replacing those of the same names.
     #[arg(long)]
     overwrite: bool,
+    /// The most the export may write (e.g. 20GiB): an export whose estimated size is larger
+    /// is refused before it starts (docs/LIMITS.md).
+    #[arg(long, value_name = "SIZE", default_value = "2GiB", value_parser = byte_size)]
+    max_output: u64,
+}
+
+/// A rough size of one exported map: a `.bt` costs about half a byte per leaf (the
+/// file's cells are an upper bound on a map's leaves); an MCAP file adds the occupied
+/// voxels' two point clouds (about five times the map in the generated office).
+fn estimated_map_bytes(reader: &froctomap_file::FroctReader, format: &str) -> u64 {
+    let cells: u64 = reader.tiles().iter().map(|t| u64::from(t.cell_count)).sum();
+    let bt = cells / 2 + 64;
+    if format == "mcap" {
+        bt * 5
+    } else {
+        bt
+    }
+}
+
+/// Refuses what cannot be exported: ROS bags, and an export larger than `--max-output` or
+/// than the free space where it goes. Says how many maps and about how many bytes first.
+fn check_export(
+    ui: &Ui,
+    args: &ExportArgs,
+    reader: &froctomap_file::FroctReader,
+    options: &ExportOptions,
+) -> Result<()> {
+    let extension = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if matches!(extension.as_deref(), Some("bag" | "db3")) {
+        anyhow::bail!(
+            "{}: froctomap does not write ROS bags; export to a .mcap file (`ros2 bag play` \
+             reads it) or to a directory of maps",
+            escaped(args.output.display())
+        );
+    }
+    let span = options.to.secs_since(options.from).max(0.0);
+    let every = options.every_ns.max(1) as f64 / 1e9;
+    // Saturating: a span of centuries at 1 ns counts u64::MAX maps, and is refused.
+    let maps = (span / every).floor() as u64 + 1;
+    let bytes = maps.saturating_mul(estimated_map_bytes(reader, &options.format));
+    ui.note(&format!(
+        "exporting up to {} maps, about {}",
+        group_thousands(maps),
+        mib(bytes)
+    ));
+    if bytes > args.max_output {
+        anyhow::bail!(
+            "{}: the export would write about {} ({} maps), more than --max-output {}; \
+             pass a larger --max-output, or a shorter span or longer --every",
+            escaped(args.output.display()),
+            mib(bytes),
+            group_thousands(maps),
+            mib(args.max_output)
+        );
+    }
+    if !froctomap_core::is_stream_output(&args.output) {
+        let dir = match args.output.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent,
+            _ => std::path::Path::new("."),
+        };
+        if let Ok(stat) = rustix::fs::statvfs(dir) {
+            let free = stat.f_bavail.saturating_mul(stat.f_frsize);
+            if bytes > free {
+                anyhow::bail!(
+                    "{}: the export would write about {}, and {} holds {} free",
+                    escaped(args.output.display()),
+                    mib(bytes),
+                    escaped(dir.display()),
+                    mib(free)
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
@@ -683,6 +769,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         prefix: args.prefix.clone(),
         overwrite: args.overwrite,
     };
+    check_export(ui, args, &reader, &options)?;
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;
     drop(bars);

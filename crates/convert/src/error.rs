@@ -242,10 +242,22 @@ pub enum ConvertError {
         time: Timestamp,
     },
     /// An instant before the first snapshot, where nothing was observed.
-    #[error("{} is before the first snapshot; the file covers {} .. {}", iso8601(*time), iso8601(*start), iso8601(*end))]
+    #[error(
+        "{}: {} is before the first snapshot ({}); the time axis spans {} .. {}{}",
+        path.display(),
+        iso8601(*time),
+        first.map_or_else(|| "none".to_string(), iso8601),
+        iso8601(*start),
+        iso8601(*end),
+        if first.is_some_and(|f| f > *start) { ", the samples before the first snapshot are missing" } else { "" }
+    )]
     BeforeFirstSnapshot {
+        /// The file.
+        path: std::path::PathBuf,
         /// The instant asked for.
         time: Timestamp,
+        /// The time of the file's first snapshot (its first sample that is not missing).
+        first: Option<Timestamp>,
         /// First instant of the file.
         start: Timestamp,
         /// Last instant of the file.

@@ -158,8 +158,12 @@ pub fn resolve_observed_with(
             None => before,
         }),
     }
-    .ok_or(ConvertError::BeforeFirstSnapshot {
+    .ok_or_else(|| ConvertError::BeforeFirstSnapshot {
+        path: reader.path().to_path_buf(),
         time: t,
+        first: (0..axis.len())
+            .find(|&s| !axis.is_missing(s))
+            .and_then(|s| axis.time(s)),
         start: axis.start(),
         end: axis.end(),
     })?;

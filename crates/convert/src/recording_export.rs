@@ -64,7 +64,7 @@ pub(crate) fn export_recording(
     }
     writer.finish().map_err(|e| failed(None, e))?;
     temp.as_file().sync_all().map_err(io)?;
-    temp.persist(output).map_err(|e| io(e.error))?;
+    temp.persist(output).map_err(io)?;
     let bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
     let files = times
         .iter()

@@ -1,11 +1,104 @@
-//! Output files that appear whole or not at all.
+//! Outputs that appear whole or not at all, and never replace anything but a regular file.
 //!
-//! Every froctomap output is written to a temporary file in the destination directory and
-//! renamed over the destination only once complete, so an interrupted run never leaves a
-//! half-written map behind (rename within one directory is atomic on POSIX file systems).
+//! Every froctomap output goes through this module ([`write_atomically`], or
+//! [`temporary_beside`] and [`TemporaryFile::persist`] for outputs written in several
+//! steps):
+//!
+//! * a regular file (or a new one) is written to a temporary file in the destination
+//!   directory and renamed over the destination only once complete and synced, so an
+//!   interrupted run never leaves a half-written map behind (rename within one directory is
+//!   atomic on POSIX file systems);
+//! * a character device or a FIFO (`/dev/null`, a named pipe) is written into directly, as
+//!   `cp` does: it is never replaced;
+//! * [`STDOUT`] (`-`) is standard output;
+//! * anything else (a directory, a block device, a socket) is refused before anything is
+//!   written.
+//!
+//! A temporary file is held under an advisory lock (`flock`) while its writer lives, and
+//! the kernel drops the lock when the process ends, however it ends (`kill -9` too). Before
+//! making a temporary file, the next writer in the directory removes the temporary files of
+//! its kind that nobody locks: the leftovers of a killed writer, never a live writer's
+//! (recognised by its lock, never by a process id). A directory lock, shared by writers
+//! while they create and lock their file and taken exclusively by that removal, closes the
+//! window between a file's creation and its lock.
 
-use std::io::{self, BufWriter, Write};
+use std::io::{self, BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
+
+/// The output path that means standard output.
+pub const STDOUT: &str = "-";
+
+/// Where an output path leads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Destination {
+    /// A regular file or nothing yet: written beside and renamed over.
+    Regular,
+    /// A character device or a FIFO: written into.
+    Stream,
+    /// Standard output.
+    Stdout,
+}
+
+/// What `path` is, or an error for what an output must never be written to.
+fn destination(path: &Path) -> io::Result<Destination> {
+    if path.as_os_str() == STDOUT {
+        return Ok(Destination::Stdout);
+    }
+    // Following symbolic links: a link to /dev/null is written into, a link to a regular
+    // file is replaced as before.
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(Destination::Regular);
+    };
+    let kind = meta.file_type();
+    if kind.is_file() {
+        return Ok(Destination::Regular);
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_char_device() || kind.is_fifo() {
+            return Ok(Destination::Stream);
+        }
+        let what = if kind.is_dir() {
+            "a directory"
+        } else if kind.is_block_device() {
+            "a block device"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            "not a regular file"
+        };
+        Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "it is {what}: outputs are regular files (written beside and renamed), \
+                 character devices such as /dev/null, FIFOs, or `-` for standard output"
+            ),
+        ))
+    }
+    #[cfg(not(unix))]
+    Err(io::Error::new(
+        io::ErrorKind::InvalidInput,
+        "not a regular file",
+    ))
+}
+
+/// Whether `path` is standard output or a device or FIFO written into (not a file that
+/// appears atomically): for callers that print what they wrote.
+pub fn is_stream_output(path: &Path) -> bool {
+    matches!(
+        destination(path),
+        Ok(Destination::Stream | Destination::Stdout)
+    )
+}
+
+/// Opens a stream destination for writing (never creating or truncating anything).
+fn open_stream(path: &Path, destination: Destination) -> io::Result<Box<dyn Write>> {
+    Ok(match destination {
+        Destination::Stdout => Box::new(io::stdout().lock()),
+        _ => Box::new(std::fs::OpenOptions::new().write(true).open(path)?),
+    })
+}
 
 /// Writing `path` failed; nothing was left at `path` (a previous file there is untouched).
 #[derive(Debug, thiserror::Error)]
@@ -18,8 +111,10 @@ pub struct AtomicWriteError {
     pub source: io::Error,
 }
 
-/// Writes a file atomically: `fill` writes the content into a buffered temporary file next to
-/// `path`, which is flushed, synced and renamed over `path` only if `fill` succeeds.
+/// Writes an output atomically: `fill` writes the content into a buffered temporary file next
+/// to `path`, which is flushed, synced and renamed over `path` only if `fill` succeeds. A
+/// character device or FIFO at `path` is written into instead, `-` ([`STDOUT`]) is standard
+/// output, and anything else that is not a regular file is refused (module docs).
 ///
 /// ```
 /// let dir = tempfile::tempdir()?;
@@ -39,6 +134,12 @@ pub fn write_atomically(
         path: path.to_path_buf(),
         source,
     };
+    let destination = destination(path).map_err(fail)?;
+    if destination != Destination::Regular {
+        let mut out = BufWriter::new(open_stream(path, destination).map_err(fail)?);
+        fill(&mut out).map_err(fail)?;
+        return out.flush().map_err(fail);
+    }
     let file_name = path.file_name().ok_or_else(|| {
         fail(io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -53,7 +154,7 @@ pub fn write_atomically(
     fill(&mut writer).map_err(fail)?;
     let temp = writer.into_inner().map_err(|e| fail(e.into_error()))?;
     temp.as_file().sync_all().map_err(fail)?;
-    temp.persist(path).map_err(|e| fail(e.error))?;
+    temp.persist(path).map_err(fail)?;
     Ok(())
 }
 
@@ -64,6 +165,9 @@ pub struct TemporaryFile {
     file: tempfile::NamedTempFile,
     _registered: crate::cleanup::Registered,
 }
+
+/// The suffix of every temporary output.
+const TEMP_SUFFIX: &str = ".tmp";
 
 impl TemporaryFile {
     /// The open file.
@@ -76,9 +180,20 @@ impl TemporaryFile {
         self.file.path()
     }
 
-    /// Renames it over `path` (atomically on POSIX file systems within one directory).
-    pub fn persist(self, path: &Path) -> Result<std::fs::File, tempfile::PersistError> {
-        self.file.persist(path)
+    /// Makes it the output `path`: renames it over a regular file (atomically on POSIX file
+    /// systems within one directory), or copies it into a character device, a FIFO or
+    /// standard output and removes it; refuses anything else (module docs).
+    pub fn persist(self, path: &Path) -> io::Result<()> {
+        let destination = destination(path)?;
+        if destination == Destination::Regular {
+            self.file.persist(path).map_err(|e| e.error)?;
+            return Ok(());
+        }
+        let mut file = self.file.reopen()?;
+        file.rewind()?;
+        let mut out = open_stream(path, destination)?;
+        io::copy(&mut file, &mut out)?;
+        out.flush()
     }
 }
 
@@ -93,32 +208,93 @@ impl Write for TemporaryFile {
 }
 
 /// A temporary file in `path`'s directory (named `prefix…tmp`) for an output that will be
-/// renamed over `path`. Its permissions are those the output would get from a plain
-/// `File::create(path)`, as upstream OctoMap's tools give theirs: the mode of the file it
-/// replaces, else `0666` less the process's umask (a temporary file alone would be `0600`).
+/// renamed over `path` (in the system's temporary directory when `path` is standard output,
+/// a device or a FIFO, which are written into, never replaced). Its permissions are those
+/// the output would get from a plain `File::create(path)`, as upstream OctoMap's tools give
+/// theirs: the mode of the file it replaces, else `0666` less the process's umask (a
+/// temporary file alone would be `0600`). It is locked while it lives, and the unlocked
+/// temporary files `prefix…tmp` that killed writers left in the directory are removed
+/// first (module docs).
 pub fn temporary_beside(path: &Path, prefix: &std::ffi::OsStr) -> io::Result<TemporaryFile> {
-    let dir = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
+    let dir = match destination(path)? {
+        Destination::Regular => match path.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+        Destination::Stream | Destination::Stdout => std::env::temp_dir(),
     };
     let mut builder = tempfile::Builder::new();
-    builder.prefix(prefix).suffix(".tmp");
+    builder.prefix(prefix).suffix(TEMP_SUFFIX);
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
         // Created with 0666: open(2) applies the umask, as for any new file.
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
+    let directory_lock = std::fs::File::open(&dir).ok();
+    remove_stale(&dir, prefix, directory_lock.as_ref());
+    // Shared while creating and locking (released when `directory_lock` closes).
+    if let Some(directory) = &directory_lock {
+        let _ = lock(directory, rustix::fs::FlockOperation::LockShared);
+    }
     let (temp, registered) =
-        crate::cleanup::create_registered(|| builder.tempfile_in(dir), |temp| temp.path())?;
+        crate::cleanup::create_registered(|| builder.tempfile_in(&dir), |temp| temp.path())?;
+    // Held until the file is dropped or persisted, and by the kernel until the process ends.
+    lock(temp.as_file(), rustix::fs::FlockOperation::LockExclusive)?;
+    drop(directory_lock);
     if let Ok(replaced) = std::fs::metadata(path) {
-        // A replaced file keeps its mode (set without the umask, as truncating it would).
-        temp.as_file().set_permissions(replaced.permissions())?;
+        if replaced.is_file() {
+            // A replaced file keeps its mode (set without the umask, as truncating it would).
+            temp.as_file().set_permissions(replaced.permissions())?;
+        }
     }
     Ok(TemporaryFile {
         file: temp,
         _registered: registered,
     })
+}
+
+fn lock(file: &std::fs::File, operation: rustix::fs::FlockOperation) -> io::Result<()> {
+    rustix::fs::flock(file, operation).map_err(io::Error::from)
+}
+
+/// Removes the temporary files `prefix…tmp` in `dir` that no live writer locks (a killed
+/// writer's), under the directory's exclusive lock so that no writer is between creating
+/// its file and locking it. Best effort: what cannot be opened, locked or removed stays.
+fn remove_stale(dir: &Path, prefix: &std::ffi::OsStr, directory_lock: Option<&std::fs::File>) {
+    use rustix::fs::FlockOperation::{LockExclusive, NonBlockingLockExclusive};
+    let Some(directory_lock) = directory_lock else {
+        return;
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = prefix.as_encoded_bytes();
+    let stale: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .filter(|entry| {
+            let name = entry.file_name();
+            let name = name.as_encoded_bytes();
+            name.starts_with(prefix)
+                && name.ends_with(TEMP_SUFFIX.as_bytes())
+                && entry.file_type().is_ok_and(|t| t.is_file())
+        })
+        .map(|entry| entry.path())
+        .collect();
+    if stale.is_empty() || lock(directory_lock, LockExclusive).is_err() {
+        return;
+    }
+    for path in stale {
+        let Ok(file) = std::fs::File::open(&path) else {
+            continue;
+        };
+        // Locked: a live writer's. Unlocked: its writer is gone (a writer locks its file
+        // before releasing its shared hold on the directory).
+        if lock(&file, NonBlockingLockExclusive).is_ok() {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+    let _ = lock(directory_lock, rustix::fs::FlockOperation::Unlock);
 }
 
 #[cfg(all(test, unix))]
@@ -153,5 +329,96 @@ mod tests {
             assert_eq!(mode(&replaced), kept);
             assert_eq!(std::fs::read(&replaced).unwrap(), b"new");
         }
+    }
+}
+
+#[cfg(all(test, unix))]
+#[allow(clippy::unwrap_used)] // tests fail by panicking
+mod destination_tests {
+    use super::*;
+    use std::os::unix::fs::FileTypeExt;
+
+    fn mkfifo(path: &Path) {
+        let made = std::process::Command::new("mkfifo")
+            .arg(path)
+            .status()
+            .unwrap();
+        assert!(made.success());
+    }
+
+    #[test]
+    fn a_fifo_is_written_into_never_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        mkfifo(&fifo);
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        write_atomically(&fifo, |out| out.write_all(b"through the pipe")).unwrap();
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        // Written in several steps (a temporary file copied in at the end).
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        let mut temp = temporary_beside(&fifo, std::ffi::OsStr::new(".x-")).unwrap();
+        temp.write_all(b"copied").unwrap();
+        temp.persist(&fifo).unwrap();
+        assert_eq!(reader.join().unwrap(), b"copied");
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "no temporary file beside the FIFO");
+    }
+
+    #[test]
+    fn dev_null_stays_a_device_and_other_special_files_are_refused() {
+        let null = Path::new("/dev/null");
+        write_atomically(null, |out| out.write_all(b"gone")).unwrap();
+        let mut temp = temporary_beside(null, std::ffi::OsStr::new(".x-")).unwrap();
+        assert!(
+            !temp.path().starts_with("/dev"),
+            "{}",
+            temp.path().display()
+        );
+        temp.write_all(b"gone").unwrap();
+        temp.persist(null).unwrap();
+        assert!(std::fs::metadata(null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
+        let dir = tempfile::tempdir().unwrap();
+        let err = write_atomically(dir.path(), |out| out.write_all(b"x")).unwrap_err();
+        assert!(err.to_string().contains("a directory"), "{err}");
+        let socket = dir.path().join("socket");
+        let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+        let err = write_atomically(&socket, |out| out.write_all(b"x")).unwrap_err();
+        assert!(err.to_string().contains("a socket"), "{err}");
+        assert!(std::fs::metadata(&socket).unwrap().file_type().is_socket());
+        assert!(is_stream_output(null) && is_stream_output(Path::new(STDOUT)));
+        assert!(!is_stream_output(&dir.path().join("new.bt")));
+    }
+
+    #[test]
+    fn unlocked_leftovers_are_removed_and_a_live_writers_file_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("map.bt");
+        // What a killed writer left: unlocked.
+        let stale = dir.path().join(".map.bt.killed.tmp");
+        std::fs::write(&stale, b"half").unwrap();
+        // A live writer's file (this test holds its lock).
+        let live = temporary_beside(&out, std::ffi::OsStr::new(".map.bt.")).unwrap();
+        assert!(!stale.exists(), "removed by the next writer");
+        // Another writer's kind of temporary file is left alone.
+        let other = dir.path().join(".other.bt.killed.tmp");
+        std::fs::write(&other, b"half").unwrap();
+        write_atomically(&out, |o| o.write_all(b"map")).unwrap();
+        assert!(
+            live.path().exists(),
+            "a live writer's file is never removed"
+        );
+        assert!(other.exists());
+        assert_eq!(std::fs::read(&out).unwrap(), b"map");
     }
 }

@@ -25,7 +25,9 @@ mod leaf;
 mod snapshot;
 mod time;
 
-pub use atomic_file::{temporary_beside, write_atomically, AtomicWriteError, TemporaryFile};
+pub use atomic_file::{
+    is_stream_output, temporary_beside, write_atomically, AtomicWriteError, TemporaryFile, STDOUT,
+};
 pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;
 pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};

@@ -131,46 +131,6 @@ impl<'a> Cursor<'a> {
         self.read(varint::Reader::u64)
     }
 
-    /// Skips `count` varints without decoding them (each ends at a byte below 0x80),
-    /// counting ends eight bytes at a time.
-    pub(crate) fn skip_varints(&mut self, count: u64) -> Result<(), FormatViolation> {
-        const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
-        let mut left = count;
-        let rest = self.rest();
-        let mut used = 0usize;
-        if left > 0 {
-            let mut words = rest.chunks_exact(8);
-            for word in words.by_ref() {
-                let ends = u64::from(
-                    (!u64::from_le_bytes(word.try_into().unwrap_or([0x80; 8])) & HIGH_BITS)
-                        .count_ones(),
-                );
-                if ends >= left {
-                    break;
-                }
-                left -= ends;
-                used += 8;
-            }
-            for (i, &b) in rest[used..].iter().enumerate() {
-                if b < 0x80 {
-                    left -= 1;
-                    if left == 0 {
-                        used += i + 1;
-                        break;
-                    }
-                }
-            }
-        }
-        if left > 0 {
-            return Err(corrupt(
-                self.part,
-                format!("truncated: {left} varints missing at offset {}", self.pos),
-            ));
-        }
-        self.pos += used;
-        Ok(())
-    }
-
     /// A varint count of items that each take at least `min_item_bytes`, checked against
     /// `limit` and the bytes left (so no allocation can exceed the input).
     pub(crate) fn count(

@@ -15,6 +15,7 @@ use froctomap_temporal::{ModelRegistry, PreparedModel};
 use serde_json::{Map, Value};
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Buffers a thread reuses from tile to tile: stored bytes, decoded parts, a zstd context.
 #[derive(Default)]
@@ -53,6 +54,11 @@ pub struct FroctReader {
     summary: Map<String, Value>,
     model: Box<dyn PreparedModel>,
     limits: ReadLimits,
+    /// Per tile, whether the full walk accepted it: a query at one sample reads one toggle
+    /// block, which cannot tell on its own whether the cells' outlier flags match the lists
+    /// (a flag set on a cell without a list shifts every list after it), so each tile a
+    /// query reads is walked whole once per reader (docs/LIMITS.md).
+    validated: Box<[AtomicBool]>,
 }
 
 impl std::fmt::Debug for FroctReader {
@@ -204,6 +210,7 @@ impl FroctReader {
         let model = models
             .prepare_from_parameters(header.model_id, &header.axis, &header.model_parameters)
             .map_err(|e| invalid(FormatViolation::Model(e)))?;
+        let validated = (0..tiles.len()).map(|_| AtomicBool::new(false)).collect();
         Ok(Self {
             path,
             source,
@@ -213,6 +220,7 @@ impl FroctReader {
             summary,
             model,
             limits,
+            validated,
         })
     }
 
@@ -392,20 +400,50 @@ impl FroctReader {
     /// assert!(voxels > 0);
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
-    pub fn visit_cells(&self, tile: usize, visit: impl FnMut(Cell)) -> Result<(), FileError> {
+    pub fn visit_cells(&self, tile: usize, mut visit: impl FnMut(Cell)) -> Result<(), FileError> {
         let layout = self.header.tile_layout();
+        let axis_len = self.header.axis.len();
         let (entry, count) = self.with_tile(tile, WalkNeed::Everything, |entry, parts| {
+            // Queries at one sample skip the tiles whose index span leaves it out: a cell
+            // observed outside that span would read differently through them.
+            let mut outside_span = false;
             let count = visit_payload_cells(
                 parts,
                 entry.code,
                 &layout,
                 self.model.as_ref(),
                 &self.limits,
-                visit,
+                |cell| {
+                    if let Some((first, last)) = cell.observed_span(axis_len) {
+                        outside_span |= first < entry.first_sample || last > entry.last_sample;
+                    }
+                    visit(cell);
+                },
             )?;
+            if outside_span {
+                return Err(corrupt(
+                    "tile",
+                    "a cell is observed outside the samples the index gives the tile",
+                ));
+            }
             Ok((*entry, count))
         })?;
         self.check_count(&entry, count)
+    }
+
+    /// Walks a tile whole, as [`visit_cells`](Self::visit_cells) does, the first time a
+    /// query at one sample or a prediction asks for it (before the index's sample span of
+    /// the tile is trusted to skip it): every path then refuses what the full walk refuses.
+    fn validate_once(&self, tile: usize) -> Result<(), FileError> {
+        let Some(validated) = self.validated.get(tile) else {
+            return Ok(()); // walk_tile reports the missing tile
+        };
+        if validated.load(Ordering::Acquire) {
+            return Ok(());
+        }
+        self.visit_cells(tile, |_| {})?;
+        validated.store(true, Ordering::Release);
+        Ok(())
     }
 
     /// Walks one tile's cells without building them.
@@ -457,6 +495,8 @@ impl FroctReader {
         sample: u32,
         mut visit: impl FnMut(MortonCode, u8, Occupancy),
     ) -> Result<(), FileError> {
+        // Before the index's sample span is trusted to skip the tile.
+        self.validate_once(tile)?;
         if self.tiles.get(tile).is_some_and(|t| !t.may_observe(sample)) {
             return Ok(());
         }
@@ -476,6 +516,7 @@ impl FroctReader {
         seconds: f64,
         mut visit: impl FnMut(MortonCode, u8, Occupancy),
     ) -> Result<(), FileError> {
+        self.validate_once(tile)?;
         let model = self.model.as_ref();
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             let occupied = cell.probability(model, seconds) > 0.5;
@@ -492,6 +533,7 @@ impl FroctReader {
         log_odds: &dyn Fn(f64) -> f32,
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
+        self.validate_once(tile)?;
         let model = self.model.as_ref();
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             out.push(Leaf {

@@ -695,64 +695,63 @@ impl<'a> ToggleColumnReader<'a> {
         if count > left || count > u64::from(self.axis_len) {
             return Err(corrupt(self.part, format!("{count} toggles cannot fit")));
         }
-        if count == 0 && self.present.is_some() {
-            return Err(corrupt(self.part, "a listed list without toggles"));
+        if count == 0 {
+            // Whole lists are never empty (an empty mask or outlier list is stored by
+            // leaving the cell's flag clear), nor is a list the lists bitmap marks.
+            return Err(corrupt(
+                self.part,
+                if self.present.is_some() {
+                    "a listed list without toggles"
+                } else {
+                    "an empty list is stored by leaving the cell's flag clear"
+                },
+            ));
         }
         Ok(count)
     }
 
-    /// Skips the next list undecoded.
+    /// Passes over the next list, checking its positions as
+    /// [`next_list_into`](Self::next_list_into) does without keeping them.
     fn skip_list(&mut self) -> Result<(), FormatViolation> {
         let count = self.count()?;
-        let (even, odd) = (count.div_ceil(2), count / 2);
-        self.starts.skip_varints(even)?;
-        self.lengths.skip_varints(odd)
+        let mut next = 0u64;
+        for k in 0..count {
+            next = self.next_position(k, next)? + 1;
+        }
+        Ok(())
     }
 
-    /// Reads the next list only as far as needed to tell whether an odd number of its
-    /// positions are `≤ sample`, skipping the rest undecoded: the fast path of a query at
-    /// one sample. Validates less than [`next_list_into`](Self::next_list_into) (positions
-    /// after `sample` are not range-checked), which only affects what a damaged file reads
-    /// as, never memory safety.
+    /// Whether an odd number of the next list's positions are `≤ sample`: the fast path of
+    /// a query at one sample. Every position is decoded and checked as
+    /// [`next_list_into`](Self::next_list_into) checks it (a position past the span, or
+    /// one whose gap overflows, is an error), so that a damaged list never reads as a
+    /// different map than the full walk would accept; only the positions are not kept.
     #[inline]
     fn parity_at(&mut self, sample: u32) -> Result<bool, FormatViolation> {
         let count = self.count()?;
-        if count == 0 {
-            return Ok(false);
-        }
         let sample = u64::from(sample);
-        // Positions come in (start, length) pairs from the two columns.
+        let mut odd = false;
         let mut next = 0u64;
-        let mut k = 0u64;
-        let after = loop {
-            let position = next + self.starts.varint()?;
-            if position > sample {
-                break 0;
-            }
-            k += 1;
-            if k == count {
-                return Ok(true);
-            }
-            let end = position + 1 + self.lengths.varint()?;
-            if end > sample {
-                break 1;
-            }
-            k += 1;
-            if k == count {
-                return Ok(false);
-            }
-            next = end + 1;
-        };
-        // The position just read (index k) was after `sample`; skip the others.
-        let rest = count - k - 1;
-        let (even, odd) = if after == 0 {
-            (rest / 2, rest.div_ceil(2))
+        for k in 0..count {
+            let position = self.next_position(k, next)?;
+            odd ^= position <= sample;
+            next = position + 1;
+        }
+        Ok(odd)
+    }
+
+    /// The list's position `k` (from the starts column for even `k`, the lengths column
+    /// for odd), `next` being one past the position before it: checked against the span.
+    #[inline]
+    fn next_position(&mut self, k: u64, next: u64) -> Result<u64, FormatViolation> {
+        let column = if k % 2 == 0 {
+            &mut self.starts
         } else {
-            (rest.div_ceil(2), rest / 2)
+            &mut self.lengths
         };
-        self.starts.skip_varints(even)?;
-        self.lengths.skip_varints(odd)?;
-        Ok(k % 2 == 1)
+        next.checked_add(column.varint()?)
+            .filter(|&position| position < u64::from(self.axis_len))
+            .ok_or_else(|| corrupt(self.part, "toggle beyond the time axis"))
     }
 
     /// Reads the next list into `positions` (cleared first), reusing its allocation.
@@ -762,15 +761,8 @@ impl<'a> ToggleColumnReader<'a> {
         positions.reserve(count as usize);
         let mut next = 0u64;
         for k in 0..count {
-            let column = if k % 2 == 0 {
-                &mut self.starts
-            } else {
-                &mut self.lengths
-            };
-            let position = next + column.varint()?;
-            if position >= u64::from(self.axis_len) {
-                return Err(corrupt(self.part, "toggle beyond the time axis"));
-            }
+            // Below the span's length, a u32.
+            let position = self.next_position(k, next)?;
             positions.push(position as u32);
             next = position + 1;
         }

@@ -130,9 +130,9 @@ impl FroctWriter {
             path: self.path.clone(),
             source,
         })?;
-        temp.persist(&self.path).map_err(|e| FileError::Io {
+        temp.persist(&self.path).map_err(|source| FileError::Io {
             path: self.path.clone(),
-            source: e.error,
+            source,
         })?;
         Ok(result)
     }

@@ -67,6 +67,14 @@ impl<'a> Fields<'a> {
         self.get("op").and_then(|v| v.first().copied())
     }
 
+    /// The record's kind: every record header has one (a header of length 0 has none).
+    fn required_op(&self, file: &RecordingFile) -> Result<Option<u8>, RosError> {
+        match self.op() {
+            Some(op) => Ok(Some(op)),
+            None => Err(file.malformed("record header", "no `op` field")),
+        }
+    }
+
     fn u32(&self, file: &RecordingFile, name: &'static str) -> Result<u32, RosError> {
         self.get(name)
             .and_then(|v| v.try_into().ok())
@@ -235,7 +243,7 @@ impl Bag {
         while pos < self.file.size {
             let record = read_record(&self.file, pos, "index record")?;
             let fields = Fields::parse(&self.file, &record.header)?;
-            match fields.op() {
+            match fields.required_op(&self.file)? {
                 Some(OP_CONNECTION) => {
                     let data =
                         self.file
@@ -301,7 +309,7 @@ impl Bag {
                 Ok(fields) => fields,
                 Err(e) => break Some(format!("does not read ({e})")),
             };
-            match fields.op() {
+            match fields.required_op(&self.file)? {
                 Some(OP_CHUNK) => match self.scan_chunk(pos, limit) {
                     Ok((info, found, connections)) => {
                         for connection in connections {
@@ -378,7 +386,7 @@ impl Bag {
             let (header, data) = record_in(&chunk, offset)
                 .ok_or_else(|| self.file.malformed("chunk", "a record runs past its chunk"))?;
             let fields = Fields::parse(&self.file, header)?;
-            match fields.op() {
+            match fields.required_op(&self.file)? {
                 Some(OP_CONNECTION) => connections.push(self.connection(&fields, data)?),
                 Some(OP_MESSAGE) => {
                     let log_ns = fields

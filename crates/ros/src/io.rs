@@ -71,9 +71,4 @@ impl RecordingFile {
         }
         Ok(bytes)
     }
-
-    /// The file itself, for sequential readers that seek.
-    pub fn file(&self) -> &File {
-        &self.file
-    }
 }

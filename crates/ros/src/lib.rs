@@ -35,6 +35,7 @@ mod foxglove;
 mod io;
 mod mcap_export;
 mod mcap_file;
+mod mcap_lengths;
 mod message;
 mod source;
 

@@ -5,8 +5,7 @@
 use crate::error::RosError;
 use crate::io::RecordingFile;
 use mcap::records::Record;
-use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
-use std::io::{Read, Seek};
+use std::io::Read;
 use std::path::Path;
 
 /// The first bytes of an MCAP file.
@@ -108,6 +107,27 @@ impl Found {
             _ => {}
         }
     }
+
+    /// The channels found, by id, with their schemas' names.
+    fn channels(self) -> Vec<McapChannel> {
+        let mut channels: Vec<McapChannel> = self
+            .channels
+            .into_iter()
+            .map(|(id, topic, schema_id, encoding)| McapChannel {
+                id,
+                topic,
+                schema: self
+                    .schemas
+                    .iter()
+                    .find(|(s, _)| *s == schema_id)
+                    .map(|(_, name)| name.clone())
+                    .unwrap_or_default(),
+                encoding,
+            })
+            .collect();
+        channels.sort_by_key(|c| c.id);
+        channels
+    }
 }
 
 impl McapFile {
@@ -127,9 +147,9 @@ impl McapFile {
             damaged: Vec::new(),
             warnings: Vec::new(),
         };
-        let why = match read_summary(&mcap.file) {
+        let why = match read_summary(&mcap.file, limit) {
             Ok(Some(summary)) => {
-                mcap.read_summary_index(&summary)?;
+                mcap.read_summary_index(summary)?;
                 return Ok(mcap);
             }
             Ok(None) => "no summary (its writer did not finish it, or it is cut)".to_string(),
@@ -143,24 +163,10 @@ impl McapFile {
     }
 
     /// Channels and chunks from the summary.
-    fn read_summary_index(&mut self, summary: &mcap::Summary) -> Result<(), RosError> {
-        self.channels = summary
-            .channels
-            .values()
-            .map(|c| McapChannel {
-                id: c.id,
-                topic: c.topic.clone(),
-                schema: c
-                    .schema
-                    .as_ref()
-                    .map(|s| s.name.clone())
-                    .unwrap_or_default(),
-                encoding: c.message_encoding.clone(),
-            })
-            .collect();
-        self.channels.sort_by_key(|c| c.id);
+    fn read_summary_index(&mut self, summary: Summary) -> Result<(), RosError> {
+        self.channels = summary.found.channels();
         self.chunks = summary
-            .chunk_indexes
+            .chunks
             .iter()
             .map(|c| McapChunk {
                 start: c.chunk_start_offset,
@@ -173,7 +179,7 @@ impl McapFile {
             })
             .collect();
         self.chunks.sort_by_key(|c| c.start);
-        if self.chunks.is_empty() && summary.stats.as_ref().is_some_and(|s| s.message_count > 0) {
+        if self.chunks.is_empty() && summary.message_count.is_some_and(|n| n > 0) {
             return Err(self
                 .file
                 .malformed("MCAP file", "messages outside chunks are not indexed"));
@@ -186,7 +192,6 @@ impl McapFile {
     /// messages' times. Stops at the data end or footer, or at the first record the file
     /// cuts off (what follows is lost, and said so in a warning).
     fn scan(&mut self, limit: u64, skip_bad: bool, why: &str) -> Result<(), RosError> {
-        let to_error = mcap_error(&self.file.path);
         let mut found = Found::default();
         let mut pos = MAGIC.len() as u64;
         let mut unchunked = 0usize;
@@ -216,9 +221,7 @@ impl McapFile {
                         .bounded("schema or channel record", len, limit)
                         .and_then(|len| self.file.read_at(pos + 9, len, "record"))
                         .and_then(|body| {
-                            mcap::parse_record(opcode, &body)
-                                .map(|r| found.add(&r))
-                                .map_err(&to_error)
+                            parse_record(&self.file, opcode, &body).map(|r| found.add(&r))
                         });
                     if let Err(e) = record {
                         break Some(Some(format!("does not read ({e})")));
@@ -271,22 +274,7 @@ impl McapFile {
                 .file
                 .malformed("MCAP file", "messages outside chunks are not read"));
         }
-        self.channels = found
-            .channels
-            .into_iter()
-            .map(|(id, topic, schema_id, encoding)| McapChannel {
-                id,
-                topic,
-                schema: found
-                    .schemas
-                    .iter()
-                    .find(|(s, _)| *s == schema_id)
-                    .map(|(_, name)| name.clone())
-                    .unwrap_or_default(),
-                encoding,
-            })
-            .collect();
-        self.channels.sort_by_key(|c| c.id);
+        self.channels = found.channels();
         let read = format!(
             "{} chunk(s) with {messages} message(s) read in order",
             self.chunks.len()
@@ -397,9 +385,8 @@ impl McapFile {
                 self.file
                     .malformed("chunk index", "it does not point at a chunk")
             })?;
-        let to_error = mcap_error(&self.file.path);
         let Record::Chunk { header, data } =
-            mcap::parse_record(mcap::records::op::CHUNK, body).map_err(&to_error)?
+            parse_record(&self.file, mcap::records::op::CHUNK, body)?
         else {
             return Err(self.file.malformed("chunk", "not a chunk record"));
         };
@@ -421,7 +408,6 @@ impl McapFile {
         records: &[u8],
         on_record: &mut dyn FnMut(Record<'_>, usize) -> Result<bool, RosError>,
     ) -> Result<(), RosError> {
-        let to_error = mcap_error(&self.file.path);
         // The records, each length checked against the chunk before it is used.
         let mut pos = 0usize;
         let mut index = 0usize;
@@ -441,7 +427,7 @@ impl McapFile {
                 .ok()
                 .and_then(|len| records.get(pos + 9..)?.get(..len))
                 .ok_or_else(|| self.file.malformed("chunk", "a record runs past its chunk"))?;
-            let record = mcap::parse_record(opcode, body).map_err(&to_error)?;
+            let record = parse_record(&self.file, opcode, body)?;
             if !on_record(record, index)? {
                 break;
             }
@@ -492,30 +478,83 @@ impl McapFile {
     }
 }
 
-/// The summary section, found from the footer; `None` when the file has none.
-fn read_summary(file: &RecordingFile) -> Result<Option<mcap::Summary>, RosError> {
-    let to_error = mcap_error(&file.path);
-    let io = |source| RosError::Io {
-        path: file.path.clone(),
-        source,
+/// A record parsed by the `mcap` crate once every length it declares fits its bytes
+/// ([`crate::mcap_lengths`]): the crate reserves declared lengths before reading them.
+fn parse_record<'a>(
+    file: &RecordingFile,
+    opcode: u8,
+    body: &'a [u8],
+) -> Result<Record<'a>, RosError> {
+    crate::mcap_lengths::check(opcode, body).map_err(|problem| {
+        file.malformed("MCAP record", format!("record {opcode:#04x}: {problem}"))
+    })?;
+    mcap::parse_record(opcode, body).map_err(mcap_error(&file.path))
+}
+
+/// What the summary section says: channels (with their schema names), chunk indexes and
+/// the message count.
+#[derive(Default)]
+struct Summary {
+    found: Found,
+    chunks: Vec<mcap::records::ChunkIndex>,
+    message_count: Option<u64>,
+}
+
+/// The summary section, found from the footer (`None` when the file has none), its records
+/// read one at a time with every length checked before the `mcap` crate parses it (at most
+/// `limit` bytes in all).
+fn read_summary(file: &RecordingFile, limit: u64) -> Result<Option<Summary>, RosError> {
+    use mcap::records::op;
+    // The footer record (opcode, length 20, body) before the closing magic.
+    const FOOTER: u64 = 1 + 8 + 20;
+    let tail = FOOTER + MAGIC.len() as u64;
+    let footer_at = file
+        .size
+        .checked_sub(tail)
+        .filter(|&at| at >= MAGIC.len() as u64)
+        .ok_or_else(|| file.truncated("MCAP footer"))?;
+    let footer = file.read_at(footer_at, tail, "MCAP footer")?;
+    if footer[0] != op::FOOTER || footer[1..9] != 20u64.to_le_bytes() || footer[29..] != *MAGIC {
+        return Err(file.malformed("MCAP footer", "the file does not end with one"));
+    }
+    let Record::Footer(f) = parse_record(file, op::FOOTER, &footer[9..29])? else {
+        return Err(file.malformed("MCAP footer", "not a footer record"));
     };
-    let mut reader = SummaryReader::new_with_options(
-        SummaryReaderOptions::default()
-            .with_file_size(file.size)
-            .with_record_length_limit(usize::try_from(file.size).unwrap_or(usize::MAX)),
-    );
-    let mut handle = file.file();
-    while let Some(event) = reader.next_event() {
-        match event.map_err(&to_error)? {
-            SummaryReadEvent::ReadRequest(need) => {
-                let read = handle.read(reader.insert(need)).map_err(io)?;
-                reader.notify_read(read);
-            }
-            SummaryReadEvent::SeekRequest(to) => {
-                let pos = handle.seek(to).map_err(io)?;
-                reader.notify_seeked(pos);
-            }
+    if f.summary_start == 0 {
+        return Ok(None);
+    }
+    let len = footer_at
+        .checked_sub(f.summary_start)
+        .filter(|_| f.summary_start >= MAGIC.len() as u64)
+        .ok_or_else(|| file.malformed("MCAP footer", "the summary starts after it"))?;
+    let len = file.bounded("MCAP summary section", len, limit)?;
+    let section = file.read_at(f.summary_start, len, "MCAP summary section")?;
+    if f.summary_crc != 0 {
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&section);
+        crc.update(&footer[..9 + 16]);
+        if crc.finalize() != f.summary_crc {
+            return Err(file.malformed("MCAP summary", "it does not match its CRC"));
         }
     }
-    Ok(reader.finish())
+    let mut summary = Summary::default();
+    let mut rest = &section[..];
+    while !rest.is_empty() {
+        let (head, after) = rest
+            .split_first_chunk::<9>()
+            .ok_or_else(|| file.malformed("MCAP summary", "a record header is cut off"))?;
+        let body = usize::try_from(u64::from_le_bytes([
+            head[1], head[2], head[3], head[4], head[5], head[6], head[7], head[8],
+        ]))
+        .ok()
+        .and_then(|len| after.get(..len))
+        .ok_or_else(|| file.malformed("MCAP summary", "a record runs past the section"))?;
+        rest = &after[body.len()..];
+        match parse_record(file, head[0], body)? {
+            Record::ChunkIndex(index) => summary.chunks.push(index),
+            Record::Statistics(stats) => summary.message_count = Some(stats.message_count),
+            record => summary.found.add(&record),
+        }
+    }
+    Ok(Some(summary))
 }

@@ -12,6 +12,7 @@ use froctomap_temporal::{
 use std::path::Path;
 
 pub mod living;
+pub mod resealed;
 
 /// A cell and what was observed of it.
 pub struct SeriesCell {

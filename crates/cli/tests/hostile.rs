@@ -1,0 +1,192 @@
+//! Hostile inputs and outputs end to end (issue 29): resealed lengths in recordings end in
+//! a typed error naming the file within a bounded address space, never an abort.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+fn fixture(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(name)
+}
+
+/// Runs the command line in an address space of 4 GB (`ulimit -v`), as the attack did.
+fn froctomap_bounded(args: &[&Path]) -> Output {
+    let mut command = Command::new("sh");
+    command
+        .arg("-c")
+        .arg("ulimit -v 4000000 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_froctomap"));
+    command.args(args).output().expect("run froctomap")
+}
+
+/// The MCAP fixture with the first chunk's compression name declaring 0xFFFFFFFF bytes.
+fn hostile_mcap() -> Vec<u8> {
+    let mut bytes = std::fs::read(fixture("ros/two_maps_zstd.mcap")).unwrap();
+    let mut pos = MCAP_MAGIC.len();
+    loop {
+        let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        if bytes[pos] == 0x06 {
+            let at = pos + 9 + 28;
+            bytes[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+            return bytes;
+        }
+        pos += 9 + len;
+    }
+}
+
+#[test]
+fn build_of_an_mcap_with_a_hostile_length_is_a_typed_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("hostile.mcap");
+    std::fs::write(&input, hostile_mcap()).unwrap();
+    let output = dir.path().join("out.froct");
+    let run = froctomap_bounded(&[Path::new("build"), &input, Path::new("-o"), &output]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("hostile.mcap") && stderr.contains("a string runs past its record"),
+        "{stderr}"
+    );
+    assert!(!output.exists());
+}
+
+/// A ROS 1 bag whose record `index` has a header length of 0 (no fields, no `op`).
+fn bag_with_empty_header(index: usize) -> Vec<u8> {
+    let mut bytes = std::fs::read(fixture("ros/one_map.bag")).unwrap();
+    let le32 = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap()) as usize;
+    let mut pos = b"#ROSBAG V2.0\n".len();
+    for _ in 0..index {
+        let header = le32(&bytes, pos);
+        pos += 8 + header + le32(&bytes, pos + 4 + header);
+    }
+    bytes[pos..pos + 4].fill(0);
+    bytes
+}
+
+#[test]
+fn a_bag_record_without_header_fields_is_named_as_such() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("empty-header.bag");
+    std::fs::write(&input, bag_with_empty_header(4)).unwrap();
+    let output = dir.path().join("out.froct");
+    let run = froctomap_bounded(&[Path::new("build"), &input, Path::new("-o"), &output]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("empty-header.bag") && stderr.contains("no `op` field"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn export_refuses_bags_and_sizes_beyond_max_output_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
+    for name in ["x.bag", "x.db3"] {
+        let output = dir.path().join(name);
+        let run = froctomap_bounded(&[
+            Path::new("export"),
+            &file,
+            Path::new("--from"),
+            Path::new("1700000000"),
+            Path::new("--to"),
+            Path::new("1700003600"),
+            Path::new("--every"),
+            Path::new("10min"),
+            Path::new("-o"),
+            &output,
+        ]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("does not write ROS bags"), "{stderr}");
+        assert!(!output.exists(), "{name}");
+    }
+    // A year every minute: refused with the count and the size, nothing written.
+    let output = dir.path().join("year.mcap");
+    let run = froctomap_bounded(&[
+        Path::new("export"),
+        &file,
+        Path::new("--from"),
+        Path::new("1700000000"),
+        Path::new("--to"),
+        Path::new("1731536000"),
+        Path::new("--every"),
+        Path::new("1min"),
+        Path::new("--max-output"),
+        Path::new("1MiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("525,601 maps") && stderr.contains("--max-output"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+/// Issue 29, item 3: a map whose build needs more memory than allowed ends in an error
+/// naming --max-memory (here a map of 2^15 leaves at --tile-depth 1 under a bound below what
+/// the command needs just to start), never an allocation failure; nothing is written.
+#[test]
+fn a_build_past_max_memory_is_an_error_naming_the_limit() {
+    use froctomap_core::{Leaf, Snapshot, VoxelKey};
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    std::fs::create_dir(&maps).unwrap();
+    let registry = froctomap_formats::FormatRegistry::with_default_formats();
+    for (i, time) in [1_451_865_600u32, 1_451_866_200].into_iter().enumerate() {
+        let leaves = (0..1u16 << 15)
+            .map(|k| {
+                let (x, y, z) = (k & 31, (k >> 5) & 31, k >> 10);
+                let occupied = (k as usize + i) % 3 == 0;
+                Leaf::voxel(
+                    VoxelKey::new(32768 + 2 * x, 32768 + 2 * y, 32768 + 2 * z),
+                    if occupied { 3.5 } else { -2.0 },
+                )
+            })
+            .collect();
+        let map = Snapshot::from_leaves(0.1, leaves).unwrap();
+        registry
+            .write_file(&map, &maps.join(format!("m_{time}.bt")), Default::default())
+            .unwrap();
+    }
+    let output = dir.path().join("out.froct");
+    let run = froctomap_bounded(&[
+        Path::new("build"),
+        &maps,
+        Path::new("--tile-depth"),
+        Path::new("1"),
+        Path::new("--max-memory"),
+        Path::new("1MiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--max-memory 1 MiB"), "{stderr}");
+    assert!(!output.exists());
+    // Within a sufficient bound the same build succeeds.
+    let run = froctomap_bounded(&[
+        Path::new("-q"),
+        Path::new("build"),
+        &maps,
+        Path::new("--tile-depth"),
+        Path::new("1"),
+        Path::new("--max-memory"),
+        Path::new("3GiB"),
+        Path::new("-o"),
+        &output,
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(output.exists());
+}
