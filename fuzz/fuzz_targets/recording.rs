@@ -1,7 +1,7 @@
 //! Shared by the recording targets: the input written to a temporary file (the readers take
 //! paths), opened as a recording, and every map it lists fetched, under small limits.
 
-use froctomap_convert::{RecordedTime, RecordingFormat, RecordingOptions};
+use froctomap_formats::{RecordedTime, RecordingFormat, RecordingOptions};
 use std::io::Write;
 
 /// Small enough that no input can make one run slow or large.

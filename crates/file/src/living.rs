@@ -876,10 +876,7 @@ impl LivingWriter {
                 .map_err(io(output))?;
         }
         temp.as_file().sync_all().map_err(io(output))?;
-        temp.persist(output).map_err(|e| FileError::Io {
-            path: output.to_path_buf(),
-            source: e.error,
-        })?;
+        temp.persist(output).map_err(io(output))?;
         Ok(root)
     }
 

@@ -232,6 +232,7 @@ impl FroctReader {
         model: Box<dyn PreparedModel>,
         limits: ReadLimits,
     ) -> Self {
+        let validated = (0..tiles.len()).map(|_| AtomicBool::new(false)).collect();
         Self {
             path: source.name().to_path_buf(),
             file_len: source.size(),
@@ -241,6 +242,7 @@ impl FroctReader {
             summary: Map::new(),
             model,
             limits,
+            validated,
         }
     }
 

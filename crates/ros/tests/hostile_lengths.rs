@@ -4,7 +4,7 @@
 //! abort on a 4 GiB allocation inside the `mcap` crate.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use froctomap_convert::{RecordedTime, RecordingOptions};
+use froctomap_formats::{RecordedTime, RecordingOptions};
 use froctomap_ros::MCAP;
 use std::path::Path;
 
