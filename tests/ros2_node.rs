@@ -4,6 +4,8 @@
 //! multicast and with the peer 127.0.0.1, the node with [`Network::Loopback`], a domain id of
 //! its own per run.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
 use froctomap_ros2_node::{MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap};
 use froctomap_test_support::{
     octomap_fixture, octomap_python, python_leaves, scratch, workspace_root,
