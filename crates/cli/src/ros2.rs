@@ -78,7 +78,18 @@ fn network(text: &str) -> anyhow::Result<Network> {
 pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     let every = parse_duration(&args.publish_every).context("--publish-every")?;
     anyhow::ensure!(every > 0, "--publish-every must be positive");
-    let horizon = parse_duration(&args.horizon).context("--horizon")?;
+    // parse_duration takes positive spans only; 0 (in any unit) is "now".
+    let zero = args
+        .horizon
+        .trim()
+        .trim_end_matches(|c: char| c.is_ascii_alphabetic())
+        .parse::<f64>()
+        == Ok(0.0);
+    let horizon = if zero {
+        0
+    } else {
+        parse_duration(&args.horizon).context("--horizon")?
+    };
     let mut options = NodeOptions::new(domain_id_from_env()?);
     options.topic = args.topic.clone();
     options.network = network(&args.network)?;
