@@ -114,8 +114,9 @@ pub fn domain_id_from_env() -> Result<u16, NodeError> {
 
 /// The DDS topic name of a ROS topic (`/a/b` → `rt/a/b`), as every ROS 2 RMW maps it.
 pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
-    let name = ros_topic.trim_start_matches('/');
+    let name = ros_topic.strip_prefix('/').unwrap_or(ros_topic);
     let valid = !name.is_empty()
+        && !name.starts_with('/')
         && !name.contains("//")
         && !name.ends_with('/')
         && name
