@@ -177,8 +177,12 @@ pub fn octomap_python() -> PathBuf {
 
 fn python_has_octomap(python: &Path) -> bool {
     Command::new(python)
-        // The recording tests' writers too (scripts/python-client.sh installs them all).
-        .args(["-c", "import octomap, rosbags, mcap, mcap_ros2"])
+        // The recording tests' writers and the ROS 2 peer's DDS too (scripts/python-client.sh
+        // installs them all).
+        .args([
+            "-c",
+            "import octomap, rosbags, mcap, mcap_ros2, cyclonedds.domain",
+        ])
         .output()
         .is_ok_and(|o| o.status.success())
 }

@@ -38,6 +38,8 @@ mod memory_guard;
 mod plugins;
 mod progress;
 mod render;
+#[cfg(feature = "ros2")]
+mod ros2;
 mod series;
 mod signals;
 mod ui;
@@ -209,6 +211,14 @@ enum Command {
     ///
     /// Example: froctomap generate --days 3 --step 30min -o series/
     Generate(generate::GenerateArgs),
+    /// Run the ROS 2 node (in progress): publish the map FILE predicts on
+    /// /froctomap/predicted (latched) and receive octomap_msgs/msg/Octomap maps on --topic
+    /// (recording them comes with `record`). Domain from ROS_DOMAIN_ID; loopback only unless
+    /// --network says otherwise.
+    ///
+    /// Example: ROS_DOMAIN_ID=7 froctomap ros2 office.froct --network all --horizon 1h
+    #[cfg(feature = "ros2")]
+    Ros2(ros2::Ros2Args),
     /// Print the completion script of a shell.
     ///
     /// Example: froctomap completions bash > ~/.local/share/bash-completion/completions/froctomap
@@ -264,6 +274,8 @@ fn main() -> ExitCode {
         Command::Eval(args) => series::eval_command(&ui, &args),
         Command::Anomalies(args) => anomalies::anomalies_command(&ui, &args),
         Command::Generate(args) => generate::generate_command(&ui, &args),
+        #[cfg(feature = "ros2")]
+        Command::Ros2(args) => ros2::ros2_command(&ui, &args),
         Command::Completions { shell } => manual::completions(Cli::command(), shell),
         Command::Man => manual::man(Cli::command()),
     };

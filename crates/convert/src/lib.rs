@@ -81,6 +81,7 @@ pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
     SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
 };
+pub use maps::predicted_bt;
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed,
     resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,

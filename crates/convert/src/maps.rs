@@ -443,8 +443,8 @@ pub(crate) fn observed_bt(reader: &FroctReader, sample: u32) -> Result<Vec<u8>, 
 }
 
 /// The canonical `.bt` file of the map predicted for `t` (the bytes
-/// [`write_predicted_map`] writes to a `.bt`).
-pub(crate) fn predicted_bt(reader: &FroctReader, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
+/// [`write_predicted_map`] writes to a `.bt`), in memory: what the ROS 2 node publishes.
+pub fn predicted_bt(reader: &FroctReader, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
     states_bt(reader, StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
 }

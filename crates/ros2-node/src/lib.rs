@@ -1,0 +1,524 @@
+//! The froctomap ROS 2 node: receives `octomap_msgs/msg/Octomap` maps over DDS and publishes
+//! the map a `.froct` file predicts, in pure Rust (RustDDS), without a ROS installation.
+//!
+//! The node speaks plain DDS the way every ROS 2 RMW maps topics: the ROS topic
+//! `/octomap_binary` is the DDS topic `rt/octomap_binary` of type
+//! `octomap_msgs::msg::dds_::Octomap_`, CDR encoded. Received messages are decoded by
+//! [`froctomap_ros::decode_message`] (the decoder the bag and MCAP readers use) and handed,
+//! as map files with their stamps, to a [`MapSink`]: the recording path (`record`) plugs in
+//! there. Messages that are not maps are logged with the reason and skipped; the node keeps
+//! running.
+//!
+//! Networking is confined by [`Network`]: [`Network::Loopback`] announces and sends on
+//! 127.0.0.1 only (multicast only on `lo`, SPDP to the localhost peers), which is what the
+//! tests use. RustDDS binds its sockets to the wildcard address even then (see
+//! docs/ROS.md, "Live: the ROS 2 node"), so it receives what reaches the host on its
+//! ports; run the node in a network namespace to forbid that too.
+//!
+//! ```no_run
+//! use froctomap_ros2_node::{MapSink, Network, Node, NodeOptions, ReceivedMap};
+//! struct Print;
+//! impl MapSink for Print {
+//!     fn receive(&mut self, map: ReceivedMap) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+//!         println!("{} bytes at {}", map.file.len(), map.stamp.0);
+//!         Ok(())
+//!     }
+//! }
+//! let mut options = NodeOptions::new(0);
+//! options.network = Network::Loopback;
+//! let node = Node::new(&options)?;
+//! let mut sink = Print;
+//! loop {
+//!     node.receive_into(&mut sink, std::time::Duration::from_millis(100))?;
+//! }
+//! # Ok::<(), froctomap_ros2_node::NodeError>(())
+//! ```
+
+use froctomap_core::Timestamp;
+use froctomap_file::FroctReader;
+use froctomap_octomap_codec::{parse_header, FileKind};
+use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageError, MessageType};
+use rustdds::no_key::{
+    DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter, SimpleDataReader,
+};
+use rustdds::policy::{Durability, History, Reliability};
+use rustdds::{
+    DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
+    RepresentationIdentifier, TopicKind,
+};
+use std::convert::Infallible;
+use std::net::{IpAddr, Ipv4Addr};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// The node's default name.
+pub const NODE_NAME: &str = "froctomap";
+/// The topic subscribed by default (octomap_server's binary map).
+pub const DEFAULT_TOPIC: &str = "/octomap_binary";
+/// The topic the predicted map is published on (latched).
+pub const PREDICTED_TOPIC: &str = "/froctomap/predicted";
+/// The DDS type name every ROS 2 RMW gives `octomap_msgs/msg/Octomap`.
+pub const OCTOMAP_DDS_TYPE: &str = "octomap_msgs::msg::dds_::Octomap_";
+/// Received messages larger than this are refused by default (far below the file limits).
+pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 256 << 20;
+
+/// Which network interfaces the node uses.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Network {
+    /// 127.0.0.1 only: the node announces loopback locators only, sends multicast only on
+    /// `lo` and finds peers on the same host through the localhost SPDP ports.
+    Loopback,
+    /// These interface addresses only (announced locators and multicast).
+    Only(Vec<IpAddr>),
+    /// Every interface (RustDDS's default).
+    All,
+}
+
+/// How the node is set up.
+#[derive(Clone, Debug)]
+pub struct NodeOptions {
+    /// The ROS domain (`ROS_DOMAIN_ID`).
+    pub domain_id: u16,
+    /// The ROS topic of the maps received.
+    pub topic: String,
+    /// The interfaces used.
+    pub network: Network,
+    /// Larger messages are refused (logged and skipped).
+    pub max_message_bytes: usize,
+}
+
+impl NodeOptions {
+    /// The defaults in `domain_id`: [`DEFAULT_TOPIC`], loopback only, 256 MiB messages.
+    pub fn new(domain_id: u16) -> Self {
+        Self {
+            domain_id,
+            topic: DEFAULT_TOPIC.to_string(),
+            network: Network::Loopback,
+            max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
+        }
+    }
+}
+
+/// The ROS domain named by `ROS_DOMAIN_ID` (0 when unset or empty, as in ROS 2).
+pub fn domain_id_from_env() -> Result<u16, NodeError> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Err(_) => Ok(0),
+        Ok(text) if text.trim().is_empty() => Ok(0),
+        // RTPS ports overflow u16 past domain 232 (7400 + 250 * domain).
+        Ok(text) => match text.trim().parse::<u16>() {
+            Ok(domain) if domain <= 232 => Ok(domain),
+            _ => Err(NodeError::DomainId(text)),
+        },
+    }
+}
+
+/// The DDS topic name of a ROS topic (`/a/b` → `rt/a/b`), as every ROS 2 RMW maps it.
+pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
+    let name = ros_topic.strip_prefix('/').unwrap_or(ros_topic);
+    let valid = !name.is_empty()
+        && !name.starts_with('/')
+        && !name.contains("//")
+        && !name.ends_with('/')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/')
+        && !name.starts_with(|c: char| c.is_ascii_digit());
+    if valid {
+        Ok(format!("rt/{name}"))
+    } else {
+        Err(NodeError::TopicName(ros_topic.to_string()))
+    }
+}
+
+/// A map received over the wire, as a map file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReceivedMap {
+    /// The message's `header.stamp` (0: the publisher left it unset).
+    pub stamp: Timestamp,
+    /// `true`: a `.bt` file (`binary` messages); `false`: an `.ot` file.
+    pub binary: bool,
+    /// The map file: the message's data behind the header OctoMap writes for it
+    /// ([`froctomap_ros::OctomapMessage::map_file`]).
+    pub file: Vec<u8>,
+}
+
+/// Where received maps go: the recording path implements it (`record`'s commit), tests
+/// write files.
+pub trait MapSink {
+    /// Takes one map. An error is logged with the map's stamp; the node keeps running.
+    fn receive(&mut self, map: ReceivedMap)
+        -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+
+    /// A message was skipped, for `reason` (a refused message, or `receive`'s error). The
+    /// default logs it as a warning (`log`).
+    fn skipped(&mut self, reason: String) {
+        log::warn!("{reason}");
+    }
+}
+
+/// Why the node cannot start or go on.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// `ROS_DOMAIN_ID` is not a domain.
+    #[error("ROS_DOMAIN_ID `{0}` is not a domain id (0..=232)")]
+    DomainId(String),
+    /// A topic name ROS would refuse.
+    #[error("`{0}` is not a valid ROS topic name")]
+    TopicName(String),
+    /// The DDS participant, topic, reader or writer could not be created.
+    #[error("DDS setup failed: {0}")]
+    Dds(String),
+    /// A map could not be published.
+    #[error("publishing on {topic} failed: {reason}")]
+    Publish {
+        /// The ROS topic.
+        topic: String,
+        /// What DDS said.
+        reason: String,
+    },
+    /// The `.froct` file could not be read or its map predicted.
+    #[error("{}: {source}", path.display())]
+    Froct {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// A map could not be put in a message (a field longer than CDR can say).
+    #[error("the map of {bytes} bytes does not fit an octomap_msgs/Octomap message")]
+    MessageTooLong {
+        /// The data length.
+        bytes: usize,
+    },
+}
+
+/// Why one received message was refused (logged; the node goes on).
+#[derive(Debug, thiserror::Error)]
+pub enum Refused {
+    /// Over [`NodeOptions::max_message_bytes`].
+    #[error("message of {bytes} bytes is over the limit of {limit} bytes")]
+    TooLarge {
+        /// Its size.
+        bytes: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// Not an `octomap_msgs/Octomap` holding a map.
+    #[error(transparent)]
+    Message(#[from] MessageError),
+}
+
+/// The node: a DDS participant with the map subscription and the predicted-map publisher.
+pub struct Node {
+    participant: DomainParticipant,
+    reader: SimpleDataReader<Vec<u8>, RawCdr>,
+    predicted: DataWriter<Vec<u8>, RawCdr>,
+    topic: String,
+    max_message_bytes: usize,
+}
+
+impl Node {
+    /// Joins the domain, subscribes the map topic (reliable, transient-local: latched maps
+    /// are received too) and offers [`PREDICTED_TOPIC`] (reliable, transient-local).
+    pub fn new(options: &NodeOptions) -> Result<Self, NodeError> {
+        let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
+        let topic_name = dds_topic_name(&options.topic)?;
+        let mut builder = DomainParticipantBuilder::new(options.domain_id);
+        match &options.network {
+            Network::Loopback => {
+                builder = builder
+                    .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+                    .same_host_loopback(true);
+            }
+            Network::Only(addresses) => builder = builder.with_only_networks(addresses.clone()),
+            Network::All => {}
+        }
+        let participant = builder.build().map_err(dds)?;
+        let qos = latched_qos();
+        let topic = participant
+            .create_topic(
+                topic_name,
+                OCTOMAP_DDS_TYPE.to_string(),
+                &qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let reader = participant
+            .create_subscriber(&qos)
+            .map_err(dds)?
+            .create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
+            .map_err(dds)?;
+        let predicted_topic = participant
+            .create_topic(
+                dds_topic_name(PREDICTED_TOPIC)?,
+                OCTOMAP_DDS_TYPE.to_string(),
+                &qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let predicted = participant
+            .create_publisher(&qos)
+            .map_err(dds)?
+            .create_datawriter_no_key::<Vec<u8>, RawCdr>(&predicted_topic, Some(qos.clone()))
+            .map_err(dds)?;
+        Ok(Self {
+            participant,
+            reader,
+            predicted,
+            topic: options.topic.clone(),
+            max_message_bytes: options.max_message_bytes,
+        })
+    }
+
+    /// The DDS domain joined.
+    pub fn domain_id(&self) -> u16 {
+        self.participant.domain_id()
+    }
+
+    /// Hands every map received within `wait` (at least one poll) to `sink` and returns
+    /// how many were accepted. Refused messages and sink errors are logged and skipped.
+    pub fn receive_into(&self, sink: &mut dyn MapSink, wait: Duration) -> Result<usize, NodeError> {
+        let deadline = Instant::now() + wait;
+        let mut accepted = 0;
+        loop {
+            match self.reader.try_take_one() {
+                Ok(Some(change)) => {
+                    match self.to_map(&change.into_value()) {
+                        Ok(map) => {
+                            let stamp = map.stamp;
+                            match sink.receive(map) {
+                                Ok(()) => accepted += 1,
+                                Err(e) => sink.skipped(format!(
+                                    "{}: the map stamped {} ns was not recorded: {e}",
+                                    self.topic, stamp.0
+                                )),
+                            }
+                        }
+                        Err(reason) => {
+                            sink.skipped(format!("{}: message skipped: {reason}", self.topic))
+                        }
+                    }
+                    continue;
+                }
+                Ok(None) => {}
+                Err(e) => sink.skipped(format!("{}: message skipped: {e}", self.topic)),
+            }
+            if Instant::now() >= deadline {
+                return Ok(accepted);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    fn to_map(&self, message: &[u8]) -> Result<ReceivedMap, Refused> {
+        if message.len() > self.max_message_bytes {
+            return Err(Refused::TooLarge {
+                bytes: message.len(),
+                limit: self.max_message_bytes,
+            });
+        }
+        let decoded = decode_message(message, Encoding::Cdr, MessageType::Octomap)?;
+        Ok(ReceivedMap {
+            stamp: Timestamp(decoded.stamp_ns),
+            binary: decoded.binary,
+            file: decoded.map_file()?,
+        })
+    }
+
+    /// Publishes a `.bt` file on [`PREDICTED_TOPIC`] stamped `stamp` in `frame_id` (latched:
+    /// subscribers joining later get the last one).
+    pub fn publish_predicted(
+        &self,
+        bt: &[u8],
+        stamp: Timestamp,
+        frame_id: &str,
+    ) -> Result<(), NodeError> {
+        let message = octomap_message_of_bt(bt, stamp, frame_id)?;
+        self.predicted
+            .write(message, None)
+            .map_err(|e| NodeError::Publish {
+                topic: PREDICTED_TOPIC.to_string(),
+                reason: e.to_string(),
+            })
+    }
+}
+
+/// Publishes the map a `.froct` file predicts on [`PREDICTED_TOPIC`], only when it changed.
+pub struct PredictedPublisher {
+    froct: PathBuf,
+    frame_id: String,
+    last: Option<Vec<u8>>,
+}
+
+impl PredictedPublisher {
+    /// The predicted maps of `froct`, in `frame_id`.
+    pub fn new(froct: &Path, frame_id: &str) -> Self {
+        Self {
+            froct: froct.to_path_buf(),
+            frame_id: frame_id.to_string(),
+            last: None,
+        }
+    }
+
+    /// The canonical `.bt` of the map predicted for `t` (the file is opened anew, so maps
+    /// appended since the last call count).
+    pub fn predicted_bt(&self, t: Timestamp) -> Result<Vec<u8>, NodeError> {
+        let reader = FroctReader::open(&self.froct).map_err(|source| NodeError::Froct {
+            path: self.froct.clone(),
+            source: Box::new(source),
+        })?;
+        froctomap_convert::predicted_bt(&reader, t).map_err(|source| NodeError::Froct {
+            path: self.froct.clone(),
+            source: Box::new(source),
+        })
+    }
+
+    /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
+    /// published; says whether it did.
+    pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
+        let bt = self.predicted_bt(t)?;
+        if self.last.as_ref() == Some(&bt) {
+            return Ok(false);
+        }
+        node.publish_predicted(&bt, t, &self.frame_id)?;
+        self.last = Some(bt);
+        Ok(true)
+    }
+}
+
+/// The last instant of a `.froct` file's time axis.
+pub fn last_instant(froct: &Path) -> Result<Timestamp, NodeError> {
+    let reader = FroctReader::open(froct).map_err(|source| NodeError::Froct {
+        path: froct.to_path_buf(),
+        source: Box::new(source),
+    })?;
+    Ok(reader.header().axis.end())
+}
+
+/// The CDR `octomap_msgs/Octomap` message of a `.bt` file (`binary` true, the body behind
+/// the file's header, as octomap_msgs' `binaryMapToMsg` fills it).
+pub fn octomap_message_of_bt(
+    bt: &[u8],
+    stamp: Timestamp,
+    frame_id: &str,
+) -> Result<Vec<u8>, NodeError> {
+    let header = parse_header(bt, FileKind::Binary).map_err(|e| NodeError::Publish {
+        topic: PREDICTED_TOPIC.to_string(),
+        reason: format!("the predicted map is not a .bt file: {e}"),
+    })?;
+    let body = bt.get(header.body_offset..).unwrap_or_default();
+    let seconds =
+        i32::try_from(stamp.0.div_euclid(1_000_000_000)).map_err(|_| NodeError::Publish {
+            topic: PREDICTED_TOPIC.to_string(),
+            reason: format!("stamp {} ns is outside builtin_interfaces/Time", stamp.0),
+        })?;
+    let nanos = stamp.0.rem_euclid(1_000_000_000) as u32; // < 1e9.
+    encode_octomap_cdr(
+        (seconds, nanos),
+        frame_id,
+        true,
+        &header.tree_id,
+        header.resolution,
+        body,
+    )
+    .ok_or(NodeError::MessageTooLong { bytes: body.len() })
+}
+
+/// Reliable, transient-local, the last 16 samples: what `octomap_server` offers for its
+/// latched maps, and deep enough that a burst of maps is not thinned before it is taken.
+fn latched_qos() -> QosPolicies {
+    QosPolicyBuilder::new()
+        .reliability(Reliability::Reliable {
+            max_blocking_time: rustdds::Duration::from_millis(100),
+        })
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 16 })
+        .build()
+}
+
+/// Serialized messages as they are: the node decodes and encodes CDR itself
+/// (`froctomap_ros`), so the DDS layer moves bytes, with their encapsulation header.
+struct RawCdr;
+
+#[derive(Clone)]
+struct RawCdrDecoder;
+
+const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+const CDR_BE_HEADER: [u8; 4] = [0x00, 0x00, 0x00, 0x00];
+
+impl DeserializerAdapter<Vec<u8>> for RawCdr {
+    type Error = Infallible;
+    type Decoded = Vec<u8>;
+
+    fn supported_encodings() -> &'static [RepresentationIdentifier] {
+        &[
+            RepresentationIdentifier::CDR_LE,
+            RepresentationIdentifier::CDR_BE,
+        ]
+    }
+
+    fn transform_decoded(decoded: Self::Decoded) -> Vec<u8> {
+        decoded
+    }
+}
+
+impl DefaultDecoder<Vec<u8>> for RawCdr {
+    type Decoder = RawCdrDecoder;
+    const DECODER: Self::Decoder = RawCdrDecoder;
+}
+
+impl<'de> Decode<'de, Vec<u8>> for RawCdrDecoder {
+    type Error = Infallible;
+
+    fn decode_bytes(
+        self,
+        input: &'de [u8],
+        encoding: RepresentationIdentifier,
+    ) -> Result<Vec<u8>, Infallible> {
+        // The decoder reads the encapsulation header, which DDS hands over separately.
+        let header = if encoding == RepresentationIdentifier::CDR_BE {
+            CDR_BE_HEADER
+        } else {
+            CDR_LE_HEADER
+        };
+        let mut message = Vec::with_capacity(4 + input.len());
+        message.extend_from_slice(&header);
+        message.extend_from_slice(input);
+        Ok(message)
+    }
+}
+
+impl SerializerAdapter<Vec<u8>> for RawCdr {
+    type Error = Infallible;
+
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+
+    fn to_bytes(value: &Vec<u8>) -> Result<rustdds::bytes::Bytes, Infallible> {
+        // `encode_octomap_cdr` writes the little-endian header; DDS writes its own.
+        Ok(rustdds::bytes::Bytes::copy_from_slice(
+            value.get(4..).unwrap_or_default(),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ros_topics_map_to_dds_names_as_rmws_do() {
+        assert_eq!(
+            dds_topic_name("/octomap_binary").ok().as_deref(),
+            Some("rt/octomap_binary")
+        );
+        assert_eq!(
+            dds_topic_name("/froctomap/predicted").ok().as_deref(),
+            Some("rt/froctomap/predicted")
+        );
+        for bad in ["", "/", "//a", "/a/", "/a b", "/1a"] {
+            assert!(dds_topic_name(bad).is_err(), "{bad}");
+        }
+    }
+}
