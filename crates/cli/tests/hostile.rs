@@ -82,6 +82,57 @@ fn a_bag_record_without_header_fields_is_named_as_such() {
     );
 }
 
+/// The offsets of the records of the bag fixture after its magic.
+fn bag_record_offsets(bytes: &[u8]) -> Vec<usize> {
+    let le32 = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let mut offsets = Vec::new();
+    let mut pos = b"#ROSBAG V2.0\n".len();
+    while pos < bytes.len() {
+        offsets.push(pos);
+        let header = le32(pos);
+        pos += 8 + header + le32(pos + 4 + header);
+    }
+    offsets
+}
+
+/// Issue 29: a header length of 0 on the index data after a chunk ended in "no input files"
+/// (the chunk's messages were dropped without a word). Every record, with and without
+/// `--skip-bad`, is now an error naming the bag.
+#[test]
+fn a_bag_record_header_of_length_zero_anywhere_is_an_error_naming_the_bag() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("zero-header.bag");
+    let output = dir.path().join("out.froct");
+    let bytes = std::fs::read(fixture("ros/one_map.bag")).unwrap();
+    let offsets = bag_record_offsets(&bytes);
+    assert!(offsets.len() > 4, "{offsets:?}");
+    for (index, &at) in offsets.iter().enumerate() {
+        let mut damaged = bytes.clone();
+        damaged[at..at + 4].fill(0);
+        std::fs::write(&input, &damaged).unwrap();
+        for skip_bad in [false, true] {
+            let mut args = vec![Path::new("build"), &input, Path::new("-o"), &output];
+            if skip_bad {
+                args.push(Path::new("--skip-bad"));
+            }
+            let run = froctomap_bounded(&args);
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            let case = format!("record {index} at byte {at}, skip_bad {skip_bad}: {stderr}");
+            assert_eq!(run.status.code(), Some(1), "{case}");
+            assert!(stderr.contains("zero-header.bag"), "{case}");
+            assert!(!stderr.contains("no input files"), "{case}");
+            if index > 1 {
+                // The records after the chunk: index data, then the index.
+                assert!(
+                    stderr.contains(&format!("the record at byte {at} has no `op` field")),
+                    "{case}"
+                );
+            }
+            assert!(!output.exists(), "{case}");
+        }
+    }
+}
+
 #[test]
 fn export_refuses_bags_and_sizes_beyond_max_output_before_writing() {
     let dir = tempfile::tempdir().unwrap();
