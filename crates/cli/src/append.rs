@@ -53,8 +53,8 @@ pub struct AppendArgs {
 }
 
 pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
-    if let Some(limit) = args.spill.max_memory {
-        crate::memory_guard::watch(limit, "append");
+    if let Some((limit, default)) = args.spill.max_memory.limit() {
+        crate::memory_guard::watch(limit, default, "append");
     }
     // Recordings among the inputs are read back through the context that expanded them.
     let context = &args.times.context(ui, args.skip_bad);

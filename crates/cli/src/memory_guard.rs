@@ -16,32 +16,64 @@ pub fn resident_bytes() -> Option<u64> {
     Some(kib * 1024)
 }
 
+/// The value of the first line of a `/proc` file starting with `key`, as its first word.
+fn proc_value(path: &str, key: &str, word: usize) -> Option<String> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    line[key.len()..]
+        .split_whitespace()
+        .nth(word)
+        .map(str::to_string)
+}
+
+/// The default `--max-memory`: three quarters of the physical memory (`MemTotal`), or half
+/// of the address-space limit (`ulimit -v`, which counts reserved address space as well as
+/// resident memory) when that is less; `None` when neither is known.
+pub fn default_limit() -> Option<u64> {
+    let physical = proc_value("/proc/meminfo", "MemTotal:", 0)
+        .and_then(|kib| kib.parse::<u64>().ok())
+        .map(|kib| kib * 1024 / 4 * 3);
+    let address_space = proc_value("/proc/self/limits", "Max address space", 0)
+        .and_then(|soft| soft.parse::<u64>().ok())
+        .map(|bytes| bytes / 2);
+    match (physical, address_space) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
 /// Watches the resident memory of `command` against `limit` bytes (checked at once, then
 /// every few milliseconds): past it, removes the temporary files (the output is never
 /// written) and exits with status 1 and an error.
-pub fn watch(limit: u64, command: &'static str) {
-    check(limit, command);
+/// `default`: the limit is the default one (`auto`), which the error says.
+pub fn watch(limit: u64, default: bool, command: &'static str) {
+    check(limit, default, command);
     std::thread::spawn(move || loop {
         std::thread::sleep(EVERY);
-        check(limit, command);
+        check(limit, default, command);
     });
 }
 
-fn check(limit: u64, command: &str) {
+fn check(limit: u64, default: bool, command: &str) {
     let Some(resident) = resident_bytes() else {
         return;
     };
     if resident > limit {
         froctomap_core::cleanup::remove_registered();
+        let which = if default {
+            " (the default: 3/4 of physical memory, or half of `ulimit -v`)"
+        } else {
+            ""
+        };
         eprintln!(
-            "error: {command} needed more than --max-memory {} MiB (resident {} MiB); \
+            "error: {command} needed more than --max-memory {} MiB{which} (resident {} MiB); \
              nothing was written",
             limit >> 20,
             resident >> 20
         );
         eprintln!(
-            "hint: raise --max-memory (or leave it out), or use a deeper --tile-depth \
-             so that each tile holds fewer cells (docs/LIMITS.md)"
+            "hint: raise --max-memory SIZE (or `--max-memory none`), or use a deeper \
+             --tile-depth so that each tile holds fewer cells (docs/LIMITS.md)"
         );
         std::process::exit(1);
     }

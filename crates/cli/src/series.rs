@@ -228,9 +228,11 @@ pub(crate) struct SpillArgs {
     pub(crate) memory: u64,
     /// The most resident memory the whole command may use (reading, accumulating, fitting;
     /// e.g. 2GiB): past it, it stops with an error and writes nothing, instead of failing
-    /// an allocation. Default: no bound beyond the system's.
-    #[arg(long, value_name = "SIZE", value_parser = byte_size)]
-    pub(crate) max_memory: Option<u64>,
+    /// an allocation. Default `auto`: three quarters of the physical memory, or half of the
+    /// address-space limit (`ulimit -v`) when that is less; `none` (or 0): no bound beyond
+    /// the system's.
+    #[arg(long, value_name = "SIZE", default_value = "auto", value_parser = max_memory)]
+    pub(crate) max_memory: MaxMemory,
     /// Directory for the spill data (default: the output's directory). It goes into a
     /// hidden .froct-spill-* directory there, removed when the build ends, fails or is
     /// stopped by Ctrl-C/SIGTERM.
@@ -240,6 +242,36 @@ pub(crate) struct SpillArgs {
 
 /// `--memory`: bytes, or a number with a unit (K/M/G/T, binary whatever the spelling:
 /// `512M`, `512MiB` and `512MB` are all 512 × 2^20 bytes).
+/// `--max-memory`: a size, the default bound from the machine, or none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MaxMemory {
+    Auto,
+    Unbounded,
+    Bytes(u64),
+}
+
+impl MaxMemory {
+    /// The bound in bytes, and whether it is the default one.
+    pub(crate) fn limit(self) -> Option<(u64, bool)> {
+        match self {
+            Self::Auto => crate::memory_guard::default_limit().map(|limit| (limit, true)),
+            Self::Unbounded => None,
+            Self::Bytes(limit) => Some((limit, false)),
+        }
+    }
+}
+
+fn max_memory(text: &str) -> Result<MaxMemory, String> {
+    match text.trim() {
+        "auto" => Ok(MaxMemory::Auto),
+        "none" => Ok(MaxMemory::Unbounded),
+        size => Ok(match byte_size(size)? {
+            0 => MaxMemory::Unbounded,
+            bytes => MaxMemory::Bytes(bytes),
+        }),
+    }
+}
+
 fn byte_size(text: &str) -> Result<u64, String> {
     let text = text.trim();
     let digits = text
@@ -335,8 +367,8 @@ fn mib(bytes: u64) -> String {
 
 pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let started = Instant::now();
-    if let Some(limit) = args.spill.max_memory {
-        crate::memory_guard::watch(limit, "build");
+    if let Some((limit, default)) = args.spill.max_memory.limit() {
+        crate::memory_guard::watch(limit, default, "build");
     }
     // Recordings among the inputs are read back through the context that expanded them.
     let series_context = &args.times.context(ui, args.skip_bad);

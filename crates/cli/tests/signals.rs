@@ -99,3 +99,50 @@ fn signals_during_a_build_leave_no_temporary_files() {
         assert!(!out.path().join("series.froct").exists());
     }
 }
+
+/// Issue 29: `kill -9` cannot be caught, so a build killed while spilling leaves its spill
+/// directory; the next build in that directory removes it (it is no longer locked), whether
+/// that build spills or not. Three kills, each once the directory exists.
+#[test]
+fn spill_directories_of_killed_builds_do_not_survive_the_next_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let series = series(dir.path());
+    let spill: fn(&str) -> bool = |name| name.starts_with(".froct-spill-");
+    let out = tempfile::tempdir().unwrap();
+    let mut killed = 0;
+    for attempt in 0..8 {
+        if killed == 3 {
+            break;
+        }
+        let mut child = start_build(&series, out.path());
+        if !wait_for(&mut child, out.path(), spill) {
+            continue;
+        }
+        child.kill().unwrap(); // SIGKILL
+        let status = child.wait().unwrap();
+        assert_eq!(status.signal(), Some(9), "{status:?}");
+        killed += 1;
+        let left = temporaries(out.path());
+        assert!(left.iter().any(|n| spill(n)), "attempt {attempt}: {left:?}");
+        // The next build: the second time one that stays within its budget (never spills).
+        let mut next = froctomap();
+        next.args(["build", "-q"]);
+        if killed != 2 {
+            next.args(["--memory", "0"]);
+        }
+        let status = next
+            .arg("-o")
+            .arg(out.path().join("series.froct"))
+            .arg(&series)
+            .stdout(Stdio::null())
+            .status()
+            .unwrap();
+        assert!(status.success());
+        assert_eq!(
+            temporaries(out.path()),
+            Vec::<String>::new(),
+            "attempt {attempt}"
+        );
+    }
+    assert_eq!(killed, 3, "never saw the spill directory while building");
+}

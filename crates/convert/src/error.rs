@@ -19,6 +19,14 @@ pub enum ConvertError {
     /// No input files were given, or none was found.
     #[error("no input files")]
     NoInputs,
+    /// Every map of the inputs was in a damaged part that `skip_bad` left out.
+    #[error("{}: no map is left: every one was in a damaged part left out ({problem})", path.display())]
+    AllSkipped {
+        /// The first recording a damaged part was left out of.
+        path: PathBuf,
+        /// Why it was left out.
+        problem: String,
+    },
     /// An input that is neither a file, a directory nor a pattern that matches.
     #[error("{}: no such file or directory", path.display())]
     NotFound {

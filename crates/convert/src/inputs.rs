@@ -334,7 +334,10 @@ pub fn collect_inputs_explained(
         }
     }
     if candidates.is_empty() {
-        return Err(ConvertError::NoInputs);
+        return Err(match notes.skipped.into_iter().next() {
+            Some((path, problem)) => ConvertError::AllSkipped { path, problem },
+            None => ConvertError::NoInputs,
+        });
     }
     // Manifest rows too: a FIFO among them would stall the build.
     if let Some((path, kind)) = candidates

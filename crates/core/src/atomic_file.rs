@@ -232,7 +232,7 @@ pub fn temporary_beside(path: &Path, prefix: &std::ffi::OsStr) -> io::Result<Tem
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
     let directory_lock = std::fs::File::open(&dir).ok();
-    remove_stale(&dir, prefix, directory_lock.as_ref());
+    remove_stale(&dir, prefix, Leftover::File, directory_lock.as_ref());
     // Shared while creating and locking (released when `directory_lock` closes).
     if let Some(directory) = &directory_lock {
         let _ = lock(directory, rustix::fs::FlockOperation::LockShared);
@@ -254,14 +254,77 @@ pub fn temporary_beside(path: &Path, prefix: &std::ffi::OsStr) -> io::Result<Tem
     })
 }
 
+/// A temporary directory made by [`temporary_dir_in`]: removed with its contents when
+/// dropped, locked while it lives.
+#[derive(Debug)]
+pub struct TemporaryDir {
+    // Dropped in this order: the directory goes before its lock is released.
+    dir: tempfile::TempDir,
+    _lock: std::fs::File,
+    _registered: crate::cleanup::Registered,
+}
+
+impl TemporaryDir {
+    /// Where it is.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+/// A new temporary directory `prefix…` in `parent` (a build's spill files), removed when
+/// dropped and registered for removal on a signal ([`crate::cleanup`]). As the files of
+/// [`temporary_beside`], it is locked (`flock`) while its writer lives, and the unlocked
+/// directories `prefix…` that killed writers left in `parent` are removed first.
+pub fn temporary_dir_in(parent: &Path, prefix: &std::ffi::OsStr) -> io::Result<TemporaryDir> {
+    let directory_lock = std::fs::File::open(parent).ok();
+    remove_stale(parent, prefix, Leftover::Directory, directory_lock.as_ref());
+    if let Some(directory) = &directory_lock {
+        let _ = lock(directory, rustix::fs::FlockOperation::LockShared);
+    }
+    let (dir, registered) = crate::cleanup::create_registered(
+        || tempfile::Builder::new().prefix(prefix).tempdir_in(parent),
+        |dir| dir.path(),
+    )?;
+    let held = std::fs::File::open(dir.path())?;
+    lock(&held, rustix::fs::FlockOperation::LockExclusive)?;
+    drop(directory_lock);
+    Ok(TemporaryDir {
+        dir,
+        _lock: held,
+        _registered: registered,
+    })
+}
+
+/// Removes the directories `prefix…` in `parent` that killed writers of
+/// [`temporary_dir_in`] left (unlocked), without making one: for a writer that may never
+/// need its own (a build that stays within its memory budget). Best effort.
+pub fn remove_stale_temporary_dirs(parent: &Path, prefix: &std::ffi::OsStr) {
+    let directory_lock = std::fs::File::open(parent).ok();
+    remove_stale(parent, prefix, Leftover::Directory, directory_lock.as_ref());
+}
+
 fn lock(file: &std::fs::File, operation: rustix::fs::FlockOperation) -> io::Result<()> {
     rustix::fs::flock(file, operation).map_err(io::Error::from)
 }
 
-/// Removes the temporary files `prefix…tmp` in `dir` that no live writer locks (a killed
-/// writer's), under the directory's exclusive lock so that no writer is between creating
-/// its file and locking it. Best effort: what cannot be opened, locked or removed stays.
-fn remove_stale(dir: &Path, prefix: &std::ffi::OsStr, directory_lock: Option<&std::fs::File>) {
+/// What a writer keeps in a directory while it lives: a temporary file `prefix…tmp` or a
+/// temporary directory `prefix…`.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Leftover {
+    File,
+    Directory,
+}
+
+/// Removes the temporary files `prefix…tmp` (or directories `prefix…`) in `dir` that no
+/// live writer locks (a killed writer's), under the directory's exclusive lock so that no
+/// writer is between creating its file and locking it. Best effort: what cannot be opened,
+/// locked or removed stays.
+fn remove_stale(
+    dir: &Path,
+    prefix: &std::ffi::OsStr,
+    kind: Leftover,
+    directory_lock: Option<&std::fs::File>,
+) {
     use rustix::fs::FlockOperation::{LockExclusive, NonBlockingLockExclusive};
     let Some(directory_lock) = directory_lock else {
         return;
@@ -276,8 +339,13 @@ fn remove_stale(dir: &Path, prefix: &std::ffi::OsStr, directory_lock: Option<&st
             let name = entry.file_name();
             let name = name.as_encoded_bytes();
             name.starts_with(prefix)
-                && name.ends_with(TEMP_SUFFIX.as_bytes())
-                && entry.file_type().is_ok_and(|t| t.is_file())
+                && match kind {
+                    Leftover::File => {
+                        name.ends_with(TEMP_SUFFIX.as_bytes())
+                            && entry.file_type().is_ok_and(|t| t.is_file())
+                    }
+                    Leftover::Directory => entry.file_type().is_ok_and(|t| t.is_dir()),
+                }
         })
         .map(|entry| entry.path())
         .collect();
@@ -291,7 +359,10 @@ fn remove_stale(dir: &Path, prefix: &std::ffi::OsStr, directory_lock: Option<&st
         // Locked: a live writer's. Unlocked: its writer is gone (a writer locks its file
         // before releasing its shared hold on the directory).
         if lock(&file, NonBlockingLockExclusive).is_ok() {
-            let _ = std::fs::remove_file(&path);
+            let _ = match kind {
+                Leftover::File => std::fs::remove_file(&path),
+                Leftover::Directory => std::fs::remove_dir_all(&path),
+            };
         }
     }
     let _ = lock(directory_lock, rustix::fs::FlockOperation::Unlock);
@@ -420,5 +491,31 @@ mod destination_tests {
         );
         assert!(other.exists());
         assert_eq!(std::fs::read(&out).unwrap(), b"map");
+    }
+
+    #[test]
+    fn unlocked_leftover_directories_are_removed_and_a_live_writers_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let prefix = std::ffi::OsStr::new(".spill-");
+        // What a killed writer left: unlocked, with a file in it.
+        let stale = dir.path().join(".spill-killed");
+        std::fs::create_dir(&stale).unwrap();
+        std::fs::write(stale.join("part"), b"half").unwrap();
+        let live = temporary_dir_in(dir.path(), prefix).unwrap();
+        assert!(!stale.exists(), "removed by the next writer");
+        assert!(live.path().is_dir());
+        // Another kind of directory is left alone; a live writer's is never removed.
+        let other = dir.path().join(".other-killed");
+        std::fs::create_dir(&other).unwrap();
+        remove_stale_temporary_dirs(dir.path(), prefix);
+        let second = temporary_dir_in(dir.path(), prefix).unwrap();
+        assert!(
+            live.path().is_dir(),
+            "a live writer's directory is never removed"
+        );
+        assert!(other.is_dir());
+        let (first, second) = (live.path().to_path_buf(), second.path().to_path_buf());
+        drop(live);
+        assert!(!first.exists() && second.exists());
     }
 }

@@ -68,10 +68,18 @@ impl<'a> Fields<'a> {
     }
 
     /// The record's kind: every record header has one (a header of length 0 has none).
-    fn required_op(&self, file: &RecordingFile) -> Result<Option<u8>, RosError> {
+    /// `place` says where the record is, for the error.
+    fn required_op(
+        &self,
+        file: &RecordingFile,
+        place: impl FnOnce() -> String,
+    ) -> Result<Option<u8>, RosError> {
         match self.op() {
             Some(op) => Ok(Some(op)),
-            None => Err(file.malformed("record header", "no `op` field")),
+            None => Err(file.malformed(
+                "record header",
+                format!("the record at {} has no `op` field", place()),
+            )),
         }
     }
 
@@ -243,7 +251,7 @@ impl Bag {
         while pos < self.file.size {
             let record = read_record(&self.file, pos, "index record")?;
             let fields = Fields::parse(&self.file, &record.header)?;
-            match fields.required_op(&self.file)? {
+            match fields.required_op(&self.file, || format!("byte {pos}"))? {
                 Some(OP_CONNECTION) => {
                     let data =
                         self.file
@@ -309,7 +317,7 @@ impl Bag {
                 Ok(fields) => fields,
                 Err(e) => break Some(format!("does not read ({e})")),
             };
-            match fields.required_op(&self.file)? {
+            match fields.required_op(&self.file, || format!("byte {pos}"))? {
                 Some(OP_CHUNK) => match self.scan_chunk(pos, limit) {
                     Ok((info, found, connections)) => {
                         for connection in connections {
@@ -386,7 +394,9 @@ impl Bag {
             let (header, data) = record_in(&chunk, offset)
                 .ok_or_else(|| self.file.malformed("chunk", "a record runs past its chunk"))?;
             let fields = Fields::parse(&self.file, header)?;
-            match fields.required_op(&self.file)? {
+            match fields.required_op(&self.file, || {
+                format!("byte {offset} of the chunk at byte {pos}")
+            })? {
                 Some(OP_CONNECTION) => connections.push(self.connection(&fields, data)?),
                 Some(OP_MESSAGE) => {
                     let log_ns = fields
@@ -471,7 +481,9 @@ impl Bag {
         while pos < self.file.size {
             let record = read_record(&self.file, pos, "index data")?;
             let fields = Fields::parse(&self.file, &record.header)?;
-            if fields.op() != Some(OP_INDEX) {
+            // A record without a kind is damage, not the end of the index data: stopping
+            // there would drop the chunk's messages without a word.
+            if fields.required_op(&self.file, || format!("byte {pos}"))? != Some(OP_INDEX) {
                 break;
             }
             if connections.contains(&fields.u32(&self.file, "conn")?) {

@@ -177,6 +177,35 @@ fn truncated_and_damaged_recordings_give_errors_naming_the_file() {
     }
 }
 
+/// Issue 29: a record header of length 0 (no fields, no `op`) at any record of a bag is an
+/// error naming the bag and where the record is, never a bag that reads with maps missing.
+#[test]
+fn a_bag_record_header_of_length_zero_is_an_error_naming_the_bag_and_the_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(fixture("ros/one_map.bag")).unwrap();
+    let le32 = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let copy = dir.path().join("zero-header.bag");
+    let mut pos = b"#ROSBAG V2.0\n".len();
+    let mut records = 0;
+    while pos < bytes.len() {
+        let mut damaged = bytes.clone();
+        damaged[pos..pos + 4].fill(0);
+        std::fs::write(&copy, &damaged).unwrap();
+        let message = read_all(&ROSBAG, &copy).expect_err(&format!("record at byte {pos}"));
+        assert!(message.contains("zero-header.bag"), "{pos}: {message}");
+        if records > 1 {
+            assert!(
+                message.contains(&format!("the record at byte {pos} has no `op` field")),
+                "{pos}: {message}"
+            );
+        }
+        records += 1;
+        let header = le32(pos);
+        pos += 8 + header + le32(pos + 4 + header);
+    }
+    assert!(records > 4);
+}
+
 #[test]
 fn the_plugin_registers_once_in_a_format_registry() {
     let mut registry = FormatRegistry::with_default_formats();

@@ -24,6 +24,9 @@ use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+/// The name of every spill directory starts with this.
+const SPILL_PREFIX: &str = ".froct-spill-";
+
 /// Where a build spills: a directory in which a [`SpillDir`] is made at the first spill
 /// (a build within its budget never writes there), removed when this is dropped.
 #[derive(Debug)]
@@ -33,8 +36,10 @@ pub(crate) struct SpillPlace {
 }
 
 impl SpillPlace {
-    /// Spill data will go into a new directory inside `parent`.
+    /// Spill data will go into a new directory inside `parent`. The spill directories that
+    /// killed builds left there are removed now, whether this build spills or not.
     pub fn new(parent: &Path) -> Self {
+        froctomap_core::remove_stale_temporary_dirs(parent, SPILL_PREFIX.as_ref());
         Self {
             parent: parent.to_path_buf(),
             dir: std::sync::Mutex::new(None),
@@ -60,32 +65,25 @@ impl SpillPlace {
 /// A temporary directory for the spill files of one build (`.froct-spill-…` in the chosen
 /// directory), removed with everything in it when dropped — on success and on error — and
 /// registered for removal if the process is stopped by a signal
-/// ([`froctomap_core::cleanup`]).
+/// ([`froctomap_core::cleanup`]). It is locked while the build lives, so the next build in
+/// the same directory removes it if the process was killed (`kill -9`)
+/// ([`froctomap_core::temporary_dir_in`]).
 #[derive(Debug)]
 pub(crate) struct SpillDir {
-    dir: tempfile::TempDir,
-    _registered: froctomap_core::cleanup::Registered,
+    dir: froctomap_core::TemporaryDir,
 }
 
 impl SpillDir {
     /// A new, empty spill directory inside `parent`.
     pub fn create(parent: &Path) -> Result<Self, ConvertError> {
-        let (dir, registered) = froctomap_core::cleanup::create_registered(
-            || {
-                tempfile::Builder::new()
-                    .prefix(".froct-spill-")
-                    .tempdir_in(parent)
-            },
-            |dir| dir.path(),
-        )
-        .map_err(|source| ConvertError::Spill {
-            path: parent.to_path_buf(),
-            source,
-        })?;
-        Ok(Self {
-            dir,
-            _registered: registered,
-        })
+        let dir =
+            froctomap_core::temporary_dir_in(parent, SPILL_PREFIX.as_ref()).map_err(|source| {
+                ConvertError::Spill {
+                    path: parent.to_path_buf(),
+                    source,
+                }
+            })?;
+        Ok(Self { dir })
     }
 
     /// Where it is.
