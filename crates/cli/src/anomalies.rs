@@ -92,7 +92,8 @@ impl AnomaliesArgs {
 
 pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
     let options = args.options()?;
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let t = snapshot_time(ui, args)?;
     let snapshot = read_snapshot(ui.context, &reader, &args.snapshot)?;
     let axis = &reader.header().axis;

@@ -2,14 +2,14 @@
 
 use crate::ui::{escaped, Ui};
 use anyhow::Result;
-use froctomap_convert::{describe, group_thousands, ClassCounts, FroctInfo};
+use froctomap_convert::{describe_series, group_thousands, ClassCounts, FroctInfo};
 use serde_json::Value;
 use std::path::Path;
 
 /// The FROctomap file at `path` described on standard output (as JSON with `json`).
 pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
-    let reader = ui.context.open_froct(path)?;
-    let info = describe(ui.context, &reader, count)?;
+    let file = ui.context.open_series(path)?;
+    let info = describe_series(ui.context, &file, count)?;
     if json {
         outln!("{}", serde_json::to_string_pretty(&info)?)?;
         return Ok(());

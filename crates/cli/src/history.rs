@@ -61,7 +61,8 @@ fn state_name(state: Option<Occupancy>) -> &'static str {
 }
 
 pub fn history_command(ui: &Ui, args: &HistoryArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let axis = &reader.header().axis;
     let from = args
         .from

@@ -37,7 +37,8 @@ pub fn render_command(ui: &Ui, args: &RenderArgs) -> Result<()> {
         Some(text) => View::slice(text)?,
         None => View::TopDown,
     };
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let (picture, what) = match &args.time {
         Some(time) if !args.dynamics => {
             let when = MapTime::choose(&reader, ui.time_query(time)?)?;

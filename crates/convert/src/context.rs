@@ -4,7 +4,8 @@
 //! reaches every path.
 
 use crate::error::ConvertError;
-use froctomap_file::{FroctReader, ReadLimits};
+use crate::series_file::FroctFile;
+use froctomap_file::{FroctReader, LivingReader, ReadLimits};
 use froctomap_formats::RecordingOptions;
 use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
 use froctomap_temporal::ModelRegistry;
@@ -138,6 +139,35 @@ impl Context {
     /// decodes its cells) and read limits.
     /// A map file of a registered format (a `.bt` snapshot, say) is refused as such rather
     /// than as a damaged series file.
+    /// Opens a FROctomap file of any version (1.0–1.2 or 2.0, told by its preamble) as
+    /// [`open_froct`](Self::open_froct) does: what retrieval, prediction, export and `info`
+    /// read. Whole-history analyses take [`FroctFile::whole_history`].
+    pub fn open_series(&self, path: &Path) -> Result<FroctFile, ConvertError> {
+        crate::inputs::refuse_special_file(path)?;
+        let living = froctomap_file::FileSource::open(path)
+            .ok()
+            .and_then(|source| {
+                let mut preamble = [0u8; 10];
+                froctomap_file::ByteSource::read_exact_at(&source, 0, &mut preamble).ok()?;
+                let major = u16::from_le_bytes([preamble[8], preamble[9]]);
+                (preamble[..8] == froctomap_file::MAGIC
+                    && major == froctomap_file::LIVING_MAJOR_VERSION)
+                    .then_some(source)
+            });
+        match living {
+            Some(source) => LivingReader::from_source(
+                std::sync::Arc::new(source),
+                self.limits.froct,
+                &self.models,
+            )
+            .map(FroctFile::Living)
+            .map_err(ConvertError::File),
+            None => self.open_froct(path).map(FroctFile::Flat),
+        }
+    }
+
+    /// Opens a FROctomap 1.x file (2.0 files are refused by their version: see
+    /// [`open_series`](Self::open_series)).
     pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
         crate::inputs::refuse_special_file(path)?;
         FroctReader::open_with_limits(path, self.limits.froct, &self.models).map_err(|error| {

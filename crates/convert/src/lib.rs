@@ -51,6 +51,7 @@ mod progress;
 mod query;
 mod recording;
 mod recording_export;
+mod series_file;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -76,7 +77,10 @@ pub use eval::{
 pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
-pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
+pub use info::{
+    describe, describe_series, AxisInfo, FroctInfo, LivingInfo, SegmentInfo, SizeInfo,
+    LARGEST_REGIONS,
+};
 pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
     SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
@@ -93,6 +97,7 @@ pub use query::{
     probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
 };
 pub use recording::RecordedMap;
+pub use series_file::{FroctFile, SeriesRead, StateVisit};
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
