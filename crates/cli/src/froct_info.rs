@@ -21,6 +21,37 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
         n(info.size.file),
         info.version
     )?;
+    if let Some(living) = &info.living {
+        let samples: Vec<String> = living
+            .segments
+            .iter()
+            .map(|s| n(u64::from(s.samples)))
+            .collect();
+        outln!(
+            "living map:      base of {} samples ({} bytes) + {} segment(s){}; {} bytes committed (commit {})",
+            n(u64::from(living.base_samples)),
+            n(living.base_len),
+            living.segments.len(),
+            if samples.is_empty() {
+                String::new()
+            } else if samples.len() <= 8 {
+                format!(" of {} samples", samples.join(", "))
+            } else {
+                format!(
+                    " of {}, … {} samples (--json lists them)",
+                    samples[..4].join(", "),
+                    samples[samples.len() - 2..].join(", ")
+                )
+            },
+            n(living.committed_len),
+            living.sequence
+        )?;
+        if !living.segments.is_empty() {
+            outln!(
+                "                 cells and dynamics below describe the base; `froctomap compact` folds the segments in"
+            )?;
+        }
+    }
     outln!(
         "resolution:      {} m, tiles of depth {} ({} tiles), {}",
         info.resolution_m,

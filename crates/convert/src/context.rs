@@ -144,26 +144,12 @@ impl Context {
     /// read. Whole-history analyses take [`FroctFile::whole_history`].
     pub fn open_series(&self, path: &Path) -> Result<FroctFile, ConvertError> {
         crate::inputs::refuse_special_file(path)?;
-        let living = froctomap_file::FileSource::open(path)
-            .ok()
-            .and_then(|source| {
-                let mut preamble = [0u8; 10];
-                froctomap_file::ByteSource::read_exact_at(&source, 0, &mut preamble).ok()?;
-                let major = u16::from_le_bytes([preamble[8], preamble[9]]);
-                (preamble[..8] == froctomap_file::MAGIC
-                    && major == froctomap_file::LIVING_MAJOR_VERSION)
-                    .then_some(source)
-            });
-        match living {
-            Some(source) => LivingReader::from_source(
-                std::sync::Arc::new(source),
-                self.limits.froct,
-                &self.models,
-            )
-            .map(FroctFile::Living)
-            .map_err(ConvertError::File),
-            None => self.open_froct(path).map(FroctFile::Flat),
+        if crate::series_file::is_living(path) {
+            return LivingReader::open_with_limits(path, self.limits.froct, &self.models)
+                .map(FroctFile::Living)
+                .map_err(ConvertError::File);
         }
+        self.open_froct(path).map(FroctFile::Flat)
     }
 
     /// Opens a FROctomap 1.x file (2.0 files are refused by their version: see

@@ -37,6 +37,7 @@
 
 mod anomaly;
 mod build;
+mod compact;
 mod context;
 mod dynamics;
 mod error;
@@ -64,6 +65,7 @@ pub use build::{
     append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,
     ClassCounts, DEFAULT_BUILD_MEMORY,
 };
+pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};
 pub use context::{Context, Limits, FROCT};
 pub use dynamics::{
     key_extent, period_text, summarize_dynamics, CellDynamics, DynamicRegion, DynamicsSummary,

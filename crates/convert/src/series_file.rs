@@ -376,3 +376,17 @@ impl SeriesRead for FroctFile {
         self.view().predicted_leaves(code, seconds, log_odds, out)
     }
 }
+
+/// `true` when `path` begins as a format 2.0 file (magic and major version): which reader
+/// opens it.
+pub(crate) fn is_living(path: &Path) -> bool {
+    use std::io::Read;
+    let mut preamble = [0u8; 10];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut preamble))
+        .is_ok_and(|()| {
+            preamble[..8] == froctomap_file::MAGIC
+                && u16::from_le_bytes([preamble[8], preamble[9]])
+                    == froctomap_file::LIVING_MAJOR_VERSION
+        })
+}
