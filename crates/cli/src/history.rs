@@ -82,7 +82,7 @@ pub fn history_command(ui: &Ui, args: &HistoryArgs) -> Result<()> {
         (None, Some(to)) => Some((axis.start().min(to), to)),
         (Some(from), Some(to)) => Some((from, to)),
     };
-    let history = voxel_history(&reader, args.at.0, range)?;
+    let history = voxel_history(reader, args.at.0, range)?;
     if let Some(output) = &args.output {
         plot(&history, output, &args.file)?;
     }

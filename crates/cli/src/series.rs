@@ -862,7 +862,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
         &context,
-        &reader,
+        reader,
         &truths,
         ReadOptions {
             format: None,

@@ -256,6 +256,8 @@ impl SeriesRead for LivingReader {
 /// A FROctomap file of any version, as [`Context::open_series`](crate::Context::open_series)
 /// opens it.
 #[derive(Debug)]
+// One per open file: boxing the larger reader would save nothing worth an indirection.
+#[allow(clippy::large_enum_variant)]
 pub enum FroctFile {
     /// A 1.0–1.2 file.
     Flat(FroctReader),
