@@ -342,9 +342,21 @@ fn compact_equals_a_build_of_the_same_maps() {
     assert_eq!(report["version"], "1.2");
     assert_eq!(content(info(&flat)), content(info(&series.full)));
 
-    // In place, as 2.0 without segments (the default).
+    // In place, as 2.0 without segments (the default), under the writer lock: refused
+    // while another writer holds it, and the file left as it was.
     let copy = root.join("copy.froct");
     std::fs::copy(&series.living, &copy).unwrap();
+    let writer = LivingWriter::open(&copy).unwrap();
+    let message = err(&["compact", s(&copy)]);
+    assert!(
+        message.contains(s(&copy)) && message.contains("lock"),
+        "{message}"
+    );
+    drop(writer);
+    assert_eq!(
+        std::fs::read(&copy).unwrap(),
+        std::fs::read(&series.living).unwrap()
+    );
     ok(&["compact", s(&copy), "--created", CREATED, "-q"]);
     let compacted = info(&copy);
     assert_eq!(compacted["version"], "2.0");

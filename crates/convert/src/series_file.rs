@@ -266,6 +266,17 @@ pub enum FroctFile {
 }
 
 impl FroctFile {
+    /// Opens a file of any version with the default limits and models (as
+    /// [`FroctReader::open`] and [`LivingReader::open`]); a program with its own registries
+    /// uses [`Context::open_series`](crate::Context::open_series).
+    pub fn open(path: &Path) -> Result<Self, FileError> {
+        if is_living(path) {
+            LivingReader::open(path).map(FroctFile::Living)
+        } else {
+            FroctReader::open(path).map(FroctFile::Flat)
+        }
+    }
+
     /// The format version, `(major, minor)`.
     pub fn version(&self) -> (u16, u16) {
         match self {
