@@ -291,6 +291,66 @@ fn info_predict_and_export_read_living_files() {
             "{name}"
         );
     }
+    // One MCAP recording of the same maps (occupied voxels from the states: the segments'
+    // cells have no models to shade them by), read by the PyPI mcap readers: each message's
+    // map is the .bt export's, each point cloud its occupied voxels per octomap-python.
+    let mcap = out.join("maps.mcap");
+    ok(&[
+        "export",
+        s(&series.living),
+        "--from",
+        &format!("{START}"),
+        "--to",
+        &format!("{}", START + 30 * STEP),
+        "--every",
+        "10min",
+        "--mode",
+        "auto",
+        "-o",
+        s(&mcap),
+        "-q",
+    ]);
+    let name = |i: u32| {
+        exported.join(format!(
+            "map_{}.bt",
+            froctomap_core::calendar::iso8601_basic(froctomap_core::Timestamp::from_secs(
+                i64::from(START + i * STEP)
+            ))
+        ))
+    };
+    let bt_of: serde_json::Map<String, Value> = (0..=30)
+        .map(|i| {
+            let t = i64::from(START + i * STEP) * 1_000_000_000;
+            (t.to_string(), Value::from(s(&name(i))))
+        })
+        .collect();
+    let bt_json = out.join("bt.json");
+    std::fs::write(&bt_json, Value::Object(bt_of).to_string()).unwrap();
+    let data_dir = out.join("mcap-data");
+    std::fs::create_dir_all(&data_dir).unwrap();
+    let read = std::process::Command::new(froctomap_test_support::octomap_python())
+        .arg(froctomap_test_support::workspace_root().join("tests/scripts/read_exported_mcap.py"))
+        .args([&mcap, &data_dir, &bt_json])
+        .output()
+        .unwrap();
+    assert!(
+        read.status.success(),
+        "{}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    let report: Value = serde_json::from_slice(&read.stdout).unwrap();
+    let clouds = report["cloud"].as_array().unwrap();
+    assert_eq!(clouds.len(), 31);
+    for cloud in clouds {
+        assert_eq!(cloud["same_voxels"], true, "{cloud}");
+    }
+    for i in 0..=30u32 {
+        let t = i64::from(START + i * STEP) * 1_000_000_000;
+        let bt = std::fs::read(name(i)).unwrap();
+        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+        assert!(data == bt[body_at..], "map {i}");
+    }
     // Past the span: predicted maps, as `predict` writes them.
     let last = exported.join(format!(
         "map_{}.bt",
