@@ -120,7 +120,9 @@ impl From<BackendArg> for Backend {
 enum Command {
     /// Describe a map file: format, resolution, leaf and voxel counts, bounding boxes.
     ///
-    /// The format is detected from the content, never from the extension.
+    /// The format is detected from the content, never from the extension. For a FROctomap
+    /// file: its version, span, cells by class, sizes, periods and dynamic regions, and for
+    /// a 2.0 file its segments (samples each) and committed length.
     ///
     /// Example: froctomap info geb079.bt
     Info(commands::InfoArgs),
