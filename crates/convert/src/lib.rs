@@ -9,8 +9,14 @@
 //!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
 //!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
 //!   range of them with a manifest.
+//! * [`Context::open_series`] opens a file of any version as a [`FroctFile`] (1.x, or 2.0:
+//!   a base and committed segments, [`FroctFile::refresh`] to see new commits); the queries
+//!   above take its [`SeriesRead`] view. [`compact`] rewrites a 2.0 file's base and
+//!   segments as one base, equal to a build of the same maps.
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
-//!   last-seen baselines, a tile at a time; [`describe`] summarises a file.
+//!   last-seen baselines, a tile at a time; [`describe`] summarises a file
+//!   ([`describe_series`] any version). Whole-history analyses read one body of cells
+//!   ([`FroctFile::whole_history`]).
 //!
 //! Every entry point takes a [`Context`]: the registries of map formats and temporal models
 //! and the limits a program chose, built once (binaries and tests start from
