@@ -141,7 +141,11 @@ impl RecordedMaps for FileMaps {
 }
 
 /// Rewrites `file`'s base and segments as one base: into `output`, or in place (replacing
-/// `file` atomically) when `output` is `None`. See the [module](self) documentation.
+/// `file` atomically) when `output` is `None`. Every cell is refitted on its whole history
+/// by [`build`], which reads the file as a recording of its maps (each sample's canonical
+/// `.bt`), in the build's bounded memory; the result equals a build of the same maps apart
+/// from metadata. In place, a 2.0 file's writer lock is held from before its maps are read
+/// until the result replaces it.
 ///
 /// ```no_run
 /// use froctomap_convert::*;
