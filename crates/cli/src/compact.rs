@@ -100,6 +100,15 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
         &bars,
     )?;
     drop(bars);
+    if report.version_before.starts_with("1.") && report.version.starts_with("2.") {
+        ui.note(&format!(
+            "note: {} is now FROctomap {} (it was {}); readers of 1.x need --format-version {}",
+            escaped(report.output.display()),
+            report.version,
+            report.version_before,
+            report.version_before
+        ));
+    }
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?)?;
         return Ok(());
