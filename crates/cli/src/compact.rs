@@ -102,11 +102,10 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
     drop(bars);
     if report.version_before.starts_with("1.") && report.version.starts_with("2.") {
         ui.note(&format!(
-            "note: {} is now FROctomap {} (it was {}); readers of 1.x need --format-version {}",
+            "note: {} is now FROctomap {} (it was {}); for readers of 1.x only, compact with --format-version 1.2 (or 1.1)",
             escaped(report.output.display()),
             report.version,
             report.version_before,
-            report.version_before
         ));
     }
     if args.json {
@@ -115,7 +114,7 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
     }
     let n = group_thousands;
     outln!(
-        "compacted {} ({} {} segment(s)) into {} ({} without segments)",
+        "compacted {} (format {}, {} segment(s)) into {} (format {}, one base)",
         escaped(report.file.display()),
         report.version_before,
         report.segments_before,
