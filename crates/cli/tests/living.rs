@@ -250,16 +250,21 @@ fn info_predict_and_export_read_living_files() {
         map.state_at(wall.morton()).map(|o| o.is_occupied()),
         base_wall
     );
-    // .ot carries p(t) of the base cells.
-    ok(&[
-        "predict",
-        s(&series.living),
-        "--time",
-        &later,
-        "-o",
-        s(&out.join("p.ot")),
-        "-q",
-    ]);
+    // .ot carries p(t) of the base cells: the door's voxel (modelled in the base) has the
+    // log-odds the base's own file predicts, per octomap-python.
+    let (living_ot, base_ot) = (out.join("p.ot"), out.join("base-p.ot"));
+    let base_file = series.dir.path().join("base.froct");
+    for (file, ot) in [(&series.living, &living_ot), (&base_file, &base_ot)] {
+        ok(&["predict", s(file), "--time", &later, "-o", s(ot), "-q"]);
+    }
+    let door = |ot: &Path| {
+        python_leaves(ot, "ot")
+            .1
+            .into_iter()
+            .find(|&(x, y, z, depth, _)| (x, y, z, depth) == (32768 + 8, 32768 + 5, 32768, 16))
+            .expect("the door voxel is a leaf")
+    };
+    assert_eq!(door(&living_ot), door(&base_ot));
 
     // Export in both modes: retrieved maps are the inputs.
     let exported = out.join("export");
