@@ -58,7 +58,8 @@ pub struct CompactOptions {
     pub created: Option<Timestamp>,
     /// Memory budget of the accumulated histories ([`BuildOptions::memory`]).
     pub memory: u64,
-    /// Where spill data and the intermediate file go; `None`: beside the output.
+    /// Where spill data goes; `None`: beside the output (where the intermediate file always
+    /// goes, in a hidden `.froct-compact-*` directory).
     pub tmp_dir: Option<PathBuf>,
     /// Maps decoded in parallel per batch.
     pub batch: usize,
@@ -254,10 +255,9 @@ pub fn compact(
         })
         .collect();
 
-    let temp_parent = options
-        .tmp_dir
-        .clone()
-        .unwrap_or_else(|| crate::build::output_dir(target).to_path_buf());
+    // Beside the output, so that the result is renamed into place on one file system (spill
+    // data goes to `tmp_dir` when given).
+    let temp_parent = crate::build::output_dir(target).to_path_buf();
     let temp =
         froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(".froct-compact-"))
             .map_err(|source| froctomap_core::AtomicWriteError {
