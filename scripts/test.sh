@@ -41,6 +41,8 @@ cargo test --locked "${libraries[@]}"
 # maturin), then its tests against the command line built above (tests/python: round trips
 # byte for byte, octomap-python reading its maps, the Dask fleet example of docs/FLEET.md).
 scripts/python-package.sh "$PWD/target/python-venv"
+# tests/python/test_living.py writes format 2.0 segments with this example.
+cargo build --locked -p froctomap-e2e-tests --example living_segment
 FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests/python
 
 # The fuzz crate is its own workspace (cargo-fuzz layout); it must keep building, and each

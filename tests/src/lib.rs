@@ -7,6 +7,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 pub mod fixtures;
+pub mod living;
 
 use froctomap_core::Snapshot;
 use std::path::{Path, PathBuf};

@@ -92,9 +92,10 @@ impl AnomaliesArgs {
 
 pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
     let options = args.options()?;
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let t = snapshot_time(ui, args)?;
-    let snapshot = read_snapshot(ui.context, &reader, &args.snapshot)?;
+    let snapshot = read_snapshot(ui.context, reader, &args.snapshot)?;
     let axis = &reader.header().axis;
     if t > axis.end() {
         ui.note(&format!(
@@ -104,7 +105,7 @@ pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
             iso8601(axis.end())
         ));
     }
-    let report = anomalies(&reader, &snapshot, t, &options)?;
+    let report = anomalies(reader, &snapshot, t, &options)?;
     if let Some(output) = &args.output {
         refuse_overwriting_input(output, [args.file.as_path(), args.snapshot.as_path()])?;
         let map = report.to_map(reader.header().resolution)?;
@@ -125,7 +126,7 @@ pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
         ));
     }
     if let Some(png) = &args.png {
-        write_overlay(&reader, &report, t, png, args)?;
+        write_overlay(reader, &report, t, png, args)?;
         ui.note(&format!(
             "{}: the map at {} with {} region(s) outlined",
             escaped(png.display()),

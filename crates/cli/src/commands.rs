@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// The map file: an OctoMap file or a FROctomap file.
+    /// The map file: an OctoMap file or a FROctomap file (for format 2.0 also its
+    /// segments, their samples and the committed length).
     file: PathBuf,
     /// For a FROctomap file: recount cells by decoding every tile instead of trusting the
     /// summary written at build time.

@@ -2,14 +2,14 @@
 
 use crate::ui::{escaped, Ui};
 use anyhow::Result;
-use froctomap_convert::{describe, group_thousands, ClassCounts, FroctInfo};
+use froctomap_convert::{describe_series, group_thousands, ClassCounts, FroctInfo};
 use serde_json::Value;
 use std::path::Path;
 
 /// The FROctomap file at `path` described on standard output (as JSON with `json`).
 pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
-    let reader = ui.context.open_froct(path)?;
-    let info = describe(ui.context, &reader, count)?;
+    let file = ui.context.open_series(path)?;
+    let info = describe_series(ui.context, &file, count)?;
     if json {
         outln!("{}", serde_json::to_string_pretty(&info)?)?;
         return Ok(());
@@ -21,6 +21,37 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
         n(info.size.file),
         info.version
     )?;
+    if let Some(living) = &info.living {
+        let samples: Vec<String> = living
+            .segments
+            .iter()
+            .map(|s| n(u64::from(s.samples)))
+            .collect();
+        outln!(
+            "living map:      base of {} samples ({} bytes) + {} segment(s){}; {} bytes committed (commit {})",
+            n(u64::from(living.base_samples)),
+            n(living.base_len),
+            living.segments.len(),
+            if samples.is_empty() {
+                String::new()
+            } else if samples.len() <= 8 {
+                format!(" of {} samples", samples.join(", "))
+            } else {
+                format!(
+                    " of {}, … {} samples (--json lists them)",
+                    samples[..4].join(", "),
+                    samples[samples.len() - 2..].join(", ")
+                )
+            },
+            n(living.committed_len),
+            living.sequence
+        )?;
+        if !living.segments.is_empty() {
+            outln!(
+                "                 cells and dynamics below describe the base; `froctomap compact` folds the segments in"
+            )?;
+        }
+    }
     outln!(
         "resolution:      {} m, tiles of depth {} ({} tiles), {}",
         info.resolution_m,

@@ -61,7 +61,8 @@ fn state_name(state: Option<Occupancy>) -> &'static str {
 }
 
 pub fn history_command(ui: &Ui, args: &HistoryArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let axis = &reader.header().axis;
     let from = args
         .from
@@ -81,7 +82,7 @@ pub fn history_command(ui: &Ui, args: &HistoryArgs) -> Result<()> {
         (None, Some(to)) => Some((axis.start().min(to), to)),
         (Some(from), Some(to)) => Some((from, to)),
     };
-    let history = voxel_history(&reader, args.at.0, range)?;
+    let history = voxel_history(reader, args.at.0, range)?;
     if let Some(output) = &args.output {
         plot(&history, output, &args.file)?;
     }

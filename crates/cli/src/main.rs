@@ -29,6 +29,7 @@ fn writes_to_stdout(args: &[std::ffi::OsString]) -> bool {
 mod anomalies;
 mod append;
 mod commands;
+mod compact;
 mod errors;
 mod froct_info;
 mod generate;
@@ -119,7 +120,9 @@ impl From<BackendArg> for Backend {
 enum Command {
     /// Describe a map file: format, resolution, leaf and voxel counts, bounding boxes.
     ///
-    /// The format is detected from the content, never from the extension.
+    /// The format is detected from the content, never from the extension. For a FROctomap
+    /// file: its version, span, cells by class, sizes, periods and dynamic regions, and for
+    /// a 2.0 file its segments (samples each) and committed length.
     ///
     /// Example: froctomap info geb079.bt
     Info(commands::InfoArgs),
@@ -157,6 +160,19 @@ enum Command {
     ///
     /// Example: froctomap append office.froct maps/today/
     Append(append::AppendArgs),
+    /// Rewrite a FROctomap 2.0 file's base and segments as one base.
+    ///
+    /// Every cell is refitted on its whole history through the same stages as `build`
+    /// (in the same bounded memory), so the result equals a build of the same maps apart
+    /// from metadata. Reads only the file. Without -o the file is replaced atomically
+    /// while its writer lock is held (an append waits or fails meanwhile); readers that
+    /// have it open keep the old file. Whole-history commands (eval, anomalies, history,
+    /// render) need a 2.0 file compacted first. The result is format 2.0 with no segment,
+    /// or 1.x with --format-version.
+    ///
+    /// Example: froctomap compact office.froct
+    ///          froctomap compact office.froct -o office-1.2.froct --format-version 1.2
+    Compact(compact::CompactArgs),
     /// Write the map as observed at a time (exact in lossless files).
     ///
     /// Example: froctomap retrieve office.froct --time 2016-01-05T10:00:00Z -o then.bt
@@ -257,7 +273,8 @@ fn main() -> ExitCode {
         told_zoneless: std::cell::Cell::new(false),
     };
     let skips_bad_files = matches!(cli.command, Command::Build(_) | Command::Append(_));
-    if skips_bad_files {
+    let builds = skips_bad_files || matches!(cli.command, Command::Compact(_));
+    if builds {
         purge_freed_memory_at_once();
     }
     let result = match cli.command {
@@ -266,6 +283,7 @@ fn main() -> ExitCode {
         Command::Formats => commands::formats(&ui),
         Command::Build(args) => series::build_command(&ui, &args),
         Command::Append(args) => append::append_command(&ui, &args),
+        Command::Compact(args) => compact::compact_command(&ui, &args),
         Command::Retrieve(args) => series::retrieve_command(&ui, &args),
         Command::Predict(args) => series::predict_command(&ui, &args),
         Command::Render(args) => render::render_command(&ui, &args),

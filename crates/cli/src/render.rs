@@ -37,11 +37,12 @@ pub fn render_command(ui: &Ui, args: &RenderArgs) -> Result<()> {
         Some(text) => View::slice(text)?,
         None => View::TopDown,
     };
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     let (picture, what) = match &args.time {
         Some(time) if !args.dynamics => {
-            let when = MapTime::choose(&reader, ui.time_query(time)?)?;
-            let picture = render_map(&reader, when, view, args.width)?;
+            let when = MapTime::choose(reader, ui.time_query(time)?)?;
+            let picture = render_map(reader, when, view, args.width)?;
             let what = match when {
                 MapTime::Retrieved { sample, time, .. } => {
                     format!("map retrieved at {} (sample {sample})", iso8601(time))
@@ -54,7 +55,7 @@ pub fn render_command(ui: &Ui, args: &RenderArgs) -> Result<()> {
             (picture, what)
         }
         _ => (
-            render_dynamics(&reader, args.width)?,
+            render_dynamics(reader, args.width)?,
             "where the world changes".to_string(),
         ),
     };

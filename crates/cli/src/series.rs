@@ -7,13 +7,13 @@ use crate::progress::{peak_memory_bytes, Bars};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use froctomap_convert::group_thousands;
 use froctomap_convert::{
     build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
     resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
     ExportMode, ExportOptions, Pick, RecordedTime, RecordingOptions, SeriesInput, TimeQuery,
     TimeSource,
 };
+use froctomap_convert::{group_thousands, SeriesRead};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -547,7 +547,7 @@ impl MapOutput {
 }
 
 pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
+    let reader = ui.context.open_series(&args.file)?;
     let query = ui.time_query(&args.time)?;
     let pick = if args.nearest {
         Pick::Nearest
@@ -555,15 +555,15 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         Pick::AtOrBefore
     };
     let when = resolve_observed_with(&reader, query, pick)?;
-    let axis = &reader.header().axis;
+    let (start, end) = (reader.first_instant(), reader.last_instant());
     if let TimeQuery::Instant(t) = query {
-        if t > axis.end() || t < axis.start() {
+        if t > end || t < start {
             ui.note(&format!(
                 "warning: {} is outside the file's span {} .. {}; this is the {} snapshot as observed, not a prediction (see `froctomap predict`)",
                 iso8601(t),
-                iso8601(axis.start()),
-                iso8601(axis.end()),
-                if t > axis.end() { "last" } else { "first" }
+                iso8601(start),
+                iso8601(end),
+                if t > end { "last" } else { "first" }
             ));
         } else if !when.exact {
             ui.note(&format!(
@@ -609,38 +609,38 @@ pub struct PredictArgs {
 }
 
 pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
-    let axis = &reader.header().axis;
+    let reader = ui.context.open_series(&args.file)?;
+    let samples = reader.sample_count();
     let sample = match ui.time_query(&args.time)? {
         TimeQuery::Instant(t) => Ok(t),
         TimeQuery::Sample(s) => Err(Some(s)),
-        TimeQuery::FromEnd(back) => Err(axis.len().checked_sub(back)),
+        TimeQuery::FromEnd(back) => Err(samples.checked_sub(back)),
     };
     let t = match sample {
         Ok(t) => t,
-        Err(sample) => sample.and_then(|s| axis.time(s)).with_context(|| {
+        Err(sample) => sample.and_then(|s| reader.sample_time(s)).with_context(|| {
             format!(
                 "{}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
                 escaped(&args.time),
                 escaped(args.file.display()),
-                axis.len(),
-                axis.len().saturating_sub(1),
-                axis.len()
+                samples,
+                samples.saturating_sub(1),
+                samples
             )
         })?,
     };
     let output = &args.output.output;
     let written = write_predicted_map(ui.context, &reader, t, output, args.output.options(ui))?;
-    let axis = &reader.header().axis;
-    let relation = if t > axis.end() {
+    let (start, end) = (reader.first_instant(), reader.last_instant());
+    let relation = if t > end {
         format!(
             "{:.1} days after the last snapshot",
-            t.secs_since(axis.end()) / 86_400.0
+            t.secs_since(end) / 86_400.0
         )
-    } else if t < axis.start() {
+    } else if t < start {
         format!(
             "{:.1} days before the first snapshot",
-            axis.start().secs_since(t) / 86_400.0
+            start.secs_since(t) / 86_400.0
         )
     } else {
         "within the modelled span".to_string()
@@ -710,8 +710,12 @@ pub struct ExportArgs {
 /// A rough size of one exported map: a `.bt` costs about half a byte per leaf (the
 /// file's cells are an upper bound on a map's leaves); an MCAP file adds the occupied
 /// voxels' two point clouds (about five times the map in the generated office).
-fn estimated_map_bytes(reader: &froctomap_file::FroctReader, format: &str) -> u64 {
-    let cells: u64 = reader.tiles().iter().map(|t| u64::from(t.cell_count)).sum();
+fn estimated_map_bytes(reader: &dyn SeriesRead, format: &str) -> u64 {
+    let cells: u64 = reader
+        .predicted_tiles()
+        .iter()
+        .map(|&(_, cells)| cells as u64)
+        .sum();
     let bt = cells / 2 + 64;
     if format == "mcap" {
         bt * 5
@@ -725,7 +729,7 @@ fn estimated_map_bytes(reader: &froctomap_file::FroctReader, format: &str) -> u6
 fn check_export(
     ui: &Ui,
     args: &ExportArgs,
-    reader: &froctomap_file::FroctReader,
+    reader: &dyn SeriesRead,
     options: &ExportOptions,
 ) -> Result<()> {
     let extension = args
@@ -782,7 +786,7 @@ fn check_export(
 }
 
 pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
+    let reader = ui.context.open_series(&args.file)?;
     let options = ExportOptions {
         from: ui.time(&args.from, "--from")?,
         to: ui.time(&args.to, "--to")?,
@@ -844,7 +848,8 @@ pub struct EvalArgs {
 }
 
 pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
-    let reader = ui.context.open_froct(&args.file)?;
+    let file = ui.context.open_series(&args.file)?;
+    let reader = file.whole_history()?;
     // Recordings among the ground truths are read with --topic/--time-source.
     let context = args.times.context(ui, false);
     let collected =
@@ -857,7 +862,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let bars = Bars::new(ui.quiet);
     let report = evaluate(
         &context,
-        &reader,
+        reader,
         &truths,
         ReadOptions {
             format: None,

@@ -457,7 +457,7 @@ pub fn build(
 }
 
 /// The directory an output goes into.
-fn output_dir(output: &Path) -> &Path {
+pub(crate) fn output_dir(output: &Path) -> &Path {
     match output.parent() {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),

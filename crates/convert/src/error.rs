@@ -191,6 +191,15 @@ pub enum ConvertError {
         /// Name of the map format it is in.
         format: &'static str,
     },
+    /// A whole-history analysis of a format 2.0 file that has segments: it reads one body
+    /// of cells over the whole history, which `compact` makes.
+    #[error("{}: a FROctomap 2.0 file with {segments} segment(s) after its base; this needs the whole history in one base: run `froctomap compact {}` first", path.display(), path.display())]
+    NeedsCompaction {
+        /// The file.
+        path: PathBuf,
+        /// Its committed segments.
+        segments: usize,
+    },
     /// A FROctomap file could not be read or written.
     #[error(transparent)]
     File(#[from] froctomap_file::FileError),

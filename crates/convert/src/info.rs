@@ -4,6 +4,7 @@ use crate::build::ClassCounts;
 use crate::context::Context;
 use crate::dynamics::{summarize_dynamics, DynamicRegion, MetricBox, PeriodCount};
 use crate::error::ConvertError;
+use crate::series_file::FroctFile;
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{voxels_per_node, Occupancy};
 use froctomap_file::{CellContent, FroctReader};
@@ -45,6 +46,42 @@ pub struct SizeInfo {
     pub tiles: u64,
     /// Raw bytes per tile stream before compression, as recorded by the writer.
     pub raw_streams: Value,
+    /// Committed segments after the base (format 2.0), tiles and records.
+    pub segments: u64,
+}
+
+/// One committed segment of a format 2.0 file.
+#[derive(Clone, Debug, Serialize)]
+pub struct SegmentInfo {
+    /// Global index of its first sample.
+    pub first_sample: u32,
+    /// Its samples (missing ones included).
+    pub samples: u32,
+    /// Its samples without a map.
+    pub missing: usize,
+    /// First instant, ISO 8601.
+    pub start: String,
+    /// Last instant, ISO 8601.
+    pub end: String,
+    /// Tiles it stores.
+    pub tiles: usize,
+    /// Bytes of its tiles.
+    pub tile_bytes: u64,
+}
+
+/// What a format 2.0 file holds beyond its base.
+#[derive(Clone, Debug, Serialize)]
+pub struct LivingInfo {
+    /// Commit number of the root read.
+    pub sequence: u64,
+    /// Bytes committed (readers read nothing past them).
+    pub committed_len: u64,
+    /// End of the base.
+    pub base_len: u64,
+    /// Samples of the base.
+    pub base_samples: u32,
+    /// The committed segments, oldest first.
+    pub segments: Vec<SegmentInfo>,
 }
 
 /// Everything `froctomap info` says about a FROctomap file.
@@ -94,6 +131,9 @@ pub struct FroctInfo {
     pub dynamic_regions: Vec<DynamicRegion>,
     /// How many connected dynamic regions there are in all.
     pub dynamic_region_count: usize,
+    /// The base and segments of a format 2.0 file (`None` for 1.x). Cells, voxels, bounds,
+    /// periods and regions describe the base; `time` and `size` the whole file.
+    pub living: Option<LivingInfo>,
 }
 
 /// How many dynamic regions [`describe`] lists.
@@ -177,6 +217,7 @@ pub fn describe(
                 .get("raw_stream_bytes")
                 .cloned()
                 .unwrap_or(Value::Null),
+            segments: 0,
         },
         input_files: header.metadata.get("sources").and_then(Value::as_u64),
         input_bytes,
@@ -187,7 +228,66 @@ pub fn describe(
         periods: dynamics.periods,
         dynamic_regions: dynamics.regions,
         dynamic_region_count: dynamics.region_count,
+        living: None,
     })
+}
+
+/// [`describe`] for a file of any version: a 2.0 file's base, with its segments listed in
+/// [`FroctInfo::living`], and the time and sizes of the whole file.
+pub fn describe_series(
+    context: &Context,
+    file: &FroctFile,
+    count_cells: bool,
+) -> Result<FroctInfo, ConvertError> {
+    let living = match file {
+        FroctFile::Flat(reader) => return describe(context, reader, count_cells),
+        FroctFile::Living(living) => living,
+    };
+    let mut info = describe(context, living.base(), count_cells)?;
+    let (major, minor) = file.version();
+    info.version = format!("{major}.{minor}");
+    let root = living.root();
+    let base_axis = &living.header().axis;
+    let mut segments = Vec::with_capacity(living.segment_count());
+    for k in 0..living.segment_count() {
+        let Some((first_sample, axis)) = living.segment_axis(k) else {
+            continue;
+        };
+        let tiles = living.segment_tiles(k);
+        segments.push(SegmentInfo {
+            first_sample,
+            samples: axis.len(),
+            missing: axis.missing().len(),
+            start: iso8601(axis.start()),
+            end: iso8601(axis.end()),
+            tiles: tiles.len(),
+            tile_bytes: tiles.iter().map(|t| u64::from(t.stored_len)).sum(),
+        });
+    }
+    if !segments.is_empty() {
+        let time = &mut info.time;
+        time.kind = "segmented";
+        time.end = iso8601(living.last_instant());
+        time.samples = living.sample_count();
+        time.missing += segments.iter().map(|s| s.missing).sum::<usize>();
+        time.step_seconds = None;
+        time.span_seconds = living.last_instant().secs_since(base_axis.start());
+    }
+    info.size.segments = root.committed_len - root.base_len;
+    info.size.file = root.committed_len;
+    let raw_bits = info.voxels.total() as f64 * f64::from(base_axis.len());
+    info.ratio_vs_raw_states = raw_bits / 8.0 / root.base_len as f64;
+    info.ratio_vs_inputs = info
+        .input_bytes
+        .map(|b| b as f64 / root.committed_len as f64);
+    info.living = Some(LivingInfo {
+        sequence: root.sequence,
+        committed_len: root.committed_len,
+        base_len: root.base_len,
+        base_samples: base_axis.len(),
+        segments,
+    });
+    Ok(info)
 }
 
 fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertError> {

@@ -9,8 +9,14 @@
 //!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
 //!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
 //!   range of them with a manifest.
+//! * [`Context::open_series`] opens a file of any version as a [`FroctFile`] (1.x, or 2.0:
+//!   a base and committed segments, [`FroctFile::refresh`] to see new commits); the queries
+//!   above take its [`SeriesRead`] view. [`compact`] rewrites a 2.0 file's base and
+//!   segments as one base, equal to a build of the same maps.
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
-//!   last-seen baselines, a tile at a time; [`describe`] summarises a file.
+//!   last-seen baselines, a tile at a time; [`describe`] summarises a file
+//!   ([`describe_series`] any version). Whole-history analyses read one body of cells
+//!   ([`FroctFile::whole_history`]).
 //!
 //! Every entry point takes a [`Context`]: the registries of map formats and temporal models
 //! and the limits a program chose, built once (binaries and tests start from
@@ -37,6 +43,7 @@
 
 mod anomaly;
 mod build;
+mod compact;
 mod context;
 mod dynamics;
 mod error;
@@ -51,6 +58,7 @@ mod progress;
 mod query;
 mod recording;
 mod recording_export;
+mod series_file;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -63,6 +71,7 @@ pub use build::{
     append, axis_for_times, build, AppendOptions, AppendReport, BuildOptions, BuildReport,
     ClassCounts, DEFAULT_BUILD_MEMORY,
 };
+pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};
 pub use context::{Context, Limits, FROCT};
 pub use dynamics::{
     key_extent, period_text, summarize_dynamics, CellDynamics, DynamicRegion, DynamicsSummary,
@@ -76,7 +85,10 @@ pub use eval::{
 pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
-pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
+pub use info::{
+    describe, describe_series, AxisInfo, FroctInfo, LivingInfo, SegmentInfo, SizeInfo,
+    LARGEST_REGIONS,
+};
 pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
     SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
@@ -93,6 +105,7 @@ pub use query::{
     probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
 };
 pub use recording::RecordedMap;
+pub use series_file::{FroctFile, SeriesRead, StateVisit};
 pub use text::group_thousands;
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,

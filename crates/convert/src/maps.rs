@@ -5,15 +5,14 @@ use crate::error::ConvertError;
 use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
 use crate::outputs::{refuse_non_empty_dir, refuse_overwriting_input};
 use crate::progress::Progress;
+use crate::series_file::SeriesRead;
 use crate::time::{check_range, parse_time, read_time, Zone};
 use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
-use froctomap_file::FroctReader;
 use froctomap_formats::{Backend, MapFormat, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
-use froctomap_temporal::TimeAxis;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -96,7 +95,7 @@ pub enum Pick {
 /// or before an instant. Instants before the first snapshot, sample indices beyond the axis
 /// and samples without a snapshot are errors.
 pub fn resolve_observed(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     query: TimeQuery,
 ) -> Result<ResolvedSample, ConvertError> {
     resolve_observed_with(reader, query, Pick::AtOrBefore)
@@ -104,41 +103,40 @@ pub fn resolve_observed(
 
 /// [`resolve_observed`], choosing between snapshots by `pick`.
 pub fn resolve_observed_with(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     query: TimeQuery,
     pick: Pick,
 ) -> Result<ResolvedSample, ConvertError> {
-    let axis = &reader.header().axis;
+    let samples = reader.sample_count();
     let t = match query {
         TimeQuery::Instant(t) => t,
-        TimeQuery::Sample(sample) => return stored_sample(axis, sample),
+        TimeQuery::Sample(sample) => return stored_sample(reader, sample),
         TimeQuery::FromEnd(back) => {
-            let sample = axis
-                .len()
+            let sample = samples
                 .checked_sub(back)
                 .ok_or(ConvertError::SampleBeforeAxis {
                     back,
-                    samples: axis.len(),
-                    start: axis.start(),
-                    end: axis.end(),
+                    samples,
+                    start: reader.first_instant(),
+                    end: reader.last_instant(),
                 })?;
-            return stored_sample(axis, sample);
+            return stored_sample(reader, sample);
         }
     };
-    if let Some(sample) = axis.index_of(t).filter(|&s| !axis.is_missing(s)) {
+    let before = reader.sample_at_or_before(t);
+    if let Some(sample) = before.filter(|&s| reader.sample_time(s) == Some(t)) {
         return Ok(ResolvedSample {
             sample,
             time: t,
             exact: true,
         });
     }
-    let before = axis.last_at_or_before(t);
     let after = || {
         let mut i = before.map_or(0, |b| b.saturating_add(1));
-        while i < axis.len() && axis.is_missing(i) {
+        while i < samples && reader.is_missing(i) {
             i += 1;
         }
-        (i < axis.len()).then_some(i)
+        (i < samples).then_some(i)
     };
     let sample = match (pick, before) {
         (Pick::AtOrBefore, before) => before,
@@ -146,7 +144,8 @@ pub fn resolve_observed_with(
         (Pick::Nearest, Some(before)) => Some(match after() {
             Some(after) => {
                 let distance = |s: u32| {
-                    axis.time(s)
+                    reader
+                        .sample_time(s)
                         .map(|u| (i128::from(u.0) - i128::from(t.0)).abs())
                 };
                 if distance(after) < distance(before) {
@@ -161,13 +160,13 @@ pub fn resolve_observed_with(
     .ok_or_else(|| ConvertError::BeforeFirstSnapshot {
         path: reader.path().to_path_buf(),
         time: t,
-        first: (0..axis.len())
-            .find(|&s| !axis.is_missing(s))
-            .and_then(|s| axis.time(s)),
-        start: axis.start(),
-        end: axis.end(),
+        first: (0..samples)
+            .find(|&s| !reader.is_missing(s))
+            .and_then(|s| reader.sample_time(s)),
+        start: reader.first_instant(),
+        end: reader.last_instant(),
     })?;
-    let time = axis.time(sample).unwrap_or(t);
+    let time = reader.sample_time(sample).unwrap_or(t);
     Ok(ResolvedSample {
         sample,
         time,
@@ -176,14 +175,16 @@ pub fn resolve_observed_with(
 }
 
 /// A sample asked for by index: it must lie on the axis and hold a snapshot.
-fn stored_sample(axis: &TimeAxis, sample: u32) -> Result<ResolvedSample, ConvertError> {
-    let time = axis.time(sample).ok_or(ConvertError::SampleBeyondAxis {
-        sample,
-        samples: axis.len(),
-        start: axis.start(),
-        end: axis.end(),
-    })?;
-    if axis.is_missing(sample) {
+fn stored_sample(reader: &dyn SeriesRead, sample: u32) -> Result<ResolvedSample, ConvertError> {
+    let time = reader
+        .sample_time(sample)
+        .ok_or(ConvertError::SampleBeyondAxis {
+            sample,
+            samples: reader.sample_count(),
+            start: reader.first_instant(),
+            end: reader.last_instant(),
+        })?;
+    if reader.is_missing(sample) {
         return Err(ConvertError::NoSnapshotAtSample { sample, time });
     }
     Ok(ResolvedSample {
@@ -196,39 +197,53 @@ fn stored_sample(axis: &TimeAxis, sample: u32) -> Result<ResolvedSample, Convert
 /// The map as observed at a sample (exact in lossless files): one leaf per observed cell,
 /// in Morton order. Tiles are streamed in parallel without building cells; call
 /// [`Snapshot::canonical`] (or [`write_map`], which does) for OctoMap's split.
-pub fn observed_map(reader: &FroctReader, sample: u32) -> Result<Snapshot, ConvertError> {
-    collect_tiles(reader, |tile, out| {
-        reader.observed_leaves(tile, sample, out)
+pub fn observed_map(reader: &dyn SeriesRead, sample: u32) -> Result<Snapshot, ConvertError> {
+    let tiles: Vec<usize> = reader
+        .observed_tiles(sample)
+        .iter()
+        .map(|t| t.cell_count as usize)
+        .collect();
+    collect_tiles(reader, &tiles, |tile, out| {
+        reader.visit_observed(sample, tile, &mut |start, depth, state| {
+            out.push(Leaf {
+                start,
+                depth,
+                log_odds: state.log_odds(),
+            })
+        })
     })
 }
 
 /// The predicted map at any instant: every cell with log-odds of its probability `p(t)`
 /// ([`probability_log_odds`]), in Morton order, tiles streamed in parallel.
-pub fn predicted_map(reader: &FroctReader, t: Timestamp) -> Result<Snapshot, ConvertError> {
+pub fn predicted_map(reader: &dyn SeriesRead, t: Timestamp) -> Result<Snapshot, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
-    collect_tiles(reader, |tile, out| {
-        reader.predicted_leaves(tile, seconds, &probability_log_odds, out)
+    let tiles = reader.predicted_tiles();
+    let cells: Vec<usize> = tiles.iter().map(|&(_, cells)| cells).collect();
+    collect_tiles(reader, &cells, |tile, out| {
+        reader.predicted_leaves(tiles[tile].0, seconds, &probability_log_odds, out)
     })
 }
 
+/// The leaves of tiles `0..cells.len()` (each with at most about `cells[i]` leaves) in
+/// order.
 fn collect_tiles(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
+    cells: &[usize],
     leaves_of: impl Fn(usize, &mut Vec<Leaf>) -> Result<(), froctomap_file::FileError> + Sync,
 ) -> Result<Snapshot, ConvertError> {
     // A tile yields at most one leaf per cell, so every buffer is sized once: growing them
     // (copies and fresh pages) cost more than the walk itself on large maps. The reader
     // bounded the index's cell counts (per tile and in total) by its limits at open, and
     // tiles are decoded a few at a time so that the map is held once, not twice.
-    let tiles = reader.tiles();
-    let cells: usize = tiles.iter().map(|t| t.cell_count as usize).sum();
-    let mut leaves: Vec<Leaf> = Vec::with_capacity(cells);
+    let mut leaves: Vec<Leaf> = Vec::with_capacity(cells.iter().sum());
     let chunk = 4 * rayon::current_num_threads().max(1);
-    for (first, entries) in tiles.chunks(chunk).enumerate() {
-        let per_tile = entries
+    for (first, counts) in cells.chunks(chunk).enumerate() {
+        let per_tile = counts
             .par_iter()
             .enumerate()
-            .map(|(i, entry)| {
-                let mut out = Vec::with_capacity(entry.cell_count as usize);
+            .map(|(i, &count)| {
+                let mut out = Vec::with_capacity(count);
                 leaves_of(first * chunk + i, &mut out).map(|()| out)
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -243,7 +258,7 @@ fn collect_tiles(
 /// A file whose cells do not make a map (overlapping, out of order): only a damaged or
 /// foreign writer's file gets past the reader's checks this way.
 fn inconsistent_cells(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     e: impl std::error::Error + Send + Sync + 'static,
 ) -> ConvertError {
     ConvertError::InconsistentCells {
@@ -313,7 +328,7 @@ pub fn write_owned_map(
 /// [`Capabilities::writes_canonical_binary`]: froctomap_formats::Capabilities::writes_canonical_binary
 pub fn write_observed_map(
     context: &Context,
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     sample: u32,
     path: &Path,
     options: WriteOptions<'_>,
@@ -332,7 +347,7 @@ pub fn write_observed_map(
 /// would), a native `.bt` tile by tile as [`write_observed_map`] does.
 pub fn write_predicted_map(
     context: &Context,
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     t: Timestamp,
     path: &Path,
     options: WriteOptions<'_>,
@@ -352,7 +367,7 @@ pub fn write_predicted_map(
 /// `whole` builds, written whole.
 fn write_query(
     context: &Context,
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     query: StateQuery,
     path: &Path,
     options: WriteOptions<'_>,
@@ -382,7 +397,7 @@ enum StateQuery {
 /// The canonical `.bt` of the cells' states: each tile's subtree built on its own thread
 /// ([`CanonicalBinaryBuilder`]), then joined under the root and written atomically.
 fn write_states_bt(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     format: MapFormat,
     path: &Path,
     query: StateQuery,
@@ -394,18 +409,29 @@ fn write_states_bt(
 
 /// The canonical `.bt` file of the cells' states and its leaf count, built tile by tile in
 /// parallel.
-fn states_bt(reader: &FroctReader, query: StateQuery) -> Result<(Vec<u8>, usize), ConvertError> {
+fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usize), ConvertError> {
     let inconsistent = |e: EncodeError| inconsistent_cells(reader, e);
     let tile_depth = reader.header().tile_depth;
-    let parts = reader
-        .tiles()
+    let tiles: Vec<MortonCode> = match query {
+        StateQuery::Observed(sample) => reader
+            .observed_tiles(sample)
+            .iter()
+            .map(|t| t.code)
+            .collect(),
+        StateQuery::Predicted(_) => reader
+            .predicted_tiles()
+            .into_iter()
+            .map(|(code, _)| code)
+            .collect(),
+    };
+    let parts = tiles
         .par_iter()
         .enumerate()
-        .map(|(tile, entry)| {
+        .map(|(tile, &code)| {
             let mut builder =
-                CanonicalBinaryBuilder::new(entry.code, tile_depth).map_err(inconsistent)?;
+                CanonicalBinaryBuilder::new(code, tile_depth).map_err(inconsistent)?;
             let mut refused = None;
-            let push = |start: MortonCode, depth: u8, state: Occupancy| {
+            let mut push = |start: MortonCode, depth: u8, state: Occupancy| {
                 if refused.is_none() {
                     if let Err(e) = builder.push_state(start, depth, state.is_occupied()) {
                         refused = Some(e);
@@ -413,10 +439,8 @@ fn states_bt(reader: &FroctReader, query: StateQuery) -> Result<(Vec<u8>, usize)
                 }
             };
             match query {
-                StateQuery::Observed(sample) => reader.visit_observed_states(tile, sample, push),
-                StateQuery::Predicted(seconds) => {
-                    reader.visit_predicted_states(tile, seconds, push)
-                }
+                StateQuery::Observed(sample) => reader.visit_observed(sample, tile, &mut push),
+                StateQuery::Predicted(seconds) => reader.visit_predicted(code, seconds, &mut push),
             }?;
             match refused {
                 Some(e) => Err(inconsistent(e)),
@@ -438,13 +462,13 @@ fn states_bt(reader: &FroctReader, query: StateQuery) -> Result<(Vec<u8>, usize)
 
 /// The canonical `.bt` file of the map observed at `sample` (the bytes
 /// [`write_observed_map`] writes to a `.bt`).
-pub(crate) fn observed_bt(reader: &FroctReader, sample: u32) -> Result<Vec<u8>, ConvertError> {
+pub(crate) fn observed_bt(reader: &dyn SeriesRead, sample: u32) -> Result<Vec<u8>, ConvertError> {
     states_bt(reader, StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
 }
 
 /// The canonical `.bt` file of the map predicted for `t` (the bytes
 /// [`write_predicted_map`] writes to a `.bt`), in memory: what the ROS 2 node publishes.
-pub fn predicted_bt(reader: &FroctReader, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
+pub fn predicted_bt(reader: &dyn SeriesRead, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
     states_bt(reader, StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
 }
@@ -521,7 +545,7 @@ pub struct ExportReport {
 /// [`RecordingFormat::create`]: froctomap_formats::RecordingFormat::create
 pub fn export(
     context: &Context,
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     output: &Path,
     options: &ExportOptions,
     progress: &dyn Progress,
@@ -597,7 +621,7 @@ type Instants = (Vec<Timestamp>, Vec<Option<u32>>);
 
 fn export_instants(
     context: &Context,
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     options: &ExportOptions,
 ) -> Result<Instants, ConvertError> {
     for (what, t) in [("from", options.from), ("to", options.to)] {
@@ -618,14 +642,14 @@ fn export_instants(
     if count > i128::from(limit) {
         return Err(ConvertError::TooManyMaps { count, limit });
     }
-    let axis = &reader.header().axis;
+    let (start, end) = (reader.first_instant(), reader.last_instant());
     let mut instants: Vec<(Timestamp, Option<u32>)> = Vec::with_capacity(count as usize);
     for i in 0..count as i64 {
         let t = Timestamp(options.from.0 + i * options.every_ns);
         let retrieve = match options.mode {
             ExportMode::Predict => false,
             ExportMode::Retrieve => true,
-            ExportMode::Auto => axis.start() <= t && t <= axis.end(),
+            ExportMode::Auto => start <= t && t <= end,
         };
         if !retrieve {
             instants.push((t, None));

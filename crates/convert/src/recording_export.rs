@@ -11,6 +11,7 @@ use crate::inputs::SeriesInput;
 use crate::maps::{observed_bt, predicted_bt, ExportReport};
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
+use crate::series_file::SeriesRead;
 use froctomap_core::{temporary_beside, AtomicWriteError, Occupancy, Timestamp};
 use froctomap_file::{CellContent, FroctReader};
 use froctomap_formats::{CellShade, ExportedKind, ExportedMap, OccupiedCell, RecordingFormat};
@@ -21,7 +22,7 @@ use std::path::Path;
 /// Writes the maps at `times` (retrieved at `samples[i]`, or predicted where `None`) into
 /// one recording of `format` at `output`.
 pub(crate) fn export_recording(
-    reader: &FroctReader,
+    reader: &dyn SeriesRead,
     output: &Path,
     format: &RecordingFormat,
     times: &[Timestamp],
@@ -57,7 +58,10 @@ pub(crate) fn export_recording(
             ),
             None => (predicted_bt(reader, time)?, ExportedKind::Predicted),
         };
-        let occupied = occupied_cells(reader, kind, time)?;
+        let occupied = match reader.whole_body() {
+            Some(whole) => occupied_cells(whole, kind, time)?,
+            None => occupied_states(reader, kind, time)?,
+        };
         let map = ExportedMap::new(time, kind, reader.header().resolution, &bt, &occupied);
         writer.write_map(&map).map_err(|e| failed(Some(time), e))?;
         progress.advance(1);
@@ -75,6 +79,53 @@ pub(crate) fn export_recording(
         manifest: None,
         bytes,
     })
+}
+
+/// The occupied cells of a map of a 2.0 file with segments, whose cells' histories are not in
+/// one body: a predicted cell with its `p(t)` (as [`SeriesRead::predicted_leaves`] gives
+/// it), a retrieved one as [`CellShade::Static`] (whether it changes is known after
+/// `compact`).
+fn occupied_states(
+    reader: &dyn SeriesRead,
+    kind: ExportedKind,
+    time: Timestamp,
+) -> Result<Vec<OccupiedCell>, ConvertError> {
+    let mut occupied = Vec::new();
+    match kind {
+        ExportedKind::Retrieved { sample } => {
+            for tile in 0..reader.observed_tiles(sample).len() {
+                reader.visit_observed(sample, tile, &mut |start, depth, state| {
+                    if state.is_occupied() {
+                        occupied.push(OccupiedCell {
+                            start,
+                            depth,
+                            shade: CellShade::Static,
+                        });
+                    }
+                })?;
+            }
+        }
+        ExportedKind::Predicted => {
+            let seconds = time.secs_since(reader.header().axis.start());
+            let mut leaves = Vec::new();
+            for (code, _) in reader.predicted_tiles() {
+                leaves.clear();
+                // The probability itself in place of its log-odds.
+                reader.predicted_leaves(code, seconds, &|p| p as f32, &mut leaves)?;
+                occupied.extend(
+                    leaves
+                        .iter()
+                        .filter(|l| l.log_odds > 0.5)
+                        .map(|l| OccupiedCell {
+                            start: l.start,
+                            depth: l.depth,
+                            shade: CellShade::Probability(l.log_odds),
+                        }),
+                );
+            }
+        }
+    }
+    Ok(occupied)
 }
 
 /// The occupied cells of a map, in Morton order, with their shades: a retrieved cell is

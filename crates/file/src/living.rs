@@ -791,6 +791,22 @@ impl LivingWriter {
     /// appears complete or not at all, and `input` is only read (it may be `output` itself,
     /// which is then replaced). Fails if a writer holds `output`.
     pub fn convert(input: &Path, output: &Path) -> Result<Root, FileError> {
+        Self::convert_into(input, output, true)
+    }
+
+    /// Replaces this writer's file by the 2.0 file whose base is the 1.x file `base` (as
+    /// [`convert`](Self::convert)), holding the lock until the new file is in place, so no
+    /// segment is committed to the old file meanwhile: how `compact` swaps in its result.
+    /// Readers that had the old file open keep reading it.
+    pub fn replace_with_base(self, base: &Path) -> Result<Root, FileError> {
+        let root = Self::convert_into(base, &self.path, false)?;
+        drop(self);
+        Ok(root)
+    }
+
+    /// [`convert`](Self::convert); `lock`: take the lock of an existing `output` first
+    /// (`false` when the caller holds it).
+    fn convert_into(input: &Path, output: &Path, lock: bool) -> Result<Root, FileError> {
         let io = |path: &Path| {
             let path = path.to_path_buf();
             move |source| FileError::Io {
@@ -802,6 +818,7 @@ impl LivingWriter {
         // Held until the new file is in place: no writer may be appending to what it
         // replaces.
         let _held = match File::options().read(true).write(true).open(output) {
+            Ok(_) if !lock => None,
             Ok(existing) => {
                 lock_exclusive(&existing, output)?;
                 Some(existing)

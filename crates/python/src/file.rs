@@ -5,13 +5,12 @@ use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
 use froctomap_convert::{
-    anomalies, describe, probabilities, read_snapshot, read_time_from_file_name,
+    anomalies, describe_series, probabilities, read_snapshot, read_time_from_file_name,
     resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport, Expectation,
-    HistorySample, Pick, TimeQuery, VoxelHistory, Zone,
+    FroctFile as SeriesFile, HistorySample, Pick, SeriesRead, TimeQuery, VoxelHistory, Zone,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
-use froctomap_file::FroctReader;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -19,15 +18,16 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-/// Opens a FROctomap file (`.froct`): reads its header, time axis and index (a few small
-/// reads); maps are decoded when asked for.
+/// Opens a FROctomap file (`.froct`, format 1.x or 2.0): reads its header, time axis and
+/// index (a few small reads; for a 2.0 file its committed segments' records); maps are
+/// decoded when asked for.
 ///
 /// Raises FroctError (an OSError and a ValueError) when the file is missing, unreadable,
 /// damaged or not a FROctomap file, with the message the command line prints.
 #[pyfunction]
 pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<FroctFile> {
     let reader = py
-        .detach(|| crate::context().open_froct(&path))
+        .detach(|| crate::context().open_series(&path))
         .map_err(to_py)?;
     Ok(FroctFile {
         reader: Mutex::new(Some(Arc::new(reader))),
@@ -39,33 +39,33 @@ pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<FroctFile> {
 /// from it stay usable after `close()`.
 #[pyclass(module = "froctomap", frozen)]
 pub struct FroctFile {
-    reader: Mutex<Option<Arc<FroctReader>>>,
+    reader: Mutex<Option<Arc<SeriesFile>>>,
     path: PathBuf,
 }
 
 impl FroctFile {
     /// The instant a `predict`-style time names: an instant, or the time of a sample.
-    fn instant_of(&self, reader: &FroctReader, t: &Bound<'_, PyAny>) -> PyResult<Timestamp> {
-        let axis = &reader.header().axis;
+    fn instant_of(&self, reader: &SeriesFile, t: &Bound<'_, PyAny>) -> PyResult<Timestamp> {
+        let samples = reader.sample_count();
         let text = crate::times::time_text(t)?;
         let sample = match time_query(t)? {
             TimeQuery::Instant(t) => return Ok(t),
             TimeQuery::Sample(s) => Some(s),
-            TimeQuery::FromEnd(back) => axis.len().checked_sub(back),
+            TimeQuery::FromEnd(back) => samples.checked_sub(back),
         };
-        sample.and_then(|s| axis.time(s)).ok_or_else(|| {
+        sample.and_then(|s| reader.sample_time(s)).ok_or_else(|| {
             froct_error_text(format!(
                 "{text}: no such sample; {} has {} samples (index:0 .. index:{}, or index:-1 .. index:-{})",
                 self.path.display(),
-                axis.len(),
-                axis.len().saturating_sub(1),
-                axis.len()
+                samples,
+                samples.saturating_sub(1),
+                samples
             ))
         })
     }
 
     /// The reader, or an error once closed.
-    pub(crate) fn reader(&self) -> PyResult<Arc<FroctReader>> {
+    pub(crate) fn reader(&self) -> PyResult<Arc<SeriesFile>> {
         self.reader
             .lock()
             .ok()
@@ -75,9 +75,8 @@ impl FroctFile {
 
     fn sample_times(&self) -> PyResult<Vec<Timestamp>> {
         let reader = self.reader()?;
-        let axis = &reader.header().axis;
-        Ok((0..axis.len())
-            .map(|i| axis.time(i).unwrap_or(Timestamp(i64::MIN)))
+        Ok((0..reader.sample_count())
+            .map(|i| reader.sample_time(i).unwrap_or(Timestamp(i64::MIN)))
             .collect())
     }
 }
@@ -114,8 +113,9 @@ impl FroctFile {
     #[getter]
     fn observed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let reader = self.reader()?;
-        let axis = &reader.header().axis;
-        let mask: Vec<bool> = (0..axis.len()).map(|i| !axis.is_missing(i)).collect();
+        let mask: Vec<bool> = (0..reader.sample_count())
+            .map(|i| !reader.is_missing(i))
+            .collect();
         Ok(mask.into_pyarray(py))
     }
 
@@ -138,7 +138,7 @@ impl FroctFile {
         let reader = self.reader()?;
         let text = py
             .detach(|| {
-                describe(crate::context(), &reader, count)
+                describe_series(crate::context(), &reader, count)
                     .map_err(|e| crate::errors::message(&e))
                     .and_then(|info| serde_json::to_string(&info).map_err(|e| e.to_string()))
             })
@@ -162,16 +162,16 @@ impl FroctFile {
         } else {
             Pick::AtOrBefore
         };
-        let when = resolve_observed_with(&reader, query, pick).map_err(to_py)?;
-        let axis = &reader.header().axis;
+        let when = resolve_observed_with(&*reader, query, pick).map_err(to_py)?;
+        let (start, end) = (reader.first_instant(), reader.last_instant());
         if let TimeQuery::Instant(t) = query {
-            if t > axis.end() || t < axis.start() {
+            if t > end || t < start {
                 let message = format!(
                     "{} is outside the file's span {} .. {}; this is the {} snapshot as observed, not a prediction (see predict)",
                     iso8601(t),
-                    iso8601(axis.start()),
-                    iso8601(axis.end()),
-                    if t > axis.end() { "last" } else { "first" }
+                    iso8601(start),
+                    iso8601(end),
+                    if t > end { "last" } else { "first" }
                 );
                 warn(py, &message)?;
             }
@@ -209,7 +209,7 @@ impl FroctFile {
         let flat = points.as_slice()?;
         let points: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         let p = py
-            .detach(|| probabilities(&reader, at, &points))
+            .detach(|| probabilities(reader.whole_history()?, at, &points))
             .map_err(to_py)?;
         Ok(p.into_pyarray(py))
     }
@@ -245,16 +245,15 @@ impl FroctFile {
                 values.len()
             ))
         })?;
-        let axis = &reader.header().axis;
         let range = match (start, end) {
             (None, None) => None,
             (start, end) => Some((
-                start.map_or(Ok(axis.start()), |t| instant(t, "start"))?,
-                end.map_or(Ok(axis.end()), |t| instant(t, "end"))?,
+                start.map_or(Ok(reader.first_instant()), |t| instant(t, "start"))?,
+                end.map_or(Ok(reader.last_instant()), |t| instant(t, "end"))?,
             )),
         };
         let story = py
-            .detach(|| voxel_history(&reader, point, range))
+            .detach(|| voxel_history(reader.whole_history()?, point, range))
             .map_err(to_py)?;
         history_dict(py, &story)
     }
@@ -306,11 +305,57 @@ impl FroctFile {
         };
         let report = py
             .detach(|| {
-                let map = read_snapshot(crate::context(), &reader, &snapshot)?;
-                anomalies(&reader, &map, at, &options)
+                let whole = reader.whole_history()?;
+                let map = read_snapshot(crate::context(), whole, &snapshot)?;
+                anomalies(whole, &map, at, &options)
             })
             .map_err(to_py)?;
         anomaly_dict(py, &report)
+    }
+
+    /// Sees what was committed to a format 2.0 file since it was opened (or last
+    /// refreshed): `True` when there is something new. Maps taken before keep the view they
+    /// were taken from. A 1.x file never changes in place (`append` renames a new file over
+    /// it), so refreshing it reads nothing; open it again to follow such a change. While
+    /// maps of this file are alive the file is opened again instead of refreshed in place,
+    /// which also follows a `compact` that replaced it.
+    fn refresh(&self, py: Python<'_>) -> PyResult<bool> {
+        let mut slot = self.reader.lock().map_err(|_| {
+            froct_error_text(format!("{}: the file is unusable", self.path.display()))
+        })?;
+        let Some(held) = slot.as_mut() else {
+            return Err(froct_error_text(format!(
+                "{}: the file is closed",
+                self.path.display()
+            )));
+        };
+        if let Some(reader) = Arc::get_mut(held) {
+            return py.detach(|| reader.refresh()).map_err(to_py);
+        }
+        if matches!(**held, SeriesFile::Flat(_)) {
+            return Ok(false);
+        }
+        let seen = held.living().map(|l| l.root());
+        let path = &self.path;
+        let reopened = py
+            .detach(|| crate::context().open_series(path))
+            .map_err(to_py)?;
+        let changed = reopened.living().map(|l| l.root()) != seen;
+        *held = Arc::new(reopened);
+        Ok(changed)
+    }
+
+    /// The format version, as `"major.minor"` (`"2.0"` for a living map).
+    #[getter]
+    fn version(&self) -> PyResult<String> {
+        let (major, minor) = self.reader()?.version();
+        Ok(format!("{major}.{minor}"))
+    }
+
+    /// Committed segments after the base (format 2.0; 0 for 1.x files).
+    #[getter]
+    fn segments(&self) -> PyResult<usize> {
+        Ok(self.reader()?.segment_count())
     }
 
     /// Closes the file (maps taken from it stay usable).
@@ -332,19 +377,18 @@ impl FroctFile {
 
     /// Samples of the time axis.
     fn __len__(&self) -> PyResult<usize> {
-        Ok(self.reader()?.header().axis.len() as usize)
+        Ok(self.reader()?.sample_count() as usize)
     }
 
     fn __repr__(&self) -> String {
         match self.reader() {
             Ok(reader) => {
-                let axis = &reader.header().axis;
                 format!(
                     "<froctomap.FroctFile {:?}: {} samples, {} .. {}, {} m>",
                     self.path.display().to_string(),
-                    axis.len(),
-                    iso8601(axis.start()),
-                    iso8601(axis.end()),
+                    reader.sample_count(),
+                    iso8601(reader.first_instant()),
+                    iso8601(reader.last_instant()),
                     reader.header().resolution
                 )
             }

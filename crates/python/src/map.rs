@@ -3,11 +3,11 @@
 
 use crate::errors::{froct_error_text, to_py};
 use froctomap_convert::{
-    observed_map, predicted_map, write_observed_map, write_predicted_map, WrittenMap,
+    observed_map, predicted_map, write_observed_map, write_predicted_map, FroctFile, SeriesRead,
+    WrittenMap,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{Snapshot, Timestamp, VoxelKey};
-use froctomap_file::FroctReader;
 use froctomap_formats::WriteOptions;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -40,21 +40,21 @@ enum Query {
 /// first asked for.
 #[pyclass(module = "froctomap", frozen)]
 pub struct Map {
-    reader: Arc<FroctReader>,
+    reader: Arc<FroctFile>,
     query: Query,
     decoded: Mutex<Option<Arc<Snapshot>>>,
 }
 
 impl Map {
-    pub(crate) fn observed(reader: Arc<FroctReader>, sample: u32, time: Timestamp) -> Self {
+    pub(crate) fn observed(reader: Arc<FroctFile>, sample: u32, time: Timestamp) -> Self {
         Self::new(reader, Query::Observed { sample, time })
     }
 
-    pub(crate) fn predicted(reader: Arc<FroctReader>, time: Timestamp) -> Self {
+    pub(crate) fn predicted(reader: Arc<FroctFile>, time: Timestamp) -> Self {
         Self::new(reader, Query::Predicted { time })
     }
 
-    fn new(reader: Arc<FroctReader>, query: Query) -> Self {
+    fn new(reader: Arc<FroctFile>, query: Query) -> Self {
         Self {
             reader,
             query,
@@ -77,10 +77,10 @@ impl Map {
         let context = crate::context();
         match self.query {
             Query::Observed { sample, .. } => {
-                write_observed_map(context, &self.reader, sample, path, options)
+                write_observed_map(context, &*self.reader, sample, path, options)
             }
             Query::Predicted { time } => {
-                write_predicted_map(context, &self.reader, time, path, options)
+                write_predicted_map(context, &*self.reader, time, path, options)
             }
         }
         .map_err(to_py)
@@ -106,8 +106,8 @@ impl Map {
         }
         let snapshot = py
             .detach(|| match self.query {
-                Query::Observed { sample, .. } => observed_map(&self.reader, sample),
-                Query::Predicted { time } => predicted_map(&self.reader, time),
+                Query::Observed { sample, .. } => observed_map(&*self.reader, sample),
+                Query::Predicted { time } => predicted_map(&*self.reader, time),
             })
             .map_err(to_py)?;
         let snapshot = Arc::new(snapshot);

@@ -310,12 +310,13 @@ pub fn evaluate<'py>(
             None => &Silent,
         };
         let context = crate::context();
-        let reader = context.open_froct(&path).map_err(|e| message(&e))?;
+        let file = context.open_series(&path).map_err(|e| message(&e))?;
+        let reader = file.whole_history().map_err(|e| message(&e))?;
         let collected = collect_inputs_explained(context, &against, source, &Zone::utc())
             .map_err(|e| message(&e))?;
         let report = evaluate_file(
             context,
-            &reader,
+            reader,
             &collected.series,
             ReadOptions::default(),
             progress,

@@ -34,8 +34,8 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+use froctomap_convert::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
-use froctomap_file::FroctReader;
 use froctomap_octomap_codec::{parse_header, FileKind};
 use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageError, MessageType};
 use rustdds::no_key::{
@@ -363,7 +363,7 @@ impl PredictedPublisher {
     /// The canonical `.bt` of the map predicted for `t` (the file is opened anew, so maps
     /// appended since the last call count).
     pub fn predicted_bt(&self, t: Timestamp) -> Result<Vec<u8>, NodeError> {
-        let reader = FroctReader::open(&self.froct).map_err(|source| NodeError::Froct {
+        let reader = FroctFile::open(&self.froct).map_err(|source| NodeError::Froct {
             path: self.froct.clone(),
             source: Box::new(source),
         })?;
@@ -388,11 +388,11 @@ impl PredictedPublisher {
 
 /// The last instant of a `.froct` file's time axis.
 pub fn last_instant(froct: &Path) -> Result<Timestamp, NodeError> {
-    let reader = FroctReader::open(froct).map_err(|source| NodeError::Froct {
+    let reader = FroctFile::open(froct).map_err(|source| NodeError::Froct {
         path: froct.to_path_buf(),
         source: Box::new(source),
     })?;
-    Ok(reader.header().axis.end())
+    Ok(reader.last_instant())
 }
 
 /// The CDR `octomap_msgs/Octomap` message of a `.bt` file (`binary` true, the body behind

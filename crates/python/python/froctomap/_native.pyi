@@ -72,6 +72,15 @@ class FroctFile:
         name), as `froctomap anomalies --json` reports it: time, unix_time, scored_voxels,
         surprising_voxels, and regions (min, max, voxels, score, kind) most surprising
         first. expect: "model", "static-mean" or "last-seen"."""
+    @property
+    def version(self) -> str:
+        """The format version, "major.minor" ("2.0" for a living map)."""
+    @property
+    def segments(self) -> int:
+        """Committed segments after the base of a 2.0 file (0 for 1.x)."""
+    def refresh(self) -> bool:
+        """Sees what was committed to a 2.0 file since open (or the last refresh); True
+        when there is something new. Maps taken before keep their view."""
     def close(self) -> None:
         """Closes the file; maps taken from it stay usable."""
     def __enter__(self) -> FroctFile: ...
