@@ -47,7 +47,7 @@ pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
 pub use natural::natural_cmp;
 pub use recording::{
-    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, OpenStream, RecordedMaps,
     RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
 };
 pub use registry::{
