@@ -239,6 +239,9 @@ fn main() -> ExitCode {
         REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
     }
     let cli = Cli::parse_from(args);
+    if matches!(&cli.command, Command::Generate(args) if args.streams()) {
+        REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     signals::clean_up_on_signals();
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
         None => froctomap_convert::Zone::utc(),

@@ -79,7 +79,7 @@ pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
 pub use inputs::{
     collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
-    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
+    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
 };
 pub use maps::predicted_bt;
 pub use maps::{
