@@ -427,6 +427,30 @@ pub fn collect_inputs_explained(
             });
         }
     }
+    collected(candidates, notes, times, zone)
+}
+
+/// The maps of an opened `recording` as a series (sorted by time; two maps of one time are
+/// an error), named `path` in messages: a source of maps handed over one at a time, e.g.
+/// Python's `build` given an iterable of `(time, bytes)` spooled into a
+/// [`MapSpool`](froctomap_formats::MapSpool).
+pub fn collect_recording(
+    path: PathBuf,
+    recording: froctomap_formats::Recording,
+) -> Result<CollectedInputs, ConvertError> {
+    let mut candidates = Vec::new();
+    let mut notes = InputNotes::default();
+    push_recording(path, recording, &mut candidates, &mut notes);
+    collected(candidates, notes, TimeSource::Auto, &Zone::utc())
+}
+
+/// The candidates with their times, sorted by time.
+fn collected(
+    candidates: Vec<Candidate>,
+    notes: InputNotes,
+    times: TimeSource,
+    zone: &Zone,
+) -> Result<CollectedInputs, ConvertError> {
     if candidates.is_empty() {
         return Err(match notes.skipped.into_iter().next() {
             Some((path, problem)) => ConvertError::AllSkipped { path, problem },

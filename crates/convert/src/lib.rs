@@ -78,8 +78,8 @@ pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
 pub use info::{describe, AxisInfo, FroctInfo, SizeInfo, LARGEST_REGIONS};
 pub use inputs::{
-    collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
-    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
+    collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,
+    InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
 };
 pub use maps::predicted_bt;
 pub use maps::{
