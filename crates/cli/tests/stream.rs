@@ -335,3 +335,53 @@ fn cut_and_garbage_streams_are_errors_naming_where_they_stopped() {
     let error = common::err(&["build", "-", "-", "-o", s(&out)]);
     assert!(error.contains("standard input is read once"), "{error}");
 }
+
+/// `append FILE -` takes a stream as `build -` does: appending `generate --stream` of later
+/// maps gives the file appending the same maps from their directory gives, apart from the
+/// metadata.
+#[test]
+fn append_takes_a_stream() {
+    let dir = scratch();
+    let first = dir.path().join("first");
+    let later = dir.path().join("later");
+    let series = ["--days", "0.0625", "--step", "30min", "--seed", "3"];
+    let mut generate = vec!["generate", "-o", s(&first)];
+    generate.extend(series);
+    ok(&generate);
+    let start = ["--start", "2016-01-04T06:00:00Z"];
+    let mut generate = vec!["generate", "-o", s(&later)];
+    generate.extend(series);
+    generate.extend(start);
+    ok(&generate);
+    let from_dir = dir.path().join("dir.froct");
+    ok(&[
+        "-q",
+        "build",
+        s(&first),
+        "--created",
+        CREATED,
+        "-o",
+        s(&from_dir),
+    ]);
+    let from_stream = dir.path().join("stream.froct");
+    std::fs::copy(&from_dir, &from_stream).unwrap();
+    let appended = "--appended=2020-01-02T00:00:00Z";
+    ok(&["-q", "append", s(&from_dir), s(&later), appended]);
+    let mut generator = froctomap()
+        .args(["generate", "--stream"])
+        .args(series)
+        .args(start)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let output = froctomap()
+        .args(["-q", "append", s(&from_stream), "-", appended])
+        .stdin(Stdio::from(generator.stdout.take().unwrap()))
+        .output()
+        .unwrap();
+    assert!(generator.wait().unwrap().success());
+    succeeded(&output, "append -");
+    let samples = manifest(&first).len() + manifest(&later).len();
+    same_apart_from_metadata(&from_stream, &from_dir, samples, "append -");
+}
