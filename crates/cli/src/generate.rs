@@ -65,8 +65,8 @@ pub struct GenerateArgs {
     /// A JSON scenario (a serialised SeriesSpec) to start from.
     #[arg(long, value_name = "FILE")]
     spec: Option<PathBuf>,
-    /// Map format of the snapshots.
-    #[arg(long)]
+    /// Map format of the snapshots (default bt).
+    #[arg(long, value_name = "FORMAT")]
     format: Option<String>,
 }
 
@@ -102,6 +102,11 @@ fn spec(ui: &Ui, args: &GenerateArgs) -> Result<SeriesSpec> {
 }
 
 pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
+    if args.stream && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        anyhow::bail!(
+            "--stream writes binary MCAP to standard output, which is a terminal; pipe it into `froctomap build - -o f.froct` or redirect it to a file"
+        );
+    }
     let spec = spec(ui, args)?;
     let base = ui
         .context

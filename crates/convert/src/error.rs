@@ -83,6 +83,9 @@ pub enum ConvertError {
     /// `-` given more than once: standard input is read once.
     #[error("-: standard input is read once; give `-` once among the inputs")]
     StdinTwice,
+    /// `-` given while standard input is a terminal (a stream must be piped in).
+    #[error("-: standard input is a terminal; pipe an MCAP stream into it (e.g. `froctomap generate --stream | froctomap build - -o f.froct`)")]
+    StdinIsTerminal,
     /// Standard input could not be read.
     #[error("-: cannot read standard input: {source}")]
     StdinRead {

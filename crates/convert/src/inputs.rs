@@ -360,7 +360,12 @@ pub fn collect_inputs_explained(
     for input in inputs {
         let text = input.to_string_lossy();
         if input.as_os_str() == STDIN_INPUT {
-            push_stream(context, &mut std::io::stdin(), &mut candidates, &mut notes)?;
+            let mut stdin = std::io::stdin();
+            if std::io::IsTerminal::is_terminal(&stdin) {
+                // Nobody types MCAP: it would wait for keystrokes.
+                return Err(ConvertError::StdinIsTerminal);
+            }
+            push_stream(context, &mut stdin, &mut candidates, &mut notes)?;
         } else if text.contains(['*', '?', '[']) && !input.exists() {
             let mut matched = if text.contains("**") {
                 recursive_matches(&text)?
