@@ -138,6 +138,7 @@ pub(crate) fn open_mcap_stream(
         .map_err(spool_error)?;
     let mut out = BufWriter::new(&spool);
     let mut topics: Vec<TopicEntry> = Vec::new();
+    let mut by_channel: std::collections::HashMap<u16, usize> = std::collections::HashMap::new();
     let mut spooled: Vec<Spooled> = Vec::new();
     let mut skipped: Vec<Cause> = Vec::new();
     let mut damage = Damage {
@@ -185,28 +186,21 @@ pub(crate) fn open_mcap_stream(
         };
         at.messages += 1;
         let channel = &message.channel;
-        let schema = channel
-            .schema
-            .as_ref()
-            .map_or_else(String::new, |s| s.name.clone());
-        let topic = match topics
-            .iter()
-            .position(|t| t.topic == channel.topic && t.type_name == schema)
-        {
-            Some(i) => i,
-            None => {
-                topics.push(TopicEntry {
-                    topic: channel.topic.clone(),
-                    type_name: schema.clone(),
-                });
-                topics.len() - 1
-            }
-        };
+        let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        // The reader refuses a channel id redefined otherwise, so an id stands for its
+        // topic and schema.
+        let topic = *by_channel.entry(channel.id).or_insert_with(|| {
+            topics.push(TopicEntry {
+                topic: channel.topic.clone(),
+                type_name: schema.to_string(),
+            });
+            topics.len() - 1
+        });
         let wanted = match &options.topic {
             Some(wanted) => *wanted == channel.topic,
             None => true,
         };
-        let Some(kind) = MessageType::from_name(&schema).filter(|_| wanted) else {
+        let Some(kind) = MessageType::from_name(schema).filter(|_| wanted) else {
             continue;
         };
         let encoding = match channel.message_encoding.as_str() {
