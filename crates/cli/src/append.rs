@@ -59,6 +59,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     }
     // Recordings among the inputs are read back through the context that expanded them.
     let spool = crate::series::spool_dir(args.spill.tmp_dir.as_deref(), Some(&args.file));
+    crate::series::note_stream(ui, &args.inputs, spool.as_deref());
     let context = &args.times.context(ui, args.skip_bad, spool);
     let collected =
         collect_inputs_explained(context, &args.inputs, args.times.source(ui)?, &ui.zone)?;

@@ -373,6 +373,21 @@ fn creation_time(ui: &Ui, args: &BuildArgs) -> Result<Option<Timestamp>> {
     Ok(Some(created))
 }
 
+/// Says that a stream among `inputs` is read to its end before anything else happens
+/// (which may take as long as its writer runs).
+pub(crate) fn note_stream(ui: &Ui, inputs: &[PathBuf], spool: Option<&Path>) {
+    if inputs
+        .iter()
+        .any(|i| i.as_os_str() == froctomap_convert::STDIN_INPUT)
+    {
+        let spool = spool.map_or_else(std::env::temp_dir, Path::to_path_buf);
+        ui.note(&format!(
+            "reading the stream on standard input to its end (its maps spooled in {})",
+            escaped(spool.display())
+        ));
+    }
+}
+
 /// Where a stream on standard input is spooled: `--tmp-dir`, else the output's directory
 /// (the system's temporary directory when the output is a stream itself).
 pub(crate) fn spool_dir(tmp_dir: Option<&Path>, output: Option<&Path>) -> Option<PathBuf> {
@@ -397,6 +412,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     }
     // Recordings among the inputs are read back through the context that expanded them.
     let spool = spool_dir(args.spill.tmp_dir.as_deref(), args.output.as_deref());
+    note_stream(ui, &args.inputs, spool.as_deref());
     let series_context = &args.times.context(ui, args.skip_bad, spool);
     let collected = collect_inputs_explained(
         series_context,
