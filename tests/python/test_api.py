@@ -76,6 +76,59 @@ def test_build_writes_the_bytes_of_the_command_line(series, cli_file, tmp_path):
         assert report[key] == cli[key], key
 
 
+def without_metadata(path: Path) -> tuple:
+    """`info --json` less what names the inputs (metadata, the header holding it and the
+    ratios counting that header), and the tiles' bytes."""
+    info = json.loads(run_cli("info", "--json", path).stdout)
+    header, tiles = info["size"]["header"], info["size"]["tiles"]
+    for key in ["file", "metadata", "ratio_vs_inputs", "ratio_vs_raw_states"]:
+        del info[key]
+    del info["size"]["file"], info["size"]["header"]
+    return info, path.read_bytes()[header:header + tiles]
+
+
+def test_build_takes_time_and_bytes_pairs_from_a_generator(series, cli_file, tmp_path):
+    """Maps handed over as (time, bytes) pairs by a generator (each read only when asked
+    for) build the command line's file of the directory, apart from the metadata naming the
+    inputs; every snapshot retrieved is the command line's."""
+    read = []
+
+    def pairs():
+        for path, time in manifest_times(series):
+            read.append(path)
+            yield int(time), path.read_bytes()
+
+    out = tmp_path / "pairs.froct"
+    report = froctomap.build(pairs(), out, created=CREATED, progress=False)
+    assert len(read) == report["used"] == len(snapshot_files(series))
+    assert without_metadata(out) == without_metadata(cli_file)
+    assert out.read_bytes() != cli_file.read_bytes()  # the metadata do differ
+    for i in range(report["used"]):
+        ours, theirs = tmp_path / f"ours{i}.bt", tmp_path / f"theirs{i}.bt"
+        run_cli("retrieve", out, "--time", f"index:{i}", "-o", ours)
+        run_cli("retrieve", cli_file, "--time", f"index:{i}", "-o", theirs)
+        assert ours.read_bytes() == theirs.read_bytes(), i
+    # No spool is left beside the output.
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".froct")) == []
+
+
+def test_time_and_bytes_pairs_are_checked(series, tmp_path):
+    (path, time), (other, _) = manifest_times(series)[:2]
+    with pytest.raises(froctomap.FroctError, match="paths or \\(time, bytes\\) pairs, not both"):
+        froctomap.build([(int(time), path.read_bytes()), other], tmp_path / "x.froct",
+                        progress=False)
+    with pytest.raises(froctomap.FroctError, match="inputs\\[0\\]: expected a path or a \\(time, bytes\\) pair"):
+        froctomap.build([(int(time), "not bytes")], tmp_path / "x.froct", progress=False)
+    with pytest.raises(froctomap.FroctError, match="same time"):
+        froctomap.build([(int(time), path.read_bytes()), (int(time), other.read_bytes())],
+                        tmp_path / "x.froct", progress=False)
+    with pytest.raises(froctomap.FroctError, match="carry their own times"):
+        froctomap.build([(int(time), path.read_bytes())], tmp_path / "x.froct",
+                        start=0, step=60, progress=False)
+    assert not (tmp_path / "x.froct").exists()
+    assert [p.name for p in tmp_path.iterdir()] == []
+
+
 def test_lossy_and_fixed_order_builds_match_the_command_line(series, tmp_path):
     ours = tmp_path / "ours.froct"
     theirs = tmp_path / "theirs.froct"

@@ -3,13 +3,15 @@ ROS 1 bags and ROS 2 bags with MCAP storage, mcap-ros2-support for plain MCAP), 
 recording tests of froctomap.
 
 Usage: python write_recordings.py SPEC.json
-SPEC: {"recordings": [{"kind": "ros1" | "ros2bag" | "mcap", "path": ...,
+SPEC: {"recordings": [{"kind": "ros1" | "ros2bag" | "mcap", "path": ... ("-": an MCAP stream
+                        on standard output, written in order without seeking),
                        "compression": "none" | "bz2" | "lz4" | "zstd",
                        "chunk_bytes": int (optional: a chunk ends past this size),
                        "messages": [{"topic": ..., "map": FILE.bt, "stamp_ns": int,
                                      "log_ns": int, "whole_file": bool}]}]}
 Each recording also gets a /chatter std_msgs/String message, a topic of another type.
 """
+import io
 import json
 import sys
 
@@ -87,13 +89,38 @@ def write_ros2bag(spec):
         writer.write(other, spec["messages"][0]["log_ns"], ts.serialize_cdr(chatter(ts), "std_msgs/msg/String"))
 
 
+class Pipe(io.RawIOBase):
+    """Standard output as the MCAP writer needs it: it asks where it is (tell), never seeks."""
+
+    def __init__(self, out):
+        self.out, self.pos = out, 0
+
+    def writable(self):
+        return True
+
+    def write(self, data):
+        self.out.write(data)
+        self.pos += len(data)
+        return len(data)
+
+    def tell(self):
+        return self.pos
+
+    def flush(self):
+        self.out.flush()
+
+    def close(self):
+        self.out.flush()
+
+
 def write_mcap(spec):
     from mcap.writer import CompressionType
     from mcap_ros2.writer import Writer
     ts = typestore(Stores.ROS2_HUMBLE)
     msgdef, _ = ts.generate_msgdef(OCTOMAP, ros_version=2)
     compression = {"none": CompressionType.NONE, "lz4": CompressionType.LZ4}.get(spec["compression"], CompressionType.ZSTD)
-    with open(spec["path"], "wb") as out:
+    stream = spec["path"] == "-"
+    with (Pipe(sys.stdout.buffer) if stream else open(spec["path"], "wb")) as out:
         writer = Writer(out, compression=compression, chunk_size=spec.get("chunk_bytes", 1024 * 1024))
         schema = writer.register_msgdef(OCTOMAP, msgdef)
         string = writer.register_msgdef("std_msgs/msg/String", "string data\n")

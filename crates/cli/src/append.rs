@@ -19,7 +19,8 @@ pub struct AppendArgs {
     file: PathBuf,
     /// Snapshots later than the file's last one, as for `build`: directories (their
     /// manifest.csv, else every .bt/.ot file), glob patterns, manifest CSV files
-    /// (`path,time`), or single files.
+    /// (`path,time`), single files, recordings, or `-`: an MCAP stream on standard input
+    /// (spooled into --tmp-dir or the file's directory).
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
     #[command(flatten)]
@@ -57,7 +58,9 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
         crate::memory_guard::watch(limit, default, "append");
     }
     // Recordings among the inputs are read back through the context that expanded them.
-    let context = &args.times.context(ui, args.skip_bad);
+    let spool = crate::series::spool_dir(args.spill.tmp_dir.as_deref(), Some(&args.file));
+    crate::series::note_stream(ui, &args.inputs, spool.as_deref());
+    let context = &args.times.context(ui, args.skip_bad, spool);
     let collected =
         collect_inputs_explained(context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);

@@ -3,13 +3,17 @@
 
 use crate::progress::Bars;
 use crate::ui::{escaped, Ui};
-use anyhow::Result;
+use anyhow::{Context as _, Result};
 use clap::Args;
 use froctomap_convert::group_thousands;
 use froctomap_convert::{parse_duration, Progress};
 use froctomap_core::calendar::iso8601;
 use froctomap_formats::ReadOptions;
-use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
+use froctomap_ros::McapMapStream;
+use froctomap_synth::{
+    encode_series, write_series, FrameStats, Generator, SeriesSpec, SpecOverrides, SynthError,
+    WriteSeriesOptions,
+};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -19,8 +23,14 @@ pub const GEB079: &str = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt"
 #[derive(Args)]
 pub struct GenerateArgs {
     /// Directory for the snapshots and manifest.csv (created if missing).
-    #[arg(short, long, value_name = "DIR")]
-    output: PathBuf,
+    #[arg(short, long, value_name = "DIR", required_unless_present = "stream")]
+    output: Option<PathBuf>,
+    /// Write no files: the series goes to standard output as an MCAP stream (each map an
+    /// octomap_msgs/msg/Octomap message on /octomap_binary, CDR with its ros2msg schema,
+    /// logged and stamped at the map's time), for `froctomap build -`:
+    /// `froctomap generate --days 1 --stream | froctomap build - -o day.froct`.
+    #[arg(long, conflicts_with_all = ["output", "format"])]
+    stream: bool,
     /// The real map the series is made from.
     #[arg(long, default_value = GEB079, value_name = "FILE")]
     base: PathBuf,
@@ -55,9 +65,16 @@ pub struct GenerateArgs {
     /// A JSON scenario (a serialised SeriesSpec) to start from.
     #[arg(long, value_name = "FILE")]
     spec: Option<PathBuf>,
-    /// Map format of the snapshots.
-    #[arg(long, default_value = "bt")]
-    format: String,
+    /// Map format of the snapshots (default bt).
+    #[arg(long, value_name = "FORMAT")]
+    format: Option<String>,
+}
+
+impl GenerateArgs {
+    /// `--stream`: the maps go to standard output (and the report to standard error).
+    pub fn streams(&self) -> bool {
+        self.stream
+    }
 }
 
 fn spec(ui: &Ui, args: &GenerateArgs) -> Result<SeriesSpec> {
@@ -85,6 +102,11 @@ fn spec(ui: &Ui, args: &GenerateArgs) -> Result<SeriesSpec> {
 }
 
 pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
+    if args.stream && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        anyhow::bail!(
+            "--stream writes binary MCAP to standard output, which is a terminal; pipe it into `froctomap build - -o f.froct` or redirect it to a file"
+        );
+    }
     let spec = spec(ui, args)?;
     let base = ui
         .context
@@ -103,24 +125,35 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
     for warning in generator.warnings() {
         ui.note(&format!("warning: {warning}"));
     }
+    let bars = Bars::new(ui.quiet);
+    bars.stage("writing snapshots", generator.frames().count() as u64);
+    // The generator reports totals done so far; the bar wants increments.
+    let done_so_far = AtomicU64::new(0);
+    let progress = |done: u64, _total: u64| {
+        let before = done_so_far.fetch_max(done, Ordering::Relaxed);
+        bars.advance(done.saturating_sub(before));
+    };
+    let Some(output) = &args.output else {
+        let (frames, bytes, changes) = stream_series(ui, &generator, &progress)?;
+        drop(bars);
+        outln!(
+            "streamed {} snapshots ({} bytes of maps) as MCAP on standard output",
+            group_thousands(frames),
+            group_thousands(bytes)
+        )?;
+        return print_changes(&generator, &changes);
+    };
     let options = WriteSeriesOptions {
-        format: args.format.clone(),
+        format: args.format.clone().unwrap_or_else(|| "bt".to_string()),
         file_pattern: "frame_{time}.{ext}".to_string(),
         threads: 0,
     };
-    let bars = Bars::new(ui.quiet);
-    bars.stage("writing snapshots", generator.frames().count() as u64);
-    // `write_series` reports totals done so far; the bar wants increments.
-    let done_so_far = AtomicU64::new(0);
     let manifest = write_series(
         ui.context.formats(),
         &generator,
-        &args.output,
+        output,
         &options,
-        &|done, _total| {
-            let before = done_so_far.fetch_max(done, Ordering::Relaxed);
-            bars.advance(done.saturating_sub(before));
-        },
+        &progress,
     )?;
     drop(bars);
     let n = group_thousands;
@@ -138,6 +171,12 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
             iso8601(last.time)
         )?;
     }
+    print_changes(&generator, &manifest.changes)
+}
+
+/// The elements placed and the changes they made.
+fn print_changes(generator: &Generator, changes: &FrameStats) -> Result<()> {
+    let n = group_thousands;
     let summary = generator.change_summary();
     for kind in &summary.kinds {
         outln!(
@@ -145,14 +184,48 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
             kind.kind.name(),
             kind.placed,
             n(kind.voxels),
-            n(manifest.changes.of(kind.kind))
+            n(changes.of(kind.kind))
         )?;
     }
     outln!(
         "{:<10} {} surface voxels, {} flips",
         "noise",
         n(summary.noise_candidates),
-        n(manifest.changes.noise)
+        n(changes.noise)
     )?;
     Ok(())
+}
+
+/// `--stream`: the frames as `.bt` maps in an MCAP stream on standard output; the frames,
+/// the maps' bytes and the changes.
+fn stream_series(
+    ui: &Ui,
+    generator: &Generator,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(u64, u64, FrameStats)> {
+    let stdout = std::io::stdout();
+    let mut stream = McapMapStream::new(std::io::BufWriter::new(stdout.lock()))?;
+    let (mut frames, mut bytes) = (0u64, 0u64);
+    let mut changes = FrameStats::default();
+    encode_series(
+        ui.context.formats(),
+        generator,
+        "bt",
+        0,
+        progress,
+        &mut |frame, bt, stats| {
+            stream
+                .write_map(frame.time, &bt)
+                .map_err(|e| SynthError::Sink(Box::new(e)))?;
+            frames += 1;
+            bytes += bt.len() as u64;
+            changes.add(&stats);
+            Ok(())
+        },
+    )
+    .context("writing the MCAP stream on standard output")?;
+    stream
+        .finish()
+        .context("writing the MCAP stream on standard output")?;
+    Ok((frames, bytes, changes))
 }

@@ -139,9 +139,10 @@ enum Command {
     /// Build one FROctomap file from a series of OctoMap snapshots.
     ///
     /// Inputs are directories (their manifest.csv, else every .bt/.ot file), glob patterns,
-    /// manifests (`path,time` CSV, times in Unix seconds or ISO 8601) or files. Times come
-    /// from the manifest, from the file names (Unix seconds or ISO 8601 in the name), or
-    /// from --start/--step. Snapshots are read in parallel and accumulated in time order;
+    /// manifests (`path,time` CSV, times in Unix seconds or ISO 8601), files, recordings
+    /// (ROS bags, MCAP) or `-`, an MCAP stream on standard input. Times come from the
+    /// manifest, from the file names (Unix seconds or ISO 8601 in the name), from
+    /// --start/--step, or from the recording. Snapshots are read in parallel and accumulated in time order;
     /// memory grows with the map, not with the number of snapshots. Unknown space stays
     /// unknown. Lossless by default: every observed state comes back exactly.
     ///
@@ -255,6 +256,9 @@ fn main() -> ExitCode {
         REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
     }
     let cli = Cli::parse_from(args);
+    if matches!(&cli.command, Command::Generate(args) if args.streams()) {
+        REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     signals::clean_up_on_signals();
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
         None => froctomap_convert::Zone::utc(),

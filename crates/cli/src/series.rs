@@ -20,7 +20,7 @@ use froctomap_file::{Codec, ToggleLayout};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use froctomap_temporal::{ModelConfig, ModelRegistry, OutlierMode};
 use serde_json::{Map, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// How the inputs of a series get their times (shared by `build`, `append` and `eval`).
@@ -73,13 +73,22 @@ enum RecordedTimeArg {
 impl TimeArgs {
     /// The program's context reading recordings as `--topic` and `--time-source` say,
     /// leaving their damaged chunks out with `skip_bad`.
-    pub(crate) fn context(&self, ui: &Ui, skip_bad: bool) -> froctomap_convert::Context {
+    /// A stream on standard input (`-`) is spooled in `spool_dir` (else the system's
+    /// temporary directory).
+    pub(crate) fn context(
+        &self,
+        ui: &Ui,
+        skip_bad: bool,
+        spool_dir: Option<PathBuf>,
+    ) -> froctomap_convert::Context {
         let time = match self.time_source {
             RecordedTimeArg::Header => RecordedTime::Header,
             RecordedTimeArg::Log => RecordedTime::Log,
         };
         ui.context.clone().with_recording_options(
-            RecordingOptions::new(self.topic.clone(), time).with_skip_bad(skip_bad),
+            RecordingOptions::new(self.topic.clone(), time)
+                .with_skip_bad(skip_bad)
+                .with_spool_dir(spool_dir),
         )
     }
 
@@ -132,7 +141,10 @@ fn models_help() -> String {
 #[derive(Args)]
 pub struct BuildArgs {
     /// Snapshots: directories (their manifest.csv, else every .bt/.ot file), glob patterns,
-    /// manifest CSV files (`path,time`), or single files.
+    /// manifest CSV files (`path,time`), single files, recordings (ROS 1 .bag, .mcap, ROS 2
+    /// bag directories), or `-`: an MCAP stream on standard input (`froctomap generate
+    /// --stream | froctomap build - -o f.froct`), read to its end first, its maps spooled
+    /// into --tmp-dir or the output's directory, never held in memory.
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
     /// The FROctomap file to write (not needed with --dry-run).
@@ -361,6 +373,34 @@ fn creation_time(ui: &Ui, args: &BuildArgs) -> Result<Option<Timestamp>> {
     Ok(Some(created))
 }
 
+/// Says that a stream among `inputs` is read to its end before anything else happens
+/// (which may take as long as its writer runs).
+pub(crate) fn note_stream(ui: &Ui, inputs: &[PathBuf], spool: Option<&Path>) {
+    if inputs
+        .iter()
+        .any(|i| i.as_os_str() == froctomap_convert::STDIN_INPUT)
+    {
+        let spool = spool.map_or_else(std::env::temp_dir, Path::to_path_buf);
+        ui.note(&format!(
+            "reading the stream on standard input to its end (its maps spooled in {})",
+            escaped(spool.display())
+        ));
+    }
+}
+
+/// Where a stream on standard input is spooled: `--tmp-dir`, else the output's directory
+/// (the system's temporary directory when the output is a stream itself).
+pub(crate) fn spool_dir(tmp_dir: Option<&Path>, output: Option<&Path>) -> Option<PathBuf> {
+    if let Some(dir) = tmp_dir {
+        return Some(dir.to_path_buf());
+    }
+    let output = output.filter(|o| !froctomap_core::is_stream_output(o))?;
+    Some(match output.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        _ => PathBuf::from("."),
+    })
+}
+
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
@@ -371,7 +411,9 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         crate::memory_guard::watch(limit, default, "build");
     }
     // Recordings among the inputs are read back through the context that expanded them.
-    let series_context = &args.times.context(ui, args.skip_bad);
+    let spool = spool_dir(args.spill.tmp_dir.as_deref(), args.output.as_deref());
+    note_stream(ui, &args.inputs, spool.as_deref());
+    let series_context = &args.times.context(ui, args.skip_bad, spool);
     let collected = collect_inputs_explained(
         series_context,
         &args.inputs,
@@ -851,7 +893,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let file = ui.context.open_series(&args.file)?;
     let reader = file.whole_history()?;
     // Recordings among the ground truths are read with --topic/--time-source.
-    let context = args.times.context(ui, false);
+    let context = args.times.context(ui, false, None);
     let collected =
         collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;
     ui.read_zoneless(collected.zoneless);

@@ -1,5 +1,6 @@
-//! Ctrl-C (SIGINT) and SIGTERM during `build` leave no temporary output (`.froct-*.tmp`)
-//! and no spill directory (`.froct-spill-*`) behind, and the process ends by the signal.
+//! Ctrl-C (SIGINT) and SIGTERM during `build` leave no temporary output (`.froct-*.tmp`),
+//! no spill directory (`.froct-spill-*`) and no stream spool (`.froct-stream-*`) behind,
+//! and the process ends by the signal.
 #![cfg(unix)]
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
@@ -145,4 +146,64 @@ fn spill_directories_of_killed_builds_do_not_survive_the_next_build() {
         );
     }
     assert_eq!(killed, 3, "never saw the spill directory while building");
+}
+
+/// A build reading a stream on standard input (`-`) holds its spool (`.froct-stream-*`)
+/// while it waits for the rest of the stream: SIGTERM and SIGINT then remove it and end
+/// the process by the signal; after `kill -9` the next `build -` there removes it.
+#[test]
+fn the_spool_of_a_stream_goes_on_signals_and_after_kill_9() {
+    let generated = froctomap()
+        .args(["generate", "--days", "0.125", "--step", "30min", "--stream"])
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(generated.status.success());
+    let stream = generated.stdout;
+    let spool: fn(&str) -> bool = |name| name.starts_with(".froct-stream-");
+    let out = tempfile::tempdir().unwrap();
+    let output = out.path().join("f.froct");
+    let start = || {
+        let mut child = froctomap()
+            .args(["build", "-q", "-", "-o"])
+            .arg(&output)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        // Half the stream, the pipe held open: the build waits for the rest.
+        let mut stdin = child.stdin.take().unwrap();
+        std::io::Write::write_all(&mut stdin, &stream[..stream.len() / 2]).unwrap();
+        (child, stdin)
+    };
+    for (signal, number) in [("-TERM", 15), ("-INT", 2), ("-KILL", 9)] {
+        let (mut child, stdin) = start();
+        assert!(wait_for(&mut child, out.path(), spool), "{signal}");
+        send(&child, signal);
+        let status = child.wait().unwrap();
+        drop(stdin);
+        assert_eq!(status.signal(), Some(number), "{signal}: {status:?}");
+        let left = temporaries(out.path());
+        if number == 9 {
+            assert!(left.iter().any(|n| spool(n)), "{left:?}");
+        } else {
+            assert_eq!(left, Vec::<String>::new(), "{signal}");
+        }
+        assert!(!output.exists());
+    }
+    // The next stream read there removes what the killed build left.
+    let mut child = froctomap()
+        .args(["build", "-q", "-", "-o"])
+        .arg(&output)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    std::io::Write::write_all(&mut stdin, &stream).unwrap();
+    drop(stdin);
+    assert!(child.wait().unwrap().success());
+    assert_eq!(temporaries(out.path()), Vec::<String>::new());
+    assert!(output.exists());
 }

@@ -69,6 +69,30 @@ pub enum ConvertError {
         #[source]
         source: Cause,
     },
+    /// Standard input (`-` among the inputs) that is not a stream of a recording format
+    /// read from streams ([`RecordingFormat::open_stream`](froctomap_formats::RecordingFormat::open_stream)).
+    #[error(
+        "-: standard input is not a stream of a format read from streams ({formats}); {start}"
+    )]
+    UnknownStream {
+        /// The formats read from streams.
+        formats: String,
+        /// How the stream starts.
+        start: String,
+    },
+    /// `-` given more than once: standard input is read once.
+    #[error("-: standard input is read once; give `-` once among the inputs")]
+    StdinTwice,
+    /// `-` given while standard input is a terminal (a stream must be piped in).
+    #[error("-: standard input is a terminal; pipe an MCAP stream into it (e.g. `froctomap generate --stream | froctomap build - -o f.froct`)")]
+    StdinIsTerminal,
+    /// Standard input could not be read.
+    #[error("-: cannot read standard input: {source}")]
+    StdinRead {
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
     /// `--start/--step` or a times file given with a recording, whose maps carry their own
     /// times.
     #[error("{}: a recording's maps carry their own times; --start/--step and --times-file apply to map files only", path.display())]

@@ -188,6 +188,84 @@ fn push_file(
         return Ok(());
     };
     let recording = crate::recording::open_recording(context, format, &path)?;
+    push_recording(path, recording, candidates, notes);
+    Ok(())
+}
+
+/// The input that means standard input: a recording read as a stream.
+pub const STDIN_INPUT: &str = "-";
+
+/// Adds the maps of the recording streamed on `input` (standard input) to `candidates`:
+/// its first bytes choose the format among those read from streams, which reads it to
+/// its end.
+fn push_stream(
+    context: &Context,
+    input: &mut dyn std::io::Read,
+    candidates: &mut Vec<Candidate>,
+    notes: &mut InputNotes,
+) -> Result<(), ConvertError> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    input
+        .take(froctomap_formats::PROBE_BYTES)
+        .read_to_end(&mut head)
+        .map_err(|source| ConvertError::StdinRead { source })?;
+    let streamed: Vec<_> = context
+        .formats()
+        .recording_formats()
+        .iter()
+        .filter_map(|f| f.open_stream.map(|open| (f, open)))
+        .collect();
+    let chosen = streamed
+        .iter()
+        .map(|&(format, open)| ((format.probe)(&head), format, open))
+        .filter(|(confidence, ..)| *confidence > froctomap_formats::Confidence::No)
+        .max_by_key(|(confidence, ..)| *confidence);
+    let Some((_, format, open)) = chosen else {
+        let formats: Vec<&str> = streamed.iter().map(|(f, _)| f.name).collect();
+        return Err(ConvertError::UnknownStream {
+            formats: if formats.is_empty() {
+                "none registered".to_string()
+            } else {
+                formats.join(", ")
+            },
+            start: describe_start(&head),
+        });
+    };
+    let path = PathBuf::from(STDIN_INPUT);
+    let mut whole = std::io::Cursor::new(head).chain(input);
+    let limit = context.limits().max_map_file_bytes;
+    let recording = open(&mut whole, context.recording_options(), limit).map_err(|source| {
+        ConvertError::Recording {
+            path: path.clone(),
+            format: format.name,
+            source,
+        }
+    })?;
+    push_recording(path, recording, candidates, notes);
+    Ok(())
+}
+
+/// How a stream that is nobody's starts, for its error.
+fn describe_start(head: &[u8]) -> String {
+    if head.is_empty() {
+        return "it is empty".to_string();
+    }
+    let shown: String = String::from_utf8_lossy(&head[..head.len().min(16)])
+        .chars()
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect();
+    format!("it starts with {shown:?}")
+}
+
+/// Adds the maps of an opened recording at `path` to `candidates`, its warnings and the
+/// parts it left out to `notes`.
+fn push_recording(
+    path: PathBuf,
+    recording: froctomap_formats::Recording,
+    candidates: &mut Vec<Candidate>,
+    notes: &mut InputNotes,
+) {
     notes.skipped.extend(
         recording
             .skipped
@@ -214,7 +292,6 @@ fn push_file(
                 ..Candidate::file(path.clone())
             }),
     );
-    Ok(())
 }
 
 /// Expands command-line inputs into the files of a series with their times, sorted by time.
@@ -236,6 +313,13 @@ fn push_file(
 /// (read as `context`'s [`RecordingOptions`](crate::RecordingOptions) say); each such input
 /// holds the opened recording, so the series can be built with any context. Their times are their own: `--start/--step`
 /// and times files are refused with them.
+///
+/// [`STDIN_INPUT`] (`-`) is a recording streamed on standard input, of a format read from
+/// streams (an MCAP stream with `froctomap-ros` registered): it is read to its end here,
+/// its maps spooled to disk by the plugin (in [`RecordingOptions::spool_dir`]), and built
+/// like a recording file. `-` may be given once.
+///
+/// [`RecordingOptions::spool_dir`]: crate::RecordingOptions::spool_dir
 pub fn collect_inputs(
     context: &Context,
     inputs: &[PathBuf],
@@ -265,9 +349,24 @@ pub fn collect_inputs_explained(
         .collect();
     let mut candidates = Vec::new();
     let mut notes = InputNotes::default();
+    if inputs
+        .iter()
+        .filter(|i| i.as_os_str() == STDIN_INPUT)
+        .count()
+        > 1
+    {
+        return Err(ConvertError::StdinTwice);
+    }
     for input in inputs {
         let text = input.to_string_lossy();
-        if text.contains(['*', '?', '[']) && !input.exists() {
+        if input.as_os_str() == STDIN_INPUT {
+            let mut stdin = std::io::stdin();
+            if std::io::IsTerminal::is_terminal(&stdin) {
+                // Nobody types MCAP: it would wait for keystrokes.
+                return Err(ConvertError::StdinIsTerminal);
+            }
+            push_stream(context, &mut stdin, &mut candidates, &mut notes)?;
+        } else if text.contains(['*', '?', '[']) && !input.exists() {
             let mut matched = if text.contains("**") {
                 recursive_matches(&text)?
             } else {
@@ -333,6 +432,30 @@ pub fn collect_inputs_explained(
             });
         }
     }
+    collected(candidates, notes, times, zone)
+}
+
+/// The maps of an opened `recording` as a series (sorted by time; two maps of one time are
+/// an error), named `path` in messages: a source of maps handed over one at a time, e.g.
+/// Python's `build` given an iterable of `(time, bytes)` spooled into a
+/// [`MapSpool`](froctomap_formats::MapSpool).
+pub fn collect_recording(
+    path: PathBuf,
+    recording: froctomap_formats::Recording,
+) -> Result<CollectedInputs, ConvertError> {
+    let mut candidates = Vec::new();
+    let mut notes = InputNotes::default();
+    push_recording(path, recording, &mut candidates, &mut notes);
+    collected(candidates, notes, TimeSource::Auto, &Zone::utc())
+}
+
+/// The candidates with their times, sorted by time.
+fn collected(
+    candidates: Vec<Candidate>,
+    notes: InputNotes,
+    times: TimeSource,
+    zone: &Zone,
+) -> Result<CollectedInputs, ConvertError> {
     if candidates.is_empty() {
         return Err(match notes.skipped.into_iter().next() {
             Some((path, problem)) => ConvertError::AllSkipped { path, problem },

@@ -90,8 +90,8 @@ pub use info::{
     LARGEST_REGIONS,
 };
 pub use inputs::{
-    collect_inputs, collect_inputs_explained, manifest_text, CollectedInputs, InputWarning,
-    SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME,
+    collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,
+    InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
 };
 pub use maps::predicted_bt;
 pub use maps::{

@@ -34,6 +34,7 @@ mod tar_maps {
         },
         probe_dir: None,
         open,
+        open_stream: None,
         create: None,
     };
 

@@ -42,12 +42,13 @@ pub mod octomap_native;
 pub mod octomap_upstream;
 mod recording;
 mod registry;
+mod spool;
 
 pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
 pub use natural::natural_cmp;
 pub use recording::{
-    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, RecordedMaps,
+    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, OpenStream, RecordedMaps,
     RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
 };
 pub use registry::{
@@ -55,6 +56,7 @@ pub use registry::{
     MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,
     SeriesFormat, WriteOptions, PROBE_BYTES,
 };
+pub use spool::{MapSpool, SpoolError, SPOOL_PREFIX};
 
 /// Registers every format enabled at compile time, preferred backends first: the native
 /// Rust codec is the default for `.bt`/`.ot`, the upstream C++ library stays selectable

@@ -8,7 +8,7 @@
 use crate::error::PluginError;
 use crate::registry::Confidence;
 use froctomap_core::Timestamp;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Which time a recorded map is given.
@@ -35,6 +35,10 @@ pub struct RecordingOptions {
     /// whose checksum fails, a message whose stamp cannot be read) and list them in
     /// [`Recording::skipped`], instead of refusing the recording.
     pub skip_bad: bool,
+    /// Where a recording read from a stream ([`RecordingFormat::open_stream`]) keeps its
+    /// maps until they are built: a locked temporary directory made in it, removed with the
+    /// recording. `None`: the system's temporary directory.
+    pub spool_dir: Option<PathBuf>,
 }
 
 impl RecordingOptions {
@@ -44,6 +48,7 @@ impl RecordingOptions {
             topic,
             time,
             skip_bad: false,
+            spool_dir: None,
         }
     }
 
@@ -51,6 +56,14 @@ impl RecordingOptions {
     /// [`RecordingOptions::skip_bad`]).
     pub fn with_skip_bad(self, skip_bad: bool) -> Self {
         Self { skip_bad, ..self }
+    }
+
+    /// The same options, spooling streams in `dir` (see [`RecordingOptions::spool_dir`]).
+    pub fn with_spool_dir(self, dir: Option<PathBuf>) -> Self {
+        Self {
+            spool_dir: dir,
+            ..self
+        }
     }
 }
 
@@ -117,9 +130,20 @@ pub struct RecordingFormat {
     /// Opens a recording: its maps' times (from its index where it has one) and a handle,
     /// owning the opened files, to fetch the maps. The `u64` is the largest map read whole.
     pub open: fn(&Path, &RecordingOptions, u64) -> Result<Recording, PluginError>,
+    /// Reads a recording from a stream that cannot seek (standard input, `-` among the
+    /// inputs), message by message to its end, if the format can be streamed. A stream's
+    /// maps all come before the series is built, so the plugin spools what it needs to
+    /// disk ([`RecordingOptions::spool_dir`]) rather than into memory; a stream that ends
+    /// early or does not read is an error naming where in the stream it stopped.
+    pub open_stream: Option<OpenStream>,
     /// Writes a new recording of exported maps, if the format can be written.
     pub create: Option<CreateRecording>,
 }
+
+/// Reads a recording from a stream whose first bytes the format's probe recognised
+/// ([`RecordingFormat::open_stream`]). The `u64` is the largest map read whole.
+pub type OpenStream =
+    fn(&mut dyn std::io::Read, &RecordingOptions, u64) -> Result<Recording, PluginError>;
 
 impl RecordingFormat {
     /// `true` when this format recognises `path`: a directory by its layout, a file by its

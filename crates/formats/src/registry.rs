@@ -832,6 +832,7 @@ mod registration_tests {
             probe: |_| Confidence::No,
             probe_dir: None,
             open: |_, _, _| Err("not opened".into()),
+            open_stream: None,
             create: None,
         };
         registry.register_series(series).unwrap();

@@ -5,8 +5,9 @@ use crate::file::json_value;
 use crate::progress::Callback;
 use crate::times::instant;
 use froctomap_convert::{
-    build as build_file, collect_inputs_explained, evaluate as evaluate_file, parse_duration,
-    BuildOptions, Progress, RecordedTime, RecordingOptions, Silent, TimeSource, Zone,
+    build as build_file, collect_inputs_explained, collect_recording, evaluate as evaluate_file,
+    parse_duration, BuildOptions, Progress, RecordedTime, RecordingOptions, Silent, TimeSource,
+    Zone,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -15,7 +16,7 @@ use froctomap_temporal::{ModelConfig, OutlierMode};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use serde_json::{Map, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// How the inputs of a series get their times, as on the command line (`--start/--step`,
@@ -58,6 +59,61 @@ fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
         .try_iter()?
         .map(|item| item?.extract::<PathBuf>())
         .collect()
+}
+
+/// What `build` was given: paths, or maps handed over as `(time, bytes)` pairs.
+enum BuildInputs {
+    Paths(Vec<PathBuf>),
+    /// The pairs, spooled to disk as they came.
+    Maps(froctomap_formats::Recording),
+}
+
+/// How messages name maps handed over as `(time, bytes)` pairs.
+const PAIRS_NAME: &str = "<maps>";
+
+/// `inputs` of `build`: a path, an iterable of paths, or an iterable of `(time, bytes)`
+/// pairs (any iterable, a generator too), each map spooled into a locked temporary
+/// directory in `spool_dir` as it comes, so memory does not hold the maps.
+fn build_inputs(value: &Bound<'_, PyAny>, spool_dir: Option<&Path>) -> PyResult<BuildInputs> {
+    if let Ok(path) = value.extract::<PathBuf>() {
+        return Ok(BuildInputs::Paths(vec![path]));
+    }
+    let mut paths = Vec::new();
+    let mut spool: Option<froctomap_formats::MapSpool> = None;
+    let mixed = || froct_error_text("inputs: give paths or (time, bytes) pairs, not both");
+    for (index, item) in value.try_iter()?.enumerate() {
+        let item = item?;
+        if let Ok(path) = item.extract::<PathBuf>() {
+            if spool.is_some() {
+                return Err(mixed());
+            }
+            paths.push(path);
+            continue;
+        }
+        let pair = || {
+            froct_error_text(format!(
+                "inputs[{index}]: expected a path or a (time, bytes) pair"
+            ))
+        };
+        let (time, map): (Bound<'_, PyAny>, Bound<'_, PyAny>) =
+            item.extract().map_err(|_| pair())?;
+        let map = map.cast::<pyo3::types::PyBytes>().map_err(|_| pair())?;
+        if !paths.is_empty() {
+            return Err(mixed());
+        }
+        let time = instant(&time, &format!("inputs[{index}]"))?;
+        let spool = match &mut spool {
+            Some(spool) => spool,
+            None => {
+                spool.insert(froctomap_formats::MapSpool::new(spool_dir, "map").map_err(to_py)?)
+            }
+        };
+        spool.push(time, map.as_bytes()).map_err(to_py)?;
+    }
+    match spool {
+        Some(spool) => Ok(BuildInputs::Maps(spool.into_recording().map_err(to_py)?)),
+        None => Ok(BuildInputs::Paths(paths)),
+    }
 }
 
 /// The model's settings from the keyword arguments, checked by the model (`--model`,
@@ -227,7 +283,13 @@ pub fn build<'py>(
             )))
         }
     };
-    let inputs = paths(inputs)?;
+    let spool_dir = tmp_dir.clone().or_else(|| {
+        Some(match output.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+            _ => PathBuf::from("."),
+        })
+    });
+    let inputs = build_inputs(inputs, spool_dir.as_deref())?;
     let source = series_times(start, step, times_file, times_from_names)?;
     let options = BuildOptions {
         model: model.clone(),
@@ -248,17 +310,29 @@ pub fn build<'py>(
         tmp_dir,
         ..BuildOptions::default()
     };
-    let context = crate::context()
-        .clone()
-        .with_recording_options(RecordingOptions::new(topic, recorded).with_skip_bad(skip_bad));
+    let context = crate::context().clone().with_recording_options(
+        RecordingOptions::new(topic, recorded)
+            .with_skip_bad(skip_bad)
+            .with_spool_dir(spool_dir),
+    );
+    if matches!(inputs, BuildInputs::Maps(_)) && source != TimeSource::Auto {
+        return Err(froct_error_text(
+            "inputs: (time, bytes) pairs carry their own times; start/step, times_file and times_from_names apply to files only",
+        ));
+    }
     let callback = progress.map(Callback::new);
     let report = py.detach(|| {
         let progress: &dyn Progress = match &callback {
             Some(callback) => callback,
             None => &Silent,
         };
-        let mut collected = collect_inputs_explained(&context, &inputs, source, &Zone::utc())
-            .map_err(|e| message(&e))?;
+        let mut collected = match inputs {
+            BuildInputs::Paths(inputs) => {
+                collect_inputs_explained(&context, &inputs, source, &Zone::utc())
+            }
+            BuildInputs::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
+        }
+        .map_err(|e| message(&e))?;
         let mut report = build_file(&context, &collected.series, &output, &options, progress)
             .map_err(|e| message(&e))?;
         // Damaged parts of recordings, left out before the build saw their maps.

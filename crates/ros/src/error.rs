@@ -152,6 +152,18 @@ pub enum RosError {
         #[source]
         problem: Box<RosError>,
     },
+    /// An MCAP stream (standard input) that does not read: it ends inside a record or
+    /// before its end magic (its writer stopped), or holds a record that is not MCAP.
+    #[error("MCAP stream on standard input: does not read after {messages} message(s), at byte {bytes}: {source}")]
+    Stream {
+        /// The bytes read from the stream when it stopped.
+        bytes: u64,
+        /// The messages read whole before it stopped.
+        messages: u64,
+        /// What the MCAP reader found.
+        #[source]
+        source: mcap::McapError,
+    },
     /// A message that does not decode as `octomap_msgs/Octomap`.
     #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
     BadMessage {

@@ -38,6 +38,7 @@ mod mcap_file;
 mod mcap_lengths;
 mod message;
 mod source;
+mod stream;
 
 pub use encode::{
     encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, OCTOMAP_ROS2MSG, OCTOMAP_TYPE,
@@ -45,7 +46,9 @@ pub use encode::{
 };
 pub use error::{McapWriteError, MessageError, RosError};
 pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
-pub use mcap_export::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
+pub use mcap_export::{
+    McapMapStream, FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC,
+};
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 
 use froctomap_formats::{
@@ -61,10 +64,12 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     probe: |head| confidence(head.starts_with(bag::MAGIC)),
     probe_dir: None,
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
+    open_stream: None,
     create: None,
 };
 
-/// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4).
+/// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4),
+/// also as a stream on standard input (`-`; read to its end, the maps spooled to disk).
 /// Written by `export --format mcap`: the maps as `octomap_msgs/msg/Octomap` (CDR) on
 /// [`OCTOMAP_TOPIC`] and their occupied voxels as a `foxglove.PointCloud` (JSON) on
 /// [`POINT_CLOUD_TOPIC`] and as a `sensor_msgs/msg/PointCloud2` (CDR) on
@@ -83,6 +88,7 @@ pub const MCAP: RecordingFormat = RecordingFormat {
             limit,
         )?)
     },
+    open_stream: Some(|input, options, limit| Ok(stream::open_mcap_stream(input, options, limit)?)),
     create: Some(mcap_export::create),
 };
 
@@ -94,6 +100,7 @@ pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     probe: |_| Confidence::No,
     probe_dir: Some(|path| path.join("metadata.yaml").is_file()),
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
+    open_stream: None,
     create: None,
 };
 

@@ -74,16 +74,7 @@ impl McapMapWriter {
     }
 
     fn write(&mut self, map: &ExportedMap<'_>) -> Result<(), McapWriteError> {
-        let out_of_range = || McapWriteError::TimeOutOfRange(iso8601(map.time));
-        let log_time = u64::try_from(map.time.0).map_err(|_| out_of_range())?;
-        let stamp = ros2_stamp(map.time).ok_or_else(out_of_range)?;
-        let header = parse_header(map.bt, FileKind::Binary).map_err(McapWriteError::NotBinary)?;
-        let body = map.bt.get(header.body_offset..).unwrap_or_default();
-        let message =
-            encode_octomap_cdr(stamp, FRAME_ID, true, &header.tree_id, map.resolution, body)
-                .ok_or(McapWriteError::MessageTooLong {
-                    bytes: body.len() as u64,
-                })?;
+        let (log_time, stamp, message) = octomap_message(map.time, map.bt, Some(map.resolution))?;
         let cloud = point_cloud(map.time, FRAME_ID, map.kind, map.resolution, map.occupied)?;
         let cloud2 = point_cloud2(stamp, FRAME_ID, map.kind, map.resolution, map.occupied)?;
         for (channel_id, data) in [
@@ -114,6 +105,89 @@ impl RecordingWriter for McapMapWriter {
         let mut sink = self.writer.into_inner();
         sink.flush().map_err(McapWriteError::from)?;
         Ok(())
+    }
+}
+
+/// An encoded map message: its log time, its ROS 2 stamp and its CDR bytes.
+type OctomapMessage = (u64, (i32, u32), Vec<u8>);
+
+/// A `.bt` file at `time` as an `octomap_msgs/msg/Octomap` message in CDR, with its log
+/// time and stamp; `resolution`: the map's (default: its header's).
+fn octomap_message(
+    time: Timestamp,
+    bt: &[u8],
+    resolution: Option<f64>,
+) -> Result<OctomapMessage, McapWriteError> {
+    let out_of_range = || McapWriteError::TimeOutOfRange(iso8601(time));
+    let log_time = u64::try_from(time.0).map_err(|_| out_of_range())?;
+    let stamp = ros2_stamp(time).ok_or_else(out_of_range)?;
+    let header = parse_header(bt, FileKind::Binary).map_err(McapWriteError::NotBinary)?;
+    let body = bt.get(header.body_offset..).unwrap_or_default();
+    let resolution = resolution.unwrap_or(header.resolution);
+    let message = encode_octomap_cdr(stamp, FRAME_ID, true, &header.tree_id, resolution, body)
+        .ok_or(McapWriteError::MessageTooLong {
+            bytes: body.len() as u64,
+        })?;
+    Ok((log_time, stamp, message))
+}
+
+/// Maps written as an MCAP stream into a writer that cannot seek (standard output, a pipe):
+/// each map as an `octomap_msgs/msg/Octomap` message in CDR on [`OCTOMAP_TOPIC`] with its
+/// `ros2msg` schema, stamped and logged at the map's time, in zstd chunks, with the summary
+/// at the end, as `froctomap generate --stream` writes for `froctomap build -`.
+///
+/// ```
+/// use froctomap_core::Timestamp;
+/// let bt = froctomap_octomap_codec::encode_binary(&froctomap_core::Snapshot::empty(0.1)?);
+/// let mut stream = froctomap_ros::McapMapStream::new(Vec::new())?;
+/// stream.write_map(Timestamp::from_secs(1_451_865_600), &bt)?;
+/// let bytes = stream.finish()?;
+/// assert!(bytes.starts_with(b"\x89MCAP0\r\n"));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct McapMapStream<W: Write> {
+    writer: mcap::Writer<mcap::write::NoSeek<W>>,
+    octomap: u16,
+    sequence: u32,
+}
+
+impl<W: Write> McapMapStream<W> {
+    /// A stream into `out`, its header, schema and channel written.
+    pub fn new(out: W) -> Result<Self, McapWriteError> {
+        let mut writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("froctomap ", env!("CARGO_PKG_VERSION")))
+            .disable_seeking(true)
+            .create(mcap::write::NoSeek::new(out))?;
+        let schema = writer.add_schema(OCTOMAP_TYPE, "ros2msg", OCTOMAP_ROS2MSG.as_bytes())?;
+        let octomap = writer.add_channel(schema, OCTOMAP_TOPIC, "cdr", &BTreeMap::new())?;
+        Ok(Self {
+            writer,
+            octomap,
+            sequence: 0,
+        })
+    }
+
+    /// Adds the map `bt` (a `.bt` file) taken at `time`.
+    pub fn write_map(&mut self, time: Timestamp, bt: &[u8]) -> Result<(), McapWriteError> {
+        let (log_time, _, message) = octomap_message(time, bt, None)?;
+        let header = MessageHeader {
+            channel_id: self.octomap,
+            sequence: self.sequence,
+            log_time,
+            publish_time: log_time,
+        };
+        self.writer.write_to_known_channel(&header, &message)?;
+        self.sequence = self.sequence.wrapping_add(1);
+        Ok(())
+    }
+
+    /// Ends the stream (the last chunk, the summary, the end magic), flushed; the writer.
+    pub fn finish(mut self) -> Result<W, McapWriteError> {
+        self.writer.finish()?;
+        let mut out = self.writer.into_inner().into_inner();
+        out.flush()?;
+        Ok(out)
     }
 }
 

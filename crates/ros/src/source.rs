@@ -15,14 +15,14 @@ use std::sync::{Arc, Mutex};
 
 /// A topic of a recording file with its type, as the file names them.
 #[derive(Clone, Debug)]
-struct TopicEntry {
-    topic: String,
-    type_name: String,
+pub(crate) struct TopicEntry {
+    pub topic: String,
+    pub type_name: String,
 }
 
 /// The topic to read among `topics` (several entries may share a topic): `wanted`, else the
 /// one of an octomap type.
-fn select_topic(
+pub(crate) fn select_topic(
     path: &Path,
     topics: &[TopicEntry],
     wanted: Option<&str>,
@@ -245,8 +245,9 @@ impl RecordedMaps for TopicMaps {
 /// its log time when zero, with one warning counting those and one counting maps stamped
 /// earlier than a map logged before them (the maps are taken in time order). Two maps of
 /// one time are an error naming it.
-fn times(
-    maps: &TopicMaps,
+pub(crate) fn times(
+    path: &Path,
+    topic: &str,
     stamps: &[(i64, Option<i64>)],
     time: RecordedTime,
 ) -> Result<(Vec<Timestamp>, Vec<String>), RosError> {
@@ -279,15 +280,15 @@ fn times(
     if earlier > 0 {
         warnings.push(format!(
             "{earlier} message(s) on `{}` stamped earlier than a message recorded before them; the maps are taken in time order",
-            maps.topic
+            topic
         ));
     }
     let mut sorted = times.clone();
     sorted.sort_unstable();
     if let Some(pair) = sorted.windows(2).find(|w| w[0] == w[1]) {
         return Err(RosError::DuplicateTimes {
-            path: maps.path.clone(),
-            topic: maps.topic.clone(),
+            path: path.to_path_buf(),
+            topic: topic.to_string(),
             time: iso8601(pair[0]),
             count: sorted.iter().filter(|&&t| t == pair[0]).count(),
         });
@@ -319,13 +320,13 @@ fn damaged(
 
 /// Where a problem of one part of a recording goes: an error, or with `skip_bad` the list
 /// of parts left out.
-struct Damage<'a> {
-    skip_bad: bool,
-    skipped: &'a mut Vec<Cause>,
+pub(crate) struct Damage<'a> {
+    pub skip_bad: bool,
+    pub skipped: &'a mut Vec<Cause>,
 }
 
 impl Damage<'_> {
-    fn left_out(&mut self, problem: RosError) -> Result<(), RosError> {
+    pub fn left_out(&mut self, problem: RosError) -> Result<(), RosError> {
         if !self.skip_bad {
             return Err(problem);
         }
@@ -417,7 +418,7 @@ pub(crate) fn open_bag(
         }
     }
     maps.maps = locations;
-    let (times, more) = times(&maps, &stamps, options.time)?;
+    let (times, more) = times(&maps.path, &maps.topic, &stamps, options.time)?;
     warnings.extend(more);
     Ok(Recording::new(times, warnings, Arc::new(maps)).with_skipped(skipped))
 }
@@ -530,7 +531,7 @@ pub(crate) fn open_mcap(
         maps: locations,
         chunk_cache: ChunkCache::default(),
     };
-    let (times, more) = times(&maps, &stamps, options.time)?;
+    let (times, more) = times(&maps.path, &maps.topic, &stamps, options.time)?;
     warnings.extend(more);
     Ok(Recording::new(times, warnings, Arc::new(maps)).with_skipped(skipped))
 }

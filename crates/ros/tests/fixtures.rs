@@ -237,3 +237,103 @@ fn the_plugin_registers_once_in_a_format_registry() {
     let again = froctomap_ros::register(&mut registry).unwrap_err();
     assert_eq!(again.name, "rosbag");
 }
+
+/// Reads `bytes` as an MCAP stream, in reads of at most `step` bytes (a pipe's pieces),
+/// spooling into `spool`.
+fn open_stream(
+    bytes: &[u8],
+    step: usize,
+    spool: &Path,
+    skip_bad: bool,
+) -> Result<Recording, Box<dyn std::error::Error + Send + Sync>> {
+    /// A reader handing out at most `step` bytes at a time.
+    struct Pieces<'a>(&'a [u8], usize);
+    impl std::io::Read for Pieces<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = buf.len().min(self.1).min(self.0.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+    let options = RecordingOptions::new(None, RecordedTime::Header)
+        .with_skip_bad(skip_bad)
+        .with_spool_dir(Some(spool.to_path_buf()));
+    let open_stream = MCAP.open_stream.expect("MCAP reads streams");
+    open_stream(&mut Pieces(bytes, step), &options, 1 << 30)
+}
+
+/// The MCAP fixture written by mcap-ros2-support, streamed in pieces of any size, gives the
+/// maps and times the file gives; its spool lives beside (in the directory asked for) until
+/// the recording is dropped.
+#[test]
+fn an_mcap_stream_gives_the_maps_of_the_file() {
+    let bytes = std::fs::read(fixture("ros/two_maps_zstd.mcap")).unwrap();
+    let spool = tempfile::tempdir().unwrap();
+    for step in [1, 7, 4096, usize::MAX] {
+        let recording = open_stream(&bytes, step, spool.path(), false).unwrap();
+        assert_eq!(recording.times, STAMPS.map(Timestamp), "{step}");
+        assert_eq!(recording.maps.topic(), "/octomap_binary");
+        let entries = || std::fs::read_dir(spool.path()).unwrap().count();
+        assert_eq!(
+            entries(),
+            1,
+            "one spool directory while the recording lives"
+        );
+        assert_eq!(
+            leaves(&recording.maps.map_bytes(0, 1 << 30).unwrap()),
+            fixture_leaves("few_voxels.bt")
+        );
+        assert_eq!(
+            leaves(&recording.maps.map_bytes(1, 1 << 30).unwrap()),
+            fixture_leaves("coarse_leaves.bt")
+        );
+        assert!(recording.maps.map_bytes(0, 10).is_err());
+        drop(recording);
+        assert_eq!(entries(), 0, "the spool goes with the recording");
+    }
+}
+
+/// A stream cut anywhere (its writer died) or damaged anywhere is an error naming where it
+/// stopped (bytes and messages read) or a bad message, never a panic, a hang or a recording
+/// of part of the stream; nothing is left in the spool directory.
+#[test]
+fn cut_or_damaged_mcap_streams_are_errors_naming_where_they_stopped() {
+    let bytes = std::fs::read(fixture("ros/two_maps_zstd.mcap")).unwrap();
+    let spool = tempfile::tempdir().unwrap();
+    for end in 0..bytes.len() {
+        let error = open_stream(&bytes[..end], 64, spool.path(), false)
+            .expect_err("a cut stream is refused")
+            .to_string();
+        assert!(
+            error.starts_with("MCAP stream on standard input: does not read after ")
+                && error.contains(&format!("at byte {end}: ")),
+            "cut at {end}: {error}"
+        );
+    }
+    let error = open_stream(&bytes[..bytes.len() - 8], 64, spool.path(), true)
+        .expect_err("--skip-bad does not take a cut stream")
+        .to_string();
+    assert!(error.contains("after 3 message(s)"), "{error}");
+    for at in (0..bytes.len()).step_by(3) {
+        let mut damaged = bytes.clone();
+        damaged[at] ^= 0x5a;
+        match open_stream(&damaged, 64, spool.path(), false) {
+            Err(error) => {
+                let error = error.to_string();
+                assert!(
+                    error.starts_with("MCAP stream on standard input:") || error.starts_with("-: "),
+                    "damaged at {at}: {error}"
+                );
+            }
+            // A byte nothing checks (a padding, a summary offset): the maps must read or
+            // fail with an error.
+            Ok(recording) => {
+                for i in 0..recording.times.len() {
+                    let _ = recording.maps.map_bytes(i, 1 << 30);
+                }
+            }
+        }
+    }
+    assert_eq!(std::fs::read_dir(spool.path()).unwrap().count(), 0);
+}

@@ -58,6 +58,10 @@ pub enum SynthError {
     /// Writing a frame through the format registry failed.
     #[error(transparent)]
     Format(#[from] FormatError),
+    /// The sink of [`encode_series`](crate::encode_series) refused a frame (writing a
+    /// stream failed).
+    #[error("writing the series: {0}")]
+    Sink(#[source] Box<dyn std::error::Error + Send + Sync>),
     /// A scenario file that is not a serialised [`SeriesSpec`](crate::SeriesSpec).
     #[error("{}: not a scenario: {source}", path.display())]
     SpecJson {

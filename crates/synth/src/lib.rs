@@ -89,5 +89,7 @@ pub use generator::{
 };
 pub use geometry::KeyBox;
 pub use overrides::SpecOverrides;
-pub use series::{write_series, ManifestEntry, SeriesManifest, WriteSeriesOptions, MANIFEST_NAME};
+pub use series::{
+    encode_series, write_series, ManifestEntry, SeriesManifest, WriteSeriesOptions, MANIFEST_NAME,
+};
 pub use spec::{frames_for, SeriesSpec, Shift, MAX_ELEMENTS, MAX_FRAMES};

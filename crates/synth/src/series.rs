@@ -213,13 +213,6 @@ pub fn write_series(
         path: dir.to_path_buf(),
         source,
     })?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.threads)
-        .build()
-        .map_err(|e| SynthError::ThreadPool(e.to_string()))?;
-    let threads = pool.current_num_threads().max(1);
-    let batch = 4 * threads;
-    let total = generator.frames().count() as u64;
     let width = (generator.spec().count.saturating_sub(1)).to_string().len();
     let write_options = WriteOptions {
         format: Some(format.name),
@@ -237,64 +230,49 @@ pub fn write_series(
     let mut failure: Option<SynthError> = None;
     let written = write_atomically(&manifest_path, |out| {
         out.write_all(b"path,time\n")?;
-        let mut frames = generator.frames();
-        let mut done = 0u64;
         let mut previous_name: Option<String> = None;
-        loop {
-            let chunk: Vec<FrameInfo> = frames.by_ref().take(batch).collect();
-            if chunk.is_empty() {
-                break;
-            }
-            let results: Vec<Result<(FrameInfo, String, u64, FrameStats), SynthError>> = pool
-                .install(|| {
-                    chunk
-                        .par_iter()
-                        .map(|&frame| {
-                            let name = file_name(&options.file_pattern, frame, width, ext);
-                            let path = dir.join(&name);
-                            let (snapshot, stats) = generator.frame_with_stats(frame.index)?;
-                            formats.write_file(&snapshot, &path, write_options)?;
-                            let bytes = std::fs::metadata(&path)
-                                .map_err(|source| SynthError::Io {
-                                    path: path.clone(),
-                                    source,
-                                })?
-                                .len();
-                            Ok((frame, name, bytes, stats))
-                        })
-                        .collect()
+        let mut take = |(frame, name, bytes, stats): (FrameInfo, String, u64, FrameStats)| {
+            // Names follow time order, so a repeat can only be the previous one.
+            if previous_name.as_deref() == Some(name.as_str()) {
+                return Err(SynthError::InvalidPattern {
+                    pattern: options.file_pattern.clone(),
+                    reason: format!("two frames are both named {name}"),
                 });
-            for result in results {
-                let (frame, name, bytes, stats) = match result {
-                    Ok(r) => r,
-                    Err(e) => {
-                        failure = Some(e);
-                        return Err(std::io::Error::other("frame failed"));
-                    }
-                };
-                // Names follow time order, so a repeat can only be the previous one.
-                if previous_name.as_deref() == Some(name.as_str()) {
-                    failure = Some(SynthError::InvalidPattern {
-                        pattern: options.file_pattern.clone(),
-                        reason: format!("two frames are both named {name}"),
-                    });
-                    return Err(std::io::Error::other("duplicate name"));
+            }
+            writeln!(out, "{name},{}", unix_secs_text(frame.time)).map_err(|source| {
+                SynthError::Io {
+                    path: manifest_path.clone(),
+                    source,
                 }
-                writeln!(out, "{name},{}", unix_secs_text(frame.time))?;
-                manifest.total_bytes += bytes;
-                manifest.changes.add(&stats);
-                manifest.entries.push(ManifestEntry {
-                    path: PathBuf::from(&name),
-                    time: frame.time,
-                    bytes,
-                    index: Some(frame.index),
-                });
-                previous_name = Some(name);
-            }
-            done += chunk.len() as u64;
-            progress(done, total);
-        }
-        Ok(())
+            })?;
+            manifest.total_bytes += bytes;
+            manifest.changes.add(&stats);
+            manifest.entries.push(ManifestEntry {
+                path: PathBuf::from(&name),
+                time: frame.time,
+                bytes,
+                index: Some(frame.index),
+            });
+            previous_name = Some(name);
+            Ok(())
+        };
+        let make = |frame: FrameInfo| {
+            let name = file_name(&options.file_pattern, frame, width, ext);
+            let path = dir.join(&name);
+            let (snapshot, stats) = generator.frame_with_stats(frame.index)?;
+            formats.write_file(&snapshot, &path, write_options)?;
+            let bytes = std::fs::metadata(&path)
+                .map_err(|source| SynthError::Io {
+                    path: path.clone(),
+                    source,
+                })?
+                .len();
+            Ok((frame, name, bytes, stats))
+        };
+        in_batches(generator, options.threads, progress, make, &mut take).map_err(|e| {
+            failure = Some(e);
+            std::io::Error::other("frame failed")
+        })
     });
     match (failure, written) {
         (Some(e), _) => Err(e),
@@ -304,6 +282,104 @@ pub fn write_series(
         }),
         (None, Ok(())) => Ok(manifest),
     }
+}
+
+/// Makes every present frame of `generator` with `make` on `threads` workers (0: one per
+/// core) in bounded batches (a few frames per worker, so memory holds a few frames
+/// whatever the series length) and hands them to `take` in time order on the calling
+/// thread, calling `progress(done, total)` after each batch.
+fn in_batches<T: Send>(
+    generator: &Generator,
+    threads: usize,
+    progress: &dyn Fn(u64, u64),
+    make: impl Fn(FrameInfo) -> Result<T, SynthError> + Sync,
+    take: &mut dyn FnMut(T) -> Result<(), SynthError>,
+) -> Result<(), SynthError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| SynthError::ThreadPool(e.to_string()))?;
+    let batch = 4 * pool.current_num_threads().max(1);
+    let total = generator.frames().count() as u64;
+    let mut frames = generator.frames();
+    let mut done = 0u64;
+    loop {
+        let chunk: Vec<FrameInfo> = frames.by_ref().take(batch).collect();
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        let results: Vec<Result<T, SynthError>> =
+            pool.install(|| chunk.par_iter().map(|&frame| make(frame)).collect());
+        for result in results {
+            take(result?)?;
+        }
+        done += chunk.len() as u64;
+        progress(done, total);
+    }
+}
+
+/// Every present frame of `generator` as a map file in `format` (a writable format of
+/// `formats`), in time order: `take(frame, bytes, stats)` on the calling thread, the frames
+/// made and encoded on `threads` workers (0: one per core) a few at a time, so memory holds
+/// a few frames whatever the series length. What `froctomap generate --stream` writes as a
+/// stream without files.
+///
+/// ```
+/// # use froctomap_core::{Occupancy, Snapshot, VoxelKey};
+/// use froctomap_formats::FormatRegistry;
+/// use froctomap_synth::{encode_series, Generator, SeriesSpec};
+/// # let voxels = (0..16u16).flat_map(|x| (0..16u16).flat_map(move |y| (0..8u16).map(move |z| {
+/// #     let state = Occupancy::from(z == 0);
+/// #     (VoxelKey::new(32768 + x, 32768 + y, 32768 + z).morton(), state)
+/// # })));
+/// # let base = Snapshot::from_voxel_states(0.1, voxels)?;
+/// let generator = Generator::new(&base, SeriesSpec { count: 3, ..SeriesSpec::default() }, None)?;
+/// let formats = FormatRegistry::with_default_formats();
+/// let mut times = Vec::new();
+/// encode_series(&formats, &generator, "bt", 0, &|_, _| {}, &mut |frame, bytes, _| {
+///     assert!(bytes.starts_with(b"# Octomap OcTree binary file"));
+///     times.push(frame.time);
+///     Ok(())
+/// })?;
+/// assert_eq!(times.len(), 3);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn encode_series(
+    formats: &FormatRegistry,
+    generator: &Generator,
+    format: &str,
+    threads: usize,
+    progress: &dyn Fn(u64, u64),
+    take: &mut dyn FnMut(FrameInfo, Vec<u8>, FrameStats) -> Result<(), SynthError>,
+) -> Result<(), SynthError> {
+    let format = *formats.by_name(format, None)?;
+    let Some(make_writer) = format.writer else {
+        return Err(SynthError::Format(
+            froctomap_formats::FormatError::Unsupported {
+                format: format.name,
+                action: "written",
+            },
+        ));
+    };
+    let make = |frame: FrameInfo| {
+        let (snapshot, stats) = generator.frame_with_stats(frame.index)?;
+        let mut bytes = Vec::new();
+        make_writer()
+            .write(&snapshot, &mut bytes)
+            .map_err(|source| froctomap_formats::FormatError::Encode {
+                path: PathBuf::from(format!("frame {}", frame.index)),
+                format: format.name,
+                source,
+            })?;
+        Ok((frame, bytes, stats))
+    };
+    in_batches(generator, threads, progress, make, &mut |(
+        frame,
+        bytes,
+        stats,
+    )| {
+        take(frame, bytes, stats)
+    })
 }
 
 #[cfg(test)]

@@ -22,7 +22,7 @@ line's message. See docs/PYTHON.md for a tour and docs/FLEET.md for many archive
 from __future__ import annotations
 
 import os
-from typing import Any, Dict, Iterable, List, Mapping, Optional, Union
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
 from . import _progress
 from ._errors import FroctError
@@ -46,6 +46,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 #: One input, or several: directories (their manifest.csv, else every map file), glob
 #: patterns, manifest CSV files, map files, ROS bags / MCAP files.
 Inputs = Union[PathLike, Iterable[PathLike]]
+#: Maps as ``.bt``/``.ot`` file contents with their times (Unix seconds, ISO 8601 text or a
+#: datetime), for ``build``.
+TimedMaps = Iterable[Tuple[Any, bytes]]
 
 
 def _paths(inputs: Inputs) -> List[Any]:
@@ -55,7 +58,7 @@ def _paths(inputs: Inputs) -> List[Any]:
 
 
 def build(
-    inputs: Inputs,
+    inputs: Union[Inputs, TimedMaps],
     output: PathLike,
     *,
     lossy: bool = False,
@@ -85,8 +88,12 @@ def build(
     """Builds one FROctomap file from a series of OctoMap snapshots (``froctomap build``).
 
     ``inputs``: directories (their ``manifest.csv``, else every ``.bt``/``.ot`` file in
-    natural order), glob patterns, manifests (``path,time``), map files, or recordings (ROS 1
-    bags, MCAP files, ROS 2 bag directories; ``topic``, ``time_source="header"|"log"``).
+    natural order), glob patterns, manifests (``path,time``), map files, recordings (ROS 1
+    bags, MCAP files, ROS 2 bag directories; ``topic``, ``time_source="header"|"log"``),
+    ``"-"`` (an MCAP stream on the process's standard input), or an iterable of
+    ``(time, bytes)`` pairs: maps as ``.bt``/``.ot`` file contents with their times (any
+    iterable, a generator too; each map is spooled to disk in ``tmp_dir`` or beside the
+    output as it comes, so memory does not hold them).
     Times come from manifests or file names, or from ``start`` and ``step`` (``"10min"``,
     seconds), or one per line from ``times_file``; times without a zone are UTC.
 
@@ -107,7 +114,7 @@ def build(
     callback = _progress.reporter(progress)
     try:
         return _native.build(
-            _paths(inputs),
+            inputs if isinstance(inputs, (str, bytes, os.PathLike)) else iter(inputs),
             output,
             lossy=lossy,
             order=order,

@@ -22,7 +22,7 @@ def parse_time(t: Time) -> Union[float, Tuple[str, int]]:
     """Reads a time as the command line's --time: Unix seconds of an instant, or
     ("index", N) / ("from_end", N) for a sample query."""
 
-def build(inputs: List[Any], output: PathLike, **options: Any) -> Dict[str, Any]:
+def build(inputs: Any, output: PathLike, **options: Any) -> Dict[str, Any]:
     """See froctomap.build."""
 
 def evaluate(path: PathLike, against: List[Any], **options: Any) -> Dict[str, Any]:
