@@ -117,6 +117,9 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     if as_segment && !args.model_option.is_empty() {
         ui.note("note: --model-option is not used: a segment keeps the base's models (no refit)");
     }
+    if as_segment && (!args.tag.is_empty() || args.appended.is_some()) {
+        ui.note("note: --tag and --appended are not used: a segment leaves the header as it is");
+    }
     if as_segment && !living {
         ui.note(&format!(
             "converting {} to format 2.0 (older releases cannot read it); the snapshots become its first segment",
