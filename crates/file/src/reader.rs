@@ -530,12 +530,14 @@ impl FroctReader {
     /// with what it predicts (its state, or its model's parameters) without decoding masks
     /// or toggles: the frozen prediction a format 2.0 segment's inherited cells use
     /// (FORMAT.md §10.3), evaluated by [`FrozenPrediction::state`] exactly as the readers do.
+    /// As the format 2.0 reader's own lookup of inherited cells, it walks the models only,
+    /// without validating the rest of the tile first (its cost is the tile's cells, not the
+    /// length of their masks and toggles).
     pub fn visit_frozen_predictions(
         &self,
         tile: usize,
         mut visit: impl FnMut(MortonCode, u8, FrozenPrediction<'_>),
     ) -> Result<(), FileError> {
-        self.validate_once(tile)?;
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             let prediction = match (cell.constant, cell.model) {
                 (Some(state), _) => FrozenPrediction::State(state),

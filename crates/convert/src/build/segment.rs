@@ -319,15 +319,31 @@ struct BaseJoin<'a> {
 }
 
 impl BaseJoin<'_> {
-    /// The common refinement of the tile's cells and its base cells, restricted to what the
-    /// new maps observed.
+    /// The tile's cells, those that change over the segment split into their common
+    /// refinement with the base cells (so that each piece lies inside one base cell or
+    /// outside all of them). A cell observed in one state is stored constant whatever the
+    /// base holds there, so it stays whole, and a tile without a changing cell is not
+    /// joined at all: the base tile is read only where inheriting may pay.
     fn pieces(&self, tile: TileHistory) -> Result<Vec<JoinedPiece>, ConvertError> {
         let cells: Vec<PackedCell> = tile.into_packed();
-        let Some(first) = cells.first() else {
+        let Some(code) = cells.first().map(|cell| cell.0) else {
             return Ok(Vec::new());
         };
+        let mut whole: Vec<JoinedPiece> = Vec::with_capacity(cells.len());
+        let mut changing: Vec<PackedCell> = Vec::new();
+        for cell in cells {
+            let constant = cell.2.run_count() == 1 || cell.2.unpack()?.is_constant().is_some();
+            if constant {
+                whole.push((cell.0, cell.1, cell.2, None));
+            } else {
+                changing.push(cell);
+            }
+        }
+        if changing.is_empty() {
+            return Ok(whole);
+        }
         let mut base_cells: Vec<Piece<BasePrediction>> = Vec::new();
-        if let Some(index) = self.base.tile_containing(first.0) {
+        if let Some(index) = self.base.tile_containing(code) {
             self.base
                 .visit_frozen_predictions(index, |start, depth, prediction| {
                     let owned = match prediction {
@@ -339,13 +355,23 @@ impl BaseJoin<'_> {
                     base_cells.push((start, depth, owned));
                 })?;
         }
-        let mut pieces = Vec::with_capacity(cells.len());
-        common_refinement(cells, base_cells, |start, depth, new, base| {
+        let mut refined = Vec::with_capacity(changing.len());
+        common_refinement(changing, base_cells, |start, depth, new, base| {
             if let Some(observations) = new {
-                pieces.push((start, depth, observations, base));
+                refined.push((start, depth, observations, base));
             }
             Ok::<(), ConvertError>(())
         })?;
+        // Both in Morton order and disjoint: merged into one.
+        let mut pieces = Vec::with_capacity(whole.len() + refined.len());
+        let mut refined = refined.into_iter().peekable();
+        for piece in whole {
+            while let Some(next) = refined.next_if(|r| r.0 < piece.0) {
+                pieces.push(next);
+            }
+            pieces.push(piece);
+        }
+        pieces.extend(refined);
         Ok(pieces)
     }
 }
@@ -506,6 +532,8 @@ fn count_cell(cell: &SegmentCell, stats: &mut TileStats) {
 /// version); `false` for any other file, including 1.x files and files too short to tell.
 pub fn is_living_file(path: &Path) -> Result<bool, ConvertError> {
     use std::io::Read;
+    // A FIFO is refused before it is opened (opening one may never return).
+    crate::inputs::refuse_special_file(path)?;
     let io = |source| {
         ConvertError::File(froctomap_file::FileError::Io {
             path: path.to_path_buf(),
