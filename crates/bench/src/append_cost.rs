@@ -1,6 +1,7 @@
 //! `froctomap-bench append-cost`: what adding the same maps costs as a file's history grows
 //! (issue 26). The same `--hours` of maps, right after the longest base, are appended to
-//! files built on the first `--base-days` (each a plain 1.2 build) `--reps` times each, in
+//! files built on the first `--base-days` (each a plain 1.2 build) `--reps` times each (in
+//! rounds over the bases, so that the machine's load touches all alike), in
 //! two ways measured in the same run: as one format 2.0 segment (`append_segment`: the
 //! base converted beforehand, outside the timing) and by the 1.x rebuild-append (`append`:
 //! every cell refitted on its whole history). Prints the median wall time of each and the
@@ -47,40 +48,40 @@ fn copy(from: &Path, to: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Times `reps` appends of `new` to copies of `base`: as a segment, then as a rebuild.
+/// Times one append of `new` to a copy of `base` as a segment (the copy converted to 2.0
+/// beforehand, outside the timing), then one as a rebuild.
 fn time_appends(
     context: &Context,
     base: &Path,
     new: &[SeriesInput],
-    reps: usize,
 ) -> Result<(Duration, Duration)> {
     let options = AppendOptions::default();
     let work = base.with_extension("work.froct");
-    let mut segment = Vec::with_capacity(reps);
-    let mut rebuild = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        copy(base, &work)?;
-        LivingWriter::convert(&work, &work)?;
-        let started = Instant::now();
-        let mut writer = LivingWriter::open(&work)?;
-        let report = append_segment(context, &mut writer, new, &options, &Silent)?;
-        drop(writer);
-        segment.push(started.elapsed());
-        if report.added != new.len() {
-            bail!("{} of {} maps added", report.added, new.len());
-        }
-        copy(base, &work)?;
-        let started = Instant::now();
-        append(context, &work, new, &options, &Silent)?;
-        rebuild.push(started.elapsed());
+    copy(base, &work)?;
+    LivingWriter::convert(&work, &work)?;
+    let started = Instant::now();
+    let mut writer = LivingWriter::open(&work)?;
+    let report = append_segment(context, &mut writer, new, &options, &Silent)?;
+    drop(writer);
+    let segment = started.elapsed();
+    if report.added != new.len() {
+        bail!("{} of {} maps added", report.added, new.len());
     }
+    copy(base, &work)?;
+    let started = Instant::now();
+    append(context, &work, new, &options, &Silent)?;
+    let rebuild = started.elapsed();
     std::fs::remove_file(&work).ok();
-    Ok((median(segment), median(rebuild)))
+    Ok((segment, rebuild))
 }
 
 pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
     let context = Context::with_default_plugins();
-    let series = collect_inputs(&context, &[args.series.clone()], TimeSource::Auto)?;
+    let series = collect_inputs(
+        &context,
+        std::slice::from_ref(&args.series),
+        TimeSource::Auto,
+    )?;
     let start = series.first().context("an empty series")?.time;
     let at = |days: f64| start.0 + (days * 86_400e9) as i64;
     let longest = args.base_days.iter().copied().fold(0.0, f64::max);
@@ -103,9 +104,7 @@ pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
         args.hours,
         args.reps
     );
-    println!("| base | maps | file bytes | build s | segment append (median) | rebuild append (median) |");
-    println!("| --- | ---: | ---: | ---: | ---: | ---: |");
-    let mut medians = Vec::new();
+    let mut bases = Vec::new();
     for &days in &args.base_days {
         let inputs: Vec<SeriesInput> = series
             .iter()
@@ -115,16 +114,40 @@ pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
         let base = args.work.join(format!("base-{days}d.froct"));
         let started = Instant::now();
         let built = build(&context, &inputs, &base, &BuildOptions::default(), &Silent)?;
-        let build_seconds = started.elapsed().as_secs_f64();
-        let (segment, rebuild) = time_appends(&context, &base, &new, args.reps)?;
-        println!(
-            "| {days} d | {} | {} | {build_seconds:.1} | {:.3} s | {:.3} s |",
+        bases.push((
+            days,
+            base,
             inputs.len(),
             built.file_bytes,
+            started.elapsed(),
+        ));
+    }
+    // Rounds over every base, so that a change in the machine's load touches all alike.
+    let mut times: Vec<(Vec<Duration>, Vec<Duration>)> = vec![Default::default(); bases.len()];
+    for round in 0..args.reps {
+        for (k, (days, base, ..)) in bases.iter().enumerate() {
+            let (segment, rebuild) = time_appends(&context, base, &new)?;
+            eprintln!(
+                "round {round}, {days} d: segment {:.3} s, rebuild {:.3} s",
+                segment.as_secs_f64(),
+                rebuild.as_secs_f64()
+            );
+            times[k].0.push(segment);
+            times[k].1.push(rebuild);
+        }
+    }
+    println!("| base | maps | file bytes | build s | segment append (median) | rebuild append (median) |");
+    println!("| --- | ---: | ---: | ---: | ---: | ---: |");
+    let mut medians = Vec::new();
+    for ((days, _, maps, bytes, build_time), (segment, rebuild)) in bases.iter().zip(times) {
+        let (segment, rebuild) = (median(segment), median(rebuild));
+        println!(
+            "| {days} d | {maps} | {bytes} | {:.1} | {:.3} s | {:.3} s |",
+            build_time.as_secs_f64(),
             segment.as_secs_f64(),
             rebuild.as_secs_f64()
         );
-        medians.push((days, segment, rebuild));
+        medians.push((*days, segment, rebuild));
     }
     if let (Some(first), Some(last)) = (medians.first(), medians.last()) {
         println!(
