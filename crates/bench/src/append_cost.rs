@@ -49,12 +49,12 @@ fn copy(from: &Path, to: &Path) -> Result<()> {
 }
 
 /// Times one append of `new` to a copy of `base` as a segment (the copy converted to 2.0
-/// beforehand, outside the timing), then one as a rebuild.
+/// beforehand, outside the timing), then one as a rebuild; with the bytes each added.
 fn time_appends(
     context: &Context,
     base: &Path,
     new: &[SeriesInput],
-) -> Result<(Duration, Duration)> {
+) -> Result<(Duration, Duration, [i64; 2])> {
     let options = AppendOptions::default();
     let work = base.with_extension("work.froct");
     copy(base, &work)?;
@@ -69,10 +69,18 @@ fn time_appends(
     }
     copy(base, &work)?;
     let started = Instant::now();
-    append(context, &work, new, &options, &Silent)?;
+    let rebuilt = append(context, &work, new, &options, &Silent)?;
     let rebuild = started.elapsed();
     std::fs::remove_file(&work).ok();
-    Ok((segment, rebuild))
+    let added = |after: u64, before: u64| after as i64 - before as i64;
+    Ok((
+        segment,
+        rebuild,
+        [
+            added(report.file_bytes, report.bytes_before),
+            added(rebuilt.file_bytes, rebuilt.bytes_before),
+        ],
+    ))
 }
 
 pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
@@ -124,9 +132,11 @@ pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
     }
     // Rounds over every base, so that a change in the machine's load touches all alike.
     let mut times: Vec<(Vec<Duration>, Vec<Duration>)> = vec![Default::default(); bases.len()];
+    let mut added = vec![[0i64; 2]; bases.len()];
     for round in 0..args.reps {
         for (k, (days, base, ..)) in bases.iter().enumerate() {
-            let (segment, rebuild) = time_appends(&context, base, &new)?;
+            let (segment, rebuild, bytes) = time_appends(&context, base, &new)?;
+            added[k] = bytes;
             eprintln!(
                 "round {round}, {days} d: segment {:.3} s, rebuild {:.3} s",
                 segment.as_secs_f64(),
@@ -136,16 +146,20 @@ pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
             times[k].1.push(rebuild);
         }
     }
-    println!("| base | maps | file bytes | build s | segment append (median) | rebuild append (median) |");
-    println!("| --- | ---: | ---: | ---: | ---: | ---: |");
+    println!("| base | maps | file bytes | build s | segment append (median) | rebuild append (median) | bytes added: segment | bytes added: rebuild |");
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     let mut medians = Vec::new();
-    for ((days, _, maps, bytes, build_time), (segment, rebuild)) in bases.iter().zip(times) {
+    for (((days, _, maps, bytes, build_time), (segment, rebuild)), added) in
+        bases.iter().zip(times).zip(added)
+    {
         let (segment, rebuild) = (median(segment), median(rebuild));
         println!(
-            "| {days} d | {maps} | {bytes} | {:.1} | {:.3} s | {:.3} s |",
+            "| {days} d | {maps} | {bytes} | {:.1} | {:.3} s | {:.3} s | {} | {} |",
             build_time.as_secs_f64(),
             segment.as_secs_f64(),
-            rebuild.as_secs_f64()
+            rebuild.as_secs_f64(),
+            added[0],
+            added[1]
         );
         medians.push((*days, segment, rebuild));
     }
