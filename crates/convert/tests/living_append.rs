@@ -430,3 +430,41 @@ fn appending_as_2_0_converts_a_1_x_file_only_once_the_segment_is_committed() {
         .collect();
     assert!(names.is_empty(), "left beside the file: {names:?}");
 }
+
+#[test]
+fn a_map_skipped_as_bad_is_a_missing_sample_of_the_segment() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, file) = room_built(&context, dir.path(), 7, 3);
+    LivingWriter::convert(&file, &file).unwrap();
+    // The second of the four new maps is damaged.
+    let bad = frames[4].clone();
+    let bytes = std::fs::read(&bad).unwrap();
+    std::fs::write(&bad, &bytes[..bytes.len() / 3]).unwrap();
+    let mut writer = LivingWriter::open(&file).unwrap();
+    let options = AppendOptions {
+        skip_bad: true,
+        ..AppendOptions::default()
+    };
+    let report = append_segment(
+        &context,
+        &mut writer,
+        &inputs_of(&context, &frames[3..]),
+        &options,
+        &Silent,
+    )
+    .unwrap();
+    drop(writer);
+    assert_eq!((report.added, report.skipped.len()), (3, 1));
+    assert_eq!(report.skipped[0].0, bad);
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!(reader.sample_count(), 7);
+    assert!(reader.is_missing(4));
+    assert!(reader.observed_states(4).unwrap().is_empty());
+    for (s, path) in frames.iter().enumerate().filter(|(s, _)| *s != 4) {
+        assert!(
+            living_snapshot(&reader, s as u32).same_voxel_states(&decoded(&context, path)),
+            "sample {s}"
+        );
+    }
+}
