@@ -13,12 +13,13 @@
 //!    [`ChangeExtractor`], [`accumulate_series`]) on the new maps, the first compared with
 //!    nothing (a segment's lists restart at the segment, so its histories do too), inputs of
 //!    another resolution than the file's refused. Unobserved samples are unknown.
-//! 3. **join** ([`BaseJoin`]) — per accumulated tile, its cells and the frozen predictions of
-//!    the base tile with the same code (read with
+//! 3. **join** ([`BaseJoin`]) — per accumulated tile, the cells observed in one state stay
+//!    whole (stored constant whatever the base holds); the changing ones and the frozen
+//!    predictions of the base tile with the same code (read with
 //!    [`visit_frozen_predictions`](froctomap_file::FroctReader::visit_frozen_predictions):
-//!    no mask or toggle decoded, no earlier segment read) into their common refinement
-//!    ([`common_refinement`], the append seam's), so that a piece lies inside one base cell
-//!    or outside all of them.
+//!    no mask or toggle decoded, no earlier segment read, and only for a tile with a
+//!    changing cell) are walked as their common refinement ([`common_refinement`], the
+//!    append seam's), so that a piece lies inside one base cell or outside all of them.
 //! 4. **choose** ([`ContentChooser`]) — per piece: observed in one state → constant; else
 //!    the cheaper of constant with exceptions and, inside a modelled base cell, *inherited*
 //!    with its outliers (where the observation differs from the base model's `p(t) > 0.5` at
