@@ -20,6 +20,7 @@
 //! each one's peak memory (`VmHWM`) is its own.
 
 mod anomaly_eval;
+mod append_cost;
 mod dataset;
 mod floor;
 mod generate;
@@ -90,6 +91,12 @@ enum Command {
     ///
     /// Example: froctomap-bench greg-door --size full --out target/greg-door
     GregDoor(greg_door::GregDoorArgs),
+    /// What appending the same maps costs as the file's history grows: as a format 2.0
+    /// segment and by the 1.x rebuild-append, to files of several lengths (median times,
+    /// ratio of the longest to the shortest).
+    ///
+    /// Example: froctomap-bench append-cost --series /work/data/office --work target/append-cost
+    AppendCost(append_cost::AppendCostArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(run::BuildChildArgs),
@@ -104,6 +111,7 @@ fn main() -> ExitCode {
         Command::Mcap(args) => recording::mcap_row(&args),
         Command::Floor(args) => floor::floor_command(&args),
         Command::GregDoor(args) => greg_door::greg_door_command(&args),
+        Command::AppendCost(args) => append_cost::append_cost(&args),
         Command::BuildChild(args) => {
             purge_freed_memory_at_once();
             run::build_child(&args)

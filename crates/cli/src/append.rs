@@ -1,12 +1,15 @@
 //! `froctomap append`: later snapshots added to a FROctomap file, a thin layer over
-//! `froctomap_convert::append`.
+//! `froctomap_convert::append` (format 1.x: the file rebuilt) and
+//! `froctomap_convert::append_living` (format 2.0: one segment committed).
 
 use crate::progress::Bars;
 use crate::series::{print_input_notes, tags_metadata, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
-use clap::Args;
-use froctomap_convert::{append, collect_inputs_explained, group_thousands, AppendOptions};
+use clap::{Args, ValueEnum};
+use froctomap_convert::{
+    append, append_living, collect_inputs_explained, group_thousands, is_living_file, AppendOptions,
+};
 use froctomap_core::calendar::iso8601;
 use froctomap_temporal::ModelOptions;
 use std::path::PathBuf;
@@ -46,11 +49,26 @@ pub struct AppendArgs {
     /// reproducible files.
     #[arg(long, value_name = "TIME")]
     appended: Option<String>,
+    /// Append as format 2.0: a 1.x file is converted first (said on stderr; older
+    /// releases cannot read the result) and the snapshots are added as a segment. A 2.0
+    /// file always gets a segment: one commit per call, whose cost follows the new
+    /// snapshots (the base's models stay frozen, no refit; --model-option is not used), at
+    /// times on or off the file's grid. Without it a 1.x file is rebuilt as before.
+    #[arg(long, value_enum, value_name = "VERSION")]
+    format_version: Option<AppendFormatArg>,
     #[command(flatten)]
     spill: SpillArgs,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+}
+
+/// `--format-version` of `append`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum AppendFormatArg {
+    /// Segments after a base, committed by a root slot (FORMAT.md §10).
+    #[value(name = "2.0")]
+    V2_0,
 }
 
 pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
@@ -97,8 +115,26 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
         escaped(args.file.display()),
     ));
+    let living = is_living_file(&args.file)?;
+    let as_segment = living || args.format_version == Some(AppendFormatArg::V2_0);
+    if as_segment && !args.model_option.is_empty() {
+        ui.note("note: --model-option is not used: a segment keeps the base's models (no refit)");
+    }
+    if as_segment && (!args.tag.is_empty() || args.appended.is_some()) {
+        ui.note("note: --tag and --appended are not used: a segment leaves the header as it is");
+    }
+    if as_segment && !living {
+        ui.note(&format!(
+            "converting {} to format 2.0 (older releases cannot read it); the snapshots become its first segment",
+            escaped(args.file.display())
+        ));
+    }
     let bars = Bars::new(ui.quiet);
-    let mut report = append(context, &args.file, &inputs, &options, &bars)?;
+    let mut report = if as_segment {
+        append_living(context, &args.file, &inputs, &options, &bars)?.0
+    } else {
+        append(context, &args.file, &inputs, &options, &bars)?
+    };
     drop(bars);
     // Damaged parts of recordings, left out before the append saw their maps.
     report.skipped.splice(0..0, collected.skipped);
@@ -107,9 +143,12 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     } else {
         let n = group_thousands;
         outln!(
-            "appended {} snapshots to {}",
+            "appended {} snapshots to {}{}",
             report.added,
-            escaped(report.file.display())
+            escaped(report.file.display()),
+            report
+                .segments
+                .map_or_else(String::new, |k| format!(" as segment {k}"))
         )?;
         outln!(
             "span:        {} .. {} (was .. {}), {} samples (was {}), {} axis",
@@ -129,7 +168,13 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
             n(report.file_bytes),
             n(report.bytes_before)
         )?;
-        if report.lossless {
+        if report.segments.is_some() {
+            outln!(
+                "segment:     {} cells, {} toggles (exact: outliers from the base's models, exceptions)",
+                n(report.cells.total()),
+                n(report.toggles)
+            )?;
+        } else if report.lossless {
             outln!(
                 "outliers:    {} toggles stored (lossless)",
                 n(report.toggles)

@@ -159,6 +159,10 @@ enum Command {
     /// gives. A lossy file's past is its reconstruction: that is what the refit sees, and
     /// the file stays lossy. The file is replaced atomically.
     ///
+    /// A format 2.0 file (or any file with --format-version 2.0, which converts a 1.x file)
+    /// instead gets the snapshots as one new segment, committed at once: the cost follows
+    /// the new snapshots, not the file's history (the models stay frozen until compaction).
+    ///
     /// Example: froctomap append office.froct maps/today/
     Append(append::AppendArgs),
     /// Rewrite a FROctomap 2.0 file's base and segments as one base.

@@ -175,3 +175,80 @@ fn an_append_killed_at_any_moment_leaves_the_old_file_or_the_new_one() {
         );
     }
 }
+
+#[test]
+fn format_2_0_appends_a_segment_per_call_and_converts_only_when_told() {
+    let dir = tempfile::tempdir().unwrap();
+    let series = write_frames(&dir.path().join("a"), 0..9);
+    let file = dir.path().join("room.froct");
+    let part = |name: &str, range: std::ops::Range<usize>| {
+        let part = dir.path().join(name);
+        std::fs::create_dir_all(&part).unwrap();
+        for (path, _) in &series[range] {
+            std::fs::rename(path, part.join(path.file_name().unwrap())).unwrap();
+        }
+        part
+    };
+    let first = part("first", 0..4);
+    ok(&["build", s(&first), "-o", s(&file)]);
+    // A 1.x file converted when told, and said so on stderr.
+    let out = froctomap(&[
+        "append",
+        s(&file),
+        s(&part("second", 4..6)),
+        "--format-version",
+        "2.0",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains("converting") && stderr.contains("format 2.0"),
+        "{stderr}"
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("appended 2 snapshots") && stdout.contains("as segment 1"),
+        "{stdout}"
+    );
+    // A 2.0 file gets a segment without being told.
+    let json = ok(&["append", s(&file), s(&part("third", 6..9)), "--json"]);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(
+        (report["added"].as_u64(), report["segments"].as_u64()),
+        (Some(3), Some(2))
+    );
+    assert_eq!(report["samples"], 9);
+    let reader = froctomap_file::LivingReader::open(&file).unwrap();
+    assert_eq!(reader.segment_count(), 2);
+    let formats = FormatRegistry::with_default_formats();
+    for (i, (path, _)) in series.iter().enumerate() {
+        let moved = ["first", "second", "third"]
+            .iter()
+            .map(|d| dir.path().join(d).join(path.file_name().unwrap()))
+            .find(|p| p.exists())
+            .unwrap();
+        let input = formats
+            .read_file(&moved, froctomap_formats::ReadOptions::default())
+            .unwrap()
+            .map
+            .snapshot;
+        let leaves = reader
+            .observed_states(i as u32)
+            .unwrap()
+            .into_iter()
+            .map(|(start, depth, state)| Leaf {
+                start,
+                depth,
+                log_odds: state.log_odds(),
+            })
+            .collect();
+        let got = Snapshot::from_leaves(0.1, leaves).unwrap();
+        assert!(got.same_voxel_states(&input), "sample {i}");
+    }
+    // Plain append on a 1.x file keeps rebuilding it.
+    let plain = dir.path().join("plain.froct");
+    ok(&["build", s(&first), "-o", s(&plain)]);
+    let out = ok(&["append", s(&plain), s(&dir.path().join("second"))]);
+    assert!(!out.contains("segment"), "{out}");
+    assert!(froctomap_file::FroctReader::open(&plain).is_ok());
+}

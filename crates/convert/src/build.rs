@@ -30,6 +30,7 @@ mod check;
 mod extract;
 mod fit;
 mod merge;
+mod segment;
 mod spill;
 #[cfg(test)]
 mod test_support;
@@ -50,6 +51,7 @@ use froctomap_core::Timestamp;
 use froctomap_file::{Codec, Header, ToggleLayout, WrittenFile};
 use froctomap_formats::{Backend, FormatError, ReadOptions};
 use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
+pub use segment::{append_living, append_segment, is_living_file};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use spill::SpillPlace;
@@ -376,14 +378,12 @@ pub fn build(
     // Snapshots left out become missing samples of a regular axis, so the file says there
     // is no snapshot at their time (an explicit axis keeps the instant, with nothing
     // observed at it).
-    let (axis, prepared) = match axis.step_ns() {
-        Some(step) if absent.len() > axis.missing().len() => {
-            let regular = TimeAxis::regular(axis.start(), step, axis.len(), absent.clone())
-                .map_err(ConvertError::TimeAxis)?;
+    let (axis, prepared) = match with_absent_missing(&axis, &absent)? {
+        Some(regular) => {
             let prepared = model.prepare(&regular, &options.config)?;
             (regular, prepared)
         }
-        _ => (axis, prepared),
+        None => (axis, prepared),
     };
 
     let modelling = Instant::now();
@@ -490,6 +490,20 @@ fn accumulate_series(
         produced?;
         Ok(accumulated)
     })
+}
+
+/// A regular axis with the samples in `absent` (sorted, including its own gaps) missing,
+/// when some snapshots were left out; `None` when nothing changes (an explicit axis keeps
+/// the instants, with nothing observed at them).
+fn with_absent_missing(axis: &TimeAxis, absent: &[u32]) -> Result<Option<TimeAxis>, ConvertError> {
+    match axis.step_ns() {
+        Some(step) if absent.len() > axis.missing().len() => {
+            TimeAxis::regular(axis.start(), step, axis.len(), absent.to_vec())
+                .map(Some)
+                .map_err(ConvertError::TimeAxis)
+        }
+        _ => Ok(None),
+    }
 }
 
 /// The samples without a snapshot (sorted): the axis' own gaps and the inputs left out by

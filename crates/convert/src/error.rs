@@ -471,6 +471,14 @@ pub enum ConvertError {
         #[source]
         source: std::io::Error,
     },
+    /// A format 2.0 file whose model cannot take segments.
+    #[error("{}: its model `{model}` cannot grow by segments (its frequencies are bins of the axis length); build the series with `--model fremen-periods` to append segments, or append to a format 1.x file", file.display())]
+    ModelCannotGrow {
+        /// The file.
+        file: PathBuf,
+        /// Its model.
+        model: &'static str,
+    },
     /// A fault of froctomap itself, not of the inputs (please report it).
     #[error("internal error: {what}")]
     Internal {

@@ -526,6 +526,28 @@ impl FroctReader {
         })
     }
 
+    /// Calls `visit(start, depth, prediction)` for every cell of a tile, in Morton order,
+    /// with what it predicts (its state, or its model's parameters) without decoding masks
+    /// or toggles: the frozen prediction a format 2.0 segment's inherited cells use
+    /// (FORMAT.md §10.3), evaluated by [`FrozenPrediction::state`] exactly as the readers do.
+    /// As the format 2.0 reader's own lookup of inherited cells, it walks the models only,
+    /// without validating the rest of the tile first (its cost is the tile's cells, not the
+    /// length of their masks and toggles).
+    pub fn visit_frozen_predictions(
+        &self,
+        tile: usize,
+        mut visit: impl FnMut(MortonCode, u8, FrozenPrediction<'_>),
+    ) -> Result<(), FileError> {
+        self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
+            let prediction = match (cell.constant, cell.model) {
+                (Some(state), _) => FrozenPrediction::State(state),
+                (None, Some(parameters)) => FrozenPrediction::Model(parameters),
+                (None, None) => FrozenPrediction::State(Occupancy::Free),
+            };
+            visit(cell.start, cell.depth, prediction);
+        })
+    }
+
     /// Appends to `out` one leaf per cell of a tile with `log_odds(p)` of its probability at
     /// `seconds` since the first sample (any instant), in Morton order.
     pub fn predicted_leaves(
@@ -579,5 +601,28 @@ impl FroctReader {
             })
             .map(|(i, _)| i)
             .collect()
+    }
+}
+
+/// What a cell of a file predicts at any instant (see
+/// [`FroctReader::visit_frozen_predictions`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FrozenPrediction<'a> {
+    /// A constant cell (with or without exceptions): its state.
+    State(Occupancy),
+    /// A modelled cell: its parameters for the file's model.
+    Model(&'a [u8]),
+}
+
+impl FrozenPrediction<'_> {
+    /// The thresholded prediction (`p > 0.5`) at `seconds` since the base axis's first
+    /// instant, computed as the readers compute it.
+    pub fn state(&self, model: &dyn PreparedModel, seconds: f64) -> Occupancy {
+        match self {
+            Self::State(state) => *state,
+            Self::Model(parameters) => {
+                Occupancy::from(model.probability(parameters, seconds) > 0.5)
+            }
+        }
     }
 }

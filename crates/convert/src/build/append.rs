@@ -18,13 +18,16 @@
 //! taken as what was observed, and the result is lossy too.
 
 use super::accumulate::{pack, ObservedCell, PackedCell, TileHistory};
-use super::check::{InputCheck, TileBudget};
+use super::check::{CheckedInputs, InputCheck, TileBudget};
 use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::merge::merge_tiles;
 use super::spill::SpillPlace;
 use super::write::{TileEncoder, TileWriter};
-use super::{accumulate_series, axis_for_times, output_dir, samples_left_out, ClassCounts};
+use super::{
+    accumulate_series, axis_for_times, output_dir, samples_left_out, with_absent_missing,
+    ClassCounts,
+};
 use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
@@ -70,6 +73,24 @@ pub struct AppendOptions {
     pub memory: u64,
     /// Where spill data goes; `None`: a hidden directory beside the file.
     pub tmp_dir: Option<PathBuf>,
+}
+
+impl AppendOptions {
+    /// How the new maps are extracted, into tiles of `tile_depth` (the file's).
+    pub(crate) fn extract_options(&self, context: &Context, tile_depth: u8) -> ExtractOptions<'_> {
+        ExtractOptions {
+            read: ReadOptions {
+                format: self.input_format.as_deref(),
+                backend: self.backend,
+            },
+            skip_bad: self.skip_bad,
+            batch: self.batch,
+            tiles: TileBudget {
+                tile_depth,
+                max_tiles: context.limits().max_snapshot_tiles,
+            },
+        }
+    }
 }
 
 impl Default for AppendOptions {
@@ -136,6 +157,8 @@ pub struct AppendReport {
     pub read_seconds: f64,
     /// Seconds spent merging, fitting, encoding and writing.
     pub model_seconds: f64,
+    /// Segments of a format 2.0 file after the append (`None`: a 1.x file, rewritten).
+    pub segments: Option<usize>,
 }
 
 fn as_iso8601<S: serde::Serializer>(t: &Timestamp, serializer: S) -> Result<S::Ok, S::Error> {
@@ -177,17 +200,7 @@ pub fn append(
     let old = reader.header().clone();
     let old_axis = &old.axis;
     if first.time <= old_axis.end() {
-        let last = inputs
-            .iter()
-            .rev()
-            .find(|i| i.time <= old_axis.end())
-            .unwrap_or(first);
-        return Err(ConvertError::AppendOverlap {
-            file: file.to_path_buf(),
-            last: old_axis.end(),
-            input: last.path.clone(),
-            time: last.time,
-        });
+        return Err(refuse_overlap(file, inputs, old_axis.end()));
     }
     let model = context
         .models()
@@ -205,24 +218,7 @@ pub fn append(
 
     // The file fixes the series' resolution: inputs of another one are refused (or left
     // out with `skip_bad`), whatever most of them give.
-    let checked = InputCheck {
-        skip_bad: options.skip_bad,
-        resolution: Some(old.resolution),
-        allow_mostly_skipped: false,
-    }
-    .run(inputs, &SeriesInput::is_recorded, progress)
-    .map_err(|e| match e {
-        ConvertError::Snapshot { path, source } => match *source {
-            SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {
-                first: file.to_path_buf(),
-                first_resolution: old.resolution,
-                second: path,
-                second_resolution: found,
-            },
-            _ => ConvertError::Snapshot { path, source },
-        },
-        other => other,
-    })?;
+    let checked = check_for_file(inputs, file, old.resolution, options.skip_bad, progress)?;
 
     // The file's last observed map starts the new histories, at its sample on the new axis.
     let last_observed = (0..old_axis.len())
@@ -247,18 +243,7 @@ pub fn append(
     );
 
     progress.stage("reading snapshots", inputs.len() as u64 + 1);
-    let extract = ExtractOptions {
-        read: ReadOptions {
-            format: options.input_format.as_deref(),
-            backend: options.backend,
-        },
-        skip_bad: options.skip_bad,
-        batch: options.batch,
-        tiles: TileBudget {
-            tile_depth: old.tile_depth,
-            max_tiles: context.limits().max_snapshot_tiles,
-        },
-    };
+    let extract = options.extract_options(context, old.tile_depth);
     let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress)
         .continuing(start, previous, old.resolution, file);
     let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(file)));
@@ -280,13 +265,7 @@ pub fn append(
     let read_seconds = started.elapsed().as_secs_f64();
     let changed_voxels = accumulated.changed_voxels().saturating_sub(seed_voxels);
     // As in a build: snapshots left out become missing samples of a regular axis.
-    let axis = match axis.step_ns() {
-        Some(step) if absent.len() > axis.missing().len() => {
-            TimeAxis::regular(axis.start(), step, axis.len(), absent.clone())
-                .map_err(ConvertError::TimeAxis)?
-        }
-        _ => axis,
-    };
+    let axis = with_absent_missing(&axis, &absent)?.unwrap_or(axis);
     let prepared = model.prepare(&axis, &config)?;
 
     let modelling = Instant::now();
@@ -372,6 +351,53 @@ pub fn append(
         file_bytes: written.file_bytes,
         read_seconds,
         model_seconds,
+        segments: None,
+    })
+}
+
+/// The refusal of inputs not all after `last`, the file's last instant: names the last
+/// input at or before it.
+pub(crate) fn refuse_overlap(file: &Path, inputs: &[SeriesInput], last: Timestamp) -> ConvertError {
+    let input = inputs
+        .iter()
+        .rev()
+        .find(|i| i.time <= last)
+        .or(inputs.first());
+    ConvertError::AppendOverlap {
+        file: file.to_path_buf(),
+        last,
+        input: input.map(|i| i.path.clone()).unwrap_or_default(),
+        time: input.map_or(last, |i| i.time),
+    }
+}
+
+/// The input check of maps to be added to `file`: the file fixes the series' resolution,
+/// so inputs of another one are refused naming the file (or left out with `skip_bad`),
+/// whatever most of them give.
+pub(crate) fn check_for_file(
+    inputs: &[SeriesInput],
+    file: &Path,
+    resolution: f64,
+    skip_bad: bool,
+    progress: &dyn Progress,
+) -> Result<CheckedInputs, ConvertError> {
+    InputCheck {
+        skip_bad,
+        resolution: Some(resolution),
+        allow_mostly_skipped: false,
+    }
+    .run(inputs, &SeriesInput::is_recorded, progress)
+    .map_err(|e| match e {
+        ConvertError::Snapshot { path, source } => match *source {
+            SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {
+                first: file.to_path_buf(),
+                first_resolution: resolution,
+                second: path,
+                second_resolution: found,
+            },
+            _ => ConvertError::Snapshot { path, source },
+        },
+        other => other,
     })
 }
 

@@ -124,6 +124,13 @@ impl<'a> ChangeExtractor<'a> {
     ) -> Self {
         self.seed = Some(vec![start]);
         self.previous = Some(previous);
+        self.of_file(resolution, origin)
+    }
+
+    /// Extraction of maps to be added to the file `origin`: inputs of another resolution
+    /// than `resolution` (the file's) are refused naming `origin`. (The first input is still
+    /// compared with nothing: a segment of a format 2.0 file starts its own histories.)
+    pub fn of_file(mut self, resolution: f64, origin: &Path) -> Self {
         self.tally.resolution = Some(resolution);
         self.first_path = Some(origin.to_path_buf());
         self

@@ -79,50 +79,76 @@ where
 /// observed. The cells stay packed: only a cell on both sides is unpacked, to be joined
 /// (a tile of a long series unpacked takes several times its packed size).
 pub(crate) fn merge_cells(
-    mut old: Vec<PackedCell>,
-    mut new: Vec<PackedCell>,
+    old: Vec<PackedCell>,
+    new: Vec<PackedCell>,
 ) -> Result<Vec<PackedCell>, TemporalError> {
-    // Stacks: the next cell is at the end.
-    old.reverse();
-    new.reverse();
     let mut out = Vec::with_capacity(old.len().max(new.len()));
-    let span = |cell: &PackedCell| (cell.0 .0, cell.0 .0 + voxels_per_node(cell.1));
-    loop {
-        let (a, b) = match (old.last(), new.last()) {
-            (None, None) => break,
-            (Some(_), None) => (old.pop(), None),
-            (None, Some(_)) => (None, new.pop()),
-            (Some(a), Some(b)) => {
-                let ((a_start, a_end), (b_start, b_end)) = (span(a), span(b));
-                if a_end <= b_start {
-                    (old.pop(), None)
-                } else if b_end <= a_start {
-                    (None, new.pop())
-                } else if a.1 < b.1 {
-                    split_last(&mut old)?;
-                    continue;
-                } else if b.1 < a.1 {
-                    split_last(&mut new)?;
-                    continue;
-                } else {
-                    (old.pop(), new.pop())
-                }
-            }
-        };
+    common_refinement(old, new, |start, depth, a, b| {
         out.push(match (a, b) {
-            (Some(a), Some(b)) => (a.0, a.1, pack(&joined(&a.2.unpack()?, &b.2.unpack()?)?)),
-            (Some(cell), None) | (None, Some(cell)) => cell,
-            (None, None) => break,
+            (Some(a), Some(b)) => (start, depth, pack(&joined(&a.unpack()?, &b.unpack()?)?)),
+            (Some(cell), None) | (None, Some(cell)) => (start, depth, cell),
+            (None, None) => return Ok(()),
         });
-    }
+        Ok(())
+    })?;
     Ok(out)
 }
 
+/// A cell (first voxel, depth) with what its pieces inherit when it is split.
+pub(crate) type Piece<T> = (MortonCode, u8, T);
+
+/// Walks the common refinement of two sets of disjoint cells (each in Morton order): calls
+/// `emit(start, depth, a, b)` for each piece in Morton order, with the payload of the cell
+/// of `a` and of `b` that holds it (`None` on the side that has no cell there). A coarser
+/// cell is split into its eight children, which inherit its payload, until both sides
+/// agree; a cell on one side only passes whole. The append's seam and a format 2.0
+/// segment's join with its base both use it.
+pub(crate) fn common_refinement<A: Clone, B: Clone, E: From<TemporalError>>(
+    mut a: Vec<Piece<A>>,
+    mut b: Vec<Piece<B>>,
+    mut emit: impl FnMut(MortonCode, u8, Option<A>, Option<B>) -> Result<(), E>,
+) -> Result<(), E> {
+    // Stacks: the next cell is at the end.
+    a.reverse();
+    b.reverse();
+    let span = |start: MortonCode, depth: u8| (start.0, start.0 + voxels_per_node(depth));
+    loop {
+        let (x, y) = match (a.last(), b.last()) {
+            (None, None) => break,
+            (Some(_), None) => (a.pop(), None),
+            (None, Some(_)) => (None, b.pop()),
+            (Some(x), Some(y)) => {
+                let ((x_start, x_end), (y_start, y_end)) = (span(x.0, x.1), span(y.0, y.1));
+                if x_end <= y_start {
+                    (a.pop(), None)
+                } else if y_end <= x_start {
+                    (None, b.pop())
+                } else if x.1 < y.1 {
+                    split_last(&mut a)?;
+                    continue;
+                } else if y.1 < x.1 {
+                    split_last(&mut b)?;
+                    continue;
+                } else {
+                    (a.pop(), b.pop())
+                }
+            }
+        };
+        match (x, y) {
+            (Some(x), Some(y)) => emit(x.0, x.1, Some(x.2), Some(y.2))?,
+            (Some(x), None) => emit(x.0, x.1, Some(x.2), None)?,
+            (None, Some(y)) => emit(y.0, y.1, None, Some(y.2))?,
+            (None, None) => break,
+        }
+    }
+    Ok(())
+}
+
 /// Replaces the cell on top of `stack` by its eight children (the first on top), which
-/// inherit its observations. Two overlapping cells are nested, so the coarser one is never
-/// a single voxel.
-fn split_last(stack: &mut Vec<PackedCell>) -> Result<(), TemporalError> {
-    let Some((start, depth, observations)) = stack.pop() else {
+/// inherit its payload. Two overlapping cells are nested, so the coarser one is never a
+/// single voxel.
+fn split_last<T: Clone>(stack: &mut Vec<Piece<T>>) -> Result<(), TemporalError> {
+    let Some((start, depth, payload)) = stack.pop() else {
         return Ok(());
     };
     if depth >= TREE_DEPTH {
@@ -136,7 +162,7 @@ fn split_last(stack: &mut Vec<PackedCell>) -> Result<(), TemporalError> {
         stack.push((
             MortonCode(start.0 + child * size),
             depth + 1,
-            observations.clone(),
+            payload.clone(),
         ));
     }
     Ok(())

@@ -1,0 +1,553 @@
+//! Segment ingest: later maps added to a format 2.0 file as one new segment
+//! ([FORMAT.md §10](../../../../docs/FORMAT.md), [LIVING-MAP.md](../../../../docs/LIVING-MAP.md)),
+//! at a cost that follows the new maps, not the file's history.
+//!
+//! The build's stages run over the new maps only, then two stages of its own join them to
+//! the base:
+//!
+//! 1. **plan** ([`SegmentPlan`]) — the file's model must grow (`fremen-regular` is refused,
+//!    naming `fremen-periods`), the inputs must come after the file's last sample; the
+//!    segment's own axis piece numbers the new maps from 0 (`axis_for_times` of their
+//!    instants: off the base's grid is fine, no earlier sample is renumbered).
+//! 2. **check → extract → accumulate** — the build's stages ([`InputCheck`],
+//!    [`ChangeExtractor`], [`accumulate_series`]) on the new maps, the first compared with
+//!    nothing (a segment's lists restart at the segment, so its histories do too), inputs of
+//!    another resolution than the file's refused. Unobserved samples are unknown.
+//! 3. **join** ([`BaseJoin`]) — per accumulated tile, the cells observed in one state stay
+//!    whole (stored constant whatever the base holds); the changing ones and the frozen
+//!    predictions of the base tile with the same code (read with
+//!    [`visit_frozen_predictions`](froctomap_file::FroctReader::visit_frozen_predictions):
+//!    no mask or toggle decoded, no earlier segment read, and only for a tile with a
+//!    changing cell) are walked as their common refinement ([`common_refinement`], the
+//!    append seam's), so that a piece lies inside one base cell or outside all of them.
+//! 4. **choose** ([`ContentChooser`]) — per piece: observed in one state → constant; else
+//!    the cheaper of constant with exceptions and, inside a modelled base cell, *inherited*
+//!    with its outliers (where the observation differs from the base model's `p(t) > 0.5` at
+//!    the sample's instant, seconds since the base axis's first instant, as the readers
+//!    evaluate it). `markov` cells are never inherited (their `p(t)` uses the platform's
+//!    `exp`); cells new since the base are constant with exceptions.
+//! 5. **write and commit** — each tile encoded ([`SegmentTileEncoder`]) and written after
+//!    the committed bytes, then one commit. Everything that reads inputs runs before the
+//!    first byte is written: a bad map commits nothing, and a failure while writing cuts
+//!    what was written.
+
+use super::accumulate::{PackedCell, TileHistory};
+use super::append::{check_for_file, refuse_overlap, AppendOptions, AppendReport};
+use super::extract::ChangeExtractor;
+use super::fit::TileStats;
+use super::merge::{common_refinement, Piece};
+use super::spill::SpillPlace;
+use super::{accumulate_series, axis_for_times, output_dir, samples_left_out, with_absent_missing};
+use crate::context::Context;
+use crate::error::ConvertError;
+use crate::history::PackedObservations;
+use crate::inputs::SeriesInput;
+use crate::outputs::refuse_overwriting_input;
+use crate::progress::Progress;
+use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
+use froctomap_file::{
+    mask_from_ranges, EncodedTile, FroctReader, FrozenPrediction, LivingReader, LivingWriter,
+    SegmentCell, SegmentContent, SegmentTileEncoder,
+};
+use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, VoxelObservations};
+use rayon::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The model that segments cannot grow: its frequencies are bins of the axis length.
+const FIXED_SPAN_MODEL: &str = "fremen-regular";
+/// The model whose `p(t)` after its last observation uses `exp`, which differs across
+/// platforms: its cells are stored constant with exceptions, never inherited.
+const PLATFORM_DEPENDENT_MODEL: &str = "markov";
+
+/// Appends later maps to the format 2.0 file `writer` holds as one segment, committed once.
+///
+/// Inputs are a time-sorted series as for [`append`](crate::append()), all later than the
+/// file's last sample and of its resolution; otherwise nothing is written
+/// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`]). Only the new maps
+/// and the base tiles they touch are read: neither the earlier segments nor the base's
+/// masks and toggles, so the cost follows the new maps. Every earlier and every new
+/// observed state is kept exactly; the base's models stay frozen (no refit: compaction
+/// refits). Files of `fremen-regular` are refused ([`ConvertError::ModelCannotGrow`]).
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use froctomap_file::LivingWriter;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let mut writer = LivingWriter::open(Path::new("office.froct"))?;
+/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
+/// let report = append_segment(&context, &mut writer, &tonight, &AppendOptions::default(), &Silent)?;
+/// println!("{} maps added as segment {:?}", report.added, report.segments);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn append_segment(
+    context: &Context,
+    writer: &mut LivingWriter,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<AppendReport, ConvertError> {
+    let started = Instant::now();
+    let file = writer.reader().path().to_path_buf();
+    refuse_overwriting_input(&file, inputs.iter().map(|i| i.path.as_path()))?;
+    let plan = SegmentPlan::new(context, writer.reader(), inputs)?;
+    let header = writer.reader().header().clone();
+
+    // Stage 2: the build's, over the new maps on the segment's axis.
+    let checked = check_for_file(inputs, &file, header.resolution, options.skip_bad, progress)?;
+    progress.stage("reading snapshots", inputs.len() as u64);
+    let extract = options.extract_options(context, header.tile_depth);
+    let mut extractor =
+        ChangeExtractor::new(context, extract, inputs, &checked, &plan.axis, progress)
+            .of_file(header.resolution, &file);
+    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(&file)));
+    let accumulated = accumulate_series(
+        &mut extractor,
+        header.tile_depth,
+        (&spill_place, options.memory),
+        progress,
+    )?;
+    let extracted = extractor.finish();
+    let mut skipped = checked.skipped;
+    skipped.extend(extracted.skipped);
+    if extracted.used == 0 {
+        return Err(ConvertError::NothingToBuild {
+            inputs: inputs.len(),
+        });
+    }
+    let absent = samples_left_out(&plan.axis, inputs, &checked.usable, &extracted.absent);
+    // As in a build: snapshots left out become missing samples of a regular axis.
+    let axis = with_absent_missing(&plan.axis, &absent)?.unwrap_or_else(|| plan.axis.clone());
+    let read_seconds = started.elapsed().as_secs_f64();
+
+    // Stages 3–5: join, choose, write; then commit.
+    let modelling = Instant::now();
+    let before = writer.reader().root();
+    let (samples_before, end_before) = (before.sample_count, writer.reader().last_instant());
+    // A second view of the committed state for the base's tiles, which the segment being
+    // written cannot lend (it borrows the writer); the lock keeps both the same.
+    let base_view =
+        LivingReader::open_with_limits(&file, context.limits().froct, context.models())?;
+    let base = base_view.base();
+    let chooser = ContentChooser::new(&file, &axis, base, plan.inherit_models);
+    let join = BaseJoin { base };
+    progress.stage("joining cells to the base", accumulated.cell_count() as u64);
+    let tiles = accumulated.into_tiles(axis.len(), &absent);
+    let mut segment = writer.begin_segment(axis.clone())?;
+    let written = (|| -> Result<TileStats, ConvertError> {
+        let mut stats = TileStats::default();
+        let batch = 2 * rayon::current_num_threads().max(1);
+        let mut tiles = tiles.peekable();
+        while tiles.peek().is_some() {
+            let chunk: Vec<(TileHistory, SegmentTileEncoder)> = tiles
+                .by_ref()
+                .take(batch)
+                .map(|tile| Ok((tile?, segment.tile_encoder())))
+                .collect::<Result<_, ConvertError>>()?;
+            let encoded: Vec<(EncodedTile, TileStats, u64)> = chunk
+                .into_par_iter()
+                .map(|(tile, encoder)| {
+                    let pieces = join.pieces(tile)?;
+                    chooser.encode(pieces, encoder)
+                })
+                .collect::<Result<_, ConvertError>>()?;
+            for (tile, tile_stats, cells) in encoded {
+                segment.write_tile(&tile)?;
+                stats.add(&tile_stats);
+                progress.advance(cells);
+            }
+        }
+        Ok(stats)
+    })();
+    let stats = match written {
+        Ok(stats) => stats,
+        Err(e) => {
+            drop(segment);
+            // Cut what was written past the committed bytes (readers ignore it anyway).
+            drop(writer.begin_segment(axis));
+            return Err(e);
+        }
+    };
+    let root = segment.commit()?;
+    let model_seconds = modelling.elapsed().as_secs_f64();
+    let reader = writer.reader();
+    Ok(AppendReport {
+        file: file.clone(),
+        inputs: inputs.len(),
+        added: extracted.used,
+        skipped,
+        warnings: extracted.warnings,
+        input_bytes: extracted.input_bytes,
+        samples_before,
+        samples: root.sample_count,
+        regular_axis: axis.step_ns().is_some(),
+        start: header.axis.start(),
+        end_before,
+        end: reader.last_instant(),
+        cells: stats.cells,
+        voxels: stats.voxels,
+        toggles: stats.toggles,
+        model_errors: 0,
+        lossless: base.model().outlier_mode() == OutlierMode::Lossless,
+        bytes_before: before.committed_len,
+        file_bytes: root.committed_len,
+        read_seconds,
+        model_seconds,
+        segments: Some(reader.segment_count()),
+    })
+}
+
+/// Appends later maps to the file at `path` as one segment of format 2.0: a 2.0 file gets a
+/// segment ([`append_segment`], under its writer's lock); a 1.x file is first converted
+/// (its tiles copied, [`LivingWriter::convert`]) into a file beside it, the segment appended
+/// there, and that file renamed over `path` only once committed, so a failed append leaves
+/// the 1.x file as it was. Returns the report and whether the file was converted.
+pub fn append_living(
+    context: &Context,
+    path: &Path,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<(AppendReport, bool), ConvertError> {
+    let open = |at: &Path| {
+        LivingWriter::open_with_limits(at, context.limits().froct, context.models())
+            .map_err(ConvertError::from)
+    };
+    if is_living_file(path)? {
+        let mut writer = open(path)?;
+        return Ok((
+            append_segment(context, &mut writer, inputs, options, progress)?,
+            false,
+        ));
+    }
+    refuse_overwriting_input(path, inputs.iter().map(|i| i.path.as_path()))?;
+    // Refused as a 1.x file would be (a map file, a damaged file) before anything is written.
+    let before = context.open_froct(path)?.file_len();
+    let io = |source| {
+        ConvertError::File(froctomap_file::FileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    // The converted file is made under a temporary name beside the file (`.froct-…tmp`,
+    // which the next writer there removes if this process dies unlocked) and renamed over
+    // it once its segment is committed. The name is reserved, then released for `convert`,
+    // which writes its own temporary file and renames it there, and the writer locks it.
+    let converted = UpgradeFile(
+        froctomap_core::temporary_beside(path, std::ffi::OsStr::new(".froct-upgrade-"))
+            .map_err(io)?
+            .path()
+            .to_path_buf(),
+    );
+    LivingWriter::convert(path, &converted.0)?;
+    let mut report = {
+        let mut writer = open(&converted.0)?;
+        append_segment(context, &mut writer, inputs, options, progress)?
+    };
+    std::fs::rename(&converted.0, path).map_err(io)?;
+    report.file = path.to_path_buf();
+    report.bytes_before = before;
+    Ok((report, true))
+}
+
+/// A converted file not yet renamed into place: removed when dropped (a failed append).
+struct UpgradeFile(std::path::PathBuf);
+
+impl Drop for UpgradeFile {
+    fn drop(&mut self) {
+        // Gone already once renamed into place.
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Stage 1: what the file allows and the segment's own axis.
+struct SegmentPlan {
+    /// The segment's samples: the new maps' instants, numbered from 0.
+    axis: TimeAxis,
+    /// Whether modelled base cells may be inherited (their `p(t)` is the same everywhere).
+    inherit_models: bool,
+}
+
+impl SegmentPlan {
+    fn new(
+        context: &Context,
+        file: &LivingReader,
+        inputs: &[SeriesInput],
+    ) -> Result<Self, ConvertError> {
+        let first = inputs.first().ok_or(ConvertError::NoInputs)?;
+        let header = file.header();
+        let model = context
+            .models()
+            .by_id(header.model_id)
+            .ok_or(ConvertError::internal(
+                "the model of an opened file is not registered",
+            ))?;
+        if model.name == FIXED_SPAN_MODEL {
+            return Err(ConvertError::ModelCannotGrow {
+                file: file.path().to_path_buf(),
+                model: model.name,
+            });
+        }
+        let last: Timestamp = file.last_instant();
+        if first.time <= last {
+            return Err(refuse_overlap(file.path(), inputs, last));
+        }
+        let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+        Ok(Self {
+            axis: axis_for_times(&times)?,
+            inherit_models: model.name != PLATFORM_DEPENDENT_MODEL,
+        })
+    }
+}
+
+/// What a base cell predicts, owned (pieces of it share it). A constant base cell's
+/// prediction is its state, which inheriting can never beat (a constant segment cell of the
+/// better state has at most as many exceptions), so its state is not kept.
+#[derive(Clone, Debug)]
+enum BasePrediction {
+    Constant,
+    Model(Arc<[u8]>),
+}
+
+/// A piece of the refinement: inside one base cell (`Some`) or outside all of them.
+type JoinedPiece = (MortonCode, u8, PackedObservations, Option<BasePrediction>);
+
+/// Stage 3: an accumulated tile joined to the base tile with the same code.
+struct BaseJoin<'a> {
+    base: &'a FroctReader,
+}
+
+impl BaseJoin<'_> {
+    /// The tile's cells, those that change over the segment split into their common
+    /// refinement with the base cells (so that each piece lies inside one base cell or
+    /// outside all of them). A cell observed in one state is stored constant whatever the
+    /// base holds there, so it stays whole, and a tile without a changing cell is not
+    /// joined at all: the base tile is read only where inheriting may pay.
+    fn pieces(&self, tile: TileHistory) -> Result<Vec<JoinedPiece>, ConvertError> {
+        let cells: Vec<PackedCell> = tile.into_packed();
+        let Some(code) = cells.first().map(|cell| cell.0) else {
+            return Ok(Vec::new());
+        };
+        let mut whole: Vec<JoinedPiece> = Vec::with_capacity(cells.len());
+        let mut changing: Vec<PackedCell> = Vec::new();
+        for cell in cells {
+            let constant = cell.2.run_count() == 1 || cell.2.unpack()?.is_constant().is_some();
+            if constant {
+                whole.push((cell.0, cell.1, cell.2, None));
+            } else {
+                changing.push(cell);
+            }
+        }
+        if changing.is_empty() {
+            return Ok(whole);
+        }
+        let mut base_cells: Vec<Piece<BasePrediction>> = Vec::new();
+        if let Some(index) = self.base.tile_containing(code) {
+            self.base
+                .visit_frozen_predictions(index, |start, depth, prediction| {
+                    let owned = match prediction {
+                        FrozenPrediction::State(_) => BasePrediction::Constant,
+                        FrozenPrediction::Model(parameters) => {
+                            BasePrediction::Model(Arc::from(parameters))
+                        }
+                    };
+                    base_cells.push((start, depth, owned));
+                })?;
+        }
+        let mut refined = Vec::with_capacity(changing.len());
+        common_refinement(changing, base_cells, |start, depth, new, base| {
+            if let Some(observations) = new {
+                refined.push((start, depth, observations, base));
+            }
+            Ok::<(), ConvertError>(())
+        })?;
+        // Both in Morton order and disjoint: merged into one.
+        let mut pieces = Vec::with_capacity(whole.len() + refined.len());
+        let mut refined = refined.into_iter().peekable();
+        for piece in whole {
+            while let Some(next) = refined.next_if(|r| r.0 < piece.0) {
+                pieces.push(next);
+            }
+            pieces.push(piece);
+        }
+        pieces.extend(refined);
+        Ok(pieces)
+    }
+}
+
+/// Stage 4: each piece's content over the segment, then its tile encoded.
+struct ContentChooser<'a> {
+    file: &'a Path,
+    axis: &'a TimeAxis,
+    /// Seconds since the base axis's first instant of each segment sample (0 where missing).
+    seconds: Vec<f64>,
+    model: &'a dyn PreparedModel,
+    inherit_models: bool,
+}
+
+impl<'a> ContentChooser<'a> {
+    fn new(
+        file: &'a Path,
+        axis: &'a TimeAxis,
+        base: &'a FroctReader,
+        inherit_models: bool,
+    ) -> Self {
+        let origin = base.header().axis.start();
+        // As the reader computes a segment sample's instant.
+        let seconds = (0..axis.len())
+            .map(|j| axis.time(j).map_or(0.0, |t| t.secs_since(origin)))
+            .collect();
+        Self {
+            file,
+            axis,
+            seconds,
+            model: base.model(),
+            inherit_models,
+        }
+    }
+
+    /// The tile's pieces as segment cells, encoded, with their counts and the cells done.
+    fn encode(
+        &self,
+        pieces: Vec<JoinedPiece>,
+        mut encoder: SegmentTileEncoder,
+    ) -> Result<(EncodedTile, TileStats, u64), ConvertError> {
+        let count = pieces.len() as u64;
+        let mut stats = TileStats::default();
+        for (start, depth, packed, base) in pieces {
+            let observations = packed.unpack()?;
+            let cell = self.cell(start, depth, &observations, base.as_ref());
+            count_cell(&cell, &mut stats);
+            encoder
+                .push(cell)
+                .map_err(|source| self.encode_error(source))?;
+        }
+        let tile = encoder
+            .finish()
+            .map_err(|source| self.encode_error(source))?;
+        Ok((tile, stats, count))
+    }
+
+    fn encode_error(&self, source: froctomap_file::TileEncodeError) -> ConvertError {
+        ConvertError::File(froctomap_file::FileError::TileEncode {
+            path: self.file.to_path_buf(),
+            source,
+        })
+    }
+
+    /// One piece as a segment cell.
+    fn cell(
+        &self,
+        start: MortonCode,
+        depth: u8,
+        observations: &VoxelObservations,
+        base: Option<&BasePrediction>,
+    ) -> SegmentCell {
+        let mask = mask_from_ranges(self.axis, &observations.observed_ranges());
+        let content = self.content(observations, base);
+        SegmentCell {
+            start,
+            depth,
+            mask,
+            content,
+        }
+    }
+
+    fn content(
+        &self,
+        observations: &VoxelObservations,
+        base: Option<&BasePrediction>,
+    ) -> SegmentContent {
+        if let Some(state) = observations.is_constant() {
+            return SegmentContent::Constant(state);
+        }
+        // Constant with exceptions from the first observed state: the fewest toggles of the
+        // two states (the other one needs one more).
+        let runs = observations.runs();
+        let state = runs.first().map_or(Occupancy::Free, |run| run.state);
+        let mut exceptions = ToggleBuilder::new(true);
+        for run in runs {
+            exceptions.push_run(run.first, run.len, run.state != state);
+        }
+        let parameters = match base {
+            Some(BasePrediction::Model(parameters)) if self.inherit_models => parameters,
+            _ => {
+                return SegmentContent::ConstantExcept {
+                    state,
+                    exceptions: exceptions.finish(),
+                }
+            }
+        };
+        let mut outliers = ToggleBuilder::new(true);
+        for run in runs {
+            for sample in run.first..run.first + run.len {
+                let seconds = self.seconds.get(sample as usize).copied().unwrap_or(0.0);
+                let predicted = FrozenPrediction::Model(parameters).state(self.model, seconds);
+                outliers.push(sample, predicted != run.state);
+            }
+        }
+        if outliers.encoded_len() < exceptions.encoded_len() {
+            SegmentContent::Inherited {
+                outliers: outliers.finish(),
+            }
+        } else {
+            SegmentContent::ConstantExcept {
+                state,
+                exceptions: exceptions.finish(),
+            }
+        }
+    }
+}
+
+/// Counts a segment cell into `stats` (constant cells as static, the others as dynamic).
+fn count_cell(cell: &SegmentCell, stats: &mut TileStats) {
+    let voxels = voxels_per_node(cell.depth);
+    if cell.mask.is_some() {
+        stats.cells.unknown_sometimes += 1;
+        stats.voxels.unknown_sometimes += voxels;
+    }
+    match &cell.content {
+        SegmentContent::Constant(Occupancy::Free) => {
+            stats.cells.static_free += 1;
+            stats.voxels.static_free += voxels;
+        }
+        SegmentContent::Constant(Occupancy::Occupied) => {
+            stats.cells.static_occupied += 1;
+            stats.voxels.static_occupied += voxels;
+        }
+        SegmentContent::Inherited { outliers: toggles }
+        | SegmentContent::ConstantExcept {
+            exceptions: toggles,
+            ..
+        } => {
+            stats.cells.dynamic += 1;
+            stats.voxels.dynamic += voxels;
+            stats.toggles += toggles.len() as u64;
+        }
+    }
+}
+
+/// `true` when the file at `path` is a format 2.0 file (its preamble's magic and major
+/// version); `false` for any other file, including 1.x files and files too short to tell.
+pub fn is_living_file(path: &Path) -> Result<bool, ConvertError> {
+    use std::io::Read;
+    // A FIFO is refused before it is opened (opening one may never return).
+    crate::inputs::refuse_special_file(path)?;
+    let io = |source| {
+        ConvertError::File(froctomap_file::FileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let mut head = Vec::with_capacity(12);
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(12)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    Ok(head.len() == 12
+        && head[..8] == froctomap_file::MAGIC
+        && u16::from_le_bytes([head[8], head[9]]) == froctomap_file::LIVING_MAJOR_VERSION)
+}

@@ -1,0 +1,470 @@
+//! Iterative append to format 2.0 files (issue 26): a room series built on its first four
+//! days, converted to 2.0, then appended map by map and in batches at jittered instants
+//! (off the base's hourly grid). Every earlier and every new snapshot read back through
+//! `LivingReader::observed_states` must equal the map the format plugin decodes from the
+//! input file, and the same snapshot of a plain 1.2 build of all the maps. The new part has
+//! what a segment must handle: the door following its daily model (inherited cells), the
+//! door opened at night (outliers), a box appearing on the free floor (base cells split),
+//! a ceiling never seen before (cells new since the base), a corner hidden at times
+//! (masks).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use common::*;
+use froctomap_convert::*;
+use froctomap_core::calendar::iso8601_basic;
+use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
+use froctomap_file::{FroctReader, LivingReader, LivingWriter, SegmentContent};
+use froctomap_formats::{ReadOptions, WriteOptions};
+use std::path::{Path, PathBuf};
+
+/// Frames of the base: four days, hourly (enough cycles for the door's daily period).
+const BASE_FRAMES: u32 = 96;
+/// Frames in all: a fifth day appended.
+const FRAMES: u32 = 120;
+
+/// The instant of frame `i`: hourly on the base's grid, then up to a minute late.
+fn instant(i: u32) -> Timestamp {
+    let jitter = if i < BASE_FRAMES {
+        0
+    } else {
+        i64::from(i * 37 % 61)
+    };
+    Timestamp(time(i).0 + jitter * 1_000_000_000)
+}
+
+/// Frame `i` of the series (see the module's comment).
+fn series_frame(i: u32) -> Snapshot {
+    let t = time(i);
+    let boxed = |k: VoxelKey| {
+        (ORIGIN + 4..ORIGIN + 7).contains(&k.x)
+            && (ORIGIN + 5..ORIGIN + 8).contains(&k.y)
+            && (ORIGIN + 1..ORIGIN + 3).contains(&k.z)
+    };
+    let hidden = |k: VoxelKey| i % 5 == 1 && k.x < ORIGIN + 8 && k.y >= ORIGIN + 20;
+    let night_visit = i == BASE_FRAMES + 3 || i == BASE_FRAMES + 22;
+    let mut leaves: Vec<Leaf> = keys()
+        .filter(|&k| !hidden(k))
+        .map(|k| {
+            let mut s = state(k, t);
+            if is_door(k) && night_visit {
+                s = Occupancy::Free;
+            }
+            if boxed(k) && (BASE_FRAMES + 6..BASE_FRAMES + 12).contains(&i) {
+                s = Occupancy::Occupied;
+            }
+            Leaf::voxel(k, s.log_odds())
+        })
+        .collect();
+    if i >= BASE_FRAMES + 4 {
+        // A ceiling, first seen in the last day, with a lamp that is on in the evening.
+        for x in ORIGIN..ORIGIN + SIDE {
+            for y in ORIGIN..ORIGIN + SIDE {
+                let lamp = x == ORIGIN + 16 && y == ORIGIN + 16 && i % 24 >= 18;
+                let s = if lamp || (u32::from(x) + u32::from(y)) % 2 == 0 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                };
+                leaves.push(Leaf::voxel(
+                    VoxelKey::new(x, y, ORIGIN + HEIGHT),
+                    s.log_odds(),
+                ));
+            }
+        }
+    }
+    leaves.sort_by_key(|l| l.start);
+    Snapshot::from_leaves(RESOLUTION, leaves)
+        .unwrap()
+        .canonical()
+}
+
+/// Writes frames `frames` into `dir`; their paths.
+fn write_frames(context: &Context, dir: &Path, frames: std::ops::Range<u32>) -> Vec<PathBuf> {
+    std::fs::create_dir_all(dir).unwrap();
+    frames
+        .map(|i| {
+            let path = dir.join(format!("room_{}.bt", iso8601_basic(instant(i))));
+            context
+                .formats()
+                .write_file(&series_frame(i), &path, WriteOptions::default())
+                .unwrap();
+            path
+        })
+        .collect()
+}
+
+fn inputs_of(context: &Context, paths: &[PathBuf]) -> Vec<SeriesInput> {
+    collect_inputs(context, paths, TimeSource::Auto).unwrap()
+}
+
+/// The map the format plugin decodes from an input file.
+fn decoded(context: &Context, path: &Path) -> Snapshot {
+    context
+        .formats()
+        .read_file(path, ReadOptions::default())
+        .unwrap()
+        .map
+        .snapshot
+}
+
+/// A 2.0 file's observed map at a global sample, as a snapshot.
+fn living_snapshot(reader: &LivingReader, sample: u32) -> Snapshot {
+    let leaves = reader
+        .observed_states(sample)
+        .unwrap()
+        .into_iter()
+        .map(|(start, depth, state)| Leaf {
+            start,
+            depth,
+            log_odds: state.log_odds(),
+        })
+        .collect();
+    Snapshot::from_leaves(RESOLUTION, leaves).unwrap()
+}
+
+/// Every snapshot the file holds equals the decoded input and the full build's snapshot.
+fn assert_every_snapshot(context: &Context, file: &Path, frames: &[PathBuf], full: &FroctReader) {
+    let reader = LivingReader::open(file).unwrap();
+    assert_eq!(
+        reader.sample_count() as usize,
+        frames.len(),
+        "{}",
+        file.display()
+    );
+    for (i, path) in frames.iter().enumerate() {
+        let sample = i as u32;
+        assert_eq!(reader.sample_time(sample), Some(instant(sample)));
+        let got = living_snapshot(&reader, sample);
+        assert!(
+            got.same_voxel_states(&decoded(context, path)),
+            "sample {sample} ({}) differs from its input",
+            path.display()
+        );
+        assert!(
+            got.same_voxel_states(&observed_map(full, sample).unwrap()),
+            "sample {sample} differs from the full build's"
+        );
+    }
+}
+
+struct Series {
+    _dir: tempfile::TempDir,
+    frames: Vec<PathBuf>,
+    base: PathBuf,
+    full: PathBuf,
+}
+
+/// The frames, the 1.2 build of the first four days and the 1.2 build of all five.
+fn series(model: &str) -> Series {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let frames = write_frames(&context, &dir.path().join("maps"), 0..FRAMES);
+    let options = BuildOptions {
+        model: model.to_string(),
+        ..BuildOptions::default()
+    };
+    let base = dir.path().join("base.froct");
+    let inputs = inputs_of(&context, &frames[..BASE_FRAMES as usize]);
+    build(&context, &inputs, &base, &options, &Silent).unwrap();
+    let full = dir.path().join("full.froct");
+    build(
+        &context,
+        &inputs_of(&context, &frames),
+        &full,
+        &options,
+        &Silent,
+    )
+    .unwrap();
+    Series {
+        _dir: dir,
+        frames,
+        base,
+        full,
+    }
+}
+
+/// Writes frames `0..frames` into `dir` and builds `dir/room.froct` (format 1.2) from the
+/// first `built`; the frames' paths and the file.
+fn room_built(context: &Context, dir: &Path, frames: u32, built: usize) -> (Vec<PathBuf>, PathBuf) {
+    let paths = write_frames(context, dir, 0..frames);
+    let file = dir.join("room.froct");
+    let inputs = inputs_of(context, &paths[..built]);
+    build(context, &inputs, &file, &BuildOptions::default(), &Silent).unwrap();
+    (paths, file)
+}
+
+/// Appends `frames` to the 2.0 file as one segment.
+fn append_part(context: &Context, file: &Path, frames: &[PathBuf]) -> AppendReport {
+    let mut writer = LivingWriter::open(file).unwrap();
+    append_segment(
+        context,
+        &mut writer,
+        &inputs_of(context, frames),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap()
+}
+
+/// Counts of the segment cells by kind: inherited, constant, constant with exceptions, and
+/// cells finer than 1 voxel's tile depth (any).
+fn segment_kinds(reader: &LivingReader) -> [usize; 3] {
+    let mut kinds = [0; 3];
+    for k in 0..reader.segment_count() {
+        for tile in 0..reader.segment_tiles(k).len() {
+            for cell in reader.read_segment_tile(k, tile).unwrap() {
+                kinds[match cell.content {
+                    SegmentContent::Inherited { .. } => 0,
+                    SegmentContent::Constant(_) => 1,
+                    SegmentContent::ConstantExcept { .. } => 2,
+                }] += 1;
+            }
+        }
+    }
+    kinds
+}
+
+#[test]
+fn appended_segments_retrieve_every_snapshot_as_a_full_build_does() {
+    let context = Context::with_default_plugins();
+    let series = series("fremen-periods");
+    let full = FroctReader::open(&series.full).unwrap();
+    let file = series.base.with_file_name("living.froct");
+    LivingWriter::convert(&series.base, &file).unwrap();
+    let b = BASE_FRAMES as usize;
+    // One map, a batch, then map by map, then a last batch.
+    let parts = [
+        b..b + 1,
+        b + 1..b + 8,
+        b + 8..b + 9,
+        b + 9..b + 10,
+        b + 10..FRAMES as usize,
+    ];
+    for part in parts.clone() {
+        let end = part.end;
+        let report = append_part(&context, &file, &series.frames[part.clone()]);
+        assert_eq!(report.added, part.len());
+        assert_eq!(report.samples as usize, end);
+        assert_eq!(report.end, instant(end as u32 - 1));
+        assert_every_snapshot(&context, &file, &series.frames[..end], &full);
+    }
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!(reader.segment_count(), parts.len());
+    let [inherited, constant, exceptions] = segment_kinds(&reader);
+    // The door follows its model in most segments, is opened at night in some, the lamp
+    // and the box are new or changing: each kind of cell is exercised.
+    assert!(inherited > 0, "no inherited cell");
+    assert!(constant > 0 && exceptions > 0, "{constant} {exceptions}");
+}
+
+#[test]
+fn markov_cells_are_never_inherited() {
+    let context = Context::with_default_plugins();
+    let series = series("markov");
+    let full = FroctReader::open(&series.full).unwrap();
+    let file = series.base.with_file_name("living.froct");
+    LivingWriter::convert(&series.base, &file).unwrap();
+    let b = BASE_FRAMES as usize;
+    append_part(&context, &file, &series.frames[b..b + 12]);
+    append_part(&context, &file, &series.frames[b + 12..]);
+    assert_every_snapshot(&context, &file, &series.frames, &full);
+    let [inherited, _, exceptions] = segment_kinds(&LivingReader::open(&file).unwrap());
+    assert_eq!(inherited, 0);
+    assert!(exceptions > 0);
+}
+
+#[test]
+fn fremen_regular_files_are_refused_naming_fremen_periods() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let frames = write_frames(&context, dir.path(), 0..4);
+    let base = dir.path().join("regular.froct");
+    let options = BuildOptions {
+        model: "fremen-regular".to_string(),
+        ..BuildOptions::default()
+    };
+    build(
+        &context,
+        &inputs_of(&context, &frames[..3]),
+        &base,
+        &options,
+        &Silent,
+    )
+    .unwrap();
+    LivingWriter::convert(&base, &base).unwrap();
+    let before = std::fs::read(&base).unwrap();
+    let mut writer = LivingWriter::open(&base).unwrap();
+    let error = append_segment(
+        &context,
+        &mut writer,
+        &inputs_of(&context, &frames[3..]),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(error, ConvertError::ModelCannotGrow { .. }),
+        "{error}"
+    );
+    let message = error.to_string();
+    assert!(
+        message.contains("fremen-periods") && message.contains("regular.froct"),
+        "{message}"
+    );
+    drop(writer);
+    assert_eq!(std::fs::read(&base).unwrap(), before);
+}
+
+#[test]
+fn a_bad_map_commits_nothing() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (mut frames, file) = room_built(&context, dir.path(), 6, 3);
+    LivingWriter::convert(&file, &file).unwrap();
+    append_part(&context, &file, &frames[3..4]);
+    let before = std::fs::read(&file).unwrap();
+    // The last map of the batch is damaged: nothing of the batch may be committed.
+    let bad = dir
+        .path()
+        .join(format!("room_{}.bt", iso8601_basic(instant(9))));
+    let mut bytes = std::fs::read(&frames[5]).unwrap();
+    bytes.truncate(bytes.len() / 2);
+    std::fs::write(&bad, bytes).unwrap();
+    frames[5] = bad.clone();
+    let mut writer = LivingWriter::open(&file).unwrap();
+    let error = append_segment(
+        &context,
+        &mut writer,
+        &inputs_of(&context, &frames[4..]),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        error.to_string().contains(&*bad.to_string_lossy()),
+        "{error}"
+    );
+    drop(writer);
+    assert_eq!(std::fs::read(&file).unwrap(), before);
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!((reader.segment_count(), reader.sample_count()), (1, 4));
+}
+
+#[test]
+fn a_reader_open_across_an_append_keeps_its_view_until_refresh() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, file) = room_built(&context, dir.path(), 8, 4);
+    LivingWriter::convert(&file, &file).unwrap();
+    append_part(&context, &file, &frames[4..6]);
+    let mut reader = LivingReader::open(&file).unwrap();
+    let earlier: Vec<Snapshot> = (0..6).map(|s| living_snapshot(&reader, s)).collect();
+    append_part(&context, &file, &frames[6..]);
+    // The view taken before the append: the same samples, the same maps, nothing new.
+    assert_eq!((reader.sample_count(), reader.segment_count()), (6, 1));
+    for (s, map) in earlier.iter().enumerate() {
+        assert!(living_snapshot(&reader, s as u32).same_voxel_states(map));
+    }
+    assert!(reader.observed_states(6).unwrap().is_empty());
+    assert!(reader.refresh().unwrap());
+    assert_eq!((reader.sample_count(), reader.segment_count()), (8, 2));
+    for (s, path) in frames.iter().enumerate() {
+        assert!(living_snapshot(&reader, s as u32).same_voxel_states(&decoded(&context, path)));
+    }
+}
+
+#[test]
+fn appending_as_2_0_converts_a_1_x_file_only_once_the_segment_is_committed() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, file) = room_built(&context, dir.path(), 6, 3);
+    assert!(!is_living_file(&file).unwrap());
+    let before = std::fs::read(&file).unwrap();
+    // Overlapping inputs: refused, the 1.x file untouched, no file left beside it.
+    let error = append_living(
+        &context,
+        &file,
+        &inputs_of(&context, &frames[2..]),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(error, ConvertError::AppendOverlap { .. }),
+        "{error}"
+    );
+    assert_eq!(std::fs::read(&file).unwrap(), before);
+    let (report, converted) = append_living(
+        &context,
+        &file,
+        &inputs_of(&context, &frames[3..5]),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    assert!(converted && is_living_file(&file).unwrap());
+    assert_eq!(
+        (report.samples_before, report.samples, report.segments),
+        (3, 5, Some(1))
+    );
+    let (_, converted) = append_living(
+        &context,
+        &file,
+        &inputs_of(&context, &frames[5..]),
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    assert!(!converted);
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!(reader.segment_count(), 2);
+    for (s, path) in frames.iter().enumerate() {
+        assert!(living_snapshot(&reader, s as u32).same_voxel_states(&decoded(&context, path)));
+    }
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(names.is_empty(), "left beside the file: {names:?}");
+}
+
+#[test]
+fn a_map_skipped_as_bad_is_a_missing_sample_of_the_segment() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, file) = room_built(&context, dir.path(), 7, 3);
+    LivingWriter::convert(&file, &file).unwrap();
+    // The second of the four new maps is damaged.
+    let bad = frames[4].clone();
+    let bytes = std::fs::read(&bad).unwrap();
+    std::fs::write(&bad, &bytes[..bytes.len() / 3]).unwrap();
+    let mut writer = LivingWriter::open(&file).unwrap();
+    let options = AppendOptions {
+        skip_bad: true,
+        ..AppendOptions::default()
+    };
+    let report = append_segment(
+        &context,
+        &mut writer,
+        &inputs_of(&context, &frames[3..]),
+        &options,
+        &Silent,
+    )
+    .unwrap();
+    drop(writer);
+    assert_eq!((report.added, report.skipped.len()), (3, 1));
+    assert_eq!(report.skipped[0].0, bad);
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!(reader.sample_count(), 7);
+    assert!(reader.is_missing(4));
+    assert!(reader.observed_states(4).unwrap().is_empty());
+    for (s, path) in frames.iter().enumerate().filter(|(s, _)| *s != 4) {
+        assert!(
+            living_snapshot(&reader, s as u32).same_voxel_states(&decoded(&context, path)),
+            "sample {s}"
+        );
+    }
+}
