@@ -3,14 +3,13 @@
 //! by upstream OctoMap's tools and octomap-python, whole-history commands refused until
 //! `compact`, and damaged 2.0 files refused with the file named.
 //!
-//! The segments are written by hand (`froctomap_test_support::living`), from separate builds
-//! of the later maps.
+//! The segments are written by `froctomap append` (the segment ingest) from the later maps,
+//! so each test runs the whole chain: build, convert, append, then read or compact.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
 use froctomap_core::{Leaf, Occupancy, Snapshot, VoxelKey};
 use froctomap_file::{FroctReader, LivingReader, LivingWriter, ROOT_SLOTS_AT};
 use froctomap_formats::{FormatRegistry, WriteOptions};
-use froctomap_test_support::living::append_segment_from_build;
 use froctomap_test_support::{compare_octrees, convert_octree, python_leaves, scratch};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -69,8 +68,9 @@ fn build(dir: &Path, out: &Path) {
     ok(&["build", s(dir), "-o", s(out), "--created", CREATED, "-q"]);
 }
 
-/// The series: 24 frames; `full.froct` a 1.2 build of all of them; `living.froct` a 2.0
-/// file whose base holds frames 0–11 and whose two segments hold 12–17 and 18–23.
+/// The series: 24 frames; `full.froct` a 1.2 build of all of them; `base.froct` a 1.2 build
+/// of frames 0–11; `living.froct` a copy of it turned by `append --format-version 2.0` into
+/// a 2.0 file whose two segments hold 12–17 and 18–23.
 struct Living {
     dir: tempfile::TempDir,
     inputs: Vec<PathBuf>,
@@ -85,14 +85,21 @@ fn living_series() -> Living {
     inputs.sort();
     for (name, range) in [("base", 0..12), ("seg1", 12..18), ("seg2", 18..24)] {
         write_frames(&root.join(name), range);
-        build(&root.join(name), &root.join(format!("{name}.froct")));
     }
+    build(&root.join("base"), &root.join("base.froct"));
     let full = root.join("full.froct");
     build(&root.join("all"), &full);
     let living = root.join("living.froct");
-    LivingWriter::convert(&root.join("base.froct"), &living).unwrap();
-    append_segment_from_build(&living, &root.join("seg1.froct")).unwrap();
-    append_segment_from_build(&living, &root.join("seg2.froct")).unwrap();
+    std::fs::copy(root.join("base.froct"), &living).unwrap();
+    ok(&[
+        "append",
+        s(&living),
+        s(&root.join("seg1")),
+        "--format-version",
+        "2.0",
+        "-q",
+    ]);
+    ok(&["append", s(&living), s(&root.join("seg2")), "-q"]);
     Living {
         dir,
         inputs,
