@@ -237,6 +237,18 @@ impl TimeAxis {
         self.end().secs_since(self.start())
     }
 
+    /// Seconds between samples: the grid step of a regular axis, the mean spacing of an
+    /// explicit one (0 for a single sample).
+    pub fn mean_step_seconds(&self) -> f64 {
+        match &self.repr {
+            Repr::Regular { step_ns, .. } => *step_ns as f64 / 1e9,
+            Repr::Explicit { times } if times.len() > 1 => {
+                self.span_seconds() / (times.len() - 1) as f64
+            }
+            Repr::Explicit { .. } => 0.0,
+        }
+    }
+
     /// Grid step of a regular axis, in nanoseconds.
     pub fn step_ns(&self) -> Option<i64> {
         match &self.repr {
