@@ -305,6 +305,15 @@ pub fn markdown(results: &GregDoorResults) -> String {
         out,
         "Largest weekly excess of the model's error over the static mean's: {worst:+.2} percentage points."
     );
+    // Issue 28's targets, judged on this run.
+    let verdict = |met: bool| if met { "met" } else { "not met" };
+    let ratio = sums[0] / sums[1];
+    let _ = writeln!(
+        out,
+        "Targets: every week's error ≤ static mean + 0.1 pp: {}; mean Brier ≤ 0.80× the static mean's: {} ({ratio:.3}×).",
+        verdict(worst <= 0.1 + 1e-9),
+        verdict(ratio <= 0.80),
+    );
     // Every reference order, mean Brier over the weeks.
     let mut orders: Vec<String> = results
         .weeks

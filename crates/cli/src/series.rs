@@ -163,7 +163,7 @@ pub struct BuildArgs {
     /// `auto` to choose per voxel up to --max-order (the default).
     #[arg(long, value_name = "N|auto")]
     order: Option<String>,
-    /// Shorthand for `--model-option max-order=…`: highest order `--order auto` tries (default 5).
+    /// Shorthand for `--model-option max-order=…`: highest order `--order auto` tries (default 8; above 5 only where validated).
     #[arg(long, value_name = "N")]
     max_order: Option<u8>,
     /// Shorthand for `--model-option criterion=…`: how `--order auto` chooses,

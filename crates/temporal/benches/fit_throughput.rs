@@ -11,7 +11,7 @@
 //!   office-hours rhythm with noise);
 //! - *periodic*: only the periodic voxels, the worst case.
 //!
-//! Models run in their defaults: lossless, `Auto { max: 5 }` orders.
+//! Models run in their defaults: lossless, `Auto { max: 8 }` orders.
 
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_temporal::{

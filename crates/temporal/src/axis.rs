@@ -237,6 +237,28 @@ impl TimeAxis {
         self.end().secs_since(self.start())
     }
 
+    /// Seconds between samples: the grid step of a regular axis, the mean spacing of an
+    /// explicit one (0 for a single sample).
+    ///
+    /// ```
+    /// use froctomap_core::Timestamp;
+    /// use froctomap_temporal::TimeAxis;
+    /// let regular = TimeAxis::regular(Timestamp::from_secs(0), 600_000_000_000, 10, vec![])?;
+    /// assert_eq!(regular.mean_step_seconds(), 600.0);
+    /// let times = [0, 100, 400].map(Timestamp::from_secs).to_vec();
+    /// assert_eq!(TimeAxis::explicit(times)?.mean_step_seconds(), 200.0);
+    /// # Ok::<(), froctomap_temporal::TemporalError>(())
+    /// ```
+    pub fn mean_step_seconds(&self) -> f64 {
+        match &self.repr {
+            Repr::Regular { step_ns, .. } => *step_ns as f64 / 1e9,
+            Repr::Explicit { times } if times.len() > 1 => {
+                self.span_seconds() / (times.len() - 1) as f64
+            }
+            Repr::Explicit { .. } => 0.0,
+        }
+    }
+
     /// Grid step of a regular axis, in nanoseconds.
     pub fn step_ns(&self) -> Option<i64> {
         match &self.repr {

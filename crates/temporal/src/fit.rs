@@ -10,13 +10,21 @@ use crate::{FittedVoxel, Order, OutlierMode, VoxelObservations};
 /// Relative held-out score a higher order must beat the lower ones by to be chosen.
 pub(crate) const ORDER_TOLERANCE: f64 = 0.01;
 
+/// Highest order chosen by a held-out part that does not span a whole cycle of each of the
+/// order's periods; higher orders must be validated on one that does.
+pub(crate) const UNVALIDATED_MAX_ORDER: usize = 5;
+
+/// How many standard deviations (of a fair coin's count) a model's held-out decisions that
+/// differ from the mean's must be right by, net, for it to cross 0.5 where the mean does not.
+pub(crate) const DECISION_Z: f64 = 2.0;
+
 /// Most held-out samples scored when choosing an order by prediction (see `holdout_order`).
 pub(crate) const MAX_HOLDOUT_SAMPLES: u64 = 512;
 
 /// Factors the amplitudes may be shrunk by (option `shrink=auto`) when choosing an order by
 /// prediction, weakest shrinkage first: amplitudes estimated on the training span overshoot
 /// when the behaviour drifts, and the held-out samples say by how much.
-pub(crate) const SHRINKS: [f64; 4] = [1.0, 0.8, 0.6, 0.4];
+pub(crate) const SHRINKS: [f64; 5] = [1.0, 0.8, 0.6, 0.4, 0.2];
 
 /// Margin below which a bound on `p` is not trusted to decide the threshold (float error of
 /// the summation is many orders of magnitude smaller).
@@ -53,6 +61,10 @@ pub(crate) trait Spectral: Send + Sync {
 
     /// Turns per second of a component's base angle.
     fn rate(&self, component: &Component) -> f64;
+
+    /// The longest candidate period (seconds) usable on a voxel observed from sample
+    /// `first` to `last` (`min_cycles` of it fit in that span).
+    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64>;
 
     /// Up to `max` strongest usable components of `obs` (mean `mean`), strongest first.
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate>;
@@ -151,6 +163,7 @@ fn holdout_order<S: Spectral>(
     shrinks: &[f64],
 ) -> (usize, f64) {
     let n = obs.observed_count();
+    let fraction = holdout_fraction(model, obs, fraction);
     let train_count = ((1.0 - fraction) * n as f64).ceil() as u64;
     let split = obs.sample_after_observed(train_count.min(n));
     let train = obs.truncated(split);
@@ -170,6 +183,9 @@ fn holdout_order<S: Spectral>(
     // Per order m, per factor s: squared error, and samples on the wrong side of 0.5.
     let mut sq_err = vec![vec![0.0f64; shrinks.len()]; comps.len() + 1];
     let mut wrong = vec![vec![0u64; shrinks.len()]; comps.len() + 1];
+    // Per order and factor: samples whose decision differs from the mean's.
+    let mut differs = vec![vec![0u64; shrinks.len()]; comps.len() + 1];
+    let mean_decision = mean > 0.5;
     // Scoring every held-out sample costs (samples × orders) evaluations per voxel; an
     // evenly spaced subset ranks the orders as well and bounds the cost on long series.
     let stride = test_count.div_ceil(MAX_HOLDOUT_SAMPLES).max(1);
@@ -187,12 +203,23 @@ fn holdout_order<S: Spectral>(
             let sample = i as u32;
             eval.angles(sample, &mut angles);
             let mut periodic = 0.0;
-            for (m, (errs, wrongs)) in sq_err.iter_mut().zip(&mut wrong).enumerate() {
-                for ((err, w), shrink) in errs.iter_mut().zip(wrongs.iter_mut()).zip(shrinks) {
+            for (m, ((errs, wrongs), diffs)) in sq_err
+                .iter_mut()
+                .zip(&mut wrong)
+                .zip(&mut differs)
+                .enumerate()
+            {
+                for (((err, w), diff), shrink) in errs
+                    .iter_mut()
+                    .zip(wrongs.iter_mut())
+                    .zip(diffs.iter_mut())
+                    .zip(shrinks)
+                {
                     let p = (mean + shrink * periodic).clamp(0.0, 1.0);
                     let d = p - target;
                     *err += d * d;
                     *w += u64::from((p > 0.5) != run.state.is_occupied());
+                    *diff += u64::from((p > 0.5) != mean_decision);
                 }
                 if let (Some(e), Some(a)) = (evaluables.get(m), angles.get(m)) {
                     periodic += e.value(*a);
@@ -201,31 +228,95 @@ fn holdout_order<S: Spectral>(
             i += stride;
         }
     }
-    // The lowest order, then the weakest shrinkage, within 1 % of the best score: a
-    // component must earn its place, so noise-like voxels (whose spurious components fit
+    // A shrinkage is validated only on a held-out part that spans a whole cycle of every
+    // period of the order: a shorter one cannot tell a period that drifts from one that was
+    // seen in part (a day's first half held out on a two-day series), and a shrinkage it
+    // chose would soften what the samples cannot judge.
+    let axis = model.time_axis();
+    let last = obs.observed_range().map_or(split, |(_, last)| last);
+    let holdout_span =
+        axis.sample_seconds(last) - axis.sample_seconds(split) + axis.mean_step_seconds();
+    let covered: Vec<bool> = (0..=comps.len())
+        .map(|m| {
+            comps
+                .get(..m)
+                .unwrap_or(&comps)
+                .iter()
+                .all(|c| model.rate(c) * holdout_span >= 1.0)
+        })
+        .collect();
+    let mean_wrong = wrong.first().and_then(|w| w.first()).copied().unwrap_or(0);
+    // Which (order, factor) pairs may be chosen. On a covering held-out part, any factor,
+    // provided the decisions (p > 0.5) that differ from the mean's are right significantly
+    // more often than wrong: a sign test, `gain ≥ DECISION_Z·√changed`, so a model whose
+    // threshold crossings are a coin flip on the held-out part is shrunk (or cut) until it
+    // no longer crosses there. Otherwise the unshrunk order alone, up to
+    // UNVALIDATED_MAX_ORDER.
+    let admissible = |m: usize, s: usize| -> bool {
+        let cell = |table: &[Vec<u64>]| table.get(m).and_then(|r| r.get(s)).copied();
+        if m == 0 {
+            return s == 0;
+        }
+        if !covered.get(m).copied().unwrap_or(false) {
+            return s == 0 && m <= UNVALIDATED_MAX_ORDER;
+        }
+        let (Some(w), Some(changed)) = (cell(&wrong), cell(&differs)) else {
+            return false;
+        };
+        let gain = mean_wrong as f64 - w as f64;
+        changed == 0 || gain >= DECISION_Z * (changed as f64).sqrt()
+    };
+    // The lowest order, then the weakest shrinkage, within 1 % of the best admissible score:
+    // a component must earn its place, so noise-like voxels (whose spurious components fit
     // the held-out samples by chance) keep the mean alone instead of paying for components
-    // that do not predict. A shrinkage must not put more held-out samples on the wrong
-    // side of 0.5 than the unshrunk order does: it may soften p, not the decisions.
+    // that do not predict.
     let best = sq_err
         .iter()
-        .flatten()
-        .copied()
+        .enumerate()
+        .flat_map(|(m, errs)| {
+            errs.iter()
+                .enumerate()
+                .filter(move |&(s, _)| admissible(m, s))
+                .map(|(_, &e)| e)
+        })
         .fold(f64::INFINITY, f64::min);
     let good = |e: f64| e <= best * (1.0 + ORDER_TOLERANCE) + f64::EPSILON;
     sq_err
         .iter()
-        .zip(&wrong)
         .enumerate()
-        .find_map(|(m, (errs, wrongs))| {
-            let unshrunk = wrongs.first().copied().unwrap_or(0);
+        .find_map(|(m, errs)| {
             let s = errs
                 .iter()
-                .zip(wrongs)
-                .position(|(&e, &w)| good(e) && w <= unshrunk)?;
+                .enumerate()
+                .position(|(s, &e)| good(e) && admissible(m, s))?;
             let shrink = shrinks.get(s).copied()?;
             Some((m, if m == 0 { 1.0 } else { shrink }))
         })
         .unwrap_or((0, 1.0))
+}
+
+/// Largest part of a voxel's samples held out to validate its order and shrinkage.
+pub(crate) const MAX_HOLDOUT_FRACTION: f64 = 0.5;
+
+/// The part of `obs`'s observed samples held out: half of them when the first half still
+/// spans the longest period the whole voxel can use (`min_cycles` times), so that the held-out
+/// part holds as many cycles of every period as it can without the fit losing one; else
+/// `fraction` (the option).
+fn holdout_fraction<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f64) -> f64 {
+    let Some((first, last)) = obs.observed_range() else {
+        return fraction;
+    };
+    let n = obs.observed_count();
+    let half = ((1.0 - MAX_HOLDOUT_FRACTION) * n as f64).ceil() as u64;
+    let split = obs.sample_after_observed(half.min(n));
+    let fit_last = split.saturating_sub(1).max(first);
+    match (
+        model.longest_usable_period(first, last),
+        model.longest_usable_period(first, fit_last),
+    ) {
+        (Some(whole), Some(fit)) if fit >= whole => fraction.max(MAX_HOLDOUT_FRACTION),
+        _ => fraction,
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -375,41 +466,54 @@ fn finish<S: Spectral>(
     FittedVoxel::new(&parameters.encode(), tracker.finish()).with_model_errors(errors)
 }
 
-/// Keeps the `max` largest by `key` (strongest first; ties to the lower frequency).
-pub(crate) struct TopK {
-    max: usize,
-    items: Vec<(f64, u32)>,
+/// Whether two frequencies (turns per unit of time) cannot be told apart on samples spanning
+/// `span` taken every `step` (units of time): they are closer than the span's resolution
+/// `1/span`, or one is the other's alias on the sampling grid (`f_a ∓ f_b` within `1/span`
+/// of a multiple of the sampling rate `1/step`). Such a pair fits the training span by
+/// cancelling or reinforcing each other in ways the samples cannot check, and its beat
+/// extrapolates into the future as a pattern nobody observed.
+pub(crate) fn aliases(f_a: f64, f_b: f64, span: f64, step: f64) -> bool {
+    if span.is_nan() || span <= 0.0 {
+        return true;
+    }
+    // Frequencies exactly 1/span apart (neighbouring DFT bins) are resolvable.
+    let resolution = (1.0 - 1e-9) / span;
+    let rate = if step > 0.0 {
+        1.0 / step
+    } else {
+        f64::INFINITY
+    };
+    let off_grid = |x: f64| {
+        if rate.is_finite() {
+            (x - rate * (x / rate).round()).abs()
+        } else {
+            x.abs()
+        }
+    };
+    off_grid(f_a - f_b) < resolution || (f_a + f_b > resolution && off_grid(f_a + f_b) < resolution)
 }
 
-impl TopK {
-    pub fn new(max: usize) -> Self {
-        Self {
-            max,
-            items: Vec::with_capacity(max + 1),
+/// The strongest `max` of `offers` (`(strength, frequency index, frequency)`), strongest
+/// first (ties to the lower index), skipping every offer that [`aliases`] one already
+/// picked on `span` and `step`: no two chosen periods alias each other.
+pub(crate) fn pick_distinct(
+    mut offers: Vec<(f64, u32, f64)>,
+    max: usize,
+    span: f64,
+    step: f64,
+) -> Vec<(f64, u32)> {
+    offers.retain(|&(key, _, _)| key > 0.0);
+    offers.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut picked: Vec<(f64, u32, f64)> = Vec::with_capacity(max);
+    for offer in offers {
+        if picked.len() == max {
+            break;
+        }
+        if picked.iter().all(|p| !aliases(p.2, offer.2, span, step)) {
+            picked.push(offer);
         }
     }
-
-    /// Offers frequency `frequency` with strength `key`.
-    #[inline]
-    pub fn offer(&mut self, key: f64, frequency: u32) {
-        if self.max == 0 || key.is_nan() || key <= 0.0 {
-            return;
-        }
-        if self.items.len() == self.max {
-            match self.items.last() {
-                Some(&(k, _)) if key > k => {}
-                _ => return,
-            }
-            self.items.pop();
-        }
-        let pos = self.items.partition_point(|&(k, _)| k >= key);
-        self.items.insert(pos, (key, frequency));
-    }
-
-    /// The kept `(key, frequency)` pairs, strongest first.
-    pub fn into_sorted(self) -> Vec<(f64, u32)> {
-        self.items
-    }
+    picked.into_iter().map(|(key, j, _)| (key, j)).collect()
 }
 
 #[cfg(test)]
@@ -420,10 +524,12 @@ mod tests {
     use froctomap_core::{Occupancy, Timestamp};
 
     /// Occupied 09:00-17:00 every day for three weeks, then on every other day only: the
-    /// daily rhythm weakens in the held-out week.
+    /// daily rhythm weakens in the held-out half. Unshrunk, the daily component puts p above
+    /// 0.5 every working hour, right on half the held-out days and wrong on the others: a
+    /// coin flip, which the decision test rejects.
     #[test]
     fn shrink_auto_softens_amplitudes_that_overshoot_the_held_out_part() {
-        let n = 4 * 7 * 24;
+        let n = 6 * 7 * 24;
         let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, n, vec![]).unwrap();
         let mut b = ObservationsBuilder::new();
         for i in 0..n {
@@ -444,11 +550,17 @@ mod tests {
                 .unwrap()
                 .components
         };
-        // Unshrunk, no component predicts the weaker held-out week well enough: the mean alone.
+        // Unshrunk, every order crosses 0.5 on a coin flip: the mean alone.
         assert!(components(&[("shrink", "off")]).is_empty());
-        // Shrunk, the daily rhythm validates: the same components as a fixed order gives,
-        // with every amplitude scaled by one factor of the grid below 1.
+        // Shrunk, the daily rhythm validates below 0.5: the same components as a fixed
+        // order gives, with every amplitude scaled by one factor of the grid below 1, and p
+        // never above 0.5 in the held-out half.
         let auto = components(&[("shrink", "auto")]);
+        let model = FremenPeriods
+            .prepare(&axis, &ModelConfig::default())
+            .unwrap();
+        let voxel = model.fit(&obs).unwrap();
+        assert!((n / 2..n).all(|i| model.probability_at_sample(voxel.parameters(), i) <= 0.5));
         assert!(!auto.is_empty());
         let order = auto.len().to_string();
         let fixed = components(&[("order", order.as_str())]);
@@ -468,23 +580,127 @@ mod tests {
         );
     }
 
-    #[test]
-    fn top_k_keeps_strongest_in_order() {
-        let mut t = TopK::new(3);
-        for (k, f) in [
-            (1.0, 1),
-            (5.0, 2),
-            (3.0, 3),
-            (5.0, 4),
-            (0.5, 5),
-            (4.0, 6),
-            (0.0, 7),
-        ] {
-            t.offer(k, f);
+    /// The periods a voxel's fit keeps, in hours, strongest first.
+    fn kept_hours(
+        axis: &TimeAxis,
+        obs: &crate::VoxelObservations,
+        options: &[(&str, &str)],
+    ) -> Vec<f64> {
+        let mut config = ModelConfig::default();
+        for (k, v) in options {
+            config = config.with_option(k, v);
         }
-        assert_eq!(t.into_sorted(), vec![(5.0, 2), (5.0, 4), (4.0, 6)]);
-        let mut none = TopK::new(0);
-        none.offer(1.0, 1);
-        assert!(none.into_sorted().is_empty());
+        let model = FremenPeriods.prepare(axis, &config).unwrap();
+        let voxel = model.fit(obs).unwrap();
+        model
+            .describe(voxel.parameters())
+            .unwrap()
+            .periodic
+            .iter()
+            .map(|t| t.period_seconds / 3600.0)
+            .collect()
+    }
+
+    /// A 6-hour rhythm (occupied the first 2 hours of every 6) with a deterministic
+    /// pseudo-random 10 % of flipped samples, every 10 minutes for three weeks: the planted
+    /// period is the strongest one kept, and the model predicts it a week later.
+    #[test]
+    fn a_planted_period_is_found_and_predicted() {
+        let n = 3 * 7 * 144;
+        let axis = TimeAxis::regular(Timestamp(0), 600_000_000_000, n, vec![]).unwrap();
+        let mut b = ObservationsBuilder::new();
+        let mut rng = 12345u64;
+        for i in 0..n {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let flip = (rng >> 33) % 10 == 0;
+            b.push(i, Some(Occupancy::from(((i % 36) < 12) ^ flip)))
+                .unwrap();
+        }
+        let obs = b.finish();
+        let hours = kept_hours(&axis, &obs, &[]);
+        assert_eq!(hours.first(), Some(&6.0), "{hours:?}");
+        let model = FremenPeriods
+            .prepare(&axis, &ModelConfig::default())
+            .unwrap();
+        let voxel = model.fit(&obs).unwrap();
+        let week = 7.0 * 86_400.0 * 4.0; // four weeks from the start: a week past the end
+        assert!(model.probability(voxel.parameters(), week + 3600.0) > 0.5);
+        assert!(model.probability(voxel.parameters(), week + 4.0 * 3600.0) < 0.5);
+    }
+
+    /// Two days of 30-minute samples of a voxel occupied 08:00-18:00 with a lunch break:
+    /// the 1-day rhythm's shape has energy at 28 h, 24 h and 21 h (one week / 6, 7, 8),
+    /// which two days cannot tell apart. At any order, no two kept periods alias each other.
+    #[test]
+    fn two_aliasing_periods_are_never_both_chosen() {
+        let n = 96;
+        let step = 1800.0;
+        let axis = TimeAxis::regular(Timestamp(0), 1_800_000_000_000, n, vec![]).unwrap();
+        let mut b = ObservationsBuilder::new();
+        for i in 0..n {
+            let hour = (i % 48) / 2;
+            b.push(
+                i,
+                Some(Occupancy::from((8..18).contains(&hour) && hour != 12)),
+            )
+            .unwrap();
+        }
+        let obs = b.finish();
+        let span = (f64::from(n) - 1.0) * step + step;
+        for order in ["3", "5", "8"] {
+            let hours = kept_hours(&axis, &obs, &[("order", order)]);
+            assert!(hours.contains(&24.0), "{hours:?}");
+            for (i, a) in hours.iter().enumerate() {
+                for b in &hours[i + 1..] {
+                    let (fa, fb) = (1.0 / (a * 3600.0), 1.0 / (b * 3600.0));
+                    assert!(!aliases(fa, fb, span, step), "{a} h and {b} h in {hours:?}");
+                }
+            }
+            assert!(
+                !hours.contains(&21.0) && !hours.contains(&28.0),
+                "{hours:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn pick_distinct_never_keeps_two_aliasing_periods() {
+        // One day of 10-minute samples (frequencies in turns per hour).
+        let (span, step) = (24.0, 1.0 / 6.0);
+        // 24 h and 21 h cannot be told apart in one day; 12 h can.
+        assert!(aliases(1.0 / 24.0, 1.0 / 21.0, span, step));
+        assert!(!aliases(1.0 / 24.0, 1.0 / 12.0, span, step));
+        // 6 per hour is the sampling rate: 1/(10 min + ε) aliases a very slow period.
+        assert!(aliases(
+            6.0 - 1.0 / 30.0,
+            1.0 / 30.0 + 1.0 / 200.0,
+            span,
+            step
+        ));
+        assert!(aliases(6.0 - 1.0 / 30.0, 1.0 / 30.0, span, step)); // f_a + f_b = rate
+        let offers = vec![
+            (5.0, 0, 1.0 / 24.0),
+            (4.0, 1, 1.0 / 21.0), // aliases the stronger 24 h
+            (3.0, 2, 1.0 / 12.0),
+            (3.0, 3, 1.0 / 11.0), // aliases 12 h
+            (2.0, 4, 1.0 / 8.0),
+            (0.0, 5, 1.0 / 6.0), // no strength
+        ];
+        assert_eq!(
+            pick_distinct(offers.clone(), 5, span, step),
+            [(5.0, 0), (3.0, 2), (2.0, 4)]
+        );
+        assert_eq!(
+            pick_distinct(offers.clone(), 2, span, step),
+            [(5.0, 0), (3.0, 2)]
+        );
+        // Over a long span every one is resolvable: the strongest five with strength.
+        let long = pick_distinct(offers, 9, 1000.0, step);
+        assert_eq!(
+            long.iter().map(|o| o.1).collect::<Vec<_>>(),
+            [0, 1, 2, 3, 4]
+        );
     }
 }

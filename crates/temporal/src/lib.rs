@@ -26,8 +26,10 @@
 //!   ([`VoxelObservations`], runs of known state); gaps do not enter the sums or the mean, and
 //!   toggles may sit anywhere in a gap, which gives the fewest toggles possible.
 //! - **Real time, not frame numbers.** [`models::FremenPeriods`] works on any
-//!   [`TimeAxis`] (jittered or missed snapshots) at a candidate period set (one week / k plus
-//!   user periods); a period is used only once `min_cycles` (1.5) of it were observed.
+//!   [`TimeAxis`] (jittered or missed snapshots) at a candidate period set (one week / k,
+//!   k ≤ 48, plus user periods); a period is used only once `min_cycles` (1.5) of it were
+//!   observed, and never beside a stronger chosen period it aliases (closer than `1/span` in
+//!   frequency, directly or through the sampling grid).
 //!   [`models::FremenRegular`] keeps the FFT formulation for regular grids, over *all* DFT
 //!   bins instead of the first 99.
 //! - **Compact, exact, portable outliers.** Toggles are delta + LEB128 varint encoded in
@@ -37,6 +39,12 @@
 //! - **Model order per voxel.** [`Order::Fixed`] or [`Order::Auto`]: the best held-out
 //!   prediction (default, also in lossless files) or the smallest encoded voxel
 //!   ([`OrderCriterion`]); see [`Order`]. Options `order`, `max-order`, `criterion`.
+//! - **Prediction validated on held-out data, not only fitted.** The held-out part is half
+//!   a voxel's samples when the fit half keeps every period; where it spans whole cycles of
+//!   an order's periods, the amplitudes may be shrunk (`shrink`), orders above 5 compete, and
+//!   an order's crossings of 0.5 must beat the mean's decisions significantly (a sign test)
+//!   or be shrunk away. The stored parameters are this prediction model; lossless files stay
+//!   exact through their outliers.
 //!
 //! # Plugins
 //!

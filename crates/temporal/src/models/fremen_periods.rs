@@ -1,7 +1,7 @@
 //! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
 
 use super::SpectralLine;
-use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
+use crate::fit::{fit_voxel, pick_distinct, Candidate, Evaluator, FitSettings, Spectral};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, BASE_PERIOD, CRITERION, HARMONICS, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES,
@@ -375,6 +375,14 @@ impl Spectral for PreparedFremenPeriods {
         self.frequency(component.frequency)
     }
 
+    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
+        let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
+        self.periods
+            .iter()
+            .copied()
+            .find(|p| p * self.min_cycles <= span)
+    }
+
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
@@ -383,14 +391,17 @@ impl Spectral for PreparedFremenPeriods {
         let Ok(sums) = self.sums(obs, mean) else {
             return Vec::new();
         };
-        let mut top = TopK::new(max);
-        for (j, (x, p)) in sums.iter().zip(&self.periods).enumerate() {
-            if p * self.min_cycles <= span {
-                top.offer(4.0 * (x[0] * x[0] + x[1] * x[1]), j as u32);
-            }
-        }
+        let offers = sums
+            .iter()
+            .zip(&self.periods)
+            .enumerate()
+            .filter(|(_, (_, p))| *p * self.min_cycles <= span)
+            .map(|(j, (x, p))| (4.0 * (x[0] * x[0] + x[1] * x[1]), j as u32, 1.0 / p))
+            .collect();
+        // The samples cover their span plus one step (each stands for its step).
+        let step = self.axis.mean_step_seconds();
         let norm = 1.0 / obs.observed_count() as f64;
-        top.into_sorted()
+        pick_distinct(offers, max, span + step, step)
             .into_iter()
             .filter_map(|(key, j)| {
                 let x = sums.get(j as usize)?;
@@ -493,7 +504,7 @@ mod tests {
         assert!(!p.contains(&1e9));
         // The span is 503 hours: one week (168 h) fits 1.5 times, so it is kept.
         assert_eq!(p.first(), Some(&604_800.0));
-        assert_eq!(p.len(), 24 + 1);
+        assert_eq!(p.len(), 48 + 1); // the default 48 harmonics and 5 h
 
         let params = model.encode_parameters();
         let back = FremenPeriods

@@ -1,7 +1,7 @@
 //! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
 
 use super::SpectralLine;
-use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, TopK};
+use crate::fit::{fit_voxel, pick_distinct, Candidate, Evaluator, FitSettings, Spectral};
 use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER, SHRINK,
@@ -312,6 +312,15 @@ impl Spectral for PreparedFremenRegular {
         self.frequency_hz(component.frequency)
     }
 
+    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
+        let span = f64::from(last.saturating_sub(first));
+        let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
+        if k_min.is_nan() || k_min > f64::from(self.n / 2) {
+            return None;
+        }
+        Some(1.0 / self.frequency_hz(k_min as u32))
+    }
+
     fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
@@ -325,14 +334,24 @@ impl Spectral for PreparedFremenRegular {
         }
         let k_min = k_min as u32;
         let spectrum = self.dft(obs, mean);
-        let mut top = TopK::new(max);
-        for (k, x) in spectrum.iter().enumerate().skip(k_min as usize) {
-            // A = 2|γ| except at Nyquist (n even), whose real line is its own conjugate.
-            let weight = if 2 * k == self.n as usize { 1.0 } else { 4.0 };
-            top.offer(weight * x.norm_sqr(), k as u32);
-        }
+        let offers = spectrum
+            .iter()
+            .enumerate()
+            .skip(k_min as usize)
+            .map(|(k, x)| {
+                // A = 2|γ| except at Nyquist (n even), whose real line is its own conjugate.
+                let weight = if 2 * k == self.n as usize { 1.0 } else { 4.0 };
+                (
+                    weight * x.norm_sqr(),
+                    k as u32,
+                    k as f64 / f64::from(self.n),
+                )
+            })
+            .collect();
         let norm = 1.0 / obs.observed_count() as f64;
-        top.into_sorted()
+        // Frequencies in turns per sample: bins are 1/n apart, so only a voxel observed on
+        // part of the axis has bins it cannot tell apart.
+        pick_distinct(offers, max, span + 1.0, 1.0)
             .into_iter()
             .filter_map(|(key, k)| {
                 let x = spectrum.get(k as usize)?;

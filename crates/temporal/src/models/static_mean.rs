@@ -93,6 +93,10 @@ impl Spectral for PreparedStaticMean {
         0.0
     }
 
+    fn longest_usable_period(&self, _first: u32, _last: u32) -> Option<f64> {
+        None
+    }
+
     fn candidates(&self, _obs: &VoxelObservations, _mean: f64, _max: usize) -> Vec<Candidate> {
         Vec::new()
     }

@@ -16,7 +16,15 @@ pub enum Order {
     ///   evenly spaced held-out samples); the lowest order within 1 % of the best score wins
     ///   (a component must earn its place: noise-like voxels keep the mean alone); the
     ///   chosen order is then refitted on all samples. This targets prediction;
-    ///   in lossless mode the outliers still make the states exact.
+    ///   in lossless mode the outliers still make the states exact. The held-out part is
+    ///   half the samples when the first half still spans the voxel's longest usable
+    ///   period (else `holdout-fraction`). Where it spans a whole cycle of every period of
+    ///   an order, that order may also be shrunk (`shrink`) and may exceed 5, but its
+    ///   decisions (p > 0.5) that differ from the mean's must be right on the held-out part
+    ///   significantly more often than wrong (net gain ≥ 2·√changes); where it does not,
+    ///   only unshrunk orders up to 5 compete. No two chosen periods alias each other: a
+    ///   candidate closer than `1/span` in frequency to a stronger chosen one, directly or
+    ///   through the sampling grid, is skipped.
     /// - [`OrderCriterion::SmallestFile`] (lossless only; lossy falls back to prediction):
     ///   the order with the smallest encoded voxel (parameters + toggles), ties to the lower
     ///   order; the most compact exact representation. Block-like series (long runs) often
@@ -73,8 +81,8 @@ pub(crate) const ORDER: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const MAX_ORDER: OptionDescriptor = OptionDescriptor {
     key: "max-order",
-    help: "highest order `order=auto` tries",
-    default: "5",
+    help: "highest order `order=auto` tries (orders above 5 only where a held-out part spanning whole cycles of their periods validates them)",
+    default: "8",
 };
 pub(crate) const CRITERION: OptionDescriptor = OptionDescriptor {
     key: "criterion",
@@ -94,7 +102,7 @@ pub(crate) const BASE_PERIOD: OptionDescriptor = OptionDescriptor {
 pub(crate) const HARMONICS: OptionDescriptor = OptionDescriptor {
     key: "harmonics",
     help: "candidate periods base-period / k for k = 1..=harmonics (0 = none)",
-    default: "24",
+    default: "48",
 };
 pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
     key: "min-cycles",
@@ -103,22 +111,22 @@ pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const HOLDOUT_FRACTION: OptionDescriptor = OptionDescriptor {
     key: "holdout-fraction",
-    help:
-        "fraction of each voxel's latest observed samples held out to choose the order, in (0, 1)",
+    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); half when the first half still spans the longest usable period",
     default: "0.25",
 };
 
 pub(crate) const SHRINK: OptionDescriptor = OptionDescriptor {
     key: "shrink",
-    help: "`auto`: with order=auto, the held-out samples may also shrink the amplitudes (by 0.8, 0.6 or 0.4) when that predicts them better without more wrong decisions; `off`: amplitudes as estimated",
-    default: "off",
+    help: "`auto`: with order=auto, a held-out part spanning whole cycles of the order's periods may also shrink the amplitudes (by 0.8, 0.6, 0.4 or 0.2); `off`: amplitudes as estimated",
+    default: "auto",
 };
 
 /// The FreMEn-family settings, parsed from [`ModelOptions`]; options a model does not
 /// declare keep their defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpectralOptions {
-    /// Number of spectral components per voxel. Default `Auto { max: 5 }`.
+    /// Number of spectral components per voxel. Default `Auto { max: 8 }` (orders above
+    /// 5 only where validated on a held-out part spanning whole cycles of their periods).
     pub order: Order,
     /// How `Order::Auto` picks each voxel's order. Default [`OrderCriterion::Prediction`].
     pub criterion: OrderCriterion,
@@ -126,34 +134,35 @@ pub struct SpectralOptions {
     pub periods: Vec<f64>,
     /// Base period in seconds of the default period set. Default one week (604 800 s).
     pub base_period: f64,
-    /// Harmonics of `base_period` in the default period set. Default 24 (one week down to
-    /// 7 hours, including 1 day, 12 h and 8 h).
+    /// Harmonics of `base_period` in the default period set. Default 48 (one week down to
+    /// 3.5 hours, including 1 day, 12 h, 8 h, 6 h and 4 h).
     pub harmonics: u32,
     /// A period is used for a voxel only when the voxel's observed time span is at least
     /// `min_cycles` periods long. Default 1.5. Applies to DFT bins too.
     pub min_cycles: f64,
-    /// Fraction of each voxel's observed samples (the latest ones) held out to choose the
-    /// order. Default 0.25.
+    /// Least fraction of each voxel's observed samples (the latest ones) held out to choose
+    /// the order: half of them when the first half still spans the longest period the voxel
+    /// can use (`min_cycles` times), so that the held-out part holds as many whole cycles as
+    /// the fit can spare. Default 0.25.
     pub holdout_fraction: f64,
     /// With [`Order::Auto`] and the prediction criterion, let the held-out samples also
-    /// choose a factor (1, 0.8, 0.6 or 0.4) the amplitudes are shrunk by: the smallest
-    /// shrinkage within 1 % of the best held-out Brier score that puts no more held-out
-    /// samples on the wrong side of 0.5 than the unshrunk order (option `shrink=auto`).
-    /// Default off.
+    /// choose a factor (1, 0.8, 0.6, 0.4 or 0.2) the amplitudes are shrunk by, where the held-out
+    /// part spans a whole cycle of every period of the order (see [`Order::Auto`]). Default
+    /// on (`shrink=auto`); `shrink=off` keeps the amplitudes as estimated.
     pub shrink: bool,
 }
 
 impl Default for SpectralOptions {
     fn default() -> Self {
         Self {
-            order: Order::Auto { max: 5 },
+            order: Order::Auto { max: 8 },
             criterion: OrderCriterion::Prediction,
             periods: Vec::new(),
             base_period: 604_800.0,
-            harmonics: 24,
+            harmonics: 48,
             min_cycles: 1.5,
             holdout_fraction: 0.25,
-            shrink: false,
+            shrink: true,
         }
     }
 }
