@@ -1,0 +1,280 @@
+//! `froctomap record FILE -`: `froctomap generate --stream` piped into `record` commits a
+//! segment every `--commit-every` maps, and every snapshot then retrieves byte-identical to
+//! a build of the same maps from their directory; a second, overlapping stream skips the
+//! maps the file has; SIGTERM commits what was received and exits 0; a cut stream commits
+//! what came before and fails naming where it stopped.
+#![cfg(unix)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+mod common;
+
+use common::{ok, s};
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+const CREATED: &str = "2020-01-01T00:00:00Z";
+/// Six maps, every 30 min; `LONGER` holds the same six and three more.
+const SERIES: [&str; 6] = ["--days", "0.125", "--step", "30min", "--seed", "5"];
+const LONGER: [&str; 6] = ["--days", "0.1875", "--step", "30min", "--seed", "5"];
+
+fn froctomap() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+}
+
+/// The series generated into `dir/name` and built from there: (maps, file).
+fn built(dir: &Path, name: &str, series: &[&str]) -> (PathBuf, PathBuf) {
+    let maps = dir.join(name);
+    let mut args = vec!["-q", "generate", "-o", s(&maps)];
+    args.extend(series);
+    ok(&args);
+    let file = dir.join(format!("{name}.froct"));
+    ok(&[
+        "-q",
+        "build",
+        s(&maps),
+        "--created",
+        CREATED,
+        "-o",
+        s(&file),
+    ]);
+    (maps, file)
+}
+
+/// A file built from the first map of `maps` only, for `record` to add to.
+fn first_map_only(maps: &Path, file: &Path) {
+    let manifest = std::fs::read_to_string(maps.join("manifest.csv")).unwrap();
+    let first: Vec<&str> = manifest.lines().take(2).collect();
+    let csv = maps.join("first.csv");
+    std::fs::write(&csv, first.join("\n") + "\n").unwrap();
+    ok(&["-q", "build", s(&csv), "--created", CREATED, "-o", s(file)]);
+}
+
+/// `generate --stream` of `series`, whole.
+fn stream(series: &[&str]) -> Vec<u8> {
+    let output = froctomap()
+        .args(["generate", "--stream"])
+        .args(series)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(output.status.success());
+    output.stdout
+}
+
+/// `generate --stream SERIES | record FILE - ARGS`, both processes spawned and piped.
+fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
+    let mut generator = froctomap()
+        .args(["generate", "--stream"])
+        .args(series)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let output = froctomap()
+        .args(["record", s(file), "-"])
+        .args(args)
+        .stdin(Stdio::from(generator.stdout.take().unwrap()))
+        .output()
+        .unwrap();
+    assert!(generator.wait().unwrap().success());
+    output
+}
+
+/// `record FILE - --commit-every EVERY`, its standard streams piped.
+fn spawn_record(file: &Path, every: &str) -> Child {
+    froctomap()
+        .args(["record", s(file), "-", "--commit-every", every])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// The samples of each segment of a 2.0 file (`info --json`).
+fn segments(file: &Path) -> Vec<u64> {
+    let info: Value = serde_json::from_str(&ok(&["info", s(file), "--json"])).unwrap();
+    info["living"]["segments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|segment| segment["samples"].as_u64().unwrap())
+        .collect()
+}
+
+fn samples(file: &Path) -> u64 {
+    let info: Value = serde_json::from_str(&ok(&["info", s(file), "--json"])).unwrap();
+    info["time"]["samples"].as_u64().unwrap()
+}
+
+/// Snapshots `0..count` of `file` retrieve byte-identical to those of `expected`.
+fn same_snapshots(file: &Path, expected: &Path, count: u64) {
+    let dir = file.parent().unwrap();
+    for i in 0..count {
+        let time = format!("index:{i}");
+        let got = dir.join(format!("got-{i}.bt"));
+        let want = dir.join(format!("want-{i}.bt"));
+        ok(&["-q", "retrieve", s(file), "--time", &time, "-o", s(&got)]);
+        ok(&[
+            "-q",
+            "retrieve",
+            s(expected),
+            "--time",
+            &time,
+            "-o",
+            s(&want),
+        ]);
+        assert!(
+            std::fs::read(&got).unwrap() == std::fs::read(&want).unwrap(),
+            "snapshot {i} of {} differs from the directory build's",
+            file.display()
+        );
+    }
+}
+
+/// Hidden temporary entries of froctomap in `dir`.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with(".froct-"))
+        .collect()
+}
+
+/// The commit lines `record` printed.
+fn commit_lines(stdout: &str) -> Vec<&str> {
+    stdout
+        .lines()
+        .filter(|line| line.starts_with("segment "))
+        .collect()
+}
+
+#[test]
+fn a_streamed_series_records_segment_by_segment_and_retrieves_as_its_directory_builds() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    let file = dir.path().join("recorded.froct");
+    first_map_only(&maps, &file);
+
+    // The 1.2 file is converted; its first map comes again and is skipped.
+    let output = record_piped(&SERIES, &file, &["--commit-every", "3"]);
+    let (stdout, stderr) = (text(&output.stdout), text(&output.stderr));
+    assert!(output.status.success(), "record: {stderr}");
+    assert!(stderr.contains("converting"), "{stderr}");
+    assert!(
+        stderr.contains(
+            "recorded 5 maps in 2 segment(s); 1 not later than the last one taken were skipped"
+        ),
+        "{stderr}"
+    );
+    let commits = commit_lines(&stdout);
+    assert_eq!(commits.len(), 2, "{stdout}");
+    assert!(
+        commits[0]
+            .starts_with("segment 1: 3 maps, 2016-01-04T00:30:00Z .. 2016-01-04T01:30:00Z, +"),
+        "{stdout}"
+    );
+    assert!(
+        commits[1]
+            .starts_with("segment 2: 2 maps, 2016-01-04T02:00:00Z .. 2016-01-04T02:30:00Z, +"),
+        "{stdout}"
+    );
+    assert_eq!(segments(&file), [3, 2]);
+    same_snapshots(&file, &whole, 6);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+
+    // A longer stream overlapping it: its first six maps are skipped, the rest committed.
+    let (_, longer) = built(dir.path(), "longer", &LONGER);
+    let output = record_piped(&LONGER, &file, &["--commit-every", "10"]);
+    let stderr = text(&output.stderr);
+    assert!(output.status.success(), "record: {stderr}");
+    assert!(
+        stderr.contains(
+            "recorded 3 maps in 1 segment(s); 6 not later than the last one taken were skipped"
+        ),
+        "{stderr}"
+    );
+    assert_eq!(segments(&file), [3, 2, 3]);
+    same_snapshots(&file, &longer, 9);
+}
+
+#[test]
+fn sigterm_commits_the_maps_received_and_exits_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    let file = dir.path().join("recorded.froct");
+    first_map_only(&maps, &file);
+    let bytes = stream(&SERIES);
+    let mut child = spawn_record(&file, "1");
+    // A producer that has not finished: all but the stream's end, stdin kept open.
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&bytes[..bytes.len() - 64]).unwrap();
+    stdin.flush().unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut first = String::new();
+    stdout.read_line(&mut first).unwrap();
+    assert!(first.starts_with("segment 1: 1 maps"), "{first}");
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
+    let output = child.wait_with_output().unwrap();
+    drop(stdin);
+    let stderr = text(&output.stderr);
+    assert_eq!(output.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("stopped by a signal"), "{stderr}");
+    let printed = 1 + commit_lines(&rest).len();
+    let committed = segments(&file);
+    assert_eq!(committed.len(), printed, "{first}{rest}");
+    assert!(committed.iter().all(|&n| n == 1));
+    // The maps received past the last commit line were committed at the signal, none lost
+    // or made up: every sample is one of the series'.
+    let total = samples(&file);
+    assert_eq!(total, 1 + committed.len() as u64);
+    assert!(total <= 6);
+    same_snapshots(&file, &whole, total);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}
+
+#[test]
+fn a_cut_stream_commits_what_came_before_and_fails_naming_where_it_stopped() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    let file = dir.path().join("recorded.froct");
+    first_map_only(&maps, &file);
+    let bytes = stream(&SERIES);
+    // Cut inside the fourth map's chunk (each map is a chunk of about the same size).
+    let cut = &bytes[..bytes.len() * 7 / 12];
+    let mut child = spawn_record(&file, "100");
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(cut).unwrap();
+    drop(stdin);
+    let output = child.wait_with_output().unwrap();
+    let (stdout, stderr) = (text(&output.stdout), text(&output.stderr));
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("record stopped: the stream does not read on"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("MCAP stream on standard input: does not read after "),
+        "{stderr}"
+    );
+    // The maps before the cut, committed as one segment (the first map skipped).
+    let commits = commit_lines(&stdout);
+    assert_eq!(commits.len(), 1, "{stdout}");
+    let committed = segments(&file);
+    assert_eq!(committed.len(), 1);
+    assert!((1..5).contains(&committed[0]), "{committed:?}");
+    same_snapshots(&file, &whole, 1 + committed[0]);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}
