@@ -13,7 +13,7 @@ use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
     append_segment, collect_recording, group_thousands, is_living_file, parse_duration,
-    AppendOptions, Context, SeriesInput, Silent, STDIN_INPUT,
+    refuse_growing_fixed_span, AppendOptions, Context, SeriesInput, Silent, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -316,9 +316,9 @@ fn open_living(ui: &Ui, context: &Context, file: &Path) -> Result<LivingWriter> 
             file.display()
         );
     }
+    // Refused (a map file, a damaged file, a model that cannot grow) before any conversion.
+    refuse_growing_fixed_span(context, file)?;
     if !is_living_file(file)? {
-        // Refused as a 1.x file would be (a map file, a damaged file) before conversion.
-        context.open_froct(file)?;
         ui.note(&format!(
             "converting {} to format 2.0 (older releases cannot read it)",
             escaped(file.display())

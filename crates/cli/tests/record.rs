@@ -278,3 +278,49 @@ fn a_cut_stream_commits_what_came_before_and_fails_naming_where_it_stopped() {
     same_snapshots(&file, &whole, 1 + committed[0]);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }
+
+#[test]
+fn a_file_whose_model_cannot_grow_is_refused_and_left_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    let mut args = vec!["-q", "generate", "-o", s(&maps)];
+    args.extend(SERIES);
+    ok(&args);
+    let file = dir.path().join("regular.froct");
+    let manifest = std::fs::read_to_string(maps.join("manifest.csv")).unwrap();
+    let first: Vec<&str> = manifest.lines().take(3).collect();
+    let csv = maps.join("first.csv");
+    std::fs::write(&csv, first.join("\n") + "\n").unwrap();
+    ok(&[
+        "-q",
+        "build",
+        s(&csv),
+        "--model",
+        "fremen-regular",
+        "--created",
+        CREATED,
+        "-o",
+        s(&file),
+    ]);
+    let before = std::fs::read(&file).unwrap();
+    let error = common::err(&["record", s(&file), s(&maps)]);
+    assert!(
+        error.contains("its model `fremen-regular` cannot grow by segments"),
+        "{error}"
+    );
+    // Not converted to 2.0 either.
+    assert!(std::fs::read(&file).unwrap() == before);
+}
+
+/// Sources other than a stream: a directory, read in time order, committed as a stream is.
+#[test]
+fn a_directory_records_as_a_stream_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    let file = dir.path().join("recorded.froct");
+    first_map_only(&maps, &file);
+    let stdout = ok(&["record", s(&file), s(&maps), "--commit-every", "2"]);
+    assert_eq!(commit_lines(&stdout).len(), 3, "{stdout}");
+    assert_eq!(segments(&file), [2, 2, 1]);
+    same_snapshots(&file, &whole, 6);
+}
