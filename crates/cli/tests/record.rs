@@ -82,10 +82,11 @@ fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
     output
 }
 
-/// `record FILE - --commit-every EVERY`, its standard streams piped.
-fn spawn_record(file: &Path, every: &str) -> Child {
+/// `record FILE - ARGS`, its standard streams piped.
+fn spawn_record(file: &Path, args: &[&str]) -> Child {
     froctomap()
-        .args(["record", s(file), "-", "--commit-every", every])
+        .args(["record", s(file), "-"])
+        .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -211,7 +212,7 @@ fn sigterm_commits_the_maps_received_and_exits_0() {
     let file = dir.path().join("recorded.froct");
     first_map_only(&maps, &file);
     let bytes = stream(&SERIES);
-    let mut child = spawn_record(&file, "1");
+    let mut child = spawn_record(&file, &["--commit-every", "1"]);
     // A producer that has not finished: all but the stream's end, stdin kept open.
     let mut stdin = child.stdin.take().unwrap();
     stdin.write_all(&bytes[..bytes.len() - 64]).unwrap();
@@ -254,7 +255,7 @@ fn a_cut_stream_commits_what_came_before_and_fails_naming_where_it_stopped() {
     let bytes = stream(&SERIES);
     // Cut inside the fourth map's chunk (each map is a chunk of about the same size).
     let cut = &bytes[..bytes.len() * 7 / 12];
-    let mut child = spawn_record(&file, "100");
+    let mut child = spawn_record(&file, &["--commit-every", "100"]);
     let mut stdin = child.stdin.take().unwrap();
     stdin.write_all(cut).unwrap();
     drop(stdin);
@@ -323,4 +324,98 @@ fn a_directory_records_as_a_stream_does() {
     assert_eq!(commit_lines(&stdout).len(), 3, "{stdout}");
     assert_eq!(segments(&file), [2, 2, 1]);
     same_snapshots(&file, &whole, 6);
+}
+
+/// The maps of `maps` (its manifest) as an MCAP stream, the `bad`-th (from 0) cut short.
+fn stream_with_a_bad_map(maps: &Path, bad: usize) -> Vec<u8> {
+    let manifest = std::fs::read_to_string(maps.join("manifest.csv")).unwrap();
+    let mut stream = froctomap_ros::McapMapStream::new(Vec::new()).unwrap();
+    for (i, row) in manifest.lines().skip(1).enumerate() {
+        let (name, time) = row.split_once(',').unwrap();
+        let mut bt = std::fs::read(maps.join(name)).unwrap();
+        if i == bad {
+            bt.truncate(bt.len() * 3 / 5);
+        }
+        let time = froctomap_core::Timestamp::from_secs(time.parse().unwrap());
+        stream.write_map(time, &bt).unwrap();
+    }
+    stream.finish().unwrap()
+}
+
+/// `record FILE - ARGS` reading `bytes`.
+fn record_bytes(file: &Path, bytes: &[u8], args: &[&str]) -> Output {
+    let mut child = spawn_record(file, args);
+    let mut stdin = child.stdin.take().unwrap();
+    // It may stop reading early: a broken pipe is then expected.
+    let _ = stdin.write_all(bytes);
+    drop(stdin);
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn a_bad_map_stops_record_after_what_came_before_or_is_skipped_with_skip_bad() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    // The fourth map (sample 3) does not read.
+    let bytes = stream_with_a_bad_map(&maps, 3);
+
+    let stopped = dir.path().join("stopped.froct");
+    first_map_only(&maps, &stopped);
+    let output = record_bytes(&stopped, &bytes, &["--commit-every", "100"]);
+    let stderr = text(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    // Messages count from 1: the fourth message of the stream.
+    assert!(
+        stderr.contains("record stopped at map message 4 of the stream (byte "),
+        "{stderr}"
+    );
+    assert!(stderr.contains("2016-01-04T01:30:00Z"), "{stderr}");
+    assert_eq!(segments(&stopped), [2]);
+    same_snapshots(&stopped, &whole, 3);
+
+    let skipped = dir.path().join("skipped.froct");
+    first_map_only(&maps, &skipped);
+    let output = record_bytes(&skipped, &bytes, &["--commit-every", "100", "--skip-bad"]);
+    let stderr = text(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: left out map message 4 of the stream (byte "),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("recorded 4 maps in 1 segment(s); 1 not later than the last one taken were skipped, 1 bad map(s) left out"),
+        "{stderr}"
+    );
+    // The segment's regular axis keeps the bad map's time as a missing sample, as a
+    // build leaves a skipped file out.
+    assert_eq!(segments(&skipped), [5]);
+    let info: Value = serde_json::from_str(&ok(&["info", s(&skipped), "--json"])).unwrap();
+    assert_eq!(info["time"]["missing"], 1, "{info}");
+    same_snapshots(&skipped, &whole, 3);
+    let dir = dir.path();
+    for (got, want) in [(4, 4), (5, 5)] {
+        let (g, w) = (dir.join("g.bt"), dir.join("w.bt"));
+        ok(&[
+            "-q",
+            "retrieve",
+            s(&skipped),
+            "--time",
+            &format!("index:{got}"),
+            "-o",
+            s(&g),
+        ]);
+        ok(&[
+            "-q",
+            "retrieve",
+            s(&whole),
+            "--time",
+            &format!("index:{want}"),
+            "-o",
+            s(&w),
+        ]);
+        assert!(
+            std::fs::read(&g).unwrap() == std::fs::read(&w).unwrap(),
+            "sample {got}"
+        );
+    }
 }
