@@ -190,8 +190,9 @@ enum Command {
     /// Maps not later than the last one taken are skipped and counted (overlapping bag
     /// splits). A bad map stops it after committing the maps before it (--skip-bad: left
     /// out and logged); a cut stream likewise. Ctrl-C/SIGTERM commit the maps received and
-    /// exit 0. The file must exist (`build` the first maps); a 1.x file is converted to
-    /// 2.0 first. `fremen-regular` files are refused (their model cannot grow).
+    /// exit 0. A missing file gets the first commit's maps as its base (built with the
+    /// default model); a 1.x file is converted to 2.0 first. `fremen-regular` files are
+    /// refused (their model cannot grow).
     ///
     /// Example: froctomap generate --stream --days 1 | froctomap record office.froct - --commit-every 60
     Record(record::RecordArgs),

@@ -12,8 +12,9 @@ use crate::ui::{escaped, Ui};
 use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
-    append_segment, collect_recording, group_thousands, is_living_file, parse_duration,
-    refuse_growing_fixed_span, AppendOptions, Context, SeriesInput, Silent, STDIN_INPUT,
+    append_segment, build, collect_recording, group_thousands, is_living_file, parse_duration,
+    refuse_growing_fixed_span, AppendOptions, BuildOptions, Context, SeriesInput, Silent,
+    STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -28,8 +29,9 @@ use std::time::{Duration, Instant};
 #[derive(Args)]
 pub struct RecordArgs {
     /// The FROctomap file to add to: format 2.0, or 1.x, which is converted to 2.0 first
-    /// (said on stderr; older releases cannot read it). It must exist: `froctomap build`
-    /// makes it from the first maps.
+    /// (said on stderr; older releases cannot read it). If it does not exist, the first
+    /// commit's maps are built into it as its base (the default model, fremen-periods,
+    /// lossless; `build` first for other options).
     #[arg(value_name = "FILE")]
     file: PathBuf,
     /// Where the maps come from, read in the order given: `-` (an MCAP stream on standard
@@ -97,7 +99,10 @@ static STOP: AtomicBool = AtomicBool::new(false);
 struct Recorder<'a> {
     ui: &'a Ui,
     context: &'a Context,
-    writer: LivingWriter,
+    /// The file being recorded to (`None`: it does not exist yet, and the first commit's
+    /// maps become its base).
+    file: PathBuf,
+    writer: Option<LivingWriter>,
     options: AppendOptions,
     spool_parent: PathBuf,
     /// The last time taken (the file's last sample at first).
@@ -185,21 +190,32 @@ impl Recorder<'_> {
             (Some(first), Some(last)) => (first.time, last.time),
             _ => return Ok(()),
         };
-        let report = append_segment(
-            self.context,
-            &mut self.writer,
-            &series,
-            &self.options,
-            &Silent,
-        )
-        .with_context(|| {
+        let committing = || {
             format!(
                 "committing {} maps ({} .. {})",
                 series.len(),
                 iso8601(first),
                 iso8601(last)
             )
-        })?;
+        };
+        let Some(writer) = &mut self.writer else {
+            let report = self.build_base(&series).with_context(committing)?;
+            drop(series);
+            self.commits += 1;
+            self.committed_maps += report.used;
+            outln!(
+                "base: {} maps, {} .. {}, {} bytes, {} ms",
+                report.used,
+                iso8601(first),
+                iso8601(last),
+                group_thousands(report.file_bytes),
+                started.elapsed().as_millis()
+            )?;
+            print_input_notes(self.ui, &[], &report.skipped);
+            return Ok(());
+        };
+        let report = append_segment(self.context, writer, &series, &self.options, &Silent)
+            .with_context(committing)?;
         drop(series);
         self.commits += 1;
         self.committed_maps += report.added;
@@ -214,6 +230,28 @@ impl Recorder<'_> {
         )?;
         print_input_notes(self.ui, &report.warnings, &report.skipped);
         Ok(())
+    }
+
+    /// The first maps built into the file, which did not exist (atomically, as `build`
+    /// writes), then converted to 2.0 in place (atomically) and opened for the segments.
+    /// Killed between the two, the file is a 1.x build, which the next `record` converts.
+    fn build_base(&mut self, series: &[SeriesInput]) -> Result<froctomap_convert::BuildReport> {
+        let options = BuildOptions {
+            skip_bad: self.options.skip_bad,
+            input_format: self.options.input_format.clone(),
+            backend: self.options.backend,
+            memory: self.options.memory,
+            tmp_dir: self.options.tmp_dir.clone(),
+            ..BuildOptions::default()
+        };
+        let report = build(self.context, series, &self.file, &options, &Silent)?;
+        LivingWriter::convert(&self.file, &self.file)?;
+        self.writer = Some(LivingWriter::open_with_limits(
+            &self.file,
+            self.context.limits().froct,
+            self.context.models(),
+        )?);
+        Ok(report)
     }
 }
 
@@ -237,11 +275,22 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     let context = &args
         .times
         .context(ui, args.skip_bad, Some(spool_parent.clone()));
-    let writer = open_living(ui, context, &args.file)?;
-    let last = writer.reader().last_instant();
+    let writer = if args.file.exists() {
+        Some(open_living(ui, context, &args.file)?)
+    } else {
+        ui.note(&format!(
+            "{} does not exist: the first commit's maps become its base (a build with the default model, fremen-periods, lossless)",
+            escaped(args.file.display())
+        ));
+        None
+    };
+    let last = writer
+        .as_ref()
+        .map_or(Timestamp(i64::MIN), |w| w.reader().last_instant());
     let mut recorder = Recorder {
         ui,
         context,
+        file: args.file.clone(),
         writer,
         options: AppendOptions {
             skip_bad: args.skip_bad,
@@ -265,7 +314,11 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     ui.note(&format!(
         "recording into {} (last sample {}), committing every {}",
         escaped(args.file.display()),
-        iso8601(last),
+        if recorder.writer.is_some() {
+            iso8601(last)
+        } else {
+            "none".to_string()
+        },
         match args.commit_every {
             CommitEvery::Maps(n) => format!("{n} maps"),
             CommitEvery::Time(t) => format!("{:.3} s", t.as_secs_f64()),
@@ -310,12 +363,6 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
 
 /// The file as a 2.0 writer: a 1.x file converted in place first (atomically).
 fn open_living(ui: &Ui, context: &Context, file: &Path) -> Result<LivingWriter> {
-    if !file.exists() {
-        bail!(
-            "{}: no such file: `froctomap build` makes it from the first maps, then `record` adds to it",
-            file.display()
-        );
-    }
     // Refused (a map file, a damaged file, a model that cannot grow) before any conversion.
     refuse_growing_fixed_span(context, file)?;
     if !is_living_file(file)? {

@@ -419,3 +419,22 @@ fn a_bad_map_stops_record_after_what_came_before_or_is_skipped_with_skip_bad() {
         );
     }
 }
+
+/// Into a file that does not exist: the first commit's maps are built as its base.
+#[test]
+fn a_missing_file_gets_the_first_commit_as_its_base() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, whole) = built(dir.path(), "maps", &SERIES);
+    let file = dir.path().join("new.froct");
+    let output = record_piped(&SERIES, &file, &["--commit-every", "4"]);
+    let (stdout, stderr) = (text(&output.stdout), text(&output.stderr));
+    assert!(output.status.success(), "record: {stderr}");
+    assert!(
+        stdout.starts_with("base: 4 maps, 2016-01-04T00:00:00Z .. 2016-01-04T01:30:00Z, "),
+        "{stdout}"
+    );
+    assert_eq!(commit_lines(&stdout).len(), 1, "{stdout}");
+    assert_eq!(segments(&file), [2]);
+    same_snapshots(&file, &whole, 6);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}
