@@ -301,6 +301,23 @@ pub struct StreamedMap {
 ///
 /// The topic is `options.topic`, else the first topic of a map type: maps on a second
 /// such topic are an error (give `--topic`).
+///
+/// ```
+/// use froctomap_core::{Leaf, Snapshot, Timestamp, VoxelKey};
+/// use froctomap_formats::RecordingOptions;
+/// use froctomap_ros::{McapMapStream, McapStreamMaps};
+/// let map = Snapshot::from_leaves(0.1, vec![Leaf::voxel(VoxelKey::new(32768, 32768, 32768), 3.5)])?;
+/// let bt = froctomap_octomap_codec::encode_binary(&map);
+/// let mut stream = McapMapStream::new(Vec::new())?;
+/// stream.write_map(Timestamp::from_secs(1_451_865_600), &bt)?;
+/// let bytes = stream.finish()?;
+/// let mut maps = McapStreamMaps::new(&bytes[..], &RecordingOptions::default(), 1 << 20);
+/// let map = maps.next_map()?.expect("one map")?;
+/// assert_eq!(map.time, Timestamp::from_secs(1_451_865_600));
+/// assert!(map.bytes.starts_with(b"# Octomap OcTree binary file"));
+/// assert!(maps.next_map()?.is_none());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct McapStreamMaps<R> {
     input: R,
     reader: MessageReader,
