@@ -7,9 +7,7 @@ use crate::series::{print_input_notes, tags_metadata, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use froctomap_convert::{
-    append, append_living, collect_inputs_explained, group_thousands, is_living_file, AppendOptions,
-};
+use froctomap_convert::{append, append_living, group_thousands, is_living_file, AppendOptions};
 use froctomap_core::calendar::iso8601;
 use froctomap_temporal::ModelOptions;
 use std::path::PathBuf;
@@ -79,12 +77,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     let spool = crate::series::spool_dir(args.spill.tmp_dir.as_deref(), Some(&args.file));
     crate::series::note_stream(ui, &args.inputs, spool.as_deref());
     let context = &args.times.context(ui, args.skip_bad, spool);
-    let collected =
-        collect_inputs_explained(context, &args.inputs, args.times.source(ui)?, &ui.zone)?;
-    ui.read_zoneless(collected.zoneless);
-    for warning in &collected.warnings {
-        ui.note(&format!("warning: {}", escaped(warning)));
-    }
+    let collected = args.times.collect(ui, context, &args.inputs)?;
     let inputs = collected.series;
     let mut model_options = ModelOptions::new();
     for assignment in &args.model_option {

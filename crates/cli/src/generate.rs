@@ -27,7 +27,8 @@ pub struct GenerateArgs {
     output: Option<PathBuf>,
     /// Write no files: the series goes to standard output as an MCAP stream (each map an
     /// octomap_msgs/msg/Octomap message on /octomap_binary, CDR with its ros2msg schema,
-    /// logged and stamped at the map's time), for `froctomap build -`:
+    /// logged and stamped at the map's time, each in a chunk of its own flushed as it is
+    /// written), for `froctomap build -` or `froctomap record FILE -`:
     /// `froctomap generate --days 1 --stream | froctomap build - -o day.froct`.
     #[arg(long, conflicts_with_all = ["output", "format"])]
     stream: bool,

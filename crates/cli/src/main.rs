@@ -38,6 +38,7 @@ mod manual;
 mod memory_guard;
 mod plugins;
 mod progress;
+mod record;
 mod render;
 #[cfg(feature = "ros2")]
 mod ros2;
@@ -178,6 +179,23 @@ enum Command {
     /// Example: froctomap compact office.froct
     ///          froctomap compact office.froct -o office-1.2.froct --format-version 1.2
     Compact(compact::CompactArgs),
+    /// Add maps to a FROctomap file as they arrive, one segment committed at a time.
+    ///
+    /// Reads its sources in the order given — `-`, an MCAP stream on standard input read
+    /// map by map as it arrives (e.g. `froctomap generate --stream`, a recorder's output),
+    /// or inputs as for `build` — and commits what it has gathered every --commit-every
+    /// maps or seconds as one segment of format 2.0 (as `append` does for a 2.0 file), printing
+    /// one line per commit. Only the maps of the commit being gathered are kept (on disk,
+    /// beside the file), so a stream of any length records in bounded memory and disk.
+    /// Maps not later than the last one taken are skipped and counted (overlapping bag
+    /// splits). A bad map stops it after committing the maps before it (--skip-bad: left
+    /// out and logged); a cut stream likewise. Ctrl-C/SIGTERM commit the maps received and
+    /// exit 0. A missing file gets the first commit's maps as its base (built with the
+    /// default model); a 1.x file is converted to 2.0 first. `fremen-regular` files are
+    /// refused (their model cannot grow).
+    ///
+    /// Example: froctomap generate --stream --days 1 | froctomap record office.froct - --commit-every 60
+    Record(record::RecordArgs),
     /// Write the map as observed at a time (exact in lossless files).
     ///
     /// Example: froctomap retrieve office.froct --time 2016-01-05T10:00:00Z -o then.bt
@@ -263,7 +281,10 @@ fn main() -> ExitCode {
     if matches!(&cli.command, Command::Generate(args) if args.streams()) {
         REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
     }
-    signals::clean_up_on_signals();
+    // `record` handles the signals itself: they commit what it received.
+    if !matches!(cli.command, Command::Record(_)) {
+        signals::clean_up_on_signals();
+    }
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {
         None => froctomap_convert::Zone::utc(),
         Some(Ok(zone)) => zone,
@@ -280,7 +301,10 @@ fn main() -> ExitCode {
         zone_given: cli.tz.is_some(),
         told_zoneless: std::cell::Cell::new(false),
     };
-    let skips_bad_files = matches!(cli.command, Command::Build(_) | Command::Append(_));
+    let skips_bad_files = matches!(
+        cli.command,
+        Command::Build(_) | Command::Append(_) | Command::Record(_)
+    );
     let builds = skips_bad_files || matches!(cli.command, Command::Compact(_));
     if builds {
         purge_freed_memory_at_once();
@@ -292,6 +316,7 @@ fn main() -> ExitCode {
         Command::Build(args) => series::build_command(&ui, &args),
         Command::Append(args) => append::append_command(&ui, &args),
         Command::Compact(args) => compact::compact_command(&ui, &args),
+        Command::Record(args) => record::record_command(&ui, &args),
         Command::Retrieve(args) => series::retrieve_command(&ui, &args),
         Command::Predict(args) => series::predict_command(&ui, &args),
         Command::Render(args) => render::render_command(&ui, &args),

@@ -92,6 +92,22 @@ impl TimeArgs {
         )
     }
 
+    /// `inputs` as a series read through `context` with these times, their warnings and
+    /// zoneless times told.
+    pub(crate) fn collect(
+        &self,
+        ui: &Ui,
+        context: &froctomap_convert::Context,
+        inputs: &[PathBuf],
+    ) -> Result<froctomap_convert::CollectedInputs> {
+        let collected = collect_inputs_explained(context, inputs, self.source(ui)?, &ui.zone)?;
+        ui.read_zoneless(collected.zoneless);
+        for warning in &collected.warnings {
+            ui.note(&format!("warning: {}", escaped(warning)));
+        }
+        Ok(collected)
+    }
+
     pub(crate) fn source(&self, ui: &Ui) -> Result<TimeSource> {
         if let Some(list) = &self.times_file {
             return Ok(TimeSource::TimesFile(list.clone()));
@@ -414,16 +430,7 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     let spool = spool_dir(args.spill.tmp_dir.as_deref(), args.output.as_deref());
     note_stream(ui, &args.inputs, spool.as_deref());
     let series_context = &args.times.context(ui, args.skip_bad, spool);
-    let collected = collect_inputs_explained(
-        series_context,
-        &args.inputs,
-        args.times.source(ui)?,
-        &ui.zone,
-    )?;
-    ui.read_zoneless(collected.zoneless);
-    for warning in &collected.warnings {
-        ui.note(&format!("warning: {}", escaped(warning)));
-    }
+    let collected = args.times.collect(ui, series_context, &args.inputs)?;
     if args.dry_run {
         for (input, origin) in collected.series.iter().zip(&collected.origins) {
             outln!(
@@ -894,12 +901,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
     let reader = file.whole_history()?;
     // Recordings among the ground truths are read with --topic/--time-source.
     let context = args.times.context(ui, false, None);
-    let collected =
-        collect_inputs_explained(&context, &args.against, args.times.source(ui)?, &ui.zone)?;
-    ui.read_zoneless(collected.zoneless);
-    for warning in &collected.warnings {
-        ui.note(&format!("warning: {}", escaped(warning)));
-    }
+    let collected = args.times.collect(ui, &context, &args.against)?;
     let truths: Vec<SeriesInput> = collected.series;
     let bars = Bars::new(ui.quiet);
     let report = evaluate(

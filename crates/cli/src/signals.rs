@@ -16,11 +16,16 @@ pub fn clean_up_on_signals() {
         .name("signals".into())
         .spawn(move || {
             if let Some(signal) = signals.forever().next() {
-                froctomap_core::cleanup::remove_registered();
-                // Ends the process by the signal; should that fail, exit as a shell would.
-                let _ = signal_hook::low_level::emulate_default_handler(signal);
-                std::process::exit(128 + signal);
+                end_by(signal);
             }
         });
     drop(started);
+}
+
+/// Removes the registered temporary paths and ends the process by `signal`.
+pub fn end_by(signal: i32) -> ! {
+    froctomap_core::cleanup::remove_registered();
+    // Ends the process by the signal; should that fail, exit as a shell would.
+    let _ = signal_hook::low_level::emulate_default_handler(signal);
+    std::process::exit(128 + signal);
 }

@@ -51,7 +51,7 @@ use froctomap_core::Timestamp;
 use froctomap_file::{Codec, Header, ToggleLayout, WrittenFile};
 use froctomap_formats::{Backend, FormatError, ReadOptions};
 use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
-pub use segment::{append_living, append_segment, is_living_file};
+pub use segment::{append_living, append_segment, is_living_file, refuse_growing_fixed_span};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use spill::SpillPlace;

@@ -68,8 +68,9 @@ pub use anomaly::{
     Expectation,
 };
 pub use build::{
-    append, append_living, append_segment, axis_for_times, build, is_living_file, AppendOptions,
-    AppendReport, BuildOptions, BuildReport, ClassCounts, DEFAULT_BUILD_MEMORY,
+    append, append_living, append_segment, axis_for_times, build, is_living_file,
+    refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport, ClassCounts,
+    DEFAULT_BUILD_MEMORY,
 };
 pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};
 pub use context::{Context, Limits, FROCT};

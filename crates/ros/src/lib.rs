@@ -50,6 +50,7 @@ pub use mcap_export::{
     McapMapStream, FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC,
 };
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
+pub use stream::{McapStreamMaps, StreamedMap};
 
 use froctomap_formats::{
     Confidence, DuplicateName, FormatRegistry, Recording, RecordingFormat, RecordingOptions,

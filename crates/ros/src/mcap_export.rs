@@ -133,7 +133,8 @@ fn octomap_message(
 
 /// Maps written as an MCAP stream into a writer that cannot seek (standard output, a pipe):
 /// each map as an `octomap_msgs/msg/Octomap` message in CDR on [`OCTOMAP_TOPIC`] with its
-/// `ros2msg` schema, stamped and logged at the map's time, in zstd chunks, with the summary
+/// `ros2msg` schema, stamped and logged at the map's time, each in a zstd chunk of its own
+/// (flushed as it is written, for readers of a live stream), with the summary
 /// at the end, as `froctomap generate --stream` writes for `froctomap build -`.
 ///
 /// ```
@@ -178,6 +179,9 @@ impl<W: Write> McapMapStream<W> {
             publish_time: log_time,
         };
         self.writer.write_to_known_channel(&header, &message)?;
+        // Its chunk ended and flushed: a reader of the stream (`froctomap record -`) gets
+        // each map as it is written, not once a chunk fills.
+        self.writer.flush()?;
         self.sequence = self.sequence.wrapping_add(1);
         Ok(())
     }

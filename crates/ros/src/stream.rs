@@ -151,40 +151,8 @@ pub(crate) fn open_mcap_stream(
     };
     let mut written = 0u64;
     // A message record is its data and a 22-byte header; a chunk holds several.
-    let record_limit = usize::try_from(limit.saturating_add(1 << 20)).unwrap_or(usize::MAX);
-    let mut reader = MessageReader::new_with_options(
-        LinearReaderOptions::default()
-            .with_record_length_limit(record_limit)
-            .with_validate_chunk_crcs(true),
-    );
-    let stream_error = |at: &Position, source| RosError::Stream {
-        bytes: at.bytes,
-        messages: at.messages,
-        source,
-    };
-    while let Some(event) = reader.next_event() {
-        let message = match event.map_err(|e| stream_error(&at, e))? {
-            MessageReadEvent::ReadRequest(wanted) => {
-                let buffer = reader.insert(wanted.clamp(1, READ_STEP));
-                let read = loop {
-                    match input.read(buffer) {
-                        Ok(read) => break read,
-                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                        Err(source) => {
-                            return Err(RosError::Io {
-                                path: path.clone(),
-                                source,
-                            })
-                        }
-                    }
-                };
-                reader.notify_read(read);
-                at.bytes += read as u64;
-                continue;
-            }
-            MessageReadEvent::Message(message) => message,
-        };
-        at.messages += 1;
+    let mut reader = message_reader(limit);
+    while let Some(message) = next_message(&mut reader, input, &mut at)? {
         let channel = &message.channel;
         let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
         // The reader refuses a channel id redefined otherwise, so an id stands for its
@@ -203,17 +171,7 @@ pub(crate) fn open_mcap_stream(
         let Some(kind) = MessageType::from_name(schema).filter(|_| wanted) else {
             continue;
         };
-        let encoding = match channel.message_encoding.as_str() {
-            "cdr" => Encoding::Cdr,
-            "ros1" => Encoding::Ros1,
-            other => {
-                return Err(RosError::UnsupportedEncoding {
-                    path,
-                    topic: channel.topic.clone(),
-                    encoding: other.to_string(),
-                })
-            }
-        };
+        let encoding = encoding_of(channel)?;
         let log_ns = i64::try_from(message.log_time).unwrap_or(i64::MAX);
         let stamp = match options.time {
             RecordedTime::Header => match decode_stamp(&message.data, encoding, kind) {
@@ -257,4 +215,193 @@ pub(crate) fn open_mcap_stream(
         _dir: dir,
     };
     Ok(Recording::new(times, warnings, Arc::new(maps)).with_skipped(skipped))
+}
+
+/// How the messages of `channel` are encoded, if one we read.
+fn encoding_of(channel: &mcap::Channel<'_>) -> Result<Encoding, RosError> {
+    match channel.message_encoding.as_str() {
+        "cdr" => Ok(Encoding::Cdr),
+        "ros1" => Ok(Encoding::Ros1),
+        other => Err(RosError::UnsupportedEncoding {
+            path: PathBuf::from(STREAM_PATH),
+            topic: channel.topic.clone(),
+            encoding: other.to_string(),
+        }),
+    }
+}
+
+/// A sans-io reader of MCAP messages whose records may hold a map of up to `limit` bytes.
+fn message_reader(limit: u64) -> MessageReader {
+    // A message record is its data and a 22-byte header; a chunk holds several.
+    let record_limit = usize::try_from(limit.saturating_add(1 << 20)).unwrap_or(usize::MAX);
+    MessageReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_record_length_limit(record_limit)
+            .with_validate_chunk_crcs(true),
+    )
+}
+
+/// The next message of the stream, reading `input` as the reader asks (`None`: the stream
+/// ended whole). Counts the bytes read and the messages in `at`.
+fn next_message(
+    reader: &mut MessageReader,
+    input: &mut dyn Read,
+    at: &mut Position,
+) -> Result<Option<mcap::Message<'static>>, RosError> {
+    while let Some(event) = reader.next_event() {
+        let event = event.map_err(|source| RosError::Stream {
+            bytes: at.bytes,
+            messages: at.messages,
+            source,
+        })?;
+        match event {
+            MessageReadEvent::ReadRequest(wanted) => {
+                let buffer = reader.insert(wanted.clamp(1, READ_STEP));
+                let read = loop {
+                    match input.read(buffer) {
+                        Ok(read) => break read,
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        Err(source) => {
+                            return Err(RosError::Io {
+                                path: PathBuf::from(STREAM_PATH),
+                                source,
+                            })
+                        }
+                    }
+                };
+                reader.notify_read(read);
+                at.bytes += read as u64;
+            }
+            MessageReadEvent::Message(message) => {
+                at.messages += 1;
+                return Ok(Some(message));
+            }
+        }
+    }
+    Ok(None)
+}
+
+/// One map of a [`McapStreamMaps`]: its time, its bytes as a map file, and where the
+/// stream held it.
+#[derive(Debug)]
+pub struct StreamedMap {
+    /// Its header stamp or log time (as [`RecordingOptions::time`] says).
+    pub time: Timestamp,
+    /// The map as a `.bt`/`.ot` file ([`OctomapMessage::map_file`](crate::OctomapMessage::map_file)).
+    pub bytes: Vec<u8>,
+    /// Its message's place in the stream (1 for the first message, of any topic).
+    pub message: u64,
+    /// The stream's bytes read when it was read whole.
+    pub offset: u64,
+}
+
+/// The maps of an MCAP stream one at a time as they arrive, for a consumer that keeps
+/// only what it has not yet committed (`froctomap record`): unlike `-` among a build's
+/// inputs, which is read to its end first, nothing is spooled here.
+///
+/// The topic is `options.topic`, else the first topic of a map type: maps on a second
+/// such topic are an error (give `--topic`).
+///
+/// ```
+/// use froctomap_core::{Leaf, Snapshot, Timestamp, VoxelKey};
+/// use froctomap_formats::RecordingOptions;
+/// use froctomap_ros::{McapMapStream, McapStreamMaps};
+/// let map = Snapshot::from_leaves(0.1, vec![Leaf::voxel(VoxelKey::new(32768, 32768, 32768), 3.5)])?;
+/// let bt = froctomap_octomap_codec::encode_binary(&map);
+/// let mut stream = McapMapStream::new(Vec::new())?;
+/// stream.write_map(Timestamp::from_secs(1_451_865_600), &bt)?;
+/// let bytes = stream.finish()?;
+/// let mut maps = McapStreamMaps::new(&bytes[..], &RecordingOptions::default(), 1 << 20);
+/// let map = maps.next_map()?.expect("one map")?;
+/// assert_eq!(map.time, Timestamp::from_secs(1_451_865_600));
+/// assert!(map.bytes.starts_with(b"# Octomap OcTree binary file"));
+/// assert!(maps.next_map()?.is_none());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct McapStreamMaps<R> {
+    input: R,
+    reader: MessageReader,
+    at: Position,
+    options: RecordingOptions,
+    /// The topic taken and its message type, once known.
+    topic: Option<(String, MessageType)>,
+}
+
+impl<R: Read> McapStreamMaps<R> {
+    /// Reads maps of at most `limit` bytes from `input` as `options` say (topic, time).
+    pub fn new(input: R, options: &RecordingOptions, limit: u64) -> Self {
+        Self {
+            input,
+            reader: message_reader(limit),
+            at: Position {
+                bytes: 0,
+                messages: 0,
+            },
+            options: options.clone(),
+            topic: None,
+        }
+    }
+
+    /// The bytes and messages read so far.
+    pub fn position(&self) -> (u64, u64) {
+        (self.at.bytes, self.at.messages)
+    }
+
+    /// The next map (`Ok(None)`: the stream ended whole). The outer error ends the stream
+    /// (it is cut or does not read); the inner one is a map message that does not decode,
+    /// after which reading may go on.
+    #[allow(clippy::type_complexity)]
+    pub fn next_map(&mut self) -> Result<Option<Result<StreamedMap, RosError>>, RosError> {
+        let path = PathBuf::from(STREAM_PATH);
+        while let Some(message) = next_message(&mut self.reader, &mut self.input, &mut self.at)? {
+            let channel = &message.channel;
+            let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+            let Some(kind) = MessageType::from_name(schema) else {
+                continue;
+            };
+            match (&self.options.topic, &self.topic) {
+                (Some(wanted), _) if *wanted != channel.topic => continue,
+                (None, Some((taken, _))) if *taken != channel.topic => {
+                    return Err(RosError::Malformed {
+                        path,
+                        what: "stream",
+                        problem: format!(
+                            "maps on two topics, `{taken}` and `{}`: choose one with --topic",
+                            channel.topic
+                        ),
+                    })
+                }
+                _ => {}
+            }
+            self.topic
+                .get_or_insert_with(|| (channel.topic.clone(), kind));
+            let log_ns = i64::try_from(message.log_time).unwrap_or(i64::MAX);
+            let bad = |problem| RosError::BadMessage {
+                path: path.clone(),
+                topic: channel.topic.clone(),
+                time: iso8601(Timestamp(log_ns)),
+                problem: Box::new(problem),
+            };
+            let encoding = encoding_of(channel)?;
+            let time = match self.options.time {
+                RecordedTime::Header => match decode_stamp(&message.data, encoding, kind) {
+                    Ok(0) => Timestamp(log_ns),
+                    Ok(stamp) => Timestamp(stamp),
+                    Err(problem) => return Ok(Some(Err(bad(problem)))),
+                },
+                _ => Timestamp(log_ns),
+            };
+            let map = decode_message(&message.data, encoding, kind).and_then(|m| m.map_file());
+            return Ok(Some(match map {
+                Ok(bytes) => Ok(StreamedMap {
+                    time,
+                    bytes,
+                    message: self.at.messages,
+                    offset: self.at.bytes,
+                }),
+                Err(problem) => Err(bad(problem)),
+            }));
+        }
+        Ok(None)
+    }
 }

@@ -199,6 +199,40 @@ pub fn append_segment(
     })
 }
 
+/// Refuses a file (of any version) whose model cannot grow by segments
+/// ([`ConvertError::ModelCannotGrow`]), so that a caller can say so before converting a
+/// 1.x file to 2.0; a file that does not open is refused as it would be for an append.
+pub fn refuse_growing_fixed_span(context: &Context, path: &Path) -> Result<(), ConvertError> {
+    if is_living_file(path)? {
+        let file = LivingReader::open_with_limits(path, context.limits().froct, context.models())?;
+        refuse_fixed_span(context, path, file.header())?;
+    } else {
+        refuse_fixed_span(context, path, context.open_froct(path)?.header())?;
+    }
+    Ok(())
+}
+
+/// The model of the file `path` with `header`, unless it is the one that cannot grow.
+fn refuse_fixed_span<'c>(
+    context: &'c Context,
+    path: &Path,
+    header: &froctomap_file::Header,
+) -> Result<&'c froctomap_temporal::ModelDescriptor, ConvertError> {
+    let model = context
+        .models()
+        .by_id(header.model_id)
+        .ok_or(ConvertError::internal(
+            "the model of an opened file is not registered",
+        ))?;
+    if model.name == FIXED_SPAN_MODEL {
+        return Err(ConvertError::ModelCannotGrow {
+            file: path.to_path_buf(),
+            model: model.name,
+        });
+    }
+    Ok(model)
+}
+
 /// Appends later maps to the file at `path` as one segment of format 2.0: a 2.0 file gets a
 /// segment ([`append_segment`], under its writer's lock); a 1.x file is first converted
 /// (its tiles copied, [`LivingWriter::convert`]) into a file beside it, the segment appended
@@ -277,19 +311,7 @@ impl SegmentPlan {
         inputs: &[SeriesInput],
     ) -> Result<Self, ConvertError> {
         let first = inputs.first().ok_or(ConvertError::NoInputs)?;
-        let header = file.header();
-        let model = context
-            .models()
-            .by_id(header.model_id)
-            .ok_or(ConvertError::internal(
-                "the model of an opened file is not registered",
-            ))?;
-        if model.name == FIXED_SPAN_MODEL {
-            return Err(ConvertError::ModelCannotGrow {
-                file: file.path().to_path_buf(),
-                model: model.name,
-            });
-        }
+        let model = refuse_fixed_span(context, file.path(), file.header())?;
         let last: Timestamp = file.last_instant();
         if first.time <= last {
             return Err(refuse_overlap(file.path(), inputs, last));
