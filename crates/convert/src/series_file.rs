@@ -198,7 +198,9 @@ impl SeriesRead for LivingReader {
                 .map_or(0, |t| self.base().tiles()[t].cell_count as usize);
             // A segment's constant cells outside every base cell are split into aligned
             // nodes: their count is not bounded by the stored cells, so this is a hint.
-            base + (0..self.segment_count())
+            // Each count is bounded alone by the limits, their sum is not: it saturates,
+            // and the map's reader clamps it.
+            (0..self.segment_count())
                 .filter_map(|k| {
                     let tiles = self.segment_tiles(k);
                     tiles
@@ -206,7 +208,7 @@ impl SeriesRead for LivingReader {
                         .ok()
                         .map(|t| tiles[t].cell_count as usize)
                 })
-                .sum::<usize>()
+                .fold(base, usize::saturating_add)
         };
         self.predicted_tile_codes()
             .into_iter()
