@@ -171,7 +171,7 @@ pub fn compact(
     }
     // In place, the writer lock of a 2.0 file is taken before its state is read and held
     // until the new file replaces it.
-    let writer = match (output, crate::series_file::is_living(file)) {
+    let writer = match (output, crate::build::is_living_file(file)?) {
         (None, true) => Some(LivingWriter::open_with_limits(
             file,
             context.limits().froct,

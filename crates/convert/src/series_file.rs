@@ -272,7 +272,15 @@ impl FroctFile {
     /// [`FroctReader::open`] and [`LivingReader::open`]); a program with its own registries
     /// uses [`Context::open_series`](crate::Context::open_series).
     pub fn open(path: &Path) -> Result<Self, FileError> {
-        if is_living(path) {
+        // A FIFO or device is refused before it is opened: opening one may never return.
+        let living = crate::build::is_living_file(path).map_err(|error| match error {
+            ConvertError::File(error) => error,
+            other => FileError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, other.to_string()),
+            },
+        })?;
+        if living {
             LivingReader::open(path).map(FroctFile::Living)
         } else {
             FroctReader::open(path).map(FroctFile::Flat)
@@ -390,18 +398,4 @@ impl SeriesRead for FroctFile {
     ) -> Result<(), FileError> {
         self.view().predicted_leaves(code, seconds, log_odds, out)
     }
-}
-
-/// `true` when `path` begins as a format 2.0 file (magic and major version): which reader
-/// opens it.
-pub(crate) fn is_living(path: &Path) -> bool {
-    use std::io::Read;
-    let mut preamble = [0u8; 10];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut preamble))
-        .is_ok_and(|()| {
-            preamble[..8] == froctomap_file::MAGIC
-                && u16::from_le_bytes([preamble[8], preamble[9]])
-                    == froctomap_file::LIVING_MAJOR_VERSION
-        })
 }
