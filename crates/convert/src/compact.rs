@@ -321,7 +321,7 @@ fn version_text((major, minor): (u16, u16)) -> String {
 
 /// Makes a rename in `path`'s directory durable (best effort: not every system can sync a
 /// directory).
-fn sync_parent(path: &Path) {
+pub(crate) fn sync_parent(path: &Path) {
     let dir = crate::build::output_dir(path);
     if let Ok(dir) = std::fs::File::open(dir) {
         let _ = dir.sync_all();
