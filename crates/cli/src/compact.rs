@@ -28,8 +28,9 @@ enum CompactVersionArg {
 #[derive(Args)]
 pub struct CompactArgs {
     /// The FROctomap file to compact (format 2.0, or 1.x to rebuild it). Without -o it is
-    /// replaced atomically, under its writer lock: no append runs meanwhile, and a
-    /// compaction that fails or is interrupted leaves it as it was.
+    /// replaced atomically, and a compaction that fails or is interrupted leaves it as it
+    /// was; a 2.0 file is also held under its writer lock meanwhile, so an append to it
+    /// fails instead of committing a segment the result would lose (a 1.x file has no lock).
     #[arg(value_name = "FILE")]
     file: PathBuf,
     /// Write the compacted file here instead of replacing FILE.

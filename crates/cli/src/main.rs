@@ -170,9 +170,9 @@ enum Command {
     ///
     /// Every cell is refitted on its whole history through the same stages as `build`
     /// (in the same bounded memory), so the result equals a build of the same maps apart
-    /// from metadata. Reads only the file. Without -o the file is replaced atomically
-    /// while its writer lock is held (an append waits or fails meanwhile); readers that
-    /// have it open keep the old file. Whole-history commands (eval, anomalies, history,
+    /// from metadata. Reads only the file. Without -o the file is replaced atomically; a
+    /// 2.0 file's writer lock is held meanwhile (an append to it fails, it does not wait);
+    /// readers that have it open keep the old file. Whole-history commands (eval, anomalies, history,
     /// render) need a 2.0 file compacted first. The result is format 2.0 with no segment,
     /// or 1.x with --format-version.
     ///

@@ -411,10 +411,7 @@ pub(crate) fn spool_dir(tmp_dir: Option<&Path>, output: Option<&Path>) -> Option
         return Some(dir.to_path_buf());
     }
     let output = output.filter(|o| !froctomap_core::is_stream_output(o))?;
-    Some(match output.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-        _ => PathBuf::from("."),
-    })
+    Some(froctomap_convert::output_dir(output).to_path_buf())
 }
 
 fn mib(bytes: u64) -> String {

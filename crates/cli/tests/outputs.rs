@@ -250,3 +250,50 @@ fn temporary_files_of_killed_writers_do_not_survive_the_next_write() {
     // The property was exercised: some killed build left a temporary file.
     println!("{left_behind} temporary files left by killed builds were removed");
 }
+
+/// `compact` reads its FILE before anything else: a FIFO there is refused before it is
+/// opened (opening a FIFO for reading waits for a writer that never comes), in place and
+/// with `-o`.
+#[test]
+fn compact_refuses_a_fifo_without_opening_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("series.froct");
+    mkfifo(&fifo);
+    let out = dir.path().join("out.froct");
+    for args in [
+        vec!["compact", s(&fifo)],
+        vec!["compact", s(&fifo), "-o", s(&out)],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(&args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Generous: a refusal takes milliseconds; only a hang reaches the deadline.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if std::time::Instant::now() > deadline {
+                child.kill().unwrap();
+                child.wait().unwrap();
+                panic!("froctomap {args:?} never returned: it opened the FIFO");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+        assert_eq!(status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(s(&fifo)) && stderr.to_lowercase().contains("fifo"),
+            "{args:?}: {stderr}"
+        );
+        assert!(std::fs::symlink_metadata(&fifo)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+        assert!(!out.exists());
+    }
+}

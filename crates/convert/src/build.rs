@@ -456,8 +456,15 @@ pub fn build(
     })
 }
 
-/// The directory an output goes into.
-pub(crate) fn output_dir(output: &Path) -> &Path {
+/// The directory an output goes into (`.` for a bare file name): where its temporary files,
+/// spill data and spooled inputs go unless a directory is given.
+///
+/// ```
+/// use std::path::Path;
+/// assert_eq!(froctomap_convert::output_dir(Path::new("maps/a.froct")), Path::new("maps"));
+/// assert_eq!(froctomap_convert::output_dir(Path::new("a.froct")), Path::new("."));
+/// ```
+pub fn output_dir(output: &Path) -> &Path {
     match output.parent() {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),

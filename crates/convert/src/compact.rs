@@ -171,7 +171,7 @@ pub fn compact(
     }
     // In place, the writer lock of a 2.0 file is taken before its state is read and held
     // until the new file replaces it.
-    let writer = match (output, crate::series_file::is_living(file)) {
+    let writer = match (output, crate::build::is_living_file(file)?) {
         (None, true) => Some(LivingWriter::open_with_limits(
             file,
             context.limits().froct,
@@ -321,7 +321,7 @@ fn version_text((major, minor): (u16, u16)) -> String {
 
 /// Makes a rename in `path`'s directory durable (best effort: not every system can sync a
 /// directory).
-fn sync_parent(path: &Path) {
+pub(crate) fn sync_parent(path: &Path) {
     let dir = crate::build::output_dir(path);
     if let Ok(dir) = std::fs::File::open(dir) {
         let _ = dir.sync_all();

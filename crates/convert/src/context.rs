@@ -135,16 +135,12 @@ impl Context {
         &self.recording_options
     }
 
-    /// Opens a FROctomap file with this context's models (so a model the program registered
-    /// decodes its cells) and read limits.
-    /// A map file of a registered format (a `.bt` snapshot, say) is refused as such rather
-    /// than as a damaged series file.
     /// Opens a FROctomap file of any version (1.0–1.2 or 2.0, told by its preamble) as
     /// [`open_froct`](Self::open_froct) does: what retrieval, prediction, export and `info`
     /// read. Whole-history analyses take [`FroctFile::whole_history`].
     pub fn open_series(&self, path: &Path) -> Result<FroctFile, ConvertError> {
         crate::inputs::refuse_special_file(path)?;
-        if crate::series_file::is_living(path) {
+        if crate::build::is_living_file(path)? {
             return LivingReader::open_with_limits(path, self.limits.froct, &self.models)
                 .map(FroctFile::Living)
                 .map_err(ConvertError::File);
@@ -152,8 +148,10 @@ impl Context {
         self.open_froct(path).map(FroctFile::Flat)
     }
 
-    /// Opens a FROctomap 1.x file (2.0 files are refused by their version: see
-    /// [`open_series`](Self::open_series)).
+    /// Opens a FROctomap 1.x file with this context's models (so a model the program
+    /// registered decodes its cells) and read limits (2.0 files are refused by their version:
+    /// see [`open_series`](Self::open_series)). A map file of a registered format (a `.bt`
+    /// snapshot, say) is refused as such rather than as a damaged series file.
     pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
         crate::inputs::refuse_special_file(path)?;
         FroctReader::open_with_limits(path, self.limits.froct, &self.models).map_err(|error| {

@@ -68,7 +68,7 @@ pub use anomaly::{
     Expectation,
 };
 pub use build::{
-    append, append_living, append_segment, axis_for_times, build, is_living_file,
+    append, append_living, append_segment, axis_for_times, build, is_living_file, output_dir,
     refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport, ClassCounts,
     DEFAULT_BUILD_MEMORY,
 };

@@ -225,6 +225,12 @@ pub fn predicted_map(reader: &dyn SeriesRead, t: Timestamp) -> Result<Snapshot, 
     })
 }
 
+/// The most leaves of a whole map [`collect_tiles`] reserves before seeing them (256 MiB of
+/// leaves); the default read limits allow 2^26 cells in a file.
+const MAX_LEAVES_HINT: usize = 1 << 24;
+/// The most leaves of one tile [`collect_tiles`] reserves before seeing them.
+const MAX_TILE_LEAVES_HINT: usize = 1 << 20;
+
 /// The leaves of tiles `0..cells.len()` (each with at most about `cells[i]` leaves) in
 /// order.
 fn collect_tiles(
@@ -233,17 +239,22 @@ fn collect_tiles(
     leaves_of: impl Fn(usize, &mut Vec<Leaf>) -> Result<(), froctomap_file::FileError> + Sync,
 ) -> Result<Snapshot, ConvertError> {
     // A tile yields at most one leaf per cell, so every buffer is sized once: growing them
-    // (copies and fresh pages) cost more than the walk itself on large maps. The reader
-    // bounded the index's cell counts (per tile and in total) by its limits at open, and
-    // tiles are decoded a few at a time so that the map is held once, not twice.
-    let mut leaves: Vec<Leaf> = Vec::with_capacity(cells.iter().sum());
+    // (copies and fresh pages) cost more than the walk itself on large maps. The counts are
+    // only hints: a 2.0 file's predicted tile sums the base's and every segment's count, each
+    // bounded alone by the reader's limits, so a hostile file's sum can reach 2^42; the hints
+    // are clamped, and a larger map grows its buffers. Tiles are decoded a few at a time so
+    // that the map is held once, not twice.
+    let total = cells
+        .iter()
+        .fold(0usize, |sum, &count| sum.saturating_add(count));
+    let mut leaves: Vec<Leaf> = Vec::with_capacity(total.min(MAX_LEAVES_HINT));
     let chunk = 4 * rayon::current_num_threads().max(1);
     for (first, counts) in cells.chunks(chunk).enumerate() {
         let per_tile = counts
             .par_iter()
             .enumerate()
             .map(|(i, &count)| {
-                let mut out = Vec::with_capacity(count);
+                let mut out = Vec::with_capacity(count.min(MAX_TILE_LEAVES_HINT));
                 leaves_of(first * chunk + i, &mut out).map(|()| out)
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -694,5 +705,23 @@ mod query_tests {
         }
         let (query, zoneless) = TimeQuery::read("last", &Zone::utc()).unwrap();
         assert_eq!((query, zoneless), (TimeQuery::FromEnd(1), false));
+    }
+}
+
+#[cfg(test)]
+mod collect_tests {
+    use super::*;
+
+    /// A 2.0 file's predicted tiles sum the cell counts of the base and every segment, each
+    /// bounded alone: a hostile file's sums must not become one allocation.
+    #[test]
+    fn cell_count_hints_beyond_memory_allocate_nothing_huge() {
+        let golden =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v2.0.froct");
+        let reader = crate::FroctFile::open(&golden).unwrap();
+        let hints = [1usize << 42, usize::MAX, 1 << 40];
+        // Before the clamp, reserving the sum aborted the process (capacity overflow).
+        let map = collect_tiles(&reader, &hints, |_, _| Ok(())).unwrap();
+        assert!(map.is_empty());
     }
 }

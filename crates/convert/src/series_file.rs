@@ -198,7 +198,9 @@ impl SeriesRead for LivingReader {
                 .map_or(0, |t| self.base().tiles()[t].cell_count as usize);
             // A segment's constant cells outside every base cell are split into aligned
             // nodes: their count is not bounded by the stored cells, so this is a hint.
-            base + (0..self.segment_count())
+            // Each count is bounded alone by the limits, their sum is not: it saturates,
+            // and the map's reader clamps it.
+            (0..self.segment_count())
                 .filter_map(|k| {
                     let tiles = self.segment_tiles(k);
                     tiles
@@ -206,7 +208,7 @@ impl SeriesRead for LivingReader {
                         .ok()
                         .map(|t| tiles[t].cell_count as usize)
                 })
-                .sum::<usize>()
+                .fold(base, usize::saturating_add)
         };
         self.predicted_tile_codes()
             .into_iter()
@@ -270,7 +272,15 @@ impl FroctFile {
     /// [`FroctReader::open`] and [`LivingReader::open`]); a program with its own registries
     /// uses [`Context::open_series`](crate::Context::open_series).
     pub fn open(path: &Path) -> Result<Self, FileError> {
-        if is_living(path) {
+        // A FIFO or device is refused before it is opened: opening one may never return.
+        let living = crate::build::is_living_file(path).map_err(|error| match error {
+            ConvertError::File(error) => error,
+            other => FileError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, other.to_string()),
+            },
+        })?;
+        if living {
             LivingReader::open(path).map(FroctFile::Living)
         } else {
             FroctReader::open(path).map(FroctFile::Flat)
@@ -388,18 +398,4 @@ impl SeriesRead for FroctFile {
     ) -> Result<(), FileError> {
         self.view().predicted_leaves(code, seconds, log_odds, out)
     }
-}
-
-/// `true` when `path` begins as a format 2.0 file (magic and major version): which reader
-/// opens it.
-pub(crate) fn is_living(path: &Path) -> bool {
-    use std::io::Read;
-    let mut preamble = [0u8; 10];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut preamble))
-        .is_ok_and(|()| {
-            preamble[..8] == froctomap_file::MAGIC
-                && u16::from_le_bytes([preamble[8], preamble[9]])
-                    == froctomap_file::LIVING_MAJOR_VERSION
-        })
 }

@@ -1,7 +1,10 @@
 //! The golden files `fixtures/froct/golden-v1.0.froct` (whole toggle lists),
 //! `golden-v1.1.froct` (toggle lists in blocks) and `golden-v1.2.froct` (blocks range
 //! coded), each written by its version, must stay readable by every later version, with
-//! the same content.
+//! the same content. The files those versions' first release wrote (`golden-v1.0-r0.froct`,
+//! `golden-v1.1-r0.froct`, `golden-v1.2-r0.froct`, `golden-v2.0-r0.froct`, fitted by the
+//! earlier fit) are kept beside the regenerated ones: a reader must read both back with the
+//! same observed states, whatever fit wrote them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -60,63 +63,89 @@ fn writer_reproduces_the_golden_files() {
     }
 }
 
+/// The golden files written by an earlier release, never regenerated: the fit that wrote
+/// them differs from today's, their observed states do not.
+const RELEASED_GOLDENS: [&str; 3] = [
+    "golden-v1.0-r0.froct",
+    "golden-v1.1-r0.froct",
+    "golden-v1.2-r0.froct",
+];
+
 #[test]
 fn golden_files_read_back_every_observed_state() {
     for ((name, toggles), minor) in GOLDENS.into_iter().zip([0u16, 1, 2]) {
-        let reader = FroctReader::open(&golden_path_of(name)).unwrap();
-        let header = reader.header();
-        assert_eq!(header.version, (MAJOR_VERSION, minor), "{name}");
-        assert_eq!(header.toggles, toggles, "{name}");
-        assert_eq!(header.axis, golden_axis());
-        assert_eq!(header.tile_depth, GOLDEN_TILE_DEPTH);
-        assert_eq!(header.metadata["creator"], "froctomap-file tests");
-        assert_eq!(reader.tiles().len(), 3);
-        let expected = golden_cells();
-        let mut decoded = Vec::new();
-        for tile in 0..reader.tiles().len() {
-            decoded.extend(reader.read_tile(tile).unwrap());
+        check_golden_read_back(name, toggles, minor);
+    }
+}
+
+#[test]
+fn released_golden_files_read_back_every_observed_state() {
+    for (((name, toggles), minor), released) in
+        GOLDENS.into_iter().zip([0u16, 1, 2]).zip(RELEASED_GOLDENS)
+    {
+        assert_ne!(
+            std::fs::read(golden_path_of(name)).unwrap(),
+            std::fs::read(golden_path_of(released)).unwrap(),
+            "{released} must be the earlier release's file, not a copy of {name}"
+        );
+        check_golden_read_back(released, toggles, minor);
+    }
+}
+
+fn check_golden_read_back(name: &str, toggles: froctomap_file::ToggleLayout, minor: u16) {
+    let reader = FroctReader::open(&golden_path_of(name)).unwrap();
+    let header = reader.header();
+    assert_eq!(header.version, (MAJOR_VERSION, minor), "{name}");
+    assert_eq!(header.toggles, toggles, "{name}");
+    assert_eq!(header.axis, golden_axis());
+    assert_eq!(header.tile_depth, GOLDEN_TILE_DEPTH);
+    assert_eq!(header.metadata["creator"], "froctomap-file tests");
+    assert_eq!(reader.tiles().len(), 3);
+    let expected = golden_cells();
+    let mut decoded = Vec::new();
+    for tile in 0..reader.tiles().len() {
+        decoded.extend(reader.read_tile(tile).unwrap());
+    }
+    assert_eq!(decoded.len(), expected.len());
+    // Format 1.2 range codes the noisy voxel's exceptions.
+    let coded = decoded.iter().any(|c| {
+        matches!(
+            c.content,
+            froctomap_file::CellContent::ConstantExcept { .. }
+        )
+    });
+    assert_eq!(coded, minor == 2, "{name}");
+    let axis = golden_axis();
+    let truth = |series: &SeriesCell, sample: u32| {
+        if axis.is_missing(sample) {
+            None
+        } else {
+            series.observations.state_at(sample)
         }
-        assert_eq!(decoded.len(), expected.len());
-        // Format 1.2 range codes the noisy voxel's exceptions.
-        let coded = decoded.iter().any(|c| {
-            matches!(
-                c.content,
-                froctomap_file::CellContent::ConstantExcept { .. }
-            )
-        });
-        assert_eq!(coded, minor == 2, "{name}");
-        let axis = golden_axis();
-        let truth = |series: &SeriesCell, sample: u32| {
-            if axis.is_missing(sample) {
-                None
-            } else {
-                series.observations.state_at(sample)
-            }
-        };
-        for (cell, series) in decoded.iter().zip(&expected) {
-            assert_eq!((cell.start, cell.depth), (series.start, series.depth));
-            for sample in 0..axis.len() {
-                assert_eq!(
-                    cell.state_at(&axis, reader.model(), sample),
-                    truth(series, sample),
-                    "{name}: cell {:?} sample {sample}",
-                    cell.start
-                );
-            }
-        }
-        // The one-sample path (what `retrieve` uses) gives the same states.
+    };
+    for (cell, series) in decoded.iter().zip(&expected) {
+        assert_eq!((cell.start, cell.depth), (series.start, series.depth));
         for sample in 0..axis.len() {
-            let mut leaves = Vec::new();
-            for tile in 0..reader.tiles().len() {
-                reader.observed_leaves(tile, sample, &mut leaves).unwrap();
-            }
-            let expected_leaves: Vec<_> = expected
-                .iter()
-                .filter_map(|c| truth(c, sample).map(|s| (c.start, s)))
-                .collect();
-            let got: Vec<_> = leaves.iter().map(|l| (l.start, l.occupancy())).collect();
-            assert_eq!(got, expected_leaves, "{name}: sample {sample}");
+            assert_eq!(
+                cell.state_at(&axis, reader.model(), sample),
+                truth(series, sample),
+                "{name}: cell {:?} sample {sample}",
+                cell.start
+            );
         }
+    }
+    // The one-sample path (what `retrieve` uses) gives the same states.
+    for sample in 0..axis.len() {
+        let mut leaves = Vec::new();
+        for tile in 0..reader.tiles().len() {
+            reader.observed_leaves(tile, sample, &mut leaves).unwrap();
+        }
+        let expected_leaves: Vec<_> = expected
+            .iter()
+            .filter_map(|c| truth(c, sample).map(|s| (c.start, s)))
+            .collect();
+        let got: Vec<_> = leaves.iter().map(|l| (l.start, l.occupancy())).collect();
+        assert_eq!(got, expected_leaves, "{name}: sample {sample}");
     }
 }
 
@@ -205,9 +234,26 @@ fn writer_reproduces_the_living_golden_file() {
     );
 }
 
+/// The format 2.0 golden file the first 2.0 release wrote, never regenerated.
+const RELEASED_LIVING_GOLDEN: &str = "golden-v2.0-r0.froct";
+
 #[test]
 fn living_golden_file_reads_back_every_observed_state() {
-    let reader = froctomap_file::LivingReader::open(&golden_path_of(LIVING_GOLDEN)).unwrap();
+    check_living_golden_read_back(LIVING_GOLDEN);
+}
+
+#[test]
+fn released_living_golden_file_reads_back_every_observed_state() {
+    assert_ne!(
+        std::fs::read(golden_path_of(LIVING_GOLDEN)).unwrap(),
+        std::fs::read(golden_path_of(RELEASED_LIVING_GOLDEN)).unwrap(),
+        "{RELEASED_LIVING_GOLDEN} must be the earlier release's file"
+    );
+    check_living_golden_read_back(RELEASED_LIVING_GOLDEN);
+}
+
+fn check_living_golden_read_back(name: &str) {
+    let reader = froctomap_file::LivingReader::open(&golden_path_of(name)).unwrap();
     assert_eq!(
         reader.header().version,
         (froctomap_file::LIVING_MAJOR_VERSION, 0)
@@ -225,7 +271,7 @@ fn living_golden_file_reads_back_every_observed_state() {
         assert_eq!(
             &reader.observed_states(sample as u32).unwrap(),
             map,
-            "sample {sample}"
+            "{name}: sample {sample}"
         );
     }
 }

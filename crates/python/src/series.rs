@@ -283,12 +283,9 @@ pub fn build<'py>(
             )))
         }
     };
-    let spool_dir = tmp_dir.clone().or_else(|| {
-        Some(match output.parent() {
-            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-            _ => PathBuf::from("."),
-        })
-    });
+    let spool_dir = tmp_dir
+        .clone()
+        .or_else(|| Some(froctomap_convert::output_dir(&output).to_path_buf()));
     let inputs = build_inputs(inputs, spool_dir.as_deref())?;
     let source = series_times(start, step, times_file, times_from_names)?;
     let options = BuildOptions {

@@ -281,6 +281,8 @@ pub fn append_living(
         append_segment(context, &mut writer, inputs, options, progress)?
     };
     std::fs::rename(&converted.0, path).map_err(io)?;
+    // The rename is durable only once the directory is synced, as compaction's.
+    crate::compact::sync_parent(path);
     report.file = path.to_path_buf();
     report.bytes_before = before;
     Ok((report, true))
