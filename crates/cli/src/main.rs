@@ -186,7 +186,9 @@ enum Command {
     /// or inputs as for `build` — and commits what it has gathered every --commit-every
     /// maps or seconds as one segment of format 2.0 (as `append` does for a 2.0 file), printing
     /// one line per commit. Only the maps of the commit being gathered are kept (on disk,
-    /// beside the file), so a stream of any length records in bounded memory and disk.
+    /// beside the file), so memory and spool follow one commit; the file grows by a segment
+    /// per commit until `froctomap compact FILE` (not automatic yet: at the segment limit
+    /// `record` commits what it received and stops, saying so).
     /// Maps not later than the last one taken are skipped and counted (overlapping bag
     /// splits). A bad map stops it after committing the maps before it (--skip-bad: left
     /// out and logged); a cut stream likewise. Ctrl-C/SIGTERM commit the maps received and

@@ -13,8 +13,8 @@ use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
     append_segment, build, collect_recording, group_thousands, is_living_file, parse_duration,
-    refuse_growing_fixed_span, AppendOptions, BuildOptions, Context, SeriesInput, Silent,
-    STDIN_INPUT,
+    refuse_growing_fixed_span, AppendOptions, BuildOptions, Context, ConvertError, SeriesInput,
+    Silent, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -135,6 +135,9 @@ impl Recorder<'_> {
     }
 
     fn take_file(&mut self, input: SeriesInput) -> Result<()> {
+        if self.pending() == 0 {
+            self.refuse_full()?;
+        }
         if !self.is_older(input.time) {
             self.files.push(input);
         }
@@ -142,6 +145,9 @@ impl Recorder<'_> {
     }
 
     fn take_streamed(&mut self, map: &StreamedMap) -> Result<()> {
+        if self.pending() == 0 {
+            self.refuse_full()?;
+        }
         if !self.is_older(map.time) {
             let spool = match &mut self.spool {
                 Some(spool) => spool,
@@ -173,34 +179,105 @@ impl Recorder<'_> {
         Ok(())
     }
 
-    /// Commits the maps gathered as one segment, printing one line.
+    /// Refuses to gather another commit when the file holds the most segments it may: the
+    /// maps received so far are committed, and `compact` makes it one segment again.
+    fn refuse_full(&self) -> Result<()> {
+        let Some(writer) = &self.writer else {
+            return Ok(());
+        };
+        let (segments, limit) = (
+            writer.reader().segment_count(),
+            self.context.limits().froct.max_segments,
+        );
+        if segments as u64 >= limit {
+            bail!(
+                "{} holds {segments} segments, the most a file may hold: run `froctomap compact {}` and record on (the maps received before are committed)",
+                escaped(self.file.display()),
+                escaped(self.file.display())
+            );
+        }
+        Ok(())
+    }
+
+    /// Commits the maps gathered: as one segment, or, when that fails, in smaller pieces,
+    /// so that every good map before a bad one is committed.
     fn commit(&mut self) -> Result<()> {
         self.gathering_since = None;
         if self.pending() == 0 {
             return Ok(());
         }
-        let started = Instant::now();
         let mut series = std::mem::take(&mut self.files);
         if let Some(spool) = self.spool.take() {
             let recording = spool.into_recording()?;
             series.extend(collect_recording(PathBuf::from(STDIN_INPUT), recording)?.series);
         }
         series.sort_by_key(|input| input.time);
+        self.commit_pieces(&series)
+    }
+
+    /// Commits `series` as one segment; when that fails, its halves in order (a segment
+    /// commits all its maps or none). Without `--skip-bad` the first map that fails alone
+    /// stops `record` with its error; with it, that map is logged, counted and left out.
+    /// A failure that is not the maps' (the file, the disk) fails alone as well, after at
+    /// most log2(maps) tries.
+    fn commit_pieces(&mut self, series: &[SeriesInput]) -> Result<()> {
+        self.refuse_full()?;
+        let error = match self.commit_segment(series) {
+            Ok(()) => return Ok(()),
+            Err(error) => error,
+        };
+        let all_bad = matches!(
+            error.downcast_ref::<ConvertError>(),
+            Some(ConvertError::NothingToBuild { .. })
+        );
+        if self.options.skip_bad && all_bad {
+            self.bad += series.len() as u64;
+            self.ui.note(&format!(
+                "warning: nothing to commit: {} map(s) left out: {:#}",
+                series.len(),
+                escaped(&error)
+            ));
+            return Ok(());
+        }
+        match series {
+            [] => Ok(()),
+            [_] if self.options.skip_bad && is_bad_map(&error) => {
+                self.bad += 1;
+                self.ui
+                    .note(&format!("warning: left out: {:#}", escaped(&error)));
+                Ok(())
+            }
+            [_] => Err(error),
+            _ => {
+                let (before, after) = series.split_at(series.len() / 2);
+                self.commit_pieces(before)?;
+                self.commit_pieces(after)
+            }
+        }
+    }
+
+    /// Commits `series` (time-sorted, not empty) as one segment, printing one line.
+    fn commit_segment(&mut self, series: &[SeriesInput]) -> Result<()> {
+        let started = Instant::now();
         let (first, last) = match (series.first(), series.last()) {
             (Some(first), Some(last)) => (first.time, last.time),
             _ => return Ok(()),
         };
-        let committing = || {
-            format!(
+        let committing = || match series {
+            [one] => format!(
+                "committing the map of {} ({})",
+                iso8601(first),
+                escaped(one.path.display())
+            ),
+            _ => format!(
                 "committing {} maps ({} .. {})",
                 series.len(),
                 iso8601(first),
                 iso8601(last)
-            )
+            ),
         };
         let Some(writer) = &mut self.writer else {
-            let report = self.build_base(&series).with_context(committing)?;
-            drop(series);
+            let report = self.build_base(series).with_context(committing)?;
             self.commits += 1;
             self.committed_maps += report.used;
             outln!(
@@ -214,9 +291,8 @@ impl Recorder<'_> {
             print_input_notes(self.ui, &[], &report.skipped);
             return Ok(());
         };
-        let report = append_segment(self.context, writer, &series, &self.options, &Silent)
+        let report = append_segment(self.context, writer, series, &self.options, &Silent)
             .with_context(committing)?;
-        drop(series);
         self.commits += 1;
         self.committed_maps += report.added;
         outln!(
@@ -238,6 +314,7 @@ impl Recorder<'_> {
     fn build_base(&mut self, series: &[SeriesInput]) -> Result<froctomap_convert::BuildReport> {
         let options = BuildOptions {
             skip_bad: self.options.skip_bad,
+            allow_mostly_skipped: true,
             input_format: self.options.input_format.clone(),
             backend: self.options.backend,
             memory: self.options.memory,
@@ -294,6 +371,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         writer,
         options: AppendOptions {
             skip_bad: args.skip_bad,
+            allow_mostly_skipped: true,
             input_format: args.input_format.clone(),
             backend: Some(ui.backend),
             memory: args.spill.memory,
@@ -338,9 +416,13 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             read_files(&mut recorder, args, source)
         };
         if let Err(error) = result {
-            // What came before the failure is committed; its own commit failing is the
-            // error then.
-            recorder.commit()?;
+            // What came before the failure is committed; its own commit failing is said
+            // with the failure.
+            if let Err(commit) = recorder.commit() {
+                return Err(error.context(format!(
+                    "record stopped, and the maps received before were not all committed: {commit:#}"
+                )));
+            }
             return Err(error);
         }
     }
@@ -359,6 +441,25 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         }
     ));
     Ok(())
+}
+
+/// Whether a commit's `error` is its map's (unreadable, of another resolution, too large),
+/// which `--skip-bad` leaves out, rather than the file's or the disk's.
+fn is_bad_map(error: &anyhow::Error) -> bool {
+    matches!(
+        error.downcast_ref::<ConvertError>(),
+        Some(
+            ConvertError::MixedResolution { .. }
+                | ConvertError::Snapshot { .. }
+                | ConvertError::Read(_)
+                | ConvertError::SnapshotResolution { .. }
+                | ConvertError::NothingToBuild { .. }
+                | ConvertError::AllSkipped { .. }
+                | ConvertError::MostlySkipped { .. }
+                | ConvertError::TooManyMaps { .. }
+                | ConvertError::BadResolution { .. }
+        )
+    )
 }
 
 /// The file as a 2.0 writer: a 1.x file converted in place first (atomically).
@@ -452,6 +553,9 @@ fn read_stream(
                     .note(&format!("warning: left out {at}: {}", escaped(bad)));
             }
             Event::End | Event::Stop => return Ok(()),
+            // A signal to the whole pipeline (Ctrl-C) ends the producer too: its cut
+            // stream may arrive before the signal's `Stop`.
+            Event::Failed(_) if STOP.load(Ordering::SeqCst) => return Ok(()),
             Event::Failed(failed) => {
                 return Err(anyhow!(failed).context("record stopped: the stream does not read on"))
             }

@@ -438,3 +438,89 @@ fn a_missing_file_gets_the_first_commit_as_its_base() {
     same_snapshots(&file, &whole, 6);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }
+
+/// Snapshots of `file` at `times` (instants or `index:N`) retrieve byte-identical to those of
+/// `expected` at `expected_times`.
+fn same_at(file: &Path, times: &[&str], expected: &Path, expected_times: &[&str]) {
+    let dir = file.parent().unwrap();
+    for (i, (time, expected_time)) in times.iter().zip(expected_times).enumerate() {
+        let got = dir.join(format!("got-at-{i}.bt"));
+        let want = dir.join(format!("want-at-{i}.bt"));
+        ok(&["-q", "retrieve", s(file), "--time", time, "-o", s(&got)]);
+        ok(&[
+            "-q",
+            "retrieve",
+            s(expected),
+            "--time",
+            expected_time,
+            "-o",
+            s(&want),
+        ]);
+        assert!(
+            std::fs::read(&got).unwrap() == std::fs::read(&want).unwrap(),
+            "{} at {time} differs from {} at {expected_time}",
+            file.display(),
+            expected.display()
+        );
+    }
+}
+
+#[test]
+fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    // The series again, its fourth map (01:30) saying another resolution in its header.
+    let mixed = dir.path().join("mixed");
+    std::fs::create_dir(&mixed).unwrap();
+    for entry in std::fs::read_dir(&maps).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, mixed.join(path.file_name().unwrap())).unwrap();
+    }
+    let bad = mixed.join("frame_20160104T013000Z.bt");
+    let bytes = std::fs::read(&bad).unwrap();
+    let header = b"res 0.08\n";
+    let at = bytes
+        .windows(header.len())
+        .position(|w| w == header)
+        .unwrap();
+    let mut other = bytes[..at].to_vec();
+    other.extend_from_slice(b"res 0.16\n");
+    other.extend_from_slice(&bytes[at + header.len()..]);
+    std::fs::write(&bad, other).unwrap();
+
+    // Without --skip-bad: one commit of five maps fails; the two before the bad map are
+    // committed, and record fails naming it.
+    let file = dir.path().join("recorded.froct");
+    first_map_only(&maps, &file);
+    let output = froctomap()
+        .args(["record", s(&file), s(&mixed), "--commit-every", "100"])
+        .output()
+        .unwrap();
+    let stderr = text(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("frame_20160104T013000Z.bt"), "{stderr}");
+    assert!(stderr.contains("resolution 0.16"), "{stderr}");
+    assert_eq!(samples(&file), 3);
+    same_snapshots(&file, &whole, 3);
+
+    // With it: every good map is committed, the bad one left out.
+    let skipping = dir.path().join("skipping.froct");
+    first_map_only(&maps, &skipping);
+    let output = froctomap()
+        .args(["record", s(&skipping), s(&mixed), "--commit-every", "100"])
+        .arg("--skip-bad")
+        .output()
+        .unwrap();
+    let stderr = text(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("recorded 4 maps"), "{stderr}");
+    let good = [
+        "2016-01-04T00:00:00Z",
+        "2016-01-04T00:30:00Z",
+        "2016-01-04T01:00:00Z",
+        "2016-01-04T02:00:00Z",
+        "2016-01-04T02:30:00Z",
+    ];
+    same_at(&skipping, &good, &whole, &good);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}

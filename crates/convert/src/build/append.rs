@@ -57,6 +57,10 @@ pub struct AppendOptions {
     /// in the report) instead of stopping. (The first input whose header gives a resolution
     /// must have the file's: the header check takes it for the series'.)
     pub skip_bad: bool,
+    /// With `skip_bad`, append even when more than half of the inputs are left out (refused
+    /// by default: the series is probably not the one meant; `record` allows it, its
+    /// commits being pieces of one stream).
+    pub allow_mostly_skipped: bool,
     /// Force the input map format.
     pub input_format: Option<String>,
     /// Preferred implementation for reading maps.
@@ -98,6 +102,7 @@ impl Default for AppendOptions {
         Self {
             model_options: ModelOptions::new(),
             skip_bad: false,
+            allow_mostly_skipped: false,
             input_format: None,
             backend: None,
             metadata: Map::new(),
@@ -218,7 +223,7 @@ pub fn append(
 
     // The file fixes the series' resolution: inputs of another one are refused (or left
     // out with `skip_bad`), whatever most of them give.
-    let checked = check_for_file(inputs, file, old.resolution, options.skip_bad, progress)?;
+    let checked = check_for_file(inputs, file, old.resolution, options, progress)?;
 
     // The file's last observed map starts the new histories, at its sample on the new axis.
     let last_observed = (0..old_axis.len())
@@ -378,13 +383,13 @@ pub(crate) fn check_for_file(
     inputs: &[SeriesInput],
     file: &Path,
     resolution: f64,
-    skip_bad: bool,
+    options: &AppendOptions,
     progress: &dyn Progress,
 ) -> Result<CheckedInputs, ConvertError> {
     InputCheck {
-        skip_bad,
+        skip_bad: options.skip_bad,
         resolution: Some(resolution),
-        allow_mostly_skipped: false,
+        allow_mostly_skipped: options.allow_mostly_skipped,
     }
     .run(inputs, &SeriesInput::is_recorded, progress)
     .map_err(|e| match e {

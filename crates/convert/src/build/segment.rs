@@ -96,7 +96,7 @@ pub fn append_segment(
     let header = writer.reader().header().clone();
 
     // Stage 2: the build's, over the new maps on the segment's axis.
-    let checked = check_for_file(inputs, &file, header.resolution, options.skip_bad, progress)?;
+    let checked = check_for_file(inputs, &file, header.resolution, options, progress)?;
     progress.stage("reading snapshots", inputs.len() as u64);
     let extract = options.extract_options(context, header.tile_depth);
     let mut extractor =
