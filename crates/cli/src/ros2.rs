@@ -1,13 +1,14 @@
-//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). For now it publishes the map
-//! FILE predicts and receives maps without recording them: the recording sink comes with
-//! `record` (issue 26).
+//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It publishes the map FILE
+//! predicts, answers the services from FILE, and receives maps without recording them yet:
+//! the recording sink comes with `record`'s `Recorder`.
 
 use crate::ui::Ui;
 use anyhow::Context as _;
 use froctomap_convert::parse_duration;
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
-    domain_id_from_env, MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap,
+    domain_id_from_env, FileServices, MapSink, Network, Node, NodeOptions, PredictedPublisher,
+    ReceivedMap, ServiceMapping,
 };
 use std::net::IpAddr;
 use std::path::PathBuf;
@@ -34,6 +35,10 @@ pub struct Ros2Args {
     /// The frame of the published maps.
     #[arg(long, default_value = "map")]
     frame_id: String,
+    /// How service requests and replies are framed: `cyclone` (rmw_cyclonedds), `enhanced`
+    /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
+    #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
+    service_mapping: ServiceMapping,
 }
 
 /// Logs each map received; appending it to FILE comes with `record`.
@@ -57,6 +62,26 @@ impl MapSink for LogReceived {
         eprintln!("warning: {reason}");
     }
 }
+
+/// The node crate's log (skipped messages and requests) as `warning:` lines on stderr.
+struct StderrLog;
+
+impl log::Log for StderrLog {
+    fn enabled(&self, metadata: &log::Metadata<'_>) -> bool {
+        metadata.level() <= log::Level::Warn
+    }
+
+    fn log(&self, record: &log::Record<'_>) {
+        // RustDDS's own warnings (discovery chatter) stay out; the node's are for the user.
+        if self.enabled(record.metadata()) && record.target().starts_with("froctomap") {
+            eprintln!("warning: {}", record.args());
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+static STDERR_LOG: StderrLog = StderrLog;
 
 fn network(text: &str) -> anyhow::Result<Network> {
     Ok(match text.trim() {
@@ -90,19 +115,27 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     } else {
         parse_duration(&args.horizon).context("--horizon")?
     };
+    if log::set_logger(&STDERR_LOG).is_ok() {
+        log::set_max_level(log::LevelFilter::Warn);
+    }
     let mut options = NodeOptions::new(domain_id_from_env()?);
     options.topic = args.topic.clone();
     options.network = network(&args.network)?;
+    options.service_mapping = args.service_mapping;
     let node = Node::new(&options)?;
     eprintln!(
-        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}",
+        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
         node.domain_id(),
         args.topic,
         froctomap_ros2_node::PREDICTED_TOPIC,
         args.file.display(),
-        args.publish_every
+        args.publish_every,
+        froctomap_ros2_node::GET_OCTOMAP_AT_SERVICE,
+        froctomap_ros2_node::PROBABILITY_AT_SERVICE,
+        args.service_mapping
     );
     let mut predicted = PredictedPublisher::new(&args.file, &args.frame_id);
+    let mut services = FileServices::new(&args.file, &args.frame_id);
     let mut sink = LogReceived;
     let period = Duration::from_nanos(every.unsigned_abs());
     loop {
@@ -124,8 +157,9 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             node.receive_into(
                 &mut sink,
                 next.saturating_duration_since(Instant::now())
-                    .min(Duration::from_millis(500)),
+                    .min(Duration::from_millis(50)),
             )?;
+            node.serve_requests(&mut services);
         }
     }
 }
