@@ -5,24 +5,42 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-scripts/install-deps.sh
+# Each step's wall time, printed when the script ends (also on failure): where CI's minutes go.
+timings=()
+step() {
+  local start=$SECONDS what="$*"
+  "$@"
+  timings+=("$((SECONDS - start)) s: ${what:0:100}")
+}
+report_timings() {
+  local status=$?
+  if [ ${#timings[@]} -gt 0 ]; then
+    echo "test.sh: time per step (${SECONDS} s in all)" >&2
+    printf '  %s\n' "${timings[@]}" >&2
+  fi
+  [ -n "${corpus:-}" ] && rm -rf "$corpus"
+  return $status
+}
+trap report_timings EXIT
+
+step scripts/install-deps.sh
 venv="$PWD/target/interop-venv"
-scripts/python-client.sh "$venv"
+step scripts/python-client.sh "$venv"
 export FROCTOMAP_PYTHON="$venv/bin/python"
 
 cargo fmt --all --check
-cargo clippy --workspace --all-targets --locked -- -D warnings
-cargo test --workspace --locked "$@"
+step cargo clippy --workspace --all-targets --locked -- -D warnings
+step cargo test --workspace --locked "$@"
 
 # The README's Install section: `cargo install` of the CLI (debug profile, reusing this
 # build's artifacts), then the installed binary runs from outside the checkout; the pure-Rust
 # route (no liboctomap) must keep compiling.
-cargo install --locked --quiet --debug --force --path crates/cli --root target/install --target-dir target
+step cargo install --locked --quiet --debug --force --path crates/cli --root target/install --target-dir target
 installed="$PWD/target/install/bin/froctomap"
 (cd / && "$installed" --version && "$installed" formats >/dev/null)
 [[ $(cd / && "$installed" man) == *".TH froctomap"* ]] || { echo "installed froctomap: no manual page" >&2; exit 1; }
 [[ $(cd / && "$installed" completions bash) == *"_froctomap"* ]] || { echo "installed froctomap: no completions" >&2; exit 1; }
-cargo check --locked --quiet -p froctomap-cli --no-default-features
+step cargo check --locked --quiet -p froctomap-cli --no-default-features
 
 # The library crates build and test without liboctomap: the C++ backend is an opt-in
 # feature that only the CLI, the benchmark and the interop tests turn on.
@@ -35,24 +53,23 @@ for library in "${libraries[@]}"; do
     exit 1
   fi
 done
-cargo test --locked "${libraries[@]}"
+step cargo test --locked "${libraries[@]}"
 
 # The Python package: `pip install .` into a venv (a release build of crates/python through
 # maturin), then its tests against the command line built above (tests/python: round trips
 # byte for byte, octomap-python reading its maps, the Dask fleet example of docs/FLEET.md).
-scripts/python-package.sh "$PWD/target/python-venv"
+step scripts/python-package.sh "$PWD/target/python-venv"
 # tests/python/test_living.py writes format 2.0 segments with this example.
-cargo build --locked -p froctomap-e2e-tests --example living_segment
-FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests/python
+step cargo build --locked -p froctomap-e2e-tests --example living_segment
+step env FROCTOMAP_BIN="$PWD/target/debug/froctomap" target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests/python
 
 # The fuzz crate is its own workspace (cargo-fuzz layout); it must keep building, and each
 # target runs briefly from the fixtures so a crash cannot hide.
-cargo build --locked --manifest-path fuzz/Cargo.toml
+step cargo build --locked --manifest-path fuzz/Cargo.toml
 corpus=$(mktemp -d)
-trap 'rm -rf "$corpus"' EXIT
-for target in read_bt read_ot roundtrip read_froct read_living read_mcap read_bag; do
+fuzz_smoke() {
+  local target=$1 runs=50000 max_len=4096
   mkdir -p "$corpus/$target"
-  runs=50000 max_len=4096
   case $target in
     read_froct | read_living) cp fixtures/froct/*.froct "$corpus/$target/" ;;
     # The recordings' readers take files (each run writes one): fewer, larger runs.
@@ -61,4 +78,7 @@ for target in read_bt read_ot roundtrip read_froct read_living read_mcap read_ba
     *) cp fixtures/octomap/* "$corpus/$target/" ;;
   esac
   fuzz/target/debug/$target -runs=$runs -max_len=$max_len -seed=1 "$corpus/$target" 2>&1 | tail -n 1
+}
+for target in read_bt read_ot roundtrip read_froct read_living read_mcap read_bag; do
+  step fuzz_smoke "$target"
 done

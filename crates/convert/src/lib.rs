@@ -12,7 +12,8 @@
 //! * [`Context::open_series`] opens a file of any version as a [`FroctFile`] (1.x, or 2.0:
 //!   a base and committed segments, [`FroctFile::refresh`] to see new commits); the queries
 //!   above take its [`SeriesRead`] view. [`compact`] rewrites a 2.0 file's base and
-//!   segments as one base, equal to a build of the same maps.
+//!   segments as one base, equal to a build of the same maps. A [`Recorder`] adds maps
+//!   one at a time as they arrive, committing a segment every so many maps or seconds.
 //! * [`evaluate`] compares a file with ground-truth maps against the static-mean and
 //!   last-seen baselines, a tile at a time; [`describe`] summarises a file
 //!   ([`describe_series`] any version). Whole-history analyses read one body of cells
@@ -56,6 +57,7 @@ mod maps;
 mod outputs;
 mod progress;
 mod query;
+mod record;
 mod recording;
 mod recording_export;
 mod series_file;
@@ -104,6 +106,10 @@ pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use query::{
     probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
+};
+pub use record::{
+    CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,
+    Recorder,
 };
 pub use recording::RecordedMap;
 pub use series_file::{FroctFile, SeriesRead, StateVisit};

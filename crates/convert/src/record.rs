@@ -1,0 +1,562 @@
+//! Recording: maps added to a FROctomap 2.0 file one at a time as they arrive, one segment
+//! ([`append_segment`]) committed every so many maps or so much time — what `froctomap
+//! record` and the ROS 2 node run.
+//!
+//! A [`Recorder`] holds the file's writer lock for its life. Maps are taken one at a time,
+//! as map files ([`Recorder::take_file`]) or as map bytes ([`Recorder::take_bytes`], kept in
+//! a [`MapSpool`] beside the file until committed, so memory and disk follow one commit,
+//! not the stream). A map not later than the last one taken (the file's last sample at
+//! first) is skipped and counted. A commit that fails is retried in halves (a segment
+//! commits all its maps or none), so a bad map commits the maps before it and stops naming
+//! it, or, with [`AppendOptions::skip_bad`], is left out and counted. A file that does not
+//! exist gets the first commit's maps as its base (a build with the default model, then
+//! converted to 2.0 in place); a 1.x file is converted to 2.0 when opened; a file of a model
+//! that cannot grow is refused before anything is written. At the file's segment limit the
+//! next commit is refused ([`RecordError::SegmentLimit`]) until the file is compacted.
+
+use crate::build::{
+    append_segment, build, is_living_file, output_dir, refuse_growing_fixed_span, AppendOptions,
+    BuildOptions,
+};
+use crate::context::Context;
+use crate::error::ConvertError;
+use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
+use crate::progress::Silent;
+use froctomap_core::Timestamp;
+use froctomap_file::LivingWriter;
+use froctomap_formats::{MapSpool, SpoolError};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// When a [`Recorder`] commits the maps it gathered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommitEvery {
+    /// Once this many maps are gathered (at least 1).
+    Maps(usize),
+    /// Once this much time has passed since the first map of the commit arrived; the
+    /// caller asks [`Recorder::time_left`] how long it may wait for the next map.
+    Time(Duration),
+}
+
+impl Default for CommitEvery {
+    fn default() -> Self {
+        Self::Time(Duration::from_secs(5))
+    }
+}
+
+/// How to record.
+#[derive(Clone, Debug, Default)]
+pub struct RecordOptions {
+    /// When to commit.
+    pub commit_every: CommitEvery,
+    /// How the maps are read and stored ([`AppendOptions::skip_bad`]: leave bad maps out
+    /// instead of stopping; `memory`, `tmp_dir`: the ingest's spill). Also the options of
+    /// the base build when the file does not exist.
+    pub append: AppendOptions,
+    /// Where the spool of maps taken as bytes goes; `None`: beside the file.
+    pub spool_dir: Option<PathBuf>,
+}
+
+/// What the file was when the recorder opened it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Opened {
+    /// A 2.0 file.
+    Living,
+    /// A 1.x file, converted to 2.0 in place (older releases cannot read it any more).
+    Converted,
+    /// No file: the first commit's maps become its base.
+    Missing,
+}
+
+/// What a commit added.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct CommitReport {
+    /// The file's segment count after the commit; `None` for the base built into a file
+    /// that did not exist.
+    pub segment: Option<usize>,
+    /// Maps committed.
+    pub maps: usize,
+    /// The first and the last map's time.
+    pub first: Timestamp,
+    /// See `first`.
+    pub last: Timestamp,
+    /// The file's committed bytes before (0 for a new file) and after the commit.
+    pub bytes_before: u64,
+    /// See `bytes_before`.
+    pub bytes: u64,
+    /// How long the commit took.
+    pub elapsed: Duration,
+    /// (input, warning) of maps that read with a warning.
+    pub warnings: Vec<(PathBuf, String)>,
+    /// (input, reason) of maps skipped (with `skip_bad`).
+    pub skipped: Vec<(PathBuf, String)>,
+}
+
+/// What happened while recording, in the order it happened, as [`Recorder::on_event`]'s
+/// observer receives it.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum RecordEvent<'e> {
+    /// A commit (the base of a new file, or a segment).
+    Committed(&'e CommitReport),
+    /// Maps left out with `skip_bad`: how many, and why (the error of their commit).
+    LeftOut {
+        /// How many maps.
+        maps: usize,
+        /// Which ("committing the map of … (…)", "committing N maps (… .. …)").
+        what: &'e str,
+        /// Why.
+        error: &'e ConvertError,
+    },
+}
+
+/// Counts of a recording so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct RecordSummary {
+    /// Maps committed.
+    pub committed_maps: usize,
+    /// Commits made (the base of a new file included).
+    pub commits: usize,
+    /// Maps skipped as not later than the last one taken.
+    pub older: u64,
+    /// Bad maps left out (with `skip_bad`).
+    pub bad: u64,
+}
+
+/// Why recording failed. What was committed before stays committed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordError {
+    /// Opening, converting or reading the file, or reading inputs, failed.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
+    /// The spool of maps taken as bytes could not be written or read.
+    #[error(transparent)]
+    Spool(#[from] SpoolError),
+    /// The file holds the most segments it may: `froctomap compact` makes it one again.
+    #[error("{} holds {segments} segments, the most a file may hold: run `froctomap compact {}` and record on (the maps received before are committed)", file.display(), file.display())]
+    SegmentLimit {
+        /// The file.
+        file: PathBuf,
+        /// Its segments.
+        segments: usize,
+        /// The limit.
+        limit: u64,
+    },
+    /// A commit failed: `what` says which maps ("committing the map of … (…)",
+    /// "committing N maps (… .. …)"); the maps before it are committed.
+    #[error("{what}")]
+    Commit {
+        /// The maps of the commit.
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Box<ConvertError>,
+    },
+}
+
+impl RecordError {
+    /// Whether the error is a map's own (unreadable, of another resolution, too large),
+    /// which `skip_bad` leaves out, rather than the file's or the disk's.
+    pub fn is_bad_map(&self) -> bool {
+        match self {
+            Self::Commit { source, .. } => is_bad_map(source),
+            Self::Convert(source) => is_bad_map(source),
+            _ => false,
+        }
+    }
+}
+
+/// The observer of [`RecordEvent`]s.
+type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
+
+/// Maps added to a FROctomap 2.0 file one at a time, committed as segments when due (see
+/// the [module](self) docs).
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let options = RecordOptions { commit_every: CommitEvery::Maps(60), ..RecordOptions::default() };
+/// let mut recorder = Recorder::open(&context, Path::new("office.froct"), options)?;
+/// recorder.on_event(|event| {
+///     if let RecordEvent::Committed(commit) = event {
+///         println!("{} maps committed, {} bytes", commit.maps, commit.bytes);
+///     }
+/// });
+/// for input in collect_inputs(&context, &[PathBuf::from("maps/")], TimeSource::Auto)? {
+///     recorder.take_file(input)?;
+/// }
+/// let summary = recorder.finish()?;
+/// println!("{} maps in {} commits, {} older skipped", summary.committed_maps, summary.commits, summary.older);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct Recorder<'a> {
+    context: &'a Context,
+    file: PathBuf,
+    /// `None`: the file does not exist yet, and the first commit's maps become its base.
+    writer: Option<LivingWriter>,
+    opened: Opened,
+    options: RecordOptions,
+    spool_dir: PathBuf,
+    /// The last time taken (the file's last sample at first).
+    last: Option<Timestamp>,
+    files: Vec<SeriesInput>,
+    spool: Option<MapSpool>,
+    /// When the first map of the commit being gathered arrived.
+    gathering_since: Option<Instant>,
+    summary: RecordSummary,
+    observer: Observer<'a>,
+}
+
+impl std::fmt::Debug for Recorder<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recorder")
+            .field("file", &self.file)
+            .field("opened", &self.opened)
+            .field("pending", &self.pending())
+            .field("summary", &self.summary)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> Recorder<'a> {
+    /// Opens `file` for recording, taking its writer lock: a 2.0 file as it is, a 1.x file
+    /// converted to 2.0 in place first (atomically), a missing file left to the first
+    /// commit. A file whose model cannot grow (`fremen-regular`) is refused before
+    /// anything is written ([`ConvertError::ModelCannotGrow`]).
+    pub fn open(
+        context: &'a Context,
+        file: &Path,
+        options: RecordOptions,
+    ) -> Result<Self, RecordError> {
+        let (writer, opened) = if file.exists() {
+            refuse_growing_fixed_span(context, file)?;
+            let opened = if is_living_file(file)? {
+                Opened::Living
+            } else {
+                LivingWriter::convert(file, file).map_err(ConvertError::from)?;
+                Opened::Converted
+            };
+            let writer =
+                LivingWriter::open_with_limits(file, context.limits().froct, context.models())
+                    .map_err(ConvertError::from)?;
+            (Some(writer), opened)
+        } else {
+            (None, Opened::Missing)
+        };
+        let last = writer.as_ref().map(|w| w.reader().last_instant());
+        let spool_dir = options
+            .spool_dir
+            .clone()
+            .unwrap_or_else(|| output_dir(file).to_path_buf());
+        Ok(Self {
+            context,
+            file: file.to_path_buf(),
+            writer,
+            opened,
+            options,
+            spool_dir,
+            last,
+            files: Vec::new(),
+            spool: None,
+            gathering_since: None,
+            summary: RecordSummary::default(),
+            observer: Box::new(|_| {}),
+        })
+    }
+
+    /// Calls `observer` with each [`RecordEvent`] from now on, as it happens.
+    pub fn on_event(&mut self, observer: impl FnMut(RecordEvent<'_>) + 'a) {
+        self.observer = Box::new(observer);
+    }
+
+    /// What the file was when opened.
+    pub fn opened(&self) -> Opened {
+        self.opened
+    }
+
+    /// The file's last sample, or the last map taken since (`None`: a new file, nothing
+    /// taken yet).
+    pub fn last_time(&self) -> Option<Timestamp> {
+        self.last
+    }
+
+    /// The counts so far.
+    pub fn summary(&self) -> RecordSummary {
+        self.summary
+    }
+
+    /// Maps taken and not committed yet.
+    pub fn pending(&self) -> usize {
+        self.files.len() + self.spool.as_ref().map_or(0, MapSpool::len)
+    }
+
+    /// Takes the map file (or recorded map) `input`; commits when due. Returns `false` when
+    /// the map was skipped as not later than the last one taken.
+    pub fn take_file(&mut self, input: SeriesInput) -> Result<bool, RecordError> {
+        if self.pending() == 0 {
+            self.refuse_full()?;
+        }
+        let taken = self.is_later(input.time);
+        if taken {
+            self.files.push(input);
+        }
+        self.commit_if_due()?;
+        Ok(taken)
+    }
+
+    /// Takes the map `bytes` (a `.bt`/`.ot` file's bytes) taken at `time`, spooled beside
+    /// the file until committed; commits when due. Returns `false` when the map was skipped
+    /// as not later than the last one taken.
+    pub fn take_bytes(&mut self, time: Timestamp, bytes: &[u8]) -> Result<bool, RecordError> {
+        if self.pending() == 0 {
+            self.refuse_full()?;
+        }
+        let taken = self.is_later(time);
+        if taken {
+            let spool = match &mut self.spool {
+                Some(spool) => spool,
+                None => self
+                    .spool
+                    .insert(MapSpool::new(Some(&self.spool_dir), STDIN_INPUT)?),
+            };
+            spool.push(time, bytes)?;
+        }
+        self.commit_if_due()?;
+        Ok(taken)
+    }
+
+    /// Counts a map the caller could not read and left out (with `skip_bad`).
+    pub fn count_bad(&mut self) {
+        self.summary.bad += 1;
+    }
+
+    /// How long until a commit by time is due (`None`: none is — nothing gathered, or
+    /// commits by count).
+    pub fn time_left(&self) -> Option<Duration> {
+        match (self.options.commit_every, self.gathering_since) {
+            (CommitEvery::Time(every), Some(since)) => Some(every.saturating_sub(since.elapsed())),
+            _ => None,
+        }
+    }
+
+    /// Commits the maps gathered if a commit is due (by count or by time).
+    pub fn commit_if_due(&mut self) -> Result<(), RecordError> {
+        let due = match self.options.commit_every {
+            CommitEvery::Maps(n) => self.pending() >= n,
+            CommitEvery::Time(_) => self.time_left() == Some(Duration::ZERO),
+        };
+        if due {
+            self.commit()?;
+        }
+        Ok(())
+    }
+
+    /// Commits the maps gathered now: as one segment, or, when that fails, in smaller
+    /// pieces, so that every good map before a bad one is committed.
+    pub fn commit(&mut self) -> Result<(), RecordError> {
+        self.gathering_since = None;
+        if self.pending() == 0 {
+            return Ok(());
+        }
+        let mut series = std::mem::take(&mut self.files);
+        if let Some(spool) = self.spool.take() {
+            let recording = spool.into_recording()?;
+            series.extend(collect_recording(PathBuf::from(STDIN_INPUT), recording)?.series);
+        }
+        series.sort_by_key(|input| input.time);
+        self.commit_pieces(&series)
+    }
+
+    /// Commits what is gathered and ends the recording (the writer lock is released).
+    pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
+        self.commit()?;
+        Ok(self.summary)
+    }
+
+    /// Whether a map at `time` is later than the last one taken (else it is counted as
+    /// older).
+    fn is_later(&mut self, time: Timestamp) -> bool {
+        if self.last.is_some_and(|last| time <= last) {
+            self.summary.older += 1;
+            return false;
+        }
+        self.last = Some(time);
+        self.gathering_since.get_or_insert_with(Instant::now);
+        true
+    }
+
+    /// Refuses to gather another commit when the file holds the most segments it may.
+    fn refuse_full(&self) -> Result<(), RecordError> {
+        let Some(writer) = &self.writer else {
+            return Ok(());
+        };
+        let (segments, limit) = (
+            writer.reader().segment_count(),
+            self.context.limits().froct.max_segments,
+        );
+        if segments as u64 >= limit {
+            return Err(RecordError::SegmentLimit {
+                file: self.file.clone(),
+                segments,
+                limit,
+            });
+        }
+        Ok(())
+    }
+
+    /// Commits `series` as one segment; when that fails, its halves in order (a segment
+    /// commits all its maps or none). Without `skip_bad` the first map that fails alone
+    /// stops with its error; with it, that map is reported, counted and left out. A failure
+    /// that is not the maps' (the file, the disk) fails alone as well, after at most
+    /// log2(maps) tries.
+    fn commit_pieces(&mut self, series: &[SeriesInput]) -> Result<(), RecordError> {
+        self.refuse_full()?;
+        let error = match self.commit_segment(series) {
+            Ok(()) => return Ok(()),
+            Err(error) => error,
+        };
+        let skip_bad = self.options.append.skip_bad;
+        if skip_bad && matches!(error, ConvertError::NothingToBuild { .. }) {
+            self.summary.bad += series.len() as u64;
+            (self.observer)(RecordEvent::LeftOut {
+                maps: series.len(),
+                what: &committing(series),
+                error: &error,
+            });
+            return Ok(());
+        }
+        match series {
+            [] => Ok(()),
+            [_] if skip_bad && is_bad_map(&error) => {
+                self.summary.bad += 1;
+                (self.observer)(RecordEvent::LeftOut {
+                    maps: 1,
+                    what: &committing(series),
+                    error: &error,
+                });
+                Ok(())
+            }
+            [_] => Err(RecordError::Commit {
+                what: committing(series),
+                source: Box::new(error),
+            }),
+            _ => {
+                let (before, after) = series.split_at(series.len() / 2);
+                self.commit_pieces(before)?;
+                self.commit_pieces(after)
+            }
+        }
+    }
+
+    /// Commits `series` (time-sorted) as one segment, or as the base of a new file.
+    fn commit_segment(&mut self, series: &[SeriesInput]) -> Result<(), ConvertError> {
+        let started = Instant::now();
+        let (first, last) = match (series.first(), series.last()) {
+            (Some(first), Some(last)) => (first.time, last.time),
+            _ => return Ok(()),
+        };
+        let report = match &mut self.writer {
+            None => {
+                let built = self.build_base(series)?;
+                CommitReport {
+                    segment: None,
+                    maps: built.used,
+                    first,
+                    last,
+                    bytes_before: 0,
+                    bytes: built.file_bytes,
+                    elapsed: started.elapsed(),
+                    warnings: Vec::new(),
+                    skipped: built.skipped,
+                }
+            }
+            Some(writer) => {
+                let appended =
+                    append_segment(self.context, writer, series, &self.options.append, &Silent)?;
+                CommitReport {
+                    segment: Some(appended.segments.unwrap_or(0)),
+                    maps: appended.added,
+                    first,
+                    last,
+                    bytes_before: appended.bytes_before,
+                    bytes: appended.file_bytes,
+                    elapsed: started.elapsed(),
+                    warnings: appended.warnings,
+                    skipped: appended.skipped,
+                }
+            }
+        };
+        self.summary.commits += 1;
+        self.summary.committed_maps += report.maps;
+        (self.observer)(RecordEvent::Committed(&report));
+        Ok(())
+    }
+
+    /// The first maps built into the file, which did not exist (atomically, as `build`
+    /// writes), then converted to 2.0 in place (atomically) and opened for the segments.
+    /// Killed between the two, the file is a 1.x build, which the next recorder converts.
+    fn build_base(
+        &mut self,
+        series: &[SeriesInput],
+    ) -> Result<crate::build::BuildReport, ConvertError> {
+        let append = &self.options.append;
+        let options = BuildOptions {
+            skip_bad: append.skip_bad,
+            allow_mostly_skipped: true,
+            input_format: append.input_format.clone(),
+            backend: append.backend,
+            memory: append.memory,
+            tmp_dir: append.tmp_dir.clone(),
+            ..BuildOptions::default()
+        };
+        let report = build(self.context, series, &self.file, &options, &Silent)?;
+        LivingWriter::convert(&self.file, &self.file)?;
+        self.writer = Some(LivingWriter::open_with_limits(
+            &self.file,
+            self.context.limits().froct,
+            self.context.models(),
+        )?);
+        Ok(report)
+    }
+}
+
+/// "committing the map of … (…)" or "committing N maps (… .. …)".
+fn committing(series: &[SeriesInput]) -> String {
+    use froctomap_core::calendar::iso8601;
+    match series {
+        [one] => format!(
+            "committing the map of {} ({})",
+            iso8601(one.time),
+            one.path.display()
+        ),
+        [first, .., last] => format!(
+            "committing {} maps ({} .. {})",
+            series.len(),
+            iso8601(first.time),
+            iso8601(last.time)
+        ),
+        [] => "committing no map".to_string(),
+    }
+}
+
+/// Whether `error` is a map's own (unreadable, of another resolution, too large), which
+/// `skip_bad` leaves out, rather than the file's or the disk's.
+fn is_bad_map(error: &ConvertError) -> bool {
+    matches!(
+        error,
+        ConvertError::MixedResolution { .. }
+            | ConvertError::Snapshot { .. }
+            | ConvertError::Read(_)
+            | ConvertError::SnapshotResolution { .. }
+            | ConvertError::NothingToBuild { .. }
+            | ConvertError::AllSkipped { .. }
+            | ConvertError::MostlySkipped { .. }
+            | ConvertError::TooManyMaps { .. }
+            | ConvertError::BadResolution { .. }
+    )
+}
