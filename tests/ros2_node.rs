@@ -10,6 +10,7 @@ use froctomap_convert::{Context, FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
     FileServices, MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap,
+    RecordingSink, TimeSource,
 };
 use froctomap_test_support::{
     octomap_fixture, octomap_python, python_leaves, scratch, workspace_root,
@@ -20,22 +21,24 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// Writes each map it receives to `dir`, named by its stamp.
-struct FilesSink {
+/// Writes each map it receives to `dir`, named by its stamp, and hands it on to the node's
+/// recording sink.
+struct FilesSink<'a> {
     dir: PathBuf,
     received: Vec<ReceivedMap>,
     skipped: Vec<String>,
+    recording: RecordingSink<'a>,
 }
 
-impl MapSink for FilesSink {
+impl MapSink for FilesSink<'_> {
     fn receive(
         &mut self,
         map: ReceivedMap,
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let ext = if map.binary { "bt" } else { "ot" };
         std::fs::write(self.dir.join(format!("{}.{ext}", map.stamp.0)), &map.file)?;
-        self.received.push(map);
-        Ok(())
+        self.received.push(map.clone());
+        self.recording.receive(map)
     }
 
     fn skipped(&mut self, reason: String) {
@@ -192,10 +195,25 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         "unchanged maps are not republished"
     );
 
+    // The maps received are recorded into a file that does not exist yet (the living map),
+    // committed every two maps: a base, then a segment.
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let options = froctomap_convert::RecordOptions {
+        commit_every: froctomap_convert::CommitEvery::Maps(2),
+        append: froctomap_convert::AppendOptions {
+            skip_bad: true,
+            allow_mostly_skipped: true,
+            ..Default::default()
+        },
+        spool_dir: None,
+    };
+    let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
     let mut sink = FilesSink {
         dir: received_dir.clone(),
         received: Vec::new(),
         skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
     };
     let receive = |sink: &mut FilesSink, count: usize| {
         let deadline = Instant::now() + Duration::from_secs(60);
@@ -293,6 +311,50 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     let ours = dir.path().join("ours.bt");
     std::fs::write(&ours, &sent).expect("write");
     assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves));
+
+    // The node stops: what it recorded retrieves as each map the peer published.
+    let FilesSink { recording, .. } = sink;
+    let summary = recording.finish().expect("the last commit");
+    assert_eq!((summary.committed_maps, summary.commits), (maps.len(), 2));
+    let recorded = FroctFile::open(&living).expect("the living map");
+    for (i, map) in maps.iter().enumerate() {
+        let stamp = Timestamp((1_700_000_000 + i as i64) * 1_000_000_000);
+        let resolved = froctomap_convert::resolve_observed(
+            &recorded,
+            froctomap_convert::TimeQuery::Instant(stamp),
+        )
+        .expect("a map at each stamp");
+        assert!(resolved.exact);
+        let kind = map.extension().and_then(|e| e.to_str()).expect("ext");
+        let out = dir.path().join(format!("recorded-{i}.{kind}"));
+        froctomap_convert::write_observed_map(
+            &context,
+            &recorded,
+            resolved.sample,
+            &out,
+            Default::default(),
+        )
+        .expect("retrieve");
+        if kind == "bt" {
+            assert_eq!(
+                std::fs::read(&out).expect("read"),
+                std::fs::read(map).expect("read"),
+                "{}: retrieved byte-identical",
+                map.display()
+            );
+        }
+        // froctomap keeps each voxel's state (occupied or free), so an `.ot` comes back with
+        // the same leaves in the same states, their log-odds those of its states.
+        let states = |path: &Path| {
+            let (resolution, leaves) = python_leaves(path, kind);
+            let states: Vec<_> = leaves
+                .into_iter()
+                .map(|(x, y, z, depth, bits)| (x, y, z, depth, f32::from_bits(bits) > 0.0))
+                .collect();
+            (resolution, states)
+        };
+        assert_eq!(states(&out), states(map), "{}", map.display());
+    }
 
     // The services, as an rmw_cyclonedds client calls them (the Cyclone mapping).
     let mut services = FileServices::new(&froct, "map");

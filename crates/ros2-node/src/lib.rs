@@ -34,7 +34,10 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+mod recording;
 mod services;
+
+pub use recording::{RecordingSink, TimeSource};
 
 pub use services::{
     decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
