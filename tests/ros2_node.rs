@@ -61,10 +61,11 @@ struct Peer {
 }
 
 impl Peer {
-    fn start(domain: u16, predicted_out: &Path, maps: &[PathBuf]) -> Peer {
+    fn start(domain: u16, predicted_out: &Path, maps: &[PathBuf], extra: &[&str]) -> Peer {
         let mut child = Command::new(octomap_python())
             .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
             .args(["--domain", &domain.to_string(), "--timeout", "60"])
+            .args(extra)
             .arg("--predicted-out")
             .arg(predicted_out)
             .args(maps)
@@ -177,7 +178,7 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
 
     // The peer publishes the first map before the node exists: it must arrive latched
     // (transient-local); the others are published live.
-    let mut peer = Peer::start(domain, &predicted_out, &maps);
+    let mut peer = Peer::start(domain, &predicted_out, &maps, &[]);
     let event = peer.next_event(Duration::from_secs(30));
     assert_eq!(event["event"], "published", "{event}");
 
@@ -608,4 +609,180 @@ fn service_messages_encode_as_rosbags_reads_the_srv_files() {
     );
     let result: serde_json::Value = serde_json::from_str(text.trim()).expect("a JSON line");
     assert_eq!(result["checked"], cases.len(), "{result}");
+}
+
+#[test]
+fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
+    let dir = scratch();
+    let received_dir = dir.path().join("received");
+    std::fs::create_dir(&received_dir).expect("mkdir");
+    let good: Vec<PathBuf> = ["few_voxels.bt", "coarse_leaves.bt"]
+        .iter()
+        .map(|name| octomap_fixture(name))
+        .collect();
+    let domain = random_domain();
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        &good,
+        &["--no-predicted"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.max_message_bytes = 64 << 10;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let record_options = froctomap_convert::RecordOptions {
+        commit_every: froctomap_convert::CommitEvery::Maps(2),
+        append: froctomap_convert::AppendOptions {
+            skip_bad: true,
+            allow_mostly_skipped: true,
+            ..Default::default()
+        },
+        spool_dir: None,
+    };
+    let mut recorder =
+        froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");
+    // The maps a commit left out, with why.
+    let left_out: std::rc::Rc<std::cell::RefCell<Vec<String>>> = Default::default();
+    let seen = std::rc::Rc::clone(&left_out);
+    recorder.on_event(move |event| match event {
+        froctomap_convert::RecordEvent::Committed(commit) => seen
+            .borrow_mut()
+            .extend(commit.skipped.iter().map(|(_, why)| why.clone())),
+        froctomap_convert::RecordEvent::LeftOut { what, .. } => {
+            seen.borrow_mut().push(what.to_string())
+        }
+        _ => {}
+    });
+    let mut sink = FilesSink {
+        dir: received_dir,
+        received: Vec::new(),
+        skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
+    };
+    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !done(sink) && Instant::now() < deadline {
+            node.receive_into(sink, Duration::from_millis(100))
+                .expect("the node never stops on input");
+        }
+        assert!(
+            done(sink),
+            "received {:?}, skipped {:?}",
+            sink.received.len(),
+            sink.skipped
+        );
+    };
+    receive_until(&mut sink, &|s| s.received.len() == 1);
+    peer.command(&serde_json::json!("go"));
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    // Two maps: the base is committed.
+    receive_until(&mut sink, &|s| s.received.len() == 2);
+    let base = std::fs::read(&living).expect("the base is written");
+
+    // The bad ones, each refused with its reason while the node goes on.
+    let first = 1_700_000_000i64;
+    let bt = good[0].to_string_lossy().to_string();
+    let bad = [
+        serde_json::json!({"call": "publish_wrong_type"}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 3, "truncate": 5}),
+        serde_json::json!({"call": "publish_garbage", "stamp": first + 4, "size": 300, "binary": false}),
+        serde_json::json!({"call": "publish_garbage", "stamp": first + 5, "size": 100_000, "binary": true}),
+    ];
+    for command in &bad {
+        peer.command(command);
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.skipped.len() == bad.len());
+    assert_eq!(
+        sink.received.len(),
+        2,
+        "no bad message reached the recorder"
+    );
+    let reasons = sink.skipped.join("\n");
+    assert!(reasons.contains("over the limit"), "{reasons}");
+    assert_eq!(
+        std::fs::read(&living).expect("read"),
+        base,
+        "the file is untouched"
+    );
+
+    // A huge resolution decodes as a map but is not this file's: left out at the commit. A
+    // stamp going backwards is skipped; the next good map is committed.
+    for command in [
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 6, "resolution": 1.0e300}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 2}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 7}),
+    ] {
+        peer.command(&command);
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.received.len() == 5);
+    let FilesSink {
+        recording, skipped, ..
+    } = sink;
+    assert_eq!(skipped.len(), bad.len(), "{skipped:?}");
+    let summary = recording.finish().expect("the node's last commit");
+    assert_eq!(
+        (summary.committed_maps, summary.older),
+        (3, 1),
+        "{summary:?}"
+    );
+    let left_out = left_out.borrow();
+    assert_eq!(left_out.len(), 1, "{left_out:?}");
+    assert!(left_out[0].contains("resolution"), "{left_out:?}");
+
+    // The file reads, and holds the good maps exactly.
+    let recorded = FroctFile::open(&living).expect("the living map reads");
+    for (stamp, map) in [
+        (first, &good[0]),
+        (first + 1, &good[1]),
+        (first + 7, &good[0]),
+    ] {
+        let resolved = froctomap_convert::resolve_observed(
+            &recorded,
+            froctomap_convert::TimeQuery::Instant(Timestamp(stamp * 1_000_000_000)),
+        )
+        .expect("a map at the stamp");
+        assert!(resolved.exact, "{stamp}");
+        let out = dir.path().join(format!("{stamp}.bt"));
+        froctomap_convert::write_observed_map(
+            &context,
+            &recorded,
+            resolved.sample,
+            &out,
+            Default::default(),
+        )
+        .expect("retrieve");
+        assert_eq!(
+            std::fs::read(&out).expect("read"),
+            std::fs::read(map).expect("read"),
+            "{stamp}"
+        );
+    }
+    let maps: Vec<Option<Timestamp>> = (0..recorded.sample_count())
+        .filter(|&s| !recorded.is_missing(s))
+        .map(|s| recorded.sample_time(s))
+        .collect();
+    assert_eq!(
+        maps,
+        [first, first + 1, first + 7].map(|s| Some(Timestamp(s * 1_000_000_000))),
+        "no other map entered the file"
+    );
 }

@@ -25,6 +25,19 @@ ReplyHeader before the reply). It reads one JSON command a line from stdin until
   {"call": "probability_at", "sec": S, "nanosec": N, "points": [[x, y, z], ...]}
       -> {"event": "probability_at", "p_bits": ["<f64 little-endian hex>", ...]}
 
+and, to try the node with bad input (each answered by {"event": "published", ...}):
+
+  {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?}
+      a map file on the map topic at stamp S, its body cut to N bytes or its resolution
+      replaced when asked
+  {"call": "publish_garbage", "size": N, "binary": B}
+      an Octomap whose data is N bytes of noise
+  {"call": "publish_wrong_type"}
+      a message of another layout (a std_msgs/String) under the Octomap type name, from a
+      second participant (one participant cannot hold both types of the topic)
+
+With --no-predicted the peer does not wait for rt/froctomap/predicted.
+
 Usage: ros2_peer.py --domain D --predicted-out OUT.bt [--topic /octomap_binary]
                     [--first-stamp SECONDS] [--timeout S] [--service-mapping M] MAP...
 """
@@ -96,6 +109,7 @@ def main():
     parser.add_argument("--predicted-out", required=True)
     parser.add_argument("--timeout", type=float, default=60.0)
     parser.add_argument("--service-mapping", choices=["cyclone", "basic"], default="cyclone")
+    parser.add_argument("--no-predicted", action="store_true")
     parser.add_argument("maps", nargs="+")
     args = parser.parse_args()
 
@@ -154,7 +168,7 @@ def main():
     predicted_topic = Topic(participant, "rt/froctomap/predicted", Octomap)
     reader = DataReader(participant, predicted_topic, qos=latched)
     deadline = time.monotonic() + args.timeout
-    while time.monotonic() < deadline:
+    while not args.no_predicted and time.monotonic() < deadline:
         samples = reader.take(N=1)
         if samples:
             message = samples[0]
@@ -171,8 +185,9 @@ def main():
             break
         time.sleep(0.05)
     else:
-        say(event="timeout", waiting_for="rt/froctomap/predicted")
-        sys.exit(2)
+        if not args.no_predicted:
+            say(event="timeout", waiting_for="rt/froctomap/predicted")
+            sys.exit(2)
     # The services (froctomap_msgs/srv), framed as the chosen mapping frames them.
     @dataclass
     @annotate.final
@@ -241,6 +256,7 @@ def main():
                 and (identity.sequence_high << 32 | identity.sequence_low) == seq)
 
     next_sequence = 0
+    keep_alive = []
 
     def call(name, fields):
         nonlocal next_sequence
@@ -269,7 +285,8 @@ def main():
         if not line.strip():
             continue
         command = json.loads(line)
-        stamp = Time(command["sec"], command["nanosec"])
+        if "sec" in command:
+            stamp = Time(command["sec"], command["nanosec"])
         if command["call"] == "get_octomap_at":
             reply = call("get_octomap_at", {"stamp": stamp, "predict": command["predict"]})
             body = bytes(reply.map.data)
@@ -288,6 +305,30 @@ def main():
             points = [Point(*p) for p in command["points"]]
             reply = call("probability_at", {"stamp": stamp, "points": points})
             say(event="probability_at", p_bits=[struct.pack("<d", p).hex() for p in reply.p])
+        elif command["call"] == "publish_map":
+            with open(command["path"], "rb") as f:
+                binary, tree_id, resolution, body = split_map_file(f.read())
+            body = body[: command.get("truncate", len(body))]
+            resolution = command.get("resolution", resolution)
+            writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), binary, tree_id, resolution,
+                                 list(body)))
+            say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body))
+        elif command["call"] == "publish_garbage":
+            noise = bytes((i * 7919 + 13) % 251 for i in range(command["size"]))
+            writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), command["binary"], "OcTree", 0.1,
+                                 list(noise)))
+            say(event="published", garbage=command["size"])
+        elif command["call"] == "publish_wrong_type":
+            @dataclass
+            @annotate.final
+            class NotAMap(IdlStruct, typename="octomap_msgs::msg::dds_::Octomap_"):
+                data: str
+
+            other = DomainParticipant(args.domain)
+            wrong = DataWriter(other, Topic(other, "rt" + args.topic, NotAMap), qos=latched)
+            wrong.write(NotAMap("this is a std_msgs/String, not a map"))
+            keep_alive.append((other, wrong))
+            say(event="published", wrong_type=True)
         else:
             say(event="error", unknown=command["call"])
 
