@@ -786,3 +786,49 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
         "no other map entered the file"
     );
 }
+
+#[test]
+fn a_basic_mapping_client_gets_its_map() {
+    // DDS-RPC basic framing: the peer writes a RequestHeader (sample identity, instance
+    // name) before the request and keeps the replies whose ReplyHeader names it.
+    let dir = scratch();
+    let domain = random_domain();
+    let map = octomap_fixture("few_voxels.bt");
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        std::slice::from_ref(&map),
+        &["--no-predicted", "--service-mapping", "basic"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.service_mapping = froctomap_ros2_node::ServiceMapping::Basic;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
+    let mut services = FileServices::new(&froct, "map");
+    let file = FroctFile::open(&froct).expect("open");
+    let t = file.sample_time(0).expect("a sample");
+    let got_path = dir.path().join("got.bt");
+    peer.command(&serde_json::json!({"call": "get_octomap_at",
+        "sec": t.0.div_euclid(1_000_000_000), "nanosec": t.0.rem_euclid(1_000_000_000),
+        "predict": false, "out": got_path}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["success"], true, "{event}");
+    let retrieved = dir.path().join("retrieved.bt");
+    froctomap_convert::write_observed_map(
+        &Context::with_default_plugins(),
+        &file,
+        0,
+        &retrieved,
+        Default::default(),
+    )
+    .expect("retrieve");
+    assert_eq!(
+        python_leaves(&got_path, "bt"),
+        python_leaves(&retrieved, "bt")
+    );
+}
