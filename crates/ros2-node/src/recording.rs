@@ -108,3 +108,83 @@ impl MapSink for RecordingSink<'_> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_convert::{
+        AppendOptions, CommitEvery, Context, FroctFile, RecordOptions, SeriesRead,
+    };
+
+    fn map(stamp_s: i64) -> ReceivedMap {
+        let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../fixtures/octomap/few_voxels.bt");
+        ReceivedMap {
+            stamp: Timestamp(stamp_s * 1_000_000_000),
+            binary: true,
+            file: std::fs::read(fixture).expect("the fixture"),
+        }
+    }
+
+    fn sink<'a>(
+        context: &'a Context,
+        file: &std::path::Path,
+        source: TimeSource,
+        min: u64,
+    ) -> RecordingSink<'a> {
+        let options = RecordOptions {
+            commit_every: CommitEvery::Maps(1),
+            append: AppendOptions {
+                skip_bad: true,
+                allow_mostly_skipped: true,
+                ..AppendOptions::default()
+            },
+            spool_dir: None,
+        };
+        let recorder = Recorder::open(context, file, options).expect("open");
+        RecordingSink::new(recorder, source, Duration::from_secs(min))
+    }
+
+    #[test]
+    fn header_stamps_are_thinned_by_min_interval_and_unset_ones_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("living.froct");
+        let context = Context::with_default_plugins();
+        let mut sink = sink(&context, &file, TimeSource::Header, 10);
+        assert!(sink.receive(map(0)).is_err(), "an unset stamp is refused");
+        for s in [
+            1_700_000_000,
+            1_700_000_004,
+            1_700_000_011,
+            1_700_000_011,
+            1_700_000_005,
+        ] {
+            sink.receive(map(s)).expect("taken or skipped");
+        }
+        assert_eq!(sink.thinned(), 1, "4 s after the last one taken");
+        let summary = sink.finish().expect("finish");
+        assert_eq!((summary.committed_maps, summary.older), (2, 2));
+        let reader = FroctFile::open(&file).expect("the file");
+        let times: Vec<_> = (0..reader.sample_count())
+            .filter(|&s| !reader.is_missing(s))
+            .filter_map(|s| reader.sample_time(s))
+            .collect();
+        assert_eq!(times, [map(1_700_000_000).stamp, map(1_700_000_011).stamp]);
+    }
+
+    #[test]
+    fn receive_time_records_at_the_clock() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("living.froct");
+        let context = Context::with_default_plugins();
+        let before = SystemTime::now().duration_since(UNIX_EPOCH).expect("clock");
+        let mut sink = sink(&context, &file, TimeSource::Receive, 0);
+        sink.receive(map(0)).expect("an unset stamp is fine here");
+        sink.finish().expect("finish");
+        let after = SystemTime::now().duration_since(UNIX_EPOCH).expect("clock");
+        let reader = FroctFile::open(&file).expect("the file");
+        // Within the two clock readings (a second either side: not a timing check).
+        let t = reader.last_instant().0.div_euclid(1_000_000_000) as u64;
+        assert!(t + 1 >= before.as_secs() && t <= after.as_secs() + 1, "{t}");
+    }
+}
