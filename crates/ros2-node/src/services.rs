@@ -9,10 +9,11 @@
 //! so CDR alignment counts from the start of the payload as it does for the RMWs.
 
 use froctomap_convert::{
-    observed_bt, predicted_bt, probabilities, resolve_observed, FroctFile, SeriesRead, TimeQuery,
+    observed_bt, predicted_bt, resolve_observed, series_probabilities, FroctFile, SeriesRead,
+    TimeQuery,
 };
 use froctomap_core::calendar::iso8601;
-use froctomap_core::{Leaf, MortonCode, Timestamp, VoxelKey};
+use froctomap_core::Timestamp;
 use froctomap_octomap_codec::{parse_header, FileKind};
 use rustdds::cdr_encoding;
 use serde::{Deserialize, Serialize};
@@ -300,9 +301,8 @@ impl ServiceHandler for FileServices {
         let nan = || vec![f64::NAN; request.points.len()];
         let points: Vec<[f64; 3]> = request.points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let t = request.stamp.timestamp();
-        let p = self.open().and_then(|reader| match reader.whole_body() {
-            Some(body) => probabilities(body, t, &points).map_err(|e| e.to_string()),
-            None => segmented_probabilities(&reader, t, &points),
+        let p = self.open().and_then(|reader| {
+            series_probabilities(&reader, t, &points).map_err(|e| e.to_string())
         });
         match p {
             Ok(p) => ProbabilityAtResponse { p },
@@ -312,49 +312,6 @@ impl ServiceHandler for FileServices {
             }
         }
     }
-}
-
-/// `p(t)` at points of a 2.0 file with segments, from its predicted leaves: the base's
-/// models (as `f32`: the leaves carry the probability in their log-odds field here), the
-/// segments' cells at their last state (0 or 1), NaN where no cell is.
-fn segmented_probabilities(
-    reader: &FroctFile,
-    t: Timestamp,
-    points: &[[f64; 3]],
-) -> Result<Vec<f64>, String> {
-    let header = reader.header();
-    let seconds = t.secs_since(header.axis.start());
-    let mut out = vec![f64::NAN; points.len()];
-    let mut wanted: Vec<(MortonCode, usize)> = points
-        .iter()
-        .enumerate()
-        .filter_map(|(i, &p)| Some((VoxelKey::from_point(p, header.resolution)?.morton(), i)))
-        .collect();
-    wanted.sort_unstable();
-    let tiles = reader.predicted_tiles();
-    let mut leaves: Vec<Leaf> = Vec::new();
-    for (code, _) in tiles {
-        let tile = |c: &MortonCode| c.node_start(header.tile_depth);
-        let first = wanted.partition_point(|(c, _)| tile(c) < code);
-        let last = wanted.partition_point(|(c, _)| tile(c) <= code);
-        if first >= last {
-            continue;
-        }
-        leaves.clear();
-        reader
-            .predicted_leaves(code, seconds, &|p| p as f32, &mut leaves)
-            .map_err(|e| format!("{}: {e}", reader.path().display()))?;
-        let mut next = 0;
-        for &(point, index) in &wanted[first..last] {
-            while leaves.get(next).is_some_and(|l| l.end() <= point.0) {
-                next += 1;
-            }
-            if let Some(leaf) = leaves.get(next).filter(|l| l.start <= point) {
-                out[index] = f64::from(leaf.log_odds);
-            }
-        }
-    }
-    Ok(out)
 }
 
 /// The id pairing a reply with its request, as the mapping carries it.
