@@ -6,7 +6,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
-use froctomap_ros2_node::{MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap};
+use froctomap_convert::{Context, FroctFile, SeriesRead};
+use froctomap_core::Timestamp;
+use froctomap_ros2_node::{
+    FileServices, MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap,
+    RecordingSink, TimeSource,
+};
 use froctomap_test_support::{
     octomap_fixture, octomap_python, python_leaves, scratch, workspace_root,
 };
@@ -16,22 +21,24 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// Writes each map it receives to `dir`, named by its stamp.
-struct FilesSink {
+/// Writes each map it receives to `dir`, named by its stamp, and hands it on to the node's
+/// recording sink.
+struct FilesSink<'a> {
     dir: PathBuf,
     received: Vec<ReceivedMap>,
     skipped: Vec<String>,
+    recording: RecordingSink<'a>,
 }
 
-impl MapSink for FilesSink {
+impl MapSink for FilesSink<'_> {
     fn receive(
         &mut self,
         map: ReceivedMap,
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let ext = if map.binary { "bt" } else { "ot" };
         std::fs::write(self.dir.join(format!("{}.{ext}", map.stamp.0)), &map.file)?;
-        self.received.push(map);
-        Ok(())
+        self.received.push(map.clone());
+        self.recording.receive(map)
     }
 
     fn skipped(&mut self, reason: String) {
@@ -54,10 +61,11 @@ struct Peer {
 }
 
 impl Peer {
-    fn start(domain: u16, predicted_out: &Path, maps: &[PathBuf]) -> Peer {
+    fn start(domain: u16, predicted_out: &Path, maps: &[PathBuf], extra: &[&str]) -> Peer {
         let mut child = Command::new(octomap_python())
             .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
             .args(["--domain", &domain.to_string(), "--timeout", "60"])
+            .args(extra)
             .arg("--predicted-out")
             .arg(predicted_out)
             .args(maps)
@@ -83,6 +91,33 @@ impl Peer {
         match self.events.recv_timeout(wait) {
             Ok(event) => event,
             Err(e) => panic!("the peer said nothing within {wait:?}: {e}"),
+        }
+    }
+
+    /// Sends the peer a command line (JSON).
+    fn command(&mut self, command: &serde_json::Value) {
+        use std::io::Write;
+        let stdin = self.child.stdin.as_mut().expect("peer stdin");
+        writeln!(stdin, "{command}")
+            .and_then(|()| stdin.flush())
+            .expect("tell the peer");
+    }
+
+    /// The peer's next event, the node answering service requests meanwhile.
+    fn event_while_serving(
+        &self,
+        node: &Node,
+        services: &mut FileServices,
+        wait: Duration,
+    ) -> serde_json::Value {
+        let deadline = Instant::now() + wait;
+        loop {
+            node.serve_requests(services);
+            match self.events.recv_timeout(Duration::from_millis(20)) {
+                Ok(event) => return event,
+                Err(mpsc::RecvTimeoutError::Timeout) if Instant::now() < deadline => {}
+                Err(e) => panic!("the peer said nothing within {wait:?}: {e}"),
+            }
         }
     }
 }
@@ -143,7 +178,7 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
 
     // The peer publishes the first map before the node exists: it must arrive latched
     // (transient-local); the others are published live.
-    let mut peer = Peer::start(domain, &predicted_out, &maps);
+    let mut peer = Peer::start(domain, &predicted_out, &maps, &[]);
     let event = peer.next_event(Duration::from_secs(30));
     assert_eq!(event["event"], "published", "{event}");
 
@@ -161,10 +196,25 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         "unchanged maps are not republished"
     );
 
+    // The maps received are recorded into a file that does not exist yet (the living map),
+    // committed every two maps: a base, then a segment.
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let options = froctomap_convert::RecordOptions {
+        commit_every: froctomap_convert::CommitEvery::Maps(2),
+        append: froctomap_convert::AppendOptions {
+            skip_bad: true,
+            allow_mostly_skipped: true,
+            ..Default::default()
+        },
+        spool_dir: None,
+    };
+    let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
     let mut sink = FilesSink {
         dir: received_dir.clone(),
         received: Vec::new(),
         skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
     };
     let receive = |sink: &mut FilesSink, count: usize| {
         let deadline = Instant::now() + Duration::from_secs(60);
@@ -263,6 +313,170 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     std::fs::write(&ours, &sent).expect("write");
     assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves));
 
+    // The node stops: what it recorded retrieves as each map the peer published.
+    let FilesSink { recording, .. } = sink;
+    let summary = recording.finish().expect("the last commit");
+    assert_eq!((summary.committed_maps, summary.commits), (maps.len(), 2));
+    let recorded = FroctFile::open(&living).expect("the living map");
+    for (i, map) in maps.iter().enumerate() {
+        let stamp = Timestamp((1_700_000_000 + i as i64) * 1_000_000_000);
+        let resolved = froctomap_convert::resolve_observed(
+            &recorded,
+            froctomap_convert::TimeQuery::Instant(stamp),
+        )
+        .expect("a map at each stamp");
+        assert!(resolved.exact);
+        let kind = map.extension().and_then(|e| e.to_str()).expect("ext");
+        let out = dir.path().join(format!("recorded-{i}.{kind}"));
+        froctomap_convert::write_observed_map(
+            &context,
+            &recorded,
+            resolved.sample,
+            &out,
+            Default::default(),
+        )
+        .expect("retrieve");
+        if kind == "bt" {
+            assert_eq!(
+                std::fs::read(&out).expect("read"),
+                std::fs::read(map).expect("read"),
+                "{}: retrieved byte-identical",
+                map.display()
+            );
+        }
+        // froctomap keeps each voxel's state (occupied or free), so an `.ot` comes back with
+        // the same leaves in the same states, their log-odds those of its states.
+        let states = |path: &Path| {
+            let (resolution, leaves) = python_leaves(path, kind);
+            let states: Vec<_> = leaves
+                .into_iter()
+                .map(|(x, y, z, depth, bits)| (x, y, z, depth, f32::from_bits(bits) > 0.0))
+                .collect();
+            (resolution, states)
+        };
+        assert_eq!(states(&out), states(map), "{}", map.display());
+    }
+
+    // The services, as an rmw_cyclonedds client calls them (the Cyclone mapping).
+    let mut services = FileServices::new(&froct, "map");
+    let file = FroctFile::open(&froct).expect("open the .froct");
+    let (start, end) = (file.first_instant(), file.last_instant());
+    let sample = 1;
+    let past = file.sample_time(sample).expect("a second sample");
+    assert!(past > start && past < end);
+    let seconds = |t: Timestamp| (t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000));
+
+    // A past stamp of the file: the map recorded then, exactly as `retrieve` writes it.
+    let (sec, nanosec) = seconds(past);
+    let got_path = dir.path().join("get_octomap_at.bt");
+    peer.command(
+        &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
+        "predict": false, "out": got_path}),
+    );
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["event"], "get_octomap_at", "{event}");
+    assert_eq!(event["success"], true, "{event}");
+    assert_eq!(event["stamp"], serde_json::json!([sec, nanosec]), "{event}");
+    let retrieved = dir.path().join("retrieved.bt");
+    froctomap_convert::write_observed_map(
+        &Context::with_default_plugins(),
+        &file,
+        sample,
+        &retrieved,
+        Default::default(),
+    )
+    .expect("retrieve");
+    let retrieved_bytes = std::fs::read(&retrieved).expect("read");
+    let got_bytes = std::fs::read(&got_path).expect("the peer wrote the map");
+    assert_eq!(
+        got_bytes[at(&got_bytes)..],
+        retrieved_bytes[at(&retrieved_bytes)..],
+        "the map of get_octomap_at is the one retrieve writes"
+    );
+    let (resolution, leaves) = python_leaves(&retrieved, "bt");
+    assert!(!leaves.is_empty());
+    assert_eq!(python_leaves(&got_path, "bt"), (resolution, leaves.clone()));
+
+    // predict=false outside the recorded span fails with a reason; predict=true there is
+    // the model's estimate.
+    let (sec, nanosec) = seconds(Timestamp(end.0 + 86_400_000_000_000));
+    peer.command(
+        &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
+        "predict": false, "out": dir.path().join("never.bt")}),
+    );
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["success"], false, "{event}");
+    assert!(
+        event["message"]
+            .as_str()
+            .is_some_and(|m| m.contains("outside the recorded span")),
+        "{event}"
+    );
+    assert!(!dir.path().join("never.bt").exists());
+    let future_path = dir.path().join("future.bt");
+    peer.command(
+        &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
+        "predict": true, "out": future_path}),
+    );
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["success"], true, "{event}");
+    let future = froctomap_convert::predicted_bt(&file, Timestamp(end.0 + 86_400_000_000_000))
+        .expect("predict");
+    let got_future = std::fs::read(&future_path).expect("the predicted map");
+    assert_eq!(got_future[at(&got_future)..], future[at(&future)..]);
+    let ours = dir.path().join("future-ours.bt");
+    std::fs::write(&ours, &future).expect("write");
+    assert_eq!(
+        python_leaves(&future_path, "bt"),
+        python_leaves(&ours, "bt")
+    );
+
+    // probability_at: points inside leaves of the map, and one far outside (NaN).
+    let metric = |k: u16| (f64::from(k) - 32768.0 + 0.5) * resolution;
+    let mut points: Vec<[f64; 3]> = leaves
+        .iter()
+        .step_by((leaves.len() / 5).max(1))
+        .map(|&(x, y, z, _, _)| [metric(x), metric(y), metric(z)])
+        .collect();
+    points.push([1.0e6, 0.0, 0.0]);
+    let (sec, nanosec) = seconds(past);
+    peer.command(
+        &serde_json::json!({"call": "probability_at", "sec": sec, "nanosec": nanosec,
+        "points": points}),
+    );
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["event"], "probability_at", "{event}");
+    let expected =
+        froctomap_convert::probabilities(file.whole_history().expect("a 1.x file"), past, &points)
+            .expect("probabilities");
+    let got: Vec<u64> = event["p_bits"]
+        .as_array()
+        .expect("p")
+        .iter()
+        .map(|hex| {
+            let bytes: Vec<u8> = (0..8)
+                .map(|i| {
+                    u8::from_str_radix(&hex.as_str().expect("hex")[2 * i..2 * i + 2], 16)
+                        .expect("hex")
+                })
+                .collect();
+            u64::from_le_bytes(bytes.try_into().expect("8 bytes"))
+        })
+        .collect();
+    assert_eq!(got.len(), points.len());
+    assert!(
+        f64::from_bits(got[points.len() - 1]).is_nan(),
+        "NaN outside the map"
+    );
+    assert!(expected[..points.len() - 1].iter().all(|p| p.is_finite()));
+    for (got, expected) in got.iter().zip(&expected) {
+        assert!(
+            *got == expected.to_bits() || (f64::from_bits(*got).is_nan() && expected.is_nan()),
+            "p {} != {expected}",
+            f64::from_bits(*got)
+        );
+    }
+
     // Loopback only: no socket of the peer or of this process is bound to an address other
     // than 127.0.0.1 or the wildcard (RustDDS binds the wildcard; see docs/ROS.md).
     for (who, pid) in [("peer", peer.child.id()), ("node", std::process::id())] {
@@ -274,4 +488,347 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
             );
         }
     }
+}
+
+/// The f64 as rosbags' side of the check prints it: its little-endian bytes in hex.
+fn f64_hex(v: f64) -> String {
+    v.to_le_bytes().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[test]
+fn service_messages_encode_as_rosbags_reads_the_srv_files() {
+    use froctomap_ros2_node::{
+        encode_cdr, GetOctomapAtRequest, GetOctomapAtResponse, Header, MapData, Octomap, Point,
+        ProbabilityAtRequest, ProbabilityAtResponse, Time,
+    };
+    use serde_json::json;
+    let hex = |bytes: &[u8]| -> String { bytes.iter().map(|b| format!("{b:02x}")).collect() };
+    let time = |sec: i32, nanosec: u32| Time { sec, nanosec };
+    let time_fields = |t: Time| json!({"sec": t.sec, "nanosec": t.nanosec});
+    let data: Vec<u8> = vec![0x09, 0x00, 0xff, 0x80, 0x7f, 0x01, 0x00];
+    let mut cases = Vec::new();
+    for predict in [false, true] {
+        let request = GetOctomapAtRequest {
+            stamp: time(1_700_000_123, 456_789),
+            predict,
+        };
+        cases.push(json!({
+            "type": "froctomap_msgs/srv/GetOctomapAt_Request",
+            "cdr_hex": hex(&encode_cdr(&request).unwrap()),
+            "fields": {"stamp": time_fields(request.stamp), "predict": predict},
+        }));
+    }
+    // Field lengths that make every alignment case: the message string's NUL lands at
+    // different offsets before the nested header and the 8-aligned resolution.
+    for (message, frame_id, id) in [
+        ("", "map", "OcTree"),
+        ("ok", "m", ""),
+        ("recorded at 12:00", "odom_frame", "ColorOcTree"),
+    ] {
+        let response = GetOctomapAtResponse {
+            success: !message.is_empty(),
+            message: message.to_string(),
+            map: Octomap {
+                header: Header {
+                    stamp: time(-5, 999_999_999),
+                    frame_id: frame_id.to_string(),
+                },
+                binary: id != "ColorOcTree",
+                id: id.to_string(),
+                resolution: 0.05,
+                data: MapData(data.clone()),
+            },
+        };
+        cases.push(json!({
+            "type": "froctomap_msgs/srv/GetOctomapAt_Response",
+            "cdr_hex": hex(&encode_cdr(&response).unwrap()),
+            "fields": {
+                "success": response.success,
+                "message": message,
+                "map": {
+                    "header": {"stamp": time_fields(response.map.header.stamp), "frame_id": frame_id},
+                    "binary": response.map.binary,
+                    "id": id,
+                    "resolution": f64_hex(0.05),
+                    "data": data.iter().map(|&b| b as i8).collect::<Vec<_>>(),
+                },
+            },
+        }));
+    }
+    let points = vec![
+        Point {
+            x: 1.5,
+            y: -2.25,
+            z: 0.125,
+        },
+        Point {
+            x: 1e6,
+            y: 0.0,
+            z: -0.0,
+        },
+    ];
+    let request = ProbabilityAtRequest {
+        stamp: time(1_700_000_000, 0),
+        points: points.clone(),
+    };
+    cases.push(json!({
+        "type": "froctomap_msgs/srv/ProbabilityAt_Request",
+        "cdr_hex": hex(&encode_cdr(&request).unwrap()),
+        "fields": {
+            "stamp": time_fields(request.stamp),
+            "points": points.iter().map(|p| json!({"x": f64_hex(p.x), "y": f64_hex(p.y), "z": f64_hex(p.z)})).collect::<Vec<_>>(),
+        },
+    }));
+    for p in [vec![], vec![0.25, f64::NAN, 1.0]] {
+        let response = ProbabilityAtResponse { p: p.clone() };
+        cases.push(json!({
+            "type": "froctomap_msgs/srv/ProbabilityAt_Response",
+            "cdr_hex": hex(&encode_cdr(&response).unwrap()),
+            "fields": {"p": p.iter().map(|&v| f64_hex(v)).collect::<Vec<_>>()},
+        }));
+    }
+    // And the node reads what it writes (its requests come from rosbags-compatible clients).
+    let decoded: ProbabilityAtRequest =
+        froctomap_ros2_node::decode_cdr(&encode_cdr(&request).unwrap()).unwrap();
+    assert_eq!(decoded, request);
+
+    let dir = scratch();
+    let cases_path = dir.path().join("cases.json");
+    std::fs::write(&cases_path, serde_json::to_vec(&cases).unwrap()).unwrap();
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/srv_cdr.py"))
+        .arg(workspace_root().join("ros/froctomap_msgs/srv"))
+        .arg(&cases_path)
+        .output()
+        .expect("run rosbags");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let result: serde_json::Value = serde_json::from_str(text.trim()).expect("a JSON line");
+    assert_eq!(result["checked"], cases.len(), "{result}");
+}
+
+#[test]
+fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
+    let dir = scratch();
+    let received_dir = dir.path().join("received");
+    std::fs::create_dir(&received_dir).expect("mkdir");
+    let good: Vec<PathBuf> = ["few_voxels.bt", "coarse_leaves.bt"]
+        .iter()
+        .map(|name| octomap_fixture(name))
+        .collect();
+    let domain = random_domain();
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        &good,
+        &["--no-predicted"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.max_message_bytes = 64 << 10;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let record_options = froctomap_convert::RecordOptions {
+        commit_every: froctomap_convert::CommitEvery::Maps(2),
+        append: froctomap_convert::AppendOptions {
+            skip_bad: true,
+            allow_mostly_skipped: true,
+            ..Default::default()
+        },
+        spool_dir: None,
+    };
+    let mut recorder =
+        froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");
+    // The maps a commit left out, with why.
+    let left_out: std::rc::Rc<std::cell::RefCell<Vec<String>>> = Default::default();
+    let seen = std::rc::Rc::clone(&left_out);
+    recorder.on_event(move |event| match event {
+        froctomap_convert::RecordEvent::Committed(commit) => seen
+            .borrow_mut()
+            .extend(commit.skipped.iter().map(|(_, why)| why.clone())),
+        froctomap_convert::RecordEvent::LeftOut { what, .. } => {
+            seen.borrow_mut().push(what.to_string())
+        }
+        _ => {}
+    });
+    let mut sink = FilesSink {
+        dir: received_dir,
+        received: Vec::new(),
+        skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
+    };
+    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !done(sink) && Instant::now() < deadline {
+            node.receive_into(sink, Duration::from_millis(100))
+                .expect("the node never stops on input");
+        }
+        assert!(
+            done(sink),
+            "received {:?}, skipped {:?}",
+            sink.received.len(),
+            sink.skipped
+        );
+    };
+    receive_until(&mut sink, &|s| s.received.len() == 1);
+    peer.command(&serde_json::json!("go"));
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    // Two maps: the base is committed.
+    receive_until(&mut sink, &|s| s.received.len() == 2);
+    let base = std::fs::read(&living).expect("the base is written");
+
+    // The bad ones, each refused with its reason while the node goes on.
+    let first = 1_700_000_000i64;
+    let bt = good[0].to_string_lossy().to_string();
+    let bad = [
+        serde_json::json!({"call": "publish_wrong_type"}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 3, "truncate": 5}),
+        serde_json::json!({"call": "publish_garbage", "stamp": first + 4, "size": 300, "binary": false}),
+        serde_json::json!({"call": "publish_garbage", "stamp": first + 5, "size": 100_000, "binary": true}),
+    ];
+    for command in &bad {
+        peer.command(command);
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.skipped.len() == bad.len());
+    assert_eq!(
+        sink.received.len(),
+        2,
+        "no bad message reached the recorder"
+    );
+    let reasons = sink.skipped.join("\n");
+    assert!(reasons.contains("over the limit"), "{reasons}");
+    assert_eq!(
+        std::fs::read(&living).expect("read"),
+        base,
+        "the file is untouched"
+    );
+
+    // A huge resolution decodes as a map but is not this file's: left out at the commit. A
+    // stamp going backwards is skipped; the next good map is committed.
+    for command in [
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 6, "resolution": 1.0e300}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 2}),
+        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 7}),
+    ] {
+        peer.command(&command);
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.received.len() == 5);
+    let FilesSink {
+        recording, skipped, ..
+    } = sink;
+    assert_eq!(skipped.len(), bad.len(), "{skipped:?}");
+    let summary = recording.finish().expect("the node's last commit");
+    assert_eq!(
+        (summary.committed_maps, summary.older),
+        (3, 1),
+        "{summary:?}"
+    );
+    let left_out = left_out.borrow();
+    assert_eq!(left_out.len(), 1, "{left_out:?}");
+    assert!(left_out[0].contains("resolution"), "{left_out:?}");
+
+    // The file reads, and holds the good maps exactly.
+    let recorded = FroctFile::open(&living).expect("the living map reads");
+    for (stamp, map) in [
+        (first, &good[0]),
+        (first + 1, &good[1]),
+        (first + 7, &good[0]),
+    ] {
+        let resolved = froctomap_convert::resolve_observed(
+            &recorded,
+            froctomap_convert::TimeQuery::Instant(Timestamp(stamp * 1_000_000_000)),
+        )
+        .expect("a map at the stamp");
+        assert!(resolved.exact, "{stamp}");
+        let out = dir.path().join(format!("{stamp}.bt"));
+        froctomap_convert::write_observed_map(
+            &context,
+            &recorded,
+            resolved.sample,
+            &out,
+            Default::default(),
+        )
+        .expect("retrieve");
+        assert_eq!(
+            std::fs::read(&out).expect("read"),
+            std::fs::read(map).expect("read"),
+            "{stamp}"
+        );
+    }
+    let maps: Vec<Option<Timestamp>> = (0..recorded.sample_count())
+        .filter(|&s| !recorded.is_missing(s))
+        .map(|s| recorded.sample_time(s))
+        .collect();
+    assert_eq!(
+        maps,
+        [first, first + 1, first + 7].map(|s| Some(Timestamp(s * 1_000_000_000))),
+        "no other map entered the file"
+    );
+}
+
+#[test]
+fn a_basic_mapping_client_gets_its_map() {
+    // DDS-RPC basic framing: the peer writes a RequestHeader (sample identity, instance
+    // name) before the request and keeps the replies whose ReplyHeader names it.
+    let dir = scratch();
+    let domain = random_domain();
+    let map = octomap_fixture("few_voxels.bt");
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        std::slice::from_ref(&map),
+        &["--no-predicted", "--service-mapping", "basic"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.service_mapping = froctomap_ros2_node::ServiceMapping::Basic;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
+    let mut services = FileServices::new(&froct, "map");
+    let file = FroctFile::open(&froct).expect("open");
+    let t = file.sample_time(0).expect("a sample");
+    let got_path = dir.path().join("got.bt");
+    peer.command(&serde_json::json!({"call": "get_octomap_at",
+        "sec": t.0.div_euclid(1_000_000_000), "nanosec": t.0.rem_euclid(1_000_000_000),
+        "predict": false, "out": got_path}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(event["success"], true, "{event}");
+    let retrieved = dir.path().join("retrieved.bt");
+    froctomap_convert::write_observed_map(
+        &Context::with_default_plugins(),
+        &file,
+        0,
+        &retrieved,
+        Default::default(),
+    )
+    .expect("retrieve");
+    assert_eq!(
+        python_leaves(&got_path, "bt"),
+        python_leaves(&retrieved, "bt")
+    );
 }

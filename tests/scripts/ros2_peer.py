@@ -12,8 +12,34 @@ first map); then
 waits for one message on `rt/froctomap/predicted` and writes it as a `.bt` file that upstream
 OctoMap (octomap-python) must read. Prints one JSON line per event for the test to check.
 
+Then it is a service client of the node, as rmw_cyclonedds is (`--service-mapping cyclone`:
+requests on `rq/<service>Request` behind a 16-byte header, the client id (its request
+writer's instance handle) and a sequence number, which the reply echoes; replies on
+`rr/<service>Reply`, those of other clients skipped) or as DDS-RPC's basic mapping is
+(`basic`: a RequestHeader, sample identity and instance name, before the request, a
+ReplyHeader before the reply). It reads one JSON command a line from stdin until EOF:
+
+  {"call": "get_octomap_at", "sec": S, "nanosec": N, "predict": B, "out": "map.bt"}
+      -> {"event": "get_octomap_at", "success": B, "message": "...", "stamp": [S, N], ...}
+         and, on success, the map written as a .bt file to "out"
+  {"call": "probability_at", "sec": S, "nanosec": N, "points": [[x, y, z], ...]}
+      -> {"event": "probability_at", "p_bits": ["<f64 little-endian hex>", ...]}
+
+and, to try the node with bad input (each answered by {"event": "published", ...}):
+
+  {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?}
+      a map file on the map topic at stamp S, its body cut to N bytes or its resolution
+      replaced when asked
+  {"call": "publish_garbage", "size": N, "binary": B}
+      an Octomap whose data is N bytes of noise
+  {"call": "publish_wrong_type"}
+      a message of another layout (a std_msgs/String) under the Octomap type name, from a
+      second participant (one participant cannot hold both types of the topic)
+
+With --no-predicted the peer does not wait for rt/froctomap/predicted.
+
 Usage: ros2_peer.py --domain D --predicted-out OUT.bt [--topic /octomap_binary]
-                    [--first-stamp SECONDS] [--timeout S] MAP...
+                    [--first-stamp SECONDS] [--timeout S] [--service-mapping M] MAP...
 """
 
 import argparse
@@ -22,6 +48,7 @@ import os
 import struct
 import sys
 import time
+import types
 from dataclasses import dataclass
 
 LOOPBACK_CONFIG = """<CycloneDDS><Domain Id="any"><General>
@@ -81,6 +108,8 @@ def main():
     parser.add_argument("--first-stamp", type=int, default=1_700_000_000)
     parser.add_argument("--predicted-out", required=True)
     parser.add_argument("--timeout", type=float, default=60.0)
+    parser.add_argument("--service-mapping", choices=["cyclone", "basic"], default="cyclone")
+    parser.add_argument("--no-predicted", action="store_true")
     parser.add_argument("maps", nargs="+")
     args = parser.parse_args()
 
@@ -88,7 +117,7 @@ def main():
     from cyclonedds.core import Qos, Policy
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32
+    from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32, uint64
     import cyclonedds.idl.annotations as annotate
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
@@ -139,7 +168,7 @@ def main():
     predicted_topic = Topic(participant, "rt/froctomap/predicted", Octomap)
     reader = DataReader(participant, predicted_topic, qos=latched)
     deadline = time.monotonic() + args.timeout
-    while time.monotonic() < deadline:
+    while not args.no_predicted and time.monotonic() < deadline:
         samples = reader.take(N=1)
         if samples:
             message = samples[0]
@@ -156,10 +185,152 @@ def main():
             break
         time.sleep(0.05)
     else:
-        say(event="timeout", waiting_for="rt/froctomap/predicted")
+        if not args.no_predicted:
+            say(event="timeout", waiting_for="rt/froctomap/predicted")
+            sys.exit(2)
+    # The services (froctomap_msgs/srv), framed as the chosen mapping frames them.
+    @dataclass
+    @annotate.final
+    class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+        x: float64
+        y: float64
+        z: float64
+
+    @dataclass
+    @annotate.final
+    class SampleIdentity(IdlStruct, typename="dds::rpc::SampleIdentity"):
+        guid: array[uint8, 16]
+        sequence_high: int32
+        sequence_low: uint32
+
+    stem = "froctomap_msgs::srv::dds_::"
+
+    def idl_struct(name, fields):
+        # types.new_class hands `typename` to IdlStruct's metaclass, as a class statement does.
+        body = lambda ns: ns.update({"__annotations__": fields})
+        cls = types.new_class(name, (IdlStruct,), {"typename": stem + name}, body)
+        return dataclass(annotate.final(cls))
+
+    if args.service_mapping == "cyclone":
+        # rmw_cyclonedds' cdds_request_header_t: uint64 guid, int64 seq.
+        def framed(name, fields):
+            annotations = {"client": uint64, "sequence": int64, **fields}
+            return idl_struct(name, annotations)
+        request_header = lambda handle, seq: {"client": handle, "sequence": seq}
+    else:
+        def framed(name, fields):
+            header = ({"identity": SampleIdentity, "instance_name": str} if name.endswith("Request_")
+                      else {"identity": SampleIdentity, "remote_exception": uint32})
+            return idl_struct(name, {**header, **fields})
+        def request_header(handle, seq):
+            guid = list(writer_guids[handle])
+            return {"identity": SampleIdentity(guid, seq >> 32, seq & 0xFFFFFFFF), "instance_name": ""}
+
+    service_types = {
+        "get_octomap_at": (framed("GetOctomapAt_Request_", {"stamp": Time, "predict": bool}),
+                           framed("GetOctomapAt_Response_", {"success": bool, "message": str, "map": Octomap})),
+        "probability_at": (framed("ProbabilityAt_Request_", {"stamp": Time, "points": sequence[Point]}),
+                           framed("ProbabilityAt_Response_", {"p": sequence[float64]})),
+    }
+    service_qos = Qos(
+        Policy.Reliability.Reliable(duration(seconds=1)),
+        Policy.Durability.Volatile,
+        Policy.History.KeepAll,
+        Policy.DataRepresentation(use_cdrv0_representation=True),
+    )
+    clients = {}
+    writer_guids = {}
+    for name, (request_type, reply_type) in service_types.items():
+        request_writer = DataWriter(participant, Topic(participant, f"rq/froctomap/{name}Request", request_type),
+                                    qos=service_qos)
+        reply_reader = DataReader(participant, Topic(participant, f"rr/froctomap/{name}Reply", reply_type),
+                                  qos=service_qos)
+        writer_guids[request_writer.instance_handle & 0xFFFF_FFFF_FFFF_FFFF] = request_writer.guid.bytes
+        clients[name] = (request_type, request_writer, reply_reader)
+
+    def own_id(reply, handle, seq):
+        if args.service_mapping == "cyclone":
+            return reply.client == handle and reply.sequence == seq
+        identity = reply.identity
+        return (bytes(identity.guid) == writer_guids[handle]
+                and (identity.sequence_high << 32 | identity.sequence_low) == seq)
+
+    next_sequence = 0
+    keep_alive = []
+
+    def call(name, fields):
+        nonlocal next_sequence
+        request_type, request_writer, reply_reader = clients[name]
+        deadline = time.monotonic() + args.timeout / 2
+        # The node's request reader and reply writer must be matched first (volatile QoS).
+        while not (request_writer.get_matched_subscriptions() and reply_reader.get_matched_publications()):
+            if time.monotonic() > deadline:
+                say(event="timeout", waiting_for=f"the node's {name} service",
+                    matched=[len(request_writer.get_matched_subscriptions()),
+                             len(reply_reader.get_matched_publications())])
+                sys.exit(2)
+            time.sleep(0.05)
+        next_sequence += 1
+        handle = request_writer.instance_handle & 0xFFFF_FFFF_FFFF_FFFF  # a uint64, as rmw keeps it
+        request_writer.write(request_type(**request_header(handle, next_sequence), **fields))
+        while time.monotonic() < deadline:
+            for reply in reply_reader.take(N=16):
+                if own_id(reply, handle, next_sequence):
+                    return reply
+            time.sleep(0.02)
+        say(event="timeout", waiting_for=f"the reply of {name}")
         sys.exit(2)
-    # Stay until the test is done with the latched maps (it closes stdin).
-    sys.stdin.read()
+
+    for line in sys.stdin:
+        if not line.strip():
+            continue
+        command = json.loads(line)
+        if "sec" in command:
+            stamp = Time(command["sec"], command["nanosec"])
+        if command["call"] == "get_octomap_at":
+            reply = call("get_octomap_at", {"stamp": stamp, "predict": command["predict"]})
+            body = bytes(reply.map.data)
+            if reply.success:
+                header = (
+                    "# Octomap OcTree binary file\n"
+                    f"id {reply.map.id}\nsize {binary_node_count(body)}\n"
+                    f"res {reply.map.resolution!r}\ndata\n"
+                ).encode("ascii")
+                with open(command["out"], "wb") as f:
+                    f.write(header + body)
+            say(event="get_octomap_at", success=reply.success, message=reply.message,
+                stamp=[reply.map.header.stamp.sec, reply.map.header.stamp.nanosec],
+                frame_id=reply.map.header.frame_id, binary=reply.map.binary, bytes=len(body))
+        elif command["call"] == "probability_at":
+            points = [Point(*p) for p in command["points"]]
+            reply = call("probability_at", {"stamp": stamp, "points": points})
+            say(event="probability_at", p_bits=[struct.pack("<d", p).hex() for p in reply.p])
+        elif command["call"] == "publish_map":
+            with open(command["path"], "rb") as f:
+                binary, tree_id, resolution, body = split_map_file(f.read())
+            body = body[: command.get("truncate", len(body))]
+            resolution = command.get("resolution", resolution)
+            writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), binary, tree_id, resolution,
+                                 list(body)))
+            say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body))
+        elif command["call"] == "publish_garbage":
+            noise = bytes((i * 7919 + 13) % 251 for i in range(command["size"]))
+            writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), command["binary"], "OcTree", 0.1,
+                                 list(noise)))
+            say(event="published", garbage=command["size"])
+        elif command["call"] == "publish_wrong_type":
+            @dataclass
+            @annotate.final
+            class NotAMap(IdlStruct, typename="octomap_msgs::msg::dds_::Octomap_"):
+                data: str
+
+            other = DomainParticipant(args.domain)
+            wrong = DataWriter(other, Topic(other, "rt" + args.topic, NotAMap), qos=latched)
+            wrong.write(NotAMap("this is a std_msgs/String, not a map"))
+            keep_alive.append((other, wrong))
+            say(event="published", wrong_type=True)
+        else:
+            say(event="error", unknown=command["call"])
 
 
 if __name__ == "__main__":

@@ -283,8 +283,14 @@ fn main() -> ExitCode {
     if matches!(&cli.command, Command::Generate(args) if args.streams()) {
         REPORTS_TO_STDERR.store(true, std::sync::atomic::Ordering::Relaxed);
     }
-    // `record` handles the signals itself: they commit what it received.
-    if !matches!(cli.command, Command::Record(_)) {
+    // `record` and `ros2` handle the signals themselves: they commit what they received.
+    let handles_signals = match &cli.command {
+        Command::Record(_) => true,
+        #[cfg(feature = "ros2")]
+        Command::Ros2(_) => true,
+        _ => false,
+    };
+    if !handles_signals {
         signals::clean_up_on_signals();
     }
     let zone = match cli.tz.as_deref().map(froctomap_convert::Zone::named) {

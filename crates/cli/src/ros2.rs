@@ -1,23 +1,42 @@
-//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). For now it publishes the map
-//! FILE predicts and receives maps without recording them: the recording sink comes with
-//! `record` (issue 26).
+//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It publishes the map FILE
+//! predicts, answers the services from FILE, and receives maps without recording them yet:
+//! the recording sink comes with `record`'s `Recorder`.
 
 use crate::ui::Ui;
 use anyhow::Context as _;
-use froctomap_convert::parse_duration;
+use froctomap_convert::{
+    group_thousands, parse_duration, AppendOptions, CommitEvery, Context, FroctFile, Opened,
+    RecordEvent, RecordOptions, Recorder, SeriesRead,
+};
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
-    domain_id_from_env, MapSink, Network, Node, NodeOptions, PredictedPublisher, ReceivedMap,
+    domain_id_from_env, FileServices, MapSink, Network, Node, NodeOptions, PredictedPublisher,
+    ReceivedMap, RecordingSink, ServiceMapping, TimeSource,
 };
 use std::net::IpAddr;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// Arguments of `froctomap ros2`.
 #[derive(clap::Args)]
 pub struct Ros2Args {
-    /// The FROctomap file whose predicted map is published on /froctomap/predicted.
+    /// The FROctomap file (the living map): the maps received are appended to it (it is
+    /// created from the first ones if missing), its predicted map is published on
+    /// /froctomap/predicted and the services answer from it.
     file: PathBuf,
+    /// Commit every N maps or every DURATION (as `record`).
+    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = commit_every)]
+    commit_every: CommitEvery,
+    /// Take at most one map per DURATION (a fast publisher thinned); 0: every map.
+    #[arg(long, value_name = "DURATION", default_value = "0")]
+    min_interval: String,
+    /// The time a map is recorded at: its `header` stamp, or the `receive` time.
+    #[arg(long, value_name = "header|receive", default_value = "header")]
+    time_source: TimeSource,
+    /// Receive and serve only: do not append the maps received to FILE.
+    #[arg(long)]
+    no_record: bool,
     /// The topic of the maps received (octomap_msgs/msg/Octomap).
     #[arg(long, default_value = froctomap_ros2_node::DEFAULT_TOPIC)]
     topic: String,
@@ -34,9 +53,13 @@ pub struct Ros2Args {
     /// The frame of the published maps.
     #[arg(long, default_value = "map")]
     frame_id: String,
+    /// How service requests and replies are framed: `cyclone` (rmw_cyclonedds), `enhanced`
+    /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
+    #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
+    service_mapping: ServiceMapping,
 }
 
-/// Logs each map received; appending it to FILE comes with `record`.
+/// Logs each map received (`--no-record`).
 struct LogReceived;
 
 impl MapSink for LogReceived {
@@ -45,7 +68,7 @@ impl MapSink for LogReceived {
         map: ReceivedMap,
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         eprintln!(
-            "received a map stamped {} ({} bytes, .{}); not recorded: recording comes with `record`",
+            "received a map stamped {} ({} bytes, .{}); not recorded (--no-record)",
             froctomap_core::calendar::iso8601(map.stamp),
             map.file.len(),
             if map.binary { "bt" } else { "ot" }
@@ -56,6 +79,79 @@ impl MapSink for LogReceived {
     fn skipped(&mut self, reason: String) {
         eprintln!("warning: {reason}");
     }
+}
+
+/// The node crate's log (skipped messages and requests) as `warning:` lines on stderr.
+struct StderrLog;
+
+impl log::Log for StderrLog {
+    fn enabled(&self, metadata: &log::Metadata<'_>) -> bool {
+        metadata.level() <= log::Level::Warn
+    }
+
+    fn log(&self, record: &log::Record<'_>) {
+        // RustDDS's own warnings (discovery chatter) stay out; the node's are for the user.
+        if self.enabled(record.metadata()) && record.target().starts_with("froctomap") {
+            eprintln!("warning: {}", record.args());
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+static STDERR_LOG: StderrLog = StderrLog;
+
+/// `--commit-every` as `record` reads it: a number of maps or a duration.
+fn commit_every(text: &str) -> Result<CommitEvery, String> {
+    if let Ok(maps) = text.trim().parse::<usize>() {
+        return match maps {
+            0 => Err("at least 1 map".into()),
+            maps => Ok(CommitEvery::Maps(maps)),
+        };
+    }
+    match parse_duration(text) {
+        Ok(ns) if ns > 0 => Ok(CommitEvery::Time(Duration::from_nanos(ns.unsigned_abs()))),
+        Ok(_) => Err("a positive duration".into()),
+        Err(e) => Err(format!("{e} (or a number of maps)")),
+    }
+}
+
+/// A duration option that may be 0 (parse_duration takes positive spans only).
+fn duration_or_zero(text: &str, option: &str) -> anyhow::Result<i64> {
+    let zero = text
+        .trim()
+        .trim_end_matches(|c: char| c.is_ascii_alphabetic())
+        .parse::<f64>()
+        == Ok(0.0);
+    if zero {
+        Ok(0)
+    } else {
+        parse_duration(text).with_context(|| option.to_string())
+    }
+}
+
+/// Set once SIGINT or SIGTERM asked the node to stop.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// The first SIGINT/SIGTERM/SIGHUP stops the node's loop (it commits and exits 0); a
+/// second one ends the process at once.
+fn stop_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    let started = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            let mut signals = signals.forever();
+            if signals.next().is_some() {
+                STOP.store(true, Ordering::SeqCst);
+            }
+            if let Some(signal) = signals.next() {
+                crate::signals::end_by(signal);
+            }
+        });
+    drop(started);
 }
 
 fn network(text: &str) -> anyhow::Result<Network> {
@@ -78,40 +174,52 @@ fn network(text: &str) -> anyhow::Result<Network> {
 pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     let every = parse_duration(&args.publish_every).context("--publish-every")?;
     anyhow::ensure!(every > 0, "--publish-every must be positive");
-    // parse_duration takes positive spans only; 0 (in any unit) is "now".
-    let zero = args
-        .horizon
-        .trim()
-        .trim_end_matches(|c: char| c.is_ascii_alphabetic())
-        .parse::<f64>()
-        == Ok(0.0);
-    let horizon = if zero {
-        0
-    } else {
-        parse_duration(&args.horizon).context("--horizon")?
-    };
+    let horizon = duration_or_zero(&args.horizon, "--horizon")?;
+    let min_interval = Duration::from_nanos(
+        duration_or_zero(&args.min_interval, "--min-interval")?.unsigned_abs(),
+    );
+    stop_on_signals();
+    if log::set_logger(&STDERR_LOG).is_ok() {
+        log::set_max_level(log::LevelFilter::Warn);
+    }
     let mut options = NodeOptions::new(domain_id_from_env()?);
     options.topic = args.topic.clone();
     options.network = network(&args.network)?;
+    options.service_mapping = args.service_mapping;
     let node = Node::new(&options)?;
     eprintln!(
-        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}",
+        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
         node.domain_id(),
         args.topic,
         froctomap_ros2_node::PREDICTED_TOPIC,
         args.file.display(),
-        args.publish_every
+        args.publish_every,
+        froctomap_ros2_node::GET_OCTOMAP_AT_SERVICE,
+        froctomap_ros2_node::PROBABILITY_AT_SERVICE,
+        args.service_mapping
     );
     let mut predicted = PredictedPublisher::new(&args.file, &args.frame_id);
-    let mut sink = LogReceived;
+    let mut services = FileServices::new(&args.file, &args.frame_id);
+    let context = Context::with_default_plugins();
+    let mut recording = if args.no_record {
+        None
+    } else {
+        Some(open_recording(&context, args, min_interval)?)
+    };
     let period = Duration::from_nanos(every.unsigned_abs());
-    loop {
+    while !STOP.load(Ordering::SeqCst) {
         let now = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .context("the clock is before 1970")?;
         let now = i64::try_from(now.as_nanos()).context("the clock is past 2262")?;
         let t = Timestamp(now.saturating_add(horizon));
-        match predicted.publish_if_changed(&node, t) {
+        // Until the first commit creates it, there is no map to predict.
+        let published = if args.file.exists() {
+            predicted.publish_if_changed(&node, t)
+        } else {
+            Ok(false)
+        };
+        match published {
             Ok(true) => eprintln!(
                 "published the map predicted for {}",
                 froctomap_core::calendar::iso8601(t)
@@ -120,12 +228,95 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             Err(e) => eprintln!("warning: {e}"),
         }
         let next = Instant::now() + period;
-        while Instant::now() < next {
-            node.receive_into(
-                &mut sink,
-                next.saturating_duration_since(Instant::now())
-                    .min(Duration::from_millis(500)),
-            )?;
+        while Instant::now() < next && !STOP.load(Ordering::SeqCst) {
+            let wait = next
+                .saturating_duration_since(Instant::now())
+                .min(Duration::from_millis(50));
+            match recording.as_mut() {
+                Some(sink) => {
+                    node.receive_into(sink, wait)?;
+                    if let Err(e) = sink.tick() {
+                        eprintln!("warning: {}: commit failed: {e}", args.file.display());
+                    }
+                }
+                None => {
+                    node.receive_into(&mut LogReceived, wait)?;
+                }
+            }
+            node.serve_requests(&mut services);
         }
     }
+    if let Some(sink) = recording {
+        let thinned = sink.thinned();
+        let summary = sink.finish()?;
+        eprintln!(
+            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out",
+            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad
+        );
+    }
+    Ok(())
+}
+
+/// The recorder of FILE (created from the first commit's maps if missing), printing one
+/// line per commit, wrapped as the node's map sink.
+fn open_recording<'a>(
+    context: &'a Context,
+    args: &Ros2Args,
+    min_interval: Duration,
+) -> anyhow::Result<RecordingSink<'a>> {
+    let options = RecordOptions {
+        commit_every: args.commit_every,
+        append: AppendOptions {
+            // A bad map over the wire is left out (and said), never the end of the node.
+            skip_bad: true,
+            allow_mostly_skipped: true,
+            ..AppendOptions::default()
+        },
+        spool_dir: None,
+    };
+    let mut recorder = Recorder::open(context, &args.file, options)?;
+    match recorder.opened() {
+        Opened::Missing => eprintln!(
+            "{} does not exist: the first commit's maps become its base",
+            args.file.display()
+        ),
+        Opened::Converted => eprintln!(
+            "converted {} to format 2.0 (older releases cannot read it)",
+            args.file.display()
+        ),
+        _ => {}
+    }
+    let file = args.file.clone();
+    recorder.on_event(move |event| match event {
+        RecordEvent::Committed(commit) => {
+            // The cells of the map as observed at the last sample (the file's own cells
+            // add those of every earlier map).
+            let cells = FroctFile::open(&file)
+                .ok()
+                .and_then(|f| {
+                    let last = f.sample_at_or_before(f.last_instant())?;
+                    let tiles = f.observed_tiles(last);
+                    Some(tiles.iter().map(|t| u64::from(t.cell_count)).sum::<u64>())
+                })
+                .map_or_else(|| "?".to_string(), group_thousands);
+            println!(
+                "{}: {} maps, {} .. {}, {} cells in the last map, file {} bytes ({} ms)",
+                match commit.segment {
+                    None => "base".to_string(),
+                    Some(segment) => format!("segment {segment}"),
+                },
+                commit.maps,
+                froctomap_core::calendar::iso8601(commit.first),
+                froctomap_core::calendar::iso8601(commit.last),
+                cells,
+                group_thousands(commit.bytes),
+                commit.elapsed.as_millis()
+            );
+        }
+        RecordEvent::LeftOut { maps, what, error } => {
+            eprintln!("warning: {maps} map(s) left out: {what}: {error}");
+        }
+        _ => {}
+    });
+    Ok(RecordingSink::new(recorder, args.time_source, min_interval))
 }

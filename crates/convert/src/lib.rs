@@ -96,16 +96,17 @@ pub use inputs::{
     collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,
     InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
 };
-pub use maps::predicted_bt;
 pub use maps::{
     export, observed_map, predicted_map, probability_log_odds, resolve_observed,
     resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,
     ExportMode, ExportOptions, ExportReport, Pick, ResolvedSample, TimeQuery, WrittenMap,
 };
+pub use maps::{observed_bt, predicted_bt};
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use query::{
-    probabilities, voxel_history, CellClass, CellGeometry, HistorySample, VoxelHistory,
+    probabilities, series_probabilities, voxel_history, CellClass, CellGeometry, HistorySample,
+    VoxelHistory,
 };
 pub use record::{
     CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,

@@ -472,8 +472,9 @@ fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usi
 }
 
 /// The canonical `.bt` file of the map observed at `sample` (the bytes
-/// [`write_observed_map`] writes to a `.bt`).
-pub(crate) fn observed_bt(reader: &dyn SeriesRead, sample: u32) -> Result<Vec<u8>, ConvertError> {
+/// [`write_observed_map`] writes to a `.bt`), in memory: what the ROS 2 node's
+/// `get_octomap_at` service answers.
+pub fn observed_bt(reader: &dyn SeriesRead, sample: u32) -> Result<Vec<u8>, ConvertError> {
     states_bt(reader, StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
 }
 

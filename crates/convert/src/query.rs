@@ -4,6 +4,7 @@
 //! Both read only the tiles that hold the points asked for, one tile at a time.
 
 use crate::error::ConvertError;
+use crate::series_file::SeriesRead;
 use froctomap_core::{Leaf, MortonCode, Occupancy, Timestamp, VoxelKey};
 use froctomap_file::{Cell, CellContent, FroctReader};
 use froctomap_temporal::VoxelDescription;
@@ -34,12 +35,7 @@ pub fn probabilities(
     let mut out = vec![f64::NAN; points.len()];
     // Points in Morton order, grouped by tile: each tile is read once, its cells (also in
     // Morton order) matched to the points in one pass.
-    let mut wanted: Vec<(MortonCode, usize)> = points
-        .iter()
-        .enumerate()
-        .filter_map(|(i, &p)| Some((VoxelKey::from_point(p, header.resolution)?.morton(), i)))
-        .collect();
-    wanted.sort_unstable();
+    let wanted = points_in_morton_order(points, header.resolution);
     let mut rest = &wanted[..];
     while let Some(&(first, _)) = rest.first() {
         let tile_start = first.node_start(header.tile_depth);
@@ -64,6 +60,59 @@ pub fn probabilities(
         })?;
     }
     Ok(out)
+}
+
+/// [`probabilities`] for a file of any version ([`FroctFile`](crate::FroctFile), a 2.0
+/// [`LivingReader`](froctomap_file::LivingReader)): a 1.x file or a 2.0 file without
+/// segments exactly as [`probabilities`]; a 2.0 file with segments from its predicted
+/// leaves until it is compacted: the base's cells by their models at `f32` precision, the
+/// segments' own cells at their last state (0 or 1). `NaN` where no cell is.
+pub fn series_probabilities(
+    reader: &dyn SeriesRead,
+    t: Timestamp,
+    points: &[[f64; 3]],
+) -> Result<Vec<f64>, ConvertError> {
+    if let Some(body) = reader.whole_body() {
+        return probabilities(body, t, points);
+    }
+    let header = reader.header();
+    let seconds = t.secs_since(header.axis.start());
+    let mut out = vec![f64::NAN; points.len()];
+    let wanted = points_in_morton_order(points, header.resolution);
+    let tile_of = |code: &MortonCode| code.node_start(header.tile_depth);
+    let mut leaves: Vec<Leaf> = Vec::new();
+    for (code, _) in reader.predicted_tiles() {
+        let first = wanted.partition_point(|(c, _)| tile_of(c) < code);
+        let last = wanted.partition_point(|(c, _)| tile_of(c) <= code);
+        if first >= last {
+            continue;
+        }
+        leaves.clear();
+        // The leaves carry p itself in their log-odds field here.
+        reader.predicted_leaves(code, seconds, &|p| p as f32, &mut leaves)?;
+        let mut next = 0;
+        for &(point, index) in &wanted[first..last] {
+            while leaves.get(next).is_some_and(|l| l.end() <= point.0) {
+                next += 1;
+            }
+            if let Some(leaf) = leaves.get(next).filter(|l| l.start <= point) {
+                out[index] = f64::from(leaf.log_odds);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The Morton codes of the points inside the addressable range, with their indices, in
+/// Morton order (so grouped by tile).
+fn points_in_morton_order(points: &[[f64; 3]], resolution: f64) -> Vec<(MortonCode, usize)> {
+    let mut wanted: Vec<(MortonCode, usize)> = points
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &p)| Some((VoxelKey::from_point(p, resolution)?.morton(), i)))
+        .collect();
+    wanted.sort_unstable();
+    wanted
 }
 
 /// What kind of cell a voxel belongs to.

@@ -160,3 +160,49 @@ fn ranges_and_points_outside_are_refused_clearly() {
         );
     }
 }
+
+#[test]
+fn series_probabilities_of_a_living_file_follow_its_predicted_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let context = Context::with_default_plugins();
+    let (built, paths) = build_room(&context, dir.path(), 24);
+    // A 1.x file: exactly `probabilities`.
+    let flat = context.open_series(&built).unwrap();
+    let points: Vec<[f64; 3]> = keys().map(centre).chain([[1e9, 0.0, 0.0]]).collect();
+    let t = time(30);
+    let bits = |p: Vec<f64>| p.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+    assert_eq!(
+        bits(series_probabilities(&flat, t, &points).unwrap()),
+        bits(probabilities(flat.whole_history().unwrap(), t, &points).unwrap())
+    );
+
+    // A 2.0 file with segments: recorded 12 maps at a time.
+    let living = dir.path().join("living.froct");
+    let options = RecordOptions {
+        commit_every: CommitEvery::Maps(12),
+        ..RecordOptions::default()
+    };
+    let mut recorder = Recorder::open(&context, &living, options).unwrap();
+    for input in collect_inputs(&context, &paths, TimeSource::Auto).unwrap() {
+        recorder.take_file(input).unwrap();
+    }
+    recorder.finish().unwrap();
+    let reader = context.open_series(&living).unwrap();
+    assert!(reader.segment_count() > 0);
+    let p = series_probabilities(&reader, t, &points).unwrap();
+    let predicted = predicted_map(&reader, t).unwrap();
+    for (point, p) in points.iter().zip(&p) {
+        let leaf = VoxelKey::from_point(*point, RESOLUTION).and_then(|k| {
+            let code = k.morton();
+            predicted
+                .leaves()
+                .iter()
+                .find(|l| l.start <= code && code.0 < l.end())
+        });
+        match leaf {
+            Some(leaf) => assert_eq!(*p > 0.5, leaf.log_odds > 0.0, "{point:?}: p {p}"),
+            None => assert!(p.is_nan(), "{point:?}: p {p} where no cell is"),
+        }
+    }
+    assert!(p[..p.len() - 1].iter().all(|p| p.is_finite()));
+}

@@ -34,6 +34,18 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+mod recording;
+mod services;
+
+pub use recording::{RecordingSink, TimeSource};
+
+pub use services::{
+    decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
+    MapData, Octomap, Point, ProbabilityAtRequest, ProbabilityAtResponse, RequestError,
+    ServiceHandler, ServiceMapping, Time, GET_OCTOMAP_AT_DDS_TYPE, GET_OCTOMAP_AT_SERVICE,
+    MAX_POINTS, PROBABILITY_AT_DDS_TYPE, PROBABILITY_AT_SERVICE,
+};
+
 use froctomap_convert::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
 use froctomap_octomap_codec::{parse_header, FileKind};
@@ -43,9 +55,10 @@ use rustdds::no_key::{
 };
 use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{
-    DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
-    RepresentationIdentifier, TopicKind,
+    DataWriterStatus, DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
+    RepresentationIdentifier, StatusEvented, TopicKind,
 };
+use services::{decode_request, encode_reply, RequestId};
 use std::convert::Infallible;
 use std::net::{IpAddr, Ipv4Addr};
 use std::path::{Path, PathBuf};
@@ -85,6 +98,8 @@ pub struct NodeOptions {
     pub network: Network,
     /// Larger messages are refused (logged and skipped).
     pub max_message_bytes: usize,
+    /// How service requests and replies are framed.
+    pub service_mapping: ServiceMapping,
 }
 
 impl NodeOptions {
@@ -95,6 +110,7 @@ impl NodeOptions {
             topic: DEFAULT_TOPIC.to_string(),
             network: Network::Loopback,
             max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
+            service_mapping: ServiceMapping::default(),
         }
     }
 }
@@ -208,11 +224,96 @@ pub enum Refused {
     Message(#[from] MessageError),
 }
 
-/// The node: a DDS participant with the map subscription and the predicted-map publisher.
+/// One service's request reader and reply writer.
+struct ServiceEndpoints {
+    name: &'static str,
+    requests: SimpleDataReader<Vec<u8>, RawCdr>,
+    replies: DataWriter<Vec<u8>, RawCdr>,
+    /// Readers matched to `replies`, from its status events.
+    matched_readers: std::cell::Cell<i32>,
+}
+
+impl ServiceEndpoints {
+    /// `rq/<service>Request` and `rr/<service>Reply` of types `<stem>_Request_` and
+    /// `<stem>_Response_`, as every RMW names them; reliable, volatile, as ROS's default
+    /// service QoS.
+    fn new(
+        participant: &DomainParticipant,
+        name: &'static str,
+        type_stem: &str,
+    ) -> Result<Self, NodeError> {
+        let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
+        let qos = QosPolicyBuilder::new()
+            .reliability(Reliability::Reliable {
+                max_blocking_time: rustdds::Duration::from_millis(100),
+            })
+            .durability(Durability::Volatile)
+            .history(History::KeepLast { depth: 64 })
+            .build();
+        let stem = dds_topic_name(name)?;
+        let stem = stem.strip_prefix("rt/").unwrap_or(&stem);
+        let request_topic = participant
+            .create_topic(
+                format!("rq/{stem}Request"),
+                format!("{type_stem}_Request_"),
+                &qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let reply_topic = participant
+            .create_topic(
+                format!("rr/{stem}Reply"),
+                format!("{type_stem}_Response_"),
+                &qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let requests = participant
+            .create_subscriber(&qos)
+            .map_err(dds)?
+            .create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&request_topic, Some(qos.clone()))
+            .map_err(dds)?;
+        let replies = participant
+            .create_publisher(&qos)
+            .map_err(dds)?
+            .create_datawriter_no_key::<Vec<u8>, RawCdr>(&reply_topic, Some(qos.clone()))
+            .map_err(dds)?;
+        Ok(Self {
+            name,
+            requests,
+            replies,
+            matched_readers: std::cell::Cell::new(0),
+        })
+    }
+
+    /// Waits (up to `wait`) until a reader is matched to the reply writer: a client's
+    /// reply reader may not be matched yet when its request arrives, and a reply written
+    /// before would be lost (replies are not kept for late readers).
+    fn wait_for_a_reader(&self, wait: Duration) {
+        let deadline = Instant::now() + wait;
+        loop {
+            while let Some(status) = self.replies.try_recv_status() {
+                if let DataWriterStatus::PublicationMatched { current, .. } = status {
+                    self.matched_readers.set(current.count());
+                }
+            }
+            if self.matched_readers.get() > 0 || Instant::now() >= deadline {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+/// The node: a DDS participant with the map subscription, the predicted-map publisher and
+/// the services.
 pub struct Node {
     participant: DomainParticipant,
     reader: SimpleDataReader<Vec<u8>, RawCdr>,
     predicted: DataWriter<Vec<u8>, RawCdr>,
+    get_octomap_at: ServiceEndpoints,
+    probability_at: ServiceEndpoints,
+    service_mapping: ServiceMapping,
     topic: String,
     max_message_bytes: usize,
 }
@@ -261,10 +362,23 @@ impl Node {
             .map_err(dds)?
             .create_datawriter_no_key::<Vec<u8>, RawCdr>(&predicted_topic, Some(qos.clone()))
             .map_err(dds)?;
+        let get_octomap_at = ServiceEndpoints::new(
+            &participant,
+            GET_OCTOMAP_AT_SERVICE,
+            GET_OCTOMAP_AT_DDS_TYPE,
+        )?;
+        let probability_at = ServiceEndpoints::new(
+            &participant,
+            PROBABILITY_AT_SERVICE,
+            PROBABILITY_AT_DDS_TYPE,
+        )?;
         Ok(Self {
             participant,
             reader,
             predicted,
+            get_octomap_at,
+            probability_at,
+            service_mapping: options.service_mapping,
             topic: options.topic.clone(),
             max_message_bytes: options.max_message_bytes,
         })
@@ -307,6 +421,120 @@ impl Node {
                 return Ok(accepted);
             }
             std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Answers every service request waiting (without blocking) through `handler`; returns
+    /// how many were answered. Requests that do not decode are logged and skipped.
+    pub fn serve_requests(&self, handler: &mut dyn ServiceHandler) -> usize {
+        let mut answered = 0;
+        while let Some(request) = self.take_request(&self.get_octomap_at) {
+            answered += usize::from(self.answer(&self.get_octomap_at, &request, |r| {
+                handler.get_octomap_at(r)
+            }));
+        }
+        while let Some(request) = self.take_request(&self.probability_at) {
+            answered += usize::from(self.answer(
+                &self.probability_at,
+                &request,
+                |r: &ProbabilityAtRequest| {
+                    if r.points.len() > MAX_POINTS {
+                        log::warn!(
+                            "{PROBABILITY_AT_SERVICE}: {} points are over the limit of {MAX_POINTS}; answering none",
+                            r.points.len()
+                        );
+                        return ProbabilityAtResponse { p: Vec::new() };
+                    }
+                    handler.probability_at(r)
+                },
+            ));
+        }
+        answered
+    }
+
+    fn take_request(&self, service: &ServiceEndpoints) -> Option<(Vec<u8>, RequestId)> {
+        loop {
+            match service.requests.try_take_one() {
+                Ok(Some(change)) => {
+                    let sample = RequestId::Sample {
+                        guid: change.writer_guid.to_bytes(),
+                        sequence: i64::from(change.sequence_number),
+                    };
+                    // Enhanced: the request may name its own identity.
+                    let sample = match change.related_sample_identity() {
+                        Some(identity) if self.service_mapping == ServiceMapping::Enhanced => {
+                            RequestId::Sample {
+                                guid: identity.writer_guid.to_bytes(),
+                                sequence: i64::from(identity.sequence_number),
+                            }
+                        }
+                        _ => sample,
+                    };
+                    return Some((change.into_value(), sample));
+                }
+                Ok(None) => return None,
+                Err(e) => log::warn!("{}: request skipped: {e}", service.name),
+            }
+        }
+    }
+
+    /// Decodes one request, answers it and writes the reply; says whether it did.
+    fn answer<Q, R>(
+        &self,
+        service: &ServiceEndpoints,
+        (message, sample): &(Vec<u8>, RequestId),
+        respond: impl FnOnce(&Q) -> R,
+    ) -> bool
+    where
+        Q: serde::de::DeserializeOwned,
+        R: serde::Serialize,
+    {
+        if message.len() > self.max_message_bytes {
+            log::warn!(
+                "{}: request of {} bytes is over the limit of {} bytes; skipped",
+                service.name,
+                message.len(),
+                self.max_message_bytes
+            );
+            return false;
+        }
+        let (id, request) =
+            match decode_request::<Q>(self.service_mapping, message, *sample, service.name) {
+                Ok(decoded) => decoded,
+                Err(e) => {
+                    log::warn!("{}: request skipped: {e}", service.name);
+                    return false;
+                }
+            };
+        let reply = match encode_reply(self.service_mapping, id, &respond(&request)) {
+            Ok(reply) => reply,
+            Err(e) => {
+                log::warn!("{}: the reply could not be encoded: {e}", service.name);
+                return false;
+            }
+        };
+        service.wait_for_a_reader(Duration::from_secs(2));
+        let written = match (self.service_mapping, id) {
+            (ServiceMapping::Enhanced, RequestId::Sample { guid, sequence }) => service
+                .replies
+                .write_with_options(
+                    reply,
+                    rustdds::WriteOptionsBuilder::new()
+                        .related_sample_identity(rustdds::SampleIdentity {
+                            writer_guid: rustdds::GUID::from_bytes(guid),
+                            sequence_number: rustdds::SequenceNumber::from(sequence),
+                        })
+                        .build(),
+                )
+                .map(|_| ()),
+            _ => service.replies.write(reply, None),
+        };
+        match written {
+            Ok(()) => true,
+            Err(e) => {
+                log::warn!("{}: the reply could not be sent: {e}", service.name);
+                false
+            }
         }
     }
 

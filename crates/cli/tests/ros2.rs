@@ -1,0 +1,132 @@
+//! `froctomap ros2 FILE` (cargo feature `ros2`) against the Cyclone DDS peer of
+//! tests/scripts/ros2_peer.py, all on loopback with a domain of its own: the maps the peer
+//! publishes are committed into FILE (created by the first commit, a line per commit), the
+//! node answers `get_octomap_at` from the living file, and SIGTERM commits and exits 0; the
+//! file then retrieves each map byte-identical.
+#![cfg(all(unix, feature = "ros2"))]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
+
+mod common;
+
+use common::{ok, s};
+use froctomap_test_support::{octomap_fixture, octomap_python, scratch, workspace_root};
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+/// Lines of a child's output, read on a thread.
+fn lines(out: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
+    let (send, receive) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if send.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    receive
+}
+
+/// The next line that satisfies `wanted`, within a minute.
+fn wait_for(lines: &mpsc::Receiver<String>, wanted: impl Fn(&str) -> bool) -> String {
+    loop {
+        match lines.recv_timeout(Duration::from_secs(60)) {
+            Ok(line) if wanted(&line) => return line,
+            Ok(_) => {}
+            Err(e) => panic!("no such line: {e}"),
+        }
+    }
+}
+
+#[test]
+fn the_node_records_serves_and_stops_on_sigterm() {
+    let dir = scratch();
+    let maps = [
+        octomap_fixture("few_voxels.bt"),
+        octomap_fixture("coarse_leaves.bt"),
+    ];
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(11);
+    let domain = 1 + (nanos ^ std::process::id()) % 200;
+    let mut peer = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
+        .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .arg("--predicted-out")
+        .arg(dir.path().join("unused.bt"))
+        .args(&maps)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the peer");
+    let events = lines(peer.stdout.take().expect("stdout"));
+    wait_for(&events, |l| l.contains("\"published\""));
+
+    let living = dir.path().join("living.froct");
+    let mut node = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args([
+            "ros2",
+            s(&living),
+            "--commit-every",
+            "1",
+            "--publish-every",
+            "1s",
+        ])
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start the node");
+    let commits = lines(node.stdout.take().expect("stdout"));
+    assert!(wait_for(&commits, |_| true).starts_with("base: 1 maps"));
+    let stdin = peer.stdin.as_mut().expect("stdin");
+    writeln!(stdin, "go").expect("tell the peer");
+    assert!(wait_for(&commits, |_| true).starts_with("segment 1: 1 maps"));
+
+    // The node answers from the living file it records.
+    let got = dir.path().join("got.bt");
+    writeln!(
+        stdin,
+        "{}",
+        serde_json::json!({"call": "get_octomap_at", "sec": 1_700_000_000, "nanosec": 0,
+            "predict": false, "out": got})
+    )
+    .expect("call");
+    let reply = wait_for(&events, |l| l.contains("get_octomap_at"));
+    assert!(reply.contains("\"success\": true"), "{reply}");
+    let data = |path: &std::path::Path| {
+        let file = std::fs::read(path).expect("read");
+        let at = file
+            .windows(6)
+            .position(|w| w == b"\ndata\n")
+            .expect("data")
+            + 6;
+        file[at..].to_vec()
+    };
+    assert_eq!(data(&got), data(&maps[0]));
+
+    // SIGTERM: what was received is committed, exit 0.
+    let killed = Command::new("kill")
+        .args(["-TERM", &node.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let status = node.wait().expect("wait");
+    assert!(status.success(), "{status}");
+    drop(peer.stdin.take());
+    let _ = peer.wait();
+
+    for (i, map) in maps.iter().enumerate() {
+        let out = dir.path().join(format!("{i}.bt"));
+        let time = (1_700_000_000 + i).to_string();
+        ok(&["-q", "retrieve", s(&living), "--time", &time, "-o", s(&out)]);
+        assert_eq!(
+            std::fs::read(&out).expect("read"),
+            std::fs::read(map).expect("read"),
+            "{}",
+            map.display()
+        );
+    }
+}

@@ -1,0 +1,190 @@
+//! The recording sink: each map received is appended to the living map through
+//! [`froctomap_convert::Recorder`], `froctomap record`'s commit path (segments committed
+//! every so many maps or so much time, a missing file created from the first commit, maps
+//! not later than the last one skipped and counted, bad maps left out).
+
+use crate::{MapSink, ReceivedMap};
+use froctomap_convert::{RecordError, RecordSummary, Recorder};
+use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+/// Which time a received map is recorded at.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TimeSource {
+    /// The message's `header.stamp` (the default; an unset stamp is refused).
+    #[default]
+    Header,
+    /// The time the node received it (the system clock).
+    Receive,
+}
+
+impl std::str::FromStr for TimeSource {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "header" => Ok(Self::Header),
+            "receive" => Ok(Self::Receive),
+            _ => Err(format!("`{text}` is not a time source (header, receive)")),
+        }
+    }
+}
+
+/// Appends the maps received to a FROctomap file.
+pub struct RecordingSink<'a> {
+    recorder: Recorder<'a>,
+    time_source: TimeSource,
+    min_interval: Duration,
+    last_taken: Option<Timestamp>,
+    thinned: u64,
+}
+
+impl<'a> RecordingSink<'a> {
+    /// Records into `recorder`'s file at the times `time_source` gives, taking at most one
+    /// map per `min_interval` (zero: every map).
+    pub fn new(recorder: Recorder<'a>, time_source: TimeSource, min_interval: Duration) -> Self {
+        Self {
+            recorder,
+            time_source,
+            min_interval,
+            last_taken: None,
+            thinned: 0,
+        }
+    }
+
+    /// Commits if a commit by time is due; the node's loop calls it between receptions.
+    pub fn tick(&mut self) -> Result<(), RecordError> {
+        self.recorder.commit_if_due()
+    }
+
+    /// Maps left out by `--min-interval` so far.
+    pub fn thinned(&self) -> u64 {
+        self.thinned
+    }
+
+    /// The recording's counts so far.
+    pub fn summary(&self) -> RecordSummary {
+        self.recorder.summary()
+    }
+
+    /// Commits what is gathered and ends the recording.
+    pub fn finish(self) -> Result<RecordSummary, RecordError> {
+        self.recorder.finish()
+    }
+}
+
+impl MapSink for RecordingSink<'_> {
+    fn receive(
+        &mut self,
+        map: ReceivedMap,
+    ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let time = match self.time_source {
+            TimeSource::Header if map.stamp.0 == 0 => {
+                return Err("the message has no header.stamp (use --time-source receive)".into())
+            }
+            TimeSource::Header => map.stamp,
+            TimeSource::Receive => {
+                let now = SystemTime::now().duration_since(UNIX_EPOCH)?;
+                Timestamp(i64::try_from(now.as_nanos())?)
+            }
+        };
+        if let Some(last) = self.last_taken {
+            let since = i128::from(time.0) - i128::from(last.0);
+            if since > 0 && since < self.min_interval.as_nanos() as i128 {
+                self.thinned += 1;
+                return Ok(());
+            }
+        }
+        if self.recorder.take_bytes(time, &map.file)? {
+            self.last_taken = Some(time);
+        } else {
+            log::warn!(
+                "the map at {} is not later than the last one taken: skipped ({} so far)",
+                iso8601(time),
+                self.recorder.summary().older
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_convert::{
+        AppendOptions, CommitEvery, Context, FroctFile, RecordOptions, SeriesRead,
+    };
+
+    fn map(stamp_s: i64) -> ReceivedMap {
+        let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../fixtures/octomap/few_voxels.bt");
+        ReceivedMap {
+            stamp: Timestamp(stamp_s * 1_000_000_000),
+            binary: true,
+            file: std::fs::read(fixture).expect("the fixture"),
+        }
+    }
+
+    fn sink<'a>(
+        context: &'a Context,
+        file: &std::path::Path,
+        source: TimeSource,
+        min: u64,
+    ) -> RecordingSink<'a> {
+        let options = RecordOptions {
+            commit_every: CommitEvery::Maps(1),
+            append: AppendOptions {
+                skip_bad: true,
+                allow_mostly_skipped: true,
+                ..AppendOptions::default()
+            },
+            spool_dir: None,
+        };
+        let recorder = Recorder::open(context, file, options).expect("open");
+        RecordingSink::new(recorder, source, Duration::from_secs(min))
+    }
+
+    #[test]
+    fn header_stamps_are_thinned_by_min_interval_and_unset_ones_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("living.froct");
+        let context = Context::with_default_plugins();
+        let mut sink = sink(&context, &file, TimeSource::Header, 10);
+        assert!(sink.receive(map(0)).is_err(), "an unset stamp is refused");
+        for s in [
+            1_700_000_000,
+            1_700_000_004,
+            1_700_000_011,
+            1_700_000_011,
+            1_700_000_005,
+        ] {
+            sink.receive(map(s)).expect("taken or skipped");
+        }
+        assert_eq!(sink.thinned(), 1, "4 s after the last one taken");
+        let summary = sink.finish().expect("finish");
+        assert_eq!((summary.committed_maps, summary.older), (2, 2));
+        let reader = FroctFile::open(&file).expect("the file");
+        let times: Vec<_> = (0..reader.sample_count())
+            .filter(|&s| !reader.is_missing(s))
+            .filter_map(|s| reader.sample_time(s))
+            .collect();
+        assert_eq!(times, [map(1_700_000_000).stamp, map(1_700_000_011).stamp]);
+    }
+
+    #[test]
+    fn receive_time_records_at_the_clock() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("living.froct");
+        let context = Context::with_default_plugins();
+        let before = SystemTime::now().duration_since(UNIX_EPOCH).expect("clock");
+        let mut sink = sink(&context, &file, TimeSource::Receive, 0);
+        sink.receive(map(0)).expect("an unset stamp is fine here");
+        sink.finish().expect("finish");
+        let after = SystemTime::now().duration_since(UNIX_EPOCH).expect("clock");
+        let reader = FroctFile::open(&file).expect("the file");
+        // Within the two clock readings (a second either side: not a timing check).
+        let t = reader.last_instant().0.div_euclid(1_000_000_000) as u64;
+        assert!(t + 1 >= before.as_secs() && t <= after.as_secs() + 1, "{t}");
+    }
+}
