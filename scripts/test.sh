@@ -33,8 +33,8 @@ step cargo clippy --workspace --all-targets --locked -- -D warnings
 step cargo test --workspace --locked "$@"
 # `froctomap ros2` (cargo feature `ros2`, off by default) against the Cyclone DDS peer, on
 # loopback; its code linted with the feature on.
-cargo clippy --locked -p froctomap-cli --features ros2 --all-targets -- -D warnings
-cargo test --locked -p froctomap-cli --features ros2 --test ros2
+step cargo clippy --locked -p froctomap-cli --features ros2 --all-targets -- -D warnings
+step cargo test --locked -p froctomap-cli --features ros2 --test ros2
 
 # The README's Install section: `cargo install` of the CLI (debug profile, reusing this
 # build's artifacts), then the installed binary runs from outside the checkout; the pure-Rust
