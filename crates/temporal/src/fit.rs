@@ -298,48 +298,25 @@ fn holdout_order<S: Spectral>(
 /// Largest part of a voxel's samples held out to validate its order and shrinkage.
 pub(crate) const MAX_HOLDOUT_FRACTION: f64 = 0.5;
 
-/// Steps by which the held-out part grows from `holdout-fraction` towards
-/// [`MAX_HOLDOUT_FRACTION`] until it spans the voxel's longest usable period.
-const HOLDOUT_STEP: f64 = 0.05;
-
-/// The part of `obs`'s observed samples held out: the least of `fraction` (the option),
-/// `fraction + HOLDOUT_STEP`, … up to half whose held-out part spans one whole cycle of the
-/// longest period the whole voxel can use while the fit part still uses that period
-/// (`min_cycles` times); `fraction` when none does. The held-out part then sees every period
-/// of the voxel and the fit keeps as many samples as it can: validated on greg_door's
-/// training weeks (docs/BENCHMARKS.md), holding out half where a quarter already spans the
-/// week predicted worse (0.785× the static mean's Brier score against 0.760×).
+/// The part of `obs`'s observed samples held out: half of them when the first half still
+/// spans the longest period the whole voxel can use (`min_cycles` times), so that the held-out
+/// part holds as many cycles of every period as it can without the fit losing one; else
+/// `fraction` (the option).
 fn holdout_fraction<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f64) -> f64 {
     let Some((first, last)) = obs.observed_range() else {
         return fraction;
     };
-    let Some(longest) = model.longest_usable_period(first, last) else {
-        return fraction;
-    };
     let n = obs.observed_count();
-    let axis = model.time_axis();
-    for k in 0u32.. {
-        let held = (fraction + f64::from(k) * HOLDOUT_STEP).min(MAX_HOLDOUT_FRACTION.max(fraction));
-        let fit_count = ((1.0 - held) * n as f64).ceil() as u64;
-        let split = obs.sample_after_observed(fit_count.min(n));
-        let fit_last = split.saturating_sub(1).max(first);
-        // A larger held-out part only shortens the fit further.
-        if model
-            .longest_usable_period(first, fit_last)
-            .is_none_or(|fit| fit < longest)
-        {
-            break;
-        }
-        let held_span =
-            axis.sample_seconds(last) - axis.sample_seconds(split) + axis.mean_step_seconds();
-        if held_span >= longest {
-            return held;
-        }
-        if held >= MAX_HOLDOUT_FRACTION {
-            break;
-        }
+    let half = ((1.0 - MAX_HOLDOUT_FRACTION) * n as f64).ceil() as u64;
+    let split = obs.sample_after_observed(half.min(n));
+    let fit_last = split.saturating_sub(1).max(first);
+    match (
+        model.longest_usable_period(first, last),
+        model.longest_usable_period(first, fit_last),
+    ) {
+        (Some(whole), Some(fit)) if fit >= whole => fraction.max(MAX_HOLDOUT_FRACTION),
+        _ => fraction,
     }
-    fraction
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -601,32 +578,6 @@ mod tests {
             ratios.iter().all(|r| (r - factor).abs() < 1e-3),
             "{ratios:?}"
         );
-    }
-
-    /// The held-out part is the least of 25 %, 30 %, … 50 % that spans a whole cycle of the
-    /// voxel's longest usable period while the fit keeps that period; else 25 %.
-    #[test]
-    fn the_held_out_part_is_the_least_that_spans_the_longest_period() {
-        // Hourly samples for `n` hours.
-        let fraction_for = |n: u32| {
-            let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, n, vec![]).unwrap();
-            let mut b = ObservationsBuilder::new();
-            for i in 0..n {
-                b.push(i, Some(Occupancy::from(i % 24 < 8))).unwrap();
-            }
-            let model = FremenPeriods
-                .prepare_periods(&axis, &ModelConfig::default())
-                .unwrap();
-            holdout_fraction(&model, &b.finish(), 0.25)
-        };
-        // 10 weeks: a quarter (2.5 weeks) already spans the week.
-        assert_eq!(fraction_for(10 * 168), 0.25);
-        // 20 days: a quarter is 5 days; 35 % (7 days) spans the week, and the fit's 13 days
-        // still hold 1.5 weeks.
-        assert!((fraction_for(20 * 24) - 0.35).abs() < 1e-9);
-        // 2 days: no held-out part spans the longest usable period (28 h) and leaves the
-        // fit 1.5 of it.
-        assert_eq!(fraction_for(48), 0.25);
     }
 
     /// The periods a voxel's fit keeps, in hours, strongest first.

@@ -39,9 +39,8 @@
 //! - **Model order per voxel.** [`Order::Fixed`] or [`Order::Auto`]: the best held-out
 //!   prediction (default, also in lossless files) or the smallest encoded voxel
 //!   ([`OrderCriterion`]); see [`Order`]. Options `order`, `max-order`, `criterion`.
-//! - **Prediction validated on held-out data, not only fitted.** The held-out part is the
-//!   least (from `holdout-fraction` up to half) that spans a whole cycle of a voxel's
-//!   longest usable period while the fit keeps it; where it spans whole cycles of
+//! - **Prediction validated on held-out data, not only fitted.** The held-out part is half
+//!   a voxel's samples when the fit half keeps every period; where it spans whole cycles of
 //!   an order's periods, the amplitudes may be shrunk (`shrink`), orders above 5 compete, and
 //!   an order's crossings of 0.5 must beat the mean's decisions significantly (a sign test)
 //!   or be shrunk away. The stored parameters are this prediction model; lossless files stay

@@ -17,9 +17,8 @@ pub enum Order {
     ///   (a component must earn its place: noise-like voxels keep the mean alone); the
     ///   chosen order is then refitted on all samples. This targets prediction;
     ///   in lossless mode the outliers still make the states exact. The held-out part is
-    ///   the least of `holdout-fraction`, then 5 % more at a time up to half, that spans a
-    ///   whole cycle of the voxel's longest usable period while the fit part still uses
-    ///   that period (else `holdout-fraction`). Where it spans a whole cycle of every period of
+    ///   half the samples when the first half still spans the voxel's longest usable
+    ///   period (else `holdout-fraction`). Where it spans a whole cycle of every period of
     ///   an order, that order may also be shrunk (`shrink`) and may exceed 5, but its
     ///   decisions (p > 0.5) that differ from the mean's must be right on the held-out part
     ///   significantly more often than wrong (net gain ≥ 2·√changes); where it does not,
@@ -112,7 +111,7 @@ pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const HOLDOUT_FRACTION: OptionDescriptor = OptionDescriptor {
     key: "holdout-fraction",
-    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); raised by 0.05 at a time, up to half, until the held-out part spans the longest usable period (while the fit keeps it)",
+    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); half when the first half still spans the longest usable period",
     default: "0.25",
 };
 
@@ -142,10 +141,9 @@ pub struct SpectralOptions {
     /// `min_cycles` periods long. Default 1.5. Applies to DFT bins too.
     pub min_cycles: f64,
     /// Least fraction of each voxel's observed samples (the latest ones) held out to choose
-    /// the order: raised by 0.05 at a time, up to half, until the held-out part spans a whole
-    /// cycle of the longest period the voxel can use while the fit part still uses it
-    /// (`min_cycles` times), so that the held-out part sees every period and the fit keeps
-    /// as many samples as it can. Default 0.25.
+    /// the order: half of them when the first half still spans the longest period the voxel
+    /// can use (`min_cycles` times), so that the held-out part holds as many whole cycles as
+    /// the fit can spare. Default 0.25.
     pub holdout_fraction: f64,
     /// With [`Order::Auto`] and the prediction criterion, let the held-out samples also
     /// choose a factor (1, 0.8, 0.6, 0.4 or 0.2) the amplitudes are shrunk by, where the held-out
