@@ -36,6 +36,9 @@ if [ "$size" = ci ]; then
     scripts/python-client.sh target/interop-venv
     cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci \
       --data "$greg_door" --python target/interop-venv/bin/python --out target/greg-door-ci
+    # Its validation mode (training weeks 4-6 fitted, week 7 scored; test weeks not read).
+    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci --validate \
+      --data "$greg_door" --python target/interop-venv/bin/python --out target/greg-door-ci-validate
   else
     echo "bench.sh: $greg_door/training_data.txt is missing: the greg_door benchmark is skipped" >&2
   fi

@@ -15,8 +15,13 @@ Output (stdout, JSON): per order k and test week, the thresholded error (p > 0.5
 Brier score and the log loss (p clipped to [eps, 1 - eps]) on every `stride`-th test sample,
 and the same for the static mean.
 
+With `--validate-until T` the test files are not read: the model is fitted on the training
+samples before T only, and the weeks are the held-back training weeks, week W being the
+training samples in [start + (W-1)·7 days, start + W·7 days) (start = the first training
+sample).
+
 Usage: fremen_reference.py DATA_DIR --weeks 1,2,...,9 --stride 10 --orders 0,1,2,3,4,5
-       [--train-from UNIX_TIME] [--eps 1e-3]
+       [--train-from UNIX_TIME] [--validate-until UNIX_TIME] [--eps 1e-3]
 """
 import argparse
 import json
@@ -48,10 +53,15 @@ def main():
     parser.add_argument("--stride", type=int, default=10)
     parser.add_argument("--orders", default="0,1,2,3,4,5")
     parser.add_argument("--train-from", type=float, default=None)
+    parser.add_argument("--validate-until", type=float, default=None)
     parser.add_argument("--eps", type=float, default=1e-3)
     args = parser.parse_args()
 
     t, state = load_pairs(f"{args.data}/training_data.txt")
+    all_t, all_state, start = t, state, float(t[0])
+    if args.validate_until is not None:
+        keep = t < args.validate_until
+        t, state = t[keep], state[keep]
     if args.train_from is not None:
         keep = t >= args.train_from
         t, state = t[keep], state[keep]
@@ -65,8 +75,15 @@ def main():
            "strongest_first": [float(periods[j]) for j in strongest], "weeks": {}}
     orders = [int(k) for k in args.orders.split(",")]
     for week in [int(w) for w in args.weeks.split(",")]:
-        times = np.loadtxt(f"{args.data}/test_times_{week}.txt", dtype=np.float64)
-        truth = 1.0 - np.loadtxt(f"{args.data}/test_data_{week}.txt", dtype=np.float64)
+        if args.validate_until is None:
+            times = np.loadtxt(f"{args.data}/test_times_{week}.txt", dtype=np.float64)
+            truth = 1.0 - np.loadtxt(f"{args.data}/test_data_{week}.txt", dtype=np.float64)
+        else:
+            lo, hi = start + (week - 1) * WEEK, start + week * WEEK
+            inside = (all_t >= max(lo, args.validate_until)) & (all_t < hi)
+            times, truth = all_t[inside], 1.0 - all_state[inside]
+            if len(times) == 0:
+                raise SystemExit(f"validation week {week}: no training samples after the fit")
         times, truth = times[:: args.stride], truth[:: args.stride]
         row = {"static mean": scores(np.full_like(times, mean), truth, args.eps)}
         for k in orders:
