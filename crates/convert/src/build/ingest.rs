@@ -384,8 +384,9 @@ pub(super) struct Intaken {
     /// Voxel-samples of the inputs whose state changed (the seed not counted).
     pub changed_voxels: u64,
     pub read_seconds: f64,
-    /// Where `accumulated` spilled: removed when dropped, so kept until the write is done.
-    pub spill_place: SpillPlace,
+    /// Where `accumulated` spilled: removed when dropped, so held (never read) until the
+    /// write is done.
+    _spill_place: SpillPlace,
 }
 
 impl Intake<'_> {
@@ -472,7 +473,7 @@ impl Intake<'_> {
             warnings: extracted.warnings,
             changed_voxels,
             read_seconds,
-            spill_place,
+            _spill_place: spill_place,
         })
     }
 }
