@@ -20,9 +20,11 @@
 //!    their chunk is fitted, complete tiles compressed in parallel) and `TileWriter` (the
 //!    tiles in order into the file, atomically, summing the counts).
 //!
-//! [`build()`] wires them: the stages pass values, never reach into each other, and report
-//! typed errors ([`ConvertError`], [`SnapshotError`]). [`append()`](append::append) wires the
-//! same stages around an existing file, with [`merge`] joining its cells to the new ones.
+//! [`ingest`](mod@ingest) wires them for every target (plan → intake, stages 1–3, shared →
+//! write): the stages pass values, never reach into each other, and report typed errors
+//! ([`ConvertError`], [`SnapshotError`]). A new file ([`build()`]) is written by stages 4
+//! and 5; an existing file is rewritten ([`append()`](append::append)) with [`merge`]
+//! joining its cells to the new ones before them, or given a [`segment`].
 
 mod accumulate;
 mod append;

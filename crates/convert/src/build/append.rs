@@ -2,7 +2,7 @@
 //! the file and the new snapshots, never with the snapshots the file was built from (they
 //! may be gone).
 //!
-//! The build's stages, wired around the file:
+//! The ingest of [`IngestTarget::Rewrite`]: the build's stages, wired around the file:
 //!
 //! 1. The file's header gives the resolution, tile depth, model, codec and toggle layout;
 //!    the new time axis is the old one extended by the new times ([`extended_axis`]).

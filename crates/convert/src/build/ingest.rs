@@ -283,9 +283,9 @@ pub(super) fn as_iso8601<S: serde::Serializer>(
 ///
 /// The stages are the same for every target (plan → input check → change extraction →
 /// accumulation → write, see the module `build`); what is written is atomic: on any error
-/// a new file does not appear, an existing one is left as it was. Inputs left out with
-/// `skip_bad` (and the parts of recordings left out while collecting, `inputs.left_out`)
-/// are listed in the report's `skipped`, in that order. Maps added to an existing file
+/// a new file does not appear, an existing one is left as it was. The report's `skipped`
+/// lists the parts of recordings left out while collecting (`inputs.left_out`), then the
+/// inputs left out with `skip_bad`. Maps added to an existing file
 /// must all be later than its last sample and of its resolution
 /// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`] naming the file).
 ///

@@ -1,4 +1,5 @@
-//! Segment ingest: later maps added to a format 2.0 file as one new segment
+//! Segment ingest ([`IngestTarget::Writer`], [`IngestTarget::Segment`]): later maps added
+//! to a format 2.0 file as one new segment
 //! ([FORMAT.md §10](../../../../docs/FORMAT.md), [LIVING-MAP.md](../../../../docs/LIVING-MAP.md)),
 //! at a cost that follows the new maps, not the file's history.
 //!
@@ -9,8 +10,8 @@
 //!    naming `fremen-periods`), the inputs must come after the file's last sample; the
 //!    segment's own axis piece numbers the new maps from 0 (`axis_for_times` of their
 //!    instants: off the base's grid is fine, no earlier sample is renumbered).
-//! 2. **check → extract → accumulate** — the build's stages ([`InputCheck`],
-//!    [`ChangeExtractor`], [`accumulate_series`]) on the new maps, the first compared with
+//! 2. **check → extract → accumulate** — the ingest's shared [`Intake`] (the build's
+//!    `InputCheck`, `ChangeExtractor`, `accumulate_series`) on the new maps, the first compared with
 //!    nothing (a segment's lists restart at the segment, so its histories do too), inputs of
 //!    another resolution than the file's refused. Unobserved samples are unknown.
 //! 3. **join** ([`BaseJoin`]) — per accumulated tile, the cells observed in one state stay
