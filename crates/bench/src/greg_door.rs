@@ -485,7 +485,7 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
     }
     let options = BuildOptions {
         config,
-        created: Some(Timestamp::from_secs(0)),
+        time: Some(Timestamp::from_secs(0)),
         ..BuildOptions::default()
     };
     let started = Instant::now();

@@ -289,7 +289,7 @@ mod tests {
         let times: Vec<Timestamp> = recorded.iter().map(|i| i.time).collect();
         assert_eq!(times, inputs.iter().map(|i| i.time).collect::<Vec<_>>());
         let options = BuildOptions {
-            created: Some(Timestamp::from_secs(1_700_100_000)),
+            time: Some(Timestamp::from_secs(1_700_100_000)),
             ..BuildOptions::default()
         };
         let (a, b) = (dir.path().join("a.froct"), dir.path().join("b.froct"));

@@ -1,14 +1,17 @@
 //! `froctomap append`: later snapshots added to a FROctomap file, a thin layer over
-//! `froctomap_convert::append` (format 1.x: the file rebuilt) and
-//! `froctomap_convert::append_living` (format 2.0: one segment committed).
+//! `froctomap_convert::ingest` (format 1.x: the file rewritten, `IngestTarget::Rewrite`;
+//! format 2.0: one segment committed, `IngestTarget::Segment`).
 
 use crate::progress::Bars;
 use crate::series::{print_input_notes, tags_metadata, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use froctomap_convert::{append, append_living, group_thousands, is_living_file, AppendOptions};
+use froctomap_convert::{
+    group_thousands, ingest, is_living_file, AppendReport, IngestOptions, IngestTarget,
+};
 use froctomap_core::calendar::iso8601;
+use froctomap_temporal::ModelConfig;
 use froctomap_temporal::ModelOptions;
 use std::path::PathBuf;
 
@@ -78,7 +81,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     crate::series::note_stream(ui, &args.inputs, spool.as_deref());
     let context = &args.times.context(ui, args.skip_bad, spool);
     let collected = args.times.collect(ui, context, &args.inputs)?;
-    let inputs = collected.series;
+    let inputs = &collected.series;
     let mut model_options = ModelOptions::new();
     for assignment in &args.model_option {
         model_options
@@ -86,20 +89,22 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
             .context("--model-option")?;
     }
     let metadata = tags_metadata(&args.tag)?;
-    let options = AppendOptions {
-        model_options,
+    let mut config = ModelConfig::default();
+    config.options = model_options;
+    let options = IngestOptions {
+        config,
         skip_bad: args.skip_bad,
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
-        appended: args
+        time: args
             .appended
             .as_deref()
             .map(|text| ui.time(text, "--appended"))
             .transpose()?,
         memory: args.spill.memory,
         tmp_dir: args.spill.tmp_dir.clone(),
-        ..AppendOptions::default()
+        ..IngestOptions::default()
     };
     ui.note(&format!(
         "appending {} snapshots ({} .. {}) to {}",
@@ -123,14 +128,13 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
         ));
     }
     let bars = Bars::new(ui.quiet);
-    let mut report = if as_segment {
-        append_living(context, &args.file, &inputs, &options, &bars)?.0
+    let target = if as_segment {
+        IngestTarget::Segment(&args.file)
     } else {
-        append(context, &args.file, &inputs, &options, &bars)?
+        IngestTarget::Rewrite(&args.file)
     };
+    let report = AppendReport::from(ingest(context, &collected, target, &options, &bars)?);
     drop(bars);
-    // Damaged parts of recordings, left out before the append saw their maps.
-    report.skipped.splice(0..0, collected.skipped);
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {

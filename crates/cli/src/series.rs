@@ -8,10 +8,10 @@ use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use froctomap_convert::{
-    build, check_range, collect_inputs_explained, evaluate, export, parse_duration,
-    resolve_observed_with, write_observed_map, write_predicted_map, BuildOptions, EvalReport,
-    ExportMode, ExportOptions, Pick, RecordedTime, RecordingOptions, SeriesInput, TimeQuery,
-    TimeSource,
+    check_range, collect_inputs_explained, evaluate, export, ingest, parse_duration,
+    resolve_observed_with, write_observed_map, write_predicted_map, EvalReport, ExportMode,
+    ExportOptions, IngestOptions, IngestTarget, Pick, RecordedTime, RecordingOptions, SeriesInput,
+    TimeQuery, TimeSource,
 };
 use froctomap_convert::{group_thousands, SeriesRead};
 use froctomap_core::calendar::iso8601;
@@ -439,13 +439,13 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let inputs = collected.series;
+    let inputs = &collected.series;
     let output = args
         .output
         .as_deref()
         .context("--output is required to build")?;
     let metadata = tags_metadata(&args.tag)?;
-    let options = BuildOptions {
+    let options = IngestOptions {
         model: args.model.clone(),
         config: model_config(args, context().models())?,
         tile_depth: args.tile_depth,
@@ -467,10 +467,10 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,
-        created: creation_time(ui, args)?,
+        time: creation_time(ui, args)?,
         memory: args.spill.memory,
         tmp_dir: args.spill.tmp_dir.clone(),
-        ..BuildOptions::default()
+        ..IngestOptions::default()
     };
     ui.note(&format!(
         "building {} from {} snapshots ({} .. {})",
@@ -480,10 +480,9 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
     ));
     let bars = Bars::new(ui.quiet);
-    let mut report = build(series_context, &inputs, output, &options, &bars)?;
+    let target = IngestTarget::NewFile(output);
+    let report = ingest(series_context, &collected, target, &options, &bars)?;
     drop(bars);
-    // Damaged parts of recordings, left out before the build saw their maps.
-    report.skipped.splice(0..0, collected.skipped);
     let peak = peak_memory_bytes();
     if args.json {
         let mut value = serde_json::to_value(&report)?;

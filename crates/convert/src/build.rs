@@ -11,7 +11,7 @@
 //! 3. [`accumulate`] — `Accumulator`: the batches applied in time order to the cells'
 //!    histories, on threads split by space; → `Accumulated`, whose `into_cells` streams the
 //!    cells with their observations in Morton order, tile after tile.
-//!    Within a memory budget ([`BuildOptions::memory`]), what grows with the series is
+//!    Within a memory budget ([`IngestOptions::memory`]), what grows with the series is
 //!    spilled to files in a temporary directory ([`spill`]) and read back tile by tile.
 //! 4. [`fit`] — `TileFitter`: a `TileHistory` → a `FittedTile` (cells as stored, counts by
 //!    class); `fit_and_write` drives stages 4 and 5 over the cell stream in parallel steps
@@ -20,15 +20,18 @@
 //!    their chunk is fitted, complete tiles compressed in parallel) and `TileWriter` (the
 //!    tiles in order into the file, atomically, summing the counts).
 //!
-//! [`build()`] wires them: the stages pass values, never reach into each other, and report
-//! typed errors ([`ConvertError`], [`SnapshotError`]). [`append()`](append::append) wires the
-//! same stages around an existing file, with [`merge`] joining its cells to the new ones.
+//! [`ingest`](mod@ingest) wires them for every target (plan → intake, stages 1–3, shared →
+//! write): the stages pass values, never reach into each other, and report typed errors
+//! ([`ConvertError`], [`SnapshotError`]). A new file ([`build()`]) is written by stages 4
+//! and 5; an existing file is rewritten ([`append()`](append::append)) with [`merge`]
+//! joining its cells to the new ones before them, or given a [`segment`].
 
 mod accumulate;
 mod append;
 mod check;
 mod extract;
 mod fit;
+mod ingest;
 mod merge;
 mod segment;
 mod spill;
@@ -39,103 +42,33 @@ mod write;
 use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
-use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
 pub use append::{append, AppendOptions, AppendReport};
-use check::{InputCheck, TileBudget};
-use extract::{ChangeExtractor, ExtractOptions};
+use extract::ChangeExtractor;
 use fit::{fit_and_write, TileFitter};
-use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
-use froctomap_file::{Codec, Header, ToggleLayout, WrittenFile};
-use froctomap_formats::{Backend, FormatError, ReadOptions};
-use froctomap_temporal::{ModelConfig, OutlierMode, TimeAxis};
+use froctomap_file::{Header, WrittenFile};
+use froctomap_formats::FormatError;
+use froctomap_temporal::{OutlierMode, TimeAxis};
+pub use ingest::{ingest, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget};
+use ingest::{Intake, Run};
 pub use segment::{append_living, append_segment, is_living_file, refuse_growing_fixed_span};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use spill::SpillPlace;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 use write::{TileEncoder, TileWriter};
 
-/// How to build.
-#[derive(Clone, Debug)]
-pub struct BuildOptions {
-    /// Temporal model name (see `froctomap_temporal::ModelRegistry`). Default `fremen-periods`,
-    /// which works on any time axis.
-    pub model: String,
-    /// Model settings: lossless/lossy, and the model's own options (see its descriptor).
-    pub config: ModelConfig,
-    /// Depth of the tiles of the output (default 10: cubes of 64 voxels per edge).
-    pub tile_depth: u8,
-    /// Tile codec (default zstd level 19).
-    pub codec: Codec,
-    /// How toggle lists are stored (default: blocks of 256 samples, format 1.1, so that a
-    /// query at one sample reads one block).
-    pub toggles: ToggleLayout,
-    /// Leave unreadable files and files of another resolution out (listed in the report)
-    /// instead of stopping.
-    pub skip_bad: bool,
-    /// The series' resolution, metres; `None`: the one most input headers give. Inputs of
-    /// another resolution are refused (or left out with `skip_bad`).
-    pub resolution: Option<f64>,
-    /// With `skip_bad`, build even when more than half of the inputs are left out (refused
-    /// by default: the series is probably not the one meant).
-    pub allow_mostly_skipped: bool,
-    /// Force the input map format.
-    pub input_format: Option<String>,
-    /// Preferred implementation for reading maps.
-    pub backend: Option<Backend>,
-    /// Extra metadata stored in the file header (e.g. `tags`, `source`).
-    pub metadata: Map<String, Value>,
-    /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
-    pub batch: usize,
-    /// Creation time stored in the metadata (`created`), to the second; `None`: now. A fixed
-    /// time makes the file reproducible (the build's timings are then not stored either): the
-    /// same inputs and options give the same bytes.
-    pub created: Option<Timestamp>,
-    /// Memory budget of the accumulated histories, in bytes (default 64 MiB). What grows with
-    /// the number of snapshots (each cell's closed runs, the regions partial views hid) is
-    /// spilled to disk when the histories reach it, and read back one tile at a time for
-    /// fitting, so peak memory depends on the map and this budget, not on the length of
-    /// the series. The cells themselves, the snapshots being read and the tiles being
-    /// fitted come on top. The output is the same whatever the budget; `0` spills after
-    /// every snapshot.
-    pub memory: u64,
-    /// Directory for the spill data (default: the output's directory). The data is kept in
-    /// a hidden `.froct-spill-…` directory there, removed when the build ends, whether it
-    /// succeeds or fails (and on Ctrl-C/SIGTERM in the command-line tool).
-    pub tmp_dir: Option<PathBuf>,
-}
+/// How to build: the options of [`ingest`], kept under their old name.
+pub type BuildOptions = IngestOptions;
 
-/// The default [`BuildOptions::memory`]: 64 MiB. Small enough that peak memory stops growing
+/// The default [`IngestOptions::memory`]: 64 MiB. Small enough that peak memory stops growing
 /// with the series within hours of 5 s snapshots (on the benchmark's map a quarter of a day's
 /// histories take about 80 MiB), at the price of writing the histories to disk once; series
 /// whose histories fit in it never spill.
 pub const DEFAULT_BUILD_MEMORY: u64 = 64 << 20;
-
-impl Default for BuildOptions {
-    fn default() -> Self {
-        Self {
-            model: "fremen-periods".to_string(),
-            config: ModelConfig::default(),
-            tile_depth: 10,
-            codec: Codec::default(),
-            toggles: ToggleLayout::DEFAULT,
-            skip_bad: false,
-            resolution: None,
-            allow_mostly_skipped: false,
-            input_format: None,
-            backend: None,
-            metadata: Map::new(),
-            batch: 8 * rayon::current_num_threads().max(1),
-            created: None,
-            memory: DEFAULT_BUILD_MEMORY,
-            tmp_dir: None,
-        }
-    }
-}
 
 /// Cell and voxel counts by class.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -176,56 +109,8 @@ impl ClassCounts {
     }
 }
 
-/// What a build did.
-#[derive(Clone, Debug, Serialize)]
-pub struct BuildReport {
-    /// The file written.
-    pub output: PathBuf,
-    /// Snapshots given.
-    pub inputs: usize,
-    /// Snapshots used.
-    pub used: usize,
-    /// Files left out with `skip_bad`, and why.
-    pub skipped: Vec<(PathBuf, String)>,
-    /// Reader warnings (file, message), e.g. tolerated header problems.
-    pub warnings: Vec<(PathBuf, String)>,
-    /// Total bytes of the input files used.
-    pub input_bytes: u64,
-    /// Samples of the time axis.
-    pub samples: u32,
-    /// `true` for a regular axis.
-    pub regular_axis: bool,
-    /// Cells by class.
-    pub cells: ClassCounts,
-    /// Voxels by class.
-    pub voxels: ClassCounts,
-    /// Outlier toggles stored (lossless).
-    pub toggles: u64,
-    /// Observed cell-samples the model gets wrong without outliers (lossy files store no
-    /// outliers, so these are their reconstruction errors).
-    pub model_errors: u64,
-    /// Voxel-samples whose state changed between consecutive snapshots.
-    pub changed_voxels: u64,
-    /// Bytes of the output, by part.
-    pub file_bytes: u64,
-    /// Header bytes.
-    pub header_bytes: u64,
-    /// Index and footer bytes.
-    pub index_bytes: u64,
-    /// Stored tile bytes.
-    pub tile_bytes: u64,
-    /// Seconds spent reading and accumulating the inputs.
-    pub read_seconds: f64,
-    /// Of those, seconds spent applying changes to the cells (the part that is sequential).
-    pub accumulate_seconds: f64,
-    /// Seconds spent fitting, encoding and writing.
-    pub model_seconds: f64,
-    /// Bytes of history spilled to disk to stay within [`BuildOptions::memory`] (0: all
-    /// stayed in memory). Not stored in the file, whose bytes do not depend on the budget.
-    pub spilled_bytes: u64,
-    /// The most times one accumulating thread spilled.
-    pub spills: usize,
-}
+/// What a build did: the report of [`ingest`], kept under its old name.
+pub type BuildReport = IngestReport;
 
 /// The time axis of sorted, distinct instants: a regular grid (with missing samples) when
 /// the instants lie on one with at most as many gaps as snapshots, else an explicit list.
@@ -287,7 +172,8 @@ fn gcd(a: i64, b: i64) -> i64 {
     }
 }
 
-/// Builds a FROctomap file from snapshots (sorted by time, distinct times).
+/// Builds a FROctomap file from snapshots (sorted by time, distinct times): [`ingest`]
+/// into [`IngestTarget::NewFile`].
 ///
 /// Reads the inputs in batches, turns each into its changes from the one before (from the
 /// bytes where the format allows, see `FormatRegistry::diff_bytes`; else by decoding) and
@@ -295,12 +181,8 @@ fn gcd(a: i64, b: i64) -> i64 {
 /// not with the number of snapshots), then fits a model per dynamic cell and writes the file
 /// tile by tile, atomically. Input formats and the model are looked up in `context`.
 ///
-/// The work is a pipeline of stages (see the module `build`): input check → change
-/// extraction → accumulation → per-tile fit → encode and write.
-///
-/// Inputs are map files with their times ([`collect_inputs`](crate::collect_inputs)); other
-/// kinds of sources of timed snapshots (recordings such as ROS bags) are to be expanded into
-/// such a series before they reach `build`, which then needs no case of its own for them.
+/// Inputs are map files with their times ([`collect_inputs`](crate::collect_inputs));
+/// recorded maps (ROS bags, MCAP) are entries of that series like files.
 pub fn build(
     context: &Context,
     inputs: &[SeriesInput],
@@ -308,8 +190,26 @@ pub fn build(
     options: &BuildOptions,
     progress: &dyn Progress,
 ) -> Result<BuildReport, ConvertError> {
-    let started = Instant::now();
-    refuse_overwriting_input(output, inputs.iter().map(|i| i.path.as_path()))?;
+    ingest(
+        context,
+        inputs,
+        IngestTarget::NewFile(output),
+        options,
+        progress,
+    )
+}
+
+/// A new file: the plan (the model, and the axis of the inputs' times, refused before
+/// anything is read when they do not go together), the intake, then every cell fitted
+/// and written.
+fn new_file(run: &Run<'_>, output: &Path) -> Result<IngestReport, ConvertError> {
+    let Run {
+        context,
+        inputs,
+        options,
+        progress,
+        ..
+    } = *run;
     let models = context.models();
     let model = models
         .by_name(&options.model)
@@ -325,70 +225,31 @@ pub fn build(
     let axis = axis_for_times(&times)?;
     // Fail on a bad model/axis combination before reading anything.
     let prepared = model.prepare(&axis, &options.config)?;
-
     if let Some(r) = options.resolution {
         froctomap_core::validate_resolution(r).map_err(|source| ConvertError::BadResolution {
             resolution: r,
             source,
         })?;
     }
-    let checked = InputCheck {
-        skip_bad: options.skip_bad,
-        resolution: options.resolution,
-        allow_mostly_skipped: options.allow_mostly_skipped,
-    }
-    .run(inputs, &SeriesInput::is_recorded, progress)?;
 
-    progress.stage("reading snapshots", inputs.len() as u64);
-    let extract = ExtractOptions {
-        read: ReadOptions {
-            format: options.input_format.as_deref(),
-            backend: options.backend,
-        },
-        skip_bad: options.skip_bad,
-        batch: options.batch,
-        tiles: TileBudget {
-            tile_depth: options.tile_depth,
-            max_tiles: context.limits().max_snapshot_tiles,
-        },
-    };
-    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(output)));
-    let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress);
-    let accumulated = accumulate_series(
-        &mut extractor,
-        options.tile_depth,
-        (&spill_place, options.memory),
-        progress,
-    )?;
-    let extracted = extractor.finish();
-    let mut skipped = checked.skipped;
-    skipped.extend(extracted.skipped);
-    check::refuse_mostly_skipped(
-        inputs.len(),
-        &skipped,
-        extracted.resolution,
-        options.allow_mostly_skipped,
-    )?;
-    let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
-    let resolution = extracted.resolution.ok_or(ConvertError::NothingToBuild {
-        inputs: inputs.len(),
-    })?;
-    let read_seconds = started.elapsed().as_secs_f64();
-    let changed_voxels = accumulated.changed_voxels();
-    // Snapshots left out become missing samples of a regular axis, so the file says there
-    // is no snapshot at their time (an explicit axis keeps the instant, with nothing
-    // observed at it).
-    let (axis, prepared) = match with_absent_missing(&axis, &absent)? {
-        Some(regular) => {
-            let prepared = model.prepare(&regular, &options.config)?;
-            (regular, prepared)
-        }
-        None => (axis, prepared),
+    let intaken = Intake {
+        axis,
+        tile_depth: options.tile_depth,
+        file: None,
+        seed: None,
+        spill_dir: output_dir(output),
+    }
+    .run(run)?;
+    let axis = &intaken.axis;
+    let prepared = if intaken.regridded {
+        model.prepare(axis, &options.config)?
+    } else {
+        prepared
     };
 
     let modelling = Instant::now();
     let mut header = Header::new(
-        resolution,
+        intaken.resolution,
         options.tile_depth,
         axis.clone(),
         model.id(),
@@ -396,14 +257,15 @@ pub fn build(
         options.codec,
     );
     header.toggles = options.toggles;
-    header.metadata = metadata(inputs, extracted.used, extracted.input_bytes, options);
+    header.metadata = metadata(inputs, intaken.used, intaken.input_bytes, options);
     let mut writer = TileWriter::create(output, &header)?;
+    let accumulated = intaken.accumulated;
     progress.stage("modelling cells", accumulated.cell_count() as u64);
     let accumulate_seconds = accumulated.busy_seconds();
     let (spilled_bytes, spills) = (accumulated.spilled_bytes(), accumulated.spills());
     let tile_depth = accumulated.tile_depth();
-    let cells = accumulated.into_cells(axis.len(), &absent);
-    let fitter = TileFitter::new(&axis, prepared.as_ref());
+    let cells = accumulated.into_cells(axis.len(), &intaken.absent);
+    let fitter = TileFitter::new(axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
     fit_and_write(cells, tile_depth, &fitter, &encoder, &mut writer, progress)?;
     let model_seconds = modelling.elapsed().as_secs_f64();
@@ -414,45 +276,46 @@ pub fn build(
         "toggles": stats.toggles,
         "model_errors": stats.model_errors,
         "outliers": if options.config.outliers == OutlierMode::Lossless { "lossless" } else { "lossy" },
-        "snapshots_used": extracted.used,
-        "snapshots_skipped": skipped.len(),
-        "input_bytes": extracted.input_bytes,
-        "changed_voxels": changed_voxels,
-        "read_seconds": read_seconds,
+        "snapshots_used": intaken.used,
+        "snapshots_skipped": intaken.skipped.len(),
+        "input_bytes": intaken.input_bytes,
+        "changed_voxels": intaken.changed_voxels,
+        "read_seconds": intaken.read_seconds,
         "model_seconds": model_seconds,
     });
     let Value::Object(mut summary) = summary else {
         unreachable!("json! of an object literal")
     };
-    if options.created.is_some() {
+    if options.time.is_some() {
         // A reproducible file: no wall-clock measurement in it (the report keeps them).
         summary.remove("read_seconds");
         summary.remove("model_seconds");
     }
     let written: WrittenFile = writer.finish(summary)?;
-    Ok(BuildReport {
+    Ok(IngestReport {
         output: output.to_path_buf(),
         inputs: inputs.len(),
-        used: extracted.used,
-        skipped,
-        warnings: extracted.warnings,
-        input_bytes: extracted.input_bytes,
+        used: intaken.used,
+        skipped: intaken.skipped,
+        warnings: intaken.warnings,
+        input_bytes: intaken.input_bytes,
         samples: axis.len(),
         regular_axis: axis.step_ns().is_some(),
         cells: stats.cells,
         voxels: stats.voxels,
         toggles: stats.toggles,
         model_errors: stats.model_errors,
-        changed_voxels,
+        changed_voxels: intaken.changed_voxels,
         file_bytes: written.file_bytes,
         header_bytes: written.header_bytes,
         index_bytes: written.index_bytes,
         tile_bytes: written.tile_bytes,
-        read_seconds,
+        read_seconds: intaken.read_seconds,
         accumulate_seconds,
         model_seconds,
         spilled_bytes,
         spills,
+        extended: None,
     })
 }
 
@@ -535,27 +398,19 @@ fn samples_left_out(
     absent
 }
 
+/// A new file's metadata.
 fn metadata(
     inputs: &[SeriesInput],
     used: usize,
     input_bytes: u64,
-    options: &BuildOptions,
+    options: &IngestOptions,
 ) -> Map<String, Value> {
-    let now = options.created.unwrap_or_else(|| {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
-            .unwrap_or_default()
-    });
     let mut meta = Map::new();
     meta.insert(
         "creator".into(),
         Value::from(format!("froctomap {}", env!("CARGO_PKG_VERSION"))),
     );
-    meta.insert(
-        "created".into(),
-        Value::from(iso8601(Timestamp(now.0 - now.0 % 1_000_000_000))),
-    );
+    meta.insert("created".into(), ingest::stamp(options.time));
     if let Some(dir) = inputs.first().and_then(|i| i.path.parent()) {
         meta.insert("source".into(), Value::from(dir.display().to_string()));
     }
@@ -570,6 +425,7 @@ fn metadata(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     #[test]
     fn samples_left_out_join_the_axis_gaps_once_each() {

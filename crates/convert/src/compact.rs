@@ -12,7 +12,7 @@
 //! 1.x file. Compacting a 2.0 file in place holds its writer lock from before the maps are
 //! read until the new file is in place, so no segment is committed meanwhile and lost.
 
-use crate::build::{build, BuildOptions, DEFAULT_BUILD_MEMORY};
+use crate::build::{ingest, IngestOptions, IngestTarget, DEFAULT_BUILD_MEMORY};
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
@@ -54,9 +54,9 @@ pub struct CompactOptions {
     pub model_options: ModelOptions,
     /// Output format.
     pub format: CompactFormat,
-    /// Creation time stored in the metadata; `None`: now (see [`BuildOptions::created`]).
+    /// Creation time stored in the metadata; `None`: now (see [`IngestOptions::time`]).
     pub created: Option<Timestamp>,
-    /// Memory budget of the accumulated histories ([`BuildOptions::memory`]).
+    /// Memory budget of the accumulated histories ([`IngestOptions::memory`]).
     pub memory: u64,
     /// Where spill data goes; `None`: beside the output (where the intermediate file always
     /// goes, in a hidden `.froct-compact-*` directory).
@@ -211,7 +211,7 @@ pub fn compact(
         CompactFormat::Flat(Some(layout)) => layout,
         _ => header.toggles,
     };
-    let build_options = BuildOptions {
+    let build_options = IngestOptions {
         model: model.name.to_string(),
         config,
         tile_depth: header.tile_depth,
@@ -220,10 +220,10 @@ pub fn compact(
         resolution: Some(header.resolution),
         metadata,
         batch: options.batch,
-        created: options.created,
+        time: options.created,
         memory: options.memory,
         tmp_dir: options.tmp_dir.clone(),
-        ..BuildOptions::default()
+        ..IngestOptions::default()
     };
 
     let samples: Vec<u32> = (0..series.sample_count())
@@ -272,7 +272,13 @@ pub fn compact(
         source,
     })?;
     let built = work.join("compacted.froct");
-    let report = build(context, &inputs, &built, &build_options, progress)?;
+    let report = ingest(
+        context,
+        &inputs,
+        IngestTarget::NewFile(&built),
+        &build_options,
+        progress,
+    )?;
     drop(inputs);
     drop(maps);
     progress.stage("writing the compacted file", 1);

@@ -462,7 +462,7 @@ pub enum ConvertError {
         time: Timestamp,
     },
     /// The build's spill data (runs set aside on disk to bound memory, see
-    /// `BuildOptions::memory`) could not be written or read back.
+    /// `IngestOptions::memory`) could not be written or read back.
     #[error("{}: spill data of the build: {source}", path.display())]
     Spill {
         /// The spill file or directory.

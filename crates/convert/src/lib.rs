@@ -2,9 +2,10 @@
 //! `froctomap` command.
 //!
 //! * [`collect_inputs`] turns directories, globs, manifests and files into a time-sorted
-//!   series; [`build`] streams it into one FROctomap file (memory grows with the map's cells
-//!   and their changes, not with the number of snapshots); [`append`] adds later snapshots
-//!   to such a file from the file and the new snapshots alone.
+//!   series; [`ingest`] streams it into a FROctomap file: a new one ([`build`]; memory grows
+//!   with the map's cells and their changes, not with the number of snapshots), or an
+//!   existing one, from the file and the new snapshots alone ([`append`]: rewritten and
+//!   refitted; [`append_segment`]: one format 2.0 segment).
 //! * [`observed_map`] gives the map as observed at a sample (bit-exact in lossless files),
 //!   [`predicted_map`] the predicted map at any instant, both streaming the file's tiles in
 //!   parallel; [`write_map`] writes either as `.bt`/`.ot` atomically; [`export`] writes a
@@ -70,8 +71,9 @@ pub use anomaly::{
     Expectation,
 };
 pub use build::{
-    append, append_living, append_segment, axis_for_times, build, is_living_file, output_dir,
-    refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport, ClassCounts,
+    append, append_living, append_segment, axis_for_times, build, ingest, is_living_file,
+    output_dir, refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport,
+    ClassCounts, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget,
     DEFAULT_BUILD_MEMORY,
 };
 pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};

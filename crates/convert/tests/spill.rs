@@ -61,7 +61,7 @@ fn options(tile_depth: u8, memory: u64, tmp_dir: &Path) -> BuildOptions {
         tile_depth,
         memory,
         tmp_dir: Some(tmp_dir.to_path_buf()),
-        created: Some(Timestamp::from_secs(1_700_000_000)),
+        time: Some(Timestamp::from_secs(1_700_000_000)),
         ..BuildOptions::default()
     }
 }

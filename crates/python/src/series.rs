@@ -5,8 +5,8 @@ use crate::file::json_value;
 use crate::progress::Callback;
 use crate::times::instant;
 use froctomap_convert::{
-    build as build_file, collect_inputs_explained, collect_recording, evaluate as evaluate_file,
-    parse_duration, BuildOptions, Progress, RecordedTime, RecordingOptions, Silent, TimeSource,
+    collect_inputs_explained, collect_recording, evaluate as evaluate_file, ingest, parse_duration,
+    IngestOptions, IngestTarget, Progress, RecordedTime, RecordingOptions, Silent, TimeSource,
     Zone,
 };
 use froctomap_core::Timestamp;
@@ -288,7 +288,7 @@ pub fn build<'py>(
         .or_else(|| Some(froctomap_convert::output_dir(&output).to_path_buf()));
     let inputs = build_inputs(inputs, spool_dir.as_deref())?;
     let source = series_times(start, step, times_file, times_from_names)?;
-    let options = BuildOptions {
+    let options = IngestOptions {
         model: model.clone(),
         config: model_config(&model, lossy, order, max_order, periods, model_options)?,
         tile_depth,
@@ -302,10 +302,10 @@ pub fn build<'py>(
         resolution,
         allow_mostly_skipped,
         metadata: tags_metadata(tags)?,
-        created: creation_time(created)?,
+        time: creation_time(created)?,
         memory: memory.unwrap_or(froctomap_convert::DEFAULT_BUILD_MEMORY),
         tmp_dir,
-        ..BuildOptions::default()
+        ..IngestOptions::default()
     };
     let context = crate::context().clone().with_recording_options(
         RecordingOptions::new(topic, recorded)
@@ -323,19 +323,16 @@ pub fn build<'py>(
             Some(callback) => callback,
             None => &Silent,
         };
-        let mut collected = match inputs {
+        let collected = match inputs {
             BuildInputs::Paths(inputs) => {
                 collect_inputs_explained(&context, &inputs, source, &Zone::utc())
             }
             BuildInputs::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
         }
         .map_err(|e| message(&e))?;
-        let mut report = build_file(&context, &collected.series, &output, &options, progress)
-            .map_err(|e| message(&e))?;
-        // Damaged parts of recordings, left out before the build saw their maps.
-        report
-            .skipped
-            .splice(0..0, std::mem::take(&mut collected.skipped));
+        let target = IngestTarget::NewFile(&output);
+        let report =
+            ingest(&context, &collected, target, &options, progress).map_err(|e| message(&e))?;
         let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
         if let Value::Object(map) = &mut value {
             let warnings: Vec<Value> = collected

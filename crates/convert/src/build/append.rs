@@ -2,7 +2,7 @@
 //! the file and the new snapshots, never with the snapshots the file was built from (they
 //! may be gone).
 //!
-//! The build's stages, wired around the file:
+//! The ingest of [`IngestTarget::Rewrite`]: the build's stages, wired around the file:
 //!
 //! 1. The file's header gives the resolution, tile depth, model, codec and toggle layout;
 //!    the new time axis is the old one extended by the new times ([`extended_axis`]).
@@ -18,103 +18,35 @@
 //! taken as what was observed, and the result is lossy too.
 
 use super::accumulate::{pack, ObservedCell, PackedCell, TileHistory};
-use super::check::{CheckedInputs, InputCheck, TileBudget};
-use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
+use super::extract::SampleChanges;
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
-use super::merge::merge_tiles;
-use super::spill::SpillPlace;
-use super::write::{TileEncoder, TileWriter};
-use super::{
-    accumulate_series, axis_for_times, output_dir, samples_left_out, with_absent_missing,
-    ClassCounts,
+use super::ingest::{
+    as_iso8601, ingest, stamp, Extended, IngestOptions, IngestReport, IngestTarget, Intake, Run,
 };
+use super::merge::merge_tiles;
+use super::write::{TileEncoder, TileWriter};
+use super::{axis_for_times, output_dir, ClassCounts};
 use crate::context::Context;
-use crate::error::{ConvertError, SnapshotError};
+use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;
-use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::snapshot_changes::Accepted;
-use froctomap_core::calendar::iso8601;
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader, Header};
-use froctomap_formats::{Backend, ReadOptions};
-use froctomap_temporal::{ModelConfig, ModelOptions, OutlierMode, PreparedModel, TimeAxis};
+use froctomap_temporal::{ModelConfig, OutlierMode, PreparedModel, TimeAxis};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// How to append.
-#[derive(Clone, Debug)]
-pub struct AppendOptions {
-    /// The model's own options for the refit (`key=value`). A file does not record the
-    /// options it was built with, so give the ones of the build (none: the model's
-    /// defaults). The model itself and lossless/lossy come from the file.
-    pub model_options: ModelOptions,
-    /// Leave unreadable files and files of another resolution than the file's out (listed
-    /// in the report) instead of stopping. (The first input whose header gives a resolution
-    /// must have the file's: the header check takes it for the series'.)
-    pub skip_bad: bool,
-    /// With `skip_bad`, append even when more than half of the inputs are left out (refused
-    /// by default: the series is probably not the one meant; `record` allows it, its
-    /// commits being pieces of one stream).
-    pub allow_mostly_skipped: bool,
-    /// Force the input map format.
-    pub input_format: Option<String>,
-    /// Preferred implementation for reading maps.
-    pub backend: Option<Backend>,
-    /// Extra metadata stored in the file header (replacing keys of the same name).
-    pub metadata: Map<String, Value>,
-    /// Files decoded in parallel per batch (bounds memory; default 8 × threads).
-    pub batch: usize,
-    /// Time of the append stored in the metadata (`appended`), to the second; `None`: now. A
-    /// fixed time makes the file reproducible (no timings are stored then).
-    pub appended: Option<Timestamp>,
-    /// Bytes the accumulated histories of the new snapshots may hold before they are
-    /// spilled to disk (as [`BuildOptions::memory`](super::BuildOptions::memory)).
-    pub memory: u64,
-    /// Where spill data goes; `None`: a hidden directory beside the file.
-    pub tmp_dir: Option<PathBuf>,
-}
+/// How to append: the options of [`ingest`](crate::ingest), kept under their old name
+/// (`model_options` is now `config.options`, `appended` is `time`).
+pub type AppendOptions = IngestOptions;
 
-impl AppendOptions {
-    /// How the new maps are extracted, into tiles of `tile_depth` (the file's).
-    pub(crate) fn extract_options(&self, context: &Context, tile_depth: u8) -> ExtractOptions<'_> {
-        ExtractOptions {
-            read: ReadOptions {
-                format: self.input_format.as_deref(),
-                backend: self.backend,
-            },
-            skip_bad: self.skip_bad,
-            batch: self.batch,
-            tiles: TileBudget {
-                tile_depth,
-                max_tiles: context.limits().max_snapshot_tiles,
-            },
-        }
-    }
-}
-
-impl Default for AppendOptions {
-    fn default() -> Self {
-        Self {
-            model_options: ModelOptions::new(),
-            skip_bad: false,
-            allow_mostly_skipped: false,
-            input_format: None,
-            backend: None,
-            metadata: Map::new(),
-            batch: 8 * rayon::current_num_threads().max(1),
-            appended: None,
-            memory: super::DEFAULT_BUILD_MEMORY,
-            tmp_dir: None,
-        }
-    }
-}
-
-/// What an append did.
+/// What an append did, as `froctomap append --json` prints it: the
+/// [`IngestReport`] of an ingest into an existing file, under the names appends had.
 #[derive(Clone, Debug, Serialize)]
 pub struct AppendReport {
     /// The file appended to.
@@ -166,8 +98,34 @@ pub struct AppendReport {
     pub segments: Option<usize>,
 }
 
-fn as_iso8601<S: serde::Serializer>(t: &Timestamp, serializer: S) -> Result<S::Ok, S::Error> {
-    serializer.serialize_str(&iso8601(*t))
+impl From<IngestReport> for AppendReport {
+    fn from(report: IngestReport) -> Self {
+        let before = report.extended.unwrap_or_default();
+        Self {
+            file: report.output,
+            inputs: report.inputs,
+            added: report.used,
+            skipped: report.skipped,
+            warnings: report.warnings,
+            input_bytes: report.input_bytes,
+            samples_before: before.samples_before,
+            samples: report.samples,
+            regular_axis: report.regular_axis,
+            start: before.start,
+            end_before: before.end_before,
+            end: before.end,
+            cells: report.cells,
+            voxels: report.voxels,
+            toggles: report.toggles,
+            model_errors: report.model_errors,
+            lossless: before.lossless,
+            bytes_before: before.bytes_before,
+            file_bytes: report.file_bytes,
+            read_seconds: report.read_seconds,
+            model_seconds: report.model_seconds,
+            segments: before.segments,
+        }
+    }
 }
 
 /// Appends snapshots later than the last sample of the FROctomap file `file` to it.
@@ -198,9 +156,28 @@ pub fn append(
     options: &AppendOptions,
     progress: &dyn Progress,
 ) -> Result<AppendReport, ConvertError> {
-    let started = Instant::now();
+    ingest(
+        context,
+        inputs,
+        IngestTarget::Rewrite(file),
+        options,
+        progress,
+    )
+    .map(AppendReport::from)
+}
+
+/// An existing file rewritten: the plan (the file's settings, its axis extended by the new
+/// times, its last observed map to continue from), the intake, then the file's cells
+/// merged with the new ones and every cell refitted.
+pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, ConvertError> {
+    let Run {
+        context,
+        inputs,
+        options,
+        progress,
+        ..
+    } = *run;
     let first = inputs.first().ok_or(ConvertError::NoInputs)?;
-    refuse_overwriting_input(file, inputs.iter().map(|i| i.path.as_path()))?;
     let reader = context.open_froct(file)?;
     let old = reader.header().clone();
     let old_axis = &old.axis;
@@ -215,15 +192,11 @@ pub fn append(
         ))?
         .create();
     let mut config = ModelConfig::default().with_outliers(reader.model().outlier_mode());
-    config.options = options.model_options.clone();
+    config.options = options.config.options.clone();
     let new_times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
     let axis = extended_axis(old_axis, &new_times)?;
     // Fail on a bad model/axis combination before reading anything.
     model.prepare(&axis, &config)?;
-
-    // The file fixes the series' resolution: inputs of another one are refused (or left
-    // out with `skip_bad`), whatever most of them give.
-    let checked = check_for_file(inputs, file, old.resolution, options, progress)?;
 
     // The file's last observed map starts the new histories, at its sample on the new axis.
     let last_observed = (0..old_axis.len())
@@ -241,37 +214,23 @@ pub fn append(
         sample: seam,
         changes: froctomap_core::changes(&[], last_map.leaves()),
     };
-    let seed_voxels: u64 = start.changes.iter().map(|c| c.end - c.start).sum();
     let previous = Accepted::from_map(
         froctomap_octomap_codec::encode_binary(&last_map),
         last_map.into_leaves(),
     );
 
-    progress.stage("reading snapshots", inputs.len() as u64 + 1);
-    let extract = options.extract_options(context, old.tile_depth);
-    let mut extractor = ChangeExtractor::new(context, extract, inputs, &checked, &axis, progress)
-        .continuing(start, previous, old.resolution, file);
-    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(file)));
-    let accumulated = accumulate_series(
-        &mut extractor,
-        old.tile_depth,
-        (&spill_place, options.memory),
-        progress,
-    )?;
-    let extracted = extractor.finish();
-    let mut skipped = checked.skipped;
-    skipped.extend(extracted.skipped);
-    if extracted.used == 0 {
-        return Err(ConvertError::NothingToBuild {
-            inputs: inputs.len(),
-        });
+    // The file fixes the series' resolution: inputs of another one are refused (or left
+    // out with `skip_bad`), whatever most of them give.
+    let intaken = Intake {
+        axis,
+        tile_depth: old.tile_depth,
+        file: Some((file, old.resolution)),
+        seed: Some((start, previous)),
+        spill_dir: output_dir(file),
     }
-    let absent = samples_left_out(&axis, inputs, &checked.usable, &extracted.absent);
-    let read_seconds = started.elapsed().as_secs_f64();
-    let changed_voxels = accumulated.changed_voxels().saturating_sub(seed_voxels);
-    // As in a build: snapshots left out become missing samples of a regular axis.
-    let axis = with_absent_missing(&axis, &absent)?.unwrap_or(axis);
-    let prepared = model.prepare(&axis, &config)?;
+    .run(run)?;
+    let axis = &intaken.axis;
+    let prepared = model.prepare(axis, &config)?;
 
     let modelling = Instant::now();
     let mut header = Header::new(
@@ -283,18 +242,21 @@ pub fn append(
         old.codec,
     );
     header.toggles = old.toggles;
-    header.metadata = metadata(&old, extracted.used, extracted.input_bytes, options);
+    header.metadata = metadata(&old, intaken.used, intaken.input_bytes, options);
     let mut writer = TileWriter::create(file, &header)?;
+    let accumulated = intaken.accumulated;
     let old_cells: u64 = reader.tiles().iter().map(|t| u64::from(t.cell_count)).sum();
     progress.stage(
         "modelling cells",
         old_cells + accumulated.cell_count() as u64,
     );
-    let samples = SampleMap::new(old_axis, &axis);
+    let accumulate_seconds = accumulated.busy_seconds();
+    let (spilled_bytes, spills) = (accumulated.spilled_bytes(), accumulated.spills());
+    let samples = SampleMap::new(old_axis, axis);
     let old_tiles = OldTiles::new(&reader, &samples);
-    let new_tiles = accumulated.into_tiles(axis.len(), &absent);
+    let new_tiles = accumulated.into_tiles(axis.len(), &intaken.absent);
     let tiles = merge_tiles(old_tiles, new_tiles, old.tile_depth);
-    let fitter = TileFitter::new(&axis, prepared.as_ref());
+    let fitter = TileFitter::new(axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
     let cells = cells_of_tiles(tiles);
     fit_and_write(
@@ -319,44 +281,54 @@ pub fn append(
         "outliers",
         json!(if lossless { "lossless" } else { "lossy" }),
     );
-    let used = previously("snapshots_used").unwrap_or(0) + extracted.used as u64;
+    let used = previously("snapshots_used").unwrap_or(0) + intaken.used as u64;
     put("snapshots_used", json!(used));
-    let skipped_all = previously("snapshots_skipped").unwrap_or(0) + skipped.len() as u64;
+    let skipped_all = previously("snapshots_skipped").unwrap_or(0) + intaken.skipped.len() as u64;
     put("snapshots_skipped", json!(skipped_all));
-    let input_bytes = previously("input_bytes").unwrap_or(0) + extracted.input_bytes;
+    let input_bytes = previously("input_bytes").unwrap_or(0) + intaken.input_bytes;
     put("input_bytes", json!(input_bytes));
-    let changed = previously("changed_voxels").unwrap_or(0) + changed_voxels;
+    let changed = previously("changed_voxels").unwrap_or(0) + intaken.changed_voxels;
     put("changed_voxels", json!(changed));
     put("appends", json!(previously("appends").unwrap_or(0) + 1));
-    if options.appended.is_none() {
-        put("read_seconds", json!(read_seconds));
+    if options.time.is_none() {
+        put("read_seconds", json!(intaken.read_seconds));
         put("model_seconds", json!(model_seconds));
     }
     let bytes_before = reader.file_len();
     let written = writer.finish(summary)?;
-    Ok(AppendReport {
-        file: file.to_path_buf(),
+    Ok(IngestReport {
+        output: file.to_path_buf(),
         inputs: inputs.len(),
-        added: extracted.used,
-        skipped,
-        warnings: extracted.warnings,
-        input_bytes: extracted.input_bytes,
-        samples_before: old_axis.len(),
+        used: intaken.used,
+        skipped: intaken.skipped,
+        warnings: intaken.warnings,
+        input_bytes: intaken.input_bytes,
         samples: axis.len(),
         regular_axis: axis.step_ns().is_some(),
-        start: axis.start(),
-        end_before: old_axis.end(),
-        end: axis.end(),
         cells: stats.cells,
         voxels: stats.voxels,
         toggles: stats.toggles,
         model_errors: stats.model_errors,
-        lossless,
-        bytes_before,
+        changed_voxels: intaken.changed_voxels,
         file_bytes: written.file_bytes,
-        read_seconds,
+        header_bytes: written.header_bytes,
+        index_bytes: written.index_bytes,
+        tile_bytes: written.tile_bytes,
+        read_seconds: intaken.read_seconds,
+        accumulate_seconds,
         model_seconds,
-        segments: None,
+        spilled_bytes,
+        spills,
+        extended: Some(Extended {
+            samples_before: old_axis.len(),
+            start: axis.start(),
+            end_before: old_axis.end(),
+            end: axis.end(),
+            lossless,
+            bytes_before,
+            segments: None,
+            converted: false,
+        }),
     })
 }
 
@@ -374,36 +346,6 @@ pub(crate) fn refuse_overlap(file: &Path, inputs: &[SeriesInput], last: Timestam
         input: input.map(|i| i.path.clone()).unwrap_or_default(),
         time: input.map_or(last, |i| i.time),
     }
-}
-
-/// The input check of maps to be added to `file`: the file fixes the series' resolution,
-/// so inputs of another one are refused naming the file (or left out with `skip_bad`),
-/// whatever most of them give.
-pub(crate) fn check_for_file(
-    inputs: &[SeriesInput],
-    file: &Path,
-    resolution: f64,
-    options: &AppendOptions,
-    progress: &dyn Progress,
-) -> Result<CheckedInputs, ConvertError> {
-    InputCheck {
-        skip_bad: options.skip_bad,
-        resolution: Some(resolution),
-        allow_mostly_skipped: options.allow_mostly_skipped,
-    }
-    .run(inputs, &SeriesInput::is_recorded, progress)
-    .map_err(|e| match e {
-        ConvertError::Snapshot { path, source } => match *source {
-            SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {
-                first: file.to_path_buf(),
-                first_resolution: resolution,
-                second: path,
-                second_resolution: found,
-            },
-            _ => ConvertError::Snapshot { path, source },
-        },
-        other => other,
-    })
 }
 
 /// The time axis of a file's samples followed by later `times` (sorted): the file's grid
@@ -622,24 +564,15 @@ fn metadata(
     old: &Header,
     used: usize,
     input_bytes: u64,
-    options: &AppendOptions,
+    options: &IngestOptions,
 ) -> Map<String, Value> {
-    let now = options.appended.unwrap_or_else(|| {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| Timestamp(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)))
-            .unwrap_or_default()
-    });
     let mut meta = old.metadata.clone();
     let count = |key: &str| meta.get(key).and_then(Value::as_u64).unwrap_or(0);
     let sources = count("sources") + used as u64;
     let bytes = count("input_bytes") + input_bytes;
     meta.insert("sources".into(), Value::from(sources));
     meta.insert("input_bytes".into(), Value::from(bytes));
-    meta.insert(
-        "appended".into(),
-        Value::from(iso8601(Timestamp(now.0 - now.0 % 1_000_000_000))),
-    );
+    meta.insert("appended".into(), stamp(options.time));
     for (k, v) in &options.metadata {
         meta.insert(k.clone(), v.clone());
     }

@@ -64,6 +64,31 @@ impl InputCheck {
         self.decide(inputs, headers)
     }
 
+    /// The check of maps to be added to `file`, whose `resolution` (this check's) fixes
+    /// the series': inputs of another one are refused naming the file (or left out with
+    /// `skip_bad`), whatever most of them give.
+    pub fn run_for_file(
+        &self,
+        inputs: &[SeriesInput],
+        file: &Path,
+        resolution: f64,
+        progress: &dyn Progress,
+    ) -> Result<CheckedInputs, ConvertError> {
+        self.run(inputs, &SeriesInput::is_recorded, progress)
+            .map_err(|e| match e {
+                ConvertError::Snapshot { path, source } => match *source {
+                    SnapshotError::Resolution { found, .. } => ConvertError::MixedResolution {
+                        first: file.to_path_buf(),
+                        first_resolution: resolution,
+                        second: path,
+                        second_resolution: found,
+                    },
+                    _ => ConvertError::Snapshot { path, source },
+                },
+                other => other,
+            })
+    }
+
     /// Decides from each input's header resolution (`None`: the header does not tell).
     /// The series' resolution is chosen from all headers before any file is judged, so a
     /// stray file at the start does not decide it; with `skip_bad` every bad file is listed.

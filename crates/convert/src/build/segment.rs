@@ -1,4 +1,5 @@
-//! Segment ingest: later maps added to a format 2.0 file as one new segment
+//! Segment ingest ([`IngestTarget::Writer`], [`IngestTarget::Segment`]): later maps added
+//! to a format 2.0 file as one new segment
 //! ([FORMAT.md §10](../../../../docs/FORMAT.md), [LIVING-MAP.md](../../../../docs/LIVING-MAP.md)),
 //! at a cost that follows the new maps, not the file's history.
 //!
@@ -9,8 +10,8 @@
 //!    naming `fremen-periods`), the inputs must come after the file's last sample; the
 //!    segment's own axis piece numbers the new maps from 0 (`axis_for_times` of their
 //!    instants: off the base's grid is fine, no earlier sample is renumbered).
-//! 2. **check → extract → accumulate** — the build's stages ([`InputCheck`],
-//!    [`ChangeExtractor`], [`accumulate_series`]) on the new maps, the first compared with
+//! 2. **check → extract → accumulate** — the ingest's shared [`Intake`] (the build's
+//!    `InputCheck`, `ChangeExtractor`, `accumulate_series`) on the new maps, the first compared with
 //!    nothing (a segment's lists restart at the segment, so its histories do too), inputs of
 //!    another resolution than the file's refused. Unobserved samples are unknown.
 //! 3. **join** ([`BaseJoin`]) — per accumulated tile, the cells observed in one state stay
@@ -32,17 +33,15 @@
 //!    what was written.
 
 use super::accumulate::{PackedCell, TileHistory};
-use super::append::{check_for_file, refuse_overlap, AppendOptions, AppendReport};
-use super::extract::ChangeExtractor;
+use super::append::{refuse_overlap, AppendOptions, AppendReport};
 use super::fit::TileStats;
+use super::ingest::{ingest, Extended, IngestReport, IngestTarget, Intake, Run};
 use super::merge::{common_refinement, Piece};
-use super::spill::SpillPlace;
-use super::{accumulate_series, axis_for_times, output_dir, samples_left_out, with_absent_missing};
+use super::{axis_for_times, output_dir};
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::history::PackedObservations;
 use crate::inputs::SeriesInput;
-use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
 use froctomap_file::{
@@ -89,38 +88,42 @@ pub fn append_segment(
     options: &AppendOptions,
     progress: &dyn Progress,
 ) -> Result<AppendReport, ConvertError> {
-    let started = Instant::now();
+    ingest(
+        context,
+        inputs,
+        IngestTarget::Writer(writer),
+        options,
+        progress,
+    )
+    .map(AppendReport::from)
+}
+
+/// The new maps as one segment of the file `writer` holds: the plan, the intake, then
+/// join, choose, write and commit.
+pub(super) fn add_segment(
+    run: &Run<'_>,
+    writer: &mut LivingWriter,
+) -> Result<IngestReport, ConvertError> {
+    let Run {
+        context,
+        inputs,
+        progress,
+        ..
+    } = *run;
     let file = writer.reader().path().to_path_buf();
-    refuse_overwriting_input(&file, inputs.iter().map(|i| i.path.as_path()))?;
     let plan = SegmentPlan::new(context, writer.reader(), inputs)?;
     let header = writer.reader().header().clone();
 
     // Stage 2: the build's, over the new maps on the segment's axis.
-    let checked = check_for_file(inputs, &file, header.resolution, options, progress)?;
-    progress.stage("reading snapshots", inputs.len() as u64);
-    let extract = options.extract_options(context, header.tile_depth);
-    let mut extractor =
-        ChangeExtractor::new(context, extract, inputs, &checked, &plan.axis, progress)
-            .of_file(header.resolution, &file);
-    let spill_place = SpillPlace::new(options.tmp_dir.as_deref().unwrap_or(output_dir(&file)));
-    let accumulated = accumulate_series(
-        &mut extractor,
-        header.tile_depth,
-        (&spill_place, options.memory),
-        progress,
-    )?;
-    let extracted = extractor.finish();
-    let mut skipped = checked.skipped;
-    skipped.extend(extracted.skipped);
-    if extracted.used == 0 {
-        return Err(ConvertError::NothingToBuild {
-            inputs: inputs.len(),
-        });
+    let intaken = Intake {
+        axis: plan.axis,
+        tile_depth: header.tile_depth,
+        file: Some((&file, header.resolution)),
+        seed: None,
+        spill_dir: output_dir(&file),
     }
-    let absent = samples_left_out(&plan.axis, inputs, &checked.usable, &extracted.absent);
-    // As in a build: snapshots left out become missing samples of a regular axis.
-    let axis = with_absent_missing(&plan.axis, &absent)?.unwrap_or_else(|| plan.axis.clone());
-    let read_seconds = started.elapsed().as_secs_f64();
+    .run(run)?;
+    let axis = intaken.axis;
 
     // Stages 3–5: join, choose, write; then commit.
     let modelling = Instant::now();
@@ -133,8 +136,11 @@ pub fn append_segment(
     let base = base_view.base();
     let chooser = ContentChooser::new(&file, &axis, base, plan.inherit_models);
     let join = BaseJoin { base };
+    let accumulated = intaken.accumulated;
     progress.stage("joining cells to the base", accumulated.cell_count() as u64);
-    let tiles = accumulated.into_tiles(axis.len(), &absent);
+    let accumulate_seconds = accumulated.busy_seconds();
+    let (spilled_bytes, spills) = (accumulated.spilled_bytes(), accumulated.spills());
+    let tiles = accumulated.into_tiles(axis.len(), &intaken.absent);
     let mut segment = writer.begin_segment(axis.clone())?;
     let written = (|| -> Result<TileStats, ConvertError> {
         let mut stats = TileStats::default();
@@ -173,29 +179,39 @@ pub fn append_segment(
     let root = segment.commit()?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let reader = writer.reader();
-    Ok(AppendReport {
-        file: file.clone(),
+    Ok(IngestReport {
+        output: file,
         inputs: inputs.len(),
-        added: extracted.used,
-        skipped,
-        warnings: extracted.warnings,
-        input_bytes: extracted.input_bytes,
-        samples_before,
+        used: intaken.used,
+        skipped: intaken.skipped,
+        warnings: intaken.warnings,
+        input_bytes: intaken.input_bytes,
         samples: root.sample_count,
         regular_axis: axis.step_ns().is_some(),
-        start: header.axis.start(),
-        end_before,
-        end: reader.last_instant(),
         cells: stats.cells,
         voxels: stats.voxels,
         toggles: stats.toggles,
         model_errors: 0,
-        lossless: base.model().outlier_mode() == OutlierMode::Lossless,
-        bytes_before: before.committed_len,
+        changed_voxels: intaken.changed_voxels,
         file_bytes: root.committed_len,
-        read_seconds,
+        header_bytes: 0,
+        index_bytes: 0,
+        tile_bytes: 0,
+        read_seconds: intaken.read_seconds,
+        accumulate_seconds,
         model_seconds,
-        segments: Some(reader.segment_count()),
+        spilled_bytes,
+        spills,
+        extended: Some(Extended {
+            samples_before,
+            start: header.axis.start(),
+            end_before,
+            end: reader.last_instant(),
+            lossless: base.model().outlier_mode() == OutlierMode::Lossless,
+            bytes_before: before.committed_len,
+            segments: Some(reader.segment_count()),
+            converted: false,
+        }),
     })
 }
 
@@ -245,18 +261,27 @@ pub fn append_living(
     options: &AppendOptions,
     progress: &dyn Progress,
 ) -> Result<(AppendReport, bool), ConvertError> {
+    let report = ingest(
+        context,
+        inputs,
+        IngestTarget::Segment(path),
+        options,
+        progress,
+    )?;
+    let converted = report.extended.as_ref().is_some_and(|e| e.converted);
+    Ok((AppendReport::from(report), converted))
+}
+
+/// The new maps as a segment of the file at `path`, a 1.x file converted first.
+pub(super) fn into_living(run: &Run<'_>, path: &Path) -> Result<IngestReport, ConvertError> {
+    let context = run.context;
     let open = |at: &Path| {
         LivingWriter::open_with_limits(at, context.limits().froct, context.models())
             .map_err(ConvertError::from)
     };
     if is_living_file(path)? {
-        let mut writer = open(path)?;
-        return Ok((
-            append_segment(context, &mut writer, inputs, options, progress)?,
-            false,
-        ));
+        return add_segment(run, &mut open(path)?);
     }
-    refuse_overwriting_input(path, inputs.iter().map(|i| i.path.as_path()))?;
     // Refused as a 1.x file would be (a map file, a damaged file) before anything is written.
     let before = context.open_froct(path)?.file_len();
     let io = |source| {
@@ -276,16 +301,16 @@ pub fn append_living(
             .to_path_buf(),
     );
     LivingWriter::convert(path, &converted.0)?;
-    let mut report = {
-        let mut writer = open(&converted.0)?;
-        append_segment(context, &mut writer, inputs, options, progress)?
-    };
+    let mut report = add_segment(run, &mut open(&converted.0)?)?;
     std::fs::rename(&converted.0, path).map_err(io)?;
     // The rename is durable only once the directory is synced, as compaction's.
     crate::compact::sync_parent(path);
-    report.file = path.to_path_buf();
-    report.bytes_before = before;
-    Ok((report, true))
+    report.output = path.to_path_buf();
+    if let Some(extended) = &mut report.extended {
+        extended.bytes_before = before;
+        extended.converted = true;
+    }
+    Ok(report)
 }
 
 /// A converted file not yet renamed into place: removed when dropped (a failed append).
