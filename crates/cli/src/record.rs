@@ -47,6 +47,13 @@ pub struct RecordArgs {
     /// a bad map stops `record` after committing the maps before it.
     #[arg(long)]
     skip_bad: bool,
+    /// Never compact automatically. By default, after a commit, the file is compacted in
+    /// place (as `froctomap compact` does, in the build's memory: --memory, --max-memory)
+    /// when its segments exceed half of its base's size or its span has doubled since the
+    /// last compaction, so that it stays at most 1.5× its compacted size; one line says so,
+    /// with the time it took.
+    #[arg(long)]
+    no_compact: bool,
     /// Force the input map format instead of detecting it (file sources).
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -118,6 +125,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
+        compact: !args.no_compact,
     };
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
@@ -182,13 +190,17 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         ui.note("stopped by a signal: the maps received are committed");
     }
     ui.note(&format!(
-        "recorded {} maps in {} segment(s); {} not later than the last one taken were skipped{}",
+        "recorded {} maps in {} segment(s); {} not later than the last one taken were skipped{}{}",
         summary.committed_maps,
         summary.commits,
         summary.older,
         match summary.bad {
             0 => String::new(),
             n => format!(", {n} bad map(s) left out"),
+        },
+        match summary.compactions {
+            0 => String::new(),
+            n => format!("; compacted {n} time(s)"),
         }
     ));
     Ok(())
@@ -257,6 +269,18 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
                 failed.borrow_mut().get_or_insert(error);
             }
             print_input_notes(ui, &commit.warnings, &commit.skipped);
+        }
+        RecordEvent::Compacted(compacted) => {
+            let printed = outln!(
+                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms",
+                compacted.segments_before,
+                group_thousands(compacted.bytes_before),
+                group_thousands(compacted.bytes),
+                (compacted.seconds * 1000.0).round()
+            );
+            if let Err(error) = printed {
+                failed.borrow_mut().get_or_insert(error);
+            }
         }
         RecordEvent::LeftOut { maps, what, error } => {
             let why = escaped(format!("{what}: {}", chain(error)));

@@ -73,7 +73,7 @@ fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
         .spawn()
         .unwrap();
     let output = froctomap()
-        .args(["record", s(file), "-"])
+        .args(["record", s(file), "-", "--no-compact"])
         .args(args)
         .stdin(Stdio::from(generator.stdout.take().unwrap()))
         .output()
@@ -85,7 +85,7 @@ fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
 /// `record FILE - ARGS`, its standard streams piped.
 fn spawn_record(file: &Path, args: &[&str]) -> Child {
     froctomap()
-        .args(["record", s(file), "-"])
+        .args(["record", s(file), "-", "--no-compact"])
         .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -320,7 +320,14 @@ fn a_directory_records_as_a_stream_does() {
     let (maps, whole) = built(dir.path(), "maps", &SERIES);
     let file = dir.path().join("recorded.froct");
     first_map_only(&maps, &file);
-    let stdout = ok(&["record", s(&file), s(&maps), "--commit-every", "2"]);
+    let stdout = ok(&[
+        "record",
+        s(&file),
+        s(&maps),
+        "--commit-every",
+        "2",
+        "--no-compact",
+    ]);
     assert_eq!(commit_lines(&stdout).len(), 3, "{stdout}");
     assert_eq!(segments(&file), [2, 2, 1]);
     same_snapshots(&file, &whole, 6);
@@ -494,6 +501,7 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
     first_map_only(&maps, &file);
     let output = froctomap()
         .args(["record", s(&file), s(&mixed), "--commit-every", "100"])
+        .arg("--no-compact")
         .output()
         .unwrap();
     let stderr = text(&output.stderr);
@@ -508,6 +516,7 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
     first_map_only(&maps, &skipping);
     let output = froctomap()
         .args(["record", s(&skipping), s(&mixed), "--commit-every", "100"])
+        .arg("--no-compact")
         .arg("--skip-bad")
         .output()
         .unwrap();
@@ -522,5 +531,89 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
         "2016-01-04T02:30:00Z",
     ];
     same_at(&skipping, &good, &whole, &good);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}
+
+/// A manifest in `maps` of its maps `range` (0-based, in time order): (path, its maps' files).
+fn manifest_of(maps: &Path, name: &str, range: std::ops::Range<usize>) -> (PathBuf, Vec<PathBuf>) {
+    let manifest = std::fs::read_to_string(maps.join("manifest.csv")).unwrap();
+    let mut lines = manifest.lines();
+    let header = lines.next().unwrap();
+    let rows: Vec<&str> = lines.skip(range.start).take(range.len()).collect();
+    let csv = maps.join(name);
+    std::fs::write(&csv, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+    let files = rows
+        .iter()
+        .map(|row| maps.join(row.split(',').next().unwrap()))
+        .collect();
+    (csv, files)
+}
+
+fn size(file: &Path) -> u64 {
+    std::fs::metadata(file).unwrap().len()
+}
+
+/// Sample `i` of `file` retrieves byte-identical to the generated map `input`.
+fn retrieves_as(file: &Path, i: usize, input: &Path) {
+    let got = file.with_extension(format!("{i}.bt"));
+    let time = format!("index:{i}");
+    ok(&["-q", "retrieve", s(file), "--time", &time, "-o", s(&got)]);
+    assert!(
+        std::fs::read(&got).unwrap() == std::fs::read(input).unwrap(),
+        "sample {i} of {} differs from {}",
+        file.display(),
+        input.display()
+    );
+    std::fs::remove_file(got).unwrap();
+}
+
+/// Recorded one map per `record` run, each run a commit: after every run the file is at
+/// most 1.5× a `build` of the maps so far, and every snapshot retrieves byte-identical to
+/// its generated map. The same runs with `--no-compact` pass that bound, so it is the
+/// compaction that keeps it.
+#[test]
+fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    let mut args = vec!["-q", "generate", "-o", s(&maps)];
+    args.extend(LONGER);
+    ok(&args);
+    let (_, inputs) = manifest_of(&maps, "all.csv", 0..9);
+    let compacted = dir.path().join("compacted.froct");
+    let segmented = dir.path().join("segmented.froct");
+    let (mut compactions, mut worst_segmented) = (0, 0.0_f64);
+    for (k, input) in inputs.iter().enumerate() {
+        let (one, _) = manifest_of(&maps, &format!("one-{k}.csv"), k..k + 1);
+        let (prefix, _) = manifest_of(&maps, &format!("prefix-{k}.csv"), 0..k + 1);
+        let built = dir.path().join(format!("built-{k}.froct"));
+        ok(&["-q", "build", s(&prefix), "-o", s(&built)]);
+        let stdout = ok(&["record", s(&compacted), s(&one), "--commit-every", "1"]);
+        compactions += stdout.matches("compacted: ").count();
+        ok(&[
+            "record",
+            s(&segmented),
+            s(&one),
+            "--commit-every",
+            "1",
+            "--no-compact",
+        ]);
+        let ratio = size(&compacted) as f64 / size(&built) as f64;
+        assert!(
+            ratio <= 1.5,
+            "after map {k}: {} bytes, {ratio:.3}× the build's {} ({stdout})",
+            size(&compacted),
+            size(&built)
+        );
+        worst_segmented = worst_segmented.max(size(&segmented) as f64 / size(&built) as f64);
+        retrieves_as(&compacted, k, input);
+        std::fs::remove_file(built).unwrap();
+    }
+    assert!(compactions > 0);
+    assert!(worst_segmented > 1.5, "{worst_segmented}");
+    for (i, input) in inputs.iter().enumerate() {
+        retrieves_as(&compacted, i, input);
+        retrieves_as(&segmented, i, input);
+    }
+    assert_eq!(samples(&compacted), 9);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }

@@ -164,8 +164,6 @@ pub fn compact(
     options: &CompactOptions,
     progress: &dyn Progress,
 ) -> Result<CompactReport, ConvertError> {
-    let started = Instant::now();
-    let target = output.unwrap_or(file);
     if let Some(output) = output {
         refuse_overwriting_input(output, [file])?;
     }
@@ -179,6 +177,33 @@ pub fn compact(
         )?),
         _ => None,
     };
+    compact_with(context, file, output, writer, options, progress)
+}
+
+/// [`compact`] of the 2.0 file whose writer the caller holds, in place (how `record`
+/// compacts between commits): the lock is held until the result replaces the file, then
+/// released with `writer`, which the caller opens again.
+pub(crate) fn compact_held(
+    context: &Context,
+    writer: LivingWriter,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    let file = writer.reader().path().to_path_buf();
+    compact_with(context, &file, None, Some(writer), options, progress)
+}
+
+/// [`compact`] with the writer lock of an in-place 2.0 compaction taken (`writer`).
+fn compact_with(
+    context: &Context,
+    file: &Path,
+    output: Option<&Path>,
+    writer: Option<LivingWriter>,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    let started = Instant::now();
+    let target = output.unwrap_or(file);
     let series = context.open_series(file)?;
     let version_before = version_text(series.version());
     let segments_before = series.segment_count();
