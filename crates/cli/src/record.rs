@@ -16,6 +16,7 @@ use froctomap_convert::{
     RecordEvent, RecordOptions, Recorder, SeriesInput, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
 use froctomap_ros::{McapStreamMaps, RosError, StreamedMap};
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
@@ -54,6 +55,11 @@ pub struct RecordArgs {
     /// with the time it took.
     #[arg(long)]
     no_compact: bool,
+    /// Print a line per map received (standard output, before the commit that holds it):
+    /// `received TIME: taken`, `… older` (not later than the last one taken, skipped) or
+    /// `received map message N (byte B): bad` (left out with --skip-bad).
+    #[arg(short, long)]
+    verbose: bool,
     /// Force the input map format instead of detecting it (file sources).
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -158,6 +164,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         context,
         recorder,
         skip_bad: args.skip_bad,
+        verbose: args.verbose,
         printing,
     };
     let mut sender = Some(sender);
@@ -213,6 +220,8 @@ struct Recording<'a> {
     recorder: Recorder<'a>,
     /// `--skip-bad`: a stream's map message that does not read is left out.
     skip_bad: bool,
+    /// `--verbose`: a line per map received.
+    verbose: bool,
     /// The first failure to print an event.
     printing: Rc<RefCell<Option<std::io::Error>>>,
 }
@@ -228,13 +237,26 @@ impl Recording<'_> {
     }
 
     fn take_file(&mut self, input: SeriesInput) -> Result<()> {
+        self.received(input.time)?;
         let result = self.recorder.take_file(input).map(drop);
         self.printed(result)
     }
 
     fn take_streamed(&mut self, map: &StreamedMap) -> Result<()> {
+        self.received(map.time)?;
         let result = self.recorder.take_bytes(map.time, &map.bytes).map(drop);
         self.printed(result)
+    }
+
+    /// With `--verbose`, the line of a map received at `time`, before it is taken (and
+    /// perhaps committed, whose line then follows).
+    fn received(&self, time: Timestamp) -> Result<()> {
+        if self.verbose {
+            let later = self.recorder.last_time().is_none_or(|last| time > last);
+            let what = if later { "taken" } else { "older" };
+            outln!("received {}: {what}", iso8601(time))?;
+        }
+        Ok(())
     }
 
     fn commit(&mut self) -> Result<()> {
@@ -375,6 +397,9 @@ fn read_stream(
                     return Err(anyhow!(bad).context(format!("record stopped at {at}")));
                 }
                 recorder.recorder.count_bad();
+                if recorder.verbose {
+                    outln!("received {at}: bad")?;
+                }
                 recorder
                     .ui
                     .note(&format!("warning: left out {at}: {}", escaped(bad)));
