@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{ok, s};
+use common::{ok, s, temporaries};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -53,14 +53,7 @@ fn first_map_only(maps: &Path, file: &Path) {
 
 /// `generate --stream` of `series`, whole.
 fn stream(series: &[&str]) -> Vec<u8> {
-    let output = froctomap()
-        .args(["generate", "--stream"])
-        .args(series)
-        .stderr(Stdio::null())
-        .output()
-        .unwrap();
-    assert!(output.status.success());
-    output.stdout
+    common::generated_stream(series)
 }
 
 /// `generate --stream SERIES | record FILE - ARGS`, both processes spawned and piped.
@@ -137,15 +130,6 @@ fn same_snapshots(file: &Path, expected: &Path, count: u64) {
             file.display()
         );
     }
-}
-
-/// Hidden temporary entries of froctomap in `dir`.
-fn temporaries(dir: &Path) -> Vec<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|name| name.starts_with(".froct-"))
-        .collect()
 }
 
 /// The commit lines `record` printed.

@@ -31,6 +31,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// The prefix of the hidden directory a compaction works in, beside its output.
+pub(crate) const COMPACT_PREFIX: &str = ".froct-compact-";
+
 /// The format `compact` writes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -283,12 +286,11 @@ fn compact_with(
     // Beside the output, so that the result is renamed into place on one file system (spill
     // data goes to `tmp_dir` when given).
     let temp_parent = crate::build::output_dir(target).to_path_buf();
-    let temp =
-        froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(".froct-compact-"))
-            .map_err(|source| froctomap_core::AtomicWriteError {
-                path: temp_parent.clone(),
-                source,
-            })?;
+    let temp = froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(COMPACT_PREFIX))
+        .map_err(|source| froctomap_core::AtomicWriteError {
+            path: temp_parent.clone(),
+            source,
+        })?;
     // The build locks the directory it writes into (shared) while the temporary directory is
     // locked exclusively: it writes into a directory of its own inside.
     let work = temp.path().join("build");

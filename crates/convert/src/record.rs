@@ -18,14 +18,15 @@ use crate::build::{
     append_segment, build, is_living_file, output_dir, refuse_growing_fixed_span, AppendOptions,
     BuildOptions,
 };
-use crate::compact::{compact_held, CompactOptions, CompactReport};
+use crate::compact::{compact_held, CompactOptions, CompactReport, COMPACT_PREFIX};
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
 use crate::progress::Silent;
-use froctomap_core::Timestamp;
+use froctomap_core::{remove_stale_temporary_dirs, Timestamp};
 use froctomap_file::LivingWriter;
-use froctomap_formats::{MapSpool, SpoolError};
+use froctomap_formats::{MapSpool, SpoolError, SPOOL_PREFIX};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -289,6 +290,10 @@ impl<'a> Recorder<'a> {
             .spool_dir
             .clone()
             .unwrap_or_else(|| output_dir(file).to_path_buf());
+        // What a killed recorder left (its spool, a compaction's work) goes now, not only
+        // when this one spools or compacts; a live writer's is locked and stays.
+        remove_stale_temporary_dirs(&spool_dir, OsStr::new(SPOOL_PREFIX));
+        remove_stale_temporary_dirs(output_dir(file), OsStr::new(COMPACT_PREFIX));
         Ok(Self {
             context,
             file: file.to_path_buf(),
