@@ -201,8 +201,16 @@ impl RecordError {
 /// The observer of [`RecordEvent`]s.
 type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 
-/// Maps added to a FROctomap 2.0 file one at a time, committed as segments when due (see
-/// the [module](self) docs).
+/// Maps added to a FROctomap 2.0 file one at a time, committed as segments when due.
+///
+/// The recorder holds the file's writer lock for its life. Maps are taken as map files
+/// ([`take_file`](Self::take_file)) or as map bytes ([`take_bytes`](Self::take_bytes), kept
+/// in a spool beside the file until committed). A map not later than the last one taken is
+/// skipped and counted. A commit that fails is retried in halves, so a bad map commits the
+/// maps before it and stops naming it ([`RecordError::Commit`]), or, with
+/// [`AppendOptions::skip_bad`], is left out and counted. A missing file gets the first
+/// commit's maps as its base; a 1.x file is converted to 2.0 when opened; at the segment
+/// limit the next commit is refused ([`RecordError::SegmentLimit`]).
 ///
 /// **Compaction.** With [`RecordOptions::compact`] (the default), after a commit the file
 /// is compacted in place ([`compact`](crate::compact()): base and segments refitted into one
