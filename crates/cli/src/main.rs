@@ -187,8 +187,10 @@ enum Command {
     /// maps or seconds as one segment of format 2.0 (as `append` does for a 2.0 file), printing
     /// one line per commit. Only the maps of the commit being gathered are kept (on disk,
     /// beside the file), so memory and spool follow one commit; the file grows by a segment
-    /// per commit until `froctomap compact FILE` (not automatic yet: at the segment limit
-    /// `record` commits what it received and stops, saying so).
+    /// per commit and is compacted in place after a commit when its segments pass half its
+    /// base's size or its span has doubled since the last compaction (one line each;
+    /// --no-compact: only `froctomap compact FILE` does; at the segment limit `record`
+    /// commits what it received and stops, saying so). -v prints a line per map received.
     /// Maps not later than the last one taken are skipped and counted (overlapping bag
     /// splits). A bad map stops it after committing the maps before it (--skip-bad: left
     /// out and logged); a cut stream likewise. Ctrl-C/SIGTERM commit the maps received and

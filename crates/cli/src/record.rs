@@ -16,6 +16,7 @@ use froctomap_convert::{
     RecordEvent, RecordOptions, Recorder, SeriesInput, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
+use froctomap_core::Timestamp;
 use froctomap_ros::{McapStreamMaps, RosError, StreamedMap};
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
@@ -47,6 +48,18 @@ pub struct RecordArgs {
     /// a bad map stops `record` after committing the maps before it.
     #[arg(long)]
     skip_bad: bool,
+    /// Never compact automatically. By default, after a commit, the file is compacted in
+    /// place (as `froctomap compact` does, in the build's memory: --memory, --max-memory)
+    /// when its segments exceed half of its base's size or its span has doubled since the
+    /// last compaction, so that it stays at most 1.5× its compacted size; one line says so,
+    /// with the time it took.
+    #[arg(long)]
+    no_compact: bool,
+    /// Print a line per map received (standard output, before the commit that holds it):
+    /// `received TIME: taken`, `… older` (not later than the last one taken, skipped) or
+    /// `received map message N (byte B): bad` (left out with --skip-bad).
+    #[arg(short, long)]
+    verbose: bool,
     /// Force the input map format instead of detecting it (file sources).
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -118,6 +131,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
+        compact: !args.no_compact,
     };
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
@@ -150,6 +164,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         context,
         recorder,
         skip_bad: args.skip_bad,
+        verbose: args.verbose,
         printing,
     };
     let mut sender = Some(sender);
@@ -182,13 +197,17 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         ui.note("stopped by a signal: the maps received are committed");
     }
     ui.note(&format!(
-        "recorded {} maps in {} segment(s); {} not later than the last one taken were skipped{}",
+        "recorded {} maps in {} segment(s); {} not later than the last one taken were skipped{}{}",
         summary.committed_maps,
         summary.commits,
         summary.older,
         match summary.bad {
             0 => String::new(),
             n => format!(", {n} bad map(s) left out"),
+        },
+        match summary.compactions {
+            0 => String::new(),
+            n => format!("; compacted {n} time(s)"),
         }
     ));
     Ok(())
@@ -201,6 +220,8 @@ struct Recording<'a> {
     recorder: Recorder<'a>,
     /// `--skip-bad`: a stream's map message that does not read is left out.
     skip_bad: bool,
+    /// `--verbose`: a line per map received.
+    verbose: bool,
     /// The first failure to print an event.
     printing: Rc<RefCell<Option<std::io::Error>>>,
 }
@@ -216,13 +237,26 @@ impl Recording<'_> {
     }
 
     fn take_file(&mut self, input: SeriesInput) -> Result<()> {
+        self.received(input.time)?;
         let result = self.recorder.take_file(input).map(drop);
         self.printed(result)
     }
 
     fn take_streamed(&mut self, map: &StreamedMap) -> Result<()> {
+        self.received(map.time)?;
         let result = self.recorder.take_bytes(map.time, &map.bytes).map(drop);
         self.printed(result)
+    }
+
+    /// With `--verbose`, the line of a map received at `time`, before it is taken (and
+    /// perhaps committed, whose line then follows).
+    fn received(&self, time: Timestamp) -> Result<()> {
+        if self.verbose {
+            let later = self.recorder.last_time().is_none_or(|last| time > last);
+            let what = if later { "taken" } else { "older" };
+            outln!("received {}: {what}", iso8601(time))?;
+        }
+        Ok(())
     }
 
     fn commit(&mut self) -> Result<()> {
@@ -257,6 +291,18 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
                 failed.borrow_mut().get_or_insert(error);
             }
             print_input_notes(ui, &commit.warnings, &commit.skipped);
+        }
+        RecordEvent::Compacted(compacted) => {
+            let printed = outln!(
+                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms",
+                compacted.segments_before,
+                group_thousands(compacted.bytes_before),
+                group_thousands(compacted.bytes),
+                (compacted.seconds * 1000.0).round()
+            );
+            if let Err(error) = printed {
+                failed.borrow_mut().get_or_insert(error);
+            }
         }
         RecordEvent::LeftOut { maps, what, error } => {
             let why = escaped(format!("{what}: {}", chain(error)));
@@ -351,6 +397,9 @@ fn read_stream(
                     return Err(anyhow!(bad).context(format!("record stopped at {at}")));
                 }
                 recorder.recorder.count_bad();
+                if recorder.verbose {
+                    outln!("received {at}: bad")?;
+                }
                 recorder
                     .ui
                     .note(&format!("warning: left out {at}: {}", escaped(bad)));

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{ok, s};
+use common::{ok, s, temporaries};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -53,14 +53,7 @@ fn first_map_only(maps: &Path, file: &Path) {
 
 /// `generate --stream` of `series`, whole.
 fn stream(series: &[&str]) -> Vec<u8> {
-    let output = froctomap()
-        .args(["generate", "--stream"])
-        .args(series)
-        .stderr(Stdio::null())
-        .output()
-        .unwrap();
-    assert!(output.status.success());
-    output.stdout
+    common::generated_stream(series)
 }
 
 /// `generate --stream SERIES | record FILE - ARGS`, both processes spawned and piped.
@@ -73,7 +66,7 @@ fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
         .spawn()
         .unwrap();
     let output = froctomap()
-        .args(["record", s(file), "-"])
+        .args(["record", s(file), "-", "--no-compact"])
         .args(args)
         .stdin(Stdio::from(generator.stdout.take().unwrap()))
         .output()
@@ -85,7 +78,7 @@ fn record_piped(series: &[&str], file: &Path, args: &[&str]) -> Output {
 /// `record FILE - ARGS`, its standard streams piped.
 fn spawn_record(file: &Path, args: &[&str]) -> Child {
     froctomap()
-        .args(["record", s(file), "-"])
+        .args(["record", s(file), "-", "--no-compact"])
         .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -137,15 +130,6 @@ fn same_snapshots(file: &Path, expected: &Path, count: u64) {
             file.display()
         );
     }
-}
-
-/// Hidden temporary entries of froctomap in `dir`.
-fn temporaries(dir: &Path) -> Vec<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|name| name.starts_with(".froct-"))
-        .collect()
 }
 
 /// The commit lines `record` printed.
@@ -205,22 +189,45 @@ fn a_streamed_series_records_segment_by_segment_and_retrieves_as_its_directory_b
     same_snapshots(&file, &longer, 9);
 }
 
+/// The maps `record -v` said it took (`received TIME: taken`), as their times.
+fn taken_lines(stdout: &str) -> Vec<&str> {
+    stdout
+        .lines()
+        .filter_map(|line| line.strip_prefix("received ")?.strip_suffix(": taken"))
+        .collect()
+}
+
+/// SIGTERM with maps received and no commit due (`--commit-every` far away): the signal's
+/// commit is the only one, and it holds exactly the maps `-v` said were taken.
 #[test]
 fn sigterm_commits_the_maps_received_and_exits_0() {
     let dir = tempfile::tempdir().unwrap();
-    let (maps, whole) = built(dir.path(), "maps", &SERIES);
+    let maps = dir.path().join("maps");
+    let mut args = vec!["-q", "generate", "-o", s(&maps)];
+    args.extend(SERIES);
+    ok(&args);
+    let (_, inputs) = manifest_of(&maps, "all.csv", 0..6);
     let file = dir.path().join("recorded.froct");
     first_map_only(&maps, &file);
     let bytes = stream(&SERIES);
-    let mut child = spawn_record(&file, &["--commit-every", "1"]);
+    let mut child = spawn_record(&file, &["--commit-every", "1000", "-v"]);
     // A producer that has not finished: all but the stream's end, stdin kept open.
     let mut stdin = child.stdin.take().unwrap();
     stdin.write_all(&bytes[..bytes.len() - 64]).unwrap();
     stdin.flush().unwrap();
+    // Waits for the first map (the file's own: older) and four more to be received.
     let mut stdout = BufReader::new(child.stdout.take().unwrap());
-    let mut first = String::new();
-    stdout.read_line(&mut first).unwrap();
-    assert!(first.starts_with("segment 1: 1 maps"), "{first}");
+    let mut received = String::new();
+    while received.lines().count() < 5 {
+        let mut line = String::new();
+        assert!(stdout.read_line(&mut line).unwrap() > 0, "{received}");
+        assert!(line.starts_with("received "), "{line}");
+        received.push_str(&line);
+    }
+    assert!(
+        received.starts_with("received 2016-01-04T00:00:00Z: older\n"),
+        "{received}"
+    );
     let status = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()
@@ -233,16 +240,25 @@ fn sigterm_commits_the_maps_received_and_exits_0() {
     let stderr = text(&output.stderr);
     assert_eq!(output.status.code(), Some(0), "{stderr}");
     assert!(stderr.contains("stopped by a signal"), "{stderr}");
-    let printed = 1 + commit_lines(&rest).len();
-    let committed = segments(&file);
-    assert_eq!(committed.len(), printed, "{first}{rest}");
-    assert!(committed.iter().all(|&n| n == 1));
-    // The maps received past the last commit line were committed at the signal, none lost
-    // or made up: every sample is one of the series'.
-    let total = samples(&file);
-    assert_eq!(total, 1 + committed.len() as u64);
-    assert!(total <= 6);
-    same_snapshots(&file, &whole, total);
+    let printed = received + &rest;
+    let taken = taken_lines(&printed);
+    assert!((4..=5).contains(&taken.len()), "{printed}");
+    // One commit, the signal's, of every map taken, and nothing else.
+    assert_eq!(commit_lines(&printed).len(), 1, "{printed}");
+    assert_eq!(segments(&file), [taken.len() as u64], "{printed}");
+    assert_eq!(samples(&file), 1 + taken.len() as u64);
+    for (i, time) in taken.iter().enumerate() {
+        assert!(
+            inputs[i + 1]
+                .to_str()
+                .unwrap()
+                .contains(&time.replace([':', '-'], "")),
+            "{time}"
+        );
+    }
+    for (i, input) in inputs.iter().take(1 + taken.len()).enumerate() {
+        retrieves_as(&file, i, input);
+    }
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }
 
@@ -320,7 +336,14 @@ fn a_directory_records_as_a_stream_does() {
     let (maps, whole) = built(dir.path(), "maps", &SERIES);
     let file = dir.path().join("recorded.froct");
     first_map_only(&maps, &file);
-    let stdout = ok(&["record", s(&file), s(&maps), "--commit-every", "2"]);
+    let stdout = ok(&[
+        "record",
+        s(&file),
+        s(&maps),
+        "--commit-every",
+        "2",
+        "--no-compact",
+    ]);
     assert_eq!(commit_lines(&stdout).len(), 3, "{stdout}");
     assert_eq!(segments(&file), [2, 2, 1]);
     same_snapshots(&file, &whole, 6);
@@ -494,6 +517,7 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
     first_map_only(&maps, &file);
     let output = froctomap()
         .args(["record", s(&file), s(&mixed), "--commit-every", "100"])
+        .arg("--no-compact")
         .output()
         .unwrap();
     let stderr = text(&output.stderr);
@@ -508,6 +532,7 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
     first_map_only(&maps, &skipping);
     let output = froctomap()
         .args(["record", s(&skipping), s(&mixed), "--commit-every", "100"])
+        .arg("--no-compact")
         .arg("--skip-bad")
         .output()
         .unwrap();
@@ -522,5 +547,89 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
         "2016-01-04T02:30:00Z",
     ];
     same_at(&skipping, &good, &whole, &good);
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}
+
+/// A manifest in `maps` of its maps `range` (0-based, in time order): (path, its maps' files).
+fn manifest_of(maps: &Path, name: &str, range: std::ops::Range<usize>) -> (PathBuf, Vec<PathBuf>) {
+    let manifest = std::fs::read_to_string(maps.join("manifest.csv")).unwrap();
+    let mut lines = manifest.lines();
+    let header = lines.next().unwrap();
+    let rows: Vec<&str> = lines.skip(range.start).take(range.len()).collect();
+    let csv = maps.join(name);
+    std::fs::write(&csv, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+    let files = rows
+        .iter()
+        .map(|row| maps.join(row.split(',').next().unwrap()))
+        .collect();
+    (csv, files)
+}
+
+fn size(file: &Path) -> u64 {
+    std::fs::metadata(file).unwrap().len()
+}
+
+/// Sample `i` of `file` retrieves byte-identical to the generated map `input`.
+fn retrieves_as(file: &Path, i: usize, input: &Path) {
+    let got = file.with_extension(format!("{i}.bt"));
+    let time = format!("index:{i}");
+    ok(&["-q", "retrieve", s(file), "--time", &time, "-o", s(&got)]);
+    assert!(
+        std::fs::read(&got).unwrap() == std::fs::read(input).unwrap(),
+        "sample {i} of {} differs from {}",
+        file.display(),
+        input.display()
+    );
+    std::fs::remove_file(got).unwrap();
+}
+
+/// Recorded one map per `record` run, each run a commit: after every run the file is at
+/// most 1.5× a `build` of the maps so far, and every snapshot retrieves byte-identical to
+/// its generated map. The same runs with `--no-compact` pass that bound, so it is the
+/// compaction that keeps it.
+#[test]
+fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    let mut args = vec!["-q", "generate", "-o", s(&maps)];
+    args.extend(LONGER);
+    ok(&args);
+    let (_, inputs) = manifest_of(&maps, "all.csv", 0..9);
+    let compacted = dir.path().join("compacted.froct");
+    let segmented = dir.path().join("segmented.froct");
+    let (mut compactions, mut worst_segmented) = (0, 0.0_f64);
+    for (k, input) in inputs.iter().enumerate() {
+        let (one, _) = manifest_of(&maps, &format!("one-{k}.csv"), k..k + 1);
+        let (prefix, _) = manifest_of(&maps, &format!("prefix-{k}.csv"), 0..k + 1);
+        let built = dir.path().join(format!("built-{k}.froct"));
+        ok(&["-q", "build", s(&prefix), "-o", s(&built)]);
+        let stdout = ok(&["record", s(&compacted), s(&one), "--commit-every", "1"]);
+        compactions += stdout.matches("compacted: ").count();
+        ok(&[
+            "record",
+            s(&segmented),
+            s(&one),
+            "--commit-every",
+            "1",
+            "--no-compact",
+        ]);
+        let ratio = size(&compacted) as f64 / size(&built) as f64;
+        assert!(
+            ratio <= 1.5,
+            "after map {k}: {} bytes, {ratio:.3}× the build's {} ({stdout})",
+            size(&compacted),
+            size(&built)
+        );
+        worst_segmented = worst_segmented.max(size(&segmented) as f64 / size(&built) as f64);
+        retrieves_as(&compacted, k, input);
+        std::fs::remove_file(built).unwrap();
+    }
+    assert!(compactions > 0);
+    assert!(worst_segmented > 1.5, "{worst_segmented}");
+    for (i, input) in inputs.iter().enumerate() {
+        retrieves_as(&compacted, i, input);
+        retrieves_as(&segmented, i, input);
+    }
+    assert_eq!(samples(&compacted), 9);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }

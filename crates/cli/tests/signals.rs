@@ -4,6 +4,9 @@
 #![cfg(unix)]
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
+mod common;
+
+use common::temporaries;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -22,15 +25,6 @@ fn series(dir: &Path) -> PathBuf {
         .unwrap();
     assert!(status.success());
     series
-}
-
-/// Hidden temporary entries of froctomap in `dir`.
-fn temporaries(dir: &Path) -> Vec<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|name| name.starts_with(".froct-"))
-        .collect()
 }
 
 /// Starts a build of `series` into `out` that spills after every snapshot.

@@ -31,6 +31,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// The prefix of the hidden directory a compaction works in, beside its output.
+pub(crate) const COMPACT_PREFIX: &str = ".froct-compact-";
+
 /// The format `compact` writes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -164,8 +167,6 @@ pub fn compact(
     options: &CompactOptions,
     progress: &dyn Progress,
 ) -> Result<CompactReport, ConvertError> {
-    let started = Instant::now();
-    let target = output.unwrap_or(file);
     if let Some(output) = output {
         refuse_overwriting_input(output, [file])?;
     }
@@ -179,6 +180,33 @@ pub fn compact(
         )?),
         _ => None,
     };
+    compact_with(context, file, output, writer, options, progress)
+}
+
+/// [`compact`] of the 2.0 file whose writer the caller holds, in place (how `record`
+/// compacts between commits): the lock is held until the result replaces the file, then
+/// released with `writer`, which the caller opens again.
+pub(crate) fn compact_held(
+    context: &Context,
+    writer: LivingWriter,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    let file = writer.reader().path().to_path_buf();
+    compact_with(context, &file, None, Some(writer), options, progress)
+}
+
+/// [`compact`] with the writer lock of an in-place 2.0 compaction taken (`writer`).
+fn compact_with(
+    context: &Context,
+    file: &Path,
+    output: Option<&Path>,
+    writer: Option<LivingWriter>,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    let started = Instant::now();
+    let target = output.unwrap_or(file);
     let series = context.open_series(file)?;
     let version_before = version_text(series.version());
     let segments_before = series.segment_count();
@@ -258,12 +286,11 @@ pub fn compact(
     // Beside the output, so that the result is renamed into place on one file system (spill
     // data goes to `tmp_dir` when given).
     let temp_parent = crate::build::output_dir(target).to_path_buf();
-    let temp =
-        froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(".froct-compact-"))
-            .map_err(|source| froctomap_core::AtomicWriteError {
-                path: temp_parent.clone(),
-                source,
-            })?;
+    let temp = froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(COMPACT_PREFIX))
+        .map_err(|source| froctomap_core::AtomicWriteError {
+            path: temp_parent.clone(),
+            source,
+        })?;
     // The build locks the directory it writes into (shared) while the temporary directory is
     // locked exclusively: it writes into a directory of its own inside.
     let work = temp.path().join("build");

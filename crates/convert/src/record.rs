@@ -18,13 +18,15 @@ use crate::build::{
     append_segment, build, is_living_file, output_dir, refuse_growing_fixed_span, AppendOptions,
     BuildOptions,
 };
+use crate::compact::{compact_held, CompactOptions, CompactReport, COMPACT_PREFIX};
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
 use crate::progress::Silent;
-use froctomap_core::Timestamp;
+use froctomap_core::{remove_stale_temporary_dirs, Timestamp};
 use froctomap_file::LivingWriter;
-use froctomap_formats::{MapSpool, SpoolError};
+use froctomap_formats::{MapSpool, SpoolError, SPOOL_PREFIX};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -45,7 +47,7 @@ impl Default for CommitEvery {
 }
 
 /// How to record.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct RecordOptions {
     /// When to commit.
     pub commit_every: CommitEvery,
@@ -55,6 +57,19 @@ pub struct RecordOptions {
     pub append: AppendOptions,
     /// Where the spool of maps taken as bytes goes; `None`: beside the file.
     pub spool_dir: Option<PathBuf>,
+    /// Compact the file after a commit when due (see [`Recorder`]); `true` by default.
+    pub compact: bool,
+}
+
+impl Default for RecordOptions {
+    fn default() -> Self {
+        Self {
+            commit_every: CommitEvery::default(),
+            append: AppendOptions::default(),
+            spool_dir: None,
+            compact: true,
+        }
+    }
 }
 
 /// What the file was when the recorder opened it.
@@ -110,6 +125,8 @@ pub enum RecordEvent<'e> {
         /// Why.
         error: &'e ConvertError,
     },
+    /// The file compacted after a commit: base and segments refitted into one base.
+    Compacted(&'e CompactReport),
 }
 
 /// Counts of a recording so far.
@@ -124,6 +141,8 @@ pub struct RecordSummary {
     pub older: u64,
     /// Bad maps left out (with `skip_bad`).
     pub bad: u64,
+    /// Automatic compactions.
+    pub compactions: usize,
 }
 
 /// Why recording failed. What was committed before stays committed.
@@ -145,6 +164,15 @@ pub enum RecordError {
         segments: usize,
         /// The limit.
         limit: u64,
+    },
+    /// An automatic compaction failed; the file holds every commit made, as before it.
+    #[error("{}: compacting after a commit failed (every commit is kept; `froctomap compact` it, or record with --no-compact)", file.display())]
+    Compact {
+        /// The file.
+        file: PathBuf,
+        /// Why it failed.
+        #[source]
+        source: Box<ConvertError>,
     },
     /// A commit failed: `what` says which maps ("committing the map of … (…)",
     /// "committing N maps (… .. …)"); the maps before it are committed.
@@ -173,8 +201,25 @@ impl RecordError {
 /// The observer of [`RecordEvent`]s.
 type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 
-/// Maps added to a FROctomap 2.0 file one at a time, committed as segments when due (see
-/// the [module](self) docs).
+/// Maps added to a FROctomap 2.0 file one at a time, committed as segments when due.
+///
+/// The recorder holds the file's writer lock for its life. Maps are taken as map files
+/// ([`take_file`](Self::take_file)) or as map bytes ([`take_bytes`](Self::take_bytes), kept
+/// in a spool beside the file until committed). A map not later than the last one taken is
+/// skipped and counted. A commit that fails is retried in halves, so a bad map commits the
+/// maps before it and stops naming it ([`RecordError::Commit`]), or, with
+/// [`AppendOptions::skip_bad`], is left out and counted. A missing file gets the first
+/// commit's maps as its base; a 1.x file is converted to 2.0 when opened; at the segment
+/// limit the next commit is refused ([`RecordError::SegmentLimit`]).
+///
+/// **Compaction.** With [`RecordOptions::compact`] (the default), after a commit the file
+/// is compacted in place ([`compact`](crate::compact()): base and segments refitted into one
+/// base, equal to a build of the same maps; the build's bounded memory,
+/// [`AppendOptions::memory`]; atomic; under the writer lock the recorder holds) when its
+/// segments exceed half of its base's bytes, or when the span from its first sample to its
+/// last has reached twice the base's span. The first bound keeps the file at most 1.5× its
+/// compacted size at every commit; the second makes compactions a geometric series in time.
+/// Maps are not taken while it runs (a caller's queue or pipe holds them).
 ///
 /// ```no_run
 /// use froctomap_convert::*;
@@ -253,6 +298,10 @@ impl<'a> Recorder<'a> {
             .spool_dir
             .clone()
             .unwrap_or_else(|| output_dir(file).to_path_buf());
+        // What a killed recorder left (its spool, a compaction's work) goes now, not only
+        // when this one spools or compacts; a live writer's is locked and stays.
+        remove_stale_temporary_dirs(&spool_dir, OsStr::new(SPOOL_PREFIX));
+        remove_stale_temporary_dirs(output_dir(file), OsStr::new(COMPACT_PREFIX));
         Ok(Self {
             context,
             file: file.to_path_buf(),
@@ -369,7 +418,70 @@ impl<'a> Recorder<'a> {
             series.extend(collect_recording(PathBuf::from(STDIN_INPUT), recording)?.series);
         }
         series.sort_by_key(|input| input.time);
-        self.commit_pieces(&series)
+        self.commit_pieces(&series)?;
+        if self.compaction_due() {
+            self.compact()?;
+        }
+        Ok(())
+    }
+
+    /// Whether the file is past a compaction threshold (see [`Recorder`]).
+    fn compaction_due(&self) -> bool {
+        let Some(writer) = &self.writer else {
+            return false;
+        };
+        let reader = writer.reader();
+        if !self.options.compact || reader.segment_count() == 0 {
+            return false;
+        }
+        let root = reader.root();
+        if root.committed_len.saturating_sub(root.base_len) > root.base_len / 2 {
+            return true;
+        }
+        let base = &reader.header().axis;
+        let base_span = base.end().0.saturating_sub(base.start().0);
+        let span = reader.last_instant().0.saturating_sub(base.start().0);
+        span >= base_span.saturating_mul(2)
+    }
+
+    /// Compacts the file in place, holding its lock throughout, then opens it again.
+    fn compact(&mut self) -> Result<(), RecordError> {
+        let Some(writer) = self.writer.take() else {
+            return Ok(());
+        };
+        let append = &self.options.append;
+        let options = CompactOptions {
+            model_options: append.model_options.clone(),
+            memory: append.memory,
+            tmp_dir: append.tmp_dir.clone(),
+            ..CompactOptions::default()
+        };
+        let compacted = compact_held(self.context, writer, &options, &Silent);
+        // Opened again whether or not it succeeded: a failed compaction left the file as
+        // it was.
+        let reopened = LivingWriter::open_with_limits(
+            &self.file,
+            self.context.limits().froct,
+            self.context.models(),
+        );
+        self.writer = reopened.ok();
+        let report = compacted.map_err(|source| RecordError::Compact {
+            file: self.file.clone(),
+            source: Box::new(source),
+        })?;
+        if self.writer.is_none() {
+            // Said at once; the next commit would fail on it too.
+            LivingWriter::open_with_limits(
+                &self.file,
+                self.context.limits().froct,
+                self.context.models(),
+            )
+            .map(|writer| self.writer = Some(writer))
+            .map_err(ConvertError::from)?;
+        }
+        self.summary.compactions += 1;
+        (self.observer)(RecordEvent::Compacted(&report));
+        Ok(())
     }
 
     /// Commits what is gathered and ends the recording (the writer lock is released).
@@ -461,6 +573,13 @@ impl<'a> Recorder<'a> {
             _ => return Ok(()),
         };
         let report = match &mut self.writer {
+            // Only a file that did not exist is built, and only once: a writer lost to a
+            // failed compaction never makes a new base over the file.
+            None if self.opened != Opened::Missing || self.summary.commits > 0 => {
+                return Err(ConvertError::internal(
+                    "the file is no longer open for recording (it could not be opened again after a compaction)",
+                ))
+            }
             None => {
                 let built = self.build_base(series)?;
                 CommitReport {

@@ -42,3 +42,24 @@ pub fn fails(args: &[&str]) -> String {
 pub fn s(path: &Path) -> &str {
     path.to_str().unwrap()
 }
+
+/// Hidden temporary entries of froctomap in `dir`.
+pub fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with(".froct-"))
+        .collect()
+}
+
+/// `froctomap generate --stream ARGS`, whole.
+pub fn generated_stream(args: &[&str]) -> Vec<u8> {
+    let output = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .args(["generate", "--stream"])
+        .args(args)
+        .stderr(std::process::Stdio::null())
+        .output()
+        .expect("run froctomap");
+    assert!(output.status.success());
+    output.stdout
+}
