@@ -208,6 +208,7 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
             ..Default::default()
         },
         spool_dir: None,
+        compact: false,
     };
     let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
     let mut sink = FilesSink {
@@ -646,6 +647,7 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
             ..Default::default()
         },
         spool_dir: None,
+        compact: false,
     };
     let mut recorder =
         froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");

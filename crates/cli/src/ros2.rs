@@ -273,6 +273,10 @@ fn open_recording<'a>(
             ..AppendOptions::default()
         },
         spool_dir: None,
+        // Not automatic here yet: a compaction blocks the map intake for as long as a build
+        // of the whole history takes, while the DDS reader keeps only the last 16 maps.
+        // `froctomap compact FILE` with the node stopped does it (docs/ROS.md).
+        compact: false,
     };
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {

@@ -451,7 +451,7 @@ impl<'a> Recorder<'a> {
         };
         let append = &self.options.append;
         let options = CompactOptions {
-            model_options: append.model_options.clone(),
+            model_options: append.config.options.clone(),
             memory: append.memory,
             tmp_dir: append.tmp_dir.clone(),
             ..CompactOptions::default()

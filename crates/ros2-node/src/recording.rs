@@ -140,6 +140,7 @@ mod tests {
                 ..AppendOptions::default()
             },
             spool_dir: None,
+            compact: false,
         };
         let recorder = Recorder::open(context, file, options).expect("open");
         RecordingSink::new(recorder, source, Duration::from_secs(min))
