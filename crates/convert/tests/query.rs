@@ -180,6 +180,8 @@ fn series_probabilities_of_a_living_file_follow_its_predicted_map() {
     let living = dir.path().join("living.froct");
     let options = RecordOptions {
         commit_every: CommitEvery::Maps(12),
+        // Kept in segments: what this test reads.
+        compact: false,
         ..RecordOptions::default()
     };
     let mut recorder = Recorder::open(&context, &living, options).unwrap();
