@@ -246,7 +246,9 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             node.serve_requests(&mut services);
         }
     }
-    if let Some(sink) = recording {
+    if let Some(mut sink) = recording {
+        // Maps DDS already delivered (and acknowledged) are taken before the last commit.
+        node.receive_into(&mut sink, Duration::ZERO)?;
         let thinned = sink.thinned();
         let summary = sink.finish()?;
         eprintln!(
