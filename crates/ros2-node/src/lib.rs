@@ -456,20 +456,14 @@ impl Node {
         loop {
             match service.requests.try_take_one() {
                 Ok(Some(change)) => {
-                    let sample = RequestId::Sample {
-                        guid: change.writer_guid.to_bytes(),
-                        sequence: i64::from(change.sequence_number),
-                    };
-                    // Enhanced: the request may name its own identity.
-                    let sample = match change.related_sample_identity() {
-                        Some(identity) if self.service_mapping == ServiceMapping::Enhanced => {
-                            RequestId::Sample {
-                                guid: identity.writer_guid.to_bytes(),
-                                sequence: i64::from(identity.sequence_number),
-                            }
-                        }
-                        _ => sample,
-                    };
+                    let sample = request_identity(
+                        self.service_mapping,
+                        rustdds::SampleIdentity {
+                            writer_guid: change.writer_guid,
+                            sequence_number: change.sequence_number,
+                        },
+                        change.related_sample_identity(),
+                    );
                     return Some((change.into_value(), sample));
                 }
                 Ok(None) => return None,
@@ -652,6 +646,33 @@ pub fn octomap_message_of_bt(
     .ok_or(NodeError::MessageTooLong { bytes: body.len() })
 }
 
+/// The identity a reply names for a request whose own sample identity is `own`.
+/// Enhanced: the request may name another one (its `related_sample_identity`), whose GUID
+/// wins; rmw_fastrtps clients set only that GUID (their reply reader's) and leave the
+/// sequence number UNKNOWN, and take the request's own sequence number back, as
+/// rmw_fastrtps' server does.
+fn request_identity(
+    mapping: ServiceMapping,
+    own: rustdds::SampleIdentity,
+    related: Option<rustdds::SampleIdentity>,
+) -> RequestId {
+    let identity = match related {
+        Some(related) if mapping == ServiceMapping::Enhanced => rustdds::SampleIdentity {
+            writer_guid: related.writer_guid,
+            sequence_number: if related.sequence_number == rustdds::SequenceNumber::UNKNOWN {
+                own.sequence_number
+            } else {
+                related.sequence_number
+            },
+        },
+        _ => own,
+    };
+    RequestId::Sample {
+        guid: identity.writer_guid.to_bytes(),
+        sequence: i64::from(identity.sequence_number),
+    }
+}
+
 /// Reliable, transient-local, the last 16 samples: what `octomap_server` offers for its
 /// latched maps, and deep enough that a burst of maps is not thinned before it is taken.
 fn latched_qos() -> QosPolicies {
@@ -748,5 +769,32 @@ mod tests {
         for bad in ["", "/", "//a", "/a/", "/a b", "/1a"] {
             assert!(dds_topic_name(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn enhanced_replies_take_the_requests_own_sequence_number_when_the_related_one_is_unknown() {
+        let guid = |b: u8| rustdds::GUID::from_bytes([b; 16]);
+        let own = rustdds::SampleIdentity {
+            writer_guid: guid(1),
+            sequence_number: rustdds::SequenceNumber::from(7_i64),
+        };
+        // rmw_fastrtps: the reply reader's GUID, sequence number UNKNOWN.
+        let fastrtps = rustdds::SampleIdentity {
+            writer_guid: guid(2),
+            sequence_number: rustdds::SequenceNumber::UNKNOWN,
+        };
+        let full = rustdds::SampleIdentity {
+            writer_guid: guid(3),
+            sequence_number: rustdds::SequenceNumber::from(9_i64),
+        };
+        let id = |mapping, related| match request_identity(mapping, own, related) {
+            RequestId::Sample { guid, sequence } => (guid, sequence),
+            RequestId::Cyclone { .. } => panic!("a sample identity"),
+        };
+        assert_eq!(id(ServiceMapping::Enhanced, Some(fastrtps)), ([2; 16], 7));
+        assert_eq!(id(ServiceMapping::Enhanced, Some(full)), ([3; 16], 9));
+        assert_eq!(id(ServiceMapping::Enhanced, None), ([1; 16], 7));
+        // Basic replies name the request's own identity whatever it carries.
+        assert_eq!(id(ServiceMapping::Basic, Some(full)), ([1; 16], 7));
     }
 }
