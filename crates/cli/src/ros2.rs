@@ -57,6 +57,19 @@ pub struct Ros2Args {
     /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
     #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
     service_mapping: ServiceMapping,
+    /// Received maps larger than SIZE are refused (logged and skipped); service requests
+    /// are refused over the smaller of SIZE and their own bound (the point limit). Checked
+    /// once DDS has reassembled the message.
+    #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
+    max_message_bytes: usize,
+}
+
+/// `--max-message-bytes`: a byte size (`64MiB`), at least 1 byte.
+fn message_bytes(text: &str) -> Result<usize, String> {
+    match crate::series::byte_size(text)? {
+        0 => Err("at least 1 byte".into()),
+        bytes => usize::try_from(bytes).map_err(|_| "out of range".to_string()),
+    }
 }
 
 /// Logs each map received (`--no-record`).
@@ -186,6 +199,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.topic = args.topic.clone();
     options.network = network(&args.network)?;
     options.service_mapping = args.service_mapping;
+    options.max_message_bytes = args.max_message_bytes;
     let node = Node::new(&options)?;
     eprintln!(
         "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",

@@ -162,3 +162,14 @@ fn the_node_records_serves_and_stops_on_sigterm() {
         );
     }
 }
+
+#[test]
+fn the_message_size_limit_is_an_option_of_at_least_one_byte() {
+    let dir = scratch();
+    let living = dir.path().join("living.froct");
+    let refused = common::fails(&["ros2", s(&living), "--max-message-bytes", "0"]);
+    assert!(refused.contains("at least 1 byte"), "{refused}");
+    let refused = common::fails(&["ros2", s(&living), "--max-message-bytes", "lots"]);
+    assert!(refused.contains("--max-message-bytes"), "{refused}");
+    assert!(!living.exists());
+}

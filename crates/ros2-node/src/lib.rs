@@ -43,7 +43,8 @@ pub use services::{
     decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
     MapData, Octomap, Point, ProbabilityAtRequest, ProbabilityAtResponse, RequestError,
     ServiceHandler, ServiceMapping, Time, GET_OCTOMAP_AT_DDS_TYPE, GET_OCTOMAP_AT_SERVICE,
-    MAX_POINTS, PROBABILITY_AT_DDS_TYPE, PROBABILITY_AT_SERVICE,
+    MAX_GET_OCTOMAP_AT_REQUEST_BYTES, MAX_POINTS, MAX_PROBABILITY_AT_REQUEST_BYTES,
+    PROBABILITY_AT_DDS_TYPE, PROBABILITY_AT_SERVICE,
 };
 
 use froctomap_convert::{FroctFile, SeriesRead};
@@ -229,18 +230,21 @@ struct ServiceEndpoints {
     name: &'static str,
     requests: SimpleDataReader<Vec<u8>, RawCdr>,
     replies: DataWriter<Vec<u8>, RawCdr>,
+    /// Larger requests are skipped before decoding.
+    max_request_bytes: usize,
     /// Readers matched to `replies`, from its status events.
     matched_readers: std::cell::Cell<i32>,
 }
 
 impl ServiceEndpoints {
     /// `rq/<service>Request` and `rr/<service>Reply` of types `<stem>_Request_` and
-    /// `<stem>_Response_`, as every RMW names them; reliable, volatile, as ROS's default
-    /// service QoS.
+    /// `<stem>_Response_`, as every RMW names them; reliable, volatile, keep-last 10, as
+    /// ROS's default service QoS.
     fn new(
         participant: &DomainParticipant,
         name: &'static str,
         type_stem: &str,
+        max_request_bytes: usize,
     ) -> Result<Self, NodeError> {
         let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
         let qos = QosPolicyBuilder::new()
@@ -248,7 +252,7 @@ impl ServiceEndpoints {
                 max_blocking_time: rustdds::Duration::from_millis(100),
             })
             .durability(Durability::Volatile)
-            .history(History::KeepLast { depth: 64 })
+            .history(History::KeepLast { depth: 10 })
             .build();
         let stem = dds_topic_name(name)?;
         let stem = stem.strip_prefix("rt/").unwrap_or(&stem);
@@ -282,6 +286,7 @@ impl ServiceEndpoints {
             name,
             requests,
             replies,
+            max_request_bytes,
             matched_readers: std::cell::Cell::new(0),
         })
     }
@@ -366,11 +371,13 @@ impl Node {
             &participant,
             GET_OCTOMAP_AT_SERVICE,
             GET_OCTOMAP_AT_DDS_TYPE,
+            MAX_GET_OCTOMAP_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         let probability_at = ServiceEndpoints::new(
             &participant,
             PROBABILITY_AT_SERVICE,
             PROBABILITY_AT_DDS_TYPE,
+            MAX_PROBABILITY_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         Ok(Self {
             participant,
@@ -483,12 +490,12 @@ impl Node {
         Q: serde::de::DeserializeOwned,
         R: serde::Serialize,
     {
-        if message.len() > self.max_message_bytes {
+        if message.len() > service.max_request_bytes {
             log::warn!(
                 "{}: request of {} bytes is over the limit of {} bytes; skipped",
                 service.name,
                 message.len(),
-                self.max_message_bytes
+                service.max_request_bytes
             );
             return false;
         }
