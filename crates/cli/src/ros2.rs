@@ -250,7 +250,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 Some(sink) => {
                     node.receive_into(sink, wait)?;
                     if let Err(e) = sink.tick() {
-                        eprintln!("warning: {}: commit failed: {e}", args.file.display());
+                        eprintln!("warning: {}: {e}", args.file.display());
                     }
                 }
                 None => {
@@ -263,11 +263,11 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     if let Some(mut sink) = recording {
         // Maps DDS already delivered (and acknowledged) are taken before the last commit.
         node.receive_into(&mut sink, Duration::ZERO)?;
-        let thinned = sink.thinned();
+        let (thinned, lost) = (sink.thinned(), sink.lost());
         let summary = sink.finish()?;
         eprintln!(
-            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out",
-            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad
+            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out, {} lost to failed commits",
+            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad, lost
         );
     }
     Ok(())

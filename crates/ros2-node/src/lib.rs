@@ -37,7 +37,7 @@
 mod recording;
 mod services;
 
-pub use recording::{RecordingSink, TimeSource};
+pub use recording::{CommitFailed, RecordingSink, TimeSource};
 
 pub use services::{
     decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
@@ -409,10 +409,17 @@ impl Node {
                             let stamp = map.stamp;
                             match sink.receive(map) {
                                 Ok(()) => accepted += 1,
-                                Err(e) => sink.skipped(format!(
-                                    "{}: the map stamped {} ns was not recorded: {e}",
-                                    self.topic, stamp.0
-                                )),
+                                // A failed commit loses more than this map: say so.
+                                Err(e) => match e.downcast_ref::<CommitFailed>() {
+                                    Some(failed) => sink.skipped(format!(
+                                        "{}: {failed} (the last one received stamped {} ns)",
+                                        self.topic, stamp.0
+                                    )),
+                                    None => sink.skipped(format!(
+                                        "{}: the map stamped {} ns was not recorded: {e}",
+                                        self.topic, stamp.0
+                                    )),
+                                },
                             }
                         }
                         Err(reason) => {
