@@ -181,8 +181,19 @@ mod tests {
         source: TimeSource,
         min: u64,
     ) -> RecordingSink<'a> {
+        sink_committing_every(context, file, source, min, 1)
+    }
+
+    /// A sink committing every `maps` maps, bad maps left out as the node does.
+    fn sink_committing_every<'a>(
+        context: &'a Context,
+        file: &std::path::Path,
+        source: TimeSource,
+        min: u64,
+        maps: usize,
+    ) -> RecordingSink<'a> {
         let options = RecordOptions {
-            commit_every: CommitEvery::Maps(1),
+            commit_every: CommitEvery::Maps(maps),
             append: AppendOptions {
                 skip_bad: true,
                 allow_mostly_skipped: true,
@@ -228,17 +239,7 @@ mod tests {
         std::fs::create_dir(&home).expect("mkdir");
         let file = home.join("living.froct");
         let context = Context::with_default_plugins();
-        let options = RecordOptions {
-            commit_every: CommitEvery::Maps(3),
-            append: AppendOptions {
-                skip_bad: true,
-                allow_mostly_skipped: true,
-                ..AppendOptions::default()
-            },
-            spool_dir: None,
-        };
-        let recorder = Recorder::open(&context, &file, options).expect("open");
-        let mut sink = RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO);
+        let mut sink = sink_committing_every(&context, &file, TimeSource::Header, 0, 3);
         for s in 0..3 {
             sink.receive(map(1_700_000_000 + s)).expect("the base");
         }
