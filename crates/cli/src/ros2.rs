@@ -1,6 +1,6 @@
-//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It publishes the map FILE
-//! predicts, answers the services from FILE, and receives maps without recording them yet:
-//! the recording sink comes with `record`'s `Recorder`.
+//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It records the maps it
+//! receives into FILE through `record`'s `Recorder` (`--no-record`: receives only),
+//! publishes the map FILE predicts and answers the services from FILE.
 
 use crate::ui::Ui;
 use anyhow::Context as _;
