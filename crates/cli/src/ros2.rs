@@ -261,7 +261,8 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
         }
     }
     if let Some(mut sink) = recording {
-        // Maps DDS already delivered (and acknowledged) are taken before the last commit.
+        // Maps DDS already delivered (and acknowledged) are taken before the last commit:
+        // one pass takes them all (the reader keeps 16, `MAPS_PER_PASS`).
         node.receive_into(&mut sink, Duration::ZERO)?;
         let (thinned, lost) = (sink.thinned(), sink.lost());
         let summary = sink.finish()?;

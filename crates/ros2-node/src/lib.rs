@@ -76,6 +76,13 @@ pub const OCTOMAP_DDS_TYPE: &str = "octomap_msgs::msg::dds_::Octomap_";
 /// Received messages larger than this are refused by default (far below the file limits).
 pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 256 << 20;
 
+/// [`Node::receive_into`] takes at most this many messages a call.
+pub const MAPS_PER_PASS: usize = 16;
+/// [`Node::serve_requests`] answers at most this many requests of each service a call.
+pub const REQUESTS_PER_PASS: usize = 4;
+/// How long a reply waits for its client's reply reader to be matched.
+const REPLY_READER_WAIT: Duration = Duration::from_millis(100);
+
 /// Which network interfaces the node uses.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Network {
@@ -225,6 +232,24 @@ pub enum Refused {
     Message(#[from] MessageError),
 }
 
+/// A request taken, with the participant of the client that sent it.
+struct Request {
+    message: Vec<u8>,
+    sample: RequestId,
+    client: Participant,
+}
+
+/// A participant's GUID prefix (RustDDS does not export its type).
+type Participant = [u8; 12];
+
+/// The participant of an endpoint: the first 12 bytes of its GUID.
+fn participant(guid: rustdds::GUID) -> Participant {
+    let bytes = guid.to_bytes();
+    let mut prefix = [0; 12];
+    prefix.copy_from_slice(&bytes[..12]);
+    prefix
+}
+
 /// One service's request reader and reply writer.
 struct ServiceEndpoints {
     name: &'static str,
@@ -232,8 +257,9 @@ struct ServiceEndpoints {
     replies: DataWriter<Vec<u8>, RawCdr>,
     /// Larger requests are skipped before decoding.
     max_request_bytes: usize,
-    /// Readers matched to `replies`, from its status events.
-    matched_readers: std::cell::Cell<i32>,
+    /// Readers matched to `replies`, from its status events (read on every pass: RustDDS
+    /// keeps only a few and drops newer ones while they are unread).
+    matched_readers: std::cell::RefCell<std::collections::HashSet<rustdds::GUID>>,
 }
 
 impl ServiceEndpoints {
@@ -287,25 +313,44 @@ impl ServiceEndpoints {
             requests,
             replies,
             max_request_bytes,
-            matched_readers: std::cell::Cell::new(0),
+            matched_readers: Default::default(),
         })
     }
 
-    /// Waits (up to `wait`) until a reader is matched to the reply writer: a client's
-    /// reply reader may not be matched yet when its request arrives, and a reply written
-    /// before would be lost (replies are not kept for late readers).
-    fn wait_for_a_reader(&self, wait: Duration) {
-        let deadline = Instant::now() + wait;
-        loop {
-            while let Some(status) = self.replies.try_recv_status() {
-                if let DataWriterStatus::PublicationMatched { current, .. } = status {
-                    self.matched_readers.set(current.count());
+    /// Takes the reply writer's match events into `matched_readers`.
+    fn update_matched_readers(&self) {
+        let mut matched = self.matched_readers.borrow_mut();
+        while let Some(status) = self.replies.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched {
+                current, reader, ..
+            } = status
+            {
+                if current.count_change() < 0 {
+                    matched.remove(&reader);
+                } else {
+                    matched.insert(reader);
                 }
             }
-            if self.matched_readers.get() > 0 || Instant::now() >= deadline {
+        }
+    }
+
+    /// Waits (up to `wait`) until a reply reader of the participant `client` (the
+    /// requester's: a client's request writer and reply reader live in one participant)
+    /// is matched to the reply writer: a reply written before would be lost (replies are
+    /// not kept for late readers), and a reader of another client does not count.
+    fn wait_for_the_clients_reader(&self, client: Participant, wait: Duration) {
+        let deadline = Instant::now() + wait;
+        loop {
+            self.update_matched_readers();
+            let matched = self
+                .matched_readers
+                .borrow()
+                .iter()
+                .any(|reader| participant(*reader) == client);
+            if matched || Instant::now() >= deadline {
                 return;
             }
-            std::thread::sleep(Duration::from_millis(10));
+            std::thread::sleep(Duration::from_millis(5));
         }
     }
 }
@@ -396,14 +441,21 @@ impl Node {
         self.participant.domain_id()
     }
 
-    /// Hands every map received within `wait` (at least one poll) to `sink` and returns
-    /// how many were accepted. Refused messages and sink errors are logged and skipped.
+    /// Hands the maps received within `wait` (at least one poll) to `sink`, at most
+    /// [`MAPS_PER_PASS`] (the caller's loop comes back for the rest, and can stop in
+    /// between), and returns how many were accepted. Refused messages and sink errors are
+    /// logged and skipped.
     pub fn receive_into(&self, sink: &mut dyn MapSink, wait: Duration) -> Result<usize, NodeError> {
         let deadline = Instant::now() + wait;
         let mut accepted = 0;
+        let mut taken = 0;
         loop {
+            if taken == MAPS_PER_PASS {
+                return Ok(accepted);
+            }
             match self.reader.try_take_one() {
                 Ok(Some(change)) => {
+                    taken += 1;
                     match self.to_map(&change.into_value()) {
                         Ok(map) => {
                             let stamp = map.stamp;
@@ -438,16 +490,22 @@ impl Node {
         }
     }
 
-    /// Answers every service request waiting (without blocking) through `handler`; returns
-    /// how many were answered. Requests that do not decode are logged and skipped.
+    /// Answers the service requests waiting through `handler`, at most
+    /// [`REQUESTS_PER_PASS`] of each service (the caller's loop comes back for the rest, and
+    /// can stop in between); returns how many were answered. Requests that do not decode
+    /// are logged and skipped. A request whose client's reply reader is not matched yet
+    /// waits for it up to 100 ms.
     pub fn serve_requests(&self, handler: &mut dyn ServiceHandler) -> usize {
+        self.get_octomap_at.update_matched_readers();
+        self.probability_at.update_matched_readers();
         let mut answered = 0;
-        while let Some(request) = self.take_request(&self.get_octomap_at) {
+        let pass = |service| (0..REQUESTS_PER_PASS).map_while(move |_| self.take_request(service));
+        for request in pass(&self.get_octomap_at) {
             answered += usize::from(self.answer(&self.get_octomap_at, &request, |r| {
                 handler.get_octomap_at(r)
             }));
         }
-        while let Some(request) = self.take_request(&self.probability_at) {
+        for request in pass(&self.probability_at) {
             answered += usize::from(self.answer(
                 &self.probability_at,
                 &request,
@@ -466,7 +524,7 @@ impl Node {
         answered
     }
 
-    fn take_request(&self, service: &ServiceEndpoints) -> Option<(Vec<u8>, RequestId)> {
+    fn take_request(&self, service: &ServiceEndpoints) -> Option<Request> {
         loop {
             match service.requests.try_take_one() {
                 Ok(Some(change)) => {
@@ -478,7 +536,12 @@ impl Node {
                         },
                         change.related_sample_identity(),
                     );
-                    return Some((change.into_value(), sample));
+                    let client = participant(change.writer_guid);
+                    return Some(Request {
+                        message: change.into_value(),
+                        sample,
+                        client,
+                    });
                 }
                 Ok(None) => return None,
                 Err(e) => log::warn!("{}: request skipped: {e}", service.name),
@@ -490,7 +553,11 @@ impl Node {
     fn answer<Q, R>(
         &self,
         service: &ServiceEndpoints,
-        (message, sample): &(Vec<u8>, RequestId),
+        Request {
+            message,
+            sample,
+            client,
+        }: &Request,
         respond: impl FnOnce(&Q) -> R,
     ) -> bool
     where
@@ -521,7 +588,7 @@ impl Node {
                 return false;
             }
         };
-        service.wait_for_a_reader(Duration::from_secs(2));
+        service.wait_for_the_clients_reader(*client, REPLY_READER_WAIT);
         let written = match (self.service_mapping, id) {
             (ServiceMapping::Enhanced, RequestId::Sample { guid, sequence }) => service
                 .replies
