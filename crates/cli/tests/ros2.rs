@@ -129,6 +129,35 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     };
     assert_eq!(data(&got), data(&maps[0]));
 
+    // A second client, while the first one's reply reader stays matched: its reply waits for
+    // its own reply reader (a reply written before that is lost to it). Its latched map is
+    // not later than the last one taken: skipped.
+    let mut second = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
+        .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .arg("--predicted-out")
+        .arg(dir.path().join("unused2.bt"))
+        .arg(&maps[0])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the second client");
+    let second_events = lines(second.stdout.take().expect("stdout"));
+    let mut second_stdin = second.stdin.take().expect("stdin");
+    children.0.push(second);
+    let got2 = dir.path().join("got2.bt");
+    writeln!(
+        second_stdin,
+        "{}",
+        serde_json::json!({"call": "get_octomap_at", "sec": 1_700_000_001, "nanosec": 0,
+            "predict": false, "out": got2})
+    )
+    .expect("call");
+    let reply = wait_for(&second_events, |l| l.contains("get_octomap_at"));
+    assert!(reply.contains("\"success\": true"), "{reply}");
+    assert_eq!(data(&got2), data(&maps[1]));
+    drop(second_stdin);
+
     // A third map, acknowledged by the node's reader, then SIGTERM before its commit is due.
     writeln!(
         stdin,
@@ -146,6 +175,7 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     let last = wait_for(&commits, |_| true);
     assert!(last.starts_with("segment 1: 1 maps"), "{last}");
     let status = children.0[1].wait().expect("wait");
+    let _ = children.0[2].wait();
     assert!(status.success(), "{status}");
     drop(stdin);
     let _ = children.0[0].wait();
