@@ -358,6 +358,87 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         assert_eq!(states(&out), states(map), "{}", map.display());
     }
 
+    // The services answer from the living file as the upstream maps it was recorded from
+    // say: get_octomap_at gives the data of the .bt published at that stamp, and
+    // probability_at is a number exactly where octomap-python finds a node in one of the
+    // maps recorded (the file's map is their union), NaN elsewhere.
+    let mut from_living = FileServices::new(&living, "map");
+    let living_path = dir.path().join("living-get.bt");
+    peer.command(
+        &serde_json::json!({"call": "get_octomap_at", "sec": 1_700_000_001, "nanosec": 0,
+        "predict": false, "out": living_path}),
+    );
+    let event = peer.event_while_serving(&node, &mut from_living, Duration::from_secs(60));
+    assert_eq!(event["success"], true, "{event}");
+    let upstream = std::fs::read(&maps[1]).expect("read");
+    let got = std::fs::read(&living_path).expect("the peer wrote the map");
+    assert_eq!(
+        got[at(&got)..],
+        upstream[at(&upstream)..],
+        "get_octomap_at gives the map published at that stamp"
+    );
+    let (upstream_resolution, upstream_leaves) = python_leaves(&maps[1], "bt");
+    assert_eq!(
+        python_leaves(&living_path, "bt"),
+        (upstream_resolution, upstream_leaves.clone())
+    );
+    let key_metric = |k: u16| (f64::from(k) - 32768.0 + 0.5) * upstream_resolution;
+    let mut probes: Vec<[f64; 3]> = Vec::new();
+    for &(x, y, z, _, _) in upstream_leaves.iter().step_by(3) {
+        let c = [key_metric(x), key_metric(y), key_metric(z)];
+        probes.push(c);
+        // Beside it, in or out of the maps.
+        probes.push([c[0] + 7.3 * upstream_resolution, c[1], c[2]]);
+    }
+    probes.push([1.0e6, 0.0, 0.0]);
+    probes.push([40.0, -40.0, 40.0]);
+    let found = {
+        let script = r#"
+import json, sys, numpy as np, octomap
+points = json.loads(sys.argv[1])
+trees = []
+for path in sys.argv[2:]:
+    if path.endswith(".bt"):
+        tree = octomap.OcTree(0.1)
+        assert tree.readBinary(path.encode())
+    else:
+        tree = octomap.OcTree.read(path.encode())
+    trees.append(tree)
+def found(tree, p):
+    try:
+        tree.search(np.array(p, dtype=float)).getValue()
+        return True
+    except Exception:
+        return False
+print(json.dumps([any(found(t, p) for t in trees) for p in points]))
+"#;
+        let out = Command::new(octomap_python())
+            .args(["-c", script])
+            .arg(serde_json::json!(probes).to_string())
+            .args(&maps)
+            .stderr(Stdio::null())
+            .output()
+            .expect("run python");
+        assert!(out.status.success(), "octomap-python search");
+        serde_json::from_slice::<Vec<bool>>(&out.stdout).expect("one bool a point")
+    };
+    assert!(found.iter().any(|f| *f) && found.iter().any(|f| !*f));
+    peer.command(
+        &serde_json::json!({"call": "probability_at", "sec": 1_700_000_001, "nanosec": 0,
+        "points": probes}),
+    );
+    let event = peer.event_while_serving(&node, &mut from_living, Duration::from_secs(60));
+    let p_bits = event["p_bits"].as_array().expect("p").clone();
+    assert_eq!(p_bits.len(), probes.len());
+    for ((hex, point), found) in p_bits.iter().zip(&probes).zip(&found) {
+        let p = f64_hex_value(hex.as_str().expect("hex"));
+        assert_eq!(
+            p.is_finite(),
+            *found,
+            "probability_at {point:?} is {p} where octomap-python finds a node: {found}"
+        );
+    }
+
     // The services, as an rmw_cyclonedds client calls them (the Cyclone mapping).
     let mut services = FileServices::new(&froct, "map");
     let file = FroctFile::open(&froct).expect("open the .froct");
@@ -454,15 +535,7 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         .as_array()
         .expect("p")
         .iter()
-        .map(|hex| {
-            let bytes: Vec<u8> = (0..8)
-                .map(|i| {
-                    u8::from_str_radix(&hex.as_str().expect("hex")[2 * i..2 * i + 2], 16)
-                        .expect("hex")
-                })
-                .collect();
-            u64::from_le_bytes(bytes.try_into().expect("8 bytes"))
-        })
+        .map(|hex| f64_hex_value(hex.as_str().expect("hex")).to_bits())
         .collect();
     assert_eq!(got.len(), points.len());
     assert!(
@@ -492,6 +565,14 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
 }
 
 /// The f64 as rosbags' side of the check prints it: its little-endian bytes in hex.
+/// The f64 of the peer's little-endian hex.
+fn f64_hex_value(hex: &str) -> f64 {
+    let bytes: Vec<u8> = (0..8)
+        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect();
+    f64::from_le_bytes(bytes.try_into().expect("8 bytes"))
+}
+
 fn f64_hex(v: f64) -> String {
     v.to_le_bytes().iter().map(|b| format!("{b:02x}")).collect()
 }

@@ -29,7 +29,8 @@ and, to try the node with bad input (each answered by {"event": "published", ...
 
   {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?}
       a map file on the map topic at stamp S, its body cut to N bytes or its resolution
-      replaced when asked
+      replaced when asked; the event says whether every matched reader acknowledged it
+      ("acked")
   {"call": "publish_garbage", "size": N, "binary": B}
       an Octomap whose data is N bytes of noise
   {"call": "publish_wrong_type"}
@@ -159,6 +160,12 @@ def main():
             # The first map is latched before the node exists; the others are published
             # live once the test says the node has it (a line on stdin).
             sys.stdin.readline()
+            # Written once the node's reader is matched, so that it gets every map, not
+            # only the last one kept for late joiners.
+            matched_by = time.monotonic() + args.timeout
+            while (writer.get_publication_matched_status().current_count == 0
+                   and time.monotonic() < matched_by):
+                time.sleep(0.05)
         with open(path, "rb") as f:
             binary, tree_id, resolution, body = split_map_file(f.read())
         stamp = args.first_stamp + i
@@ -312,7 +319,10 @@ def main():
             resolution = command.get("resolution", resolution)
             writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), binary, tree_id, resolution,
                                  list(body)))
-            say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body))
+            # Acknowledged by every matched reader: the node's DDS reader holds it.
+            acked = writer.wait_for_acks(duration(seconds=10))
+            say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body),
+                acked=acked)
         elif command["call"] == "publish_garbage":
             noise = bytes((i * 7919 + 13) % 251 for i in range(command["size"]))
             writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), command["binary"], "OcTree", 0.1,

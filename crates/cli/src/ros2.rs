@@ -1,6 +1,6 @@
-//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It publishes the map FILE
-//! predicts, answers the services from FILE, and receives maps without recording them yet:
-//! the recording sink comes with `record`'s `Recorder`.
+//! `froctomap ros2 FILE`: the ROS 2 node (cargo feature `ros2`). It records the maps it
+//! receives into FILE through `record`'s `Recorder` (`--no-record`: receives only),
+//! publishes the map FILE predicts and answers the services from FILE.
 
 use crate::ui::Ui;
 use anyhow::Context as _;
@@ -57,6 +57,19 @@ pub struct Ros2Args {
     /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
     #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
     service_mapping: ServiceMapping,
+    /// Received maps larger than SIZE are refused (logged and skipped); service requests
+    /// are refused over the smaller of SIZE and their own bound (the point limit). Checked
+    /// once DDS has reassembled the message.
+    #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
+    max_message_bytes: usize,
+}
+
+/// `--max-message-bytes`: a byte size (`64MiB`), at least 1 byte.
+fn message_bytes(text: &str) -> Result<usize, String> {
+    match crate::series::byte_size(text)? {
+        0 => Err("at least 1 byte".into()),
+        bytes => usize::try_from(bytes).map_err(|_| "out of range".to_string()),
+    }
 }
 
 /// Logs each map received (`--no-record`).
@@ -186,6 +199,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.topic = args.topic.clone();
     options.network = network(&args.network)?;
     options.service_mapping = args.service_mapping;
+    options.max_message_bytes = args.max_message_bytes;
     let node = Node::new(&options)?;
     eprintln!(
         "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
@@ -236,7 +250,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 Some(sink) => {
                     node.receive_into(sink, wait)?;
                     if let Err(e) = sink.tick() {
-                        eprintln!("warning: {}: commit failed: {e}", args.file.display());
+                        eprintln!("warning: {}: {e}", args.file.display());
                     }
                 }
                 None => {
@@ -246,12 +260,15 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             node.serve_requests(&mut services);
         }
     }
-    if let Some(sink) = recording {
-        let thinned = sink.thinned();
+    if let Some(mut sink) = recording {
+        // Maps DDS already delivered (and acknowledged) are taken before the last commit:
+        // one pass takes them all (the reader keeps 16, `MAPS_PER_PASS`).
+        node.receive_into(&mut sink, Duration::ZERO)?;
+        let (thinned, lost) = (sink.thinned(), sink.lost());
         let summary = sink.finish()?;
         eprintln!(
-            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out",
-            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad
+            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out, {} lost to failed commits",
+            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad, lost
         );
     }
     Ok(())

@@ -300,7 +300,7 @@ fn max_memory(text: &str) -> Result<MaxMemory, String> {
     }
 }
 
-fn byte_size(text: &str) -> Result<u64, String> {
+pub(crate) fn byte_size(text: &str) -> Result<u64, String> {
     let text = text.trim();
     let digits = text
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))

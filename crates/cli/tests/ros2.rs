@@ -1,8 +1,9 @@
 //! `froctomap ros2 FILE` (cargo feature `ros2`) against the Cyclone DDS peer of
 //! tests/scripts/ros2_peer.py, all on loopback with a domain of its own: the maps the peer
 //! publishes are committed into FILE (created by the first commit, a line per commit), the
-//! node answers `get_octomap_at` from the living file, and SIGTERM commits and exits 0; the
-//! file then retrieves each map byte-identical.
+//! node answers `get_octomap_at` from the living file, and SIGTERM commits the map received
+//! (acknowledged to the peer) but not committed yet, and exits 0; the file then retrieves
+//! each map byte-identical.
 #![cfg(all(unix, feature = "ros2"))]
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
@@ -11,7 +12,7 @@ mod common;
 use common::{ok, s};
 use froctomap_test_support::{octomap_fixture, octomap_python, scratch, workspace_root};
 use std::io::{BufRead, BufReader, Write};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -26,6 +27,21 @@ fn lines(out: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
         }
     });
     receive
+}
+
+/// Kills and reaps the children still running when the test ends (a failed assertion
+/// must not leave a node or a peer behind).
+struct Reap(Vec<Child>);
+
+impl Drop for Reap {
+    fn drop(&mut self) {
+        for child in &mut self.0 {
+            if matches!(child.try_wait(), Ok(None)) {
+                let _ = child.kill();
+            }
+            let _ = child.wait();
+        }
+    }
 }
 
 /// The next line that satisfies `wanted`, within a minute.
@@ -45,32 +61,37 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     let maps = [
         octomap_fixture("few_voxels.bt"),
         octomap_fixture("coarse_leaves.bt"),
+        octomap_fixture("few_voxels.bt"),
     ];
     let nanos = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map(|d| d.subsec_nanos())
         .unwrap_or(11);
     let domain = 1 + (nanos ^ std::process::id()) % 200;
+    let mut children = Reap(Vec::new());
     let mut peer = Command::new(octomap_python())
         .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
         .args(["--domain", &domain.to_string(), "--no-predicted"])
         .arg("--predicted-out")
         .arg(dir.path().join("unused.bt"))
-        .args(&maps)
+        .args(&maps[..2])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .spawn()
         .expect("start the peer");
     let events = lines(peer.stdout.take().expect("stdout"));
+    let mut stdin = peer.stdin.take().expect("stdin");
+    children.0.push(peer);
     wait_for(&events, |l| l.contains("\"published\""));
 
     let living = dir.path().join("living.froct");
+    // Two maps a commit: the third one is still gathered when SIGTERM comes.
     let mut node = Command::new(env!("CARGO_BIN_EXE_froctomap"))
         .args([
             "ros2",
             s(&living),
             "--commit-every",
-            "1",
+            "2",
             "--publish-every",
             "1s",
         ])
@@ -80,10 +101,11 @@ fn the_node_records_serves_and_stops_on_sigterm() {
         .spawn()
         .expect("start the node");
     let commits = lines(node.stdout.take().expect("stdout"));
-    assert!(wait_for(&commits, |_| true).starts_with("base: 1 maps"));
-    let stdin = peer.stdin.as_mut().expect("stdin");
+    let node_id = node.id();
+    children.0.push(node);
     writeln!(stdin, "go").expect("tell the peer");
-    assert!(wait_for(&commits, |_| true).starts_with("segment 1: 1 maps"));
+    let base = wait_for(&commits, |_| true);
+    assert!(base.starts_with("base: 2 maps"), "{base}");
 
     // The node answers from the living file it records.
     let got = dir.path().join("got.bt");
@@ -107,16 +129,56 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     };
     assert_eq!(data(&got), data(&maps[0]));
 
-    // SIGTERM: what was received is committed, exit 0.
+    // A second client, while the first one's reply reader stays matched: its reply waits for
+    // its own reply reader (a reply written before that is lost to it). Its latched map is
+    // not later than the last one taken: skipped.
+    let mut second = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
+        .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .arg("--predicted-out")
+        .arg(dir.path().join("unused2.bt"))
+        .arg(&maps[0])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the second client");
+    let second_events = lines(second.stdout.take().expect("stdout"));
+    let mut second_stdin = second.stdin.take().expect("stdin");
+    children.0.push(second);
+    let got2 = dir.path().join("got2.bt");
+    writeln!(
+        second_stdin,
+        "{}",
+        serde_json::json!({"call": "get_octomap_at", "sec": 1_700_000_001, "nanosec": 0,
+            "predict": false, "out": got2})
+    )
+    .expect("call");
+    let reply = wait_for(&second_events, |l| l.contains("get_octomap_at"));
+    assert!(reply.contains("\"success\": true"), "{reply}");
+    assert_eq!(data(&got2), data(&maps[1]));
+    drop(second_stdin);
+
+    // A third map, acknowledged by the node's reader, then SIGTERM before its commit is due.
+    writeln!(
+        stdin,
+        "{}",
+        serde_json::json!({"call": "publish_map", "path": maps[2], "stamp": 1_700_000_002})
+    )
+    .expect("publish");
+    let published = wait_for(&events, |l| l.contains("\"acked\""));
+    assert!(published.contains("\"acked\": true"), "{published}");
     let killed = Command::new("kill")
-        .args(["-TERM", &node.id().to_string()])
+        .args(["-TERM", &node_id.to_string()])
         .status()
         .expect("kill");
     assert!(killed.success());
-    let status = node.wait().expect("wait");
+    let last = wait_for(&commits, |_| true);
+    assert!(last.starts_with("segment 1: 1 maps"), "{last}");
+    let status = children.0[1].wait().expect("wait");
+    let _ = children.0[2].wait();
     assert!(status.success(), "{status}");
-    drop(peer.stdin.take());
-    let _ = peer.wait();
+    drop(stdin);
+    let _ = children.0[0].wait();
 
     for (i, map) in maps.iter().enumerate() {
         let out = dir.path().join(format!("{i}.bt"));
@@ -129,4 +191,15 @@ fn the_node_records_serves_and_stops_on_sigterm() {
             map.display()
         );
     }
+}
+
+#[test]
+fn the_message_size_limit_is_an_option_of_at_least_one_byte() {
+    let dir = scratch();
+    let living = dir.path().join("living.froct");
+    let refused = common::fails(&["ros2", s(&living), "--max-message-bytes", "0"]);
+    assert!(refused.contains("at least 1 byte"), "{refused}");
+    let refused = common::fails(&["ros2", s(&living), "--max-message-bytes", "lots"]);
+    assert!(refused.contains("--max-message-bytes"), "{refused}");
+    assert!(!living.exists());
 }

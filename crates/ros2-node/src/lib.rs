@@ -37,13 +37,14 @@
 mod recording;
 mod services;
 
-pub use recording::{RecordingSink, TimeSource};
+pub use recording::{CommitFailed, RecordingSink, TimeSource};
 
 pub use services::{
     decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
     MapData, Octomap, Point, ProbabilityAtRequest, ProbabilityAtResponse, RequestError,
     ServiceHandler, ServiceMapping, Time, GET_OCTOMAP_AT_DDS_TYPE, GET_OCTOMAP_AT_SERVICE,
-    MAX_POINTS, PROBABILITY_AT_DDS_TYPE, PROBABILITY_AT_SERVICE,
+    MAX_GET_OCTOMAP_AT_REQUEST_BYTES, MAX_POINTS, MAX_PROBABILITY_AT_REQUEST_BYTES,
+    PROBABILITY_AT_DDS_TYPE, PROBABILITY_AT_SERVICE,
 };
 
 use froctomap_convert::{FroctFile, SeriesRead};
@@ -74,6 +75,13 @@ pub const PREDICTED_TOPIC: &str = "/froctomap/predicted";
 pub const OCTOMAP_DDS_TYPE: &str = "octomap_msgs::msg::dds_::Octomap_";
 /// Received messages larger than this are refused by default (far below the file limits).
 pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 256 << 20;
+
+/// [`Node::receive_into`] takes at most this many messages a call.
+pub const MAPS_PER_PASS: usize = 16;
+/// [`Node::serve_requests`] answers at most this many requests of each service a call.
+pub const REQUESTS_PER_PASS: usize = 4;
+/// How long a reply waits for its client's reply reader to be matched.
+const REPLY_READER_WAIT: Duration = Duration::from_millis(100);
 
 /// Which network interfaces the node uses.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -224,23 +232,45 @@ pub enum Refused {
     Message(#[from] MessageError),
 }
 
+/// A request taken, with the participant of the client that sent it.
+struct Request {
+    message: Vec<u8>,
+    sample: RequestId,
+    client: Participant,
+}
+
+/// A participant's GUID prefix (RustDDS does not export its type).
+type Participant = [u8; 12];
+
+/// The participant of an endpoint: the first 12 bytes of its GUID.
+fn participant(guid: rustdds::GUID) -> Participant {
+    let bytes = guid.to_bytes();
+    let mut prefix = [0; 12];
+    prefix.copy_from_slice(&bytes[..12]);
+    prefix
+}
+
 /// One service's request reader and reply writer.
 struct ServiceEndpoints {
     name: &'static str,
     requests: SimpleDataReader<Vec<u8>, RawCdr>,
     replies: DataWriter<Vec<u8>, RawCdr>,
-    /// Readers matched to `replies`, from its status events.
-    matched_readers: std::cell::Cell<i32>,
+    /// Larger requests are skipped before decoding.
+    max_request_bytes: usize,
+    /// Readers matched to `replies`, from its status events (read on every pass: RustDDS
+    /// keeps only a few and drops newer ones while they are unread).
+    matched_readers: std::cell::RefCell<std::collections::HashSet<rustdds::GUID>>,
 }
 
 impl ServiceEndpoints {
     /// `rq/<service>Request` and `rr/<service>Reply` of types `<stem>_Request_` and
-    /// `<stem>_Response_`, as every RMW names them; reliable, volatile, as ROS's default
-    /// service QoS.
+    /// `<stem>_Response_`, as every RMW names them; reliable, volatile, keep-last 10, as
+    /// ROS's default service QoS.
     fn new(
         participant: &DomainParticipant,
         name: &'static str,
         type_stem: &str,
+        max_request_bytes: usize,
     ) -> Result<Self, NodeError> {
         let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
         let qos = QosPolicyBuilder::new()
@@ -248,7 +278,7 @@ impl ServiceEndpoints {
                 max_blocking_time: rustdds::Duration::from_millis(100),
             })
             .durability(Durability::Volatile)
-            .history(History::KeepLast { depth: 64 })
+            .history(History::KeepLast { depth: 10 })
             .build();
         let stem = dds_topic_name(name)?;
         let stem = stem.strip_prefix("rt/").unwrap_or(&stem);
@@ -282,25 +312,45 @@ impl ServiceEndpoints {
             name,
             requests,
             replies,
-            matched_readers: std::cell::Cell::new(0),
+            max_request_bytes,
+            matched_readers: Default::default(),
         })
     }
 
-    /// Waits (up to `wait`) until a reader is matched to the reply writer: a client's
-    /// reply reader may not be matched yet when its request arrives, and a reply written
-    /// before would be lost (replies are not kept for late readers).
-    fn wait_for_a_reader(&self, wait: Duration) {
-        let deadline = Instant::now() + wait;
-        loop {
-            while let Some(status) = self.replies.try_recv_status() {
-                if let DataWriterStatus::PublicationMatched { current, .. } = status {
-                    self.matched_readers.set(current.count());
+    /// Takes the reply writer's match events into `matched_readers`.
+    fn update_matched_readers(&self) {
+        let mut matched = self.matched_readers.borrow_mut();
+        while let Some(status) = self.replies.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched {
+                current, reader, ..
+            } = status
+            {
+                if current.count_change() < 0 {
+                    matched.remove(&reader);
+                } else {
+                    matched.insert(reader);
                 }
             }
-            if self.matched_readers.get() > 0 || Instant::now() >= deadline {
+        }
+    }
+
+    /// Waits (up to `wait`) until a reply reader of the participant `client` (the
+    /// requester's: a client's request writer and reply reader live in one participant)
+    /// is matched to the reply writer: a reply written before would be lost (replies are
+    /// not kept for late readers), and a reader of another client does not count.
+    fn wait_for_the_clients_reader(&self, client: Participant, wait: Duration) {
+        let deadline = Instant::now() + wait;
+        loop {
+            self.update_matched_readers();
+            let matched = self
+                .matched_readers
+                .borrow()
+                .iter()
+                .any(|reader| participant(*reader) == client);
+            if matched || Instant::now() >= deadline {
                 return;
             }
-            std::thread::sleep(Duration::from_millis(10));
+            std::thread::sleep(Duration::from_millis(5));
         }
     }
 }
@@ -366,11 +416,13 @@ impl Node {
             &participant,
             GET_OCTOMAP_AT_SERVICE,
             GET_OCTOMAP_AT_DDS_TYPE,
+            MAX_GET_OCTOMAP_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         let probability_at = ServiceEndpoints::new(
             &participant,
             PROBABILITY_AT_SERVICE,
             PROBABILITY_AT_DDS_TYPE,
+            MAX_PROBABILITY_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         Ok(Self {
             participant,
@@ -389,23 +441,37 @@ impl Node {
         self.participant.domain_id()
     }
 
-    /// Hands every map received within `wait` (at least one poll) to `sink` and returns
-    /// how many were accepted. Refused messages and sink errors are logged and skipped.
+    /// Hands the maps received within `wait` (at least one poll) to `sink`, at most
+    /// [`MAPS_PER_PASS`] (the caller's loop comes back for the rest, and can stop in
+    /// between), and returns how many were accepted. Refused messages and sink errors are
+    /// logged and skipped.
     pub fn receive_into(&self, sink: &mut dyn MapSink, wait: Duration) -> Result<usize, NodeError> {
         let deadline = Instant::now() + wait;
         let mut accepted = 0;
+        let mut taken = 0;
         loop {
+            if taken == MAPS_PER_PASS {
+                return Ok(accepted);
+            }
             match self.reader.try_take_one() {
                 Ok(Some(change)) => {
+                    taken += 1;
                     match self.to_map(&change.into_value()) {
                         Ok(map) => {
                             let stamp = map.stamp;
                             match sink.receive(map) {
                                 Ok(()) => accepted += 1,
-                                Err(e) => sink.skipped(format!(
-                                    "{}: the map stamped {} ns was not recorded: {e}",
-                                    self.topic, stamp.0
-                                )),
+                                // A failed commit loses more than this map: say so.
+                                Err(e) => match e.downcast_ref::<CommitFailed>() {
+                                    Some(failed) => sink.skipped(format!(
+                                        "{}: {failed} (the last one received stamped {} ns)",
+                                        self.topic, stamp.0
+                                    )),
+                                    None => sink.skipped(format!(
+                                        "{}: the map stamped {} ns was not recorded: {e}",
+                                        self.topic, stamp.0
+                                    )),
+                                },
                             }
                         }
                         Err(reason) => {
@@ -424,16 +490,22 @@ impl Node {
         }
     }
 
-    /// Answers every service request waiting (without blocking) through `handler`; returns
-    /// how many were answered. Requests that do not decode are logged and skipped.
+    /// Answers the service requests waiting through `handler`, at most
+    /// [`REQUESTS_PER_PASS`] of each service (the caller's loop comes back for the rest, and
+    /// can stop in between); returns how many were answered. Requests that do not decode
+    /// are logged and skipped. A request whose client's reply reader is not matched yet
+    /// waits for it up to 100 ms.
     pub fn serve_requests(&self, handler: &mut dyn ServiceHandler) -> usize {
+        self.get_octomap_at.update_matched_readers();
+        self.probability_at.update_matched_readers();
         let mut answered = 0;
-        while let Some(request) = self.take_request(&self.get_octomap_at) {
+        let pass = |service| (0..REQUESTS_PER_PASS).map_while(move |_| self.take_request(service));
+        for request in pass(&self.get_octomap_at) {
             answered += usize::from(self.answer(&self.get_octomap_at, &request, |r| {
                 handler.get_octomap_at(r)
             }));
         }
-        while let Some(request) = self.take_request(&self.probability_at) {
+        for request in pass(&self.probability_at) {
             answered += usize::from(self.answer(
                 &self.probability_at,
                 &request,
@@ -452,25 +524,24 @@ impl Node {
         answered
     }
 
-    fn take_request(&self, service: &ServiceEndpoints) -> Option<(Vec<u8>, RequestId)> {
+    fn take_request(&self, service: &ServiceEndpoints) -> Option<Request> {
         loop {
             match service.requests.try_take_one() {
                 Ok(Some(change)) => {
-                    let sample = RequestId::Sample {
-                        guid: change.writer_guid.to_bytes(),
-                        sequence: i64::from(change.sequence_number),
-                    };
-                    // Enhanced: the request may name its own identity.
-                    let sample = match change.related_sample_identity() {
-                        Some(identity) if self.service_mapping == ServiceMapping::Enhanced => {
-                            RequestId::Sample {
-                                guid: identity.writer_guid.to_bytes(),
-                                sequence: i64::from(identity.sequence_number),
-                            }
-                        }
-                        _ => sample,
-                    };
-                    return Some((change.into_value(), sample));
+                    let sample = request_identity(
+                        self.service_mapping,
+                        rustdds::SampleIdentity {
+                            writer_guid: change.writer_guid,
+                            sequence_number: change.sequence_number,
+                        },
+                        change.related_sample_identity(),
+                    );
+                    let client = participant(change.writer_guid);
+                    return Some(Request {
+                        message: change.into_value(),
+                        sample,
+                        client,
+                    });
                 }
                 Ok(None) => return None,
                 Err(e) => log::warn!("{}: request skipped: {e}", service.name),
@@ -482,19 +553,23 @@ impl Node {
     fn answer<Q, R>(
         &self,
         service: &ServiceEndpoints,
-        (message, sample): &(Vec<u8>, RequestId),
+        Request {
+            message,
+            sample,
+            client,
+        }: &Request,
         respond: impl FnOnce(&Q) -> R,
     ) -> bool
     where
         Q: serde::de::DeserializeOwned,
         R: serde::Serialize,
     {
-        if message.len() > self.max_message_bytes {
+        if message.len() > service.max_request_bytes {
             log::warn!(
                 "{}: request of {} bytes is over the limit of {} bytes; skipped",
                 service.name,
                 message.len(),
-                self.max_message_bytes
+                service.max_request_bytes
             );
             return false;
         }
@@ -513,7 +588,7 @@ impl Node {
                 return false;
             }
         };
-        service.wait_for_a_reader(Duration::from_secs(2));
+        service.wait_for_the_clients_reader(*client, REPLY_READER_WAIT);
         let written = match (self.service_mapping, id) {
             (ServiceMapping::Enhanced, RequestId::Sample { guid, sequence }) => service
                 .replies
@@ -652,6 +727,33 @@ pub fn octomap_message_of_bt(
     .ok_or(NodeError::MessageTooLong { bytes: body.len() })
 }
 
+/// The identity a reply names for a request whose own sample identity is `own`.
+/// Enhanced: the request may name another one (its `related_sample_identity`), whose GUID
+/// wins; rmw_fastrtps clients set only that GUID (their reply reader's) and leave the
+/// sequence number UNKNOWN, and take the request's own sequence number back, as
+/// rmw_fastrtps' server does.
+fn request_identity(
+    mapping: ServiceMapping,
+    own: rustdds::SampleIdentity,
+    related: Option<rustdds::SampleIdentity>,
+) -> RequestId {
+    let identity = match related {
+        Some(related) if mapping == ServiceMapping::Enhanced => rustdds::SampleIdentity {
+            writer_guid: related.writer_guid,
+            sequence_number: if related.sequence_number == rustdds::SequenceNumber::UNKNOWN {
+                own.sequence_number
+            } else {
+                related.sequence_number
+            },
+        },
+        _ => own,
+    };
+    RequestId::Sample {
+        guid: identity.writer_guid.to_bytes(),
+        sequence: i64::from(identity.sequence_number),
+    }
+}
+
 /// Reliable, transient-local, the last 16 samples: what `octomap_server` offers for its
 /// latched maps, and deep enough that a burst of maps is not thinned before it is taken.
 fn latched_qos() -> QosPolicies {
@@ -748,5 +850,32 @@ mod tests {
         for bad in ["", "/", "//a", "/a/", "/a b", "/1a"] {
             assert!(dds_topic_name(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn enhanced_replies_take_the_requests_own_sequence_number_when_the_related_one_is_unknown() {
+        let guid = |b: u8| rustdds::GUID::from_bytes([b; 16]);
+        let own = rustdds::SampleIdentity {
+            writer_guid: guid(1),
+            sequence_number: rustdds::SequenceNumber::from(7_i64),
+        };
+        // rmw_fastrtps: the reply reader's GUID, sequence number UNKNOWN.
+        let fastrtps = rustdds::SampleIdentity {
+            writer_guid: guid(2),
+            sequence_number: rustdds::SequenceNumber::UNKNOWN,
+        };
+        let full = rustdds::SampleIdentity {
+            writer_guid: guid(3),
+            sequence_number: rustdds::SequenceNumber::from(9_i64),
+        };
+        let id = |mapping, related| match request_identity(mapping, own, related) {
+            RequestId::Sample { guid, sequence } => (guid, sequence),
+            RequestId::Cyclone { .. } => panic!("a sample identity"),
+        };
+        assert_eq!(id(ServiceMapping::Enhanced, Some(fastrtps)), ([2; 16], 7));
+        assert_eq!(id(ServiceMapping::Enhanced, Some(full)), ([3; 16], 9));
+        assert_eq!(id(ServiceMapping::Enhanced, None), ([1; 16], 7));
+        // Basic replies name the request's own identity whatever it carries.
+        assert_eq!(id(ServiceMapping::Basic, Some(full)), ([1; 16], 7));
     }
 }

@@ -31,6 +31,18 @@ impl std::str::FromStr for TimeSource {
     }
 }
 
+/// A commit failed for a reason of the file's or the disk's (not a bad map's, those are left
+/// out): the maps gathered since the last commit are lost.
+#[derive(Debug, thiserror::Error)]
+#[error("commit failed, {lost} map(s) gathered since the last commit lost: {source}")]
+pub struct CommitFailed {
+    /// Maps lost (taken, neither committed nor left out as bad).
+    pub lost: u64,
+    /// Why.
+    #[source]
+    pub source: Box<RecordError>,
+}
+
 /// Appends the maps received to a FROctomap file.
 pub struct RecordingSink<'a> {
     recorder: Recorder<'a>,
@@ -38,6 +50,7 @@ pub struct RecordingSink<'a> {
     min_interval: Duration,
     last_taken: Option<Timestamp>,
     thinned: u64,
+    lost: u64,
 }
 
 impl<'a> RecordingSink<'a> {
@@ -50,17 +63,49 @@ impl<'a> RecordingSink<'a> {
             min_interval,
             last_taken: None,
             thinned: 0,
+            lost: 0,
         }
     }
 
     /// Commits if a commit by time is due; the node's loop calls it between receptions.
-    pub fn tick(&mut self) -> Result<(), RecordError> {
-        self.recorder.commit_if_due()
+    pub fn tick(&mut self) -> Result<(), CommitFailed> {
+        self.counting_lost(false, |recorder| recorder.commit_if_due().map(|()| true))
+            .map(|_| ())
     }
 
     /// Maps left out by `--min-interval` so far.
     pub fn thinned(&self) -> u64 {
         self.thinned
+    }
+
+    /// Maps lost to failed commits so far.
+    pub fn lost(&self) -> u64 {
+        self.lost
+    }
+
+    /// Runs `step` (which may take one map, `takes_map`, and commit); when it fails, counts
+    /// the maps it lost: those gathered (the one taken included) that were neither committed
+    /// nor left out as bad. A map refused before it was taken (the segment limit) counts too.
+    fn counting_lost(
+        &mut self,
+        takes_map: bool,
+        step: impl FnOnce(&mut Recorder<'a>) -> Result<bool, RecordError>,
+    ) -> Result<bool, CommitFailed> {
+        let before = (self.recorder.pending(), self.recorder.summary());
+        step(&mut self.recorder).map_err(|source| {
+            let after = self.recorder.summary();
+            let taken = takes_map && after.older == before.1.older;
+            let gathered = before.0 as u64 + u64::from(taken);
+            let kept = (after.committed_maps - before.1.committed_maps) as u64
+                + (after.bad - before.1.bad)
+                + self.recorder.pending() as u64;
+            let lost = gathered.saturating_sub(kept);
+            self.lost += lost;
+            CommitFailed {
+                lost,
+                source: Box::new(source),
+            }
+        })
     }
 
     /// The recording's counts so far.
@@ -69,8 +114,12 @@ impl<'a> RecordingSink<'a> {
     }
 
     /// Commits what is gathered and ends the recording.
-    pub fn finish(self) -> Result<RecordSummary, RecordError> {
-        self.recorder.finish()
+    pub fn finish(mut self) -> Result<RecordSummary, CommitFailed> {
+        self.counting_lost(false, |recorder| recorder.commit().map(|()| true))?;
+        self.recorder.finish().map_err(|source| CommitFailed {
+            lost: 0,
+            source: Box::new(source),
+        })
     }
 }
 
@@ -96,7 +145,7 @@ impl MapSink for RecordingSink<'_> {
                 return Ok(());
             }
         }
-        if self.recorder.take_bytes(time, &map.file)? {
+        if self.counting_lost(true, |recorder| recorder.take_bytes(time, &map.file))? {
             self.last_taken = Some(time);
         } else {
             log::warn!(
@@ -132,8 +181,19 @@ mod tests {
         source: TimeSource,
         min: u64,
     ) -> RecordingSink<'a> {
+        sink_committing_every(context, file, source, min, 1)
+    }
+
+    /// A sink committing every `maps` maps, bad maps left out as the node does.
+    fn sink_committing_every<'a>(
+        context: &'a Context,
+        file: &std::path::Path,
+        source: TimeSource,
+        min: u64,
+        maps: usize,
+    ) -> RecordingSink<'a> {
         let options = RecordOptions {
-            commit_every: CommitEvery::Maps(1),
+            commit_every: CommitEvery::Maps(maps),
             append: AppendOptions {
                 skip_bad: true,
                 allow_mostly_skipped: true,
@@ -171,6 +231,34 @@ mod tests {
             .filter_map(|s| reader.sample_time(s))
             .collect();
         assert_eq!(times, [map(1_700_000_000).stamp, map(1_700_000_011).stamp]);
+    }
+
+    #[test]
+    fn a_failed_commit_is_reported_with_the_maps_it_lost() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let home = dir.path().join("living");
+        std::fs::create_dir(&home).expect("mkdir");
+        let file = home.join("living.froct");
+        let context = Context::with_default_plugins();
+        let mut sink = sink_committing_every(&context, &file, TimeSource::Header, 0, 3);
+        for s in 0..3 {
+            sink.receive(map(1_700_000_000 + s)).expect("the base");
+        }
+        sink.receive(map(1_700_000_003)).expect("gathered");
+        sink.receive(map(1_700_000_004)).expect("gathered");
+        // The file's directory is gone (as a full or lost disk): the commit cannot be
+        // written, and the three maps gathered for it are lost, not only the last one.
+        std::fs::remove_dir_all(&home).expect("remove");
+        let error = sink
+            .receive(map(1_700_000_005))
+            .expect_err("the commit fails");
+        let failed = error
+            .downcast_ref::<CommitFailed>()
+            .unwrap_or_else(|| panic!("a failed commit: {error}"));
+        assert_eq!(failed.lost, 3, "{failed}");
+        assert!(!failed.source.is_bad_map(), "{failed}");
+        assert_eq!(sink.lost(), 3);
+        assert_eq!(sink.summary().committed_maps, 3);
     }
 
     #[test]

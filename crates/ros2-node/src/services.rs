@@ -29,6 +29,15 @@ pub const GET_OCTOMAP_AT_DDS_TYPE: &str = "froctomap_msgs::srv::dds_::GetOctomap
 pub const PROBABILITY_AT_DDS_TYPE: &str = "froctomap_msgs::srv::dds_::ProbabilityAt";
 /// More points in one `probability_at` request are refused (an empty answer, logged).
 pub const MAX_POINTS: usize = 1 << 22;
+/// Room in a request for what precedes its fields: the CDR encapsulation, the mapping's
+/// header (a basic `RequestHeader`'s instance name included) and alignment.
+const REQUEST_FRAMING_BYTES: usize = 4096;
+/// Larger `get_octomap_at` requests are skipped before decoding (the request is a stamp and
+/// a bool).
+pub const MAX_GET_OCTOMAP_AT_REQUEST_BYTES: usize = REQUEST_FRAMING_BYTES + 16;
+/// Larger `probability_at` requests are skipped before decoding: a stamp and
+/// [`MAX_POINTS`] points of 24 bytes, so their memory is bounded by the point limit.
+pub const MAX_PROBABILITY_AT_REQUEST_BYTES: usize = REQUEST_FRAMING_BYTES + 16 + MAX_POINTS * 24;
 
 /// How requests and replies carry the id that pairs them: the RMWs differ.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -488,6 +497,37 @@ pub fn decode_cdr<T: serde::de::DeserializeOwned>(message: &[u8]) -> Result<T, R
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_request_byte_limits_let_the_largest_valid_requests_through_and_no_more() {
+        let point = Point {
+            x: 1.0,
+            y: 2.0,
+            z: 3.0,
+        };
+        let stamp = Time {
+            sec: 1_700_000_000,
+            nanosec: 0,
+        };
+        let points = |n| ProbabilityAtRequest {
+            stamp,
+            points: vec![point; n],
+        };
+        let framed = |bytes: Vec<u8>| bytes.len() + 16; // rmw_cyclonedds' header.
+        let largest = framed(encode_cdr(&points(MAX_POINTS)).expect("encode"));
+        assert!(largest <= MAX_PROBABILITY_AT_REQUEST_BYTES, "{largest}");
+        let over = MAX_POINTS + REQUEST_FRAMING_BYTES / 24 + 1;
+        let too_many = encode_cdr(&points(over)).expect("encode").len();
+        assert!(too_many > MAX_PROBABILITY_AT_REQUEST_BYTES, "{too_many}");
+        let get = framed(
+            encode_cdr(&GetOctomapAtRequest {
+                stamp,
+                predict: true,
+            })
+            .expect("encode"),
+        );
+        assert!(get <= MAX_GET_OCTOMAP_AT_REQUEST_BYTES, "{get}");
+    }
 
     #[test]
     fn cyclone_framing_puts_the_16_byte_header_first_and_echoes_it() {
