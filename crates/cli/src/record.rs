@@ -9,7 +9,7 @@
 
 use crate::series::{print_input_notes, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
     group_thousands, parse_duration, AppendOptions, CommitEvery, Context, Opened, RecordError,
@@ -48,13 +48,24 @@ pub struct RecordArgs {
     /// a bad map stops `record` after committing the maps before it.
     #[arg(long)]
     skip_bad: bool,
-    /// Never compact automatically. By default, after a commit, the file is compacted in
-    /// place (as `froctomap compact` does, in the build's memory: --memory, --max-memory)
-    /// when its segments exceed half of its base's size or its span has doubled since the
-    /// last compaction, so that it stays at most 1.5× its compacted size; one line says so,
-    /// with the time it took.
+    /// Compact automatically: after a commit, the file is compacted in place (as `froctomap
+    /// compact` does, in the build's memory: --memory, --max-memory) when its segments
+    /// exceed half of its base's size or its span has doubled since the last compaction, so
+    /// that it stays at most 1.5× its compacted size; one line says so, with the time it
+    /// took. Off by default: today's segments hold every cell their maps saw, so the size
+    /// rule compacts every few commits and the cost per map grows with the history; and a
+    /// compaction refits with the model options given here (--model-option), not the ones
+    /// the file was built with, which files do not record.
     #[arg(long)]
+    auto_compact: bool,
+    /// The default since automatic compaction became opt-in (--auto-compact); accepted so
+    /// that scripts written for the release that compacted by default keep working.
+    #[arg(long, hide = true, conflicts_with = "auto_compact")]
     no_compact: bool,
+    /// A temporal model option (KEY=VALUE, repeatable): for the base a missing FILE is
+    /// built with and for automatic compactions (see `froctomap models`).
+    #[arg(long, value_name = "KEY=VALUE")]
+    model_option: Vec<String>,
     /// Print a line per map received (standard output, before the commit that holds it):
     /// `received TIME: taken`, `… older` (not later than the last one taken, skipped) or
     /// `received map message N (byte B): bad` (left out with --skip-bad).
@@ -119,7 +130,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     let context = &args
         .times
         .context(ui, args.skip_bad, Some(spool_parent.clone()));
-    let options = RecordOptions {
+    let mut options = RecordOptions {
         commit_every: args.commit_every,
         append: AppendOptions {
             skip_bad: args.skip_bad,
@@ -131,8 +142,16 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
-        compact: !args.no_compact,
+        compact: args.auto_compact,
     };
+    for assignment in &args.model_option {
+        options
+            .append
+            .config
+            .options
+            .set_assignment(assignment)
+            .context("--model-option")?;
+    }
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
         Opened::Missing => ui.note(&format!(

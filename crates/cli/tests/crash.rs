@@ -179,8 +179,8 @@ fn record_killed_at_random_instants_keeps_every_printed_commit() {
         let delay = delays.next(whole);
         // Every other run may compact, and may be killed compacting.
         let mut args = vec!["record", s(&file), "-", "--commit-every", "2"];
-        if run % 2 == 1 {
-            args.push("--no-compact");
+        if run % 2 == 0 {
+            args.push("--auto-compact");
         }
         let stdout = killed_after(&args, &series.stream, delay);
         let held = samples(&file);

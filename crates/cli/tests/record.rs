@@ -585,7 +585,7 @@ fn retrieves_as(file: &Path, i: usize, input: &Path) {
 
 /// Recorded one map per `record` run, each run a commit: after every run the file is at
 /// most 1.5× a `build` of the maps so far, and every snapshot retrieves byte-identical to
-/// its generated map. The same runs with `--no-compact` pass that bound, so it is the
+/// its generated map (`--auto-compact`). The same runs without it pass that bound, so it is the
 /// compaction that keeps it.
 #[test]
 fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
@@ -603,7 +603,14 @@ fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
         let (prefix, _) = manifest_of(&maps, &format!("prefix-{k}.csv"), 0..k + 1);
         let built = dir.path().join(format!("built-{k}.froct"));
         ok(&["-q", "build", s(&prefix), "-o", s(&built)]);
-        let stdout = ok(&["record", s(&compacted), s(&one), "--commit-every", "1"]);
+        let stdout = ok(&[
+            "record",
+            s(&compacted),
+            s(&one),
+            "--commit-every",
+            "1",
+            "--auto-compact",
+        ]);
         compactions += stdout.matches("compacted: ").count();
         ok(&[
             "record",

@@ -47,7 +47,7 @@ impl Default for CommitEvery {
 }
 
 /// How to record.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct RecordOptions {
     /// When to commit.
     pub commit_every: CommitEvery,
@@ -57,19 +57,11 @@ pub struct RecordOptions {
     pub append: AppendOptions,
     /// Where the spool of maps taken as bytes goes; `None`: beside the file.
     pub spool_dir: Option<PathBuf>,
-    /// Compact the file after a commit when due (see [`Recorder`]); `true` by default.
+    /// Compact the file after a commit when due (see [`Recorder`]); `false` by default: the
+    /// size rule compacts every few commits while segments hold every cell their maps saw,
+    /// and a compaction refits with `append.config.options`, not the options the file was
+    /// built with (files do not record them).
     pub compact: bool,
-}
-
-impl Default for RecordOptions {
-    fn default() -> Self {
-        Self {
-            commit_every: CommitEvery::default(),
-            append: AppendOptions::default(),
-            spool_dir: None,
-            compact: true,
-        }
-    }
 }
 
 /// What the file was when the recorder opened it.

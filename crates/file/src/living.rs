@@ -894,6 +894,16 @@ impl LivingWriter {
         }
         temp.as_file().sync_all().map_err(io(output))?;
         temp.persist(output).map_err(io(output))?;
+        // The rename is durable only once the directory is: until then a power loss could
+        // bring the old file back under segments committed to the new one.
+        let parent = match output.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => Path::new("."),
+        };
+        // (A directory cannot be opened on every platform; where it can, a failed sync is said.)
+        if let Ok(dir) = std::fs::File::open(parent) {
+            dir.sync_all().map_err(io(output))?;
+        }
         Ok(root)
     }
 
