@@ -23,7 +23,7 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
 use crate::progress::Silent;
-use froctomap_core::{remove_stale_temporary_dirs, Timestamp};
+use froctomap_core::{remove_stale_temporary_dirs, remove_stale_temporary_files, Timestamp};
 use froctomap_file::LivingWriter;
 use froctomap_formats::{MapSpool, SpoolError, SPOOL_PREFIX};
 use std::ffi::OsStr;
@@ -294,6 +294,9 @@ impl<'a> Recorder<'a> {
         // when this one spools or compacts; a live writer's is locked and stays.
         remove_stale_temporary_dirs(&spool_dir, OsStr::new(SPOOL_PREFIX));
         remove_stale_temporary_dirs(output_dir(file), OsStr::new(COMPACT_PREFIX));
+        // And a compaction's or a conversion's copy of the file killed before its rename
+        // (`.froct-…tmp`, `LivingWriter::convert`): a file the size of the map otherwise.
+        remove_stale_temporary_files(output_dir(file), OsStr::new(".froct-"));
         Ok(Self {
             context,
             file: file.to_path_buf(),

@@ -303,6 +303,14 @@ pub fn remove_stale_temporary_dirs(parent: &Path, prefix: &std::ffi::OsStr) {
     remove_stale(parent, prefix, Leftover::Directory, directory_lock.as_ref());
 }
 
+/// Removes the temporary files `prefix…tmp` in `parent` that a killed writer of
+/// [`temporary_beside`] left (unlocked), without making one: for a writer whose next
+/// outputs do not go through a temporary file (a living file's commits). Best effort.
+pub fn remove_stale_temporary_files(parent: &Path, prefix: &std::ffi::OsStr) {
+    let directory_lock = std::fs::File::open(parent).ok();
+    remove_stale(parent, prefix, Leftover::File, directory_lock.as_ref());
+}
+
 fn lock(file: &std::fs::File, operation: rustix::fs::FlockOperation) -> io::Result<()> {
     rustix::fs::flock(file, operation).map_err(io::Error::from)
 }
