@@ -80,7 +80,7 @@ pub struct RecordArgs {
     spill: SpillArgs,
 }
 
-fn commit_every(text: &str) -> Result<CommitEvery, String> {
+pub(crate) fn commit_every(text: &str) -> Result<CommitEvery, String> {
     if let Ok(maps) = text.trim().parse::<usize>() {
         return match maps {
             0 => Err("at least 1 map".into()),

@@ -26,7 +26,7 @@ pub struct Ros2Args {
     /// /froctomap/predicted and the services answer from it.
     file: PathBuf,
     /// Commit every N maps or every DURATION (as `record`).
-    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = commit_every)]
+    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = crate::record::commit_every)]
     commit_every: CommitEvery,
     /// Take at most one map per DURATION (a fast publisher thinned); 0: every map.
     #[arg(long, value_name = "DURATION", default_value = "0")]
@@ -113,21 +113,6 @@ impl log::Log for StderrLog {
 }
 
 static STDERR_LOG: StderrLog = StderrLog;
-
-/// `--commit-every` as `record` reads it: a number of maps or a duration.
-fn commit_every(text: &str) -> Result<CommitEvery, String> {
-    if let Ok(maps) = text.trim().parse::<usize>() {
-        return match maps {
-            0 => Err("at least 1 map".into()),
-            maps => Ok(CommitEvery::Maps(maps)),
-        };
-    }
-    match parse_duration(text) {
-        Ok(ns) if ns > 0 => Ok(CommitEvery::Time(Duration::from_nanos(ns.unsigned_abs()))),
-        Ok(_) => Err("a positive duration".into()),
-        Err(e) => Err(format!("{e} (or a number of maps)")),
-    }
-}
 
 /// A duration option that may be 0 (parse_duration takes positive spans only).
 fn duration_or_zero(text: &str, option: &str) -> anyhow::Result<i64> {
