@@ -1,5 +1,7 @@
 //! Bounds on what a reader accepts from a file.
 
+use crate::error::FormatViolation;
+
 /// Maxima checked before anything read from a file is allocated. The defaults accept any
 /// file froctomap writes for maps of realistic size while bounding what a hostile file can
 /// make a reader allocate.
@@ -54,5 +56,33 @@ impl ReadLimits {
 impl Default for ReadLimits {
     fn default() -> Self {
         Self::DEFAULT
+    }
+}
+
+/// Toggles (and, for coded lists, visits) decoded from one tile's list set against the
+/// most a reader allows (FORMAT.md §9), so that hostile counts cannot make it work without end.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ToggleBudget {
+    spent: u64,
+    max: u64,
+}
+
+impl ToggleBudget {
+    /// Nothing spent yet, at most `max`.
+    pub(crate) fn new(max: u64) -> Self {
+        Self { spent: 0, max }
+    }
+
+    /// Spends `count` more; an error once more than the most allowed are spent.
+    pub(crate) fn spend(&mut self, count: u64) -> Result<(), FormatViolation> {
+        self.spent = self.spent.saturating_add(count);
+        if self.spent > self.max {
+            return Err(FormatViolation::Limit {
+                what: "toggles in a tile's list set",
+                value: self.spent,
+                limit: self.max,
+            });
+        }
+        Ok(())
     }
 }

@@ -12,8 +12,8 @@
 //! first event in the block. Decisions whose outcome is known are not coded.
 
 use crate::error::{corrupt, FormatViolation};
+use crate::limits::ToggleBudget;
 use crate::range_coder::{Decoder, Encoder, Prob};
-use crate::toggle_lists::ToggleBudget;
 
 /// Gaps before a flip away from the usual state are coded uniformly below this many
 /// samples: sensor noise flips anywhere alike.

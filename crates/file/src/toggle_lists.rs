@@ -5,6 +5,7 @@
 
 use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation};
+use crate::limits::ToggleBudget;
 use crate::toggle_code::{BlockEncoder, CodedListReader};
 use froctomap_temporal::varint;
 use std::cmp::Reverse;
@@ -331,34 +332,6 @@ pub(crate) struct ToggleListReader<'a> {
     odd_lists: Vec<u64>,
     /// Toggles decoded so far, and the most allowed.
     budget: ToggleBudget,
-}
-
-/// Toggles (and, for coded lists, visits) decoded from one tile's list set against the
-/// most a reader allows (FORMAT.md §9), so that hostile counts cannot make it work without end.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ToggleBudget {
-    spent: u64,
-    max: u64,
-}
-
-impl ToggleBudget {
-    /// Nothing spent yet, at most `max`.
-    pub(crate) fn new(max: u64) -> Self {
-        Self { spent: 0, max }
-    }
-
-    /// Spends `count` more; an error once more than the most allowed are spent.
-    pub(crate) fn spend(&mut self, count: u64) -> Result<(), FormatViolation> {
-        self.spent = self.spent.saturating_add(count);
-        if self.spent > self.max {
-            return Err(FormatViolation::Limit {
-                what: "toggles in a tile's list set",
-                value: self.spent,
-                limit: self.max,
-            });
-        }
-        Ok(())
-    }
 }
 
 impl<'a> ToggleListReader<'a> {

@@ -40,6 +40,7 @@ mod natural;
 pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
 pub mod octomap_upstream;
+mod probe;
 mod recording;
 mod registry;
 mod spool;
@@ -47,14 +48,15 @@ mod spool;
 pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
 pub use natural::natural_cmp;
+pub use probe::{Confidence, PROBE_BYTES};
 pub use recording::{
     CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, OpenStream, RecordedMaps,
     RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
 };
 pub use registry::{
-    Backend, Capabilities, Confidence, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff,
-    MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome,
-    SeriesFormat, WriteOptions, PROBE_BYTES,
+    Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,
+    MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome, SeriesFormat,
+    WriteOptions,
 };
 pub use spool::{MapSpool, SpoolError, SPOOL_PREFIX};
 

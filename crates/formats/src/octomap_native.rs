@@ -8,9 +8,10 @@
 //! and give the same warnings and error messages.
 
 use crate::error::PluginError;
+use crate::probe::Confidence;
 use crate::registry::{
-    Backend, Capabilities, Confidence, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter,
-    PreviousFile, ReadMap,
+    Backend, Capabilities, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile,
+    ReadMap,
 };
 use froctomap_core::{validate_resolution, MapError, Snapshot, StateChange};
 use froctomap_octomap_codec::{

@@ -6,7 +6,7 @@
 //! files; each map's bytes are fetched when that map is read.
 
 use crate::error::PluginError;
-use crate::registry::Confidence;
+use crate::probe::{file_head, Confidence};
 use froctomap_core::Timestamp;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -152,7 +152,7 @@ impl RecordingFormat {
         if path.is_dir() {
             return self.probe_dir.is_some_and(|probe| probe(path));
         }
-        crate::registry::file_head(path).is_ok_and(|head| (self.probe)(&head) > Confidence::No)
+        file_head(path).is_ok_and(|head| (self.probe)(&head) > Confidence::No)
     }
 }
 

@@ -2,21 +2,11 @@
 
 use crate::error::{DuplicateName, FormatError, PluginError};
 use crate::file_kind::check_regular_file;
+use crate::probe::{file_head, Confidence};
 use crate::recording::RecordingFormat;
 use froctomap_core::{write_atomically, Snapshot, StateChange};
 use std::io::Write;
 use std::path::Path;
-
-/// How sure a probe is that bytes are of its format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Confidence {
-    /// Not this format.
-    No,
-    /// Could be (a weak signature, e.g. a headerless legacy layout).
-    Weak,
-    /// The format's own signature.
-    Certain,
-}
 
 /// A map read from a file, with what is worth telling the user about it.
 #[derive(Clone, Debug)]
@@ -216,10 +206,6 @@ impl Identified<'_> {
         }
     }
 }
-
-/// How many bytes of a file [`FormatRegistry::identify_file`] reads: every probe needs at
-/// most the first line of a header.
-pub const PROBE_BYTES: u64 = 4096;
 
 impl std::fmt::Debug for MapFormat {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -742,20 +728,6 @@ impl FormatRegistry {
 }
 
 /// A short description of unrecognised content for error messages.
-/// The first [`PROBE_BYTES`] of a regular file, for the probes.
-pub(crate) fn file_head(path: &Path) -> Result<Vec<u8>, FormatError> {
-    use std::io::Read;
-    check_regular_file(path)?;
-    let mut head = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
-        .map_err(|source| FormatError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-    Ok(head)
-}
-
 fn describe_start(bytes: &[u8]) -> String {
     if bytes.is_empty() {
         return "the file is empty".to_string();
