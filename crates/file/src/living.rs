@@ -364,6 +364,16 @@ impl LivingReader {
         Ok(cells)
     }
 
+    /// The raw streams of tile `tile` of segment `k` by name (as
+    /// [`FroctReader::tile_streams`]), for size analysis.
+    pub fn segment_tile_streams(
+        &self,
+        k: usize,
+        tile: usize,
+    ) -> Result<Vec<(&'static str, Vec<u8>)>, FileError> {
+        self.segment(k)?.tiles.tile_streams(tile)
+    }
+
     fn segment(&self, k: usize) -> Result<&Segment, FileError> {
         self.segments.get(k).ok_or_else(|| FileError::NoSegment {
             path: self.path.clone(),
