@@ -632,7 +632,9 @@ fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
         std::fs::remove_file(built).unwrap();
     }
     assert!(compactions > 0);
-    assert!(worst_segmented > 1.5, "{worst_segmented}");
+    // Before any compaction too, map by map: segments store what differs from the base
+    // (patch tiles), not every cell their maps observed.
+    assert!(worst_segmented <= 1.5, "{worst_segmented}");
     for (i, input) in inputs.iter().enumerate() {
         retrieves_as(&compacted, i, input);
         retrieves_as(&segmented, i, input);

@@ -4,15 +4,16 @@
 
 use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation, TileEncodeError};
+use crate::header::push_section;
 use crate::header::{decode_axis, encode_axis};
-use crate::index::{decode_index, encode_index, TileEntry};
+use crate::index::{decode_index_with, encode_index, TileEntry, TAG_PATCH_TILES, TAG_SUMMARY};
 use crate::layout::TileLayout;
 use crate::limits::ReadLimits;
 use crate::source::ByteSource;
 use crate::tile::{Cell, CellContent, EncodedTile, TileStreamEncoder};
 use froctomap_core::{MortonCode, Occupancy};
 use froctomap_temporal::{
-    FittedVoxel, ModelId, OutlierMode, PreparedModel, TemporalError, TimeAxis, Toggles,
+    varint, FittedVoxel, ModelId, OutlierMode, PreparedModel, TemporalError, TimeAxis, Toggles,
     VoxelDescription, VoxelObservations,
 };
 use serde_json::Map;
@@ -199,19 +200,27 @@ pub(crate) struct SegmentRecord {
     pub(crate) axis: TimeAxis,
     /// The segment's tiles (sample ranges in the segment's samples).
     pub(crate) tiles: Vec<TileEntry>,
+    /// Per tile: whether it is a *patch tile*, whose base tile's cells are inherited where
+    /// its own cells do not cover them.
+    pub(crate) patches: Vec<bool>,
     /// One past the record's last byte.
     pub(crate) end: u64,
 }
 
-/// The record's bytes: head, body (axis piece, tile index) and crc.
+/// The record's bytes: head, body (axis piece, tile index, and the patch tiles section when
+/// `patches`, the indices of the patch tiles in increasing order, is not empty) and crc.
 pub(crate) fn encode_record(
     previous: u64,
     first_sample: u32,
     axis: &TimeAxis,
     tiles: &[TileEntry],
+    patches: &[u32],
 ) -> Result<Vec<u8>, TileEncodeError> {
     let mut body = encode_axis(axis);
     body.extend(encode_index(tiles, &Map::new()));
+    if !patches.is_empty() {
+        push_section(&mut body, TAG_PATCH_TILES, true, &encode_runs(patches));
+    }
     let body_len =
         u32::try_from(body.len()).map_err(|_| TileEncodeError::TooLarge("segment index"))?;
     let mut out = Vec::with_capacity(RECORD_HEAD_LEN + body.len() + 4);
@@ -319,7 +328,17 @@ impl RawRecord {
         let mut c = Cursor::new(&self.body, "segment axis");
         let axis = decode_axis(&mut c, limits)?;
         let rest = c.take(c.remaining())?;
-        let (tiles, _summary) = decode_index(rest, tiles_from..self.offset, tile_depth, limits)?;
+        let (tiles, _summary, sections) = decode_index_with(
+            rest,
+            tiles_from..self.offset,
+            tile_depth,
+            limits,
+            &[TAG_SUMMARY, TAG_PATCH_TILES],
+        )?;
+        let mut patches = vec![false; tiles.len()];
+        if let Some((_, payload)) = sections.iter().find(|(tag, _)| *tag == TAG_PATCH_TILES) {
+            decode_runs(payload, &mut patches)?;
+        }
         if let Some(t) = tiles.iter().find(|t| t.last_sample >= axis.len()) {
             return Err(corrupt(
                 "segment index",
@@ -330,7 +349,62 @@ impl RawRecord {
             first_sample: self.first_sample,
             axis,
             tiles,
+            patches,
             end,
         })
     }
+}
+
+/// Increasing tile indices as runs (FORMAT.md §10.3): a varint run count, then per run the
+/// gap after the previous run's end (from 0 for the first) and the run's length (≥ 1).
+fn encode_runs(indices: &[u32]) -> Vec<u8> {
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for &i in indices {
+        match runs.last_mut() {
+            Some((start, len)) if *start + *len == i => *len += 1,
+            _ => runs.push((i, 1)),
+        }
+    }
+    let mut out = Vec::new();
+    varint::write_u64(&mut out, runs.len() as u64);
+    let mut end = 0u32;
+    for (start, len) in runs {
+        varint::write_u64(&mut out, u64::from(start - end));
+        varint::write_u64(&mut out, u64::from(len));
+        end = start + len;
+    }
+    out
+}
+
+/// Marks the tiles that `payload`'s runs list in `flags` (one per tile of the segment): each
+/// must exist, runs must not overlap, and the payload must end after the last run.
+fn decode_runs(payload: &[u8], flags: &mut [bool]) -> Result<(), FormatViolation> {
+    let mut c = Cursor::new(payload, "segment patch tiles");
+    let count = c.varint()?;
+    // Each run takes at least two bytes.
+    let count = c.check_count("patch tile runs", count, flags.len() as u64, 2)?;
+    let mut end = 0u64;
+    for _ in 0..count {
+        let (gap, len) = (c.varint()?, c.varint()?);
+        let start = end.checked_add(gap);
+        let stop = start.and_then(|s| s.checked_add(len));
+        match (start, stop) {
+            (Some(start), Some(stop)) if len >= 1 && stop <= flags.len() as u64 => {
+                for flag in &mut flags[start as usize..stop as usize] {
+                    *flag = true;
+                }
+                end = stop;
+            }
+            _ => {
+                return Err(corrupt(
+                    "segment patch tiles",
+                    "a run is empty or lists a tile the segment does not have",
+                ))
+            }
+        }
+    }
+    if !c.is_empty() {
+        return Err(corrupt("segment patch tiles", "bytes after the last run"));
+    }
+    Ok(())
 }
