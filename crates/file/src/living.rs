@@ -270,8 +270,8 @@ impl LivingReader {
                 .tiles
                 .iter()
                 .zip(&record.patches)
-                .find(|(entry, &patch)| {
-                    patch
+                .find(|(entry, patch)| {
+                    patch.is_some()
                         && base_tiles
                             .binary_search_by_key(&entry.code, |t| t.code)
                             .is_err()
@@ -380,7 +380,7 @@ impl LivingReader {
         segment
             .tiles
             .visit_cells(tile, |cell| cells.push(SegmentCell::from_cell(cell)))?;
-        if self.is_patch_tile(k, tile) {
+        if let Some(mask) = self.remainder_mask(k, tile) {
             let covered: Vec<(u64, u64)> = cells
                 .iter()
                 .map(|c| (c.start.0, c.start.0 + voxels_per_node(c.depth)))
@@ -390,7 +390,7 @@ impl LivingReader {
                 cells.push(SegmentCell {
                     start,
                     depth,
-                    mask: None,
+                    mask: mask.clone(),
                     content: SegmentContent::Inherited {
                         outliers: Toggles::default(),
                     },
@@ -401,13 +401,20 @@ impl LivingReader {
         Ok(cells)
     }
 
-    /// `true` when tile `tile` of segment `k` is a patch tile (FORMAT.md §10.3): the base
+    /// `true` when tile `tile` of segment `k` is a patch tile (FORMAT.md §10.6): the base
     /// tile's cells are inherited where its own cells do not cover them.
     pub fn is_patch_tile(&self, k: usize, tile: usize) -> bool {
+        self.remainder_mask(k, tile).is_some()
+    }
+
+    /// For a patch tile, the observation mask of what it leaves to the base (`Some(None)`:
+    /// observed at every sample that is not missing); `None` for any other tile.
+    pub fn remainder_mask(&self, k: usize, tile: usize) -> Option<Option<Arc<Toggles>>> {
         self.segments
             .get(k)
             .and_then(|s| s.record.patches.get(tile))
-            .is_some_and(|&patch| patch)
+            .cloned()
+            .flatten()
     }
 
     /// Calls `visit` with the parts of the cells of the base tile `code` that no range of
@@ -538,7 +545,8 @@ impl LivingReader {
                 tiles: segment.tiles.tiles().len(),
             });
         };
-        let patch = self.is_patch_tile(k, tile);
+        let remainder = self.remainder_mask(k, tile);
+        let patch = remainder.is_some();
         if !entry.may_observe(local) && !patch {
             return Ok(());
         }
@@ -579,7 +587,9 @@ impl LivingReader {
                 }
             }
         }
-        if patch && !segment.record.axis.is_missing(local) {
+        let remainder_observed =
+            remainder.is_some_and(|mask| mask.is_none_or(|mask| mask.parity_at(local)));
+        if remainder_observed && !segment.record.axis.is_missing(local) {
             // The rest of the base tile, observed in its frozen prediction.
             let seconds = self
                 .sample_time(sample)
@@ -1115,8 +1125,8 @@ pub struct SegmentWriter<'w> {
     first_sample: u32,
     offset: u64,
     entries: Vec<TileEntry>,
-    /// Indices (into `entries`) of the patch tiles.
-    patches: Vec<u32>,
+    /// Indices (into `entries`) of the patch tiles, with their remainder masks.
+    patches: Vec<(u32, Option<Arc<Toggles>>)>,
 }
 
 impl std::fmt::Debug for SegmentWriter<'_> {
@@ -1192,12 +1202,31 @@ impl SegmentWriter<'_> {
     }
 
     /// Writes a tile made by [`tile_encoder`](Self::tile_encoder) as a *patch tile*
-    /// (FORMAT.md §10.3): besides its own cells, the segment holds every part of the base
-    /// tile with the same code that they do not cover, observed at every sample of the
-    /// segment that is not missing in the base cell's frozen prediction. So a tile whose
-    /// maps match the base's predictions stores only where they differ. The base must have
-    /// a tile with this code ([`FileError::TileEncode`] otherwise, nothing written).
-    pub fn write_patch_tile(&mut self, tile: &EncodedTile) -> Result<(), FileError> {
+    /// (FORMAT.md §10.6): besides its own cells, the segment holds every part of the base
+    /// tile with the same code that they do not cover, observed where `remainder` says
+    /// (an observation mask over the segment's samples; `None`: at every sample that is not
+    /// missing) in the base cell's frozen prediction. So a tile whose maps match the base's
+    /// predictions stores only where they differ. The base must have a tile with this code
+    /// (an empty mask counts as `None`) and the mask must lie within the segment's samples ([`FileError::TileEncode`]
+    /// otherwise, nothing written).
+    pub fn write_patch_tile(
+        &mut self,
+        tile: &EncodedTile,
+        remainder: Option<Arc<Toggles>>,
+    ) -> Result<(), FileError> {
+        let beyond = remainder
+            .as_ref()
+            .and_then(|mask| mask.as_slice().last())
+            .is_some_and(|&last| last >= self.axis.len());
+        if beyond {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::BeyondAxis {
+                    start: tile.code().0,
+                    list: "remainder mask",
+                },
+            });
+        }
         if self
             .writer
             .reader
@@ -1217,7 +1246,9 @@ impl SegmentWriter<'_> {
             source: TileEncodeError::TooLarge("segment index"),
         })?;
         self.write_tile(tile)?;
-        self.patches.push(index);
+        // An empty mask would observe nothing: `None` says "every sample".
+        self.patches
+            .push((index, remainder.filter(|mask| !mask.is_empty())));
         Ok(())
     }
 

@@ -214,26 +214,40 @@ pub(crate) struct SegmentRecord {
     pub(crate) axis: TimeAxis,
     /// The segment's tiles (sample ranges in the segment's samples).
     pub(crate) tiles: Vec<TileEntry>,
-    /// Per tile: whether it is a *patch tile*, whose base tile's cells are inherited where
-    /// its own cells do not cover them.
-    pub(crate) patches: Vec<bool>,
+    /// Per tile: for a *patch tile*, whose base tile's cells are inherited where its own
+    /// cells do not cover them, the observation mask of that remainder (`None` inside: at
+    /// every sample that is not missing); `None` for a plain tile.
+    pub(crate) patches: Vec<Option<RemainderMask>>,
     /// One past the record's last byte.
     pub(crate) end: u64,
 }
 
+/// The observation mask of what a patch tile leaves to the base (`None`: observed at every
+/// sample of the segment that is not missing).
+pub(crate) type RemainderMask = Option<Arc<Toggles>>;
+
 /// The record's bytes: head, body (axis piece, tile index, and the patch tiles section when
-/// `patches`, the indices of the patch tiles in increasing order, is not empty) and crc.
+/// `patches`, the indices of the patch tiles in increasing order with their remainder
+/// masks, is not empty) and crc.
 pub(crate) fn encode_record(
     previous: u64,
     first_sample: u32,
     axis: &TimeAxis,
     tiles: &[TileEntry],
-    patches: &[u32],
+    patches: &[(u32, RemainderMask)],
 ) -> Result<Vec<u8>, TileEncodeError> {
     let mut body = encode_axis(axis);
     body.extend(encode_index(tiles, &Map::new()));
     if !patches.is_empty() {
-        push_section(&mut body, TAG_PATCH_TILES, true, &encode_runs(patches));
+        let indices: Vec<u32> = patches.iter().map(|p| p.0).collect();
+        let mut payload = encode_runs(&indices);
+        for (_, mask) in patches {
+            match mask {
+                Some(mask) => mask.encode(&mut payload),
+                None => Toggles::default().encode(&mut payload),
+            }
+        }
+        push_section(&mut body, TAG_PATCH_TILES, true, &payload);
     }
     let body_len =
         u32::try_from(body.len()).map_err(|_| TileEncodeError::TooLarge("segment index"))?;
@@ -349,9 +363,9 @@ impl RawRecord {
             limits,
             &[TAG_SUMMARY, TAG_PATCH_TILES],
         )?;
-        let mut patches = vec![false; tiles.len()];
+        let mut patches = vec![None; tiles.len()];
         if let Some((_, payload)) = sections.iter().find(|(tag, _)| *tag == TAG_PATCH_TILES) {
-            decode_runs(payload, &mut patches)?;
+            decode_patches(payload, axis.len(), &mut patches)?;
         }
         if let Some(t) = tiles.iter().find(|t| t.last_sample >= axis.len()) {
             return Err(corrupt(
@@ -390,23 +404,27 @@ fn encode_runs(indices: &[u32]) -> Vec<u8> {
     out
 }
 
-/// Marks the tiles that `payload`'s runs list in `flags` (one per tile of the segment): each
-/// must exist, runs must not overlap, and the payload must end after the last run.
-fn decode_runs(payload: &[u8], flags: &mut [bool]) -> Result<(), FormatViolation> {
+/// Marks the tiles that `payload`'s runs list in `patches` (one per tile of the segment),
+/// each with its remainder mask (positions below `samples`): tiles must exist, runs must
+/// not overlap, and the payload must end after the last mask.
+fn decode_patches(
+    payload: &[u8],
+    samples: u32,
+    patches: &mut [Option<RemainderMask>],
+) -> Result<(), FormatViolation> {
     let mut c = Cursor::new(payload, "segment patch tiles");
     let count = c.varint()?;
     // Each run takes at least two bytes.
-    let count = c.check_count("patch tile runs", count, flags.len() as u64, 2)?;
+    let count = c.check_count("patch tile runs", count, patches.len() as u64, 2)?;
     let mut end = 0u64;
+    let mut listed = Vec::new();
     for _ in 0..count {
         let (gap, len) = (c.varint()?, c.varint()?);
         let start = end.checked_add(gap);
         let stop = start.and_then(|s| s.checked_add(len));
         match (start, stop) {
-            (Some(start), Some(stop)) if len >= 1 && stop <= flags.len() as u64 => {
-                for flag in &mut flags[start as usize..stop as usize] {
-                    *flag = true;
-                }
+            (Some(start), Some(stop)) if len >= 1 && stop <= patches.len() as u64 => {
+                listed.extend(start as usize..stop as usize);
                 end = stop;
             }
             _ => {
@@ -417,8 +435,19 @@ fn decode_runs(payload: &[u8], flags: &mut [bool]) -> Result<(), FormatViolation
             }
         }
     }
+    for tile in listed {
+        let rest = c.take(c.remaining())?;
+        let (mask, used) = Toggles::decode(rest, samples).map_err(|_| {
+            corrupt(
+                "segment patch tiles",
+                "a remainder mask is malformed or reaches past the segment's samples",
+            )
+        })?;
+        c = Cursor::new(&rest[used..], "segment patch tiles");
+        patches[tile] = Some((!mask.is_empty()).then(|| Arc::new(mask)));
+    }
     if !c.is_empty() {
-        return Err(corrupt("segment patch tiles", "bytes after the last run"));
+        return Err(corrupt("segment patch tiles", "bytes after the last mask"));
     }
     Ok(())
 }

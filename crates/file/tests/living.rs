@@ -850,7 +850,8 @@ fn readers_refreshing_while_a_writer_commits_see_whole_commits_only() {
 /// The golden base converted, then one segment of `golden_segment_axes()[0]` (which has a
 /// missing sample) whose only tile is a patch tile over the base's largest tile: its first
 /// base cell stored occupied throughout, its second stored free and observed at sample 0
-/// only, everything else left to the base. Returns the file and the base tile's cells.
+/// only, everything else left to the base from sample 1 on (the remainder's mask). Returns
+/// the file and the base tile's cells.
 fn patch_file() -> (
     tempfile::TempDir,
     std::path::PathBuf,
@@ -886,8 +887,9 @@ fn patch_file() -> (
             content: SegmentContent::Constant(Occupancy::Free),
         })
         .unwrap();
+    let from_1 = Arc::new(Toggles::new(vec![1]).unwrap());
     segment
-        .write_patch_tile(&encoder.finish().unwrap())
+        .write_patch_tile(&encoder.finish().unwrap(), Some(from_1))
         .unwrap();
     segment.commit().unwrap();
     (dir, path, axis, base_cells)
@@ -915,7 +917,10 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
             Occupancy::Occupied,
         )];
         if j == 0 {
+            // The remainder is not observed at sample 0.
             expected.push((base_cells[1].start, base_cells[1].depth, Occupancy::Free));
+            assert_eq!(got, expected, "sample {j}");
+            continue;
         }
         for cell in &base_cells[2..] {
             let state = base_prediction(base, &base_cells, cell.start, seconds);
@@ -926,9 +931,14 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
     // Read whole: the stored cells and the rest of the base tile as inherited cells.
     let cells = reader.read_segment_tile(0, 0).unwrap();
     assert_eq!(cells.len(), base_cells.len());
-    assert!(cells[2..].iter().all(
-        |c| matches!(&c.content, SegmentContent::Inherited { outliers } if outliers.is_empty())
-    ));
+    assert!(cells[2..].iter().all(|c| {
+        matches!(&c.content, SegmentContent::Inherited { outliers } if outliers.is_empty())
+            && c.mask.as_deref().map(Toggles::as_slice) == Some(&[1][..])
+    }));
+    assert_eq!(
+        reader.remainder_mask(0, 0),
+        Some(Some(Arc::new(Toggles::new(vec![1]).unwrap())))
+    );
     // A patch tile needs a base tile with its code.
     let mut writer = LivingWriter::open(&path).unwrap();
     let next = Timestamp(reader.last_instant().0 + 1_000_000_000);
@@ -947,7 +957,7 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
         })
         .unwrap();
     let err = segment
-        .write_patch_tile(&encoder.finish().unwrap())
+        .write_patch_tile(&encoder.finish().unwrap(), None)
         .unwrap_err();
     assert!(err.to_string().contains("has no base tile"), "{err}");
 }
@@ -957,11 +967,12 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     let (_dir, path, axis, _) = patch_file();
     let bytes = std::fs::read(&path).unwrap();
     let (at, body) = newest_record(&bytes);
-    // The section closes the body: tag, flags, length 3, then runs `1, 0, 1`.
-    let section = at + 24 + body - 11;
+    // The section closes the body: tag, flags, length 5, then runs `1, 0, 1` and the
+    // remainder mask `1, 1` (one position: 1).
+    let section = at + 24 + body - 13;
     assert_eq!(
-        bytes[section..section + 11],
-        [0x01, 0x02, 1, 0, 3, 0, 0, 0, 1, 0, 1]
+        bytes[section..section + 13],
+        [0x01, 0x02, 1, 0, 5, 0, 0, 0, 1, 0, 1, 1, 1]
     );
     let patched = |patch: &dyn Fn(&mut Vec<u8>)| {
         let mut hostile = bytes.clone();
@@ -971,9 +982,20 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     };
     let corrupt = |v: &FormatViolation| matches!(v, FormatViolation::Corrupt { .. });
     let payload = section + 8;
-    for runs in [[1u8, 0, 2], [1, 1, 1], [1, 0, 0], [0, 0, 0]] {
+    // Runs past the tiles, empty, missing; a mask past the segment's samples, one
+    // position too many, bytes after the mask.
+    let axis_samples = u8::try_from(axis.len()).unwrap();
+    for runs in [
+        [1u8, 0, 2, 1, 1],
+        [1, 1, 1, 1, 1],
+        [1, 0, 0, 1, 1],
+        [0, 0, 0, 1, 1],
+        [1, 0, 1, 1, axis_samples],
+        [1, 0, 1, 2, 1],
+        [1, 0, 1, 0, 0],
+    ] {
         assert_violation(
-            &patched(&|b| b[payload..payload + 3].copy_from_slice(&runs)),
+            &patched(&|b| b[payload..payload + 5].copy_from_slice(&runs)),
             ReadLimits::default(),
             corrupt,
         );
@@ -997,8 +1019,8 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     // The section twice: the record re-framed with a copy of it, the root's committed
     // length moved to the record's new end.
     let mut twice = bytes[..at + 24 + body].to_vec();
-    twice.extend_from_slice(&bytes[section..section + 11]);
-    let new_body = body + 11;
+    twice.extend_from_slice(&bytes[section..section + 13]);
+    let new_body = body + 13;
     twice[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
     twice.extend_from_slice(&[0; 4]);
     reseal_record(&mut twice, at, new_body);

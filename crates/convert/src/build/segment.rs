@@ -48,7 +48,9 @@ use froctomap_file::{
     mask_from_ranges, EncodedTile, FroctReader, FrozenPrediction, LivingReader, LivingWriter,
     SegmentCell, SegmentContent, SegmentTileEncoder,
 };
-use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, VoxelObservations};
+use froctomap_temporal::{
+    OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, Toggles, VoxelObservations,
+};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -152,24 +154,23 @@ pub(super) fn add_segment(
                 .take(batch)
                 .map(|tile| Ok((tile?, segment.tile_encoder())))
                 .collect::<Result<_, ConvertError>>()?;
-            let encoded: Vec<(EncodedTile, bool, TileStats, u64)> = chunk
+            let encoded: Vec<(EncodedTile, Option<RemainderMask>, TileStats, u64)> = chunk
                 .into_par_iter()
                 .map(|(tile, encoder)| {
                     let cells: Vec<PackedCell> = tile.into_packed();
                     let count = cells.len() as u64;
                     let (pieces, patch) = match join.patch(&chooser, cells)? {
-                        Ok(differing) => (differing, true),
-                        Err(cells) => (join.pieces(cells)?, false),
+                        Ok((differing, remainder)) => (differing, Some(remainder)),
+                        Err(cells) => (join.pieces(cells)?, None),
                     };
                     let (tile, stats) = chooser.encode(pieces, encoder)?;
                     Ok((tile, patch, stats, count))
                 })
                 .collect::<Result<_, ConvertError>>()?;
             for (tile, patch, tile_stats, cells) in encoded {
-                if patch {
-                    segment.write_patch_tile(&tile)?;
-                } else {
-                    segment.write_tile(&tile)?;
+                match patch {
+                    Some(remainder) => segment.write_patch_tile(&tile, remainder)?,
+                    None => segment.write_tile(&tile)?,
                 }
                 stats.add(&tile_stats);
                 progress.advance(cells);
@@ -447,7 +448,7 @@ impl BaseJoin<'_> {
         &self,
         chooser: &ContentChooser<'_>,
         cells: Vec<PackedCell>,
-    ) -> Result<Result<Vec<JoinedPiece>, Vec<PackedCell>>, ConvertError> {
+    ) -> Result<Result<(Vec<JoinedPiece>, RemainderMask), Vec<PackedCell>>, ConvertError> {
         let Some(index) = cells
             .first()
             .and_then(|cell| self.base.tile_containing(cell.0))
@@ -470,8 +471,9 @@ impl BaseJoin<'_> {
             .collect();
         // Each cell decoded once, when its first piece needs it.
         let mut decoded: Vec<Option<Observed>> = vec![None; cells.len()];
-        let mut differing: Vec<JoinedPiece> = Vec::new();
-        let mut first: Option<JoinedPiece> = None;
+        // The pieces with the cell they come from and whether they follow the prediction
+        // wherever observed.
+        let mut pieces: Vec<(MortonCode, u8, usize, Option<Frozen>, bool)> = Vec::new();
         let mut patchable = true;
         common_refinement(indexed, base_cells, |start, depth, new, base| {
             if !patchable {
@@ -486,33 +488,63 @@ impl BaseJoin<'_> {
                 Some(observed) => observed,
                 slot => slot.insert(chooser.observed(&cells[i].2)?),
             };
-            let inherits = base
+            let predicted = base
                 .as_ref()
                 .is_some_and(|base| chooser.predicts(observed, base));
-            if !inherits || first.is_none() {
-                let piece = (
-                    start,
-                    depth,
-                    cells[i].2.clone(),
-                    base.map(BasePrediction::from),
-                );
-                if inherits {
-                    first = Some(piece);
-                } else {
-                    differing.push(piece);
-                }
-            }
+            pieces.push((start, depth, i, base, predicted));
             Ok::<(), ConvertError>(())
         })?;
         if !patchable {
             return Ok(Err(cells));
         }
+        // The remainder's mask: the most common one among the predicted pieces (a partial
+        // view hides whole regions, whose pieces share it).
+        let mut masks: Vec<(&RemainderMask, usize)> = Vec::new();
+        for piece in pieces.iter().filter(|p| p.4) {
+            let mask = decoded[piece.2].as_ref().map(|o| &o.mask);
+            let Some(mask) = mask else { continue };
+            if let Some((_, count)) = masks.iter_mut().find(|(m, _)| *m == mask) {
+                *count += 1;
+            } else if masks.len() < MAX_REMAINDER_CANDIDATES {
+                // Bounded: a tile of many distinct masks keeps the first ones.
+                masks.push((mask, 1));
+            }
+        }
+        let remainder: RemainderMask = masks
+            .iter()
+            .max_by_key(|(_, count)| *count)
+            .and_then(|(mask, _)| (*mask).clone());
+        let mut differing: Vec<JoinedPiece> = Vec::new();
+        let mut first: Option<JoinedPiece> = None;
+        for (start, depth, i, base, predicted) in pieces {
+            let inherits = predicted && decoded[i].as_ref().is_some_and(|o| o.mask == remainder);
+            if inherits && first.is_some() {
+                continue;
+            }
+            let piece = (
+                start,
+                depth,
+                cells[i].2.clone(),
+                base.map(BasePrediction::from),
+            );
+            if inherits {
+                first = Some(piece);
+            } else {
+                differing.push(piece);
+            }
+        }
         if differing.is_empty() {
             differing.extend(first);
         }
-        Ok(Ok(differing))
+        Ok(Ok((differing, remainder)))
     }
 }
+
+/// Distinct observation masks a tile's remainder is chosen from.
+const MAX_REMAINDER_CANDIDATES: usize = 64;
+
+/// The observation mask of what a patch tile leaves to the base (`None`: every sample).
+type RemainderMask = Option<Arc<Toggles>>;
 
 /// A base cell's frozen prediction, owned.
 #[derive(Clone, Debug)]
@@ -533,8 +565,8 @@ impl From<Frozen> for BasePrediction {
 /// A cell's observations over the segment as the patch test needs them.
 #[derive(Clone, Debug)]
 struct Observed {
-    /// Observed at every sample of the segment that is not missing.
-    everywhere: bool,
+    /// Its observation mask (`None`: at every sample of the segment that is not missing).
+    mask: RemainderMask,
     observations: VoxelObservations,
 }
 
@@ -572,20 +604,14 @@ impl<'a> ContentChooser<'a> {
     /// A cell's observations, decoded, and whether they cover every sample.
     fn observed(&self, packed: &PackedObservations) -> Result<Observed, ConvertError> {
         let observations = packed.unpack()?;
-        let everywhere = mask_from_ranges(self.axis, &observations.observed_ranges()).is_none();
-        Ok(Observed {
-            everywhere,
-            observations,
-        })
+        let mask = mask_from_ranges(self.axis, &observations.observed_ranges());
+        Ok(Observed { mask, observations })
     }
 
-    /// `true` when a cell observed as `observed` is observed at every sample of the segment
-    /// that is not missing, each time in the frozen prediction `base` (as the readers
-    /// evaluate it), so that a patch tile may inherit it.
+    /// `true` when a cell observed as `observed` is, wherever observed, in the frozen
+    /// prediction `base` (as the readers evaluate it), so that a patch tile whose remainder
+    /// has its mask may inherit it.
     fn predicts(&self, observed: &Observed, base: &Frozen) -> bool {
-        if !observed.everywhere {
-            return false;
-        }
         let parameters = match base {
             Frozen::State(state) => return observed.observations.is_constant() == Some(*state),
             Frozen::Model(_) if !self.inherit_models => return false,
