@@ -172,6 +172,13 @@ fn a_streamed_series_records_segment_by_segment_and_retrieves_as_its_directory_b
     );
     assert_eq!(segments(&file), [3, 2]);
     same_snapshots(&file, &whole, 6);
+    // The segments store what differs from the base's predictions (patch tiles).
+    let reader = froctomap_file::LivingReader::open(&file).unwrap();
+    let patches = (0..reader.segment_count())
+        .flat_map(|k| (0..reader.segment_tiles(k).len()).map(move |t| (k, t)))
+        .filter(|&(k, t)| reader.is_patch_tile(k, t))
+        .count();
+    assert!(patches > 0, "no patch tile");
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 
     // A longer stream overlapping it: its first six maps are skipped, the rest committed.
