@@ -860,38 +860,7 @@ fn patch_file() -> (
 ) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("living.froct");
-    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), &path).unwrap();
-    let axis = golden_segment_axes()[0].clone();
-    let mut writer = LivingWriter::open(&path).unwrap();
-    let base = writer.reader().base();
-    let largest = (0..base.tiles().len())
-        .max_by_key(|&t| base.tiles()[t].cell_count)
-        .unwrap();
-    let base_cells = base.read_tile(largest).unwrap();
-    assert!(base_cells.len() >= 3);
-    let mut segment = writer.begin_segment(axis.clone()).unwrap();
-    let mut encoder = segment.tile_encoder();
-    encoder
-        .push(SegmentCell {
-            start: base_cells[0].start,
-            depth: base_cells[0].depth,
-            mask: None,
-            content: SegmentContent::Constant(Occupancy::Occupied),
-        })
-        .unwrap();
-    encoder
-        .push(SegmentCell {
-            start: base_cells[1].start,
-            depth: base_cells[1].depth,
-            mask: Some(Arc::new(Toggles::new(vec![0, 1]).unwrap())),
-            content: SegmentContent::Constant(Occupancy::Free),
-        })
-        .unwrap();
-    let from_1 = Arc::new(Toggles::new(vec![1]).unwrap());
-    segment
-        .write_patch_tile(&encoder.finish().unwrap(), Some(from_1))
-        .unwrap();
-    segment.commit().unwrap();
+    let (axis, base_cells) = write_patch_golden(&path);
     (dir, path, axis, base_cells)
 }
 
