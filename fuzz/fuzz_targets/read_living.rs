@@ -1,6 +1,7 @@
 //! The format 2.0 reader on arbitrary bytes: opening (root slots, the base, the segment
 //! chain), observed maps at the first, middle and last samples of the base and of every
-//! segment, predicted maps, every segment tile read whole, and a refresh, under small
+//! segment, predicted maps, every segment tile read whole (a patch tile with the parts of
+//! the base tile it leaves to the base, FORMAT.md §10.6), and a refresh, under small
 //! limits. Each input is read as it is and, when that differs, once more with the header,
 //! root slot and segment record checksums recomputed, so that mutations reach the decoders.
 #![no_main]
@@ -46,7 +47,13 @@ fn read_every_way(data: &[u8]) {
             starts.extend([first, first + axis.len() / 2, first + axis.len()]);
         }
         for tile in 0..reader.segment_tiles(k).len() {
-            let _ = reader.read_segment_tile(k, tile);
+            // A patch tile reads as at least its stored cells.
+            if let Ok(cells) = reader.read_segment_tile(k, tile) {
+                if reader.is_patch_tile(k, tile) {
+                    let stored = reader.segment_tiles(k)[tile].cell_count as usize;
+                    assert!(cells.len() >= stored);
+                }
+            }
         }
     }
     for sample in starts {

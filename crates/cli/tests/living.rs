@@ -152,6 +152,12 @@ fn every_map_of_a_living_file_retrieves_as_a_build_of_the_same_maps() {
     std::fs::create_dir_all(&out).unwrap();
     let reader = LivingReader::open(&series.living).unwrap();
     assert_eq!((reader.segment_count(), reader.sample_count()), (2, 24));
+    // The segments store what differs from the base's predictions (patch tiles).
+    let patches = (0..2)
+        .flat_map(|k| (0..reader.segment_tiles(k).len()).map(move |t| (k, t)))
+        .filter(|&(k, t)| reader.is_patch_tile(k, t))
+        .count();
+    assert!(patches > 0, "no patch tile");
     for sample in 0..24 {
         let from_living = retrieved(&series.living, sample, &out.join("living.bt"));
         let from_full = retrieved(&series.full, sample, &out.join("full.bt"));

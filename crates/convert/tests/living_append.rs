@@ -15,7 +15,7 @@ use common::*;
 use froctomap_convert::*;
 use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{Leaf, Occupancy, Snapshot, Timestamp, VoxelKey};
-use froctomap_file::{FroctReader, LivingReader, LivingWriter, SegmentContent};
+use froctomap_file::{CellContent, FroctReader, LivingReader, LivingWriter, SegmentContent};
 use froctomap_formats::{ReadOptions, WriteOptions};
 use std::path::{Path, PathBuf};
 
@@ -257,6 +257,8 @@ fn appended_segments_retrieve_every_snapshot_as_a_full_build_does() {
     // and the box are new or changing: each kind of cell is exercised.
     assert!(inherited > 0, "no inherited cell");
     assert!(constant > 0 && exceptions > 0, "{constant} {exceptions}");
+    // Segments store what differs from the base: patch tiles occur.
+    assert!(patch_tiles(&reader) > 0, "no patch tile");
 }
 
 #[test]
@@ -270,9 +272,48 @@ fn markov_cells_are_never_inherited() {
     append_part(&context, &file, &series.frames[b..b + 12]);
     append_part(&context, &file, &series.frames[b + 12..]);
     assert_every_snapshot(&context, &file, &series.frames, &full);
-    let [inherited, _, exceptions] = segment_kinds(&LivingReader::open(&file).unwrap());
-    assert_eq!(inherited, 0);
+    let reader = LivingReader::open(&file).unwrap();
+    let [_, _, exceptions] = segment_kinds(&reader);
     assert!(exceptions > 0);
+    // Inherited cells (stored, or what patch tiles leave to the base) lie in constant base
+    // cells only: a markov cell's p(t) is not the same on every platform.
+    let mut inherited = 0;
+    for k in 0..reader.segment_count() {
+        for tile in 0..reader.segment_tiles(k).len() {
+            let cells = reader.read_segment_tile(k, tile).unwrap();
+            let code = reader.segment_tiles(k)[tile].code;
+            let base = reader
+                .base()
+                .tile_containing(code)
+                .map_or_else(Vec::new, |t| reader.base().read_tile(t).unwrap());
+            for cell in cells {
+                if let SegmentContent::Inherited { .. } = cell.content {
+                    inherited += 1;
+                    let holder = base
+                        .iter()
+                        .find(|b| b.start <= cell.start && cell.start.0 < b.end())
+                        .expect("an inherited cell lies in a base cell");
+                    assert!(
+                        !matches!(holder.content, CellContent::Modelled(_)),
+                        "cell {:#x} of segment {k} inherits a markov model",
+                        cell.start.0
+                    );
+                }
+            }
+        }
+    }
+    assert!(inherited > 0, "no patch tile");
+}
+
+/// How many tiles of `reader`'s segments are patch tiles.
+fn patch_tiles(reader: &LivingReader) -> usize {
+    (0..reader.segment_count())
+        .map(|k| {
+            (0..reader.segment_tiles(k).len())
+                .filter(|&t| reader.is_patch_tile(k, t))
+                .count()
+        })
+        .sum()
 }
 
 #[test]

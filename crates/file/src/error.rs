@@ -232,6 +232,12 @@ pub enum TileEncodeError {
     /// More than the index's 32-bit counts and lengths can describe.
     #[error("{0} exceeds what a tile can hold (4 GiB, 2^32 cells)")]
     TooLarge(&'static str),
+    /// A patch tile needs a base tile with its code.
+    #[error("patch tile {code:#x} has no base tile with its code")]
+    NoBaseTile {
+        /// The tile's code.
+        code: u64,
+    },
     /// The compressor failed.
     #[error("zstd compression failed")]
     Compression(#[source] std::io::Error),

@@ -72,6 +72,20 @@ pub(crate) fn decode_index(
     tile_depth: u8,
     limits: &ReadLimits,
 ) -> Result<(Vec<TileEntry>, Map<String, Value>), FormatViolation> {
+    let (entries, summary, _) = decode_index_with(bytes, data, tile_depth, limits, &[TAG_SUMMARY])?;
+    Ok((entries, summary))
+}
+
+/// Decodes the index as [`decode_index`], accepting the sections tagged `known` (the
+/// summary's and others, each of those at most once, whose payloads it returns with their
+/// tags).
+pub(crate) fn decode_index_with<'a>(
+    bytes: &'a [u8],
+    data: std::ops::Range<u64>,
+    tile_depth: u8,
+    limits: &ReadLimits,
+    known: &'static [u16],
+) -> Result<IndexParts<'a>, FormatViolation> {
     let mut c = Cursor::new(bytes, "index");
     let count = u64::from(c.u32()?);
     let count = c.check_count("tile count", count, limits.max_tiles, TILE_ENTRY_LEN)?;
@@ -171,18 +185,32 @@ pub(crate) fn decode_index(
         entries.push(entry);
     }
     let mut summary = Map::new();
+    let mut found: Vec<(u16, &[u8])> = Vec::new();
     let rest = c.take(c.remaining())?;
-    for section in Sections::with_known(rest, "index", &[TAG_SUMMARY]) {
+    for section in Sections::with_known(rest, "index", known) {
         let section = section?;
         if section.tag == TAG_SUMMARY {
             summary = match serde_json::from_slice(section.payload) {
                 Ok(Value::Object(object)) => object,
                 _ => return Err(corrupt("index summary", "not a JSON object")),
             };
+        } else if found.iter().any(|(tag, _)| *tag == section.tag) {
+            return Err(corrupt(
+                "index",
+                format!("section {} appears twice", section.tag),
+            ));
+        } else {
+            found.push((section.tag, section.payload));
         }
     }
-    Ok((entries, summary))
+    Ok((entries, summary, found))
 }
+
+/// A decoded index: its tiles, its summary and the payloads of the extra sections asked for.
+pub(crate) type IndexParts<'a> = (Vec<TileEntry>, Map<String, Value>, Vec<(u16, &'a [u8])>);
+
+/// Tag of a segment record's *patch tiles* section (FORMAT.md §10.3, critical).
+pub(crate) const TAG_PATCH_TILES: u16 = 0x0201;
 
 pub(crate) fn encode_footer(index_offset: u64, index: &[u8]) -> [u8; FOOTER_LEN] {
     let mut out = [0u8; FOOTER_LEN];

@@ -38,7 +38,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::error::{corrupt, FileError, FormatViolation};
+use crate::error::{corrupt, FileError, FormatViolation, TileEncodeError};
 use crate::header::{Header, PREAMBLE_LEN};
 use crate::index::{encode_footer, encode_index, TileEntry, FOOTER_LEN};
 use crate::limits::ReadLimits;
@@ -52,10 +52,10 @@ use crate::segment::{
     SegmentTileEncoder,
 };
 use crate::source::{ByteSource, FileSource};
-use crate::tile::{EncodedTile, WalkNeed};
+use crate::tile::{CellRef, EncodedTile, WalkNeed};
 use crate::writer::seal_tile;
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
-use froctomap_temporal::{ModelRegistry, TimeAxis};
+use froctomap_temporal::{ModelRegistry, TimeAxis, Toggles};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -265,6 +265,23 @@ impl LivingReader {
                     limit: self.limits.max_samples,
                 }));
             }
+            let base_tiles = self.base.tiles();
+            let orphan = record
+                .tiles
+                .iter()
+                .zip(&record.patches)
+                .find(|(entry, patch)| {
+                    patch.is_some()
+                        && base_tiles
+                            .binary_search_by_key(&entry.code, |t| t.code)
+                            .is_err()
+                });
+            if let Some((entry, _)) = orphan {
+                return Err(invalid(corrupt(
+                    "segment patch tiles",
+                    format!("patch tile {:#x} has no base tile", entry.code.0),
+                )));
+            }
             last_instant = record.axis.end();
             tiles_from = record.end;
             let segment_header = Header {
@@ -354,14 +371,86 @@ impl LivingReader {
         self.segments.get(k).map_or(&[], |s| s.tiles.tiles())
     }
 
-    /// The cells of tile `tile` of segment `k`, in Morton order.
+    /// The cells of tile `tile` of segment `k`, in Morton order. A patch tile's cells
+    /// include what it inherits: the base cells (or their parts, as aligned nodes) that its
+    /// stored cells do not cover, as inherited cells without outliers or mask.
     pub fn read_segment_tile(&self, k: usize, tile: usize) -> Result<Vec<SegmentCell>, FileError> {
         let segment = self.segment(k)?;
         let mut cells = Vec::new();
         segment
             .tiles
             .visit_cells(tile, |cell| cells.push(SegmentCell::from_cell(cell)))?;
+        if let Some(mask) = self.remainder_mask(k, tile) {
+            let covered: Vec<(u64, u64)> = cells
+                .iter()
+                .map(|c| (c.start.0, c.start.0 + voxels_per_node(c.depth)))
+                .collect();
+            let code = segment.tiles.tiles()[tile].code;
+            self.visit_uncovered_base_cells(code, &covered, |start, depth, _| {
+                cells.push(SegmentCell {
+                    start,
+                    depth,
+                    mask: mask.clone(),
+                    content: SegmentContent::Inherited {
+                        outliers: Toggles::default(),
+                    },
+                });
+            })?;
+            cells.sort_unstable_by_key(|c| c.start);
+        }
         Ok(cells)
+    }
+
+    /// `true` when tile `tile` of segment `k` is a patch tile (FORMAT.md §10.6): the base
+    /// tile's cells are inherited where its own cells do not cover them.
+    pub fn is_patch_tile(&self, k: usize, tile: usize) -> bool {
+        self.remainder_mask(k, tile).is_some()
+    }
+
+    /// For a patch tile, the observation mask of what it leaves to the base (`Some(None)`:
+    /// observed at every sample that is not missing); `None` for any other tile.
+    pub fn remainder_mask(&self, k: usize, tile: usize) -> Option<Option<Arc<Toggles>>> {
+        self.segments
+            .get(k)
+            .and_then(|s| s.record.patches.get(tile))
+            .cloned()
+            .flatten()
+    }
+
+    /// Calls `visit` with the parts of the cells of the base tile `code` that no range of
+    /// `covered` (sorted, disjoint) overlaps, as aligned nodes, each with the base cell it
+    /// lies in: the cell's start and depth.
+    fn visit_uncovered_base_cells(
+        &self,
+        code: MortonCode,
+        covered: &[(u64, u64)],
+        mut visit: impl FnMut(MortonCode, u8, &CellRef<'_>),
+    ) -> Result<(), FileError> {
+        let Some(base_tile) = self.base.tile_containing(code) else {
+            return Err(self.invalid(corrupt(
+                "segment patch tiles",
+                format!("patch tile {:#x} has no base tile", code.0),
+            )));
+        };
+        let mut parts = Vec::new();
+        self.base.walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
+            parts.clear();
+            let range = (cell.start.0, cell.start.0 + voxels_per_node(cell.depth));
+            subtract(range, covered, &mut parts);
+            for &(a, b) in &parts {
+                aligned_nodes(a, b, |start, depth| visit(start, depth, &cell));
+            }
+        })
+    }
+
+    /// The raw streams of tile `tile` of segment `k` by name (as
+    /// [`FroctReader::tile_streams`]), for size analysis.
+    pub fn segment_tile_streams(
+        &self,
+        k: usize,
+        tile: usize,
+    ) -> Result<Vec<(&'static str, Vec<u8>)>, FileError> {
+        self.segment(k)?.tiles.tile_streams(tile)
     }
 
     fn segment(&self, k: usize) -> Result<&Segment, FileError> {
@@ -456,16 +545,22 @@ impl LivingReader {
                 tiles: segment.tiles.tiles().len(),
             });
         };
-        if !entry.may_observe(local) {
+        let remainder = self.remainder_mask(k, tile);
+        let patch = remainder.is_some();
+        if !entry.may_observe(local) && !patch {
             return Ok(());
         }
         // Constant cells know their state; inherited ones their outlier parity, to be
         // applied to the base cell's prediction.
         let mut cells: Vec<(MortonCode, u8, Result<Occupancy, bool>)> = Vec::new();
+        let mut covered: Vec<(u64, u64)> = Vec::new();
         let model = segment.tiles.model();
         segment
             .tiles
             .walk_tile(tile, WalkNeed::StateAt(local), |cell| {
+                if patch {
+                    covered.push((cell.start.0, cell.start.0 + voxels_per_node(cell.depth)));
+                }
                 if cell.observed {
                     let state = match cell.constant {
                         Some(_) => Ok(cell.state(model, local)),
@@ -491,6 +586,20 @@ impl LivingReader {
                     cell.2 = Ok(if parity { !base } else { base });
                 }
             }
+        }
+        let remainder_observed =
+            remainder.is_some_and(|mask| mask.is_none_or(|mask| mask.parity_at(local)));
+        if remainder_observed && !segment.record.axis.is_missing(local) {
+            // The rest of the base tile, observed in its frozen prediction.
+            let seconds = self
+                .sample_time(sample)
+                .map_or(0.0, |t| t.secs_since(self.base.header().axis.start()));
+            let base_model = self.base.model();
+            self.visit_uncovered_base_cells(entry.code, &covered, |start, depth, cell| {
+                let state = Occupancy::from(cell.probability(base_model, seconds) > 0.5);
+                cells.push((start, depth, Ok(state)));
+            })?;
+            cells.sort_unstable_by_key(|c| c.0);
         }
         for (start, depth, state) in cells {
             visit(start, depth, state.unwrap_or(Occupancy::Free));
@@ -1001,6 +1110,7 @@ impl LivingWriter {
             first_sample: root.sample_count,
             offset: root.committed_len,
             entries: Vec::new(),
+            patches: Vec::new(),
             axis,
             writer: self,
         })
@@ -1015,6 +1125,8 @@ pub struct SegmentWriter<'w> {
     first_sample: u32,
     offset: u64,
     entries: Vec<TileEntry>,
+    /// Indices (into `entries`) of the patch tiles, with their remainder masks.
+    patches: Vec<(u32, Option<Arc<Toggles>>)>,
 }
 
 impl std::fmt::Debug for SegmentWriter<'_> {
@@ -1089,6 +1201,57 @@ impl SegmentWriter<'_> {
         Ok(())
     }
 
+    /// Writes a tile made by [`tile_encoder`](Self::tile_encoder) as a *patch tile*
+    /// (FORMAT.md §10.6): besides its own cells, the segment holds every part of the base
+    /// tile with the same code that they do not cover, observed where `remainder` says
+    /// (an observation mask over the segment's samples; `None`: at every sample that is not
+    /// missing) in the base cell's frozen prediction. So a tile whose maps match the base's
+    /// predictions stores only where they differ. The base must have a tile with this code
+    /// (an empty mask counts as `None`) and the mask must lie within the segment's samples ([`FileError::TileEncode`]
+    /// otherwise, nothing written).
+    pub fn write_patch_tile(
+        &mut self,
+        tile: &EncodedTile,
+        remainder: Option<Arc<Toggles>>,
+    ) -> Result<(), FileError> {
+        let beyond = remainder
+            .as_ref()
+            .and_then(|mask| mask.as_slice().last())
+            .is_some_and(|&last| last >= self.axis.len());
+        if beyond {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::BeyondAxis {
+                    start: tile.code().0,
+                    list: "remainder mask",
+                },
+            });
+        }
+        if self
+            .writer
+            .reader
+            .base
+            .tile_containing(tile.code())
+            .is_none()
+        {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::NoBaseTile {
+                    code: tile.code().0,
+                },
+            });
+        }
+        let index = u32::try_from(self.entries.len()).map_err(|_| FileError::TileEncode {
+            path: self.writer.path.clone(),
+            source: TileEncodeError::TooLarge("segment index"),
+        })?;
+        self.write_tile(tile)?;
+        // An empty mask would observe nothing: `None` says "every sample".
+        self.patches
+            .push((index, remainder.filter(|mask| !mask.is_empty())));
+        Ok(())
+    }
+
     /// Commits the segment: writes its record after its tiles, syncs, writes the root slot
     /// that is not current with the next sequence, syncs. A crash before the second sync
     /// leaves the previous commit; after it, this one. Returns the new root.
@@ -1104,6 +1267,7 @@ impl SegmentWriter<'_> {
             self.first_sample,
             &self.axis,
             &self.entries,
+            &self.patches,
         )
         .map_err(|source| FileError::TileEncode {
             path: writer.path.clone(),

@@ -234,6 +234,33 @@ fn writer_reproduces_the_living_golden_file() {
     );
 }
 
+/// A format 2.0 file with a patch tile (FORMAT.md §10.6), which readers of the first 2.0
+/// release refuse: `common::living::write_patch_golden`. Regenerated like the others.
+const PATCH_GOLDEN: &str = "golden-v2.0-patch.froct";
+
+#[test]
+fn writer_reproduces_the_patch_golden_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fresh = dir.path().join(PATCH_GOLDEN);
+    common::living::write_patch_golden(&fresh);
+    let fresh = std::fs::read(&fresh).unwrap();
+    if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
+        froctomap_core::write_atomically(&golden_path_of(PATCH_GOLDEN), |out| {
+            out.write_all(&fresh)
+        })
+        .unwrap();
+    }
+    let committed =
+        std::fs::read(golden_path_of(PATCH_GOLDEN)).expect("the golden file is committed");
+    assert!(
+        committed == fresh,
+        "the writer's output differs from fixtures/froct/{PATCH_GOLDEN}; if the format \
+         changed on purpose, bump the version, keep reading the old golden file, and add a new one"
+    );
+    let reader = froctomap_file::LivingReader::open(&golden_path_of(PATCH_GOLDEN)).unwrap();
+    assert!(reader.is_patch_tile(0, 0));
+}
+
 /// The format 2.0 golden file the first 2.0 release wrote, never regenerated.
 const RELEASED_LIVING_GOLDEN: &str = "golden-v2.0-r0.froct";
 

@@ -846,3 +846,181 @@ fn readers_refreshing_while_a_writer_commits_see_whole_commits_only() {
         }
     });
 }
+
+/// The golden base converted, then one segment of `golden_segment_axes()[0]` (which has a
+/// missing sample) whose only tile is a patch tile over the base's largest tile: its first
+/// base cell stored occupied throughout, its second stored free and observed at sample 0
+/// only, everything else left to the base from sample 1 on (the remainder's mask). Returns
+/// the file and the base tile's cells.
+fn patch_file() -> (
+    tempfile::TempDir,
+    std::path::PathBuf,
+    TimeAxis,
+    Vec<froctomap_file::Cell>,
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("living.froct");
+    let (axis, base_cells) = write_patch_golden(&path);
+    (dir, path, axis, base_cells)
+}
+
+#[test]
+fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
+    let (_dir, path, axis, base_cells) = patch_file();
+    let reader = LivingReader::open(&path).unwrap();
+    assert!(reader.is_patch_tile(0, 0));
+    let base = reader.base();
+    let first = base.header().axis.len();
+    let origin = base.header().axis.start();
+    assert!((0..axis.len()).any(|j| axis.is_missing(j)));
+    for j in 0..axis.len() {
+        let got = reader.observed_states(first + j).unwrap();
+        if axis.is_missing(j) {
+            assert!(got.is_empty(), "sample {j} is missing");
+            continue;
+        }
+        let seconds = axis.time(j).unwrap().secs_since(origin);
+        let mut expected = vec![(
+            base_cells[0].start,
+            base_cells[0].depth,
+            Occupancy::Occupied,
+        )];
+        if j == 0 {
+            // The remainder is not observed at sample 0.
+            expected.push((base_cells[1].start, base_cells[1].depth, Occupancy::Free));
+            assert_eq!(got, expected, "sample {j}");
+            continue;
+        }
+        for cell in &base_cells[2..] {
+            let state = base_prediction(base, &base_cells, cell.start, seconds);
+            expected.push((cell.start, cell.depth, state));
+        }
+        assert_eq!(got, expected, "sample {j}");
+    }
+    // Read whole: the stored cells and the rest of the base tile as inherited cells.
+    let cells = reader.read_segment_tile(0, 0).unwrap();
+    assert_eq!(cells.len(), base_cells.len());
+    assert!(cells[2..].iter().all(|c| {
+        matches!(&c.content, SegmentContent::Inherited { outliers } if outliers.is_empty())
+            && c.mask.as_deref().map(Toggles::as_slice) == Some(&[1][..])
+    }));
+    assert_eq!(
+        reader.remainder_mask(0, 0),
+        Some(Some(Arc::new(Toggles::new(vec![1]).unwrap())))
+    );
+    // A patch tile needs a base tile with its code.
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let next = Timestamp(reader.last_instant().0 + 1_000_000_000);
+    let mut segment = writer
+        .begin_segment(TimeAxis::regular(next, 1_000_000_000, 1, vec![]).unwrap())
+        .unwrap();
+    let mut encoder = segment.tile_encoder();
+    let far = VoxelKey::new(1000, 1000, 1000).morton();
+    assert!(reader.base().tile_containing(far).is_none());
+    encoder
+        .push(SegmentCell {
+            start: far,
+            depth: 16,
+            mask: None,
+            content: SegmentContent::Constant(Occupancy::Occupied),
+        })
+        .unwrap();
+    let err = segment
+        .write_patch_tile(&encoder.finish().unwrap(), None)
+        .unwrap_err();
+    assert!(err.to_string().contains("has no base tile"), "{err}");
+}
+
+#[test]
+fn resealed_hostile_patch_tile_sections_are_typed_errors() {
+    let (_dir, path, axis, _) = patch_file();
+    let bytes = std::fs::read(&path).unwrap();
+    let (at, body) = newest_record(&bytes);
+    // The section closes the body: tag, flags, length 5, then runs `1, 0, 1` and the
+    // remainder mask `1, 1` (one position: 1).
+    let section = at + 24 + body - 13;
+    assert_eq!(
+        bytes[section..section + 13],
+        [0x01, 0x02, 1, 0, 5, 0, 0, 0, 1, 0, 1, 1, 1]
+    );
+    let patched = |patch: &dyn Fn(&mut Vec<u8>)| {
+        let mut hostile = bytes.clone();
+        patch(&mut hostile);
+        reseal_record(&mut hostile, at, body);
+        hostile
+    };
+    let corrupt = |v: &FormatViolation| matches!(v, FormatViolation::Corrupt { .. });
+    let payload = section + 8;
+    // Runs past the tiles, empty, missing; a mask past the segment's samples, one
+    // position too many, bytes after the mask.
+    let axis_samples = u8::try_from(axis.len()).unwrap();
+    for runs in [
+        [1u8, 0, 2, 1, 1],
+        [1, 1, 1, 1, 1],
+        [1, 0, 0, 1, 1],
+        [0, 0, 0, 1, 1],
+        [1, 0, 1, 1, axis_samples],
+        [1, 0, 1, 2, 1],
+        [1, 0, 1, 0, 0],
+    ] {
+        assert_violation(
+            &patched(&|b| b[payload..payload + 5].copy_from_slice(&runs)),
+            ReadLimits::default(),
+            corrupt,
+        );
+    }
+    // More runs than tiles, and a varint running past the payload.
+    assert_violation(&patched(&|b| b[payload] = 5), ReadLimits::default(), |v| {
+        matches!(v, FormatViolation::Limit { .. })
+    });
+    assert_violation(
+        &patched(&|b| b[payload + 2] = 0x80),
+        ReadLimits::default(),
+        |v| !matches!(v, FormatViolation::Checksum(_)),
+    );
+    // What the first 2.0 release does with a patch tile section: an unknown critical
+    // segment record section is an unsupported feature, never a plain tile.
+    assert_violation(
+        &patched(&|b| b[section] = 0x02),
+        ReadLimits::default(),
+        |v| matches!(v, FormatViolation::UnsupportedFeature(_)),
+    );
+    // The section twice: the record re-framed with a copy of it, the root's committed
+    // length moved to the record's new end.
+    let mut twice = bytes[..at + 24 + body].to_vec();
+    twice.extend_from_slice(&bytes[section..section + 13]);
+    let new_body = body + 13;
+    twice[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
+    twice.extend_from_slice(&[0; 4]);
+    reseal_record(&mut twice, at, new_body);
+    let end = twice.len() as u64;
+    let slot = (0..2)
+        .map(|s| ROOT_SLOTS_AT as usize + s * ROOT_SLOT_LEN)
+        .max_by_key(|&slot| u64::from_le_bytes(twice[slot..slot + 8].try_into().unwrap()))
+        .unwrap();
+    twice[slot + 8..slot + 16].copy_from_slice(&end.to_le_bytes());
+    let crc = crc32c::crc32c(&twice[slot..slot + 60]);
+    twice[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
+    assert_violation(&twice, ReadLimits::default(), corrupt);
+    // A patch tile where the base has no tile: its entry's code moved past the base's last.
+    let axis_len = encode_axis(&axis).len();
+    let entry = at + 24 + axis_len + 4;
+    let reader = open_bytes(&bytes, ReadLimits::default()).unwrap();
+    let tile_size = froctomap_core::voxels_per_node(GOLDEN_TILE_DEPTH);
+    let elsewhere = (0..)
+        .map(|i| i * tile_size)
+        .find(|&code| reader.base().tile_containing(MortonCode(code)).is_none())
+        .unwrap();
+    let moved = patched(&|b| b[entry..entry + 8].copy_from_slice(&elsewhere.to_le_bytes()));
+    let err = open_bytes(&moved, ReadLimits::default()).unwrap_err();
+    assert!(corrupt(violation(&err)), "{err}");
+    assert!(err.to_string().contains("no base tile"), "{err}");
+    // Cut anywhere in the segment: the file opens without it or is refused, never a panic.
+    let base_end = reader_base_end(&bytes);
+    for len in base_end..bytes.len() {
+        match open_bytes(&bytes[..len], ReadLimits::default()) {
+            Ok(reader) => assert_eq!(reader.segment_count(), 0),
+            Err(err) => assert!(err.violation().is_some(), "{err}"),
+        }
+    }
+}

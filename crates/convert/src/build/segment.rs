@@ -48,7 +48,9 @@ use froctomap_file::{
     mask_from_ranges, EncodedTile, FroctReader, FrozenPrediction, LivingReader, LivingWriter,
     SegmentCell, SegmentContent, SegmentTileEncoder,
 };
-use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, VoxelObservations};
+use froctomap_temporal::{
+    OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, Toggles, VoxelObservations,
+};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -152,15 +154,24 @@ pub(super) fn add_segment(
                 .take(batch)
                 .map(|tile| Ok((tile?, segment.tile_encoder())))
                 .collect::<Result<_, ConvertError>>()?;
-            let encoded: Vec<(EncodedTile, TileStats, u64)> = chunk
+            let encoded: Vec<(EncodedTile, Option<RemainderMask>, TileStats, u64)> = chunk
                 .into_par_iter()
                 .map(|(tile, encoder)| {
-                    let pieces = join.pieces(tile)?;
-                    chooser.encode(pieces, encoder)
+                    let cells: Vec<PackedCell> = tile.into_packed();
+                    let count = cells.len() as u64;
+                    let (pieces, patch) = match join.patch(&chooser, cells)? {
+                        Ok((differing, remainder)) => (differing, Some(remainder)),
+                        Err(cells) => (join.pieces(cells)?, None),
+                    };
+                    let (tile, stats) = chooser.encode(pieces, encoder)?;
+                    Ok((tile, patch, stats, count))
                 })
                 .collect::<Result<_, ConvertError>>()?;
-            for (tile, tile_stats, cells) in encoded {
-                segment.write_tile(&tile)?;
+            for (tile, patch, tile_stats, cells) in encoded {
+                match patch {
+                    Some(remainder) => segment.write_patch_tile(&tile, remainder)?,
+                    None => segment.write_tile(&tile)?,
+                }
                 stats.add(&tile_stats);
                 progress.advance(cells);
             }
@@ -374,8 +385,7 @@ impl BaseJoin<'_> {
     /// outside all of them). A cell observed in one state is stored constant whatever the
     /// base holds there, so it stays whole, and a tile without a changing cell is not
     /// joined at all: the base tile is read only where inheriting may pay.
-    fn pieces(&self, tile: TileHistory) -> Result<Vec<JoinedPiece>, ConvertError> {
-        let cells: Vec<PackedCell> = tile.into_packed();
+    fn pieces(&self, cells: Vec<PackedCell>) -> Result<Vec<JoinedPiece>, ConvertError> {
         let Some(code) = cells.first().map(|cell| cell.0) else {
             return Ok(Vec::new());
         };
@@ -426,6 +436,140 @@ impl BaseJoin<'_> {
     }
 }
 
+impl BaseJoin<'_> {
+    /// The tile as a *patch tile* (FORMAT.md §10.3) when it can be one: `Ok` with the
+    /// pieces (of the cells' common refinement with the base tile's) whose states differ
+    /// from the base cell's frozen prediction or that are not observed at every sample (at
+    /// least one piece, as a tile holds a cell), all others being inherited by the patch
+    /// tile; `Err` with the cells when some base voxel is never observed over the segment
+    /// (a patch tile would make it observed) or the base has no tile there.
+    #[allow(clippy::type_complexity)]
+    fn patch(
+        &self,
+        chooser: &ContentChooser<'_>,
+        cells: Vec<PackedCell>,
+    ) -> Result<Result<(Vec<JoinedPiece>, RemainderMask), Vec<PackedCell>>, ConvertError> {
+        let Some(index) = cells
+            .first()
+            .and_then(|cell| self.base.tile_containing(cell.0))
+        else {
+            return Ok(Err(cells));
+        };
+        let mut base_cells: Vec<Piece<Frozen>> = Vec::new();
+        self.base
+            .visit_frozen_predictions(index, |start, depth, prediction| {
+                let owned = match prediction {
+                    FrozenPrediction::State(state) => Frozen::State(state),
+                    FrozenPrediction::Model(parameters) => Frozen::Model(Arc::from(parameters)),
+                };
+                base_cells.push((start, depth, owned));
+            })?;
+        let indexed: Vec<Piece<usize>> = cells
+            .iter()
+            .enumerate()
+            .map(|(i, cell)| (cell.0, cell.1, i))
+            .collect();
+        // Each cell decoded once, when its first piece needs it.
+        let mut decoded: Vec<Option<Observed>> = vec![None; cells.len()];
+        // The pieces with the cell they come from and whether they follow the prediction
+        // wherever observed.
+        let mut pieces: Vec<(MortonCode, u8, usize, Option<Frozen>, bool)> = Vec::new();
+        let mut patchable = true;
+        common_refinement(indexed, base_cells, |start, depth, new, base| {
+            if !patchable {
+                return Ok(());
+            }
+            let Some(i) = new else {
+                // A base voxel the segment never observes.
+                patchable = false;
+                return Ok(());
+            };
+            let observed = match &mut decoded[i] {
+                Some(observed) => observed,
+                slot => slot.insert(chooser.observed(&cells[i].2)?),
+            };
+            let predicted = base
+                .as_ref()
+                .is_some_and(|base| chooser.predicts(observed, base));
+            pieces.push((start, depth, i, base, predicted));
+            Ok::<(), ConvertError>(())
+        })?;
+        if !patchable {
+            return Ok(Err(cells));
+        }
+        // The remainder's mask: the most common one among the predicted pieces (a partial
+        // view hides whole regions, whose pieces share it).
+        let mut masks: Vec<(&RemainderMask, usize)> = Vec::new();
+        for piece in pieces.iter().filter(|p| p.4) {
+            let mask = decoded[piece.2].as_ref().map(|o| &o.mask);
+            let Some(mask) = mask else { continue };
+            if let Some((_, count)) = masks.iter_mut().find(|(m, _)| *m == mask) {
+                *count += 1;
+            } else if masks.len() < MAX_REMAINDER_CANDIDATES {
+                // Bounded: a tile of many distinct masks keeps the first ones.
+                masks.push((mask, 1));
+            }
+        }
+        let remainder: RemainderMask = masks
+            .iter()
+            .max_by_key(|(_, count)| *count)
+            .and_then(|(mask, _)| (*mask).clone());
+        let mut differing: Vec<JoinedPiece> = Vec::new();
+        let mut first: Option<JoinedPiece> = None;
+        for (start, depth, i, base, predicted) in pieces {
+            let inherits = predicted && decoded[i].as_ref().is_some_and(|o| o.mask == remainder);
+            if inherits && first.is_some() {
+                continue;
+            }
+            let piece = (
+                start,
+                depth,
+                cells[i].2.clone(),
+                base.map(BasePrediction::from),
+            );
+            if inherits {
+                first = Some(piece);
+            } else {
+                differing.push(piece);
+            }
+        }
+        if differing.is_empty() {
+            differing.extend(first);
+        }
+        Ok(Ok((differing, remainder)))
+    }
+}
+
+/// Distinct observation masks a tile's remainder is chosen from.
+const MAX_REMAINDER_CANDIDATES: usize = 64;
+
+/// The observation mask of what a patch tile leaves to the base (`None`: every sample).
+type RemainderMask = Option<Arc<Toggles>>;
+
+/// A base cell's frozen prediction, owned.
+#[derive(Clone, Debug)]
+enum Frozen {
+    State(Occupancy),
+    Model(Arc<[u8]>),
+}
+
+impl From<Frozen> for BasePrediction {
+    fn from(frozen: Frozen) -> Self {
+        match frozen {
+            Frozen::State(_) => BasePrediction::Constant,
+            Frozen::Model(parameters) => BasePrediction::Model(parameters),
+        }
+    }
+}
+
+/// A cell's observations over the segment as the patch test needs them.
+#[derive(Clone, Debug)]
+struct Observed {
+    /// Its observation mask (`None`: at every sample of the segment that is not missing).
+    mask: RemainderMask,
+    observations: VoxelObservations,
+}
+
 /// Stage 4: each piece's content over the segment, then its tile encoded.
 struct ContentChooser<'a> {
     file: &'a Path,
@@ -457,13 +601,37 @@ impl<'a> ContentChooser<'a> {
         }
     }
 
-    /// The tile's pieces as segment cells, encoded, with their counts and the cells done.
+    /// A cell's observations, decoded, and whether they cover every sample.
+    fn observed(&self, packed: &PackedObservations) -> Result<Observed, ConvertError> {
+        let observations = packed.unpack()?;
+        let mask = mask_from_ranges(self.axis, &observations.observed_ranges());
+        Ok(Observed { mask, observations })
+    }
+
+    /// `true` when a cell observed as `observed` is, wherever observed, in the frozen
+    /// prediction `base` (as the readers evaluate it), so that a patch tile whose remainder
+    /// has its mask may inherit it.
+    fn predicts(&self, observed: &Observed, base: &Frozen) -> bool {
+        let parameters = match base {
+            Frozen::State(state) => return observed.observations.is_constant() == Some(*state),
+            Frozen::Model(_) if !self.inherit_models => return false,
+            Frozen::Model(parameters) => parameters,
+        };
+        let prediction = FrozenPrediction::Model(parameters);
+        observed.observations.runs().iter().all(|run| {
+            (run.first..run.first + run.len).all(|sample| {
+                let seconds = self.seconds.get(sample as usize).copied().unwrap_or(0.0);
+                prediction.state(self.model, seconds) == run.state
+            })
+        })
+    }
+
+    /// The tile's pieces as segment cells, encoded, with their counts.
     fn encode(
         &self,
         pieces: Vec<JoinedPiece>,
         mut encoder: SegmentTileEncoder,
-    ) -> Result<(EncodedTile, TileStats, u64), ConvertError> {
-        let count = pieces.len() as u64;
+    ) -> Result<(EncodedTile, TileStats), ConvertError> {
         let mut stats = TileStats::default();
         for (start, depth, packed, base) in pieces {
             let observations = packed.unpack()?;
@@ -476,7 +644,7 @@ impl<'a> ContentChooser<'a> {
         let tile = encoder
             .finish()
             .map_err(|source| self.encode_error(source))?;
-        Ok((tile, stats, count))
+        Ok((tile, stats))
     }
 
     fn encode_error(&self, source: froctomap_file::TileEncodeError) -> ConvertError {

@@ -319,3 +319,45 @@ pub fn expected_maps(plans: &[PlannedSegment]) -> Vec<Vec<(MortonCode, u8, Occup
     }
     maps
 }
+
+/// The patch golden file (format 2.0 with a patch tile, FORMAT.md §10.6): the 1.2 golden file
+/// converted, then one segment of `golden_segment_axes()[0]` (which has a missing sample)
+/// whose only tile is a patch tile over the base's largest tile: its first base cell stored
+/// occupied throughout, its second stored free and observed at sample 0 only, everything
+/// else left to the base from sample 1 on (the remainder's mask). Returns the segment's
+/// axis and the base tile's cells.
+pub fn write_patch_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
+    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
+    let axis = golden_segment_axes()[0].clone();
+    let mut writer = LivingWriter::open(path).unwrap();
+    let base = writer.reader().base();
+    let largest = (0..base.tiles().len())
+        .max_by_key(|&t| base.tiles()[t].cell_count)
+        .unwrap();
+    let base_cells = base.read_tile(largest).unwrap();
+    assert!(base_cells.len() >= 3);
+    let mut segment = writer.begin_segment(axis.clone()).unwrap();
+    let mut encoder = segment.tile_encoder();
+    encoder
+        .push(SegmentCell {
+            start: base_cells[0].start,
+            depth: base_cells[0].depth,
+            mask: None,
+            content: SegmentContent::Constant(Occupancy::Occupied),
+        })
+        .unwrap();
+    encoder
+        .push(SegmentCell {
+            start: base_cells[1].start,
+            depth: base_cells[1].depth,
+            mask: Some(std::sync::Arc::new(Toggles::new(vec![0, 1]).unwrap())),
+            content: SegmentContent::Constant(Occupancy::Free),
+        })
+        .unwrap();
+    let from_1 = std::sync::Arc::new(Toggles::new(vec![1]).unwrap());
+    segment
+        .write_patch_tile(&encoder.finish().unwrap(), Some(from_1))
+        .unwrap();
+    segment.commit().unwrap();
+    (axis, base_cells)
+}
