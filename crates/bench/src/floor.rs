@@ -6,9 +6,9 @@
 //! with `--measure`, builds the lossless file, `tar | zstd` and times a retrieval, for a
 //! quick before/after comparison of file formats on one series).
 
-use crate::report::{duration, label_then_numbers, megabytes, table, times, StorageRow};
 use crate::series_args::SeriesArgs;
 use crate::system::tar_through;
+use crate::tables::{duration, label_then_numbers, megabytes, table, times, StorageRow};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use froctomap_convert::group_thousands as group;
@@ -47,7 +47,7 @@ pub struct FloorSection {
 
 /// One row's bytes against the floor plus the base map.
 fn with_base(bytes: u64, floor_bytes: f64, base: Option<u64>) -> Option<f64> {
-    base.and_then(|b| crate::report::ratio(bytes as f64, floor_bytes + b as f64))
+    base.and_then(|b| crate::tables::ratio(bytes as f64, floor_bytes + b as f64))
 }
 
 /// `zstd -19` of the base map file, bytes.
@@ -76,7 +76,7 @@ impl FloorSection {
             .map(|r| FloorRow {
                 name: r.name.clone(),
                 bytes: r.bytes,
-                vs_floor: crate::report::ratio(r.bytes as f64, floor_bytes),
+                vs_floor: crate::tables::ratio(r.bytes as f64, floor_bytes),
             })
             .collect();
         Self {
@@ -228,7 +228,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
             .len();
     }
     let mut storage = vec![StorageRow {
-        name: crate::report::rows::RAW.into(),
+        name: crate::tables::rows::RAW.into(),
         bytes: bt_bytes,
         ..StorageRow::default()
     }];
@@ -246,7 +246,7 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
                 &["-19", "--long=31", "-T0", "-q", "-c"],
             )?;
             storage.push(StorageRow {
-                name: crate::report::rows::ZSTD.into(),
+                name: crate::tables::rows::ZSTD.into(),
                 bytes: zstd.bytes,
                 ..StorageRow::default()
             });
@@ -254,17 +254,17 @@ pub fn floor_command(args: &FloorArgs) -> Result<()> {
         };
         note("building lossless");
         let lossless = args.out.join("lossless.froct");
-        let build = crate::run::spawn_build(
-            crate::report::rows::LOSSLESS,
+        let build = crate::child_build::spawn_build(
+            crate::tables::rows::LOSSLESS,
             &data.join("train").join("manifest.csv"),
             &lossless,
-            &crate::run::ChildModel::fremen(None, 5),
+            &crate::child_build::ChildModel::fremen(None, 5),
             false,
             false,
             args.memory_mib,
         )?;
         storage.push(StorageRow {
-            name: crate::report::rows::LOSSLESS.into(),
+            name: crate::tables::rows::LOSSLESS.into(),
             bytes: build.file_bytes,
             ..StorageRow::default()
         });
@@ -300,9 +300,9 @@ fn write_report(
             "\nLossless build {} (peak {}), retrieve one snapshot {} ({} of one C++ read, {}); \
              tar | zstd {}.",
             duration(t.build_seconds),
-            crate::report::mebibytes(t.build_peak_memory_bytes),
+            crate::tables::mebibytes(t.build_peak_memory_bytes),
             duration(t.retrieve_seconds),
-            times(crate::report::ratio(t.retrieve_seconds, t.cpp_read_one_seconds)),
+            times(crate::tables::ratio(t.retrieve_seconds, t.cpp_read_one_seconds)),
             duration(t.cpp_read_one_seconds),
             t.zstd_seconds.map_or_else(|| "skipped".into(), duration),
         );
@@ -339,10 +339,10 @@ fn time_retrieval(
         .index_of(mid.time)
         .context("the middle snapshot is not on the file's axis")?;
     let retrieved = scratch.join("retrieved.bt");
-    let retrieve = crate::run::timed(repeats, || {
-        crate::run::retrieve_once(&context, file, sample, &retrieved)
+    let retrieve = crate::child_build::timed(repeats, || {
+        crate::child_build::retrieve_once(&context, file, sample, &retrieved)
     })?;
-    let cpp = crate::run::timed(repeats, || {
+    let cpp = crate::child_build::timed(repeats, || {
         let bytes = std::fs::read(&mid.path)?;
         std::hint::black_box(froctomap_octomap_ffi::OcTree::read_binary(&bytes)?);
         Ok(())
@@ -376,16 +376,16 @@ mod tests {
             ..StorageRow::default()
         };
         let storage = [
-            row(crate::report::rows::ZSTD, 3300),
-            row(crate::report::rows::LOSSLESS, 2200),
-            row(&crate::report::rows::lossy(2), 100),
+            row(crate::tables::rows::ZSTD, 3300),
+            row(crate::tables::rows::LOSSLESS, 2200),
+            row(&crate::tables::rows::lossy(2), 100),
         ];
         let section = FloorSection::new(floor, &storage, Some(1000));
         assert_eq!(section.floor_bytes, 1100.0);
         let names: Vec<&str> = section.rows.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(
             names,
-            [crate::report::rows::ZSTD, crate::report::rows::LOSSLESS]
+            [crate::tables::rows::ZSTD, crate::tables::rows::LOSSLESS]
         );
         assert_eq!(section.rows[1].vs_floor, Some(2.0));
         assert_eq!(with_base(4200, 1100.0, Some(1000)), Some(2.0));

@@ -21,6 +21,7 @@
 
 mod anomaly_eval;
 mod append_cost;
+mod child_build;
 mod dataset;
 mod floor;
 mod generate;
@@ -32,6 +33,7 @@ mod run;
 mod series_args;
 mod size;
 mod system;
+mod tables;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -99,7 +101,7 @@ enum Command {
     AppendCost(append_cost::AppendCostArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
-    BuildChild(run::BuildChildArgs),
+    BuildChild(child_build::BuildChildArgs),
 }
 
 fn main() -> ExitCode {
@@ -114,7 +116,7 @@ fn main() -> ExitCode {
         Command::AppendCost(args) => append_cost::append_cost(&args),
         Command::BuildChild(args) => {
             purge_freed_memory_at_once();
-            run::build_child(&args)
+            child_build::build_child(&args)
         }
     };
     match result {

@@ -1,12 +1,29 @@
 //! What the benchmark needs from the system: the archive tools, a font, the machine's
 //! description, peak memory, and the archive baselines themselves.
 
-use crate::report::Machine;
 use anyhow::{bail, Context, Result};
+use serde::Serialize;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
+
+/// The machine a run was measured on.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Machine {
+    /// CPU model name (`/proc/cpuinfo`).
+    pub cpu: String,
+    /// Logical CPUs available to the process.
+    pub cpus: usize,
+    /// Worker threads of builds, reads and the C++ baseline.
+    pub threads: usize,
+    /// Total memory, bytes (`/proc/meminfo`).
+    pub memory_bytes: u64,
+    /// Kernel release.
+    pub kernel: String,
+    /// `zstd --version`, `xz --version`, `tar --version` (first lines).
+    pub tools: Vec<String>,
+}
 
 /// An external program and the Debian package that provides it.
 #[derive(Clone, Copy, Debug)]
