@@ -29,6 +29,7 @@
 mod accumulate;
 mod append;
 mod check;
+mod counts;
 mod extract;
 mod fit;
 mod ingest;
@@ -45,6 +46,7 @@ use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
 pub use append::{append, AppendOptions, AppendReport};
+pub use counts::ClassCounts;
 use extract::ChangeExtractor;
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::Timestamp;
@@ -54,7 +56,6 @@ use froctomap_temporal::{OutlierMode, TimeAxis};
 pub use ingest::{ingest, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget};
 use ingest::{Intake, Run};
 pub use segment::{append_living, append_segment, is_living_file, refuse_growing_fixed_span};
-use serde::Serialize;
 use serde_json::{json, Map, Value};
 use spill::SpillPlace;
 use std::path::Path;
@@ -69,45 +70,6 @@ pub type BuildOptions = IngestOptions;
 /// histories take about 80 MiB), at the price of writing the histories to disk once; series
 /// whose histories fit in it never spill.
 pub const DEFAULT_BUILD_MEMORY: u64 = 64 << 20;
-
-/// Cell and voxel counts by class.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct ClassCounts {
-    /// Always observed free.
-    pub static_free: u64,
-    /// Always observed occupied.
-    pub static_occupied: u64,
-    /// Changed state at least once (carry a model).
-    pub dynamic: u64,
-    /// Unobserved at some sample of the series (carry an observation mask).
-    pub unknown_sometimes: u64,
-}
-
-impl ClassCounts {
-    /// Adds another count (saturating: counts read from a file may be anything).
-    pub fn add(&mut self, other: &ClassCounts) {
-        self.static_free = self.static_free.saturating_add(other.static_free);
-        self.static_occupied = self.static_occupied.saturating_add(other.static_occupied);
-        self.dynamic = self.dynamic.saturating_add(other.dynamic);
-        self.unknown_sometimes = self
-            .unknown_sometimes
-            .saturating_add(other.unknown_sometimes);
-    }
-
-    /// All cells (or voxels), saturating at `u64::MAX` rather than wrapping when the counts
-    /// come from a hostile file's summary.
-    ///
-    /// ```
-    /// use froctomap_convert::ClassCounts;
-    /// let forged = ClassCounts { static_free: u64::MAX, dynamic: 2, ..ClassCounts::default() };
-    /// assert_eq!(forged.total(), u64::MAX);
-    /// ```
-    pub fn total(&self) -> u64 {
-        self.static_free
-            .saturating_add(self.static_occupied)
-            .saturating_add(self.dynamic)
-    }
-}
 
 /// What a build did: the report of [`ingest`], kept under its old name.
 pub type BuildReport = IngestReport;

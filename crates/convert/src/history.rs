@@ -444,6 +444,9 @@ impl ContainingGaps {
     }
 }
 
+/// A cell with its observations packed ([`PackedObservations`]).
+pub(crate) type PackedCell = (MortonCode, u8, PackedObservations);
+
 /// A cell's observation runs as `(first, len, state)`, packed as varints until they are
 /// needed: three bytes or so a run where [`VoxelObservations`] takes twelve, so that the
 /// tiles waiting to be fitted hold a fraction of the memory. Unpacking gives exactly the

@@ -22,7 +22,7 @@
 use super::extract::ChangeBatch;
 use super::spill::{CellFileReader, CellFileWriter, SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
-use crate::history::{PackedObservations, SeriesHistory};
+use crate::history::{PackedCell, PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
 #[cfg(test)]
@@ -36,9 +36,6 @@ use std::time::Instant;
 
 /// A cell of the output: its first voxel, its depth and what was observed in it.
 pub(crate) type ObservedCell = (MortonCode, u8, VoxelObservations);
-
-/// A cell with its observations packed ([`PackedObservations`]).
-pub(crate) type PackedCell = (MortonCode, u8, PackedObservations);
 
 /// Observations packed.
 pub(crate) fn pack(observations: &VoxelObservations) -> PackedObservations {

@@ -17,7 +17,7 @@
 //! A lossy file knows its past only as the model's reconstruction: that reconstruction is
 //! taken as what was observed, and the result is lossy too.
 
-use super::accumulate::{pack, ObservedCell, PackedCell, TileHistory};
+use super::accumulate::{pack, ObservedCell, TileHistory};
 use super::extract::SampleChanges;
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::ingest::{
@@ -28,6 +28,7 @@ use super::write::{TileEncoder, TileWriter};
 use super::{axis_for_times, output_dir, ClassCounts};
 use crate::context::Context;
 use crate::error::ConvertError;
+use crate::history::PackedCell;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;
 use crate::progress::Progress;

@@ -5,34 +5,16 @@
 //! their counts by class. [`fit_and_write`] runs this stage and the writer's over a stream of
 //! tiles: fitted and encoded in parallel batches, written in order.
 
-use super::accumulate::{PackedCell, TileHistory};
+use super::accumulate::TileHistory;
+use super::counts::TileStats;
 use super::write::{TileEncoder, TileWriter};
-use crate::build::ClassCounts;
 use crate::error::ConvertError;
+use crate::history::PackedCell;
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, Occupancy};
 use froctomap_file::{mask_from_ranges, Cell, CellContent, EncodedTile, TileStreamEncoder};
 use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, VoxelObservations};
 use rayon::prelude::*;
-
-/// Counts of a tile's (or a file's) cells, voxels and stored toggles.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub(crate) struct TileStats {
-    pub cells: ClassCounts,
-    pub voxels: ClassCounts,
-    pub toggles: u64,
-    pub model_errors: u64,
-}
-
-impl TileStats {
-    /// Adds another tile's counts.
-    pub fn add(&mut self, other: &TileStats) {
-        self.cells.add(&other.cells);
-        self.voxels.add(&other.voxels);
-        self.toggles += other.toggles;
-        self.model_errors += other.model_errors;
-    }
-}
 
 /// The cells of one tile as stored, with their counts.
 #[derive(Debug)]

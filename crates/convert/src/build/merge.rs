@@ -9,8 +9,9 @@
 //! (the file's last observed map starts the new history), the old side's observation is kept;
 //! a run that continues across the seam becomes one run.
 
-use super::accumulate::{pack, PackedCell, TileHistory};
+use super::accumulate::{pack, TileHistory};
 use crate::error::ConvertError;
+use crate::history::PackedCell;
 use froctomap_core::{voxels_per_node, MortonCode, TREE_DEPTH};
 use froctomap_temporal::{TemporalError, VoxelObservations};
 use std::iter::Peekable;

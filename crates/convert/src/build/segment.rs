@@ -32,14 +32,15 @@
 //!    first byte is written: a bad map commits nothing, and a failure while writing cuts
 //!    what was written.
 
-use super::accumulate::{PackedCell, TileHistory};
+use super::accumulate::TileHistory;
 use super::append::{refuse_overlap, AppendOptions, AppendReport};
-use super::fit::TileStats;
+use super::counts::TileStats;
 use super::ingest::{ingest, Extended, IngestReport, IngestTarget, Intake, Run};
 use super::merge::{common_refinement, Piece};
 use super::{axis_for_times, output_dir};
 use crate::context::Context;
 use crate::error::ConvertError;
+use crate::history::PackedCell;
 use crate::history::PackedObservations;
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;

@@ -14,9 +14,8 @@
 //! The files are this build's own, but are still read with checks: damage gives an error,
 //! never a panic or a huge allocation.
 
-use super::accumulate::PackedCell;
 use crate::error::ConvertError;
-use crate::history::{PackedObservations, SeriesHistory};
+use crate::history::{PackedCell, PackedObservations, SeriesHistory};
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_temporal::{varint, Run};
 use std::collections::BTreeMap;

@@ -2,7 +2,7 @@
 //! parallel, [`TileEncoder`]) and written in Morton order to the output, atomically
 //! ([`TileWriter`], which also sums the tiles' counts for the summary).
 
-use super::fit::TileStats;
+use super::counts::TileStats;
 use crate::error::ConvertError;
 #[cfg(test)]
 use froctomap_file::encode_tile;

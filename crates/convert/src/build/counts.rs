@@ -1,0 +1,62 @@
+//! How many cells, voxels and toggles a tile or a file holds, by class: what the stages
+//! count and the reports print.
+
+use serde::Serialize;
+
+/// Cell and voxel counts by class.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ClassCounts {
+    /// Always observed free.
+    pub static_free: u64,
+    /// Always observed occupied.
+    pub static_occupied: u64,
+    /// Changed state at least once (carry a model).
+    pub dynamic: u64,
+    /// Unobserved at some sample of the series (carry an observation mask).
+    pub unknown_sometimes: u64,
+}
+
+impl ClassCounts {
+    /// Adds another count (saturating: counts read from a file may be anything).
+    pub fn add(&mut self, other: &ClassCounts) {
+        self.static_free = self.static_free.saturating_add(other.static_free);
+        self.static_occupied = self.static_occupied.saturating_add(other.static_occupied);
+        self.dynamic = self.dynamic.saturating_add(other.dynamic);
+        self.unknown_sometimes = self
+            .unknown_sometimes
+            .saturating_add(other.unknown_sometimes);
+    }
+
+    /// All cells (or voxels), saturating at `u64::MAX` rather than wrapping when the counts
+    /// come from a hostile file's summary.
+    ///
+    /// ```
+    /// use froctomap_convert::ClassCounts;
+    /// let forged = ClassCounts { static_free: u64::MAX, dynamic: 2, ..ClassCounts::default() };
+    /// assert_eq!(forged.total(), u64::MAX);
+    /// ```
+    pub fn total(&self) -> u64 {
+        self.static_free
+            .saturating_add(self.static_occupied)
+            .saturating_add(self.dynamic)
+    }
+}
+
+/// Counts of a tile's (or a file's) cells, voxels and stored toggles.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct TileStats {
+    pub cells: ClassCounts,
+    pub voxels: ClassCounts,
+    pub toggles: u64,
+    pub model_errors: u64,
+}
+
+impl TileStats {
+    /// Adds another tile's counts.
+    pub fn add(&mut self, other: &TileStats) {
+        self.cells.add(&other.cells);
+        self.voxels.add(&other.voxels);
+        self.toggles += other.toggles;
+        self.model_errors += other.model_errors;
+    }
+}
