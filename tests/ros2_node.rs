@@ -200,16 +200,8 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     // committed every two maps: a base, then a segment.
     let context = Context::with_default_plugins();
     let living = dir.path().join("living.froct");
-    let options = froctomap_convert::RecordOptions {
-        commit_every: froctomap_convert::CommitEvery::Maps(2),
-        append: froctomap_convert::AppendOptions {
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..Default::default()
-        },
-        spool_dir: None,
-        compact: false,
-    };
+    let options =
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
     let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
     let mut sink = FilesSink {
         dir: received_dir.clone(),
@@ -720,16 +712,8 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
     let node = Node::new(&options).expect("the node joins the domain on loopback");
     let context = Context::with_default_plugins();
     let living = dir.path().join("living.froct");
-    let record_options = froctomap_convert::RecordOptions {
-        commit_every: froctomap_convert::CommitEvery::Maps(2),
-        append: froctomap_convert::AppendOptions {
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..Default::default()
-        },
-        spool_dir: None,
-        compact: false,
-    };
+    let record_options =
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
     let mut recorder =
         froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");
     // The maps a commit left out, with why.
@@ -913,5 +897,136 @@ fn a_basic_mapping_client_gets_its_map() {
     assert_eq!(
         python_leaves(&got_path, "bt"),
         python_leaves(&retrieved, "bt")
+    );
+}
+
+#[test]
+fn maps_in_another_frame_are_refused_and_the_node_goes_on() {
+    // The first map taken fixes the frame (one file holds one frame); a map in another frame
+    // is skipped with the reason, and the next map in the frame is recorded.
+    let dir = scratch();
+    let received_dir = dir.path().join("received");
+    std::fs::create_dir(&received_dir).expect("mkdir");
+    let map = octomap_fixture("few_voxels.bt");
+    let domain = random_domain();
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        std::slice::from_ref(&map),
+        &["--no-predicted"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    assert_eq!(node.frame_id(), None, "no frame before the first map");
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let recorder = froctomap_convert::Recorder::open(
+        &context,
+        &living,
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(10)),
+    )
+    .expect("record");
+    let mut sink = FilesSink {
+        dir: received_dir,
+        received: Vec::new(),
+        skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
+    };
+    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !done(sink) && Instant::now() < deadline {
+            node.receive_into(sink, Duration::from_millis(100))
+                .expect("the node never stops on input");
+        }
+        assert!(
+            done(sink),
+            "received {:?}, skipped {:?}",
+            sink.received.len(),
+            sink.skipped
+        );
+    };
+    receive_until(&mut sink, &|s| s.received.len() == 1);
+    assert_eq!(
+        node.frame_id().as_deref(),
+        Some("map"),
+        "the first map's frame"
+    );
+
+    let first = 1_700_000_000i64;
+    let bt = map.to_string_lossy().to_string();
+    for (stamp, frame) in [(first + 1, "odom"), (first + 2, "map"), (first + 3, "")] {
+        peer.command(
+            &serde_json::json!({"call": "publish_map", "path": bt, "stamp": stamp,
+            "frame_id": frame}),
+        );
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.received.len() + s.skipped.len() == 4);
+    let FilesSink {
+        recording,
+        received,
+        skipped,
+        ..
+    } = sink;
+    assert_eq!(skipped.len(), 2, "{skipped:?}");
+    assert!(
+        skipped[0].contains("frame `odom`, not `map`"),
+        "{skipped:?}"
+    );
+    assert!(skipped[1].contains("frame ``, not `map`"), "{skipped:?}");
+    assert!(received.iter().all(|m| m.frame_id == "map"));
+    assert_eq!(node.frame_id().as_deref(), Some("map"));
+    let summary = recording.finish().expect("commit");
+    assert_eq!(summary.committed_maps, 2, "{summary:?}");
+    let recorded = FroctFile::open(&living).expect("the living map reads");
+    let times: Vec<Option<Timestamp>> = (0..recorded.sample_count())
+        .filter(|&s| !recorded.is_missing(s))
+        .map(|s| recorded.sample_time(s))
+        .collect();
+    assert_eq!(
+        times,
+        [first, first + 2].map(|s| Some(Timestamp(s * 1_000_000_000))),
+        "only the maps in the first map's frame entered the file"
+    );
+
+    // A frame given up front (`--frame-id`): the maps in another one are refused from the
+    // first, the latched map of the peer included.
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.frame_id = Some("odom".to_string());
+    let strict = Node::new(&options).expect("a second node");
+    struct Count(usize, Vec<String>);
+    impl MapSink for Count {
+        fn receive(
+            &mut self,
+            _: ReceivedMap,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.0 += 1;
+            Ok(())
+        }
+        fn skipped(&mut self, reason: String) {
+            self.1.push(reason);
+        }
+    }
+    let mut count = Count(0, Vec::new());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while count.1.is_empty() && Instant::now() < deadline {
+        strict
+            .receive_into(&mut count, Duration::from_millis(100))
+            .expect("receive");
+    }
+    assert_eq!(count.0, 0, "{:?}", count.1);
+    assert!(
+        count.1.iter().all(|r| r.contains("not `odom`")) && !count.1.is_empty(),
+        "{:?}",
+        count.1
     );
 }

@@ -27,9 +27,10 @@ ReplyHeader before the reply). It reads one JSON command a line from stdin until
 
 and, to try the node with bad input (each answered by {"event": "published", ...}):
 
-  {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?}
-      a map file on the map topic at stamp S, its body cut to N bytes or its resolution
-      replaced when asked; the event says whether every matched reader acknowledged it
+  {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?,
+   "frame_id": F?}
+      a map file on the map topic at stamp S (in frame F, default "map"), its body cut to N
+      bytes or its resolution replaced when asked; the event says whether every matched reader acknowledged it
       ("acked")
   {"call": "publish_garbage", "size": N, "binary": B}
       an Octomap whose data is N bytes of noise
@@ -317,8 +318,8 @@ def main():
                 binary, tree_id, resolution, body = split_map_file(f.read())
             body = body[: command.get("truncate", len(body))]
             resolution = command.get("resolution", resolution)
-            writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), binary, tree_id, resolution,
-                                 list(body)))
+            writer.write(Octomap(Header(Time(command["stamp"], 0), command.get("frame_id", "map")), binary,
+                                 tree_id, resolution, list(body)))
             # Acknowledged by every matched reader: the node's DDS reader holds it.
             acked = writer.wait_for_acks(duration(seconds=10))
             say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body),

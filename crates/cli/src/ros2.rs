@@ -5,8 +5,8 @@
 use crate::ui::Ui;
 use anyhow::Context as _;
 use froctomap_convert::{
-    group_thousands, parse_duration, AppendOptions, CommitEvery, Context, FroctFile, Opened,
-    RecordEvent, RecordOptions, Recorder, SeriesRead,
+    group_thousands, parse_duration, CommitEvery, Context, FroctFile, Opened, RecordEvent,
+    RecordOptions, Recorder, SeriesRead,
 };
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
@@ -50,9 +50,11 @@ pub struct Ros2Args {
     /// addresses separated by commas.
     #[arg(long, value_name = "lo|all|ADDR,...", default_value = "lo")]
     network: String,
-    /// The frame of the published maps.
-    #[arg(long, default_value = "map")]
-    frame_id: String,
+    /// The frame of the maps: received maps in another frame are refused, and the maps
+    /// published and served are in it. Default: the first map received fixes it (`map`
+    /// until one arrives).
+    #[arg(long)]
+    frame_id: Option<String>,
     /// How service requests and replies are framed: `cyclone` (rmw_cyclonedds), `enhanced`
     /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
     #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
@@ -185,6 +187,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.network = network(&args.network)?;
     options.service_mapping = args.service_mapping;
     options.max_message_bytes = args.max_message_bytes;
+    options.frame_id = args.frame_id.clone();
     let node = Node::new(&options)?;
     eprintln!(
         "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
@@ -197,8 +200,9 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
         froctomap_ros2_node::PROBABILITY_AT_SERVICE,
         args.service_mapping
     );
-    let mut predicted = PredictedPublisher::new(&args.file, &args.frame_id);
-    let mut services = FileServices::new(&args.file, &args.frame_id);
+    let mut frame_id = args.frame_id.clone().unwrap_or_else(|| "map".to_string());
+    let mut predicted = PredictedPublisher::new(&args.file, &frame_id);
+    let mut services = FileServices::new(&args.file, &frame_id);
     let context = Context::with_default_plugins();
     let mut recording = if args.no_record {
         None
@@ -242,6 +246,12 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                     node.receive_into(&mut LogReceived, wait)?;
                 }
             }
+            if let Some(fixed) = node.frame_id().filter(|fixed| *fixed != frame_id) {
+                eprintln!("the maps are in frame `{fixed}`: maps in other frames are refused, the maps published and served are in it");
+                predicted.set_frame_id(&fixed);
+                services.set_frame_id(&fixed);
+                frame_id = fixed;
+            }
             node.serve_requests(&mut services);
         }
     }
@@ -266,20 +276,11 @@ fn open_recording<'a>(
     args: &Ros2Args,
     min_interval: Duration,
 ) -> anyhow::Result<RecordingSink<'a>> {
-    let options = RecordOptions {
-        commit_every: args.commit_every,
-        append: AppendOptions {
-            // A bad map over the wire is left out (and said), never the end of the node.
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..AppendOptions::default()
-        },
-        spool_dir: None,
-        // Not automatic here yet: a compaction blocks the map intake for as long as a build
-        // of the whole history takes, while the DDS reader keeps only the last 16 maps.
-        // `froctomap compact FILE` with the node stopped does it (docs/ROS.md).
-        compact: false,
-    };
+    // A bad map over the wire is left out (and said), never the end of the node; no
+    // automatic compaction: it blocks the map intake for as long as a build of the whole
+    // history takes, while the DDS reader keeps only the last 16 maps. `froctomap compact
+    // FILE` with the node stopped does it (docs/ROS.md).
+    let options = RecordOptions::for_live_source(args.commit_every);
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
         Opened::Missing => eprintln!(

@@ -108,6 +108,9 @@ pub struct NodeOptions {
     pub max_message_bytes: usize,
     /// How service requests and replies are framed.
     pub service_mapping: ServiceMapping,
+    /// The frame every map received must be in; `None`: the first map received fixes it.
+    /// Maps in another frame are refused (logged and skipped): one file holds one frame.
+    pub frame_id: Option<String>,
 }
 
 impl NodeOptions {
@@ -119,6 +122,7 @@ impl NodeOptions {
             network: Network::Loopback,
             max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
             service_mapping: ServiceMapping::default(),
+            frame_id: None,
         }
     }
 }
@@ -159,6 +163,8 @@ pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
 pub struct ReceivedMap {
     /// The message's `header.stamp` (0: the publisher left it unset).
     pub stamp: Timestamp,
+    /// The message's `header.frame_id`.
+    pub frame_id: String,
     /// `true`: a `.bt` file (`binary` messages); `false`: an `.ot` file.
     pub binary: bool,
     /// The map file: the message's data behind the header OctoMap writes for it
@@ -230,6 +236,14 @@ pub enum Refused {
     /// Not an `octomap_msgs/Octomap` holding a map.
     #[error(transparent)]
     Message(#[from] MessageError),
+    /// In another frame than the maps taken before (or than [`NodeOptions::frame_id`]).
+    #[error("the map is in frame `{got}`, not `{expected}` as the maps before it (one file holds one frame)")]
+    Frame {
+        /// The message's `header.frame_id`.
+        got: String,
+        /// The frame fixed.
+        expected: String,
+    },
 }
 
 /// A request taken, with the participant of the client that sent it.
@@ -366,6 +380,8 @@ pub struct Node {
     service_mapping: ServiceMapping,
     topic: String,
     max_message_bytes: usize,
+    /// The frame of the maps taken: given, or fixed by the first map a sink took.
+    frame_id: std::cell::RefCell<Option<String>>,
 }
 
 impl Node {
@@ -433,6 +449,7 @@ impl Node {
             service_mapping: options.service_mapping,
             topic: options.topic.clone(),
             max_message_bytes: options.max_message_bytes,
+            frame_id: std::cell::RefCell::new(options.frame_id.clone()),
         })
     }
 
@@ -456,11 +473,18 @@ impl Node {
             match self.reader.try_take_one() {
                 Ok(Some(change)) => {
                     taken += 1;
-                    match self.to_map(&change.into_value()) {
+                    match self
+                        .to_map(&change.into_value())
+                        .and_then(|map| self.in_the_frame(map))
+                    {
                         Ok(map) => {
                             let stamp = map.stamp;
+                            let frame_id = map.frame_id.clone();
                             match sink.receive(map) {
-                                Ok(()) => accepted += 1,
+                                Ok(()) => {
+                                    accepted += 1;
+                                    self.frame_id.borrow_mut().get_or_insert(frame_id);
+                                }
                                 // A failed commit loses more than this map: say so.
                                 Err(e) => match e.downcast_ref::<CommitFailed>() {
                                     Some(failed) => sink.skipped(format!(
@@ -613,6 +637,23 @@ impl Node {
         }
     }
 
+    /// The frame of the maps taken so far (given in [`NodeOptions::frame_id`], or the
+    /// first map's); `None` before.
+    pub fn frame_id(&self) -> Option<String> {
+        self.frame_id.borrow().clone()
+    }
+
+    /// `map` if it is in the frame of the maps taken before it.
+    fn in_the_frame(&self, map: ReceivedMap) -> Result<ReceivedMap, Refused> {
+        match &*self.frame_id.borrow() {
+            Some(expected) if *expected != map.frame_id => Err(Refused::Frame {
+                got: map.frame_id,
+                expected: expected.clone(),
+            }),
+            _ => Ok(map),
+        }
+    }
+
     fn to_map(&self, message: &[u8]) -> Result<ReceivedMap, Refused> {
         if message.len() > self.max_message_bytes {
             return Err(Refused::TooLarge {
@@ -623,6 +664,7 @@ impl Node {
         let decoded = decode_message(message, Encoding::Cdr, MessageType::Octomap)?;
         Ok(ReceivedMap {
             stamp: Timestamp(decoded.stamp_ns),
+            frame_id: decoded.frame_id.to_string(),
             binary: decoded.binary,
             file: decoded.map_file()?,
         })
@@ -660,6 +702,14 @@ impl PredictedPublisher {
             froct: froct.to_path_buf(),
             frame_id: frame_id.to_string(),
             last: None,
+        }
+    }
+
+    /// Maps from now on in `frame_id` (the node's frame, once the first map fixed it).
+    pub fn set_frame_id(&mut self, frame_id: &str) {
+        if self.frame_id != frame_id {
+            frame_id.clone_into(&mut self.frame_id);
+            self.last = None; // Published again, in its new frame.
         }
     }
 

@@ -161,15 +161,14 @@ impl MapSink for RecordingSink<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use froctomap_convert::{
-        AppendOptions, CommitEvery, Context, FroctFile, RecordOptions, SeriesRead,
-    };
+    use froctomap_convert::{CommitEvery, Context, FroctFile, RecordOptions, SeriesRead};
 
     fn map(stamp_s: i64) -> ReceivedMap {
         let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../fixtures/octomap/few_voxels.bt");
         ReceivedMap {
             stamp: Timestamp(stamp_s * 1_000_000_000),
+            frame_id: "map".to_string(),
             binary: true,
             file: std::fs::read(fixture).expect("the fixture"),
         }
@@ -192,16 +191,7 @@ mod tests {
         min: u64,
         maps: usize,
     ) -> RecordingSink<'a> {
-        let options = RecordOptions {
-            commit_every: CommitEvery::Maps(maps),
-            append: AppendOptions {
-                skip_bad: true,
-                allow_mostly_skipped: true,
-                ..AppendOptions::default()
-            },
-            spool_dir: None,
-            compact: false,
-        };
+        let options = RecordOptions::for_live_source(CommitEvery::Maps(maps));
         let recorder = Recorder::open(context, file, options).expect("open");
         RecordingSink::new(recorder, source, Duration::from_secs(min))
     }

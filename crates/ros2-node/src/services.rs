@@ -237,6 +237,11 @@ impl FileServices {
         }
     }
 
+    /// Maps from now on in `frame_id` (the node's frame, once the first map fixed it).
+    pub fn set_frame_id(&mut self, frame_id: &str) {
+        frame_id.clone_into(&mut self.frame_id);
+    }
+
     fn open(&self) -> Result<FroctFile, String> {
         FroctFile::open(&self.froct).map_err(|e| format!("{}: {e}", self.froct.display()))
     }
