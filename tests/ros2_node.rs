@@ -175,10 +175,17 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         .collect();
     let domain = random_domain();
     let predicted_out = dir.path().join("predicted.bt");
+    let markers_out = dir.path().join("markers.json");
 
     // The peer publishes the first map before the node exists: it must arrive latched
     // (transient-local); the others are published live.
-    let mut peer = Peer::start(domain, &predicted_out, &maps, &[]);
+    let markers_arg = markers_out.to_string_lossy().to_string();
+    let mut peer = Peer::start(
+        domain,
+        &predicted_out,
+        &maps,
+        &["--markers-out", &markers_arg],
+    );
     let event = peer.next_event(Duration::from_secs(30));
     assert_eq!(event["event"], "published", "{event}");
 
@@ -304,7 +311,66 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     );
     let ours = dir.path().join("ours.bt");
     std::fs::write(&ours, &sent).expect("write");
-    assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves));
+    assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves.clone()));
+
+    // With it, /froctomap/dynamic: a MarkerArray as octomap_server's occupied_cells_vis_array,
+    // decoded by the peer through the types it declares. Its cubes are the occupied leaves
+    // upstream OctoMap reads from the predicted map, each at its depth's marker.
+    let event = peer.next_event(Duration::from_secs(60));
+    assert_eq!(event["event"], "markers", "{event}");
+    let markers: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(&markers_out).expect("the peer wrote the markers"))
+            .expect("JSON");
+    assert_eq!(markers.len(), 17, "one marker per depth 0..=16");
+    let stamp_of_t = [t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000)];
+    let mut cubes = Vec::new();
+    for (depth, marker) in markers.iter().enumerate() {
+        assert_eq!(marker["id"], depth, "{marker}");
+        assert_eq!(marker["type"], 6, "CUBE_LIST");
+        assert_eq!(
+            (&marker["frame_id"], &marker["ns"]),
+            (&serde_json::json!("map"), &serde_json::json!("froctomap"))
+        );
+        assert_eq!(marker["stamp"], serde_json::json!(stamp_of_t));
+        assert_eq!(
+            marker["pose"],
+            serde_json::json!([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+        );
+        let side = f64::from(1u32 << (16 - depth));
+        assert_eq!(
+            marker["scale"],
+            serde_json::json!([resolution * side, resolution * side, resolution * side])
+        );
+        let points = marker["points"].as_array().expect("points");
+        let colors = marker["colors"].as_array().expect("colors");
+        assert_eq!(points.len(), colors.len(), "a colour per cube");
+        // ADD (0) with cubes, DELETE (2) without, as octomap_server does.
+        assert_eq!(marker["action"], if points.is_empty() { 2 } else { 0 });
+        for (point, color) in points.iter().zip(colors) {
+            let key = |i: usize| {
+                let c = point[i].as_f64().expect("a coordinate");
+                let k = c / resolution - side / 2.0 + 32768.0;
+                assert!(
+                    (k - k.round()).abs() < 1e-6,
+                    "{c} is a node centre at depth {depth}"
+                );
+                k.round() as u16
+            };
+            cubes.push((key(0), key(1), key(2), depth as u8));
+            assert_eq!(color[3], 1.0, "opaque");
+        }
+    }
+    cubes.sort_unstable();
+    let occupied: Vec<(u16, u16, u16, u8)> = leaves
+        .iter()
+        .filter(|l| f32::from_bits(l.4) > 0.0)
+        .map(|&(x, y, z, depth, _)| (x, y, z, depth))
+        .collect();
+    assert!(!occupied.is_empty());
+    assert_eq!(
+        cubes, occupied,
+        "the cubes are the predicted map's occupied leaves"
+    );
 
     // The node stops: what it recorded retrieves as each map the peer published.
     let FilesSink { recording, .. } = sink;

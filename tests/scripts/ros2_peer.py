@@ -38,7 +38,9 @@ and, to try the node with bad input (each answered by {"event": "published", ...
       a message of another layout (a std_msgs/String) under the Octomap type name, from a
       second participant (one participant cannot hold both types of the topic)
 
-With --no-predicted the peer does not wait for rt/froctomap/predicted.
+With --no-predicted the peer does not wait for rt/froctomap/predicted. With --markers-out
+M.json it then waits for the visualization_msgs/MarkerArray on rt/froctomap/dynamic (the
+types declared here as ROS 2 Humble and later define them) and writes its markers to M.json.
 
 Usage: ros2_peer.py --domain D --predicted-out OUT.bt [--topic /octomap_binary]
                     [--first-stamp SECONDS] [--timeout S] [--service-mapping M] MAP...
@@ -103,6 +105,67 @@ def binary_node_count(body):
     return count
 
 
+def read_markers(participant, qos, out, deadline):
+    """Waits for one visualization_msgs/MarkerArray on rt/froctomap/dynamic, declared here
+    as ROS 2 Humble and later define it, and writes its markers to `out` as JSON."""
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl.types import float32, float64, int32, sequence, uint8, uint32
+    import cyclonedds.idl.annotations as annotate
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    def struct(typename, fields):
+        body = lambda ns: ns.update({"__annotations__": fields})
+        name = typename.rsplit("::", 1)[1]
+        cls = types.new_class(name, (IdlStruct,), {"typename": typename}, body)
+        return dataclass(annotate.final(cls))
+
+    time_ = struct("builtin_interfaces::msg::dds_::Time_", {"sec": int32, "nanosec": uint32})
+    header = struct("std_msgs::msg::dds_::Header_", {"stamp": time_, "frame_id": str})
+    point = struct("geometry_msgs::msg::dds_::Point_", {"x": float64, "y": float64, "z": float64})
+    quaternion = struct("geometry_msgs::msg::dds_::Quaternion_",
+                        {"x": float64, "y": float64, "z": float64, "w": float64})
+    pose = struct("geometry_msgs::msg::dds_::Pose_", {"position": point, "orientation": quaternion})
+    vector3 = struct("geometry_msgs::msg::dds_::Vector3_", {"x": float64, "y": float64, "z": float64})
+    color = struct("std_msgs::msg::dds_::ColorRGBA_",
+                   {"r": float32, "g": float32, "b": float32, "a": float32})
+    duration_ = struct("builtin_interfaces::msg::dds_::Duration_", {"sec": int32, "nanosec": uint32})
+    image = struct("sensor_msgs::msg::dds_::CompressedImage_",
+                   {"header": header, "format": str, "data": sequence[uint8]})
+    uv = struct("visualization_msgs::msg::dds_::UVCoordinate_", {"u": float32, "v": float32})
+    mesh = struct("visualization_msgs::msg::dds_::MeshFile_", {"filename": str, "data": sequence[uint8]})
+    marker = struct("visualization_msgs::msg::dds_::Marker_", {
+        "header": header, "ns": str, "id": int32, "type": int32, "action": int32, "pose": pose,
+        "scale": vector3, "color": color, "lifetime": duration_, "frame_locked": bool,
+        "points": sequence[point], "colors": sequence[color], "texture_resource": str,
+        "texture": image, "uv_coordinates": sequence[uv], "text": str, "mesh_resource": str,
+        "mesh_file": mesh, "mesh_use_embedded_materials": bool})
+    marker_array = struct("visualization_msgs::msg::dds_::MarkerArray_", {"markers": sequence[marker]})
+    reader = DataReader(participant, Topic(participant, "rt/froctomap/dynamic", marker_array), qos=qos)
+    while time.monotonic() < deadline:
+        samples = reader.take(N=1)
+        if samples:
+            markers = [{
+                "frame_id": m.header.frame_id, "stamp": [m.header.stamp.sec, m.header.stamp.nanosec],
+                "ns": m.ns, "id": m.id, "type": m.type, "action": m.action,
+                "pose": [m.pose.position.x, m.pose.position.y, m.pose.position.z,
+                         m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
+                         m.pose.orientation.w],
+                "scale": [m.scale.x, m.scale.y, m.scale.z],
+                "points": [[p.x, p.y, p.z] for p in m.points],
+                "colors": [[c.r, c.g, c.b, c.a] for c in m.colors],
+                "rest": [m.texture_resource, m.texture.format, len(m.uv_coordinates), m.text,
+                         m.mesh_resource, m.mesh_file.filename, m.mesh_use_embedded_materials],
+            } for m in samples[0].markers]
+            with open(out, "w") as f:
+                json.dump(markers, f)
+            say(event="markers", markers=len(markers))
+            return
+        time.sleep(0.05)
+    say(event="timeout", waiting_for="rt/froctomap/dynamic")
+    sys.exit(2)
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--domain", type=int, required=True)
@@ -112,6 +175,7 @@ def main():
     parser.add_argument("--timeout", type=float, default=60.0)
     parser.add_argument("--service-mapping", choices=["cyclone", "basic"], default="cyclone")
     parser.add_argument("--no-predicted", action="store_true")
+    parser.add_argument("--markers-out")
     parser.add_argument("maps", nargs="+")
     args = parser.parse_args()
 
@@ -190,6 +254,8 @@ def main():
                 f.write(header + body)
             say(event="predicted", stamp=message.header.stamp.sec, binary=message.binary,
                 id=message.id, bytes=len(body))
+            if args.markers_out:
+                read_markers(participant, latched, args.markers_out, deadline)
             break
         time.sleep(0.05)
     else:

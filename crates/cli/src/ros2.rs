@@ -190,10 +190,11 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.frame_id = args.frame_id.clone();
     let node = Node::new(&options)?;
     eprintln!(
-        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
+        "froctomap node on ROS domain {}: receiving {}, publishing {} and {} from {} every {}, serving {} and {} ({:?} mapping)",
         node.domain_id(),
         args.topic,
         froctomap_ros2_node::PREDICTED_TOPIC,
+        froctomap_ros2_node::DYNAMIC_TOPIC,
         args.file.display(),
         args.publish_every,
         froctomap_ros2_node::GET_OCTOMAP_AT_SERVICE,

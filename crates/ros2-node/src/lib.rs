@@ -49,6 +49,7 @@ pub use services::{
 
 use froctomap_convert::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
+use froctomap_formats::{ExportedKind, OccupiedCell};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageError, MessageType};
 use rustdds::no_key::{
@@ -68,9 +69,10 @@ use std::time::{Duration, Instant};
 /// The node's default name.
 pub const NODE_NAME: &str = "froctomap";
 /// The topic subscribed by default (octomap_server's binary map).
-pub const DEFAULT_TOPIC: &str = "/octomap_binary";
-/// The topic the predicted map is published on (latched).
-pub const PREDICTED_TOPIC: &str = "/froctomap/predicted";
+pub const DEFAULT_TOPIC: &str = froctomap_ros::OCTOMAP_TOPIC;
+pub use froctomap_ros::{DYNAMIC_TOPIC, PREDICTED_TOPIC};
+/// The DDS type name every ROS 2 RMW gives `visualization_msgs/msg/MarkerArray`.
+pub const MARKER_ARRAY_DDS_TYPE: &str = "visualization_msgs::msg::dds_::MarkerArray_";
 /// The DDS type name every ROS 2 RMW gives `octomap_msgs/msg/Octomap`.
 pub const OCTOMAP_DDS_TYPE: &str = "octomap_msgs::msg::dds_::Octomap_";
 /// Received messages larger than this are refused by default (far below the file limits).
@@ -375,6 +377,7 @@ pub struct Node {
     participant: DomainParticipant,
     reader: SimpleDataReader<Vec<u8>, RawCdr>,
     predicted: DataWriter<Vec<u8>, RawCdr>,
+    dynamic: DataWriter<Vec<u8>, RawCdr>,
     get_octomap_at: ServiceEndpoints,
     probability_at: ServiceEndpoints,
     service_mapping: ServiceMapping,
@@ -415,19 +418,8 @@ impl Node {
             .map_err(dds)?
             .create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
             .map_err(dds)?;
-        let predicted_topic = participant
-            .create_topic(
-                dds_topic_name(PREDICTED_TOPIC)?,
-                OCTOMAP_DDS_TYPE.to_string(),
-                &qos,
-                TopicKind::NoKey,
-            )
-            .map_err(dds)?;
-        let predicted = participant
-            .create_publisher(&qos)
-            .map_err(dds)?
-            .create_datawriter_no_key::<Vec<u8>, RawCdr>(&predicted_topic, Some(qos.clone()))
-            .map_err(dds)?;
+        let predicted = raw_writer(&participant, PREDICTED_TOPIC, OCTOMAP_DDS_TYPE, &qos)?;
+        let dynamic = raw_writer(&participant, DYNAMIC_TOPIC, MARKER_ARRAY_DDS_TYPE, &qos)?;
         let get_octomap_at = ServiceEndpoints::new(
             &participant,
             GET_OCTOMAP_AT_SERVICE,
@@ -444,6 +436,7 @@ impl Node {
             participant,
             reader,
             predicted,
+            dynamic,
             get_octomap_at,
             probability_at,
             service_mapping: options.service_mapping,
@@ -686,6 +679,63 @@ impl Node {
                 reason: e.to_string(),
             })
     }
+
+    /// Publishes a map's occupied cells on [`DYNAMIC_TOPIC`] as a
+    /// `visualization_msgs/MarkerArray` (one `CUBE_LIST` per depth, as octomap_server's
+    /// `occupied_cells_vis_array`; [`froctomap_ros::encode_occupied_marker_array_cdr`]),
+    /// stamped `stamp` in `frame_id`, latched.
+    pub fn publish_dynamic(
+        &self,
+        occupied: &[OccupiedCell],
+        resolution: f64,
+        stamp: Timestamp,
+        frame_id: &str,
+    ) -> Result<(), NodeError> {
+        let failed = |reason: String| NodeError::Publish {
+            topic: DYNAMIC_TOPIC.to_string(),
+            reason,
+        };
+        let message = froctomap_ros::encode_occupied_marker_array_cdr(
+            ros_time(stamp).map_err(failed)?,
+            frame_id,
+            resolution,
+            occupied,
+        )
+        .ok_or_else(|| failed(format!("{} cells do not fit a MarkerArray", occupied.len())))?;
+        self.dynamic
+            .write(message, None)
+            .map_err(|e| failed(e.to_string()))
+    }
+}
+
+/// A writer of serialized messages of `dds_type` on the ROS topic `ros_topic`.
+fn raw_writer(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<DataWriter<Vec<u8>, RawCdr>, NodeError> {
+    let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
+    let topic = participant
+        .create_topic(
+            dds_topic_name(ros_topic)?,
+            dds_type.to_string(),
+            qos,
+            TopicKind::NoKey,
+        )
+        .map_err(dds)?;
+    participant
+        .create_publisher(qos)
+        .map_err(dds)?
+        .create_datawriter_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
+        .map_err(dds)
+}
+
+/// A time as `builtin_interfaces/Time` (`sec`, `nanosec`), or why it is outside it.
+fn ros_time(stamp: Timestamp) -> Result<(i32, u32), String> {
+    let seconds = i32::try_from(stamp.0.div_euclid(1_000_000_000))
+        .map_err(|_| format!("stamp {} ns is outside builtin_interfaces/Time", stamp.0))?;
+    Ok((seconds, stamp.0.rem_euclid(1_000_000_000) as u32)) // < 1e9.
 }
 
 /// Publishes the map a `.froct` file predicts on [`PREDICTED_TOPIC`], only when it changed.
@@ -716,24 +766,33 @@ impl PredictedPublisher {
     /// The canonical `.bt` of the map predicted for `t` (the file is opened anew, so maps
     /// appended since the last call count).
     pub fn predicted_bt(&self, t: Timestamp) -> Result<Vec<u8>, NodeError> {
-        let reader = FroctFile::open(&self.froct).map_err(|source| NodeError::Froct {
+        froctomap_convert::predicted_bt(&self.open()?, t).map_err(|e| self.failed(e))
+    }
+
+    fn open(&self) -> Result<FroctFile, NodeError> {
+        FroctFile::open(&self.froct).map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, source: impl std::error::Error + Send + Sync + 'static) -> NodeError {
+        NodeError::Froct {
             path: self.froct.clone(),
             source: Box::new(source),
-        })?;
-        froctomap_convert::predicted_bt(&reader, t).map_err(|source| NodeError::Froct {
-            path: self.froct.clone(),
-            source: Box::new(source),
-        })
+        }
     }
 
     /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
-    /// published; says whether it did.
+    /// published, with its occupied cells on [`DYNAMIC_TOPIC`] (coloured by their
+    /// probability); says whether it did.
     pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
-        let bt = self.predicted_bt(t)?;
+        let reader = self.open()?;
+        let bt = froctomap_convert::predicted_bt(&reader, t).map_err(|e| self.failed(e))?;
         if self.last.as_ref() == Some(&bt) {
             return Ok(false);
         }
         node.publish_predicted(&bt, t, &self.frame_id)?;
+        let occupied = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
+            .map_err(|e| self.failed(e))?;
+        node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)?;
         self.last = Some(bt);
         Ok(true)
     }
@@ -760,14 +819,12 @@ pub fn octomap_message_of_bt(
         reason: format!("the predicted map is not a .bt file: {e}"),
     })?;
     let body = bt.get(header.body_offset..).unwrap_or_default();
-    let seconds =
-        i32::try_from(stamp.0.div_euclid(1_000_000_000)).map_err(|_| NodeError::Publish {
-            topic: PREDICTED_TOPIC.to_string(),
-            reason: format!("stamp {} ns is outside builtin_interfaces/Time", stamp.0),
-        })?;
-    let nanos = stamp.0.rem_euclid(1_000_000_000) as u32; // < 1e9.
+    let stamp = ros_time(stamp).map_err(|reason| NodeError::Publish {
+        topic: PREDICTED_TOPIC.to_string(),
+        reason,
+    })?;
     encode_octomap_cdr(
-        (seconds, nanos),
+        stamp,
         frame_id,
         true,
         &header.tree_id,
