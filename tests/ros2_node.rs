@@ -1096,3 +1096,136 @@ fn maps_in_another_frame_are_refused_and_the_node_goes_on() {
         count.1
     );
 }
+
+#[test]
+fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
+    // `--ros-args -r __ns:=/robot1 -r __node:=mapper -r octomap_binary:=maps_in -p
+    // horizon:=1h` with use_sim_time: the peer publishes on /robot1/maps_in, finds the
+    // predicted map and the services under /robot1/mapper, reads the parameters through
+    // rcl_interfaces' GetParameters, and its /clock sets the predicted map's time.
+    let dir = scratch();
+    let domain = random_domain();
+    let args: Vec<String> = [
+        "-r",
+        "__ns:=/robot1",
+        "-r",
+        "__node:=mapper",
+        "-r",
+        "octomap_binary:=maps_in",
+        "-p",
+        "horizon:=1h",
+        "-p",
+        "use_sim_time:=true",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let ros = froctomap_ros2_node::RosArgs::parse(&args).expect("ROS arguments");
+    let clock_sec = 1_600_000_000i64;
+    let predicted_out = dir.path().join("predicted.bt");
+    let map = octomap_fixture("few_voxels.bt");
+    let mut peer = Peer::start(
+        domain,
+        &predicted_out,
+        std::slice::from_ref(&map),
+        &[
+            "--topic",
+            "/robot1/maps_in",
+            "--node",
+            "/robot1/mapper",
+            "--clock",
+            &clock_sec.to_string(),
+        ],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.use_sim_time = ros.parameter("use_sim_time").is_some_and(|v| v.bool_value);
+    for (name, value) in &ros.parameters {
+        options.parameters.set(name, value.clone(), "");
+    }
+    options.names = ros;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    assert_eq!(node.names().node, "/robot1/mapper");
+    assert_eq!(node.names().topic, "/robot1/maps_in");
+    assert_eq!(node.names().predicted, "/robot1/mapper/predicted");
+
+    // The map arrives on the remapped topic in the namespace.
+    struct Count(Vec<ReceivedMap>);
+    impl MapSink for Count {
+        fn receive(
+            &mut self,
+            map: ReceivedMap,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.0.push(map);
+            Ok(())
+        }
+    }
+    let mut got = Count(Vec::new());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while got.0.is_empty() && Instant::now() < deadline {
+        node.receive_into(&mut got, Duration::from_millis(100))
+            .expect("receive");
+    }
+    assert_eq!(got.0.len(), 1, "the map on /robot1/maps_in");
+    assert_eq!(
+        got.0[0].stamp,
+        Timestamp(1_700_000_000 * 1_000_000_000),
+        "the peer's map"
+    );
+
+    // "Now" is /clock's time, not the system's; the predicted map is at now + horizon.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut now = node.now();
+    while now.is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+        now = node.now();
+    }
+    assert_eq!(now, Some(Timestamp(clock_sec * 1_000_000_000)), "/clock");
+    let horizon = froctomap_convert::parse_duration(
+        &node
+            .parameters()
+            .get("horizon")
+            .expect("the horizon parameter")
+            .as_text(),
+    )
+    .expect("a duration");
+    let t = Timestamp(clock_sec * 1_000_000_000 + horizon);
+    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
+    let mut predicted = PredictedPublisher::new(&froct, "map");
+    assert!(predicted.publish_if_changed(&node, t).expect("publish"));
+    let event = peer.next_event(Duration::from_secs(60));
+    assert_eq!(event["event"], "predicted", "{event}");
+    assert_eq!(
+        event["stamp"],
+        clock_sec + 3600,
+        "the predicted map is at /clock's now + 1 h"
+    );
+
+    // The parameters, through rcl_interfaces/srv/GetParameters and ListParameters.
+    let mut services = FileServices::new(&froct, "map");
+    peer.command(&serde_json::json!({"call": "list_parameters"}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(
+        event["names"],
+        serde_json::json!(["horizon", "use_sim_time"]),
+        "{event}"
+    );
+    peer.command(&serde_json::json!({"call": "get_parameters",
+        "names": ["horizon", "use_sim_time", "no_such_parameter"]}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let values = event["values"].as_array().expect("values");
+    assert_eq!(values.len(), 3, "{event}");
+    assert_eq!(
+        (&values[0]["type"], &values[0]["string"]),
+        (&serde_json::json!(4), &serde_json::json!("1h"))
+    );
+    assert_eq!(
+        (&values[1]["type"], &values[1]["bool"]),
+        (&serde_json::json!(1), &serde_json::json!(true))
+    );
+    assert_eq!(values[2]["type"], 0, "NOT_SET");
+}

@@ -25,6 +25,16 @@ ReplyHeader before the reply). It reads one JSON command a line from stdin until
   {"call": "probability_at", "sec": S, "nanosec": N, "points": [[x, y, z], ...]}
       -> {"event": "probability_at", "p_bits": ["<f64 little-endian hex>", ...]}
 
+  {"call": "get_parameters", "names": [N, ...]}
+      -> {"event": "get_parameters", "values": [{"type": T, "bool": B, "integer": I,
+         "double": D, "string": S}, ...]} (rcl_interfaces/srv/GetParameters)
+  {"call": "list_parameters"}
+      -> {"event": "list_parameters", "names": [...]} (rcl_interfaces/srv/ListParameters)
+
+The node's topics and services are looked for under --node (default /froctomap, the node
+`froctomap` without a namespace); with --clock SEC the peer publishes rosgraph_msgs/Clock
+at SEC on rt/clock while it waits for the predicted map.
+
 and, to try the node with bad input (each answered by {"event": "published", ...}):
 
   {"call": "publish_map", "path": P, "stamp": S, "truncate": N?, "resolution": R?,
@@ -105,7 +115,7 @@ def binary_node_count(body):
     return count
 
 
-def read_markers(participant, qos, out, deadline):
+def read_markers(participant, qos, out, deadline, node):
     """Waits for one visualization_msgs/MarkerArray on rt/froctomap/dynamic, declared here
     as ROS 2 Humble and later define it, and writes its markers to `out` as JSON."""
     from cyclonedds.idl import IdlStruct
@@ -141,7 +151,7 @@ def read_markers(participant, qos, out, deadline):
         "texture": image, "uv_coordinates": sequence[uv], "text": str, "mesh_resource": str,
         "mesh_file": mesh, "mesh_use_embedded_materials": bool})
     marker_array = struct("visualization_msgs::msg::dds_::MarkerArray_", {"markers": sequence[marker]})
-    reader = DataReader(participant, Topic(participant, "rt/froctomap/dynamic", marker_array), qos=qos)
+    reader = DataReader(participant, Topic(participant, f"rt{node}/dynamic", marker_array), qos=qos)
     while time.monotonic() < deadline:
         samples = reader.take(N=1)
         if samples:
@@ -176,6 +186,10 @@ def main():
     parser.add_argument("--service-mapping", choices=["cyclone", "basic"], default="cyclone")
     parser.add_argument("--no-predicted", action="store_true")
     parser.add_argument("--markers-out")
+    parser.add_argument("--node", default="/froctomap",
+                        help="the node's fully qualified name: its topics and services are under it")
+    parser.add_argument("--clock", type=int,
+                        help="publish rosgraph_msgs/Clock at this second on rt/clock while waiting")
     parser.add_argument("maps", nargs="+")
     args = parser.parse_args()
 
@@ -237,10 +251,22 @@ def main():
         writer.write(Octomap(Header(Time(stamp, 0), "map"), binary, tree_id, resolution, list(body)))
         say(event="published", map=path, stamp=stamp, binary=binary, bytes=len(body))
 
-    predicted_topic = Topic(participant, "rt/froctomap/predicted", Octomap)
+    predicted_topic = Topic(participant, f"rt{args.node}/predicted", Octomap)
+    clock_writer = None
+    if args.clock is not None:
+        @dataclass
+        @annotate.final
+        class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
+            clock: Time
+
+        clock_qos = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile,
+                        Policy.History.KeepLast(1), Policy.DataRepresentation(use_cdrv0_representation=True))
+        clock_writer = DataWriter(participant, Topic(participant, "rt/clock", Clock), qos=clock_qos)
     reader = DataReader(participant, predicted_topic, qos=latched)
     deadline = time.monotonic() + args.timeout
     while not args.no_predicted and time.monotonic() < deadline:
+        if clock_writer is not None:
+            clock_writer.write(Clock(Time(args.clock, 0)))
         samples = reader.take(N=1)
         if samples:
             message = samples[0]
@@ -255,7 +281,7 @@ def main():
             say(event="predicted", stamp=message.header.stamp.sec, binary=message.binary,
                 id=message.id, bytes=len(body))
             if args.markers_out:
-                read_markers(participant, latched, args.markers_out, deadline)
+                read_markers(participant, latched, args.markers_out, deadline, args.node)
             break
         time.sleep(0.05)
     else:
@@ -279,32 +305,55 @@ def main():
 
     stem = "froctomap_msgs::srv::dds_::"
 
-    def idl_struct(name, fields):
+    def idl_struct(name, fields, prefix=stem):
         # types.new_class hands `typename` to IdlStruct's metaclass, as a class statement does.
         body = lambda ns: ns.update({"__annotations__": fields})
-        cls = types.new_class(name, (IdlStruct,), {"typename": stem + name}, body)
+        cls = types.new_class(name, (IdlStruct,), {"typename": prefix + name}, body)
         return dataclass(annotate.final(cls))
 
     if args.service_mapping == "cyclone":
         # rmw_cyclonedds' cdds_request_header_t: uint64 guid, int64 seq.
-        def framed(name, fields):
+        def framed(name, fields, prefix=stem):
             annotations = {"client": uint64, "sequence": int64, **fields}
-            return idl_struct(name, annotations)
+            return idl_struct(name, annotations, prefix)
         request_header = lambda handle, seq: {"client": handle, "sequence": seq}
     else:
-        def framed(name, fields):
+        def framed(name, fields, prefix=stem):
             header = ({"identity": SampleIdentity, "instance_name": str} if name.endswith("Request_")
                       else {"identity": SampleIdentity, "remote_exception": uint32})
-            return idl_struct(name, {**header, **fields})
+            return idl_struct(name, {**header, **fields}, prefix)
         def request_header(handle, seq):
             guid = list(writer_guids[handle])
             return {"identity": SampleIdentity(guid, seq >> 32, seq & 0xFFFFFFFF), "instance_name": ""}
+
+    @dataclass
+    @annotate.final
+    class ParameterValue(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterValue_"):
+        type: uint8
+        bool_value: bool
+        integer_value: int64
+        double_value: float64
+        string_value: str
+        byte_array_value: sequence[uint8]
+        bool_array_value: sequence[bool]
+        integer_array_value: sequence[int64]
+        double_array_value: sequence[float64]
+        string_array_value: sequence[str]
 
     service_types = {
         "get_octomap_at": (framed("GetOctomapAt_Request_", {"stamp": Time, "predict": bool}),
                            framed("GetOctomapAt_Response_", {"success": bool, "message": str, "map": Octomap})),
         "probability_at": (framed("ProbabilityAt_Request_", {"stamp": Time, "points": sequence[Point]}),
                            framed("ProbabilityAt_Response_", {"p": sequence[float64]})),
+    }
+    rcl_stem = "rcl_interfaces::srv::dds_::"
+    parameter_types = {
+        "list_parameters": (
+            framed("ListParameters_Request_", {"prefixes": sequence[str], "depth": uint64}, rcl_stem),
+            framed("ListParameters_Response_", {"names": sequence[str], "prefixes": sequence[str]}, rcl_stem)),
+        "get_parameters": (
+            framed("GetParameters_Request_", {"names": sequence[str]}, rcl_stem),
+            framed("GetParameters_Response_", {"values": sequence[ParameterValue]}, rcl_stem)),
     }
     service_qos = Qos(
         Policy.Reliability.Reliable(duration(seconds=1)),
@@ -314,10 +363,10 @@ def main():
     )
     clients = {}
     writer_guids = {}
-    for name, (request_type, reply_type) in service_types.items():
-        request_writer = DataWriter(participant, Topic(participant, f"rq/froctomap/{name}Request", request_type),
+    for name, (request_type, reply_type) in {**service_types, **parameter_types}.items():
+        request_writer = DataWriter(participant, Topic(participant, f"rq{args.node}/{name}Request", request_type),
                                     qos=service_qos)
-        reply_reader = DataReader(participant, Topic(participant, f"rr/froctomap/{name}Reply", reply_type),
+        reply_reader = DataReader(participant, Topic(participant, f"rr{args.node}/{name}Reply", reply_type),
                                   qos=service_qos)
         writer_guids[request_writer.instance_handle & 0xFFFF_FFFF_FFFF_FFFF] = request_writer.guid.bytes
         clients[name] = (request_type, request_writer, reply_reader)
@@ -379,6 +428,14 @@ def main():
             points = [Point(*p) for p in command["points"]]
             reply = call("probability_at", {"stamp": stamp, "points": points})
             say(event="probability_at", p_bits=[struct.pack("<d", p).hex() for p in reply.p])
+        elif command["call"] == "get_parameters":
+            reply = call("get_parameters", {"names": command["names"]})
+            say(event="get_parameters", values=[
+                {"type": v.type, "bool": v.bool_value, "integer": v.integer_value,
+                 "double": v.double_value, "string": v.string_value} for v in reply.values])
+        elif command["call"] == "list_parameters":
+            reply = call("list_parameters", {"prefixes": [], "depth": 0})
+            say(event="list_parameters", names=list(reply.names))
         elif command["call"] == "publish_map":
             with open(command["path"], "rb") as f:
                 binary, tree_id, resolution, body = split_map_file(f.read())

@@ -34,8 +34,17 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+mod names;
+mod params;
 mod recording;
 mod services;
+
+pub use names::RosArgs;
+pub use params::{
+    parameter_type, DescribeParametersResponse, GetParameterTypesResponse, GetParametersResponse,
+    ListParametersRequest, ListParametersResponse, NamesRequest, Parameter, ParameterDescriptor,
+    ParameterValue, Parameters, SetParametersRequest, SetParametersResponse, SetParametersResult,
+};
 
 pub use recording::{CommitFailed, RecordingSink, TimeSource};
 
@@ -68,8 +77,47 @@ use std::time::{Duration, Instant};
 
 /// The node's default name.
 pub const NODE_NAME: &str = "froctomap";
-/// The topic subscribed by default (octomap_server's binary map).
-pub const DEFAULT_TOPIC: &str = froctomap_ros::OCTOMAP_TOPIC;
+/// The topic subscribed by default, relative (in the node's namespace), as octomap_server
+/// names its binary map topic: `/octomap_binary` without a namespace.
+pub const DEFAULT_TOPIC: &str = "octomap_binary";
+/// The node's own names before resolution: private names, `/froctomap/...` for the node
+/// `froctomap` without a namespace (the names of `froctomap_ros`, which the MCAP export
+/// uses too), `/robot1/froctomap/...` under `__ns:=/robot1`.
+const PREDICTED_NAME: &str = "~/predicted";
+const DYNAMIC_NAME: &str = "~/dynamic";
+const GET_OCTOMAP_AT_NAME: &str = "~/get_octomap_at";
+const PROBABILITY_AT_NAME: &str = "~/probability_at";
+/// The DDS type name every ROS 2 RMW gives `rosgraph_msgs/msg/Clock`.
+pub const CLOCK_DDS_TYPE: &str = "rosgraph_msgs::msg::dds_::Clock_";
+/// The parameter services every ROS 2 node offers, with their DDS type stems and request
+/// size bounds (names only: 1 MiB).
+const PARAMETER_SERVICES: [(&str, &str); 6] = [
+    (
+        "~/list_parameters",
+        "rcl_interfaces::srv::dds_::ListParameters",
+    ),
+    (
+        "~/get_parameters",
+        "rcl_interfaces::srv::dds_::GetParameters",
+    ),
+    (
+        "~/get_parameter_types",
+        "rcl_interfaces::srv::dds_::GetParameterTypes",
+    ),
+    (
+        "~/describe_parameters",
+        "rcl_interfaces::srv::dds_::DescribeParameters",
+    ),
+    (
+        "~/set_parameters",
+        "rcl_interfaces::srv::dds_::SetParameters",
+    ),
+    (
+        "~/set_parameters_atomically",
+        "rcl_interfaces::srv::dds_::SetParametersAtomically",
+    ),
+];
+const MAX_PARAMETER_REQUEST_BYTES: usize = 1 << 20;
 pub use froctomap_ros::{DYNAMIC_TOPIC, PREDICTED_TOPIC};
 /// The DDS type name every ROS 2 RMW gives `visualization_msgs/msg/MarkerArray`.
 pub const MARKER_ARRAY_DDS_TYPE: &str = "visualization_msgs::msg::dds_::MarkerArray_";
@@ -113,6 +161,13 @@ pub struct NodeOptions {
     /// The frame every map received must be in; `None`: the first map received fixes it.
     /// Maps in another frame are refused (logged and skipped): one file holds one frame.
     pub frame_id: Option<String>,
+    /// The node's name, namespace and remapping rules (`--ros-args`); `topic` and the
+    /// node's own names are resolved through them.
+    pub names: RosArgs,
+    /// The parameters served (read-only); `use_sim_time` is added.
+    pub parameters: Parameters,
+    /// "Now" is the time `/clock` says ([`Node::now`]).
+    pub use_sim_time: bool,
 }
 
 impl NodeOptions {
@@ -125,6 +180,9 @@ impl NodeOptions {
             max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
             service_mapping: ServiceMapping::default(),
             frame_id: None,
+            names: RosArgs::default(),
+            parameters: Parameters::default(),
+            use_sim_time: false,
         }
     }
 }
@@ -197,6 +255,9 @@ pub enum NodeError {
     /// A topic name ROS would refuse.
     #[error("`{0}` is not a valid ROS topic name")]
     TopicName(String),
+    /// `--ros-args` that do not parse.
+    #[error("--ros-args: {0}")]
+    RosArgs(String),
     /// The DDS participant, topic, reader or writer could not be created.
     #[error("DDS setup failed: {0}")]
     Dds(String),
@@ -268,7 +329,10 @@ fn participant(guid: rustdds::GUID) -> Participant {
 
 /// One service's request reader and reply writer.
 struct ServiceEndpoints {
-    name: &'static str,
+    /// The resolved service name.
+    name: String,
+    /// What its requests are (in errors).
+    kind: &'static str,
     requests: SimpleDataReader<Vec<u8>, RawCdr>,
     replies: DataWriter<Vec<u8>, RawCdr>,
     /// Larger requests are skipped before decoding.
@@ -284,7 +348,8 @@ impl ServiceEndpoints {
     /// ROS's default service QoS.
     fn new(
         participant: &DomainParticipant,
-        name: &'static str,
+        name: String,
+        kind: &'static str,
         type_stem: &str,
         max_request_bytes: usize,
     ) -> Result<Self, NodeError> {
@@ -296,7 +361,7 @@ impl ServiceEndpoints {
             .durability(Durability::Volatile)
             .history(History::KeepLast { depth: 10 })
             .build();
-        let stem = dds_topic_name(name)?;
+        let stem = dds_topic_name(&name)?;
         let stem = stem.strip_prefix("rt/").unwrap_or(&stem);
         let request_topic = participant
             .create_topic(
@@ -326,6 +391,7 @@ impl ServiceEndpoints {
             .map_err(dds)?;
         Ok(Self {
             name,
+            kind,
             requests,
             replies,
             max_request_bytes,
@@ -380,6 +446,11 @@ pub struct Node {
     dynamic: DataWriter<Vec<u8>, RawCdr>,
     get_octomap_at: ServiceEndpoints,
     probability_at: ServiceEndpoints,
+    parameter_services: Vec<ServiceEndpoints>,
+    parameters: Parameters,
+    /// `/clock`'s reader with `use_sim_time`, and the last time it gave.
+    clock: Option<SimClock>,
+    names: ResolvedNames,
     service_mapping: ServiceMapping,
     topic: String,
     max_message_bytes: usize,
@@ -392,7 +463,16 @@ impl Node {
     /// are received too) and offers [`PREDICTED_TOPIC`] (reliable, transient-local).
     pub fn new(options: &NodeOptions) -> Result<Self, NodeError> {
         let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
-        let topic_name = dds_topic_name(&options.topic)?;
+        let ros = &options.names;
+        let names = ResolvedNames {
+            node: ros.fully_qualified_node_name(),
+            topic: ros.resolve(&options.topic)?,
+            predicted: ros.resolve(PREDICTED_NAME)?,
+            dynamic: ros.resolve(DYNAMIC_NAME)?,
+            get_octomap_at: ros.resolve(GET_OCTOMAP_AT_NAME)?,
+            probability_at: ros.resolve(PROBABILITY_AT_NAME)?,
+            clock: ros.resolve(froctomap_ros::CLOCK_TOPIC)?,
+        };
         let mut builder = DomainParticipantBuilder::new(options.domain_id);
         match &options.network {
             Network::Loopback => {
@@ -405,33 +485,53 @@ impl Node {
         }
         let participant = builder.build().map_err(dds)?;
         let qos = latched_qos();
-        let topic = participant
-            .create_topic(
-                topic_name,
-                OCTOMAP_DDS_TYPE.to_string(),
-                &qos,
-                TopicKind::NoKey,
-            )
-            .map_err(dds)?;
-        let reader = participant
-            .create_subscriber(&qos)
-            .map_err(dds)?
-            .create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
-            .map_err(dds)?;
-        let predicted = raw_writer(&participant, PREDICTED_TOPIC, OCTOMAP_DDS_TYPE, &qos)?;
-        let dynamic = raw_writer(&participant, DYNAMIC_TOPIC, MARKER_ARRAY_DDS_TYPE, &qos)?;
+        let reader = raw_reader(&participant, &names.topic, OCTOMAP_DDS_TYPE, &qos)?;
+        let predicted = raw_writer(&participant, &names.predicted, OCTOMAP_DDS_TYPE, &qos)?;
+        let dynamic = raw_writer(&participant, &names.dynamic, MARKER_ARRAY_DDS_TYPE, &qos)?;
         let get_octomap_at = ServiceEndpoints::new(
             &participant,
+            names.get_octomap_at.clone(),
             GET_OCTOMAP_AT_SERVICE,
             GET_OCTOMAP_AT_DDS_TYPE,
             MAX_GET_OCTOMAP_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         let probability_at = ServiceEndpoints::new(
             &participant,
+            names.probability_at.clone(),
             PROBABILITY_AT_SERVICE,
             PROBABILITY_AT_DDS_TYPE,
             MAX_PROBABILITY_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
+        let parameter_services = PARAMETER_SERVICES
+            .iter()
+            .map(|&(name, stem)| {
+                ServiceEndpoints::new(
+                    &participant,
+                    ros.resolve(name)?,
+                    stem,
+                    stem,
+                    MAX_PARAMETER_REQUEST_BYTES.min(options.max_message_bytes),
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut parameters = options.parameters.clone();
+        parameters.set(
+            "use_sim_time",
+            ParameterValue::bool(options.use_sim_time),
+            "now is the time /clock says",
+        );
+        let clock = if options.use_sim_time {
+            // As rclcpp's clock QoS: the last one, best effort (reads reliable writers too).
+            let qos = QosPolicyBuilder::new()
+                .reliability(Reliability::BestEffort)
+                .durability(Durability::Volatile)
+                .history(History::KeepLast { depth: 1 })
+                .build();
+            let reader = raw_reader(&participant, &names.clock, CLOCK_DDS_TYPE, &qos)?;
+            Some((reader, std::cell::Cell::new(None)))
+        } else {
+            None
+        };
         Ok(Self {
             participant,
             reader,
@@ -439,8 +539,12 @@ impl Node {
             dynamic,
             get_octomap_at,
             probability_at,
+            parameter_services,
+            parameters,
+            clock,
             service_mapping: options.service_mapping,
-            topic: options.topic.clone(),
+            topic: names.topic.clone(),
+            names,
             max_message_bytes: options.max_message_bytes,
             frame_id: std::cell::RefCell::new(options.frame_id.clone()),
         })
@@ -449,6 +553,50 @@ impl Node {
     /// The DDS domain joined.
     pub fn domain_id(&self) -> u16 {
         self.participant.domain_id()
+    }
+
+    /// The names the node resolved (its options' `names` applied).
+    pub fn names(&self) -> &ResolvedNames {
+        &self.names
+    }
+
+    /// The parameters served.
+    pub fn parameters(&self) -> &Parameters {
+        &self.parameters
+    }
+
+    /// "Now": the system clock, or with `use_sim_time` the last time `/clock` gave (`None`
+    /// before the first one).
+    pub fn now(&self) -> Option<Timestamp> {
+        let Some((reader, last)) = &self.clock else {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .ok()?;
+            return i64::try_from(now.as_nanos()).ok().map(Timestamp);
+        };
+        while let Ok(Some(sample)) = reader.try_take_one() {
+            // builtin_interfaces/Time behind the encapsulation header; others are skipped.
+            let message = sample.into_value();
+            let little = message.get(1) == Some(&1);
+            let field = |at: usize| {
+                let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
+                Some(if little {
+                    u32::from_le_bytes(bytes)
+                } else {
+                    u32::from_be_bytes(bytes)
+                })
+            };
+            if let (Some(sec), Some(nanosec)) = (field(4), field(8)) {
+                last.set(Some(
+                    Time {
+                        sec: sec as i32,
+                        nanosec,
+                    }
+                    .timestamp(),
+                ));
+            }
+        }
+        last.get()
     }
 
     /// Hands the maps received within `wait` (at least one poll) to `sink`, at most
@@ -515,7 +663,7 @@ impl Node {
     pub fn serve_requests(&self, handler: &mut dyn ServiceHandler) -> usize {
         self.get_octomap_at.update_matched_readers();
         self.probability_at.update_matched_readers();
-        let mut answered = 0;
+        let mut answered = self.serve_parameters();
         let pass = |service| (0..REQUESTS_PER_PASS).map_while(move |_| self.take_request(service));
         for request in pass(&self.get_octomap_at) {
             answered += usize::from(self.answer(&self.get_octomap_at, &request, |r| {
@@ -537,6 +685,33 @@ impl Node {
                     handler.probability_at(r)
                 },
             ));
+        }
+        answered
+    }
+
+    /// Answers the parameter services' requests (at most [`REQUESTS_PER_PASS`] each).
+    fn serve_parameters(&self) -> usize {
+        let mut answered = 0;
+        let p = &self.parameters;
+        for (i, service) in self.parameter_services.iter().enumerate() {
+            service.update_matched_readers();
+            for request in (0..REQUESTS_PER_PASS).map_while(|_| self.take_request(service)) {
+                let done = match i {
+                    0 => self.answer(service, &request, |r| p.list(r)),
+                    1 => self.answer(service, &request, |r| p.values(r)),
+                    2 => self.answer(service, &request, |r| p.types(r)),
+                    3 => self.answer(service, &request, |r| p.describe(r)),
+                    4 => self.answer(service, &request, |r| p.refuse_set(r)),
+                    _ => self.answer(service, &request, |r: &SetParametersRequest| {
+                        p.refuse_set(r)
+                            .results
+                            .into_iter()
+                            .next()
+                            .unwrap_or_default()
+                    }),
+                };
+                answered += usize::from(done);
+            }
         }
         answered
     }
@@ -591,7 +766,7 @@ impl Node {
             return false;
         }
         let (id, request) =
-            match decode_request::<Q>(self.service_mapping, message, *sample, service.name) {
+            match decode_request::<Q>(self.service_mapping, message, *sample, service.kind) {
                 Ok(decoded) => decoded,
                 Err(e) => {
                     log::warn!("{}: request skipped: {e}", service.name);
@@ -675,7 +850,7 @@ impl Node {
         self.predicted
             .write(message, None)
             .map_err(|e| NodeError::Publish {
-                topic: PREDICTED_TOPIC.to_string(),
+                topic: self.names.predicted.clone(),
                 reason: e.to_string(),
             })
     }
@@ -692,7 +867,7 @@ impl Node {
         frame_id: &str,
     ) -> Result<(), NodeError> {
         let failed = |reason: String| NodeError::Publish {
-            topic: DYNAMIC_TOPIC.to_string(),
+            topic: self.names.dynamic.clone(),
             reason,
         };
         let message = froctomap_ros::encode_occupied_marker_array_cdr(
@@ -708,6 +883,64 @@ impl Node {
     }
 }
 
+/// `/clock`'s reader and the last time it gave.
+type SimClock = (
+    SimpleDataReader<Vec<u8>, RawCdr>,
+    std::cell::Cell<Option<Timestamp>>,
+);
+
+/// The names a node resolved: its fully qualified name and its topics' and services'.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResolvedNames {
+    /// The node (`/froctomap`).
+    pub node: String,
+    /// The maps received.
+    pub topic: String,
+    /// The predicted map.
+    pub predicted: String,
+    /// The predicted map's markers.
+    pub dynamic: String,
+    /// The map-at-a-time service.
+    pub get_octomap_at: String,
+    /// The probability service.
+    pub probability_at: String,
+    /// The simulated clock.
+    pub clock: String,
+}
+
+/// The DDS topic of the ROS topic `ros_topic`, of type `dds_type`.
+fn raw_topic(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<rustdds::Topic, NodeError> {
+    participant
+        .create_topic(
+            dds_topic_name(ros_topic)?,
+            dds_type.to_string(),
+            qos,
+            TopicKind::NoKey,
+        )
+        .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
+/// A reader of serialized messages of `dds_type` on the ROS topic `ros_topic`.
+fn raw_reader(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<SimpleDataReader<Vec<u8>, RawCdr>, NodeError> {
+    let topic = raw_topic(participant, ros_topic, dds_type, qos)?;
+    participant
+        .create_subscriber(qos)
+        .and_then(|s| {
+            s.create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
+        })
+        .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
 /// A writer of serialized messages of `dds_type` on the ROS topic `ros_topic`.
 fn raw_writer(
     participant: &DomainParticipant,
@@ -715,20 +948,11 @@ fn raw_writer(
     dds_type: &str,
     qos: &QosPolicies,
 ) -> Result<DataWriter<Vec<u8>, RawCdr>, NodeError> {
-    let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
-    let topic = participant
-        .create_topic(
-            dds_topic_name(ros_topic)?,
-            dds_type.to_string(),
-            qos,
-            TopicKind::NoKey,
-        )
-        .map_err(dds)?;
+    let topic = raw_topic(participant, ros_topic, dds_type, qos)?;
     participant
         .create_publisher(qos)
-        .map_err(dds)?
-        .create_datawriter_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
-        .map_err(dds)
+        .and_then(|p| p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone())))
+        .map_err(|e| NodeError::Dds(e.to_string()))
 }
 
 /// A time as `builtin_interfaces/Time` (`sec`, `nanosec`), or why it is outside it.
@@ -943,6 +1167,27 @@ impl SerializerAdapter<Vec<u8>> for RawCdr {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_names_are_froctomap_ros_names() {
+        // The node and the MCAP export share the names of `froctomap_ros`.
+        let ros = RosArgs::default();
+        let resolve = |name| ros.resolve(name).ok();
+        assert_eq!(
+            resolve(DEFAULT_TOPIC).as_deref(),
+            Some(froctomap_ros::OCTOMAP_TOPIC)
+        );
+        assert_eq!(resolve(PREDICTED_NAME).as_deref(), Some(PREDICTED_TOPIC));
+        assert_eq!(resolve(DYNAMIC_NAME).as_deref(), Some(DYNAMIC_TOPIC));
+        assert_eq!(
+            resolve(GET_OCTOMAP_AT_NAME).as_deref(),
+            Some(GET_OCTOMAP_AT_SERVICE)
+        );
+        assert_eq!(
+            resolve(PROBABILITY_AT_NAME).as_deref(),
+            Some(PROBABILITY_AT_SERVICE)
+        );
+    }
 
     #[test]
     fn ros_topics_map_to_dds_names_as_rmws_do() {
