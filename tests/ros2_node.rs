@@ -1228,4 +1228,40 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
         (&serde_json::json!(1), &serde_json::json!(true))
     );
     assert_eq!(values[2]["type"], 0, "NOT_SET");
+
+    // The node's entry in the ROS graph (what `ros2 node list` and `ros2 param` look it up
+    // in): its namespace and name, its participant's GUID as Cyclone discovered it, and the
+    // predicted map's writer among its writers.
+    peer.command(&serde_json::json!({"call": "graph"}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let entries = event["entries"].as_array().expect("entries");
+    assert_eq!(entries.len(), 1, "{event}");
+    let entry = &entries[0];
+    assert_eq!(entry["nodes"].as_array().map(Vec::len), Some(1), "{event}");
+    let info = &entry["nodes"][0];
+    assert_eq!(
+        (&info["namespace"], &info["name"]),
+        (&serde_json::json!("/robot1"), &serde_json::json!("mapper"))
+    );
+    let participants = event["participants"].as_array().expect("participants");
+    assert!(participants.contains(&entry["gid"]), "{event}");
+    let predicted_writer = event["publications"]
+        .as_object()
+        .expect("publications")
+        .iter()
+        .find(|(_, topic)| *topic == "rt/robot1/mapper/predicted")
+        .map(|(guid, _)| serde_json::json!(guid))
+        .expect("Cyclone discovered the predicted map's writer");
+    let writers = info["writers"].as_array().expect("writers");
+    assert!(writers.contains(&predicted_writer), "{event}");
+    assert_eq!(
+        writers.len(),
+        10,
+        "predicted, dynamic, 8 service replies: {event}"
+    );
+    assert_eq!(
+        info["readers"].as_array().map(Vec::len),
+        Some(10),
+        "maps, /clock, 8 service requests: {event}"
+    );
 }

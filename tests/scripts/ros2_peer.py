@@ -30,6 +30,10 @@ ReplyHeader before the reply). It reads one JSON command a line from stdin until
          "double": D, "string": S}, ...]} (rcl_interfaces/srv/GetParameters)
   {"call": "list_parameters"}
       -> {"event": "list_parameters", "names": [...]} (rcl_interfaces/srv/ListParameters)
+  {"call": "graph"}
+      -> {"event": "graph", "entries": [{"gid": HEX, "nodes": [{"namespace", "name",
+         "readers", "writers"}]}], "participants": [GUID HEX], "publications": {GUID HEX:
+         topic}}: the ros_discovery_info entries (16-byte Gid) and what Cyclone discovered
 
 The node's topics and services are looked for under --node (default /froctomap, the node
 `froctomap` without a namespace); with --clock SEC the peer publishes rosgraph_msgs/Clock
@@ -174,6 +178,62 @@ def read_markers(participant, qos, out, deadline, node):
         time.sleep(0.05)
     say(event="timeout", waiting_for="rt/froctomap/dynamic")
     sys.exit(2)
+
+
+def read_graph(participant, timeout):
+    """The ROS graph entries on ros_discovery_info (rmw_dds_common/ParticipantEntitiesInfo
+    with the 16-byte Gid of Iron and later, declared here) and what Cyclone DDS itself
+    discovered: the participants' GUIDs and each publication's GUID and topic."""
+    from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl.types import array, sequence, uint8
+    import cyclonedds.idl.annotations as annotate
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    from cyclonedds.util import duration
+
+    @dataclass
+    @annotate.final
+    class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+        data: array[uint8, 16]
+
+    @dataclass
+    @annotate.final
+    class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+        node_namespace: str
+        node_name: str
+        reader_gid_seq: sequence[Gid]
+        writer_gid_seq: sequence[Gid]
+
+    @dataclass
+    @annotate.final
+    class ParticipantEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+        gid: Gid
+        node_entities_info_seq: sequence[NodeEntitiesInfo]
+
+    qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.Durability.TransientLocal,
+              Policy.History.KeepLast(10), Policy.DataRepresentation(use_cdrv0_representation=True))
+    reader = DataReader(participant, Topic(participant, "ros_discovery_info", ParticipantEntitiesInfo), qos=qos)
+    participants = BuiltinDataReader(participant, BuiltinTopicDcpsParticipant)
+    publications = BuiltinDataReader(participant, BuiltinTopicDcpsPublication)
+    hexed = lambda gid: bytes(gid.data).hex()
+    entries, guids, writers = [], set(), {}
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not entries:
+        for info in reader.take(N=16):
+            entries.append({"gid": hexed(info.gid), "nodes": [
+                {"namespace": n.node_namespace, "name": n.node_name,
+                 "readers": [hexed(g) for g in n.reader_gid_seq],
+                 "writers": [hexed(g) for g in n.writer_gid_seq]}
+                for n in info.node_entities_info_seq]})
+        time.sleep(0.05)
+    time.sleep(0.5)
+    for sample in participants.take(N=64):
+        guids.add(sample.key.bytes.hex())
+    for sample in publications.take(N=256):
+        writers[sample.key.bytes.hex()] = sample.topic_name
+    return {"entries": entries, "participants": sorted(guids), "publications": writers}
 
 
 def main():
@@ -433,6 +493,8 @@ def main():
             say(event="get_parameters", values=[
                 {"type": v.type, "bool": v.bool_value, "integer": v.integer_value,
                  "double": v.double_value, "string": v.string_value} for v in reply.values])
+        elif command["call"] == "graph":
+            say(event="graph", **read_graph(participant, args.timeout / 2))
         elif command["call"] == "list_parameters":
             reply = call("list_parameters", {"prefixes": [], "depth": 0})
             say(event="list_parameters", names=list(reply.names))

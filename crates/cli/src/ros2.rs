@@ -10,9 +10,9 @@ use froctomap_convert::{
 };
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
-    domain_id_from_env, parameter_type, FileServices, MapSink, Network, Node, NodeOptions,
-    ParameterValue, Parameters, PredictedPublisher, ReceivedMap, RecordingSink, RosArgs,
-    ServiceMapping, TimeSource,
+    domain_id_from_env, parameter_type, FileServices, GraphLayout, MapSink, Network, Node,
+    NodeOptions, ParameterValue, Parameters, PredictedPublisher, ReceivedMap, RecordingSink,
+    RosArgs, ServiceMapping, TimeSource,
 };
 use std::net::IpAddr;
 use std::path::PathBuf;
@@ -65,6 +65,10 @@ pub struct Ros2Args {
     /// once DDS has reassembled the message.
     #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
     max_message_bytes: usize,
+    /// The ROS 2 distribution of the peers, for the node's graph entry (`ros2 node list`,
+    /// `ros2 param`): `jazzy` (Iron and later) or `humble` (Humble and before).
+    #[arg(long, value_name = "DISTRO", default_value = "jazzy")]
+    ros_distro: GraphLayout,
     /// ROS arguments, last on the line: `--ros-args -r from:=to` (topic and service
     /// remapping), `-r __ns:=/robot1`, `-r __node:=name`, `-p name:=value` (a parameter:
     /// the options above by their names with `_`, and `use_sim_time`).
@@ -319,6 +323,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.frame_id = args.frame_id.clone();
     options.parameters = parameters(args); // The node adds use_sim_time.
     options.use_sim_time = use_sim_time;
+    options.graph = args.ros_distro;
     options.names = ros;
     let node = Node::new(&options)?;
     let names = node.names();

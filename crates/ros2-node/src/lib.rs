@@ -67,7 +67,7 @@ use rustdds::no_key::{
 use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{
     DataWriterStatus, DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
-    RepresentationIdentifier, StatusEvented, TopicKind,
+    RTPSEntity, RepresentationIdentifier, StatusEvented, TopicKind,
 };
 use services::{decode_request, encode_reply, RequestId};
 use std::convert::Infallible;
@@ -168,7 +168,48 @@ pub struct NodeOptions {
     pub parameters: Parameters,
     /// "Now" is the time `/clock` says ([`Node::now`]).
     pub use_sim_time: bool,
+    /// The layout of the node's entry in the ROS graph (`ros_discovery_info`).
+    pub graph: GraphLayout,
 }
+
+/// How the ROS graph message (`rmw_dds_common/msg/ParticipantEntitiesInfo` on
+/// `ros_discovery_info`, what `ros2 node list` and `ros2 param` look nodes up in) lays out
+/// its `Gid`: its size changed between ROS 2 releases.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GraphLayout {
+    /// 16-byte `Gid` (Iron, Jazzy and later).
+    #[default]
+    Jazzy,
+    /// 24-byte `Gid` (Humble and before).
+    Humble,
+}
+
+impl std::str::FromStr for GraphLayout {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "jazzy" | "iron" | "kilted" | "rolling" => Ok(Self::Jazzy),
+            "humble" | "galactic" | "foxy" => Ok(Self::Humble),
+            _ => Err(format!(
+                "`{text}` is not a ROS 2 distribution (humble, iron, jazzy, kilted, rolling)"
+            )),
+        }
+    }
+}
+
+impl GraphLayout {
+    fn gid_bytes(self) -> usize {
+        match self {
+            Self::Jazzy => 16,
+            Self::Humble => 24,
+        }
+    }
+}
+
+/// The DDS topic (no `rt/` prefix: it is not a ROS topic) and type of the ROS graph.
+const GRAPH_TOPIC: &str = "ros_discovery_info";
+const GRAPH_DDS_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
 
 impl NodeOptions {
     /// The defaults in `domain_id`: [`DEFAULT_TOPIC`], loopback only, 256 MiB messages.
@@ -183,6 +224,7 @@ impl NodeOptions {
             names: RosArgs::default(),
             parameters: Parameters::default(),
             use_sim_time: false,
+            graph: GraphLayout::default(),
         }
     }
 }
@@ -441,6 +483,8 @@ impl ServiceEndpoints {
 /// the services.
 pub struct Node {
     participant: DomainParticipant,
+    /// Keeps the node's graph entry published (latched) while the node lives.
+    _graph_writer: DataWriter<Vec<u8>, RawCdr>,
     reader: SimpleDataReader<Vec<u8>, RawCdr>,
     predicted: DataWriter<Vec<u8>, RawCdr>,
     dynamic: DataWriter<Vec<u8>, RawCdr>,
@@ -532,8 +576,58 @@ impl Node {
         } else {
             None
         };
+        let graph = graph_entry(
+            options.graph,
+            participant.guid(),
+            &options.names,
+            [&reader]
+                .into_iter()
+                .chain(clock.as_ref().map(|(r, _)| r))
+                .map(|r| r.guid())
+                .chain(
+                    [&get_octomap_at, &probability_at]
+                        .into_iter()
+                        .chain(&parameter_services)
+                        .map(|s| s.requests.guid()),
+                ),
+            [&predicted, &dynamic].into_iter().map(|w| w.guid()).chain(
+                [&get_octomap_at, &probability_at]
+                    .into_iter()
+                    .chain(&parameter_services)
+                    .map(|s| s.replies.guid()),
+            ),
+        );
+        // The graph entry: reliable, transient-local, the last one, as the RMWs publish it.
+        let graph_qos = QosPolicyBuilder::new()
+            .reliability(Reliability::Reliable {
+                max_blocking_time: rustdds::Duration::from_millis(100),
+            })
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 })
+            .build();
+        let graph_topic = participant
+            .create_topic(
+                GRAPH_TOPIC.to_string(),
+                GRAPH_DDS_TYPE.to_string(),
+                &graph_qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let graph_writer = participant
+            .create_publisher(&graph_qos)
+            .and_then(|p| {
+                p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&graph_topic, Some(graph_qos.clone()))
+            })
+            .map_err(dds)?;
+        graph_writer
+            .write(graph, None)
+            .map_err(|e| NodeError::Publish {
+                topic: GRAPH_TOPIC.to_string(),
+                reason: e.to_string(),
+            })?;
         Ok(Self {
             participant,
+            _graph_writer: graph_writer,
             reader,
             predicted,
             dynamic,
@@ -906,6 +1000,48 @@ pub struct ResolvedNames {
     pub probability_at: String,
     /// The simulated clock.
     pub clock: String,
+}
+
+/// The node's entry in the ROS graph: `rmw_dds_common/msg/ParticipantEntitiesInfo` in CDR
+/// (the participant's `Gid`, then one `NodeEntitiesInfo`: namespace, name, its readers' and
+/// writers' `Gid`s), each `Gid` the entity's GUID padded to the layout's size, as the RMWs
+/// fill it.
+fn graph_entry(
+    layout: GraphLayout,
+    participant: rustdds::GUID,
+    names: &RosArgs,
+    readers: impl Iterator<Item = rustdds::GUID>,
+    writers: impl Iterator<Item = rustdds::GUID>,
+) -> Vec<u8> {
+    let gid = |out: &mut Vec<u8>, guid: rustdds::GUID| {
+        let mut bytes = guid.to_bytes().to_vec();
+        bytes.resize(layout.gid_bytes(), 0);
+        out.extend_from_slice(&bytes);
+    };
+    // Alignment counts from the payload, after the 4-byte encapsulation header.
+    let u32 = |out: &mut Vec<u8>, value: u32| {
+        while !(out.len() - 4).is_multiple_of(4) {
+            out.push(0);
+        }
+        out.extend_from_slice(&value.to_le_bytes());
+    };
+    let string = |out: &mut Vec<u8>, text: &str| {
+        u32(out, text.len() as u32 + 1); // A node name or namespace: short.
+        out.extend_from_slice(text.as_bytes());
+        out.push(0);
+    };
+    let mut out = vec![0x00, 0x01, 0x00, 0x00];
+    gid(&mut out, participant);
+    u32(&mut out, 1);
+    string(&mut out, &names.namespace);
+    string(&mut out, &names.node_name);
+    for guids in [readers.collect::<Vec<_>>(), writers.collect()] {
+        u32(&mut out, guids.len() as u32);
+        for guid in guids {
+            gid(&mut out, guid);
+        }
+    }
+    out
 }
 
 /// The DDS topic of the ROS topic `ros_topic`, of type `dds_type`.
