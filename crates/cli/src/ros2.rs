@@ -32,7 +32,8 @@ pub struct Ros2Args {
     /// Take at most one map per DURATION (a fast publisher thinned); 0: every map.
     #[arg(long, value_name = "DURATION", default_value = "0")]
     min_interval: String,
-    /// The time a map is recorded at: its `header` stamp, or the `receive` time.
+    /// The time a map is recorded at: its `header` stamp, or the `receive` time (the
+    /// system clock, or /clock's with use_sim_time).
     #[arg(long, value_name = "header|receive", default_value = "header")]
     time_source: TimeSource,
     /// Receive and serve only: do not append the maps received to FILE.
@@ -357,14 +358,17 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             .now()
             .map(|now| Timestamp(now.0.saturating_add(horizon)));
         // Until the first commit creates it, there is no map to predict.
+        let started = Instant::now();
         let published = match t {
             Some(t) if args.file.exists() => predicted.publish_if_changed(&node, t),
             _ => Ok(false),
         };
         match published {
+            // What a publication costs (predicting, encoding the map and its markers).
             Ok(true) => eprintln!(
-                "published the map predicted for {}",
-                t.map(froctomap_core::calendar::iso8601).unwrap_or_default()
+                "published the map predicted for {} ({} ms)",
+                t.map(froctomap_core::calendar::iso8601).unwrap_or_default(),
+                started.elapsed().as_millis()
             ),
             Ok(false) => {}
             Err(e) => eprintln!("warning: {e}"),

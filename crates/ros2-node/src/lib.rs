@@ -267,6 +267,9 @@ pub struct ReceivedMap {
     pub stamp: Timestamp,
     /// The message's `header.frame_id`.
     pub frame_id: String,
+    /// When the node took it: [`Node::now`], the system clock or with `use_sim_time`
+    /// `/clock`'s time (`None` before `/clock` said one).
+    pub received: Option<Timestamp>,
     /// `true`: a `.bt` file (`binary` messages); `false`: an `.ot` file.
     pub binary: bool,
     /// The map file: the message's data behind the header OctoMap writes for it
@@ -927,6 +930,7 @@ impl Node {
         Ok(ReceivedMap {
             stamp: Timestamp(decoded.stamp_ns),
             frame_id: decoded.frame_id.to_string(),
+            received: self.now(),
             binary: decoded.binary,
             file: decoded.map_file()?,
         })
