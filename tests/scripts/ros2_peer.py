@@ -21,7 +21,8 @@ ReplyHeader before the reply). It reads one JSON command a line from stdin until
 
   {"call": "get_octomap_at", "sec": S, "nanosec": N, "predict": B, "out": "map.bt"}
       -> {"event": "get_octomap_at", "success": B, "message": "...", "stamp": [S, N], ...}
-         and, on success, the map written as a .bt file to "out"
+         and, on success, the map written as a .bt file to "out" ("seconds": the call's
+         round trip)
   {"call": "probability_at", "sec": S, "nanosec": N, "points": [[x, y, z], ...]}
       -> {"event": "probability_at", "p_bits": ["<f64 little-endian hex>", ...]}
 
@@ -309,7 +310,7 @@ def main():
             binary, tree_id, resolution, body = split_map_file(f.read())
         stamp = args.first_stamp + i
         writer.write(Octomap(Header(Time(stamp, 0), "map"), binary, tree_id, resolution, list(body)))
-        say(event="published", map=path, stamp=stamp, binary=binary, bytes=len(body))
+        say(event="published", map=path, stamp=stamp, binary=binary, bytes=len(body), wall=time.time())
 
     predicted_topic = Topic(participant, f"rt{args.node}/predicted", Octomap)
     clock_writer = None
@@ -471,7 +472,9 @@ def main():
         if "sec" in command:
             stamp = Time(command["sec"], command["nanosec"])
         if command["call"] == "get_octomap_at":
+            called = time.monotonic()
             reply = call("get_octomap_at", {"stamp": stamp, "predict": command["predict"]})
+            seconds = time.monotonic() - called
             body = bytes(reply.map.data)
             if reply.success:
                 header = (
@@ -483,7 +486,8 @@ def main():
                     f.write(header + body)
             say(event="get_octomap_at", success=reply.success, message=reply.message,
                 stamp=[reply.map.header.stamp.sec, reply.map.header.stamp.nanosec],
-                frame_id=reply.map.header.frame_id, binary=reply.map.binary, bytes=len(body))
+                frame_id=reply.map.header.frame_id, binary=reply.map.binary, bytes=len(body),
+                seconds=seconds)
         elif command["call"] == "probability_at":
             points = [Point(*p) for p in command["points"]]
             reply = call("probability_at", {"stamp": stamp, "points": points})
@@ -502,13 +506,19 @@ def main():
             with open(command["path"], "rb") as f:
                 binary, tree_id, resolution, body = split_map_file(f.read())
             body = body[: command.get("truncate", len(body))]
+            # A reader matched first: a sample written before would only reach it as the one
+            # kept (keep-last), and wait_for_acks holds for no reader at all.
+            matched_by = time.monotonic() + args.timeout
+            while (writer.get_publication_matched_status().current_count == 0
+                   and time.monotonic() < matched_by):
+                time.sleep(0.05)
             resolution = command.get("resolution", resolution)
             writer.write(Octomap(Header(Time(command["stamp"], 0), command.get("frame_id", "map")), binary,
                                  tree_id, resolution, list(body)))
             # Acknowledged by every matched reader: the node's DDS reader holds it.
             acked = writer.wait_for_acks(duration(seconds=10))
             say(event="published", map=command["path"], stamp=command["stamp"], bytes=len(body),
-                acked=acked)
+                acked=acked, wall=time.time())
         elif command["call"] == "publish_garbage":
             noise = bytes((i * 7919 + 13) % 251 for i in range(command["size"]))
             writer.write(Octomap(Header(Time(command["stamp"], 0), "map"), command["binary"], "OcTree", 0.1,
