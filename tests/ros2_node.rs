@@ -175,10 +175,17 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         .collect();
     let domain = random_domain();
     let predicted_out = dir.path().join("predicted.bt");
+    let markers_out = dir.path().join("markers.json");
 
     // The peer publishes the first map before the node exists: it must arrive latched
     // (transient-local); the others are published live.
-    let mut peer = Peer::start(domain, &predicted_out, &maps, &[]);
+    let markers_arg = markers_out.to_string_lossy().to_string();
+    let mut peer = Peer::start(
+        domain,
+        &predicted_out,
+        &maps,
+        &["--markers-out", &markers_arg],
+    );
     let event = peer.next_event(Duration::from_secs(30));
     assert_eq!(event["event"], "published", "{event}");
 
@@ -200,16 +207,8 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     // committed every two maps: a base, then a segment.
     let context = Context::with_default_plugins();
     let living = dir.path().join("living.froct");
-    let options = froctomap_convert::RecordOptions {
-        commit_every: froctomap_convert::CommitEvery::Maps(2),
-        append: froctomap_convert::AppendOptions {
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..Default::default()
-        },
-        spool_dir: None,
-        compact: false,
-    };
+    let options =
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
     let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
     let mut sink = FilesSink {
         dir: received_dir.clone(),
@@ -312,7 +311,66 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     );
     let ours = dir.path().join("ours.bt");
     std::fs::write(&ours, &sent).expect("write");
-    assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves));
+    assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves.clone()));
+
+    // With it, /froctomap/dynamic: a MarkerArray as octomap_server's occupied_cells_vis_array,
+    // decoded by the peer through the types it declares. Its cubes are the occupied leaves
+    // upstream OctoMap reads from the predicted map, each at its depth's marker.
+    let event = peer.next_event(Duration::from_secs(60));
+    assert_eq!(event["event"], "markers", "{event}");
+    let markers: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(&markers_out).expect("the peer wrote the markers"))
+            .expect("JSON");
+    assert_eq!(markers.len(), 17, "one marker per depth 0..=16");
+    let stamp_of_t = [t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000)];
+    let mut cubes = Vec::new();
+    for (depth, marker) in markers.iter().enumerate() {
+        assert_eq!(marker["id"], depth, "{marker}");
+        assert_eq!(marker["type"], 6, "CUBE_LIST");
+        assert_eq!(
+            (&marker["frame_id"], &marker["ns"]),
+            (&serde_json::json!("map"), &serde_json::json!("froctomap"))
+        );
+        assert_eq!(marker["stamp"], serde_json::json!(stamp_of_t));
+        assert_eq!(
+            marker["pose"],
+            serde_json::json!([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+        );
+        let side = f64::from(1u32 << (16 - depth));
+        assert_eq!(
+            marker["scale"],
+            serde_json::json!([resolution * side, resolution * side, resolution * side])
+        );
+        let points = marker["points"].as_array().expect("points");
+        let colors = marker["colors"].as_array().expect("colors");
+        assert_eq!(points.len(), colors.len(), "a colour per cube");
+        // ADD (0) with cubes, DELETE (2) without, as octomap_server does.
+        assert_eq!(marker["action"], if points.is_empty() { 2 } else { 0 });
+        for (point, color) in points.iter().zip(colors) {
+            let key = |i: usize| {
+                let c = point[i].as_f64().expect("a coordinate");
+                let k = c / resolution - side / 2.0 + 32768.0;
+                assert!(
+                    (k - k.round()).abs() < 1e-6,
+                    "{c} is a node centre at depth {depth}"
+                );
+                k.round() as u16
+            };
+            cubes.push((key(0), key(1), key(2), depth as u8));
+            assert_eq!(color[3], 1.0, "opaque");
+        }
+    }
+    cubes.sort_unstable();
+    let occupied: Vec<(u16, u16, u16, u8)> = leaves
+        .iter()
+        .filter(|l| f32::from_bits(l.4) > 0.0)
+        .map(|&(x, y, z, depth, _)| (x, y, z, depth))
+        .collect();
+    assert!(!occupied.is_empty());
+    assert_eq!(
+        cubes, occupied,
+        "the cubes are the predicted map's occupied leaves"
+    );
 
     // The node stops: what it recorded retrieves as each map the peer published.
     let FilesSink { recording, .. } = sink;
@@ -720,16 +778,8 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
     let node = Node::new(&options).expect("the node joins the domain on loopback");
     let context = Context::with_default_plugins();
     let living = dir.path().join("living.froct");
-    let record_options = froctomap_convert::RecordOptions {
-        commit_every: froctomap_convert::CommitEvery::Maps(2),
-        append: froctomap_convert::AppendOptions {
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..Default::default()
-        },
-        spool_dir: None,
-        compact: false,
-    };
+    let record_options =
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
     let mut recorder =
         froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");
     // The maps a commit left out, with why.
@@ -913,5 +963,305 @@ fn a_basic_mapping_client_gets_its_map() {
     assert_eq!(
         python_leaves(&got_path, "bt"),
         python_leaves(&retrieved, "bt")
+    );
+}
+
+#[test]
+fn maps_in_another_frame_are_refused_and_the_node_goes_on() {
+    // The first map taken fixes the frame (one file holds one frame); a map in another frame
+    // is skipped with the reason, and the next map in the frame is recorded.
+    let dir = scratch();
+    let received_dir = dir.path().join("received");
+    std::fs::create_dir(&received_dir).expect("mkdir");
+    let map = octomap_fixture("few_voxels.bt");
+    let domain = random_domain();
+    let mut peer = Peer::start(
+        domain,
+        &dir.path().join("unused.bt"),
+        std::slice::from_ref(&map),
+        &["--no-predicted"],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    assert_eq!(node.frame_id(), None, "no frame before the first map");
+    let context = Context::with_default_plugins();
+    let living = dir.path().join("living.froct");
+    let recorder = froctomap_convert::Recorder::open(
+        &context,
+        &living,
+        froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(10)),
+    )
+    .expect("record");
+    let mut sink = FilesSink {
+        dir: received_dir,
+        received: Vec::new(),
+        skipped: Vec::new(),
+        recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
+    };
+    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !done(sink) && Instant::now() < deadline {
+            node.receive_into(sink, Duration::from_millis(100))
+                .expect("the node never stops on input");
+        }
+        assert!(
+            done(sink),
+            "received {:?}, skipped {:?}",
+            sink.received.len(),
+            sink.skipped
+        );
+    };
+    receive_until(&mut sink, &|s| s.received.len() == 1);
+    assert_eq!(
+        node.frame_id().as_deref(),
+        Some("map"),
+        "the first map's frame"
+    );
+
+    let first = 1_700_000_000i64;
+    let bt = map.to_string_lossy().to_string();
+    for (stamp, frame) in [(first + 1, "odom"), (first + 2, "map"), (first + 3, "")] {
+        peer.command(
+            &serde_json::json!({"call": "publish_map", "path": bt, "stamp": stamp,
+            "frame_id": frame}),
+        );
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+    receive_until(&mut sink, &|s| s.received.len() + s.skipped.len() == 4);
+    let FilesSink {
+        recording,
+        received,
+        skipped,
+        ..
+    } = sink;
+    assert_eq!(skipped.len(), 2, "{skipped:?}");
+    assert!(
+        skipped[0].contains("frame `odom`, not `map`"),
+        "{skipped:?}"
+    );
+    assert!(skipped[1].contains("frame ``, not `map`"), "{skipped:?}");
+    assert!(received.iter().all(|m| m.frame_id == "map"));
+    assert_eq!(node.frame_id().as_deref(), Some("map"));
+    let summary = recording.finish().expect("commit");
+    assert_eq!(summary.committed_maps, 2, "{summary:?}");
+    let recorded = FroctFile::open(&living).expect("the living map reads");
+    let times: Vec<Option<Timestamp>> = (0..recorded.sample_count())
+        .filter(|&s| !recorded.is_missing(s))
+        .map(|s| recorded.sample_time(s))
+        .collect();
+    assert_eq!(
+        times,
+        [first, first + 2].map(|s| Some(Timestamp(s * 1_000_000_000))),
+        "only the maps in the first map's frame entered the file"
+    );
+
+    // A frame given up front (`--frame-id`): the maps in another one are refused from the
+    // first, the latched map of the peer included.
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.frame_id = Some("odom".to_string());
+    let strict = Node::new(&options).expect("a second node");
+    struct Count(usize, Vec<String>);
+    impl MapSink for Count {
+        fn receive(
+            &mut self,
+            _: ReceivedMap,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.0 += 1;
+            Ok(())
+        }
+        fn skipped(&mut self, reason: String) {
+            self.1.push(reason);
+        }
+    }
+    let mut count = Count(0, Vec::new());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while count.1.is_empty() && Instant::now() < deadline {
+        strict
+            .receive_into(&mut count, Duration::from_millis(100))
+            .expect("receive");
+    }
+    assert_eq!(count.0, 0, "{:?}", count.1);
+    assert!(
+        count.1.iter().all(|r| r.contains("not `odom`")) && !count.1.is_empty(),
+        "{:?}",
+        count.1
+    );
+}
+
+#[test]
+fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
+    // `--ros-args -r __ns:=/robot1 -r __node:=mapper -r octomap_binary:=maps_in -p
+    // horizon:=1h` with use_sim_time: the peer publishes on /robot1/maps_in, finds the
+    // predicted map and the services under /robot1/mapper, reads the parameters through
+    // rcl_interfaces' GetParameters, and its /clock sets the predicted map's time.
+    let dir = scratch();
+    let domain = random_domain();
+    let args: Vec<String> = [
+        "-r",
+        "__ns:=/robot1",
+        "-r",
+        "__node:=mapper",
+        "-r",
+        "octomap_binary:=maps_in",
+        "-p",
+        "horizon:=1h",
+        "-p",
+        "use_sim_time:=true",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let ros = froctomap_ros2_node::RosArgs::parse(&args).expect("ROS arguments");
+    let clock_sec = 1_600_000_000i64;
+    let predicted_out = dir.path().join("predicted.bt");
+    let map = octomap_fixture("few_voxels.bt");
+    let mut peer = Peer::start(
+        domain,
+        &predicted_out,
+        std::slice::from_ref(&map),
+        &[
+            "--topic",
+            "/robot1/maps_in",
+            "--node",
+            "/robot1/mapper",
+            "--clock",
+            &clock_sec.to_string(),
+        ],
+    );
+    assert_eq!(
+        peer.next_event(Duration::from_secs(30))["event"],
+        "published"
+    );
+    let mut options = NodeOptions::new(domain);
+    options.network = Network::Loopback;
+    options.use_sim_time = ros.parameter("use_sim_time").is_some_and(|v| v.bool_value);
+    for (name, value) in &ros.parameters {
+        options.parameters.set(name, value.clone(), "");
+    }
+    options.names = ros;
+    let node = Node::new(&options).expect("the node joins the domain on loopback");
+    assert_eq!(node.names().node, "/robot1/mapper");
+    assert_eq!(node.names().topic, "/robot1/maps_in");
+    assert_eq!(node.names().predicted, "/robot1/mapper/predicted");
+
+    // The map arrives on the remapped topic in the namespace.
+    struct Count(Vec<ReceivedMap>);
+    impl MapSink for Count {
+        fn receive(
+            &mut self,
+            map: ReceivedMap,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.0.push(map);
+            Ok(())
+        }
+    }
+    let mut got = Count(Vec::new());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while got.0.is_empty() && Instant::now() < deadline {
+        node.receive_into(&mut got, Duration::from_millis(100))
+            .expect("receive");
+    }
+    assert_eq!(got.0.len(), 1, "the map on /robot1/maps_in");
+    assert_eq!(
+        got.0[0].stamp,
+        Timestamp(1_700_000_000 * 1_000_000_000),
+        "the peer's map"
+    );
+
+    // "Now" is /clock's time, not the system's; the predicted map is at now + horizon.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut now = node.now();
+    while now.is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+        now = node.now();
+    }
+    assert_eq!(now, Some(Timestamp(clock_sec * 1_000_000_000)), "/clock");
+    let horizon = froctomap_convert::parse_duration(
+        &node
+            .parameters()
+            .get("horizon")
+            .expect("the horizon parameter")
+            .as_text(),
+    )
+    .expect("a duration");
+    let t = Timestamp(clock_sec * 1_000_000_000 + horizon);
+    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
+    let mut predicted = PredictedPublisher::new(&froct, "map");
+    assert!(predicted.publish_if_changed(&node, t).expect("publish"));
+    let event = peer.next_event(Duration::from_secs(60));
+    assert_eq!(event["event"], "predicted", "{event}");
+    assert_eq!(
+        event["stamp"],
+        clock_sec + 3600,
+        "the predicted map is at /clock's now + 1 h"
+    );
+
+    // The parameters, through rcl_interfaces/srv/GetParameters and ListParameters.
+    let mut services = FileServices::new(&froct, "map");
+    peer.command(&serde_json::json!({"call": "list_parameters"}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    assert_eq!(
+        event["names"],
+        serde_json::json!(["horizon", "use_sim_time"]),
+        "{event}"
+    );
+    peer.command(&serde_json::json!({"call": "get_parameters",
+        "names": ["horizon", "use_sim_time", "no_such_parameter"]}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let values = event["values"].as_array().expect("values");
+    assert_eq!(values.len(), 3, "{event}");
+    assert_eq!(
+        (&values[0]["type"], &values[0]["string"]),
+        (&serde_json::json!(4), &serde_json::json!("1h"))
+    );
+    assert_eq!(
+        (&values[1]["type"], &values[1]["bool"]),
+        (&serde_json::json!(1), &serde_json::json!(true))
+    );
+    assert_eq!(values[2]["type"], 0, "NOT_SET");
+
+    // The node's entry in the ROS graph (what `ros2 node list` and `ros2 param` look it up
+    // in): its namespace and name, its participant's GUID as Cyclone discovered it, and the
+    // predicted map's writer among its writers.
+    peer.command(&serde_json::json!({"call": "graph"}));
+    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let entries = event["entries"].as_array().expect("entries");
+    assert_eq!(entries.len(), 1, "{event}");
+    let entry = &entries[0];
+    assert_eq!(entry["nodes"].as_array().map(Vec::len), Some(1), "{event}");
+    let info = &entry["nodes"][0];
+    assert_eq!(
+        (&info["namespace"], &info["name"]),
+        (&serde_json::json!("/robot1"), &serde_json::json!("mapper"))
+    );
+    let participants = event["participants"].as_array().expect("participants");
+    assert!(participants.contains(&entry["gid"]), "{event}");
+    let predicted_writer = event["publications"]
+        .as_object()
+        .expect("publications")
+        .iter()
+        .find(|(_, topic)| *topic == "rt/robot1/mapper/predicted")
+        .map(|(guid, _)| serde_json::json!(guid))
+        .expect("Cyclone discovered the predicted map's writer");
+    let writers = info["writers"].as_array().expect("writers");
+    assert!(writers.contains(&predicted_writer), "{event}");
+    assert_eq!(
+        writers.len(),
+        10,
+        "predicted, dynamic, 8 service replies: {event}"
+    );
+    assert_eq!(
+        info["readers"].as_array().map(Vec::len),
+        Some(10),
+        "maps, /clock, 8 service requests: {event}"
     );
 }

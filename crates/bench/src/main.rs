@@ -29,6 +29,7 @@ mod greg_door;
 mod plots;
 mod recording;
 mod report;
+mod ros2_live;
 mod run;
 mod series_args;
 mod size;
@@ -99,6 +100,13 @@ enum Command {
     ///
     /// Example: froctomap-bench append-cost --series /work/data/office --work target/append-cost
     AppendCost(append_cost::AppendCostArgs),
+    /// The ROS 2 node (`froctomap ros2`, built with the `ros2` feature) fed by the Cyclone
+    /// DDS peer on loopback: maps/s received and committed, publish-to-commit latency,
+    /// get_octomap_at round trips and the predicted map's publication, against `froctomap
+    /// retrieve`/`predict` in the same run.
+    ///
+    /// Example: froctomap-bench ros2 --series target/bench-data/ci/train --maps 60 --out target/ros2-bench
+    Ros2(ros2_live::Ros2BenchArgs),
     /// Build one file and print the report with this process's peak memory as JSON.
     #[command(hide = true)]
     BuildChild(child_build::BuildChildArgs),
@@ -114,6 +122,7 @@ fn main() -> ExitCode {
         Command::Floor(args) => floor::floor_command(&args),
         Command::GregDoor(args) => greg_door::greg_door_command(&args),
         Command::AppendCost(args) => append_cost::append_cost(&args),
+        Command::Ros2(args) => ros2_live::ros2_bench(&args),
         Command::BuildChild(args) => {
             purge_freed_memory_at_once();
             child_build::build_child(&args)

@@ -87,16 +87,21 @@ struct Timed {
     file_bytes: u64,
 }
 
-/// Packs `--series` into one MCAP and times `froctomap build` of both, checking that they
-/// write the same bytes; prints a markdown table.
-pub fn mcap_row(args: &McapRowArgs) -> Result<()> {
-    let froctomap = match &args.froctomap {
-        Some(path) => path.clone(),
+/// The `froctomap` binary given, else the one beside this program.
+pub fn froctomap_binary(given: Option<&std::path::Path>) -> Result<std::path::PathBuf> {
+    Ok(match given {
+        Some(path) => path.to_path_buf(),
         None => std::env::current_exe()?
             .parent()
             .context("this program's directory")?
             .join("froctomap"),
-    };
+    })
+}
+
+/// Packs `--series` into one MCAP and times `froctomap build` of both, checking that they
+/// write the same bytes; prints a markdown table.
+pub fn mcap_row(args: &McapRowArgs) -> Result<()> {
+    let froctomap = froctomap_binary(args.froctomap.as_deref())?;
     let manifest = args.series.join("manifest.csv");
     let inputs = collect_inputs(
         &froctomap_convert::Context::with_default_plugins(),

@@ -5,21 +5,22 @@
 use crate::ui::Ui;
 use anyhow::Context as _;
 use froctomap_convert::{
-    group_thousands, parse_duration, AppendOptions, CommitEvery, Context, FroctFile, Opened,
-    RecordEvent, RecordOptions, Recorder, SeriesRead,
+    group_thousands, parse_duration, CommitEvery, Context, FroctFile, Opened, RecordEvent,
+    RecordOptions, Recorder, SeriesRead,
 };
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
-    domain_id_from_env, FileServices, MapSink, Network, Node, NodeOptions, PredictedPublisher,
-    ReceivedMap, RecordingSink, ServiceMapping, TimeSource,
+    domain_id_from_env, parameter_type, FileServices, GraphLayout, MapSink, Network, Node,
+    NodeOptions, ParameterValue, Parameters, PredictedPublisher, ReceivedMap, RecordingSink,
+    RosArgs, ServiceMapping, TimeSource,
 };
 use std::net::IpAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 /// Arguments of `froctomap ros2`.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct Ros2Args {
     /// The FROctomap file (the living map): the maps received are appended to it (it is
     /// created from the first ones if missing), its predicted map is published on
@@ -31,7 +32,8 @@ pub struct Ros2Args {
     /// Take at most one map per DURATION (a fast publisher thinned); 0: every map.
     #[arg(long, value_name = "DURATION", default_value = "0")]
     min_interval: String,
-    /// The time a map is recorded at: its `header` stamp, or the `receive` time.
+    /// The time a map is recorded at: its `header` stamp, or the `receive` time (the
+    /// system clock, or /clock's with use_sim_time).
     #[arg(long, value_name = "header|receive", default_value = "header")]
     time_source: TimeSource,
     /// Receive and serve only: do not append the maps received to FILE.
@@ -50,9 +52,11 @@ pub struct Ros2Args {
     /// addresses separated by commas.
     #[arg(long, value_name = "lo|all|ADDR,...", default_value = "lo")]
     network: String,
-    /// The frame of the published maps.
-    #[arg(long, default_value = "map")]
-    frame_id: String,
+    /// The frame of the maps: received maps in another frame are refused, and the maps
+    /// published and served are in it. Default: the first map received fixes it (`map`
+    /// until one arrives).
+    #[arg(long)]
+    frame_id: Option<String>,
     /// How service requests and replies are framed: `cyclone` (rmw_cyclonedds), `enhanced`
     /// (DDS-RPC enhanced: rmw_fastrtps, rmw_connextdds) or `basic` (DDS-RPC basic).
     #[arg(long, value_name = "cyclone|enhanced|basic", default_value = "cyclone")]
@@ -62,6 +66,135 @@ pub struct Ros2Args {
     /// once DDS has reassembled the message.
     #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
     max_message_bytes: usize,
+    /// The ROS 2 distribution of the peers, for the node's graph entry (`ros2 node list`,
+    /// `ros2 param`): `jazzy` (Iron and later) or `humble` (Humble and before).
+    #[arg(long, value_name = "DISTRO", default_value = "jazzy")]
+    ros_distro: GraphLayout,
+    /// ROS arguments, last on the line: `--ros-args -r from:=to` (topic and service
+    /// remapping), `-r __ns:=/robot1`, `-r __node:=name`, `-p name:=value` (a parameter:
+    /// the options above by their names with `_`, and `use_sim_time`).
+    #[arg(long = "ros-args", num_args = 0.., allow_hyphen_values = true, value_name = "ARGS")]
+    ros_args: Option<Vec<String>>,
+}
+
+/// The options `-p name:=value` sets, by their parameter names.
+const PARAMETERS: [&str; 12] = [
+    "commit_every",
+    "frame_id",
+    "horizon",
+    "max_message_bytes",
+    "min_interval",
+    "network",
+    "publish_every",
+    "record",
+    "service_mapping",
+    "time_source",
+    "topic",
+    "use_sim_time",
+];
+
+/// `args` with the `-p` parameters of `ros` applied; whether `use_sim_time` is on.
+fn with_parameters(args: &Ros2Args, ros: &RosArgs) -> anyhow::Result<(Ros2Args, bool)> {
+    let mut args = args.clone();
+    let mut use_sim_time = false;
+    for (name, value) in &ros.parameters {
+        let text = value.as_text();
+        let bad = |e: String| anyhow::anyhow!("-p {name}:={text}: {e}");
+        let boolean = || {
+            (value.r#type == parameter_type::BOOL)
+                .then_some(value.bool_value)
+                .ok_or_else(|| bad("true or false".into()))
+        };
+        match name.as_str() {
+            "commit_every" => {
+                args.commit_every = crate::record::commit_every(&text).map_err(bad)?
+            }
+            "frame_id" => args.frame_id = Some(text),
+            "horizon" => args.horizon = text,
+            "max_message_bytes" => args.max_message_bytes = message_bytes(&text).map_err(bad)?,
+            "min_interval" => args.min_interval = text,
+            "network" => args.network = text,
+            "publish_every" => args.publish_every = text,
+            "record" => args.no_record = !boolean()?,
+            "service_mapping" => args.service_mapping = text.parse().map_err(bad)?,
+            "time_source" => args.time_source = text.parse().map_err(bad)?,
+            "topic" => args.topic = text,
+            "use_sim_time" => use_sim_time = boolean()?,
+            _ => anyhow::bail!(
+                "-p {name}:=…: froctomap has no parameter `{name}` ({})",
+                PARAMETERS.join(", ")
+            ),
+        }
+    }
+    Ok((args, use_sim_time))
+}
+
+/// The parameters the node serves: every option's value as the node runs with it
+/// (`use_sim_time` is the node's own).
+fn parameters(args: &Ros2Args) -> Parameters {
+    let mut parameters = Parameters::default();
+    let text = |s: &str| ParameterValue::string(s);
+    let commit_every = match args.commit_every {
+        CommitEvery::Maps(maps) => maps.to_string(),
+        every => format!("{every:?}"),
+    };
+    for (name, value, description) in [
+        ("file", text(&args.file.to_string_lossy()), "the living map"),
+        (
+            "topic",
+            text(&args.topic),
+            "the maps received (before resolution)",
+        ),
+        (
+            "commit_every",
+            text(&commit_every),
+            "a commit every N maps or DURATION",
+        ),
+        (
+            "min_interval",
+            text(&args.min_interval),
+            "at most one map per DURATION",
+        ),
+        (
+            "time_source",
+            text(&format!("{:?}", args.time_source).to_lowercase()),
+            "header or receive",
+        ),
+        (
+            "record",
+            ParameterValue::bool(!args.no_record),
+            "whether maps are recorded",
+        ),
+        (
+            "publish_every",
+            text(&args.publish_every),
+            "how often the predicted map is computed",
+        ),
+        (
+            "horizon",
+            text(&args.horizon),
+            "the predicted map is at now + horizon",
+        ),
+        (
+            "frame_id",
+            text(args.frame_id.as_deref().unwrap_or("")),
+            "the maps' frame (empty: the first map's)",
+        ),
+        (
+            "service_mapping",
+            text(&format!("{:?}", args.service_mapping).to_lowercase()),
+            "the request/reply framing",
+        ),
+        ("network", text(&args.network), "the interfaces"),
+        (
+            "max_message_bytes",
+            ParameterValue::integer(i64::try_from(args.max_message_bytes).unwrap_or(i64::MAX)),
+            "larger messages are refused",
+        ),
+    ] {
+        parameters.set(name, value, description);
+    }
+    parameters
 }
 
 /// `--max-message-bytes`: a byte size (`64MiB`), at least 1 byte.
@@ -170,6 +303,9 @@ fn network(text: &str) -> anyhow::Result<Network> {
 
 /// Runs the node until interrupted.
 pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
+    let ros = RosArgs::parse(args.ros_args.as_deref().unwrap_or_default())?;
+    let (args, use_sim_time) = with_parameters(args, &ros)?;
+    let args = &args;
     let every = parse_duration(&args.publish_every).context("--publish-every")?;
     anyhow::ensure!(every > 0, "--publish-every must be positive");
     let horizon = duration_or_zero(&args.horizon, "--horizon")?;
@@ -185,20 +321,30 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     options.network = network(&args.network)?;
     options.service_mapping = args.service_mapping;
     options.max_message_bytes = args.max_message_bytes;
+    options.frame_id = args.frame_id.clone();
+    options.parameters = parameters(args); // The node adds use_sim_time.
+    options.use_sim_time = use_sim_time;
+    options.graph = args.ros_distro;
+    options.names = ros;
     let node = Node::new(&options)?;
+    let names = node.names();
     eprintln!(
-        "froctomap node on ROS domain {}: receiving {}, publishing {} from {} every {}, serving {} and {} ({:?} mapping)",
+        "froctomap node {} on ROS domain {}: receiving {}, publishing {} and {} from {} every {}{}, serving {} and {} ({:?} mapping)",
+        names.node,
         node.domain_id(),
-        args.topic,
-        froctomap_ros2_node::PREDICTED_TOPIC,
+        names.topic,
+        names.predicted,
+        names.dynamic,
         args.file.display(),
         args.publish_every,
-        froctomap_ros2_node::GET_OCTOMAP_AT_SERVICE,
-        froctomap_ros2_node::PROBABILITY_AT_SERVICE,
+        if use_sim_time { " of /clock's time" } else { "" },
+        names.get_octomap_at,
+        names.probability_at,
         args.service_mapping
     );
-    let mut predicted = PredictedPublisher::new(&args.file, &args.frame_id);
-    let mut services = FileServices::new(&args.file, &args.frame_id);
+    let mut frame_id = args.frame_id.clone().unwrap_or_else(|| "map".to_string());
+    let mut predicted = PredictedPublisher::new(&args.file, &frame_id);
+    let mut services = FileServices::new(&args.file, &frame_id);
     let context = Context::with_default_plugins();
     let mut recording = if args.no_record {
         None
@@ -207,21 +353,22 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     };
     let period = Duration::from_nanos(every.unsigned_abs());
     while !STOP.load(Ordering::SeqCst) {
-        let now = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .context("the clock is before 1970")?;
-        let now = i64::try_from(now.as_nanos()).context("the clock is past 2262")?;
-        let t = Timestamp(now.saturating_add(horizon));
+        // With use_sim_time, "now" is unknown until /clock says it.
+        let t = node
+            .now()
+            .map(|now| Timestamp(now.0.saturating_add(horizon)));
         // Until the first commit creates it, there is no map to predict.
-        let published = if args.file.exists() {
-            predicted.publish_if_changed(&node, t)
-        } else {
-            Ok(false)
+        let started = Instant::now();
+        let published = match t {
+            Some(t) if args.file.exists() => predicted.publish_if_changed(&node, t),
+            _ => Ok(false),
         };
         match published {
+            // What a publication costs (predicting, encoding the map and its markers).
             Ok(true) => eprintln!(
-                "published the map predicted for {}",
-                froctomap_core::calendar::iso8601(t)
+                "published the map predicted for {} ({} ms)",
+                t.map(froctomap_core::calendar::iso8601).unwrap_or_default(),
+                started.elapsed().as_millis()
             ),
             Ok(false) => {}
             Err(e) => eprintln!("warning: {e}"),
@@ -241,6 +388,12 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 None => {
                     node.receive_into(&mut LogReceived, wait)?;
                 }
+            }
+            if let Some(fixed) = node.frame_id().filter(|fixed| *fixed != frame_id) {
+                eprintln!("the maps are in frame `{fixed}`: maps in other frames are refused, the maps published and served are in it");
+                predicted.set_frame_id(&fixed);
+                services.set_frame_id(&fixed);
+                frame_id = fixed;
             }
             node.serve_requests(&mut services);
         }
@@ -266,20 +419,11 @@ fn open_recording<'a>(
     args: &Ros2Args,
     min_interval: Duration,
 ) -> anyhow::Result<RecordingSink<'a>> {
-    let options = RecordOptions {
-        commit_every: args.commit_every,
-        append: AppendOptions {
-            // A bad map over the wire is left out (and said), never the end of the node.
-            skip_bad: true,
-            allow_mostly_skipped: true,
-            ..AppendOptions::default()
-        },
-        spool_dir: None,
-        // Not automatic here yet: a compaction blocks the map intake for as long as a build
-        // of the whole history takes, while the DDS reader keeps only the last 16 maps.
-        // `froctomap compact FILE` with the node stopped does it (docs/ROS.md).
-        compact: false,
-    };
+    // A bad map over the wire is left out (and said), never the end of the node; no
+    // automatic compaction: it blocks the map intake for as long as a build of the whole
+    // history takes, while the DDS reader keeps only the last 16 maps. `froctomap compact
+    // FILE` with the node stopped does it (docs/ROS.md).
+    let options = RecordOptions::for_live_source(args.commit_every);
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
         Opened::Missing => eprintln!(

@@ -72,6 +72,12 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     let mut peer = Command::new(octomap_python())
         .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
         .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .args([
+            "--topic",
+            "/robot1/octomap_binary",
+            "--node",
+            "/robot1/froctomap",
+        ])
         .arg("--predicted-out")
         .arg(dir.path().join("unused.bt"))
         .args(&maps[..2])
@@ -85,15 +91,20 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     wait_for(&events, |l| l.contains("\"published\""));
 
     let living = dir.path().join("living.froct");
-    // Two maps a commit: the third one is still gathered when SIGTERM comes.
+    // Two maps a commit (a ROS parameter here): the third one is still gathered when
+    // SIGTERM comes. In the namespace /robot1: the maps on /robot1/octomap_binary, the
+    // services under /robot1/froctomap.
     let mut node = Command::new(env!("CARGO_BIN_EXE_froctomap"))
         .args([
             "ros2",
             s(&living),
-            "--commit-every",
-            "2",
             "--publish-every",
             "1s",
+            "--ros-args",
+            "-r",
+            "__ns:=/robot1",
+            "-p",
+            "commit_every:=2",
         ])
         .env("ROS_DOMAIN_ID", domain.to_string())
         .stdout(Stdio::piped())
@@ -129,12 +140,35 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     };
     assert_eq!(data(&got), data(&maps[0]));
 
+    // Its parameters, read as `ros2 param get` reads them (rcl_interfaces GetParameters).
+    writeln!(
+        stdin,
+        "{}",
+        serde_json::json!({"call": "get_parameters", "names": ["commit_every", "use_sim_time", "file"]})
+    )
+    .expect("call");
+    let reply = wait_for(&events, |l| l.contains("get_parameters"));
+    let reply: serde_json::Value = serde_json::from_str(&reply).expect("JSON");
+    assert_eq!(reply["values"][0]["string"], "2", "{reply}");
+    assert_eq!(
+        (&reply["values"][1]["type"], &reply["values"][1]["bool"]),
+        (&serde_json::json!(1), &serde_json::json!(false)),
+        "{reply}"
+    );
+    assert_eq!(reply["values"][2]["string"], s(&living), "{reply}");
+
     // A second client, while the first one's reply reader stays matched: its reply waits for
     // its own reply reader (a reply written before that is lost to it). Its latched map is
     // not later than the last one taken: skipped.
     let mut second = Command::new(octomap_python())
         .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
         .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .args([
+            "--topic",
+            "/robot1/octomap_binary",
+            "--node",
+            "/robot1/froctomap",
+        ])
         .arg("--predicted-out")
         .arg(dir.path().join("unused2.bt"))
         .arg(&maps[0])
@@ -201,5 +235,24 @@ fn the_message_size_limit_is_an_option_of_at_least_one_byte() {
     assert!(refused.contains("at least 1 byte"), "{refused}");
     let refused = common::fails(&["ros2", s(&living), "--max-message-bytes", "lots"]);
     assert!(refused.contains("--max-message-bytes"), "{refused}");
+    assert!(!living.exists());
+}
+
+#[test]
+fn bad_ros_args_are_refused_by_name() {
+    let dir = scratch();
+    let living = dir.path().join("living.froct");
+    for (args, said) in [
+        (&["-p", "no_such:=1"][..], "no parameter `no_such`"),
+        (&["-p", "use_sim_time:=maybe"], "true or false"),
+        (&["-p", "commit_every:=0"], "commit_every"),
+        (&["-r", "__ns:=robot1"], "absolute"),
+        (&["--log-level", "debug"], "--log-level"),
+    ] {
+        let mut line = vec!["ros2", s(&living), "--ros-args"];
+        line.extend_from_slice(args);
+        let refused = common::fails(&line);
+        assert!(refused.contains(said), "{args:?}: {refused}");
+    }
     assert!(!living.exists());
 }

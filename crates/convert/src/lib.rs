@@ -115,6 +115,7 @@ pub use record::{
     Recorder,
 };
 pub use recording::RecordedMap;
+pub use recording_export::occupied_cells_at;
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
 pub use text::group_thousands;
 pub use time::{

@@ -64,6 +64,31 @@ pub struct RecordOptions {
     pub compact: bool,
 }
 
+impl RecordOptions {
+    /// The options of a live source (a ROS 2 subscription): commits every `commit_every`,
+    /// a bad map is left out and said, never the end of the recording (`skip_bad`, however
+    /// many are skipped), the spool beside the file and no automatic compaction (it would
+    /// stall the intake for as long as a build of the whole history).
+    ///
+    /// ```
+    /// use froctomap_convert::{CommitEvery, RecordOptions};
+    /// let options = RecordOptions::for_live_source(CommitEvery::Maps(2));
+    /// assert!(options.append.skip_bad && !options.compact);
+    /// ```
+    pub fn for_live_source(commit_every: CommitEvery) -> Self {
+        Self {
+            commit_every,
+            append: AppendOptions {
+                skip_bad: true,
+                allow_mostly_skipped: true,
+                ..AppendOptions::default()
+            },
+            spool_dir: None,
+            compact: false,
+        }
+    }
+}
+
 /// What the file was when the recorder opened it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]

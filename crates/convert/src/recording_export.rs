@@ -58,10 +58,7 @@ pub(crate) fn export_recording(
             ),
             None => (predicted_bt(reader, time)?, ExportedKind::Predicted),
         };
-        let occupied = match reader.whole_body() {
-            Some(whole) => occupied_cells(whole, kind, time)?,
-            None => occupied_states(reader, kind, time)?,
-        };
+        let occupied = occupied_cells_at(reader, kind, time)?;
         let map = ExportedMap::new(time, kind, reader.header().resolution, &bt, &occupied);
         writer.write_map(&map).map_err(|e| failed(Some(time), e))?;
         progress.advance(1);
@@ -79,6 +76,22 @@ pub(crate) fn export_recording(
         manifest: None,
         bytes,
     })
+}
+
+/// The occupied cells of the map of `kind` at `time`, in Morton order, with their shades
+/// (what an export into a recording draws): a retrieved cell occupied in its observed state
+/// at the sample, [`CellShade::Dynamic`] when its state changes over the span (known for a
+/// file without segments; a living file's are [`CellShade::Static`] until compacted), a
+/// predicted one where `p(t) > 0.5`, with `p`.
+pub fn occupied_cells_at(
+    reader: &dyn SeriesRead,
+    kind: ExportedKind,
+    time: Timestamp,
+) -> Result<Vec<OccupiedCell>, ConvertError> {
+    match reader.whole_body() {
+        Some(whole) => occupied_cells(whole, kind, time),
+        None => occupied_states(reader, kind, time),
+    }
 }
 
 /// The occupied cells of a map of a 2.0 file with segments, whose cells' histories are not in

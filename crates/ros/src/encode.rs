@@ -150,45 +150,58 @@ pub fn encode_point_cloud2_cdr(
 
 /// Whether a string or sequence of `len` bytes is too long for a CDR length (a `u32`
 /// that, for strings, also counts the terminating NUL).
-fn too_long(len: usize) -> bool {
+pub(crate) fn too_long(len: usize) -> bool {
     u32::try_from(len.saturating_add(1)).is_err()
 }
 
 /// Little-endian CDR: a 4-byte encapsulation header, then each primitive aligned to its size
 /// counted from the end of that header.
-struct CdrWriter {
-    bytes: Vec<u8>,
+pub(crate) struct CdrWriter {
+    pub(crate) bytes: Vec<u8>,
 }
 
 impl CdrWriter {
     const ORIGIN: usize = 4;
 
-    fn with_capacity(capacity: usize) -> Self {
+    pub(crate) fn with_capacity(capacity: usize) -> Self {
         let mut bytes = Vec::with_capacity(capacity);
         bytes.extend_from_slice(&[0x00, 0x01, 0x00, 0x00]);
         Self { bytes }
     }
 
-    fn align(&mut self, to: usize) {
+    pub(crate) fn align(&mut self, to: usize) {
         while (self.bytes.len() - Self::ORIGIN) % to != 0 {
             self.bytes.push(0);
         }
     }
 
-    fn u32(&mut self, value: u32) {
+    pub(crate) fn u32(&mut self, value: u32) {
         self.align(4);
         self.bytes.extend_from_slice(&value.to_le_bytes());
     }
 
+    pub(crate) fn i32(&mut self, value: i32) {
+        self.u32(value as u32);
+    }
+
+    pub(crate) fn f32(&mut self, value: f32) {
+        self.u32(value.to_bits());
+    }
+
+    pub(crate) fn f64(&mut self, value: f64) {
+        self.align(8);
+        self.bytes.extend_from_slice(&value.to_le_bytes());
+    }
+
     /// A `std_msgs/Header`: the stamp's `sec` and `nanosec`, then `frame_id`.
-    fn header(&mut self, stamp: (i32, u32), frame_id: &str) {
+    pub(crate) fn header(&mut self, stamp: (i32, u32), frame_id: &str) {
         self.u32(stamp.0 as u32);
         self.u32(stamp.1);
         self.string(frame_id);
     }
 
     /// A string: its length counting a terminating NUL, the bytes, the NUL.
-    fn string(&mut self, text: &str) {
+    pub(crate) fn string(&mut self, text: &str) {
         self.u32((text.len() + 1) as u32); // Checked by the caller.
         self.bytes.extend_from_slice(text.as_bytes());
         self.bytes.push(0);

@@ -166,7 +166,7 @@ pub(crate) fn point_cloud2(
 }
 
 /// A cell's colour and value.
-fn shade(shade: CellShade) -> ([u8; 4], f32) {
+pub(crate) fn shade(shade: CellShade) -> ([u8; 4], f32) {
     match shade {
         CellShade::Probability(p) => (ramp(p), p),
         CellShade::Dynamic => ([230, 85, 13, 255], 1.0),

@@ -33,12 +33,14 @@ mod encode;
 mod error;
 mod foxglove;
 mod io;
+mod markers;
 mod mcap_export;
 mod mcap_file;
 mod mcap_lengths;
 mod message;
 mod source;
 mod stream;
+mod topics;
 
 pub use encode::{
     encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, OCTOMAP_ROS2MSG, OCTOMAP_TYPE,
@@ -46,11 +48,16 @@ pub use encode::{
 };
 pub use error::{McapWriteError, MessageError, RosError};
 pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
-pub use mcap_export::{
-    McapMapStream, FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC,
+pub use markers::{
+    encode_occupied_marker_array_cdr, CUBE_LIST, MARKER_ARRAY_TYPE, MARKER_DELETE, MARKER_NAMESPACE,
 };
+pub use mcap_export::McapMapStream;
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 pub use stream::{McapStreamMaps, StreamedMap};
+pub use topics::{
+    CLOCK_TOPIC, DYNAMIC_TOPIC, FRAME_ID, GET_OCTOMAP_AT_SERVICE, OCTOMAP_TOPIC,
+    POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC, PREDICTED_TOPIC, PROBABILITY_AT_SERVICE,
+};
 
 use froctomap_formats::{
     Confidence, DuplicateName, FormatRegistry, Recording, RecordingFormat, RecordingOptions,

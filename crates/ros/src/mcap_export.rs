@@ -12,6 +12,7 @@ use crate::encode::{
 };
 use crate::error::McapWriteError;
 use crate::foxglove::{point_cloud, point_cloud2, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+use crate::topics::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_formats::{ExportedMap, PluginError as Cause, RecordingSink, RecordingWriter};
@@ -19,15 +20,6 @@ use froctomap_octomap_codec::{parse_header, FileKind};
 use mcap::records::MessageHeader;
 use std::collections::BTreeMap;
 use std::io::Write;
-
-/// The topic of the exported maps (as `octomap_server` names its binary map topic).
-pub const OCTOMAP_TOPIC: &str = "/octomap_binary";
-/// The topic of the exported maps' occupied voxels.
-pub const POINT_CLOUD_TOPIC: &str = "/froctomap/occupied_voxels";
-/// The topic of the exported maps' occupied voxels as `sensor_msgs/msg/PointCloud2`.
-pub const POINT_CLOUD2_TOPIC: &str = "/froctomap/occupied_voxels_pc2";
-/// The frame every message is in.
-pub const FRAME_ID: &str = "map";
 
 /// An MCAP file being written.
 struct McapMapWriter {

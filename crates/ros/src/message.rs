@@ -68,6 +68,8 @@ impl MessageType {
 pub struct OctomapMessage<'a> {
     /// The header stamp, nanoseconds since the Unix epoch (0 when the publisher left it unset).
     pub stamp_ns: i64,
+    /// The header's `frame_id` (of the outer header for `OctomapWithPose`).
+    pub frame_id: &'a str,
     /// `true`: `data` is a `.bt` body; `false`: an `.ot` body.
     pub binary: bool,
     /// The tree type (`OcTree`, `ColorOcTree`…).
@@ -86,7 +88,7 @@ pub fn decode_stamp(
 ) -> Result<i64, MessageError> {
     let _ = kind; // Both types start with the header.
     let mut reader = Reader::new(bytes, encoding)?;
-    reader.header()
+    reader.header().map(|(stamp, _)| stamp)
 }
 
 /// Decodes a whole message.
@@ -107,7 +109,7 @@ pub fn decode_stamp(
 /// bytes.extend_from_slice(&2u32.to_le_bytes());
 /// bytes.extend_from_slice(&[0x09, 0x00]);
 /// let message = decode_message(&bytes, Encoding::Ros1, MessageType::Octomap)?;
-/// assert_eq!(message.stamp_ns, 1_700_000_000_000_000_005);
+/// assert_eq!((message.stamp_ns, message.frame_id), (1_700_000_000_000_000_005, "map"));
 /// assert_eq!((message.binary, message.id, message.resolution, message.data), (true, "OcTree", 0.1, &[0x09, 0x00][..]));
 /// # Ok::<(), froctomap_ros::MessageError>(())
 /// ```
@@ -117,7 +119,7 @@ pub fn decode_message(
     kind: MessageType,
 ) -> Result<OctomapMessage<'_>, MessageError> {
     let mut reader = Reader::new(bytes, encoding)?;
-    let stamp_ns = reader.header()?;
+    let (stamp_ns, frame_id) = reader.header()?;
     if kind == MessageType::OctomapWithPose {
         // geometry_msgs/Pose: position (x, y, z) and orientation (x, y, z, w).
         for _ in 0..7 {
@@ -132,6 +134,7 @@ pub fn decode_message(
     let data = reader.sequence("data")?;
     Ok(OctomapMessage {
         stamp_ns,
+        frame_id,
         binary,
         id,
         resolution,
@@ -282,8 +285,8 @@ impl<'a> Reader<'a> {
         std::str::from_utf8(text).map_err(|_| MessageError::BadString { field })
     }
 
-    /// A `std_msgs/Header`: its stamp in nanoseconds.
-    fn header(&mut self) -> Result<i64, MessageError> {
+    /// A `std_msgs/Header`: its stamp in nanoseconds and its frame.
+    fn header(&mut self) -> Result<(i64, &'a str), MessageError> {
         let (secs, nanos) = match self.encoding {
             Encoding::Ros1 => {
                 self.u32("header.seq")?;
@@ -296,9 +299,9 @@ impl<'a> Reader<'a> {
                 (secs, self.u32("header.stamp")?)
             }
         };
-        self.string("header.frame_id")?;
+        let frame_id = self.string("header.frame_id")?;
         // Cannot overflow: |secs| < 2^32 and nanos < 2^32.
-        Ok(secs * 1_000_000_000 + i64::from(nanos))
+        Ok((secs * 1_000_000_000 + i64::from(nanos), frame_id))
     }
 }
 
@@ -371,6 +374,7 @@ mod tests {
         let file = b"# Octomap OcTree binary file\nid OcTree\nsize 3\nres 0.1\ndata\n\x09\x00";
         let message = OctomapMessage {
             stamp_ns: 0,
+            frame_id: "map",
             binary: true,
             id: "OcTree",
             resolution: 0.1,

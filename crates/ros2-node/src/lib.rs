@@ -34,8 +34,17 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+mod names;
+mod params;
 mod recording;
 mod services;
+
+pub use names::RosArgs;
+pub use params::{
+    parameter_type, DescribeParametersResponse, GetParameterTypesResponse, GetParametersResponse,
+    ListParametersRequest, ListParametersResponse, NamesRequest, Parameter, ParameterDescriptor,
+    ParameterValue, Parameters, SetParametersRequest, SetParametersResponse, SetParametersResult,
+};
 
 pub use recording::{CommitFailed, RecordingSink, TimeSource};
 
@@ -49,6 +58,7 @@ pub use services::{
 
 use froctomap_convert::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
+use froctomap_formats::{ExportedKind, OccupiedCell};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageError, MessageType};
 use rustdds::no_key::{
@@ -57,7 +67,7 @@ use rustdds::no_key::{
 use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{
     DataWriterStatus, DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
-    RepresentationIdentifier, StatusEvented, TopicKind,
+    RTPSEntity, RepresentationIdentifier, StatusEvented, TopicKind,
 };
 use services::{decode_request, encode_reply, RequestId};
 use std::convert::Infallible;
@@ -67,10 +77,50 @@ use std::time::{Duration, Instant};
 
 /// The node's default name.
 pub const NODE_NAME: &str = "froctomap";
-/// The topic subscribed by default (octomap_server's binary map).
-pub const DEFAULT_TOPIC: &str = "/octomap_binary";
-/// The topic the predicted map is published on (latched).
-pub const PREDICTED_TOPIC: &str = "/froctomap/predicted";
+/// The topic subscribed by default, relative (in the node's namespace), as octomap_server
+/// names its binary map topic: `/octomap_binary` without a namespace.
+pub const DEFAULT_TOPIC: &str = "octomap_binary";
+/// The node's own names before resolution: private names, `/froctomap/...` for the node
+/// `froctomap` without a namespace (the names of `froctomap_ros`, which the MCAP export
+/// uses too), `/robot1/froctomap/...` under `__ns:=/robot1`.
+const PREDICTED_NAME: &str = "~/predicted";
+const DYNAMIC_NAME: &str = "~/dynamic";
+const GET_OCTOMAP_AT_NAME: &str = "~/get_octomap_at";
+const PROBABILITY_AT_NAME: &str = "~/probability_at";
+/// The DDS type name every ROS 2 RMW gives `rosgraph_msgs/msg/Clock`.
+pub const CLOCK_DDS_TYPE: &str = "rosgraph_msgs::msg::dds_::Clock_";
+/// The parameter services every ROS 2 node offers, with their DDS type stems and request
+/// size bounds (names only: 1 MiB).
+const PARAMETER_SERVICES: [(&str, &str); 6] = [
+    (
+        "~/list_parameters",
+        "rcl_interfaces::srv::dds_::ListParameters",
+    ),
+    (
+        "~/get_parameters",
+        "rcl_interfaces::srv::dds_::GetParameters",
+    ),
+    (
+        "~/get_parameter_types",
+        "rcl_interfaces::srv::dds_::GetParameterTypes",
+    ),
+    (
+        "~/describe_parameters",
+        "rcl_interfaces::srv::dds_::DescribeParameters",
+    ),
+    (
+        "~/set_parameters",
+        "rcl_interfaces::srv::dds_::SetParameters",
+    ),
+    (
+        "~/set_parameters_atomically",
+        "rcl_interfaces::srv::dds_::SetParametersAtomically",
+    ),
+];
+const MAX_PARAMETER_REQUEST_BYTES: usize = 1 << 20;
+pub use froctomap_ros::{DYNAMIC_TOPIC, PREDICTED_TOPIC};
+/// The DDS type name every ROS 2 RMW gives `visualization_msgs/msg/MarkerArray`.
+pub const MARKER_ARRAY_DDS_TYPE: &str = "visualization_msgs::msg::dds_::MarkerArray_";
 /// The DDS type name every ROS 2 RMW gives `octomap_msgs/msg/Octomap`.
 pub const OCTOMAP_DDS_TYPE: &str = "octomap_msgs::msg::dds_::Octomap_";
 /// Received messages larger than this are refused by default (far below the file limits).
@@ -108,7 +158,58 @@ pub struct NodeOptions {
     pub max_message_bytes: usize,
     /// How service requests and replies are framed.
     pub service_mapping: ServiceMapping,
+    /// The frame every map received must be in; `None`: the first map received fixes it.
+    /// Maps in another frame are refused (logged and skipped): one file holds one frame.
+    pub frame_id: Option<String>,
+    /// The node's name, namespace and remapping rules (`--ros-args`); `topic` and the
+    /// node's own names are resolved through them.
+    pub names: RosArgs,
+    /// The parameters served (read-only); `use_sim_time` is added.
+    pub parameters: Parameters,
+    /// "Now" is the time `/clock` says ([`Node::now`]).
+    pub use_sim_time: bool,
+    /// The layout of the node's entry in the ROS graph (`ros_discovery_info`).
+    pub graph: GraphLayout,
 }
+
+/// How the ROS graph message (`rmw_dds_common/msg/ParticipantEntitiesInfo` on
+/// `ros_discovery_info`, what `ros2 node list` and `ros2 param` look nodes up in) lays out
+/// its `Gid`: its size changed between ROS 2 releases.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GraphLayout {
+    /// 16-byte `Gid` (Iron, Jazzy and later).
+    #[default]
+    Jazzy,
+    /// 24-byte `Gid` (Humble and before).
+    Humble,
+}
+
+impl std::str::FromStr for GraphLayout {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "jazzy" | "iron" | "kilted" | "rolling" => Ok(Self::Jazzy),
+            "humble" | "galactic" | "foxy" => Ok(Self::Humble),
+            _ => Err(format!(
+                "`{text}` is not a ROS 2 distribution (humble, iron, jazzy, kilted, rolling)"
+            )),
+        }
+    }
+}
+
+impl GraphLayout {
+    fn gid_bytes(self) -> usize {
+        match self {
+            Self::Jazzy => 16,
+            Self::Humble => 24,
+        }
+    }
+}
+
+/// The DDS topic (no `rt/` prefix: it is not a ROS topic) and type of the ROS graph.
+const GRAPH_TOPIC: &str = "ros_discovery_info";
+const GRAPH_DDS_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
 
 impl NodeOptions {
     /// The defaults in `domain_id`: [`DEFAULT_TOPIC`], loopback only, 256 MiB messages.
@@ -119,6 +220,11 @@ impl NodeOptions {
             network: Network::Loopback,
             max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
             service_mapping: ServiceMapping::default(),
+            frame_id: None,
+            names: RosArgs::default(),
+            parameters: Parameters::default(),
+            use_sim_time: false,
+            graph: GraphLayout::default(),
         }
     }
 }
@@ -159,6 +265,11 @@ pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
 pub struct ReceivedMap {
     /// The message's `header.stamp` (0: the publisher left it unset).
     pub stamp: Timestamp,
+    /// The message's `header.frame_id`.
+    pub frame_id: String,
+    /// When the node took it: [`Node::now`], the system clock or with `use_sim_time`
+    /// `/clock`'s time (`None` before `/clock` said one).
+    pub received: Option<Timestamp>,
     /// `true`: a `.bt` file (`binary` messages); `false`: an `.ot` file.
     pub binary: bool,
     /// The map file: the message's data behind the header OctoMap writes for it
@@ -189,6 +300,9 @@ pub enum NodeError {
     /// A topic name ROS would refuse.
     #[error("`{0}` is not a valid ROS topic name")]
     TopicName(String),
+    /// `--ros-args` that do not parse.
+    #[error("--ros-args: {0}")]
+    RosArgs(String),
     /// The DDS participant, topic, reader or writer could not be created.
     #[error("DDS setup failed: {0}")]
     Dds(String),
@@ -230,6 +344,14 @@ pub enum Refused {
     /// Not an `octomap_msgs/Octomap` holding a map.
     #[error(transparent)]
     Message(#[from] MessageError),
+    /// In another frame than the maps taken before (or than [`NodeOptions::frame_id`]).
+    #[error("the map is in frame `{got}`, not `{expected}` as the maps before it (one file holds one frame)")]
+    Frame {
+        /// The message's `header.frame_id`.
+        got: String,
+        /// The frame fixed.
+        expected: String,
+    },
 }
 
 /// A request taken, with the participant of the client that sent it.
@@ -252,7 +374,10 @@ fn participant(guid: rustdds::GUID) -> Participant {
 
 /// One service's request reader and reply writer.
 struct ServiceEndpoints {
-    name: &'static str,
+    /// The resolved service name.
+    name: String,
+    /// What its requests are (in errors).
+    kind: &'static str,
     requests: SimpleDataReader<Vec<u8>, RawCdr>,
     replies: DataWriter<Vec<u8>, RawCdr>,
     /// Larger requests are skipped before decoding.
@@ -268,7 +393,8 @@ impl ServiceEndpoints {
     /// ROS's default service QoS.
     fn new(
         participant: &DomainParticipant,
-        name: &'static str,
+        name: String,
+        kind: &'static str,
         type_stem: &str,
         max_request_bytes: usize,
     ) -> Result<Self, NodeError> {
@@ -280,7 +406,7 @@ impl ServiceEndpoints {
             .durability(Durability::Volatile)
             .history(History::KeepLast { depth: 10 })
             .build();
-        let stem = dds_topic_name(name)?;
+        let stem = dds_topic_name(&name)?;
         let stem = stem.strip_prefix("rt/").unwrap_or(&stem);
         let request_topic = participant
             .create_topic(
@@ -310,6 +436,7 @@ impl ServiceEndpoints {
             .map_err(dds)?;
         Ok(Self {
             name,
+            kind,
             requests,
             replies,
             max_request_bytes,
@@ -359,13 +486,23 @@ impl ServiceEndpoints {
 /// the services.
 pub struct Node {
     participant: DomainParticipant,
+    /// Keeps the node's graph entry published (latched) while the node lives.
+    _graph_writer: DataWriter<Vec<u8>, RawCdr>,
     reader: SimpleDataReader<Vec<u8>, RawCdr>,
     predicted: DataWriter<Vec<u8>, RawCdr>,
+    dynamic: DataWriter<Vec<u8>, RawCdr>,
     get_octomap_at: ServiceEndpoints,
     probability_at: ServiceEndpoints,
+    parameter_services: Vec<ServiceEndpoints>,
+    parameters: Parameters,
+    /// `/clock`'s reader with `use_sim_time`, and the last time it gave.
+    clock: Option<SimClock>,
+    names: ResolvedNames,
     service_mapping: ServiceMapping,
     topic: String,
     max_message_bytes: usize,
+    /// The frame of the maps taken: given, or fixed by the first map a sink took.
+    frame_id: std::cell::RefCell<Option<String>>,
 }
 
 impl Node {
@@ -373,7 +510,16 @@ impl Node {
     /// are received too) and offers [`PREDICTED_TOPIC`] (reliable, transient-local).
     pub fn new(options: &NodeOptions) -> Result<Self, NodeError> {
         let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
-        let topic_name = dds_topic_name(&options.topic)?;
+        let ros = &options.names;
+        let names = ResolvedNames {
+            node: ros.fully_qualified_node_name(),
+            topic: ros.resolve(&options.topic)?,
+            predicted: ros.resolve(PREDICTED_NAME)?,
+            dynamic: ros.resolve(DYNAMIC_NAME)?,
+            get_octomap_at: ros.resolve(GET_OCTOMAP_AT_NAME)?,
+            probability_at: ros.resolve(PROBABILITY_AT_NAME)?,
+            clock: ros.resolve(froctomap_ros::CLOCK_TOPIC)?,
+        };
         let mut builder = DomainParticipantBuilder::new(options.domain_id);
         match &options.network {
             Network::Loopback => {
@@ -386,59 +532,168 @@ impl Node {
         }
         let participant = builder.build().map_err(dds)?;
         let qos = latched_qos();
-        let topic = participant
-            .create_topic(
-                topic_name,
-                OCTOMAP_DDS_TYPE.to_string(),
-                &qos,
-                TopicKind::NoKey,
-            )
-            .map_err(dds)?;
-        let reader = participant
-            .create_subscriber(&qos)
-            .map_err(dds)?
-            .create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
-            .map_err(dds)?;
-        let predicted_topic = participant
-            .create_topic(
-                dds_topic_name(PREDICTED_TOPIC)?,
-                OCTOMAP_DDS_TYPE.to_string(),
-                &qos,
-                TopicKind::NoKey,
-            )
-            .map_err(dds)?;
-        let predicted = participant
-            .create_publisher(&qos)
-            .map_err(dds)?
-            .create_datawriter_no_key::<Vec<u8>, RawCdr>(&predicted_topic, Some(qos.clone()))
-            .map_err(dds)?;
+        let reader = raw_reader(&participant, &names.topic, OCTOMAP_DDS_TYPE, &qos)?;
+        let predicted = raw_writer(&participant, &names.predicted, OCTOMAP_DDS_TYPE, &qos)?;
+        let dynamic = raw_writer(&participant, &names.dynamic, MARKER_ARRAY_DDS_TYPE, &qos)?;
         let get_octomap_at = ServiceEndpoints::new(
             &participant,
+            names.get_octomap_at.clone(),
             GET_OCTOMAP_AT_SERVICE,
             GET_OCTOMAP_AT_DDS_TYPE,
             MAX_GET_OCTOMAP_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
         let probability_at = ServiceEndpoints::new(
             &participant,
+            names.probability_at.clone(),
             PROBABILITY_AT_SERVICE,
             PROBABILITY_AT_DDS_TYPE,
             MAX_PROBABILITY_AT_REQUEST_BYTES.min(options.max_message_bytes),
         )?;
+        let parameter_services = PARAMETER_SERVICES
+            .iter()
+            .map(|&(name, stem)| {
+                ServiceEndpoints::new(
+                    &participant,
+                    ros.resolve(name)?,
+                    stem,
+                    stem,
+                    MAX_PARAMETER_REQUEST_BYTES.min(options.max_message_bytes),
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut parameters = options.parameters.clone();
+        parameters.set(
+            "use_sim_time",
+            ParameterValue::bool(options.use_sim_time),
+            "now is the time /clock says",
+        );
+        let clock = if options.use_sim_time {
+            // As rclcpp's clock QoS: the last one, best effort (reads reliable writers too).
+            let qos = QosPolicyBuilder::new()
+                .reliability(Reliability::BestEffort)
+                .durability(Durability::Volatile)
+                .history(History::KeepLast { depth: 1 })
+                .build();
+            let reader = raw_reader(&participant, &names.clock, CLOCK_DDS_TYPE, &qos)?;
+            Some((reader, std::cell::Cell::new(None)))
+        } else {
+            None
+        };
+        let graph = graph_entry(
+            options.graph,
+            participant.guid(),
+            &options.names,
+            [&reader]
+                .into_iter()
+                .chain(clock.as_ref().map(|(r, _)| r))
+                .map(|r| r.guid())
+                .chain(
+                    [&get_octomap_at, &probability_at]
+                        .into_iter()
+                        .chain(&parameter_services)
+                        .map(|s| s.requests.guid()),
+                ),
+            [&predicted, &dynamic].into_iter().map(|w| w.guid()).chain(
+                [&get_octomap_at, &probability_at]
+                    .into_iter()
+                    .chain(&parameter_services)
+                    .map(|s| s.replies.guid()),
+            ),
+        );
+        // The graph entry: reliable, transient-local, the last one, as the RMWs publish it.
+        let graph_qos = QosPolicyBuilder::new()
+            .reliability(Reliability::Reliable {
+                max_blocking_time: rustdds::Duration::from_millis(100),
+            })
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 })
+            .build();
+        let graph_topic = participant
+            .create_topic(
+                GRAPH_TOPIC.to_string(),
+                GRAPH_DDS_TYPE.to_string(),
+                &graph_qos,
+                TopicKind::NoKey,
+            )
+            .map_err(dds)?;
+        let graph_writer = participant
+            .create_publisher(&graph_qos)
+            .and_then(|p| {
+                p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&graph_topic, Some(graph_qos.clone()))
+            })
+            .map_err(dds)?;
+        graph_writer
+            .write(graph, None)
+            .map_err(|e| NodeError::Publish {
+                topic: GRAPH_TOPIC.to_string(),
+                reason: e.to_string(),
+            })?;
         Ok(Self {
             participant,
+            _graph_writer: graph_writer,
             reader,
             predicted,
+            dynamic,
             get_octomap_at,
             probability_at,
+            parameter_services,
+            parameters,
+            clock,
             service_mapping: options.service_mapping,
-            topic: options.topic.clone(),
+            topic: names.topic.clone(),
+            names,
             max_message_bytes: options.max_message_bytes,
+            frame_id: std::cell::RefCell::new(options.frame_id.clone()),
         })
     }
 
     /// The DDS domain joined.
     pub fn domain_id(&self) -> u16 {
         self.participant.domain_id()
+    }
+
+    /// The names the node resolved (its options' `names` applied).
+    pub fn names(&self) -> &ResolvedNames {
+        &self.names
+    }
+
+    /// The parameters served.
+    pub fn parameters(&self) -> &Parameters {
+        &self.parameters
+    }
+
+    /// "Now": the system clock, or with `use_sim_time` the last time `/clock` gave (`None`
+    /// before the first one).
+    pub fn now(&self) -> Option<Timestamp> {
+        let Some((reader, last)) = &self.clock else {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .ok()?;
+            return i64::try_from(now.as_nanos()).ok().map(Timestamp);
+        };
+        while let Ok(Some(sample)) = reader.try_take_one() {
+            // builtin_interfaces/Time behind the encapsulation header; others are skipped.
+            let message = sample.into_value();
+            let little = message.get(1) == Some(&1);
+            let field = |at: usize| {
+                let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
+                Some(if little {
+                    u32::from_le_bytes(bytes)
+                } else {
+                    u32::from_be_bytes(bytes)
+                })
+            };
+            if let (Some(sec), Some(nanosec)) = (field(4), field(8)) {
+                last.set(Some(
+                    Time {
+                        sec: sec as i32,
+                        nanosec,
+                    }
+                    .timestamp(),
+                ));
+            }
+        }
+        last.get()
     }
 
     /// Hands the maps received within `wait` (at least one poll) to `sink`, at most
@@ -456,11 +711,18 @@ impl Node {
             match self.reader.try_take_one() {
                 Ok(Some(change)) => {
                     taken += 1;
-                    match self.to_map(&change.into_value()) {
+                    match self
+                        .to_map(&change.into_value())
+                        .and_then(|map| self.in_the_frame(map))
+                    {
                         Ok(map) => {
                             let stamp = map.stamp;
+                            let frame_id = map.frame_id.clone();
                             match sink.receive(map) {
-                                Ok(()) => accepted += 1,
+                                Ok(()) => {
+                                    accepted += 1;
+                                    self.frame_id.borrow_mut().get_or_insert(frame_id);
+                                }
                                 // A failed commit loses more than this map: say so.
                                 Err(e) => match e.downcast_ref::<CommitFailed>() {
                                     Some(failed) => sink.skipped(format!(
@@ -498,7 +760,7 @@ impl Node {
     pub fn serve_requests(&self, handler: &mut dyn ServiceHandler) -> usize {
         self.get_octomap_at.update_matched_readers();
         self.probability_at.update_matched_readers();
-        let mut answered = 0;
+        let mut answered = self.serve_parameters();
         let pass = |service| (0..REQUESTS_PER_PASS).map_while(move |_| self.take_request(service));
         for request in pass(&self.get_octomap_at) {
             answered += usize::from(self.answer(&self.get_octomap_at, &request, |r| {
@@ -520,6 +782,33 @@ impl Node {
                     handler.probability_at(r)
                 },
             ));
+        }
+        answered
+    }
+
+    /// Answers the parameter services' requests (at most [`REQUESTS_PER_PASS`] each).
+    fn serve_parameters(&self) -> usize {
+        let mut answered = 0;
+        let p = &self.parameters;
+        for (i, service) in self.parameter_services.iter().enumerate() {
+            service.update_matched_readers();
+            for request in (0..REQUESTS_PER_PASS).map_while(|_| self.take_request(service)) {
+                let done = match i {
+                    0 => self.answer(service, &request, |r| p.list(r)),
+                    1 => self.answer(service, &request, |r| p.values(r)),
+                    2 => self.answer(service, &request, |r| p.types(r)),
+                    3 => self.answer(service, &request, |r| p.describe(r)),
+                    4 => self.answer(service, &request, |r| p.refuse_set(r)),
+                    _ => self.answer(service, &request, |r: &SetParametersRequest| {
+                        p.refuse_set(r)
+                            .results
+                            .into_iter()
+                            .next()
+                            .unwrap_or_default()
+                    }),
+                };
+                answered += usize::from(done);
+            }
         }
         answered
     }
@@ -574,7 +863,7 @@ impl Node {
             return false;
         }
         let (id, request) =
-            match decode_request::<Q>(self.service_mapping, message, *sample, service.name) {
+            match decode_request::<Q>(self.service_mapping, message, *sample, service.kind) {
                 Ok(decoded) => decoded,
                 Err(e) => {
                     log::warn!("{}: request skipped: {e}", service.name);
@@ -613,6 +902,23 @@ impl Node {
         }
     }
 
+    /// The frame of the maps taken so far (given in [`NodeOptions::frame_id`], or the
+    /// first map's); `None` before.
+    pub fn frame_id(&self) -> Option<String> {
+        self.frame_id.borrow().clone()
+    }
+
+    /// `map` if it is in the frame of the maps taken before it.
+    fn in_the_frame(&self, map: ReceivedMap) -> Result<ReceivedMap, Refused> {
+        match &*self.frame_id.borrow() {
+            Some(expected) if *expected != map.frame_id => Err(Refused::Frame {
+                got: map.frame_id,
+                expected: expected.clone(),
+            }),
+            _ => Ok(map),
+        }
+    }
+
     fn to_map(&self, message: &[u8]) -> Result<ReceivedMap, Refused> {
         if message.len() > self.max_message_bytes {
             return Err(Refused::TooLarge {
@@ -623,6 +929,8 @@ impl Node {
         let decoded = decode_message(message, Encoding::Cdr, MessageType::Octomap)?;
         Ok(ReceivedMap {
             stamp: Timestamp(decoded.stamp_ns),
+            frame_id: decoded.frame_id.to_string(),
+            received: self.now(),
             binary: decoded.binary,
             file: decoded.map_file()?,
         })
@@ -640,10 +948,158 @@ impl Node {
         self.predicted
             .write(message, None)
             .map_err(|e| NodeError::Publish {
-                topic: PREDICTED_TOPIC.to_string(),
+                topic: self.names.predicted.clone(),
                 reason: e.to_string(),
             })
     }
+
+    /// Publishes a map's occupied cells on [`DYNAMIC_TOPIC`] as a
+    /// `visualization_msgs/MarkerArray` (one `CUBE_LIST` per depth, as octomap_server's
+    /// `occupied_cells_vis_array`; [`froctomap_ros::encode_occupied_marker_array_cdr`]),
+    /// stamped `stamp` in `frame_id`, latched.
+    pub fn publish_dynamic(
+        &self,
+        occupied: &[OccupiedCell],
+        resolution: f64,
+        stamp: Timestamp,
+        frame_id: &str,
+    ) -> Result<(), NodeError> {
+        let failed = |reason: String| NodeError::Publish {
+            topic: self.names.dynamic.clone(),
+            reason,
+        };
+        let message = froctomap_ros::encode_occupied_marker_array_cdr(
+            ros_time(stamp).map_err(failed)?,
+            frame_id,
+            resolution,
+            occupied,
+        )
+        .ok_or_else(|| failed(format!("{} cells do not fit a MarkerArray", occupied.len())))?;
+        self.dynamic
+            .write(message, None)
+            .map_err(|e| failed(e.to_string()))
+    }
+}
+
+/// `/clock`'s reader and the last time it gave.
+type SimClock = (
+    SimpleDataReader<Vec<u8>, RawCdr>,
+    std::cell::Cell<Option<Timestamp>>,
+);
+
+/// The names a node resolved: its fully qualified name and its topics' and services'.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResolvedNames {
+    /// The node (`/froctomap`).
+    pub node: String,
+    /// The maps received.
+    pub topic: String,
+    /// The predicted map.
+    pub predicted: String,
+    /// The predicted map's markers.
+    pub dynamic: String,
+    /// The map-at-a-time service.
+    pub get_octomap_at: String,
+    /// The probability service.
+    pub probability_at: String,
+    /// The simulated clock.
+    pub clock: String,
+}
+
+/// The node's entry in the ROS graph: `rmw_dds_common/msg/ParticipantEntitiesInfo` in CDR
+/// (the participant's `Gid`, then one `NodeEntitiesInfo`: namespace, name, its readers' and
+/// writers' `Gid`s), each `Gid` the entity's GUID padded to the layout's size, as the RMWs
+/// fill it.
+fn graph_entry(
+    layout: GraphLayout,
+    participant: rustdds::GUID,
+    names: &RosArgs,
+    readers: impl Iterator<Item = rustdds::GUID>,
+    writers: impl Iterator<Item = rustdds::GUID>,
+) -> Vec<u8> {
+    let gid = |out: &mut Vec<u8>, guid: rustdds::GUID| {
+        let mut bytes = guid.to_bytes().to_vec();
+        bytes.resize(layout.gid_bytes(), 0);
+        out.extend_from_slice(&bytes);
+    };
+    // Alignment counts from the payload, after the 4-byte encapsulation header.
+    let u32 = |out: &mut Vec<u8>, value: u32| {
+        while !(out.len() - 4).is_multiple_of(4) {
+            out.push(0);
+        }
+        out.extend_from_slice(&value.to_le_bytes());
+    };
+    let string = |out: &mut Vec<u8>, text: &str| {
+        u32(out, text.len() as u32 + 1); // A node name or namespace: short.
+        out.extend_from_slice(text.as_bytes());
+        out.push(0);
+    };
+    let mut out = vec![0x00, 0x01, 0x00, 0x00];
+    gid(&mut out, participant);
+    u32(&mut out, 1);
+    string(&mut out, &names.namespace);
+    string(&mut out, &names.node_name);
+    for guids in [readers.collect::<Vec<_>>(), writers.collect()] {
+        u32(&mut out, guids.len() as u32);
+        for guid in guids {
+            gid(&mut out, guid);
+        }
+    }
+    out
+}
+
+/// The DDS topic of the ROS topic `ros_topic`, of type `dds_type`.
+fn raw_topic(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<rustdds::Topic, NodeError> {
+    participant
+        .create_topic(
+            dds_topic_name(ros_topic)?,
+            dds_type.to_string(),
+            qos,
+            TopicKind::NoKey,
+        )
+        .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
+/// A reader of serialized messages of `dds_type` on the ROS topic `ros_topic`.
+fn raw_reader(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<SimpleDataReader<Vec<u8>, RawCdr>, NodeError> {
+    let topic = raw_topic(participant, ros_topic, dds_type, qos)?;
+    participant
+        .create_subscriber(qos)
+        .and_then(|s| {
+            s.create_simple_datareader_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone()))
+        })
+        .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
+/// A writer of serialized messages of `dds_type` on the ROS topic `ros_topic`.
+fn raw_writer(
+    participant: &DomainParticipant,
+    ros_topic: &str,
+    dds_type: &str,
+    qos: &QosPolicies,
+) -> Result<DataWriter<Vec<u8>, RawCdr>, NodeError> {
+    let topic = raw_topic(participant, ros_topic, dds_type, qos)?;
+    participant
+        .create_publisher(qos)
+        .and_then(|p| p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&topic, Some(qos.clone())))
+        .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
+/// A time as `builtin_interfaces/Time` (`sec`, `nanosec`), or why it is outside it.
+fn ros_time(stamp: Timestamp) -> Result<(i32, u32), String> {
+    let seconds = i32::try_from(stamp.0.div_euclid(1_000_000_000))
+        .map_err(|_| format!("stamp {} ns is outside builtin_interfaces/Time", stamp.0))?;
+    Ok((seconds, stamp.0.rem_euclid(1_000_000_000) as u32)) // < 1e9.
 }
 
 /// Publishes the map a `.froct` file predicts on [`PREDICTED_TOPIC`], only when it changed.
@@ -663,27 +1119,44 @@ impl PredictedPublisher {
         }
     }
 
+    /// Maps from now on in `frame_id` (the node's frame, once the first map fixed it).
+    pub fn set_frame_id(&mut self, frame_id: &str) {
+        if self.frame_id != frame_id {
+            frame_id.clone_into(&mut self.frame_id);
+            self.last = None; // Published again, in its new frame.
+        }
+    }
+
     /// The canonical `.bt` of the map predicted for `t` (the file is opened anew, so maps
     /// appended since the last call count).
     pub fn predicted_bt(&self, t: Timestamp) -> Result<Vec<u8>, NodeError> {
-        let reader = FroctFile::open(&self.froct).map_err(|source| NodeError::Froct {
+        froctomap_convert::predicted_bt(&self.open()?, t).map_err(|e| self.failed(e))
+    }
+
+    fn open(&self) -> Result<FroctFile, NodeError> {
+        FroctFile::open(&self.froct).map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, source: impl std::error::Error + Send + Sync + 'static) -> NodeError {
+        NodeError::Froct {
             path: self.froct.clone(),
             source: Box::new(source),
-        })?;
-        froctomap_convert::predicted_bt(&reader, t).map_err(|source| NodeError::Froct {
-            path: self.froct.clone(),
-            source: Box::new(source),
-        })
+        }
     }
 
     /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
-    /// published; says whether it did.
+    /// published, with its occupied cells on [`DYNAMIC_TOPIC`] (coloured by their
+    /// probability); says whether it did.
     pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
-        let bt = self.predicted_bt(t)?;
+        let reader = self.open()?;
+        let bt = froctomap_convert::predicted_bt(&reader, t).map_err(|e| self.failed(e))?;
         if self.last.as_ref() == Some(&bt) {
             return Ok(false);
         }
         node.publish_predicted(&bt, t, &self.frame_id)?;
+        let occupied = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
+            .map_err(|e| self.failed(e))?;
+        node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)?;
         self.last = Some(bt);
         Ok(true)
     }
@@ -710,14 +1183,12 @@ pub fn octomap_message_of_bt(
         reason: format!("the predicted map is not a .bt file: {e}"),
     })?;
     let body = bt.get(header.body_offset..).unwrap_or_default();
-    let seconds =
-        i32::try_from(stamp.0.div_euclid(1_000_000_000)).map_err(|_| NodeError::Publish {
-            topic: PREDICTED_TOPIC.to_string(),
-            reason: format!("stamp {} ns is outside builtin_interfaces/Time", stamp.0),
-        })?;
-    let nanos = stamp.0.rem_euclid(1_000_000_000) as u32; // < 1e9.
+    let stamp = ros_time(stamp).map_err(|reason| NodeError::Publish {
+        topic: PREDICTED_TOPIC.to_string(),
+        reason,
+    })?;
     encode_octomap_cdr(
-        (seconds, nanos),
+        stamp,
         frame_id,
         true,
         &header.tree_id,
@@ -836,6 +1307,27 @@ impl SerializerAdapter<Vec<u8>> for RawCdr {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_names_are_froctomap_ros_names() {
+        // The node and the MCAP export share the names of `froctomap_ros`.
+        let ros = RosArgs::default();
+        let resolve = |name| ros.resolve(name).ok();
+        assert_eq!(
+            resolve(DEFAULT_TOPIC).as_deref(),
+            Some(froctomap_ros::OCTOMAP_TOPIC)
+        );
+        assert_eq!(resolve(PREDICTED_NAME).as_deref(), Some(PREDICTED_TOPIC));
+        assert_eq!(resolve(DYNAMIC_NAME).as_deref(), Some(DYNAMIC_TOPIC));
+        assert_eq!(
+            resolve(GET_OCTOMAP_AT_NAME).as_deref(),
+            Some(GET_OCTOMAP_AT_SERVICE)
+        );
+        assert_eq!(
+            resolve(PROBABILITY_AT_NAME).as_deref(),
+            Some(PROBABILITY_AT_SERVICE)
+        );
+    }
 
     #[test]
     fn ros_topics_map_to_dds_names_as_rmws_do() {

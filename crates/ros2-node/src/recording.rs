@@ -7,7 +7,7 @@ use crate::{MapSink, ReceivedMap};
 use froctomap_convert::{RecordError, RecordSummary, Recorder};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 /// Which time a received map is recorded at.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -15,7 +15,8 @@ pub enum TimeSource {
     /// The message's `header.stamp` (the default; an unset stamp is refused).
     #[default]
     Header,
-    /// The time the node received it (the system clock).
+    /// The time the node received it ([`ReceivedMap::received`]: the system clock, or
+    /// `/clock`'s with `use_sim_time`).
     Receive,
 }
 
@@ -133,10 +134,9 @@ impl MapSink for RecordingSink<'_> {
                 return Err("the message has no header.stamp (use --time-source receive)".into())
             }
             TimeSource::Header => map.stamp,
-            TimeSource::Receive => {
-                let now = SystemTime::now().duration_since(UNIX_EPOCH)?;
-                Timestamp(i64::try_from(now.as_nanos())?)
-            }
+            TimeSource::Receive => map
+                .received
+                .ok_or("no receive time: /clock has not said one yet (use_sim_time)")?,
         };
         if let Some(last) = self.last_taken {
             let since = i128::from(time.0) - i128::from(last.0);
@@ -161,15 +161,21 @@ impl MapSink for RecordingSink<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use froctomap_convert::{
-        AppendOptions, CommitEvery, Context, FroctFile, RecordOptions, SeriesRead,
-    };
+    use std::time::{SystemTime, UNIX_EPOCH};
+
+    fn now() -> Timestamp {
+        let since = SystemTime::now().duration_since(UNIX_EPOCH).expect("clock");
+        Timestamp(since.as_nanos() as i64)
+    }
+    use froctomap_convert::{CommitEvery, Context, FroctFile, RecordOptions, SeriesRead};
 
     fn map(stamp_s: i64) -> ReceivedMap {
         let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../fixtures/octomap/few_voxels.bt");
         ReceivedMap {
             stamp: Timestamp(stamp_s * 1_000_000_000),
+            frame_id: "map".to_string(),
+            received: Some(now()),
             binary: true,
             file: std::fs::read(fixture).expect("the fixture"),
         }
@@ -192,16 +198,7 @@ mod tests {
         min: u64,
         maps: usize,
     ) -> RecordingSink<'a> {
-        let options = RecordOptions {
-            commit_every: CommitEvery::Maps(maps),
-            append: AppendOptions {
-                skip_bad: true,
-                allow_mostly_skipped: true,
-                ..AppendOptions::default()
-            },
-            spool_dir: None,
-            compact: false,
-        };
+        let options = RecordOptions::for_live_source(CommitEvery::Maps(maps));
         let recorder = Recorder::open(context, file, options).expect("open");
         RecordingSink::new(recorder, source, Duration::from_secs(min))
     }
@@ -259,6 +256,29 @@ mod tests {
         assert!(!failed.source.is_bad_map(), "{failed}");
         assert_eq!(sink.lost(), 3);
         assert_eq!(sink.summary().committed_maps, 3);
+    }
+
+    #[test]
+    fn receive_time_without_a_clock_time_is_refused() {
+        // use_sim_time before the first /clock message: no "now" to record at.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let context = Context::with_default_plugins();
+        let mut sink = sink(
+            &context,
+            &dir.path().join("l.froct"),
+            TimeSource::Receive,
+            0,
+        );
+        let mut early = map(0);
+        early.received = None;
+        let refused = sink.receive(early).expect_err("refused");
+        assert!(refused.to_string().contains("/clock"), "{refused}");
+        let mut sim = map(0);
+        sim.received = Some(Timestamp(1_600_000_000_000_000_000));
+        sink.receive(sim).expect("taken at /clock's time");
+        sink.finish().expect("finish");
+        let reader = FroctFile::open(&dir.path().join("l.froct")).expect("the file");
+        assert_eq!(reader.last_instant(), Timestamp(1_600_000_000_000_000_000));
     }
 
     #[test]

@@ -19,10 +19,7 @@ use rustdds::cdr_encoding;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The map-at-a-time service.
-pub const GET_OCTOMAP_AT_SERVICE: &str = "/froctomap/get_octomap_at";
-/// The probability-at-points service.
-pub const PROBABILITY_AT_SERVICE: &str = "/froctomap/probability_at";
+pub use froctomap_ros::{GET_OCTOMAP_AT_SERVICE, PROBABILITY_AT_SERVICE};
 /// The DDS type name stem of `froctomap_msgs/srv/GetOctomapAt` (`_Request_`, `_Response_`).
 pub const GET_OCTOMAP_AT_DDS_TYPE: &str = "froctomap_msgs::srv::dds_::GetOctomapAt";
 /// The DDS type name stem of `froctomap_msgs/srv/ProbabilityAt`.
@@ -235,6 +232,11 @@ impl FileServices {
             froct: froct.to_path_buf(),
             frame_id: frame_id.to_string(),
         }
+    }
+
+    /// Maps from now on in `frame_id` (the node's frame, once the first map fixed it).
+    pub fn set_frame_id(&mut self, frame_id: &str) {
+        frame_id.clone_into(&mut self.frame_id);
     }
 
     fn open(&self) -> Result<FroctFile, String> {

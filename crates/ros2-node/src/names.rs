@@ -1,0 +1,234 @@
+//! ROS command-line arguments (`--ros-args -r from:=to -r __ns:=/robot1 -r __node:=name
+//! -p name:=value`) and ROS name resolution: a relative name (`octomap_binary`) is put in
+//! the node's namespace, a private one (`~/predicted`) under the node's namespace and name,
+//! an absolute one (`/clock`) stays; then the remapping rules apply to the resolved name,
+//! as rcl applies them.
+
+use crate::params::ParameterValue;
+use crate::NodeError;
+
+/// What `--ros-args` says: the node's name and namespace, remapping rules and parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RosArgs {
+    /// The node's name (`__node:=`; default [`crate::NODE_NAME`]).
+    pub node_name: String,
+    /// The node's namespace (`__ns:=`; default `/`).
+    pub namespace: String,
+    /// Remapping rules `from:=to`, in their order (the first match wins, as in rcl).
+    pub remaps: Vec<(String, String)>,
+    /// Parameters `-p name:=value`, in their order (a later one overrides).
+    pub parameters: Vec<(String, ParameterValue)>,
+}
+
+impl Default for RosArgs {
+    fn default() -> Self {
+        Self {
+            node_name: crate::NODE_NAME.to_string(),
+            namespace: "/".to_string(),
+            remaps: Vec::new(),
+            parameters: Vec::new(),
+        }
+    }
+}
+
+impl RosArgs {
+    /// Parses the arguments after `--ros-args` (up to a `--` or their end): `-r`/`--remap
+    /// from:=to` (`__ns`, `__node` and `__name` set the namespace and name), `-p`/`--param
+    /// name:=value` (the value read as YAML scalars are: `true`/`false`, an integer, a
+    /// number, else a string; quotes keep a string). Anything else is an error naming it.
+    ///
+    /// ```
+    /// use froctomap_ros2_node::RosArgs;
+    /// let args: Vec<String> = ["-r", "__ns:=/robot1", "-r", "octomap_binary:=map_in", "-p", "use_sim_time:=true"]
+    ///     .iter().map(|s| s.to_string()).collect();
+    /// let ros = RosArgs::parse(&args)?;
+    /// assert_eq!(ros.resolve("octomap_binary")?, "/robot1/map_in");
+    /// assert_eq!(ros.resolve("~/predicted")?, "/robot1/froctomap/predicted");
+    /// assert_eq!(ros.resolve("/clock")?, "/clock");
+    /// # Ok::<(), froctomap_ros2_node::NodeError>(())
+    /// ```
+    pub fn parse(args: &[String]) -> Result<Self, NodeError> {
+        let mut ros = Self::default();
+        let mut args = args.iter();
+        let bad = |text: String| NodeError::RosArgs(text);
+        while let Some(flag) = args.next() {
+            match flag.as_str() {
+                "--" => break,
+                "--ros-args" => {}
+                "-r" | "--remap" | "-p" | "--param" => {
+                    let rule = args
+                        .next()
+                        .ok_or_else(|| bad(format!("{flag} needs a `name:=value` after it")))?;
+                    let (name, value) = rule
+                        .split_once(":=")
+                        .ok_or_else(|| bad(format!("{flag} {rule}: not a `name:=value` rule")))?;
+                    if name.is_empty() {
+                        return Err(bad(format!("{flag} {rule}: no name before `:=`")));
+                    }
+                    if flag.starts_with("-p") || flag == "--param" {
+                        ros.parameters
+                            .push((name.to_string(), ParameterValue::from_yaml_scalar(value)));
+                    } else {
+                        match name {
+                            "__ns" => {
+                                if !value.starts_with('/') {
+                                    return Err(bad(format!(
+                                        "-r {rule}: a namespace is absolute (starts with /)"
+                                    )));
+                                }
+                                ros.namespace = value.trim_end_matches('/').to_string();
+                                if ros.namespace.is_empty() {
+                                    ros.namespace = "/".to_string();
+                                }
+                                crate::dds_topic_name(&format!("{}/x", ros.namespace))
+                                    .map_err(|_| bad(format!("-r {rule}: not a namespace")))?;
+                            }
+                            "__node" | "__name" => {
+                                let valid = !value.is_empty()
+                                    && !value.starts_with(|c: char| c.is_ascii_digit())
+                                    && value.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+                                if !valid {
+                                    return Err(bad(format!("-r {rule}: not a node name")));
+                                }
+                                ros.node_name = value.to_string();
+                            }
+                            _ => ros.remaps.push((name.to_string(), value.to_string())),
+                        }
+                    }
+                }
+                other => {
+                    return Err(bad(format!(
+                    "`{other}` is not a ROS argument froctomap takes (-r from:=to, -p name:=value)"
+                )))
+                }
+            }
+        }
+        Ok(ros)
+    }
+
+    /// `name` expanded in the node's namespace, without remapping.
+    fn expand(&self, name: &str) -> Result<String, NodeError> {
+        let ns = self.namespace.trim_end_matches('/');
+        let expanded = if name.starts_with('/') {
+            name.to_string()
+        } else if name == "~" {
+            format!("{ns}/{}", self.node_name)
+        } else if let Some(private) = name.strip_prefix("~/") {
+            format!("{ns}/{}/{private}", self.node_name)
+        } else {
+            format!("{ns}/{name}")
+        };
+        crate::dds_topic_name(&expanded)?;
+        Ok(expanded)
+    }
+
+    /// The fully qualified name a topic or service `name` resolves to: expanded, then
+    /// remapped by the first rule whose (expanded) `from` is it.
+    pub fn resolve(&self, name: &str) -> Result<String, NodeError> {
+        let expanded = self.expand(name)?;
+        for (from, to) in &self.remaps {
+            if self.expand(from)? == expanded {
+                return self.expand(to);
+            }
+        }
+        Ok(expanded)
+    }
+
+    /// The node's fully qualified name (`/froctomap`, `/robot1/mapper`).
+    pub fn fully_qualified_node_name(&self) -> String {
+        format!(
+            "{}/{}",
+            self.namespace.trim_end_matches('/'),
+            self.node_name
+        )
+    }
+
+    /// The last value `-p name:=…` gave.
+    pub fn parameter(&self, name: &str) -> Option<&ParameterValue> {
+        self.parameters
+            .iter()
+            .rev()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<RosArgs, NodeError> {
+        RosArgs::parse(&args.iter().map(|s| s.to_string()).collect::<Vec<_>>())
+    }
+
+    #[test]
+    fn names_resolve_as_rcl_resolves_them() {
+        let plain = parse(&[]).expect("no arguments");
+        assert_eq!(
+            plain.resolve("octomap_binary").ok().as_deref(),
+            Some("/octomap_binary")
+        );
+        assert_eq!(
+            plain.resolve("~/predicted").ok().as_deref(),
+            Some("/froctomap/predicted")
+        );
+        assert_eq!(plain.fully_qualified_node_name(), "/froctomap");
+        let ros = parse(&[
+            "-r",
+            "__ns:=/robot1/",
+            "-r",
+            "__node:=mapper",
+            "-r",
+            "~/predicted:=/viz/predicted",
+            "--remap",
+            "octomap_binary:=octomap_full",
+            "-p",
+            "horizon:=1h",
+            "-p",
+            "x:=3",
+            "-p",
+            "y:=2.5",
+            "-p",
+            "z:=\"7\"",
+            "-p",
+            "use_sim_time:=True",
+            "--",
+        ])
+        .expect("parses");
+        assert_eq!(ros.fully_qualified_node_name(), "/robot1/mapper");
+        assert_eq!(
+            ros.resolve("octomap_binary").ok().as_deref(),
+            Some("/robot1/octomap_full")
+        );
+        assert_eq!(
+            ros.resolve("~/predicted").ok().as_deref(),
+            Some("/viz/predicted")
+        );
+        assert_eq!(
+            ros.resolve("~/dynamic").ok().as_deref(),
+            Some("/robot1/mapper/dynamic")
+        );
+        assert_eq!(ros.resolve("/clock").ok().as_deref(), Some("/clock"));
+        assert_eq!(
+            ros.parameter("horizon"),
+            Some(&ParameterValue::string("1h"))
+        );
+        assert_eq!(ros.parameter("x"), Some(&ParameterValue::integer(3)));
+        assert_eq!(ros.parameter("y"), Some(&ParameterValue::double(2.5)));
+        assert_eq!(ros.parameter("z"), Some(&ParameterValue::string("7")));
+        assert_eq!(
+            ros.parameter("use_sim_time"),
+            Some(&ParameterValue::bool(true))
+        );
+        for bad in [
+            &["-r"][..],
+            &["-r", "a=b"],
+            &["-r", "__ns:=robot1"],
+            &["-r", "__node:=1x"],
+            &["--log-level", "debug"],
+            &["-p", ":=3"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?}");
+        }
+    }
+}
