@@ -2,7 +2,8 @@
 """Fail when modules inside one crate import each other in a loop.
 
 Each file module of each crate (`src/**/*.rs`) is a node; an edge `a -> b` says a file of `a`
-names an item of `b` through a `crate::` or `super::` path (in a `use` or inline). Re-exports
+names an item of `b` through a `crate::`, `super::` or child-module path (in a `use` or inline;
+a `pub use` is a facade and is not counted). Re-exports
 (`pub use x::Name`) are followed to the module that defines the name, so a parent that only
 re-exports a child's item does not create a false edge. Inline modules belong to their file;
 inline `#[cfg(test)]` modules are left out. Prints every cycle found (one per strongly connected component) and exits
@@ -105,9 +106,12 @@ class Crate:
                             self.reexports[(module, absolute[-1])] = absolute
 
     def absolute(self, module: tuple[str, ...], path: list[str]) -> list[str] | None:
-        """A `crate::`/`super::`/`self::` path as a list of names from the crate root."""
+        """A `crate::`/`super::`/`self::` path, or one starting at a child module, as a list of
+        names from the crate root."""
         if not path:
             return None
+        if module + (path[0],) in self.modules:
+            return list(module) + path
         if path[0] == "crate":
             return path[1:]
         if path[0] in ("super", "self"):
@@ -140,7 +144,10 @@ class Crate:
             for text in texts:
                 paths: list[list[str]] = []
                 for match in USE.finditer(text):
-                    paths += expand_use(match.group(2))
+                    # A `pub use` is a facade (a parent re-exporting its child's items), not a
+                    # dependency; what the items themselves use is counted where they live.
+                    if not match.group(1):
+                        paths += expand_use(match.group(2))
                 for match in INLINE_PATH.finditer(USE.sub(" ", text)):
                     paths.append(re.sub(r"\s+", "", match.group(1)).split("::"))
                 for path in paths:
