@@ -80,6 +80,11 @@ pub struct GregDoorArgs {
     /// targets on each.
     #[arg(long, conflicts_with_all = ["validate", "fit_weeks"])]
     rolling: bool,
+    /// Fail (exit status 1) when a run misses issue 28's targets: every week's thresholded
+    /// error at most the static mean's + 0.1 pp, mean Brier at most 0.80× the static
+    /// mean's (what CI runs with).
+    #[arg(long)]
+    require_targets: bool,
     /// Evaluate every n-th test minute (default 10; `ci`: 60).
     #[arg(long)]
     stride: Option<usize>,
@@ -369,6 +374,30 @@ pub fn summarise(weeks: &[WeekRow]) -> Summary {
     }
 }
 
+/// Whether a run meets issue 28's targets (every week's error ≤ static mean + 0.1 pp, mean
+/// Brier ≤ 0.80× the static mean's).
+fn targets_met(summary: &Summary) -> bool {
+    summary.worst_excess_pp <= 0.1 + 1e-9 && summary.model_vs_static <= 0.80
+}
+
+/// With `--require-targets`, an error naming the runs that miss the targets.
+fn check_targets(args: &GregDoorArgs, runs: &[&GregDoorResults]) -> Result<()> {
+    let missed: Vec<String> = runs
+        .iter()
+        .filter(|r| !targets_met(&r.summary))
+        .map(|r| {
+            format!(
+                "{} ({}): model / static mean {:.3}, worst excess {:+.2} pp",
+                r.mode, r.fitted, r.summary.model_vs_static, r.summary.worst_excess_pp
+            )
+        })
+        .collect();
+    if args.require_targets && !missed.is_empty() {
+        bail!("issue 28's targets missed: {}", missed.join("; "));
+    }
+    Ok(())
+}
+
 /// The markdown table of a run.
 pub fn markdown(results: &GregDoorResults) -> String {
     let validating = results.mode == "validation";
@@ -478,7 +507,7 @@ pub fn rolling_markdown(runs: &[GregDoorResults]) -> String {
             .filter(|(k, _)| k.starts_with("fremen"))
             .map(|(_, b)| b / s.static_brier)
             .fold(f64::INFINITY, f64::min);
-        let met = s.model_vs_static <= 0.80 && s.worst_excess_pp <= 0.1 + 1e-9;
+        let met = targets_met(s);
         let _ = writeln!(
             out,
             "| {} | {} | {:.3} | {:.3} | {:.3} | {:+.2} | {} | {} |",
@@ -507,7 +536,8 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
     if !args.rolling {
         let fit_weeks = args.validate.then_some(args.fit_weeks.unwrap_or(FIT_WEEKS));
         let results = run(args, fit_weeks, &args.out)?;
-        return write_results(&args.out, &markdown(&results), &results);
+        write_results(&args.out, &markdown(&results), &results)?;
+        return check_targets(args, &[&results]);
     }
     let mut runs = Vec::new();
     for fit_weeks in ROLLING_FIT_WEEKS {
@@ -516,7 +546,8 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
         write_results(&out, &markdown(&results), &results)?;
         runs.push(results);
     }
-    write_results(&args.out, &rolling_markdown(&runs), &runs)
+    write_results(&args.out, &rolling_markdown(&runs), &runs)?;
+    check_targets(args, &runs.iter().collect::<Vec<_>>())
 }
 
 /// Prints `md` and writes it and `results` as results.md and results.json in `out`.
