@@ -66,17 +66,8 @@ pub(crate) trait Spectral: Send + Sync {
     /// `first` to `last` (`min_cycles` of it fit in that span).
     fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64>;
 
-    /// Up to `max` strongest components of `obs` (mean `mean`), strongest first, among the
-    /// periods usable on a voxel observed from sample `usable.0` to `usable.1` (`min_cycles`
-    /// of them covered; `obs`'s own range, or when validating on its earlier part, the
-    /// whole voxel's, so that the held-out samples judge the periods the fit will use).
-    fn candidates(
-        &self,
-        obs: &VoxelObservations,
-        mean: f64,
-        max: usize,
-        usable: (u32, u32),
-    ) -> Vec<Candidate>;
+    /// Up to `max` strongest usable components of `obs` (mean `mean`), strongest first.
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate>;
 }
 
 /// Settings the pipeline needs.
@@ -116,8 +107,7 @@ pub(crate) fn fit_voxel<S: Spectral>(
     let mean = obs.occupied_count() as f64 / n as f64;
     let mean_q = quantise_unit(mean);
     let max = usize::from(settings.order.max());
-    let usable = obs.observed_range();
-    let (Some(usable), None, false) = (usable, obs.is_constant(), max == 0) else {
+    if obs.is_constant().is_some() || max == 0 {
         return finish(
             model,
             mean_q,
@@ -126,16 +116,16 @@ pub(crate) fn fit_voxel<S: Spectral>(
             OrderChoice::Single(0),
             settings.mode,
         );
-    };
+    }
     match (settings.order, settings.mode) {
         (Order::Fixed(_), mode) => {
-            let comps = quantise(&model.candidates(obs, mean, max, usable));
+            let comps = quantise(&model.candidates(obs, mean, max));
             finish(model, mean_q, comps, obs, OrderChoice::Single(max), mode)
         }
         (Order::Auto { .. }, OutlierMode::Lossless)
             if settings.criterion == crate::OrderCriterion::SmallestFile =>
         {
-            let comps = quantise(&model.candidates(obs, mean, max, usable));
+            let comps = quantise(&model.candidates(obs, mean, max));
             finish(
                 model,
                 mean_q,
@@ -152,7 +142,7 @@ pub(crate) fn fit_voxel<S: Spectral>(
                 &SHRINKS[..1]
             };
             let (m, shrink) = holdout_order(model, obs, max, settings.holdout_fraction, shrinks);
-            let mut cands = model.candidates(obs, mean, m, usable);
+            let mut cands = model.candidates(obs, mean, m);
             for c in &mut cands {
                 c.amplitude *= shrink;
             }
@@ -173,10 +163,8 @@ fn holdout_order<S: Spectral>(
     shrinks: &[f64],
 ) -> (usize, f64) {
     let n = obs.observed_count();
-    let Some(usable) = obs.observed_range() else {
-        return (0, 1.0);
-    };
-    let train_count = holdout_train_count(model, obs, fraction);
+    let fraction = holdout_fraction(model, obs, fraction);
+    let train_count = ((1.0 - fraction) * n as f64).ceil() as u64;
     let split = obs.sample_after_observed(train_count.min(n));
     let train = obs.truncated(split);
     let test_count = n - train.observed_count();
@@ -184,10 +172,7 @@ fn holdout_order<S: Spectral>(
         return (0, 1.0);
     }
     let train_mean = train.occupied_count() as f64 / train.observed_count() as f64;
-    // The periods the whole voxel may use, estimated on the earlier part: a period with
-    // `min_cycles` cycles in the voxel's span may have fewer in the fit part (a day on the
-    // 2-day office series), and the held-out part is there to say whether it predicts.
-    let comps = quantise(&model.candidates(&train, train_mean, max, usable));
+    let comps = quantise(&model.candidates(&train, train_mean, max));
     if comps.is_empty() {
         return (0, 1.0);
     }
@@ -249,14 +234,15 @@ fn holdout_order<S: Spectral>(
     // chose would soften what the samples cannot judge.
     let axis = model.time_axis();
     let last = obs.observed_range().map_or(split, |(_, last)| last);
-    let holdout_span = axis.coverage_seconds(split, last);
+    let holdout_span =
+        axis.sample_seconds(last) - axis.sample_seconds(split) + axis.mean_step_seconds();
     let covered: Vec<bool> = (0..=comps.len())
         .map(|m| {
             comps
                 .get(..m)
                 .unwrap_or(&comps)
                 .iter()
-                .all(|c| model.rate(c) * holdout_span >= 1.0 - COVER_TOLERANCE)
+                .all(|c| model.rate(c) * holdout_span >= 1.0)
         })
         .collect();
     let mean_wrong = wrong.first().and_then(|w| w.first()).copied().unwrap_or(0);
@@ -312,53 +298,25 @@ fn holdout_order<S: Spectral>(
 /// Largest part of a voxel's samples held out to validate its order and shrinkage.
 pub(crate) const MAX_HOLDOUT_FRACTION: f64 = 0.5;
 
-/// Relative slack when asking whether a held-out part spans a whole cycle: a part exactly
-/// one period long (as `holdout_train_count` leaves it) must not fail by rounding.
-const COVER_TOLERANCE: f64 = 1e-9;
-
-/// How many of `obs`'s observed samples (the earliest) fit the order and shrinkage that the
-/// later ones validate: the fewest that still span the longest period the whole voxel can
-/// use (`min_cycles` times), so that the held-out part holds as many cycles of every period
-/// as it can without the fit losing one, but at least half of them; when even a fit part of
-/// `1 − fraction` (the option) loses that period, that part.
-fn holdout_train_count<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f64) -> u64 {
-    let n = obs.observed_count();
-    let most = (((1.0 - fraction) * n as f64).ceil() as u64).min(n);
-    let least = ((1.0 - MAX_HOLDOUT_FRACTION) * n as f64).ceil() as u64;
+/// The part of `obs`'s observed samples held out: half of them when the first half still
+/// spans the longest period the whole voxel can use (`min_cycles` times), so that the held-out
+/// part holds as many cycles of every period as it can without the fit losing one; else
+/// `fraction` (the option).
+fn holdout_fraction<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f64) -> f64 {
     let Some((first, last)) = obs.observed_range() else {
-        return most;
+        return fraction;
     };
-    let Some(whole) = model.longest_usable_period(first, last) else {
-        return most;
-    };
-    // Whether a fit part of the earliest `count` observed samples keeps that period
-    // (monotone in `count`: a longer part covers more).
-    let keeps = |count: u64| {
-        let fit_last = obs
-            .sample_after_observed(count)
-            .saturating_sub(1)
-            .max(first);
-        model
-            .longest_usable_period(first, fit_last)
-            .is_some_and(|fit| fit >= whole)
-    };
-    if most <= least || !keeps(most) {
-        return most;
+    let n = obs.observed_count();
+    let half = ((1.0 - MAX_HOLDOUT_FRACTION) * n as f64).ceil() as u64;
+    let split = obs.sample_after_observed(half.min(n));
+    let fit_last = split.saturating_sub(1).max(first);
+    match (
+        model.longest_usable_period(first, last),
+        model.longest_usable_period(first, fit_last),
+    ) {
+        (Some(whole), Some(fit)) if fit >= whole => fraction.max(MAX_HOLDOUT_FRACTION),
+        _ => fraction,
     }
-    if keeps(least) {
-        return least;
-    }
-    // keeps(hi) and !keeps(lo): the smallest count that keeps it, by bisection.
-    let (mut lo, mut hi) = (least, most);
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        if keeps(mid) {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    hi
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -564,38 +522,6 @@ mod tests {
     use crate::models::FremenPeriods;
     use crate::{ModelConfig, ObservationsBuilder, SpectralParameters, TemporalModel, TimeAxis};
     use froctomap_core::{Occupancy, Timestamp};
-
-    /// The held-out part is the largest (up to half) that leaves the fit part two weeks of
-    /// coverage (the week, `min-cycles` 2): a third of 3 weeks, exactly one week, so that
-    /// it spans a whole cycle; half of 6 weeks; and when even a fit part of 75 % cannot keep
-    /// the week (16 days), the option's 25 %.
-    #[test]
-    fn held_out_part_is_as_long_as_the_fit_part_can_spare() {
-        let count = |days: u32| {
-            let n = days * 24;
-            let axis = TimeAxis::regular(Timestamp(0), 3_600_000_000_000, n, vec![]).unwrap();
-            let mut b = ObservationsBuilder::new();
-            for i in 0..n {
-                b.push(i, Some(Occupancy::from(i % 24 < 8))).unwrap();
-            }
-            let obs = b.finish();
-            let model = FremenPeriods
-                .prepare_periods(&axis, &ModelConfig::default())
-                .unwrap();
-            (holdout_train_count(&model, &obs, 0.25), obs)
-        };
-        let (train, obs) = count(21);
-        assert_eq!(train, 14 * 24);
-        let split = obs.sample_after_observed(train);
-        assert_eq!(split, 14 * 24);
-        let (train, _) = count(42);
-        assert_eq!(train, 21 * 24);
-        // 16 days: the week is usable (2 cycles in 16 days) but no fit part of at least
-        // 75 % (12 days) keeps it.
-        let (train, obs) = count(16);
-        assert_eq!(train, 12 * 24);
-        assert_eq!(obs.observed_count(), 16 * 24);
-    }
 
     /// Occupied 09:00-17:00 every day for three weeks, then on every other day only: the
     /// daily rhythm weakens in the held-out half. Unshrunk, the daily component puts p above

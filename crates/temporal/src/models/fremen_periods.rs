@@ -93,7 +93,7 @@ impl FremenPeriods {
             .collect();
         periods.sort_by(|a, b| b.total_cmp(a));
         periods.dedup_by(|b, a| (*a - *b).abs() <= 1e-9 * a.abs());
-        let span = axis.coverage_seconds(0, axis.len().saturating_sub(1));
+        let span = axis.span_seconds();
         periods.retain(|p| p * options.min_cycles <= span);
         Ok(PreparedFremenPeriods::new(
             axis,
@@ -376,25 +376,18 @@ impl Spectral for PreparedFremenPeriods {
     }
 
     fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
-        let span = self.axis.coverage_seconds(first, last);
+        let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
         self.periods
             .iter()
             .copied()
             .find(|p| p * self.min_cycles <= span)
     }
 
-    fn candidates(
-        &self,
-        obs: &VoxelObservations,
-        mean: f64,
-        max: usize,
-        usable: (u32, u32),
-    ) -> Vec<Candidate> {
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
         };
-        let span = self.axis.coverage_seconds(first, last);
-        let usable_span = self.axis.coverage_seconds(usable.0, usable.1);
+        let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
         let Ok(sums) = self.sums(obs, mean) else {
             return Vec::new();
         };
@@ -402,12 +395,13 @@ impl Spectral for PreparedFremenPeriods {
             .iter()
             .zip(&self.periods)
             .enumerate()
-            .filter(|(_, (_, p))| *p * self.min_cycles <= usable_span)
+            .filter(|(_, (_, p))| *p * self.min_cycles <= span)
             .map(|(j, (x, p))| (4.0 * (x[0] * x[0] + x[1] * x[1]), j as u32, 1.0 / p))
             .collect();
+        // The samples cover their span plus one step (each stands for its step).
         let step = self.axis.mean_step_seconds();
         let norm = 1.0 / obs.observed_count() as f64;
-        pick_distinct(offers, max, span, step)
+        pick_distinct(offers, max, span + step, step)
             .into_iter()
             .filter_map(|(key, j)| {
                 let x = sums.get(j as usize)?;
@@ -508,7 +502,7 @@ mod tests {
         assert_eq!(p.iter().filter(|&&x| x == 86_400.0).count(), 1); // week/7 == 1 day
         assert!(p.contains(&18_000.0));
         assert!(!p.contains(&1e9));
-        // The samples cover 504 hours: one week (168 h) fits 3 times, so it is kept.
+        // The span is 503 hours: one week (168 h) fits 1.5 times, so it is kept.
         assert_eq!(p.first(), Some(&604_800.0));
         assert_eq!(p.len(), 48 + 1); // the default 48 harmonics and 5 h
 
@@ -517,27 +511,6 @@ mod tests {
             .prepare_from_parameters(&axis, &params)
             .unwrap();
         assert_eq!(back.encode_parameters(), params);
-    }
-
-    #[test]
-    fn cycles_are_counted_in_the_samples_coverage() {
-        // 2 days of half-hourly samples: 96 samples cover 48 h (the last one stands for the
-        // half hour after it), so the day fits exactly twice and is a candidate; 28 h (week
-        // / 6) is not, nor is the day on one sample less.
-        use crate::fit::Spectral;
-        let step = 1_800_000_000_000;
-        let axis = TimeAxis::regular(Timestamp(0), step, 96, vec![]).unwrap();
-        let model = FremenPeriods
-            .prepare_periods(&axis, &ModelConfig::default())
-            .unwrap();
-        assert_eq!(model.periods().first(), Some(&86_400.0));
-        assert_eq!(model.longest_usable_period(0, 95), Some(86_400.0));
-        assert_eq!(model.longest_usable_period(1, 95), Some(604_800.0 / 8.0));
-        let shorter = TimeAxis::regular(Timestamp(0), step, 95, vec![]).unwrap();
-        let model = FremenPeriods
-            .prepare_periods(&shorter, &ModelConfig::default())
-            .unwrap();
-        assert_eq!(model.periods().first(), Some(&(604_800.0 / 8.0)));
     }
 
     #[test]

@@ -313,8 +313,7 @@ impl Spectral for PreparedFremenRegular {
     }
 
     fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
-        // The samples cover their span plus one step (each stands for its step).
-        let span = f64::from(last.saturating_sub(first)) + 1.0;
+        let span = f64::from(last.saturating_sub(first));
         let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
         if k_min.is_nan() || k_min > f64::from(self.n / 2) {
             return None;
@@ -322,23 +321,14 @@ impl Spectral for PreparedFremenRegular {
         Some(1.0 / self.frequency_hz(k_min as u32))
     }
 
-    fn candidates(
-        &self,
-        obs: &VoxelObservations,
-        mean: f64,
-        max: usize,
-        usable: (u32, u32),
-    ) -> Vec<Candidate> {
+    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
         };
-        let span = f64::from(last.saturating_sub(first)) + 1.0;
-        let usable_span = f64::from(usable.1.saturating_sub(usable.0)) + 1.0;
+        let span = f64::from(last - first);
         let nyquist = self.n / 2;
-        // Bin k has period n/k samples; it needs min_cycles periods within the usable span.
-        let k_min = (self.min_cycles * f64::from(self.n) / usable_span)
-            .ceil()
-            .max(1.0);
+        // Bin k has period n/k samples; it needs min_cycles periods within the span.
+        let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
         if k_min.is_nan() || k_min > f64::from(nyquist) {
             return Vec::new();
         }
@@ -361,7 +351,7 @@ impl Spectral for PreparedFremenRegular {
         let norm = 1.0 / obs.observed_count() as f64;
         // Frequencies in turns per sample: bins are 1/n apart, so only a voxel observed on
         // part of the axis has bins it cannot tell apart.
-        pick_distinct(offers, max, span, 1.0)
+        pick_distinct(offers, max, span + 1.0, 1.0)
             .into_iter()
             .filter_map(|(key, k)| {
                 let x = spectrum.get(k as usize)?;
@@ -472,8 +462,8 @@ mod tests {
 
     #[test]
     fn short_observed_span_excludes_long_periods() {
-        // A voxel seen only during samples 100..160 of 1000 (60 samples' coverage): periods
-        // above 30 samples (bins below 34) are not usable with min_cycles 2.
+        // A voxel seen only during samples 100..160 of 1000: periods above 40 samples
+        // (bins below 25) are not usable with min_cycles 1.5.
         let model = prepared(1000, 3);
         let mut b = ObservationsBuilder::new();
         for i in 100..160 {
@@ -486,7 +476,7 @@ mod tests {
         assert!(!components.is_empty());
         for c in components {
             assert!(
-                1000.0 / f64::from(c.frequency) * 2.0 <= 60.0,
+                1000.0 / f64::from(c.frequency) * 1.5 <= 59.0,
                 "bin {}",
                 c.frequency
             );

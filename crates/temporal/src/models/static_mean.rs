@@ -97,13 +97,7 @@ impl Spectral for PreparedStaticMean {
         None
     }
 
-    fn candidates(
-        &self,
-        _obs: &VoxelObservations,
-        _mean: f64,
-        _max: usize,
-        _usable: (u32, u32),
-    ) -> Vec<Candidate> {
+    fn candidates(&self, _obs: &VoxelObservations, _mean: f64, _max: usize) -> Vec<Candidate> {
         Vec::new()
     }
 }

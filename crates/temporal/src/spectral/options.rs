@@ -106,8 +106,8 @@ pub(crate) const HARMONICS: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
     key: "min-cycles",
-    help: "a period is used for a voxel only when its observed samples cover that many periods (n samples s apart cover n·s)",
-    default: "2",
+    help: "a period is used for a voxel only when its observed span covers that many periods",
+    default: "1.5",
 };
 pub(crate) const HOLDOUT_FRACTION: OptionDescriptor = OptionDescriptor {
     key: "holdout-fraction",
@@ -137,9 +137,8 @@ pub struct SpectralOptions {
     /// Harmonics of `base_period` in the default period set. Default 48 (one week down to
     /// 3.5 hours, including 1 day, 12 h, 8 h, 6 h and 4 h).
     pub harmonics: u32,
-    /// A period is used for a voxel only when the time its observed samples cover (first to
-    /// last plus one step: n samples `s` apart cover `n·s`) is at least `min_cycles` periods
-    /// long. Default 2 (issue 28: two whole cycles). Applies to DFT bins too.
+    /// A period is used for a voxel only when the voxel's observed time span is at least
+    /// `min_cycles` periods long. Default 1.5. Applies to DFT bins too.
     pub min_cycles: f64,
     /// Least fraction of each voxel's observed samples (the latest ones) held out to choose
     /// the order: more, up to half, as long as the earlier samples still span the longest
@@ -161,7 +160,7 @@ impl Default for SpectralOptions {
             periods: Vec::new(),
             base_period: 604_800.0,
             harmonics: 48,
-            min_cycles: 2.0,
+            min_cycles: 1.5,
             holdout_fraction: 0.25,
             shrink: true,
         }
