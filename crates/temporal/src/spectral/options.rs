@@ -111,7 +111,7 @@ pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const HOLDOUT_FRACTION: OptionDescriptor = OptionDescriptor {
     key: "holdout-fraction",
-    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); more, up to half, while the rest still spans the longest usable period",
+    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); half when the first half still spans the longest usable period",
     default: "0.25",
 };
 
@@ -141,9 +141,9 @@ pub struct SpectralOptions {
     /// `min_cycles` periods long. Default 1.5. Applies to DFT bins too.
     pub min_cycles: f64,
     /// Least fraction of each voxel's observed samples (the latest ones) held out to choose
-    /// the order: more, up to half, as long as the earlier samples still span the longest
-    /// period the voxel can use (`min_cycles` times), so that the held-out part holds as
-    /// many whole cycles as the fit can spare. Default 0.25.
+    /// the order: half of them when the first half still spans the longest period the voxel
+    /// can use (`min_cycles` times), so that the held-out part holds as many whole cycles as
+    /// the fit can spare. Default 0.25.
     pub holdout_fraction: f64,
     /// With [`Order::Auto`] and the prediction criterion, let the held-out samples also
     /// choose a factor (1, 0.8, 0.6, 0.4 or 0.2) the amplitudes are shrunk by, where the held-out
