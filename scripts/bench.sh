@@ -34,10 +34,11 @@ greg_door=${GREG_DOOR_DATA:-../shared/data/greg_door_2016_min}
 if [ "$size" = ci ]; then
   if [ -f "$greg_door/training_data.txt" ]; then
     scripts/python-client.sh target/interop-venv
-    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci \
+    # --require-targets: CI fails when a run misses issue 28's targets.
+    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci --require-targets \
       --data "$greg_door" --python target/interop-venv/bin/python --out target/greg-door-ci
     # Its validation mode (training weeks 4-6 fitted, week 7 scored; test weeks not read).
-    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci --validate \
+    cargo run --release --locked -q -p froctomap-bench -- greg-door --size ci --validate --require-targets \
       --data "$greg_door" --python target/interop-venv/bin/python --out target/greg-door-ci-validate
   else
     echo "bench.sh: $greg_door/training_data.txt is missing: the greg_door benchmark is skipped" >&2

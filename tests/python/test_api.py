@@ -273,6 +273,11 @@ def test_evaluate_returns_the_tables_of_eval_json(cli_file, held_out, series):
     theirs = json.loads(run_cli("-q", "eval", cli_file, "--against", held_out, series,
                                 "--json").stdout)
     assert ours == theirs
+    # Issue 28: every {wrong, total} object carries the Brier score and the log loss.
+    for _, rates in ours["prediction"]:
+        for voxels in ["all", "non_empty", "dynamic"]:
+            assert {"wrong", "total", "brier", "log_loss"} <= rates[voxels].keys()
+    assert 0 < ours["log_loss_epsilon"] < 0.5
     assert ours["outside"] == len(snapshot_files(held_out))
     assert ours["inside"] == len(snapshot_files(series))
 

@@ -12,7 +12,9 @@
 //! With `--validate` the test weeks are not read: the file is built from training weeks
 //! 1..=6 only (weeks from the first training minute, 2016-01-04 00:00 UTC; week 4 lacks 3
 //! days of recording) and scored on the held-back training weeks 7..=10, so that model
-//! options can be chosen without looking at the test weeks.
+//! options can be chosen without looking at the test weeks. `--fit-weeks N` moves the
+//! origin (weeks 1..=N fitted, the next up to 4 scored); `--rolling` runs the origins 4, 6
+//! and 8 in one go and tabulates whether the targets hold on each.
 
 use anyhow::{bail, Context as _, Result};
 use clap::Args;
@@ -39,7 +41,19 @@ const WEEK_SECONDS: i64 = 7 * 86_400;
 /// `--validate`: training weeks fitted; the later training weeks are the validation weeks.
 const FIT_WEEKS: u32 = 6;
 /// `--validate`: the held-back training weeks scored (the training data ends with week 10).
+#[cfg(test)]
 const VALIDATION_WEEKS: std::ops::RangeInclusive<u32> = 7..=10;
+/// The last training week recorded.
+const LAST_TRAINING_WEEK: u32 = 10;
+/// Most held-back weeks scored after a validation origin.
+const MAX_SCORED_WEEKS: u32 = 4;
+/// `--rolling`: the validation origins (training weeks fitted).
+const ROLLING_FIT_WEEKS: [u32; 3] = [4, 6, 8];
+
+/// The training weeks scored when weeks `1..=fit_weeks` are fitted.
+fn scored_weeks(fit_weeks: u32) -> std::ops::RangeInclusive<u32> {
+    fit_weeks + 1..=(fit_weeks + MAX_SCORED_WEEKS).min(LAST_TRAINING_WEEK)
+}
 
 #[derive(Args)]
 pub struct GregDoorArgs {
@@ -57,6 +71,20 @@ pub struct GregDoorArgs {
     /// read), to choose model options without looking at the test weeks.
     #[arg(long)]
     validate: bool,
+    /// With `--validate`: fit training weeks 1..=N (default 6) and score the next up to 4
+    /// (at most week 10; N from 1 to 9).
+    #[arg(long, value_name = "N", requires = "validate")]
+    fit_weeks: Option<u32>,
+    /// Rolling-origin validation: `--validate` at fit weeks 4, 6 and 8 (scored on 5-8, 7-10
+    /// and 9-10), each run's results in a subdirectory of --out, and a summary table of the
+    /// targets on each.
+    #[arg(long, conflicts_with_all = ["validate", "fit_weeks"])]
+    rolling: bool,
+    /// Fail (exit status 1) when a run misses issue 28's targets: every week's thresholded
+    /// error at most the static mean's + 0.1 pp, mean Brier at most 0.80× the static
+    /// mean's (what CI runs with).
+    #[arg(long)]
+    require_targets: bool,
     /// Evaluate every n-th test minute (default 10; `ci`: 60).
     #[arg(long)]
     stride: Option<usize>,
@@ -346,6 +374,30 @@ pub fn summarise(weeks: &[WeekRow]) -> Summary {
     }
 }
 
+/// Whether a run meets issue 28's targets (every week's error ≤ static mean + 0.1 pp, mean
+/// Brier ≤ 0.80× the static mean's).
+fn targets_met(summary: &Summary) -> bool {
+    summary.worst_excess_pp <= 0.1 + 1e-9 && summary.model_vs_static <= 0.80
+}
+
+/// With `--require-targets`, an error naming the runs that miss the targets.
+fn check_targets(args: &GregDoorArgs, runs: &[&GregDoorResults]) -> Result<()> {
+    let missed: Vec<String> = runs
+        .iter()
+        .filter(|r| !targets_met(&r.summary))
+        .map(|r| {
+            format!(
+                "{} ({}): model / static mean {:.3}, worst excess {:+.2} pp",
+                r.mode, r.fitted, r.summary.model_vs_static, r.summary.worst_excess_pp
+            )
+        })
+        .collect();
+    if args.require_targets && !missed.is_empty() {
+        bail!("issue 28's targets missed: {}", missed.join("; "));
+    }
+    Ok(())
+}
+
 /// The markdown table of a run.
 pub fn markdown(results: &GregDoorResults) -> String {
     let validating = results.mode == "validation";
@@ -437,21 +489,100 @@ pub fn markdown(results: &GregDoorResults) -> String {
     out
 }
 
+/// The markdown summary of a rolling-origin validation: one row per origin.
+pub fn rolling_markdown(runs: &[GregDoorResults]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "greg_door room, ROLLING-ORIGIN VALIDATION (test weeks not read), size {}: mean Brier over each origin's scored weeks relative to the static mean's, and the largest weekly excess of the thresholded error over the static mean's.\n",
+        runs.first().map_or("", |r| r.size.as_str())
+    );
+    let _ = writeln!(out, "| fitted | scored training weeks | model / static | FreMEn k=4 / static | best FreMEn / static | worst excess (pp) | targets (≤ 0.80×, ≤ +0.1 pp) | door periods (h) |");
+    let _ = writeln!(out, "| --- | --- | ---: | ---: | ---: | ---: | --- | --- |");
+    for r in runs {
+        let s = &r.summary;
+        let best = s
+            .reference_orders
+            .iter()
+            .filter(|(k, _)| k.starts_with("fremen"))
+            .map(|(_, b)| b / s.static_brier)
+            .fold(f64::INFINITY, f64::min);
+        let met = targets_met(s);
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:+.2} | {} | {} |",
+            r.fitted,
+            r.weeks
+                .iter()
+                .map(|w| w.week.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            s.model_vs_static,
+            s.reference_vs_static,
+            best,
+            s.worst_excess_pp,
+            if met { "met" } else { "not met" },
+            r.door_periods
+                .iter()
+                .map(|p| format!("{:.1}", p / 3600.0))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    out
+}
+
 pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
+    if !args.rolling {
+        let fit_weeks = args.validate.then_some(args.fit_weeks.unwrap_or(FIT_WEEKS));
+        let results = run(args, fit_weeks, &args.out)?;
+        write_results(&args.out, &markdown(&results), &results)?;
+        return check_targets(args, &[&results]);
+    }
+    let mut runs = Vec::new();
+    for fit_weeks in ROLLING_FIT_WEEKS {
+        let out = args.out.join(format!("fit-weeks-{fit_weeks}"));
+        let results = run(args, Some(fit_weeks), &out)?;
+        write_results(&out, &markdown(&results), &results)?;
+        runs.push(results);
+    }
+    write_results(&args.out, &rolling_markdown(&runs), &runs)?;
+    check_targets(args, &runs.iter().collect::<Vec<_>>())
+}
+
+/// Prints `md` and writes it and `results` as results.md and results.json in `out`.
+fn write_results(out: &Path, md: &str, results: &impl Serialize) -> Result<()> {
+    println!("{md}");
+    std::fs::write(out.join("results.md"), md)?;
+    std::fs::write(
+        out.join("results.json"),
+        serde_json::to_string_pretty(results)?,
+    )?;
+    Ok(())
+}
+
+/// One run: the test weeks, or with `fit_weeks` the validation on training weeks
+/// `1..=fit_weeks` scored on the next ones; its files in `out`.
+fn run(args: &GregDoorArgs, fit_weeks: Option<u32>, out: &Path) -> Result<GregDoorResults> {
+    if let Some(n) = fit_weeks {
+        if !(1..LAST_TRAINING_WEEK).contains(&n) {
+            bail!("--fit-weeks {n}: expected 1 to {}", LAST_TRAINING_WEEK - 1);
+        }
+    }
+    let validate = fit_weeks.is_some();
     let (weeks, default_stride, train_days): (Vec<u32>, usize, Option<i64>) =
-        match (args.size.as_str(), args.validate) {
-            ("full", false) => ((1..=9).collect(), 10, None),
-            ("ci", false) => (vec![1, 2], 60, Some(21)),
-            ("full", true) => (VALIDATION_WEEKS.collect(), 10, None),
-            ("ci", true) => (vec![*VALIDATION_WEEKS.start()], 60, Some(21)),
+        match (args.size.as_str(), fit_weeks) {
+            ("full", None) => ((1..=9).collect(), 10, None),
+            ("ci", None) => (vec![1, 2], 60, Some(21)),
+            ("full", Some(n)) => (scored_weeks(n).collect(), 10, None),
+            ("ci", Some(n)) => (vec![n + 1], 60, Some(21)),
             (other, _) => bail!("--size {other}: expected `full` or `ci`"),
         };
     let stride = args.stride.unwrap_or(default_stride).max(1);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let context = Context::with_default_plugins();
-    let closed = args.out.join("door-closed.bt");
-    let open = args.out.join("door-open.bt");
+    let closed = out.join("door-closed.bt");
+    let open = out.join("door-open.bt");
     for (path, is_closed) in [(&closed, true), (&open, false)] {
         context
             .formats()
@@ -461,10 +592,8 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
     let training_path = args.data.join("training_data.txt");
     let mut training = read_pairs(&training_path, None)?;
     let start = training.first().map_or(0, |&(t, _)| t);
-    // Validating: the training samples from week FIT_WEEKS + 1 on are held back.
-    let validate_until = args
-        .validate
-        .then_some(start + i64::from(FIT_WEEKS) * WEEK_SECONDS);
+    // Validating: the training samples from week fit_weeks + 1 on are held back.
+    let validate_until = fit_weeks.map(|n| start + i64::from(n) * WEEK_SECONDS);
     let held_back = match validate_until {
         Some(until) => hold_back(&mut training, until),
         None => Vec::new(),
@@ -478,7 +607,7 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
         training.retain(|&(t, _)| t >= from);
     }
     eprintln!("greg-door: building from {} maps", training.len());
-    let file = args.out.join("greg_door.froct");
+    let file = out.join("greg_door.froct");
     let mut config = froctomap_temporal::ModelConfig::default();
     for option in &args.options {
         config.options.set_assignment(option)?;
@@ -508,7 +637,7 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
     let reference = reference(args, &weeks, stride, train_from, validate_until)?;
     let mut rows = Vec::new();
     for &week in &weeks {
-        let pairs = if args.validate {
+        let pairs = if validate {
             let pairs = training_week(&held_back, start, week);
             if pairs.is_empty() {
                 bail!(
@@ -556,13 +685,13 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
         }
         rows.push(row);
     }
-    let results = GregDoorResults {
-        mode: if args.validate { "validation" } else { "test" }.into(),
-        fitted: match (args.validate, train_days) {
-            (false, None) => "all training weeks".into(),
-            (false, Some(days)) => format!("the last {days} training days"),
-            (true, None) => format!("training weeks 1-{FIT_WEEKS}"),
-            (true, Some(days)) => format!("the {days} days before training week {}", FIT_WEEKS + 1),
+    Ok(GregDoorResults {
+        mode: if validate { "validation" } else { "test" }.into(),
+        fitted: match (fit_weeks, train_days) {
+            (None, None) => "all training weeks".into(),
+            (None, Some(days)) => format!("the last {days} training days"),
+            (Some(n), None) => format!("training weeks 1-{n}"),
+            (Some(n), Some(days)) => format!("the {days} days before training week {}", n + 1),
         },
         size: args.size.clone(),
         stride,
@@ -574,15 +703,7 @@ pub fn greg_door_command(args: &GregDoorArgs) -> Result<()> {
         summary: summarise(&rows),
         weeks: rows,
         reference_periods_strongest_first: reference["strongest_first"].clone(),
-    };
-    let md = markdown(&results);
-    println!("{md}");
-    std::fs::write(args.out.join("results.md"), &md)?;
-    std::fs::write(
-        args.out.join("results.json"),
-        serde_json::to_string_pretty(&results)?,
-    )?;
-    Ok(())
+    })
 }
 
 #[cfg(test)]
@@ -606,6 +727,7 @@ mod tests {
         assert_eq!(training.len(), 6 * 7 * 1440 - 3 * 1440);
         assert!(training.iter().all(|&(t, _)| t < until));
         let mut weeks = Vec::new();
+        assert_eq!(scored_weeks(FIT_WEEKS), VALIDATION_WEEKS);
         for week in VALIDATION_WEEKS {
             let samples = training_week(&held_back, start, week);
             assert_eq!(samples.len(), 7 * 1440, "week {week}");
@@ -618,5 +740,9 @@ mod tests {
         assert_eq!(weeks, held_back);
         assert_eq!([training, held_back].concat(), all);
         assert!(training_week(&all, start, 11).is_empty());
+        // The rolling origins score the weeks after them, never past the last.
+        assert_eq!(scored_weeks(4), 5..=8);
+        assert_eq!(scored_weeks(8), 9..=10);
+        assert!(scored_weeks(ROLLING_FIT_WEEKS[2]).all(|w| w <= LAST_TRAINING_WEEK));
     }
 }
