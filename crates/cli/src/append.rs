@@ -40,6 +40,9 @@ pub struct AppendArgs {
     /// whose header gives a resolution must have the file's.
     #[arg(long)]
     skip_bad: bool,
+    /// With --skip-bad, append even when more than half of the new inputs are left out.
+    #[arg(long, requires = "skip_bad")]
+    allow_mostly_skipped: bool,
     /// Force the input map format instead of detecting it.
     #[arg(long, value_name = "FORMAT")]
     input_format: Option<String>,
@@ -94,6 +97,7 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     let options = IngestOptions {
         config,
         skip_bad: args.skip_bad,
+        allow_mostly_skipped: args.allow_mostly_skipped,
         input_format: args.input_format.clone(),
         backend: Some(ui.backend),
         metadata,

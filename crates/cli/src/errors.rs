@@ -56,7 +56,7 @@ fn convert_hint(error: &ConvertError, skips_bad_files: bool) -> Option<&'static 
             Some("build with a smaller --tile-depth (coarser tiles), or leave the file out")
         }
         ConvertError::MostlySkipped { .. } => Some(
-            "give the series' resolution with --resolution, or pass --allow-mostly-skipped to build from the rest",
+            "give the series' resolution with --resolution (build), or pass --allow-mostly-skipped to go on with the rest",
         ),
         ConvertError::AppendOverlap { .. } => Some(
             "append takes only snapshots later than the file's last one (`froctomap info FILE` shows its span); leave the earlier ones out",

@@ -1012,3 +1012,44 @@ fn skip_bad_keeps_the_resolution_most_inputs_have() {
     let info = ok(&["info", "--json", s(&map)]);
     assert!(info.contains("\"resolution_m\": 0.2"), "{info}");
 }
+
+/// `append --skip-bad` refuses to go on when most new inputs are left out, and the hint's
+/// `--allow-mostly-skipped` exists on `append` too.
+#[test]
+fn append_refuses_mostly_skipped_inputs_unless_allowed() {
+    let (dir, inputs, _) = series_in_subdir(4);
+    let map = dir.path().join("room.froct");
+    ok(&["build", "--quiet", s(&inputs), "-o", s(&map)]);
+    let later = dir.path().join("later");
+    std::fs::create_dir(&later).unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    let good = later.join(format!("room_{}.bt", 1_451_865_600 + 4 * 600));
+    registry
+        .write_file(&frame(4), &good, WriteOptions::default())
+        .unwrap();
+    for i in 5..8 {
+        let bad = later.join(format!("room_{}.bt", 1_451_865_600 + i * 600));
+        std::fs::write(&bad, b"not an octree").unwrap();
+    }
+    let before = std::fs::read(&map).unwrap();
+    let e = err(&["append", "--skip-bad", s(&map), s(&later)]);
+    assert!(e.contains("3 of 4 inputs would be left out"), "{e}");
+    assert!(e.contains("--allow-mostly-skipped"), "{e}");
+    assert_eq!(
+        std::fs::read(&map).unwrap(),
+        before,
+        "a refused append leaves the file"
+    );
+    ok(&[
+        "append",
+        "--quiet",
+        "--skip-bad",
+        "--allow-mostly-skipped",
+        s(&map),
+        s(&later),
+    ]);
+    // The good map joins; the three left out are missing samples on the axis.
+    let info = ok(&["info", "--json", s(&map)]);
+    assert!(info.contains("\"samples\": 8"), "{info}");
+    assert!(info.contains("\"missing\": 3"), "{info}");
+}
