@@ -91,8 +91,8 @@ pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
 pub use info::{
-    describe, describe_series, AxisInfo, FroctInfo, LivingInfo, SegmentInfo, SizeInfo,
-    LARGEST_REGIONS,
+    describe, describe_map_file, describe_series, AxisInfo, FroctInfo, LivingInfo, MapFileInfo,
+    MetricBounds, SegmentInfo, SizeInfo, LARGEST_REGIONS,
 };
 pub use inputs::{
     collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,

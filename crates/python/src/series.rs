@@ -21,7 +21,7 @@ use std::time::Instant;
 
 /// How the inputs of a series get their times, as on the command line (`--start/--step`,
 /// `--times-file`, `--times-from-names`; manifests and file names otherwise).
-fn series_times(
+pub(crate) fn series_times(
     start: Option<&Bound<'_, PyAny>>,
     step: Option<&Bound<'_, PyAny>>,
     times_file: Option<PathBuf>,
@@ -42,7 +42,7 @@ fn series_times(
 }
 
 /// A duration: seconds as a number, or text such as `10min`, `1.5h`.
-fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
+pub(crate) fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
     let text = match value.extract::<String>() {
         Ok(text) => text,
         Err(_) => format!("{}", value.extract::<f64>()?),
@@ -51,7 +51,7 @@ fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
 }
 
 /// The input paths: one path or a list of them.
-fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
+pub(crate) fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
     if let Ok(path) = value.extract::<PathBuf>() {
         return Ok(vec![path]);
     }
@@ -62,19 +62,36 @@ fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
 }
 
 /// What `build` was given: paths, or maps handed over as `(time, bytes)` pairs.
-enum BuildInputs {
+pub(crate) enum BuildInputs {
     Paths(Vec<PathBuf>),
     /// The pairs, spooled to disk as they came.
     Maps(froctomap_formats::Recording),
 }
 
+impl BuildInputs {
+    /// The inputs with their times, as the command line collects its arguments.
+    pub(crate) fn collect(
+        self,
+        context: &froctomap_convert::Context,
+        source: TimeSource,
+    ) -> Result<froctomap_convert::CollectedInputs, froctomap_convert::ConvertError> {
+        match self {
+            Self::Paths(inputs) => collect_inputs_explained(context, &inputs, source, &Zone::utc()),
+            Self::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
+        }
+    }
+}
+
 /// How messages name maps handed over as `(time, bytes)` pairs.
-const PAIRS_NAME: &str = "<maps>";
+pub(crate) const PAIRS_NAME: &str = "<maps>";
 
 /// `inputs` of `build`: a path, an iterable of paths, or an iterable of `(time, bytes)`
 /// pairs (any iterable, a generator too), each map spooled into a locked temporary
 /// directory in `spool_dir` as it comes, so memory does not hold the maps.
-fn build_inputs(value: &Bound<'_, PyAny>, spool_dir: Option<&Path>) -> PyResult<BuildInputs> {
+pub(crate) fn build_inputs(
+    value: &Bound<'_, PyAny>,
+    spool_dir: Option<&Path>,
+) -> PyResult<BuildInputs> {
     if let Ok(path) = value.extract::<PathBuf>() {
         return Ok(BuildInputs::Paths(vec![path]));
     }
@@ -118,7 +135,7 @@ fn build_inputs(value: &Bound<'_, PyAny>, spool_dir: Option<&Path>) -> PyResult<
 
 /// The model's settings from the keyword arguments, checked by the model (`--model`,
 /// `--model-option`, `--order`, `--max-order`, `--periods`, `--lossy`).
-fn model_config(
+pub(crate) fn model_config(
     model: &str,
     lossy: bool,
     order: Option<&Bound<'_, PyAny>>,
@@ -139,12 +156,7 @@ fn model_config(
     } else {
         OutlierMode::Lossless
     });
-    if let Some(options) = model_options {
-        for (key, value) in options.iter() {
-            let key: String = key.extract()?;
-            config.options.set(&key, value.str()?.to_string());
-        }
-    }
+    config.options = model_config_options(model_options)?;
     let has = |key: &str| descriptor.options.iter().any(|o| o.key == key);
     let order = match order {
         None => None,
@@ -186,8 +198,22 @@ fn model_config(
     Ok(config)
 }
 
+/// `model_options={"key": value}` as the model's options (`--model-option KEY=VALUE`).
+pub(crate) fn model_config_options(
+    model_options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<froctomap_temporal::ModelOptions> {
+    let mut options = froctomap_temporal::ModelOptions::new();
+    if let Some(given) = model_options {
+        for (key, value) in given.iter() {
+            let key: String = key.extract()?;
+            options.set(&key, value.str()?.to_string());
+        }
+    }
+    Ok(options)
+}
+
 /// `created`, else SOURCE_DATE_EPOCH (whole Unix seconds), as the command line reads them.
-fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestamp>> {
+pub(crate) fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestamp>> {
     if let Some(value) = created {
         return instant(value, "created").map(Some);
     }
@@ -208,7 +234,7 @@ fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestam
 }
 
 /// `tags` as the header metadata (`{"tags": {...}}`, as `--tag KEY=VALUE`).
-fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value>> {
+pub(crate) fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value>> {
     let mut metadata = Map::new();
     let Some(tags) = tags else {
         return Ok(metadata);
@@ -323,13 +349,7 @@ pub fn build<'py>(
             Some(callback) => callback,
             None => &Silent,
         };
-        let collected = match inputs {
-            BuildInputs::Paths(inputs) => {
-                collect_inputs_explained(&context, &inputs, source, &Zone::utc())
-            }
-            BuildInputs::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
-        }
-        .map_err(|e| message(&e))?;
+        let collected = inputs.collect(&context, source).map_err(|e| message(&e))?;
         let target = IngestTarget::NewFile(&output);
         let report =
             ingest(&context, &collected, target, &options, progress).map_err(|e| message(&e))?;

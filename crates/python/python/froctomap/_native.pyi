@@ -28,6 +28,41 @@ def build(inputs: Any, output: PathLike, **options: Any) -> Dict[str, Any]:
 def evaluate(path: PathLike, against: List[Any], **options: Any) -> Dict[str, Any]:
     """See froctomap.evaluate."""
 
+def append(file: PathLike, inputs: Any, **options: Any) -> Dict[str, Any]:
+    """See froctomap.append."""
+
+def record(file: PathLike, sources: Any, **options: Any) -> Dict[str, Any]:
+    """See froctomap.record."""
+
+def compact(file: PathLike, output: Optional[PathLike] = None, **options: Any) -> Dict[str, Any]:
+    """See froctomap.compact."""
+
+def export(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.export."""
+
+def convert(
+    input: PathLike,
+    output: PathLike,
+    *,
+    format: Optional[str] = None,
+    input_format: Optional[str] = None,
+) -> Dict[str, Any]:
+    """Converts one map file into another format (``froctomap convert``): the output's
+    extension names the format unless ``format`` does; the output is written atomically
+    and is never the input. Returns ``input_format``, ``output_format``, ``leaves`` and the
+    reader's ``warnings``."""
+
+def info(path: PathLike, *, count: bool = False, input_format: Optional[str] = None) -> Dict[str, Any]:
+    """Describes a file as ``froctomap info --json`` does: a FROctomap file (the fields of
+    ``FroctFile.info``; ``count=True`` recounts its cells) or one map file (format,
+    resolution, nodes, leaves, voxels, bounds, warnings)."""
+
+def octomap_message_fields(data: bytes) -> Dict[str, Any]:
+    """The octomap_msgs/Octomap fields of a map file (see froctomap.message_from_map)."""
+
+def octomap_message_file(binary: bool, id: str, resolution: float, data: bytes) -> bytes:
+    """The map file of octomap_msgs/Octomap fields (see froctomap.map_from_message)."""
+
 class FroctFile:
     """An open FROctomap file (from froctomap.open); a context manager."""
 
