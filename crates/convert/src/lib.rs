@@ -107,8 +107,8 @@ pub use maps::{observed_bt, predicted_bt};
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use query::{
-    probabilities, series_probabilities, voxel_history, CellClass, CellGeometry, HistorySample,
-    VoxelHistory,
+    probabilities, probabilities_at_times, series_probabilities, voxel_history, CellClass,
+    CellGeometry, HistorySample, VoxelHistory,
 };
 pub use record::{
     CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,

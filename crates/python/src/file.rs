@@ -5,12 +5,14 @@ use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
 use froctomap_convert::{
-    anomalies, describe_series, probabilities, read_snapshot, read_time_from_file_name,
-    resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport, Expectation,
-    FroctFile as SeriesFile, HistorySample, Pick, SeriesRead, TimeQuery, VoxelHistory, Zone,
+    anomalies, describe_series, probabilities, probabilities_at_times, read_snapshot,
+    read_time_from_file_name, resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport,
+    Expectation, FroctFile as SeriesFile, HistorySample, Pick, SeriesRead, TimeQuery, VoxelHistory,
+    Zone,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
+use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -190,28 +192,38 @@ impl FroctFile {
 
     /// The model's occupancy probability p(t) at each of `points` (an (N, 3) array of
     /// metres, the map's frame): a numpy float64 array of shape (N,), NaN where the file has
-    /// no cell (never observed, or outside the map). `t` as for `predict`: any instant.
+    /// no cell (never observed, or outside the map). `t` as for `predict`: any instant; or
+    /// several instants (a list, tuple or numpy array of them, T in all): an array of shape
+    /// (T, N), row i at `t[i]`, computed in one pass over the tiles holding the points.
     fn probability<'py>(
         &self,
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
         points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         let reader = self.reader()?;
-        let at = self.instant_of(&reader, t)?;
-        let points = float_array(py, points)?;
-        let shape = points.shape().to_vec();
-        if shape.len() != 2 || shape[1] != 3 {
-            return Err(PyValueError::new_err(format!(
-                "points must have shape (N, 3), not {shape:?}"
-            )));
+        let points = points_array(py, points)?;
+        let several = !t.is_instance_of::<pyo3::types::PyString>()
+            && (t.is_instance_of::<pyo3::types::PyList>()
+                || t.is_instance_of::<pyo3::types::PyTuple>()
+                || t.hasattr("ndim")? && t.getattr("ndim")?.extract::<usize>()? > 0);
+        if !several {
+            let at = self.instant_of(&reader, t)?;
+            let p = py
+                .detach(|| probabilities(reader.whole_history()?, at, &points))
+                .map_err(to_py)?;
+            return Ok(p.into_pyarray(py).into_any());
         }
-        let flat = points.as_slice()?;
-        let points: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let times = t
+            .try_iter()?
+            .map(|item| self.instant_of(&reader, &item?))
+            .collect::<PyResult<Vec<_>>>()?;
         let p = py
-            .detach(|| probabilities(reader.whole_history()?, at, &points))
+            .detach(|| probabilities_at_times(reader.whole_history()?, &times, &points))
             .map_err(to_py)?;
-        Ok(p.into_pyarray(py))
+        let rows = Array2::from_shape_vec((times.len(), points.len()), p)
+            .map_err(|e| froct_error_text(e.to_string()))?;
+        Ok(rows.into_pyarray(py).into_any())
     }
 
     /// One voxel's story: the cell holding `point` (x, y, z in metres), its class and model,
@@ -398,6 +410,19 @@ impl FroctFile {
             ),
         }
     }
+}
+
+/// Points as an (N, 3) array of metres (anything numpy reads as one).
+pub(crate) fn points_array(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {
+    let points = float_array(py, points)?;
+    let shape = points.shape().to_vec();
+    if shape.len() != 2 || shape[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "points must have shape (N, 3), not {shape:?}"
+        )));
+    }
+    let flat = points.as_slice()?;
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 /// `numpy.ascontiguousarray(value, dtype=float64)`, read-only.

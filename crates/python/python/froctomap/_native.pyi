@@ -92,9 +92,12 @@ class FroctFile:
         first one or for an index beyond the axis."""
     def predict(self, t: Time) -> Map:
         """The map predicted for any instant t (p(t) per cell)."""
-    def probability(self, t: Time, points: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    def probability(
+        self, t: Union[Time, List[Time], npt.ArrayLike], points: npt.ArrayLike
+    ) -> npt.NDArray[np.float64]:
         """p(t) at each point of an (N, 3) array (metres), shape (N,); NaN where the file has
-        no cell."""
+        no cell. Several instants (a list, tuple or array of T times): shape (T, N), in one
+        call without the interpreter lock."""
     def history(
         self, point: npt.ArrayLike, start: Optional[Time] = None, end: Optional[Time] = None
     ) -> Dict[str, Any]:
@@ -151,9 +154,15 @@ class Map:
         self, max_points: int = 50_000_000
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """(occupied, free) voxel centres, each of shape (N, 3), metres."""
-    def leaves(
-        self,
-    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
-        """(centres (N, 3), edge lengths (N,), occupied (N,)) of the map's leaves."""
+    def leaves(self, with_p: bool = False) -> Tuple[npt.NDArray[Any], ...]:
+        """(centres (N, 3), edge lengths (N,), occupied (N,)) of the map's leaves; with
+        with_p=True also p (N,), each leaf's occupancy probability (clamped as OctoMap
+        stores it)."""
+    def search(
+        self, points: npt.ArrayLike
+    ) -> Tuple[npt.NDArray[np.int8], npt.NDArray[np.float64]]:
+        """(state, p) at each point of an (N, 3) array, as octomap-python's search and
+        isNodeOccupied/getOccupancy: state 1 occupied, 0 free, -1 unknown; p NaN where
+        unknown."""
     def __len__(self) -> int:
         """Leaves of the map."""
