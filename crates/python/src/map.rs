@@ -281,11 +281,7 @@ impl Map {
     /// numpy arrays of shape (N,): `state` int8 (1 occupied, 0 free, -1 unknown: no leaf
     /// there, or outside the map) and `p` float64 (the leaf's occupancy probability, as
     /// `leaves(with_p=True)` gives it; NaN where unknown).
-    fn search<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Found<'py>> {
+    fn search<'py>(&self, py: Python<'py>, points: &Bound<'py, PyAny>) -> PyResult<Found<'py>> {
         let points = crate::file::points_array(py, points)?;
         let snapshot = self.snapshot(py)?;
         let (states, p): (Vec<i8>, Vec<f64>) = py.detach(|| {

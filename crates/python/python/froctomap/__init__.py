@@ -379,5 +379,5 @@ def map_from_message(message: Any) -> bytes:
     if hasattr(data, "tobytes"):
         data = data.tobytes()
     elif not isinstance(data, (bytes, bytearray)):
-        data = bytes(b & 0xFF for b in data)
+        data = bytes(int(b) & 0xFF for b in data)
     return _native.octomap_message_file(bool(get("binary")), str(get("id")), float(get("resolution")), bytes(data))
