@@ -1,6 +1,6 @@
 //! `froctomap.open(path)`: a FROctomap file, its time axis and summary, and the maps in it.
 
-use crate::errors::{froct_error_text, to_py};
+use crate::errors::{froct_error_text, to_py, Failure};
 use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
@@ -138,13 +138,10 @@ impl FroctFile {
     #[pyo3(signature = (count = false))]
     fn describe<'py>(&self, py: Python<'py>, count: bool) -> PyResult<Bound<'py, PyAny>> {
         let reader = self.reader()?;
-        let text = py
-            .detach(|| {
-                describe_series(crate::context(), &reader, count)
-                    .map_err(|e| crate::errors::message(&e))
-                    .and_then(|info| serde_json::to_string(&info).map_err(|e| e.to_string()))
-            })
-            .map_err(froct_error_text)?;
+        let text = py.detach(|| -> Result<String, Failure> {
+            let info = describe_series(crate::context(), &reader, count)?;
+            Ok(serde_json::to_string(&info)?)
+        })?;
         json_value(py, &text)
     }
 

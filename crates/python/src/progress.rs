@@ -5,7 +5,8 @@
 //! end), so that a progress bar costs nothing noticeable. The package's `progress=True`
 //! passes a callback that draws tqdm bars.
 
-use froctomap_convert::Progress;
+use crate::errors::Failure;
+use froctomap_convert::{Progress, Silent};
 use pyo3::prelude::*;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -109,4 +110,22 @@ impl Progress for Callback {
             }
         }
     }
+}
+
+/// Runs `work` without the interpreter, reporting progress to the callable `progress` (if
+/// any); then raises what the callback raised, else what `work` failed with.
+pub(crate) fn with_progress<T: Send>(
+    py: Python<'_>,
+    progress: Option<Py<PyAny>>,
+    work: impl FnOnce(&dyn Progress) -> Result<T, Failure> + Send,
+) -> PyResult<T> {
+    let callback = progress.map(Callback::new);
+    let outcome = py.detach(|| match &callback {
+        Some(callback) => work(callback),
+        None => work(&Silent),
+    });
+    if let Some(callback) = callback {
+        callback.finish()?;
+    }
+    Ok(outcome?)
 }

@@ -1,13 +1,12 @@
 //! `froctomap.build` and `froctomap.evaluate`: series of maps in, a file or error tables out.
 
-use crate::errors::{froct_error_text, message, to_py};
+use crate::errors::{froct_error_text, to_py};
 use crate::file::json_value;
-use crate::progress::Callback;
+use crate::progress::with_progress;
 use crate::times::instant;
 use froctomap_convert::{
     collect_inputs_explained, collect_recording, evaluate as evaluate_file, ingest, parse_duration,
-    IngestOptions, IngestTarget, Progress, RecordedTime, RecordingOptions, Silent, TimeSource,
-    Zone,
+    IngestOptions, IngestTarget, RecordedTime, RecordingOptions, TimeSource, Zone,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -343,17 +342,11 @@ pub fn build<'py>(
             "inputs: (time, bytes) pairs carry their own times; start/step, times_file and times_from_names apply to files only",
         ));
     }
-    let callback = progress.map(Callback::new);
-    let report = py.detach(|| {
-        let progress: &dyn Progress = match &callback {
-            Some(callback) => callback,
-            None => &Silent,
-        };
-        let collected = inputs.collect(&context, source).map_err(|e| message(&e))?;
+    let report = with_progress(py, progress, |progress| {
+        let collected = inputs.collect(&context, source)?;
         let target = IngestTarget::NewFile(&output);
-        let report =
-            ingest(&context, &collected, target, &options, progress).map_err(|e| message(&e))?;
-        let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+        let report = ingest(&context, &collected, target, &options, progress)?;
+        let mut value = serde_json::to_value(&report)?;
         if let Value::Object(map) = &mut value {
             let warnings: Vec<Value> = collected
                 .warnings
@@ -366,12 +359,9 @@ pub fn build<'py>(
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        serde_json::to_string(&value).map_err(|e| e.to_string())
-    });
-    if let Some(callback) = callback {
-        callback.finish()?;
-    }
-    json_value(py, &report.map_err(froct_error_text)?)
+        Ok(serde_json::to_string(&value)?)
+    })?;
+    json_value(py, &report)
 }
 
 /// Compares a FROctomap file with ground-truth maps (`froctomap eval --json`).
@@ -391,31 +381,21 @@ pub fn evaluate<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let against = paths(against)?;
     let source = series_times(start, step, times_file, times_from_names)?;
-    let callback = progress.map(Callback::new);
-    let report = py.detach(|| {
-        let progress: &dyn Progress = match &callback {
-            Some(callback) => callback,
-            None => &Silent,
-        };
+    let report = with_progress(py, progress, |progress| {
         let context = crate::context();
-        let file = context.open_series(&path).map_err(|e| message(&e))?;
-        let reader = file.whole_history().map_err(|e| message(&e))?;
-        let collected = collect_inputs_explained(context, &against, source, &Zone::utc())
-            .map_err(|e| message(&e))?;
+        let file = context.open_series(&path)?;
+        let reader = file.whole_history()?;
+        let collected = collect_inputs_explained(context, &against, source, &Zone::utc())?;
         let report = evaluate_file(
             context,
             reader,
             &collected.series,
             ReadOptions::default(),
             progress,
-        )
-        .map_err(|e| message(&e))?;
-        serde_json::to_string(&report).map_err(|e| e.to_string())
-    });
-    if let Some(callback) = callback {
-        callback.finish()?;
-    }
-    json_value(py, &report.map_err(froct_error_text)?)
+        )?;
+        Ok(serde_json::to_string(&report)?)
+    })?;
+    json_value(py, &report)
 }
 
 /// Reads a time as the command line does (`--time`): Unix seconds (float) of an instant, or

@@ -2,16 +2,16 @@
 //! `info` (of any file) and `record`, each a thin layer over the library call the CLI makes,
 //! returning the report `--json` prints (as a dict).
 
-use crate::errors::{froct_error_text, message, to_py};
+use crate::errors::{froct_error_text, message, to_py, Failure};
 use crate::file::json_value;
-use crate::progress::Callback;
+use crate::progress::with_progress;
 use crate::series::{build_inputs, duration_ns, model_config_options, series_times, BuildInputs};
 use crate::times::instant;
 use froctomap_convert::{
     compact as compact_file, describe_map_file, describe_series, export as export_maps, ingest,
     is_living_file, refuse_overwriting_input, AppendReport, CollectedInputs, CommitEvery,
     CompactFormat, CompactOptions, ExportMode, ExportOptions, IngestOptions, IngestTarget,
-    Progress, RecordEvent, RecordOptions, Recorder, SeriesInput, Silent, TimeSource, FROCT,
+    RecordEvent, RecordOptions, Recorder, SeriesInput, TimeSource, FROCT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -23,27 +23,9 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver};
 
-/// Runs `work` without the interpreter, reporting progress to `progress`; then raises what
-/// the callback raised, else what `work` failed with.
-fn with_progress<'py, T: Send>(
-    py: Python<'py>,
-    progress: Option<Py<PyAny>>,
-    work: impl FnOnce(&dyn Progress) -> Result<T, String> + Send,
-) -> PyResult<T> {
-    let callback = progress.map(Callback::new);
-    let outcome = py.detach(|| match &callback {
-        Some(callback) => work(callback),
-        None => work(&Silent),
-    });
-    if let Some(callback) = callback {
-        callback.finish()?;
-    }
-    outcome.map_err(froct_error_text)
-}
-
 /// A report serialised by serde, as JSON text (turned into a dict by `json_value`).
-fn json_text(report: &impl serde::Serialize) -> Result<String, String> {
-    serde_json::to_string(report).map_err(|e| e.to_string())
+fn json_text(report: &impl serde::Serialize) -> Result<String, Failure> {
+    Ok(serde_json::to_string(report)?)
 }
 
 /// The warnings of collected inputs, as the reports list them.
@@ -127,17 +109,15 @@ pub fn append<'py>(
             .with_spool_dir(Some(spool_dir)),
     );
     let report = with_progress(py, progress, |progress| {
-        let collected = inputs.collect(&context, times).map_err(|e| message(&e))?;
-        let living = is_living_file(&file).map_err(|e| message(&e))?;
+        let collected = inputs.collect(&context, times)?;
+        let living = is_living_file(&file)?;
         let target = if living || segment_asked {
             IngestTarget::Segment(&file)
         } else {
             IngestTarget::Rewrite(&file)
         };
-        let report =
-            ingest(&context, &collected, target, &options, progress).map_err(|e| message(&e))?;
-        let mut value =
-            serde_json::to_value(AppendReport::from(report)).map_err(|e| e.to_string())?;
+        let report = ingest(&context, &collected, target, &options, progress)?;
+        let mut value = serde_json::to_value(AppendReport::from(report))?;
         if let Value::Object(map) = &mut value {
             map.insert("input_warnings".into(), input_warnings(&collected));
         }
@@ -187,7 +167,7 @@ pub fn compact<'py>(
             Some(layout) => {
                 // The base's block length, as the command line keeps it; only the layout
                 // changes.
-                let opened = context.open_series(&file).map_err(|e| message(&e))?;
+                let opened = context.open_series(&file)?;
                 let samples = froctomap_convert::SeriesRead::header(&opened)
                     .toggles
                     .block_len()
@@ -195,8 +175,7 @@ pub fn compact<'py>(
                 CompactFormat::Flat(Some(layout(samples)))
             }
         };
-        let report = compact_file(context, &file, output.as_deref(), &options, progress)
-            .map_err(|e| message(&e))?;
+        let report = compact_file(context, &file, output.as_deref(), &options, progress)?;
         json_text(&report)
     })?;
     json_value(py, &report)
@@ -212,29 +191,23 @@ pub fn convert<'py>(
     format: Option<String>,
     input_format: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let report = py.detach(|| -> Result<String, String> {
-        refuse_overwriting_input(&output, [input.as_path()]).map_err(|e| message(&e))?;
+    let report = py.detach(|| -> Result<String, Failure> {
+        refuse_overwriting_input(&output, [input.as_path()])?;
         let registry = crate::context().formats();
         let write = WriteOptions {
             format: format.as_deref(),
             backend: None,
         };
         // A bad output name fails before any work, as on the command line.
-        registry
-            .output_format(&output, write)
-            .map_err(|e| message(&e))?;
-        let read = registry
-            .read_file(
-                &input,
-                ReadOptions {
-                    format: input_format.as_deref(),
-                    backend: None,
-                },
-            )
-            .map_err(|e| message(&e))?;
-        let written = registry
-            .write_file(&read.map.snapshot, &output, write)
-            .map_err(|e| message(&e))?;
+        registry.output_format(&output, write)?;
+        let read = registry.read_file(
+            &input,
+            ReadOptions {
+                format: input_format.as_deref(),
+                backend: None,
+            },
+        )?;
+        let written = registry.write_file(&read.map.snapshot, &output, write)?;
         json_text(&json!({
             "input": input,
             "input_format": read.format.name,
@@ -244,7 +217,7 @@ pub fn convert<'py>(
             "warnings": read.map.warnings,
         }))
     });
-    json_value(py, &report.map_err(froct_error_text)?)
+    json_value(py, &report?)
 }
 
 /// Any file described (`froctomap info --json`): a FROctomap file, or one map file.
@@ -328,9 +301,8 @@ pub fn export<'py>(
     };
     let report = with_progress(py, progress, |progress| {
         let context = crate::context();
-        let reader = context.open_series(&file).map_err(|e| message(&e))?;
-        let report =
-            export_maps(context, &reader, &output, &options, progress).map_err(|e| message(&e))?;
+        let reader = context.open_series(&file)?;
+        let report = export_maps(context, &reader, &output, &options, progress)?;
         let files: Vec<Value> = report
             .files
             .iter()
@@ -417,11 +389,13 @@ pub fn record<'py>(
         let outcome = py.detach(|| worker.join());
         let recorded = match outcome {
             Ok(recorded) => recorded,
-            Err(_) => Err("internal error: the recording thread panicked".to_string()),
+            Err(_) => Err(Failure::text(
+                "internal error: the recording thread panicked",
+            )),
         };
         // A failure of the feed (a bad item, Ctrl-C) is raised after the maps taken before
         // it were committed; the recorder's own failure comes first.
-        let recorded = recorded.map_err(froct_error_text)?;
+        let recorded = recorded?;
         fed?;
         Ok(recorded)
     })?;
@@ -474,9 +448,9 @@ fn run_recorder(
     file: &Path,
     options: RecordOptions,
     feed: Receiver<Feed>,
-) -> Result<String, String> {
+) -> Result<String, Failure> {
     let commit_every = options.commit_every;
-    let mut recorder = Recorder::open(context, file, options).map_err(|e| message(&e))?;
+    let mut recorder = Recorder::open(context, file, options)?;
     let opened = format!("{:?}", recorder.opened()).to_lowercase();
     let events = std::rc::Rc::new(std::cell::RefCell::new(Vec::<Value>::new()));
     let seen = std::rc::Rc::clone(&events);
@@ -509,13 +483,13 @@ fn run_recorder(
         };
         seen.borrow_mut().push(value);
     });
-    let taken = (|| -> Result<(), String> {
+    let taken = (|| -> Result<(), Failure> {
         loop {
             let next = match recorder.time_left() {
                 Some(left) => match feed.recv_timeout(left) {
                     Ok(item) => Some(item),
                     Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                        recorder.commit().map_err(|e| message(&e))?;
+                        recorder.commit()?;
                         continue;
                     }
                     Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => None,
@@ -525,7 +499,7 @@ fn run_recorder(
             match next {
                 None => return Ok(()),
                 Some(Feed::Map(time, bytes)) => {
-                    recorder.take_bytes(time, &bytes).map_err(|e| message(&e))?;
+                    recorder.take_bytes(time, &bytes)?;
                 }
                 Some(Feed::Source(path)) => {
                     let collected = froctomap_convert::collect_inputs_explained(
@@ -533,8 +507,7 @@ fn run_recorder(
                         &[path],
                         TimeSource::Auto,
                         &froctomap_convert::Zone::utc(),
-                    )
-                    .map_err(|e| message(&e))?;
+                    )?;
                     for input in collected.series {
                         take_file(&mut recorder, input)?;
                     }
@@ -544,7 +517,7 @@ fn run_recorder(
     })();
     // What was taken before a failure is committed, as `froctomap record` does.
     drop(feed);
-    let finished = recorder.finish().map_err(|e| message(&e));
+    let finished = recorder.finish();
     taken?;
     let summary = finished?;
     let events = events.borrow().clone();
@@ -564,6 +537,7 @@ fn run_recorder(
     }))
 }
 
-fn take_file(recorder: &mut Recorder<'_>, input: SeriesInput) -> Result<(), String> {
-    recorder.take_file(input).map(drop).map_err(|e| message(&e))
+fn take_file(recorder: &mut Recorder<'_>, input: SeriesInput) -> Result<(), Failure> {
+    recorder.take_file(input)?;
+    Ok(())
 }
