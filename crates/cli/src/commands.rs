@@ -45,7 +45,7 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
         },
     )?;
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&info)?)?;
+        outln!("{}", crate::ui::json_report(&info)?)?;
     } else {
         ui.warn(&args.file, &info.warnings);
         print_info(&info)?;

@@ -116,7 +116,7 @@ pub use record::{
 };
 pub use recording::RecordedMap;
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
-pub use text::group_thousands;
+pub use text::{group_thousands, tidy_float, tidy_floats};
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
     time_from_file_name, ReadTime, TimeError, Zone, EARLIEST, EARLIEST_IN_NAME, LATEST,

@@ -4,6 +4,7 @@ use crate::errors::{froct_error_text, to_py, Failure};
 use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
+use froctomap_convert::tidy_float;
 use froctomap_convert::{
     anomalies, describe_series, probabilities, probabilities_at_times, read_snapshot,
     read_time_from_file_name, resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport,
@@ -140,7 +141,7 @@ impl FroctFile {
         let reader = self.reader()?;
         let text = py.detach(|| -> Result<String, Failure> {
             let info = describe_series(crate::context(), &reader, count)?;
-            Ok(serde_json::to_string(&info)?)
+            report_json(&info)
         })?;
         json_value(py, &text)
     }
@@ -437,16 +438,19 @@ fn float_array<'py>(
 fn anomaly_dict<'py>(py: Python<'py>, report: &AnomalyReport) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item("time", iso8601(report.time))?;
-    dict.set_item("unix_time", crate::times::unix_seconds(report.time))?;
+    dict.set_item(
+        "unix_time",
+        tidy_float(crate::times::unix_seconds(report.time)),
+    )?;
     dict.set_item("scored_voxels", report.scored_voxels)?;
     dict.set_item("surprising_voxels", report.surprising_voxels)?;
     let regions = pyo3::types::PyList::empty(py);
     for region in &report.regions {
         let item = PyDict::new(py);
-        item.set_item("min", region.min.to_vec())?;
-        item.set_item("max", region.max.to_vec())?;
+        item.set_item("min", region.min.map(tidy_float).to_vec())?;
+        item.set_item("max", region.max.map(tidy_float).to_vec())?;
         item.set_item("voxels", region.voxels)?;
-        item.set_item("score", region.score)?;
+        item.set_item("score", tidy_float(region.score))?;
         item.set_item("kind", region.kind.name())?;
         regions.append(item)?;
     }
@@ -520,6 +524,14 @@ fn set_sample_columns(
     dict.set_item(format!("{prefix}samples"), indices.into_pyarray(py))?;
     dict.set_item(format!("{prefix}times"), times.into_pyarray(py))?;
     Ok(())
+}
+
+/// A report as JSON text, its floats tidied as the command line's `--json` prints them
+/// ([`froctomap_convert::tidy_floats`]).
+pub(crate) fn report_json(report: &impl serde::Serialize) -> Result<String, Failure> {
+    let mut value = serde_json::to_value(report)?;
+    froctomap_convert::tidy_floats(&mut value);
+    Ok(serde_json::to_string(&value)?)
 }
 
 /// JSON text as Python values (`json.loads`).

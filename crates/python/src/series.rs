@@ -1,7 +1,7 @@
 //! `froctomap.build` and `froctomap.evaluate`: series of maps in, a file or error tables out.
 
 use crate::errors::{froct_error_text, to_py};
-use crate::file::json_value;
+use crate::file::{json_value, report_json};
 use crate::progress::with_progress;
 use crate::times::instant;
 use froctomap_convert::{
@@ -359,7 +359,7 @@ pub fn build<'py>(
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        Ok(serde_json::to_string(&value)?)
+        report_json(&value)
     })?;
     json_value(py, &report)
 }
@@ -393,7 +393,7 @@ pub fn evaluate<'py>(
             ReadOptions::default(),
             progress,
         )?;
-        Ok(serde_json::to_string(&report)?)
+        report_json(&report)
     })?;
     json_value(py, &report)
 }

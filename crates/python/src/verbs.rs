@@ -2,8 +2,8 @@
 //! `info` (of any file) and `record`, each a thin layer over the library call the CLI makes,
 //! returning the report `--json` prints (as a dict).
 
-use crate::errors::{froct_error_text, message, to_py, Failure};
-use crate::file::json_value;
+use crate::errors::{froct_error_text, message, Failure};
+use crate::file::{json_value, report_json};
 use crate::progress::with_progress;
 use crate::series::{build_inputs, duration_ns, model_config_options, series_times, BuildInputs};
 use crate::times::instant;
@@ -22,11 +22,6 @@ use pyo3::types::{PyBytes, PyDict};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver};
-
-/// A report serialised by serde, as JSON text (turned into a dict by `json_value`).
-fn json_text(report: &impl serde::Serialize) -> Result<String, Failure> {
-    Ok(serde_json::to_string(report)?)
-}
 
 /// The warnings of collected inputs, as the reports list them.
 fn input_warnings(collected: &CollectedInputs) -> Value {
@@ -121,7 +116,7 @@ pub fn append<'py>(
         if let Value::Object(map) = &mut value {
             map.insert("input_warnings".into(), input_warnings(&collected));
         }
-        json_text(&value)
+        report_json(&value)
     })?;
     json_value(py, &report)
 }
@@ -176,7 +171,7 @@ pub fn compact<'py>(
             }
         };
         let report = compact_file(context, &file, output.as_deref(), &options, progress)?;
-        json_text(&report)
+        report_json(&report)
     })?;
     json_value(py, &report)
 }
@@ -208,7 +203,7 @@ pub fn convert<'py>(
             },
         )?;
         let written = registry.write_file(&read.map.snapshot, &output, write)?;
-        json_text(&json!({
+        report_json(&json!({
             "input": input,
             "input_format": read.format.name,
             "output": output,
@@ -229,7 +224,7 @@ pub fn info<'py>(
     count: bool,
     input_format: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let report = py.detach(|| -> Result<String, froctomap_convert::ConvertError> {
+    let report = py.detach(|| -> Result<String, Failure> {
         let context = crate::context();
         if input_format.is_none() {
             let identified = context
@@ -240,7 +235,7 @@ pub fn info<'py>(
                 if format.name == FROCT.name {
                     let file = context.open_series(&path)?;
                     let info = describe_series(context, &file, count)?;
-                    return Ok(serde_json::to_string(&info).unwrap_or_default());
+                    return report_json(&info);
                 }
             }
         }
@@ -252,9 +247,9 @@ pub fn info<'py>(
                 backend: None,
             },
         )?;
-        Ok(serde_json::to_string(&info).unwrap_or_default())
-    });
-    json_value(py, &report.map_err(to_py)?)
+        report_json(&info)
+    })?;
+    json_value(py, &report)
 }
 
 /// Maps of a FROctomap file at regular instants (`froctomap export`).
@@ -308,7 +303,7 @@ pub fn export<'py>(
             .iter()
             .map(|input| json!([input.path, iso8601(input.time)]))
             .collect();
-        json_text(&json!({
+        report_json(&json!({
             "output": output,
             "format": options.format,
             "files": files,
@@ -521,7 +516,7 @@ fn run_recorder(
     taken?;
     let summary = finished?;
     let events = events.borrow().clone();
-    json_text(&json!({
+    report_json(&json!({
         "file": file,
         "opened": opened,
         "commit_every": match commit_every {
