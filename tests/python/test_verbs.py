@@ -205,3 +205,21 @@ def test_convert_writes_the_command_lines_bytes(series, tmp_path):
     assert tree.readBinary(back.read_bytes())
     with pytest.raises(froctomap.FroctError, match="input"):
         froctomap.convert(snapshot, snapshot)
+
+
+@pytest.mark.parametrize("how", [["--time", "index:3"], ["--time", "2016-02-01T00:00:00Z", "--slice", "z=0.5"], ["--dynamics"]])
+def test_render_draws_the_command_lines_picture(cli_file, tmp_path, how):
+    ours, theirs = tmp_path / "ours.png", tmp_path / "theirs.png"
+    options = {"dynamics": "--dynamics" in how}
+    if "--time" in how:
+        options["t"] = how[how.index("--time") + 1]
+    if "--slice" in how:
+        options["slice"] = how[how.index("--slice") + 1]
+    report = froctomap.render(cli_file, ours, width=400, **options)
+    run_cli("-q", "render", cli_file, *how, "--width", "400", "-o", theirs)
+    assert ours.read_bytes() == theirs.read_bytes()
+    assert ours.read_bytes().startswith(b"\x89PNG") and report["width"] == 400
+    assert report["kind"] == {"index:3": "retrieved"}.get(options.get("t"), report["kind"])
+    # The wheel ships its font, a TrueType file.
+    font = Path(froctomap.__file__).parent / "fonts" / "DejaVuSans.ttf"
+    assert font.read_bytes()[:4] == b"\x00\x01\x00\x00"

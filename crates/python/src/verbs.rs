@@ -536,3 +536,64 @@ fn take_file(recorder: &mut Recorder<'_>, input: SeriesInput) -> Result<(), Fail
     recorder.take_file(input)?;
     Ok(())
 }
+
+/// A picture of a FROctomap file (`froctomap render`): the map at `t` (retrieved inside the
+/// file's span, predicted outside it) from above or as a horizontal `slice` (`"z=0.5"`),
+/// or with `dynamics=True` where the world changes. `font`: the font file to use when
+/// neither `$FROCTOMAP_FONT` nor a system DejaVu Sans is found (the package passes the
+/// copy it ships). Returns what was drawn.
+#[pyfunction]
+#[pyo3(signature = (file, output, *, t = None, slice = None, dynamics = false,
+                    width = froctomap_render::DEFAULT_WIDTH, font = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn render<'py>(
+    py: Python<'py>,
+    file: PathBuf,
+    output: PathBuf,
+    t: Option<&Bound<'py, PyAny>>,
+    slice: Option<String>,
+    dynamics: bool,
+    width: u32,
+    font: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use froctomap_render::{render_dynamics, render_map, MapTime, View};
+    if let Some(font) = font {
+        froctomap_render::set_fallback_font(font);
+    }
+    let query = match (t, dynamics) {
+        (Some(_), true) => return Err(froct_error_text("give t or dynamics=True, not both")),
+        (None, false) => return Err(froct_error_text("give t (a time) or dynamics=True")),
+        (Some(t), false) => Some(crate::times::time_query(t)?),
+        (None, true) => None,
+    };
+    let report = py.detach(|| -> Result<String, Failure> {
+        let view = match &slice {
+            Some(text) => View::slice(text)?,
+            None => View::TopDown,
+        };
+        let opened = crate::context().open_series(&file)?;
+        let reader = opened.whole_history()?;
+        let (picture, kind, time) = match query {
+            Some(query) => {
+                let when = MapTime::choose(reader, query)?;
+                let picture = render_map(reader, when, view, width)?;
+                let (kind, time) = match when {
+                    MapTime::Retrieved { time, .. } => ("retrieved", Some(iso8601(time))),
+                    MapTime::Predicted(time) => ("predicted", Some(iso8601(time))),
+                    _ => ("map", None),
+                };
+                (picture, kind, time)
+            }
+            None => (render_dynamics(reader, width)?, "dynamics", None),
+        };
+        picture.write_png(&output, &[file.as_path()])?;
+        report_json(&json!({
+            "output": output,
+            "kind": kind,
+            "time": time,
+            "width": picture.image().width(),
+            "height": picture.image().height(),
+        }))
+    })?;
+    json_value(py, &report)
+}

@@ -48,6 +48,7 @@ __all__ = [
     "open",
     "parse_time",
     "record",
+    "render",
 ]
 
 
@@ -381,3 +382,28 @@ def map_from_message(message: Any) -> bytes:
     elif not isinstance(data, (bytes, bytearray)):
         data = bytes(int(b) & 0xFF for b in data)
     return _native.octomap_message_file(bool(get("binary")), str(get("id")), float(get("resolution")), bytes(data))
+
+
+#: The font pictures use where neither ``$FROCTOMAP_FONT`` nor a system DejaVu Sans is
+#: found: DejaVu Sans, shipped in the wheel (Bitstream Vera license, fonts/LICENSE-DejaVu.txt).
+_FONT = os.path.join(os.path.dirname(__file__), "fonts", "DejaVuSans.ttf")
+
+
+def render(
+    file: PathLike,
+    output: PathLike,
+    *,
+    t: Any = None,
+    slice: Optional[str] = None,
+    dynamics: bool = False,
+    width: int = 1200,
+) -> Dict[str, Any]:
+    """Draws a FROctomap file into a PNG picture (``froctomap render``), the same bytes as
+    the command line: the map at ``t`` seen from above (inside the file's span the snapshot
+    observed then, outside it the prediction, p > 0.5), ``slice="z=0.5"`` for a horizontal
+    cut, or ``dynamics=True`` for where the world changes. The text is set in DejaVu Sans
+    (``$FROCTOMAP_FONT``, else the system's, else the copy the package ships). Returns
+    ``{"output", "kind", "time", "width", "height"}``.
+    """
+    return _native.render(file, output, t=t, slice=slice, dynamics=dynamics, width=width,
+                          font=_FONT if os.path.isfile(_FONT) else None)

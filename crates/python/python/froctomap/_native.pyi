@@ -40,6 +40,9 @@ def compact(file: PathLike, output: Optional[PathLike] = None, **options: Any) -
 def export(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
     """See froctomap.export."""
 
+def render(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.render."""
+
 def convert(
     input: PathLike,
     output: PathLike,
