@@ -223,3 +223,29 @@ def test_render_draws_the_command_lines_picture(cli_file, tmp_path, how):
     # The wheel ships its font, a TrueType file.
     font = Path(froctomap.__file__).parent / "fonts" / "DejaVuSans.ttf"
     assert font.read_bytes()[:4] == b"\x00\x01\x00\x00"
+
+
+def test_generate_writes_the_command_lines_series(tmp_path):
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    options = dict(days=0.25, step="2h", seed=4, noise=0.001)
+    report = froctomap.generate(ours, progress=False, **options)
+    run_cli("-q", "generate", "--days", "0.25", "--step", "2h", "--seed", "4", "--noise",
+            "0.001", "-o", theirs)
+    names = sorted(p.name for p in theirs.iterdir())
+    assert names == sorted(p.name for p in ours.iterdir()) and len(names) == 4
+    for name in names:
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+    assert report["snapshots"] == 3 and report["start"] == "2016-01-04T00:00:00Z"
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(str(ours / names[0]).encode())
+    with pytest.raises(froctomap.FroctError, match="nope.bt"):
+        froctomap.generate(tmp_path / "x", base=tmp_path / "nope.bt", progress=False)
+
+
+def test_generate_without_the_debian_base_map_asks_for_one(tmp_path, monkeypatch):
+    """What a pip user without liboctomap-dev meets: a clear error naming `base=`, and
+    nothing written."""
+    monkeypatch.setattr(froctomap, "_DEFAULT_BASE", str(tmp_path / "no-liboctomap-dev.bt"))
+    with pytest.raises(froctomap.FroctError, match="no base map: pass base="):
+        froctomap.generate(tmp_path / "out", progress=False)
+    assert not (tmp_path / "out").exists()

@@ -52,6 +52,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verbs::info, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::record, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::render, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::generate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -597,3 +597,93 @@ pub fn render<'py>(
     })?;
     json_value(py, &report)
 }
+
+/// A realistic, deterministic series of OctoMap snapshots made from a real base map
+/// (`froctomap generate`): `.bt` (or `format`) files and a manifest in `output`. Returns the
+/// snapshots' count, bytes and span, and the manifest's path.
+#[pyfunction]
+#[pyo3(signature = (output, *, base = None, days = 2.0, step = None, start = None, seed = 1,
+                    real_doors = None, jitter = 0.0, missed = 0.0, noise = None,
+                    partial = None, spec = None, format = None, progress = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn generate<'py>(
+    py: Python<'py>,
+    output: PathBuf,
+    base: Option<PathBuf>,
+    days: f64,
+    step: Option<&Bound<'py, PyAny>>,
+    start: Option<&Bound<'py, PyAny>>,
+    seed: u64,
+    real_doors: Option<PathBuf>,
+    jitter: f64,
+    missed: f64,
+    noise: Option<f64>,
+    partial: Option<f64>,
+    spec: Option<PathBuf>,
+    format: Option<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use froctomap_synth::{write_series, Generator, SeriesSpec, SpecOverrides, WriteSeriesOptions};
+    // The package passes the Debian default when it exists; without it, a base is needed.
+    let Some(base) = base else {
+        return Err(froct_error_text(format!(
+            "no base map: pass base= (an OctoMap .bt/.ot file of a real place, e.g. OctoMap's geb079.bt); the default, {}, comes with Debian's liboctomap-dev, which is not installed here",
+            froctomap_synth::DEBIAN_GEB079
+        )));
+    };
+    let step_ns = match step {
+        Some(step) => duration_ns(step)?,
+        None => froctomap_convert::parse_duration("10min").map_err(Failure::from)?,
+    };
+    let start = start.map(|t| instant(t, "start")).transpose()?;
+    let report = with_progress(py, progress, |progress| {
+        let scenario = match &spec {
+            Some(path) => SeriesSpec::from_json_file(path)?,
+            None => SeriesSpec::default(),
+        };
+        let overrides = SpecOverrides {
+            step_secs: Some(step_ns as f64 / 1e9),
+            days: Some(days),
+            start,
+            seed: Some(seed),
+            jitter_secs: Some(jitter),
+            missed_frames: Some(missed),
+            door_file: real_doors.clone().map(Some),
+            surface_noise: noise,
+            partial_probability: partial,
+            ..SpecOverrides::default()
+        };
+        let spec = overrides.apply(scenario)?;
+        let context = crate::context();
+        let map = context
+            .formats()
+            .read_file(&base, ReadOptions::default())?
+            .map
+            .snapshot
+            .to_max_likelihood();
+        let generator = Generator::new(&map, spec, None)?;
+        progress.stage("writing snapshots", generator.frames().count() as u64);
+        let done_so_far = std::sync::atomic::AtomicU64::new(0);
+        let advance = |done: u64, _total: u64| {
+            let before = done_so_far.fetch_max(done, std::sync::atomic::Ordering::Relaxed);
+            progress.advance(done.saturating_sub(before));
+        };
+        let options = WriteSeriesOptions {
+            format: format.clone().unwrap_or_else(|| "bt".to_string()),
+            file_pattern: "frame_{time}.{ext}".to_string(),
+            threads: 0,
+        };
+        let manifest = write_series(context.formats(), &generator, &output, &options, &advance)?;
+        report_json(&json!({
+            "output": output,
+            "base": base,
+            "snapshots": manifest.entries.len(),
+            "bytes": manifest.total_bytes,
+            "manifest": manifest.manifest_path(),
+            "start": manifest.entries.first().map(|e| iso8601(e.time)),
+            "end": manifest.entries.last().map(|e| iso8601(e.time)),
+            "warnings": generator.warnings().iter().map(|w| w.to_string()).collect::<Vec<_>>(),
+        }))
+    })?;
+    json_value(py, &report)
+}

@@ -42,6 +42,7 @@ __all__ = [
     "convert",
     "evaluate",
     "export",
+    "generate",
     "info",
     "map_from_message",
     "message_from_map",
@@ -407,3 +408,47 @@ def render(
     """
     return _native.render(file, output, t=t, slice=slice, dynamics=dynamics, width=width,
                           font=_FONT if os.path.isfile(_FONT) else None)
+
+
+#: The base map of ``generate`` by default, where Debian's liboctomap-dev installs it.
+_DEFAULT_BASE = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt"
+
+
+def generate(
+    output: PathLike,
+    *,
+    base: Optional[PathLike] = None,
+    days: float = 2.0,
+    step: Union[str, float] = "10min",
+    start: Any = None,
+    seed: int = 1,
+    real_doors: Optional[PathLike] = None,
+    jitter: float = 0.0,
+    missed: float = 0.0,
+    noise: Optional[float] = None,
+    partial: Optional[float] = None,
+    spec: Optional[PathLike] = None,
+    format: Optional[str] = None,
+    progress: Union[bool, ProgressCallback, None] = True,
+) -> Dict[str, Any]:
+    """Writes a realistic, deterministic series of OctoMap snapshots made from a real map
+    (``froctomap generate -o OUTPUT``): doors, people, chairs and objects change over
+    ``days`` at every ``step`` from ``start`` (default 2016-01-04T00:00:00Z); the same
+    ``seed`` gives the same bytes as the command line. ``base``: the real map; by default
+    OctoMap's FR-079 corridor scan where Debian's liboctomap-dev installs it
+    (``/usr/share/doc/liboctomap-dev/examples/data/geb079.bt``), which a pip install does not
+    bring: without it, pass ``base=`` (FroctError says so). ``real_doors``: door recordings
+    (``unix_time state`` lines) that drive some doors. Returns ``snapshots``, ``bytes``,
+    ``start``, ``end`` and the ``manifest`` path.
+    """
+    if base is None and os.path.isfile(_DEFAULT_BASE):
+        base = _DEFAULT_BASE
+    callback = _progress.reporter(progress)
+    try:
+        return _native.generate(
+            output, base=base, days=days, step=step, start=start, seed=seed,
+            real_doors=real_doors, jitter=jitter, missed=missed, noise=noise, partial=partial,
+            spec=spec, format=format, progress=callback,
+        )
+    finally:
+        _progress.close(callback)

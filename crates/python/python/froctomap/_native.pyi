@@ -43,6 +43,9 @@ def export(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
 def render(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
     """See froctomap.render."""
 
+def generate(output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.generate."""
+
 def convert(
     input: PathLike,
     output: PathLike,
