@@ -29,10 +29,15 @@ def manifest_times(series: Path) -> list:
 
 
 def test_public_names_are_exported():
+    verbs = ["append", "record", "compact", "export", "info", "convert", "render", "generate",
+             "message_from_map", "map_from_message"]
     for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError",
-                 "__version__"]:
+                 "__version__", *verbs]:
         assert hasattr(froctomap, name), name
         assert name in froctomap.__all__
+        assert name == "__version__" or getattr(froctomap, name).__doc__, name
+    # dir() shows the public names, not the typing helpers the module imports.
+    assert sorted(dir(froctomap)) == sorted(froctomap.__all__)
     assert issubclass(froctomap.FroctError, OSError)
     assert issubclass(froctomap.FroctError, ValueError)
     for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError"]:
