@@ -29,10 +29,15 @@ def manifest_times(series: Path) -> list:
 
 
 def test_public_names_are_exported():
+    verbs = ["append", "record", "compact", "export", "info", "convert", "render", "generate",
+             "message_from_map", "map_from_message"]
     for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError",
-                 "__version__"]:
+                 "__version__", *verbs]:
         assert hasattr(froctomap, name), name
         assert name in froctomap.__all__
+        assert name == "__version__" or getattr(froctomap, name).__doc__, name
+    # dir() shows the public names, not the typing helpers the module imports.
+    assert sorted(dir(froctomap)) == sorted(froctomap.__all__)
     assert issubclass(froctomap.FroctError, OSError)
     assert issubclass(froctomap.FroctError, ValueError)
     for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError"]:
@@ -296,12 +301,81 @@ def test_progress_reaches_a_callback(series, tmp_path):
     assert (tmp_path / "bars.froct").read_bytes() == (tmp_path / "p.froct").read_bytes()
 
 
-def test_an_exception_in_the_callback_is_raised_after_the_build(series, tmp_path):
+def test_an_exception_in_the_callback_stops_the_build_and_writes_nothing(series, tmp_path):
+    calls = []
+
     def broken(stage, done, total):
+        calls.append(stage)
         raise RuntimeError("stop drawing")
 
     with pytest.raises(RuntimeError, match="stop drawing"):
         froctomap.build(series, tmp_path / "x.froct", progress=broken)
+    # The build stopped at its next batch: the callback was not called again, and neither
+    # the file nor a temporary is left.
+    assert calls == ["checking inputs"]
+    assert list(tmp_path.iterdir()) == []
+
+
+INTERRUPTED = """
+import sys, time
+import froctomap
+
+def slow(stage, done, total):
+    print(stage, flush=True)
+    time.sleep(1.0)
+
+call = sys.argv[1]
+if call == "build":
+    froctomap.build(sys.argv[2], sys.argv[3], progress=slow)
+elif call == "export":
+    froctomap.export(sys.argv[2], sys.argv[3], start="2016-01-04T00:00:00Z",
+                     end="2016-01-05T00:00:00Z", every="1h", progress=slow)
+elif call == "append":
+    froctomap.append(sys.argv[2], sys.argv[3], progress=slow)
+print("finished", flush=True)
+"""
+
+
+@pytest.mark.parametrize("call", ["build", "export", "append"])
+def test_ctrl_c_stops_a_long_call_and_leaves_no_output(call, series, cli_file, tmp_path):
+    """SIGINT while the work runs (its progress callback slowed down so that the signal
+    comes first): KeyboardInterrupt once the work stopped at its next batch, and nothing
+    written, no temporary left."""
+    import shutil
+    import signal
+    import subprocess
+    import sys
+
+    script = tmp_path / "interrupted.py"
+    script.write_text(INTERRUPTED)
+    work = tmp_path / "work"
+    work.mkdir()
+    if call == "build":
+        args, output = [series, work / "out.froct"], work / "out.froct"
+    elif call == "export":
+        args, output = [cli_file, work / "maps.mcap"], work / "maps.mcap"
+    else:
+        rows = manifest_times(series)
+        base = work / "base.froct"
+        froctomap.build([(int(t), p.read_bytes()) for p, t in rows[:6]], base, progress=False)
+        later = tmp_path / "later.csv"
+        later.write_text("path,time\n" + "".join(f"{p},{t}\n" for p, t in rows[6:]))
+        args, output = [base, later], base
+    before = output.read_bytes() if output.exists() else None
+    child = subprocess.Popen([sys.executable, str(script), call, *map(str, args)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = child.stdout.readline()
+    assert first.strip(), child.stderr.read()
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=300)
+    assert "finished" not in out
+    assert err.rstrip().endswith("KeyboardInterrupt"), err
+    if before is None:
+        assert not output.exists()
+    else:
+        assert output.read_bytes() == before
+    left = sorted(p.name for p in work.iterdir())
+    assert left == ([output.name] if before is not None else []), left
 
 
 def test_maps_outlive_the_closed_file(cli_file):

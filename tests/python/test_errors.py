@@ -156,3 +156,26 @@ def test_a_hostile_mcap_length_raises_instead_of_aborting_the_interpreter(tmp_pa
     assert "a string runs past its record" in str(caught.value)
     assert str(caught.value) == cli_error("build", bad, "-o", tmp_path / "x.froct")
     assert not (tmp_path / "x.froct").exists()
+
+
+def test_errno_is_set_whatever_call_met_the_missing_file(tmp_path):
+    """`errno` comes from the operating-system error behind a failure in every call, not
+    only in `open` (a build of a missing directory had none)."""
+    missing = tmp_path / "nodir"
+    calls = [
+        lambda: froctomap.open(missing),
+        lambda: froctomap.build(f"{missing}/", tmp_path / "x.froct", progress=False),
+        lambda: froctomap.build([missing / "a.bt"], tmp_path / "x.froct", progress=False),
+        lambda: froctomap.info(missing),
+        lambda: froctomap.convert(missing, tmp_path / "x.ot"),
+        lambda: froctomap.compact(missing, tmp_path / "x.froct", progress=False),
+        lambda: froctomap.evaluate(missing, [tmp_path], progress=False),
+    ]
+    for i, call in enumerate(calls):
+        with pytest.raises(froctomap.FroctError) as caught:
+            call()
+        assert caught.value.errno == errno.ENOENT, (i, str(caught.value))
+    # A failure without an operating-system cause has none.
+    with pytest.raises(froctomap.FroctError) as caught:
+        froctomap.message_from_map(b"P6\n")
+    assert caught.value.errno is None

@@ -184,3 +184,45 @@ def test_anomalies_are_the_command_lines_and_find_an_injected_box(f, cli_file, h
     unnamed.write_bytes(boxed.read_bytes())
     with pytest.raises(froctomap.FroctError, match="no time in the file name"):
         f.anomalies(unnamed)
+
+
+def test_probability_at_many_times_is_each_times_row(f):
+    """`probability(times, points)`: a (T, N) array whose rows are the one-time calls, the
+    times given as a list, a numpy array of Unix seconds or sample queries."""
+    points = points_in_and_around(f, 120, seed=3)
+    times = ["2016-01-04T01:00:00Z", 1451901600.5, "index:-1", "2016-02-01T00:00:00Z"]
+    p = f.probability(times, points)
+    assert p.dtype == np.float64 and p.shape == (len(times), len(points))
+    for row, t in zip(p, times):
+        np.testing.assert_array_equal(row, f.probability(t, points))
+    seconds = np.array([1451869200.0, 1451955600.0])
+    np.testing.assert_array_equal(f.probability(seconds, points),
+                                  np.vstack([f.probability(s, points) for s in seconds]))
+    assert f.probability([], points).shape == (0, len(points))
+
+
+@pytest.mark.parametrize("kind", ["retrieve", "predict"])
+def test_search_is_octomap_pythons_search(f, kind):
+    """`Map.search(points)` against octomap-python's `search`/`isNodeOccupied`/
+    `getOccupancy` on the map's .ot; `leaves(with_p=True)` holds the same p."""
+    m = getattr(f, kind)("2016-01-04T09:00:00Z")
+    points = points_in_and_around(f, 300, seed=11)
+    state, p = m.search(points)
+    assert state.dtype == np.int8 and p.dtype == np.float64 and state.shape == p.shape == (len(points),)
+    tree = tree_of_ot(m.to_ot_bytes())
+    for point, s, q in zip(points, state, p):
+        node = node_of(tree, point)
+        if node is None:
+            assert (s, np.isnan(q)) == (-1, True), point
+        else:
+            assert s == int(tree.isNodeOccupied(node)), point
+            assert q == pytest.approx(node.getOccupancy(), abs=1e-6), point
+    assert (state == 1).any() and (state == 0).any() and (state == -1).any()
+    centres, sizes, occupied, leaf_p = m.leaves(with_p=True)
+    assert leaf_p.shape == occupied.shape and ((leaf_p > 0.5) == occupied).all()
+    assert len(m.leaves()) == 3
+    inside = m.search(centres)
+    np.testing.assert_array_equal(inside[1], leaf_p)
+    if kind == "predict":
+        # A prediction's leaves hold p(t), not only states.
+        assert len(np.unique(leaf_p)) > 2

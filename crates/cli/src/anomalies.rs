@@ -135,10 +135,7 @@ pub fn anomalies_command(ui: &Ui, args: &AnomaliesArgs) -> Result<()> {
         ));
     }
     if args.json {
-        outln!(
-            "{}",
-            serde_json::to_string_pretty(&report_json(args, &report))?
-        )?;
+        outln!("{}", crate::ui::json_report(&report_json(args, &report))?)?;
     } else {
         print_table(args, &report)?;
     }

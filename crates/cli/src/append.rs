@@ -140,8 +140,8 @@ pub fn append_command(ui: &Ui, args: &AppendArgs) -> Result<()> {
     let report = AppendReport::from(ingest(context, &collected, target, &options, &bars)?);
     drop(bars);
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&report)?)?;
-    } else {
+        outln!("{}", crate::ui::json_report(&report)?)?;
+    } else if !ui.quiet {
         let n = group_thousands;
         outln!(
             "appended {} snapshots to {}{}",

@@ -3,10 +3,11 @@
 use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
-use froctomap_convert::{group_thousands, refuse_overwriting_input, FROCT};
-use froctomap_core::{BoundingBox, Snapshot};
+use froctomap_convert::{
+    describe_map_file, group_thousands, refuse_overwriting_input, MapFileInfo, MetricBounds, FROCT,
+};
+use froctomap_core::Snapshot;
 use froctomap_formats::{Identified, ReadOptions, WriteOptions};
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
@@ -26,40 +27,6 @@ pub struct InfoArgs {
     json: bool,
 }
 
-#[derive(Serialize)]
-struct MapInfo {
-    file: PathBuf,
-    file_bytes: u64,
-    format: &'static str,
-    format_description: &'static str,
-    resolution_m: f64,
-    nodes: u64,
-    leaves: u64,
-    occupied_leaves: u64,
-    free_leaves: u64,
-    voxels: u64,
-    occupied_voxels: u64,
-    free_voxels: u64,
-    known_bounds_m: Option<Bounds>,
-    occupied_bounds_m: Option<Bounds>,
-    warnings: Vec<String>,
-}
-
-#[derive(Serialize)]
-struct Bounds {
-    min: [f64; 3],
-    max: [f64; 3],
-}
-
-impl From<BoundingBox> for Bounds {
-    fn from(b: BoundingBox) -> Self {
-        Bounds {
-            min: b.min,
-            max: b.max,
-        }
-    }
-}
-
 pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
     let registry = ui.context.formats();
     if args.input_format.is_none() {
@@ -69,34 +36,16 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
             }
         }
     }
-    let read = registry.read_file(
+    let info = describe_map_file(
+        ui.context,
         &args.file,
         ReadOptions {
             format: args.input_format.as_deref(),
             backend: Some(ui.backend),
         },
     )?;
-    let snapshot = &read.map.snapshot;
-    let stats = snapshot.stats();
-    let info = MapInfo {
-        file: args.file.clone(),
-        file_bytes: std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0),
-        format: read.format.name,
-        format_description: read.format.description,
-        resolution_m: snapshot.resolution(),
-        nodes: read.map.node_count,
-        leaves: snapshot.leaves().len() as u64,
-        occupied_leaves: stats.occupied_leaves,
-        free_leaves: stats.free_leaves,
-        voxels: stats.occupied_voxels + stats.free_voxels,
-        occupied_voxels: stats.occupied_voxels,
-        free_voxels: stats.free_voxels,
-        known_bounds_m: snapshot.known_bounds().map(Bounds::from),
-        occupied_bounds_m: snapshot.occupied_bounds().map(Bounds::from),
-        warnings: read.map.warnings.clone(),
-    };
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&info)?)?;
+        outln!("{}", crate::ui::json_report(&info)?)?;
     } else {
         ui.warn(&args.file, &info.warnings);
         print_info(&info)?;
@@ -104,7 +53,7 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_info(info: &MapInfo) -> std::io::Result<()> {
+fn print_info(info: &MapFileInfo) -> std::io::Result<()> {
     let n = group_thousands;
     outln!(
         "file:            {} ({} bytes)",
@@ -130,7 +79,7 @@ fn print_info(info: &MapInfo) -> std::io::Result<()> {
         n(info.occupied_voxels),
         n(info.free_voxels)
     )?;
-    let show = |label: &str, bounds: &Option<Bounds>| match bounds {
+    let show = |label: &str, bounds: &Option<MetricBounds>| match bounds {
         Some(b) => outln!(
             "{label}x [{:.3}, {:.3}]  y [{:.3}, {:.3}]  z [{:.3}, {:.3}] m",
             b.min[0],

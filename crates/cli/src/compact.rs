@@ -110,7 +110,10 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
         ));
     }
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&report)?)?;
+        outln!("{}", crate::ui::json_report(&report)?)?;
+        return Ok(());
+    }
+    if ui.quiet {
         return Ok(());
     }
     let n = group_thousands;

@@ -11,7 +11,7 @@ pub fn froct_info(ui: &Ui, path: &Path, json: bool, count: bool) -> Result<()> {
     let file = ui.context.open_series(path)?;
     let info = describe_series(ui.context, &file, count)?;
     if json {
-        outln!("{}", serde_json::to_string_pretty(&info)?)?;
+        outln!("{}", crate::ui::json_report(&info)?)?;
         return Ok(());
     }
     let n = group_thousands;

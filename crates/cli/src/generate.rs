@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Where Debian's liboctomap-dev puts the FR-079 corridor scan.
-pub const GEB079: &str = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt";
+pub const GEB079: &str = froctomap_synth::DEBIAN_GEB079;
 
 #[derive(Args)]
 pub struct GenerateArgs {

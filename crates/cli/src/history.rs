@@ -89,7 +89,7 @@ pub fn history_command(ui: &Ui, args: &HistoryArgs) -> Result<()> {
     if args.json {
         outln!(
             "{}",
-            serde_json::to_string_pretty(&as_json(&history, &args.file))?
+            crate::ui::json_report(&as_json(&history, &args.file))?
         )?;
     } else {
         print_table(&history, &args.file)?;

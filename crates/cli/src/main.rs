@@ -147,8 +147,11 @@ enum Command {
     /// memory grows with the map, not with the number of snapshots. Unknown space stays
     /// unknown. Lossless by default: every observed state comes back exactly.
     ///
-    /// Example: froctomap build maps/ -o office.froct
-    ///          froctomap build 'scans/*.bt' --start 2016-01-04T00:00:00Z --step 10min -o office.froct
+    /// Examples (a directory; files with times from a start and a step):
+    ///
+    /// froctomap build maps/ -o office.froct
+    ///
+    /// froctomap build 'scans/*.bt' --start 2016-01-04T00:00:00Z --step 10min -o office.froct
     Build(series::BuildArgs),
     /// Add snapshots later than a FROctomap file's last one to it.
     ///
@@ -176,8 +179,11 @@ enum Command {
     /// render) need a 2.0 file compacted first. The result is format 2.0 with no segment,
     /// or 1.x with --format-version.
     ///
-    /// Example: froctomap compact office.froct
-    ///          froctomap compact office.froct -o office-1.2.froct --format-version 1.2
+    /// Examples (in place; a copy for readers of 1.2):
+    ///
+    /// froctomap compact office.froct
+    ///
+    /// froctomap compact office.froct -o office-1.2.froct --format-version 1.2
     Compact(compact::CompactArgs),
     /// Add maps to a FROctomap file as they arrive, one segment committed at a time.
     ///
@@ -214,8 +220,11 @@ enum Command {
     /// Draw a FROctomap file as a PNG picture: the map at a time seen from above (occupied,
     /// free, unknown columns), a horizontal slice, or where the world changes (--dynamics).
     ///
-    /// Example: froctomap render office.froct --time 2016-01-05T10:00:00Z -o map.png
-    ///          froctomap render office.froct --dynamics -o changes.png
+    /// Examples (the map at a time; where the world changes):
+    ///
+    /// froctomap render office.froct --time 2016-01-05T10:00:00Z -o map.png
+    ///
+    /// froctomap render office.froct --dynamics -o changes.png
     Render(render::RenderArgs),
     /// One voxel's history: its observed states over time, its model's p(t), its outliers
     /// and its class, as a table (or --json), and as a plot with -o.

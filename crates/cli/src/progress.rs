@@ -1,7 +1,7 @@
 //! Progress bars on stderr (hidden with `--quiet` or when stderr is not a terminal).
 
 use froctomap_convert::Progress;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use std::sync::Mutex;
 
 /// Draws one bar per stage, with rate and ETA.
@@ -41,9 +41,16 @@ impl Progress for Bars {
         }
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
         let style = ProgressStyle::with_template(
-            "{msg:>18} [{bar:30}] {human_pos}/{human_len} ({per_sec}, ETA {eta})",
+            "{msg:>18} [{bar:30}] {human_pos}/{human_len} ({rate}, ETA {eta})",
         )
-        .map(|s| s.progress_chars("=> "))
+        .map(|s| {
+            s.progress_chars("=> ").with_key(
+                "rate",
+                |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{}", rate(state.per_sec()));
+                },
+            )
+        })
         .unwrap_or_else(|_| ProgressStyle::default_bar());
         bar.set_style(style);
         bar.set_message(name.to_string());
@@ -58,6 +65,18 @@ impl Progress for Bars {
                 bar.inc(units);
             }
         }
+    }
+}
+
+/// A rate per second as people read it: whole units from 10/s on, one decimal below
+/// (indicatif's `{per_sec}` prints `190.2223/s`).
+fn rate(per_second: f64) -> String {
+    if !per_second.is_finite() {
+        "-/s".to_string()
+    } else if per_second >= 10.0 {
+        format!("{per_second:.0}/s")
+    } else {
+        format!("{per_second:.1}/s")
     }
 }
 

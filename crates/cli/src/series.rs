@@ -493,8 +493,8 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        outln!("{}", serde_json::to_string_pretty(&value)?)?;
-    } else {
+        outln!("{}", crate::ui::json_report(&value)?)?;
+    } else if !ui.quiet {
         let n = group_thousands;
         outln!(
             "wrote {} ({} bytes)",
@@ -519,10 +519,10 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
             n(report.voxels.dynamic)
         )?;
         outln!(
-            "size:        {} bytes from {} input bytes: {:.1}x smaller",
+            "size:        {} bytes from {} input bytes: {}",
             n(report.file_bytes),
             n(report.input_bytes),
-            report.input_bytes as f64 / report.file_bytes.max(1) as f64
+            size_ratio(report.file_bytes, report.input_bytes)
         )?;
         if args.lossy {
             outln!(
@@ -553,6 +553,16 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
     Ok(())
 }
 
+/// How the output's size compares with the inputs': `4.2x smaller`, or, for a series too
+/// small for the file's own structure to pay off, `3.9x larger`.
+fn size_ratio(output: u64, inputs: u64) -> String {
+    if output <= inputs {
+        format!("{:.1}x smaller", inputs as f64 / output.max(1) as f64)
+    } else {
+        format!("{:.1}x larger", output as f64 / inputs.max(1) as f64)
+    }
+}
+
 #[derive(Args)]
 pub struct RetrieveArgs {
     /// The FROctomap file.
@@ -580,6 +590,10 @@ pub struct MapOutput {
     /// Output format instead of the one the extension names (see `froctomap formats`).
     #[arg(long, value_parser = writable_format())]
     format: Option<String>,
+    /// Print what was written as JSON (on standard error when the map goes to standard
+    /// output, `-o -`).
+    #[arg(long)]
+    json: bool,
 }
 
 impl MapOutput {
@@ -631,6 +645,21 @@ pub fn retrieve_command(ui: &Ui, args: &RetrieveArgs) -> Result<()> {
         output,
         args.output.options(ui),
     )?;
+    if args.output.json {
+        outln!(
+            "{}",
+            crate::ui::json_report(&serde_json::json!({
+                "output": output,
+                "format": written.format.name,
+                "kind": "observed",
+                "time": iso8601(when.time),
+                "sample": when.sample,
+                "exact": when.exact,
+                "leaves": written.leaves,
+            }))?
+        )?;
+        return Ok(());
+    }
     ui.note(&format!(
         "{} ({}): map observed at {} (sample {}), {} leaves",
         escaped(output.display()),
@@ -690,6 +719,20 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     } else {
         "within the modelled span".to_string()
     };
+    if args.output.json {
+        outln!(
+            "{}",
+            crate::ui::json_report(&serde_json::json!({
+                "output": output,
+                "format": written.format.name,
+                "kind": "predicted",
+                "time": iso8601(t),
+                "within_span": t >= start && t <= end,
+                "leaves": written.leaves,
+            }))?
+        )?;
+        return Ok(());
+    }
     ui.note(&format!(
         "{} ({}): map predicted for {} ({relation}), {} leaves",
         escaped(output.display()),
@@ -750,6 +793,10 @@ pub struct ExportArgs {
     /// is refused before it starts (docs/LIMITS.md).
     #[arg(long, value_name = "SIZE", default_value = "2GiB", value_parser = byte_size)]
     max_output: u64,
+    /// Print what was written as JSON: every map's path and time, the manifest, the bytes
+    /// (on standard error when the maps go to standard output, `-o -`).
+    #[arg(long)]
+    json: bool,
 }
 
 /// A rough size of one exported map: a `.bt` costs about half a byte per leaf (the
@@ -854,6 +901,24 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
     let bars = Bars::new(ui.quiet);
     let report = export(ui.context, &reader, &args.output, &options, &bars)?;
     drop(bars);
+    if args.json {
+        let files: Vec<Value> = report
+            .files
+            .iter()
+            .map(|input| serde_json::json!({"path": input.path, "time": iso8601(input.time)}))
+            .collect();
+        outln!(
+            "{}",
+            crate::ui::json_report(&serde_json::json!({
+                "output": args.output,
+                "format": options.format,
+                "maps": files,
+                "manifest": report.manifest,
+                "bytes": report.bytes,
+            }))?
+        )?;
+        return Ok(());
+    }
     match &report.manifest {
         Some(manifest) => ui.note(&format!(
             "wrote {} maps ({} bytes) and {}",
@@ -918,7 +983,7 @@ pub fn eval_command(ui: &Ui, args: &EvalArgs) -> Result<()> {
         ui.note(&format!("{}: reliability diagram", escaped(png.display())));
     }
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&report)?)?;
+        outln!("{}", crate::ui::json_report(&report)?)?;
     } else {
         print_eval(&report)?;
     }

@@ -85,6 +85,14 @@ impl Ui {
     }
 }
 
+/// A report as the pretty JSON `--json` prints: its floats without the noise of binary
+/// arithmetic ([`froctomap_convert::tidy_floats`]), as the Python package returns them.
+pub fn json_report(report: &impl serde::Serialize) -> serde_json::Result<String> {
+    let mut value = serde_json::to_value(report)?;
+    froctomap_convert::tidy_floats(&mut value);
+    serde_json::to_string_pretty(&value)
+}
+
 #[cfg(test)]
 mod tests {
     use super::escaped;

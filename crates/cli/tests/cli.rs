@@ -302,3 +302,158 @@ fn both_backends_give_identical_info_and_conversions() {
         text(&bad.stderr)
     );
 }
+
+/// The small things a new user met: `-q` silences the summary, a build larger than its
+/// inputs says so, `--json` numbers carry no float noise, a zero duration is named as one,
+/// `build --help` keeps its examples apart.
+#[test]
+fn summaries_ratios_json_numbers_durations_and_help_read_right() {
+    let scratch_dir = scratch();
+    let dir = scratch_dir.path();
+    let map = octomap_fixture("few_voxels.bt");
+    let out = dir.join("tiny.froct");
+    let build = |quiet: bool, json: bool| {
+        let mut args = vec!["build", path_str(&map), "--start", "2016-01-04T00:00:00Z"];
+        args.extend(["--step", "1h", "-o", path_str(&out)]);
+        if quiet {
+            args.insert(0, "-q");
+        }
+        if json {
+            args.push("--json");
+        }
+        let output = froctomap(&args);
+        assert!(output.status.success(), "{}", text(&output.stderr));
+        text(&output.stdout)
+    };
+    assert_eq!(build(true, false), "");
+    let summary = build(false, false);
+    let bytes = std::fs::metadata(&out).unwrap().len();
+    let input = std::fs::metadata(&map).unwrap().len();
+    assert!(bytes > input, "{bytes} vs {input}");
+    assert!(summary.contains("x larger"), "{summary}");
+    assert!(!summary.contains("smaller"), "{summary}");
+    // Every float of a --json report reads back as printed: no `1.6800000000000002`.
+    fn floats(value: &serde_json::Value, out: &mut Vec<f64>) {
+        match value {
+            serde_json::Value::Number(n) if !(n.is_i64() || n.is_u64()) => {
+                out.push(n.as_f64().unwrap())
+            }
+            serde_json::Value::Array(items) => items.iter().for_each(|v| floats(v, out)),
+            serde_json::Value::Object(fields) => fields.values().for_each(|v| floats(v, out)),
+            _ => {}
+        }
+    }
+    for report in [
+        build(true, true),
+        text(&froctomap(&["info", "--json", path_str(&geb079())]).stdout),
+        text(&froctomap(&["info", "--json", path_str(&out)]).stdout),
+    ] {
+        let mut found = Vec::new();
+        floats(&serde_json::from_str(&report).unwrap(), &mut found);
+        assert!(!found.is_empty());
+        for x in found {
+            assert_eq!(froctomap_convert::tidy_float(x), x, "{report}");
+        }
+    }
+    let zero = froctomap(&[
+        "export",
+        path_str(&out),
+        "--from",
+        "2016-01-04T00:00:00Z",
+        "--to",
+        "2016-01-04T01:00:00Z",
+        "--every",
+        "0s",
+        "-o",
+        path_str(&dir.join("none")),
+    ]);
+    assert!(
+        text(&zero.stderr).contains("cannot read \"0s\" as a duration: zero"),
+        "{}",
+        text(&zero.stderr)
+    );
+    assert!(!dir.join("none").exists());
+    // --json of retrieve, predict and export; with `-o -` the report goes to stderr and the
+    // map's bytes alone to stdout.
+    let file_out = dir.join("then.bt");
+    let report = text(
+        &froctomap(&[
+            "retrieve",
+            path_str(&out),
+            "--time",
+            "last",
+            "-o",
+            path_str(&file_out),
+            "--json",
+        ])
+        .stdout,
+    );
+    let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+    assert_eq!(
+        (report["kind"].as_str(), report["sample"].as_u64()),
+        (Some("observed"), Some(0))
+    );
+    let piped = froctomap(&[
+        "retrieve",
+        path_str(&out),
+        "--time",
+        "last",
+        "-o",
+        "-",
+        "--format",
+        "bt",
+        "--json",
+    ]);
+    assert_eq!(piped.stdout, std::fs::read(&file_out).unwrap());
+    let report: serde_json::Value = serde_json::from_str(&text(&piped.stderr)).unwrap();
+    assert_eq!(
+        report["leaves"],
+        report["leaves"].as_u64().filter(|&n| n > 0).unwrap()
+    );
+    let predicted = text(
+        &froctomap(&[
+            "predict",
+            path_str(&out),
+            "--time",
+            "2016-02-01T00:00:00Z",
+            "-o",
+            path_str(&dir.join("later.ot")),
+            "--json",
+        ])
+        .stdout,
+    );
+    let predicted: serde_json::Value = serde_json::from_str(&predicted).unwrap();
+    assert_eq!(
+        (
+            predicted["kind"].as_str(),
+            predicted["within_span"].as_bool()
+        ),
+        (Some("predicted"), Some(false))
+    );
+    let exported = text(
+        &froctomap(&[
+            "export",
+            path_str(&out),
+            "--from",
+            "2016-01-04T00:00:00Z",
+            "--to",
+            "2016-01-04T02:00:00Z",
+            "--every",
+            "1h",
+            "-o",
+            path_str(&dir.join("series")),
+            "--json",
+        ])
+        .stdout,
+    );
+    let exported: serde_json::Value = serde_json::from_str(&exported).unwrap();
+    assert_eq!(exported["maps"].as_array().map(Vec::len), Some(3));
+    for map in exported["maps"].as_array().unwrap() {
+        assert!(Path::new(map["path"].as_str().unwrap()).is_file());
+    }
+    let help = text(&froctomap(&["build", "--help"]).stdout);
+    assert!(
+        help.contains("\n\nfroctomap build maps/ -o office.froct\n\nfroctomap build 'scans/*.bt'"),
+        "{help}"
+    );
+}

@@ -311,6 +311,7 @@ fn accumulate_series(
             Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_place, budget);
         let produced = (|| -> Result<(), ConvertError> {
             for batch in extractor.by_ref() {
+                crate::progress::stop_if_cancelled(progress)?;
                 if !accumulator.push(batch?) {
                     // An accumulating thread stopped on an error, which `finish` reports.
                     break;

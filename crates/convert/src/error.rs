@@ -391,6 +391,10 @@ pub enum ConvertError {
         #[source]
         source: Cause,
     },
+    /// The caller asked to stop ([`Progress::cancelled`](crate::Progress::cancelled)):
+    /// nothing was written (outputs are written atomically, temporary files removed).
+    #[error("stopped before the end, as asked; nothing was written")]
+    Cancelled,
     /// Writing an output failed.
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),

@@ -328,3 +328,89 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
     }
     Ok((cells, voxels))
 }
+
+/// One OctoMap file (`.bt`, `.ot`, ...) described, as `froctomap info --json` prints it.
+#[derive(Clone, Debug, Serialize)]
+#[non_exhaustive]
+pub struct MapFileInfo {
+    /// The file.
+    pub file: PathBuf,
+    /// Its size.
+    pub file_bytes: u64,
+    /// Name of its format.
+    pub format: &'static str,
+    /// What the format is.
+    pub format_description: &'static str,
+    /// Voxel edge length, metres.
+    pub resolution_m: f64,
+    /// Octree nodes in the file.
+    pub nodes: u64,
+    /// Leaves (nodes without children) with a state.
+    pub leaves: u64,
+    /// Occupied leaves.
+    pub occupied_leaves: u64,
+    /// Free leaves.
+    pub free_leaves: u64,
+    /// Known voxels at the finest resolution.
+    pub voxels: u64,
+    /// Occupied voxels.
+    pub occupied_voxels: u64,
+    /// Free voxels.
+    pub free_voxels: u64,
+    /// Bounds of the known space, metres.
+    pub known_bounds_m: Option<MetricBounds>,
+    /// Bounds of the occupied space, metres.
+    pub occupied_bounds_m: Option<MetricBounds>,
+    /// What the reader warned about.
+    pub warnings: Vec<String>,
+}
+
+/// An axis-aligned box, metres.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct MetricBounds {
+    /// Lower corner.
+    pub min: [f64; 3],
+    /// Upper corner.
+    pub max: [f64; 3],
+}
+
+impl From<froctomap_core::BoundingBox> for MetricBounds {
+    fn from(b: froctomap_core::BoundingBox) -> Self {
+        Self {
+            min: b.min,
+            max: b.max,
+        }
+    }
+}
+
+/// Reads the map file at `path` (in the format `options` forces, else the detected one) and
+/// describes it: what `froctomap info` prints for a single map.
+pub fn describe_map_file(
+    context: &Context,
+    path: &std::path::Path,
+    options: froctomap_formats::ReadOptions<'_>,
+) -> Result<MapFileInfo, ConvertError> {
+    let read = context
+        .formats()
+        .read_file(path, options)
+        .map_err(ConvertError::Read)?;
+    let snapshot = &read.map.snapshot;
+    let stats = snapshot.stats();
+    Ok(MapFileInfo {
+        file: path.to_path_buf(),
+        file_bytes: std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
+        format: read.format.name,
+        format_description: read.format.description,
+        resolution_m: snapshot.resolution(),
+        nodes: read.map.node_count,
+        leaves: snapshot.leaves().len() as u64,
+        occupied_leaves: stats.occupied_leaves,
+        free_leaves: stats.free_leaves,
+        voxels: stats.occupied_voxels + stats.free_voxels,
+        occupied_voxels: stats.occupied_voxels,
+        free_voxels: stats.free_voxels,
+        known_bounds_m: snapshot.known_bounds().map(MetricBounds::from),
+        occupied_bounds_m: snapshot.occupied_bounds().map(MetricBounds::from),
+        warnings: read.map.warnings.clone(),
+    })
+}

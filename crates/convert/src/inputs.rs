@@ -519,6 +519,7 @@ fn assign_times(
                         path: c.path.clone(),
                         source: TimeError {
                             input: format!("start + {i} steps"),
+                            what: "time",
                             reason: "runs past the year 2262".into(),
                         },
                     })?;

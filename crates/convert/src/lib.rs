@@ -91,8 +91,8 @@ pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
 pub use info::{
-    describe, describe_series, AxisInfo, FroctInfo, LivingInfo, SegmentInfo, SizeInfo,
-    LARGEST_REGIONS,
+    describe, describe_map_file, describe_series, AxisInfo, FroctInfo, LivingInfo, MapFileInfo,
+    MetricBounds, SegmentInfo, SizeInfo, LARGEST_REGIONS,
 };
 pub use inputs::{
     collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,
@@ -107,8 +107,8 @@ pub use maps::{observed_bt, predicted_bt};
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use query::{
-    probabilities, series_probabilities, voxel_history, CellClass, CellGeometry, HistorySample,
-    VoxelHistory,
+    probabilities, probabilities_at_times, series_probabilities, voxel_history, CellClass,
+    CellGeometry, HistorySample, VoxelHistory,
 };
 pub use record::{
     CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,
@@ -117,7 +117,7 @@ pub use record::{
 pub use recording::RecordedMap;
 pub use recording_export::occupied_cells_at;
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
-pub use text::group_thousands;
+pub use text::{group_thousands, tidy_float, tidy_floats};
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,
     time_from_file_name, ReadTime, TimeError, Zone, EARLIEST, EARLIEST_IN_NAME, LATEST,

@@ -581,6 +581,7 @@ pub fn export(
     let extension = format.extensions.first().copied().unwrap_or(format.name);
     progress.stage("exporting maps", times.len() as u64);
     let write_one = |(&t, sample): (&Timestamp, &Option<u32>)| {
+        crate::progress::stop_if_cancelled(progress)?;
         let path = dir.join(format!(
             "{}_{}.{extension}",
             options.prefix,

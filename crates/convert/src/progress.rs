@@ -7,6 +7,21 @@ pub trait Progress: Sync {
     fn stage(&self, _name: &str, _total: u64) {}
     /// `units` more units of the current stage are done.
     fn advance(&self, _units: u64) {}
+    /// Whether the caller wants the work stopped (Ctrl-C in an interpreter, a failed
+    /// progress display): long loops ask between batches and then fail with
+    /// [`ConvertError::Cancelled`](crate::ConvertError::Cancelled), writing nothing.
+    fn cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// [`ConvertError::Cancelled`](crate::ConvertError::Cancelled) when `progress` asks to stop.
+pub(crate) fn stop_if_cancelled(progress: &dyn Progress) -> Result<(), crate::ConvertError> {
+    if progress.cancelled() {
+        Err(crate::ConvertError::Cancelled)
+    } else {
+        Ok(())
+    }
 }
 
 /// Reports nothing.

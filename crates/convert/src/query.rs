@@ -29,10 +29,40 @@ pub fn probabilities(
     t: Timestamp,
     points: &[[f64; 3]],
 ) -> Result<Vec<f64>, ConvertError> {
+    probabilities_at_times(reader, &[t], points)
+}
+
+/// [`probabilities`] at several instants in one pass over the tiles: row `i` of the result
+/// (`times.len()` rows of `points.len()` values, row-major) holds `p(times[i])` at each
+/// point. Each tile holding a point is read once, whatever the number of instants.
+///
+/// ```
+/// # use froctomap_convert::*;
+/// # use froctomap_file::FroctReader;
+/// # let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+/// #     .join("../../fixtures/froct/golden-v1.1.froct");
+/// let reader = FroctReader::open(&path)?;
+/// let (start, end) = (reader.header().axis.start(), reader.header().axis.end());
+/// let points = [[0.0, 0.0, 0.0], [1e9, 0.0, 0.0]];
+/// let p = probabilities_at_times(&reader, &[start, end], &points)?;
+/// assert_eq!(p.len(), 4);
+/// assert_eq!(p[2..].iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+///            probabilities(&reader, end, &points)?.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn probabilities_at_times(
+    reader: &FroctReader,
+    times: &[Timestamp],
+    points: &[[f64; 3]],
+) -> Result<Vec<f64>, ConvertError> {
     let header = reader.header();
-    let seconds = t.secs_since(header.axis.start());
+    let seconds: Vec<f64> = times
+        .iter()
+        .map(|t| t.secs_since(header.axis.start()))
+        .collect();
     let model = reader.model();
-    let mut out = vec![f64::NAN; points.len()];
+    let n = points.len();
+    let mut out = vec![f64::NAN; n.saturating_mul(times.len())];
     // Points in Morton order, grouped by tile: each tile is read once, its cells (also in
     // Morton order) matched to the points in one pass.
     let wanted = points_in_morton_order(points, header.resolution);
@@ -53,7 +83,9 @@ pub fn probabilities(
                     break;
                 }
                 if code >= cell.start {
-                    out[index] = cell.probability(model, seconds);
+                    for (row, &at) in seconds.iter().enumerate() {
+                        out[row * n + index] = cell.probability(model, at);
+                    }
                 }
                 next += 1;
             }

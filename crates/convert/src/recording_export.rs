@@ -51,6 +51,7 @@ pub(crate) fn export_recording(
     let mut writer = create(Box::new(sink)).map_err(|e| failed(None, e))?;
     progress.stage("exporting maps", times.len() as u64);
     for (&time, &sample) in times.iter().zip(samples) {
+        crate::progress::stop_if_cancelled(progress)?;
         let (bt, kind) = match sample {
             Some(sample) => (
                 observed_bt(reader, sample)?,

@@ -14,10 +14,12 @@ pub const EARLIEST_IN_NAME: Timestamp = Timestamp(631_152_000 * 1_000_000_000);
 
 /// Why a time could not be understood.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
-#[error("cannot read {input:?} as a time: {reason}")]
+#[error("cannot read {input:?} as a {what}: {reason}")]
 pub struct TimeError {
     /// What was given.
     pub input: String,
+    /// What it was read as: `"time"` or `"duration"`.
+    pub what: &'static str,
     /// What is wrong.
     pub reason: String,
 }
@@ -25,7 +27,16 @@ pub struct TimeError {
 fn error(input: &str, reason: impl Into<String>) -> TimeError {
     TimeError {
         input: input.to_string(),
+        what: "time",
         reason: reason.into(),
+    }
+}
+
+/// A duration that could not be understood.
+fn duration_error(input: &str, reason: impl Into<String>) -> TimeError {
+    TimeError {
+        what: "duration",
+        ..error(input, reason)
     }
 }
 
@@ -351,6 +362,10 @@ fn rosbag_separator_as_t(text: &str) -> std::borrow::Cow<'_, str> {
 /// ```
 /// assert_eq!(froctomap_convert::parse_duration("10min"), Ok(600_000_000_000));
 /// assert_eq!(froctomap_convert::parse_duration("1.5h"), Ok(5_400_000_000_000));
+/// assert_eq!(
+///     froctomap_convert::parse_duration("0s").unwrap_err().to_string(),
+///     "cannot read \"0s\" as a duration: zero; give a positive duration such as 1s or 10min"
+/// );
 /// ```
 pub fn parse_duration(input: &str) -> Result<i64, TimeError> {
     let text = input.trim();
@@ -361,7 +376,7 @@ pub fn parse_duration(input: &str) -> Result<i64, TimeError> {
     let value: f64 = number
         .trim()
         .parse()
-        .map_err(|_| error(input, "not a duration like 10min, 1.5h or 600"))?;
+        .map_err(|_| duration_error(input, "not a duration like 10min, 1.5h or 600"))?;
     let unit_ns = match unit.trim() {
         "ns" => 1.0,
         "us" | "µs" => 1e3,
@@ -372,15 +387,24 @@ pub fn parse_duration(input: &str) -> Result<i64, TimeError> {
         "d" => 86_400e9,
         "w" => 604_800e9,
         other => {
-            return Err(error(
+            return Err(duration_error(
                 input,
                 format!("unknown unit {other:?} (use ns, ms, s, min, h, d or w)"),
             ))
         }
     };
     let ns = (value * unit_ns).round();
+    if ns == 0.0 {
+        return Err(duration_error(
+            input,
+            "zero; give a positive duration such as 1s or 10min",
+        ));
+    }
     if !(ns.is_finite() && ns > 0.0 && ns < 9.2e18) {
-        return Err(error(input, "must be positive and below 290 years"));
+        return Err(duration_error(
+            input,
+            "must be positive and below 290 years",
+        ));
     }
     Ok(ns as i64)
 }

@@ -34,10 +34,20 @@ fn os_error_number(error: &(dyn std::error::Error + 'static)) -> Option<i32> {
                 return Some(number);
             }
         }
+        // An input found missing before anything opened it (a path that is neither a file,
+        // a directory nor a matching pattern) is the operating system's "not found" too.
+        if let Some(froctomap_convert::ConvertError::NotFound { .. }) =
+            current.downcast_ref::<froctomap_convert::ConvertError>()
+        {
+            return Some(ENOENT);
+        }
         cause = current.source();
     }
     None
 }
+
+/// `errno.ENOENT`, the same number on every platform Python runs on.
+const ENOENT: i32 = 2;
 
 fn error_class(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
     static CLASS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
@@ -73,4 +83,38 @@ fn raise(text: &str, errno: Option<i32>) -> PyErr {
 /// `.map_err(to_py)` for any Rust error of the libraries.
 pub(crate) fn to_py<E: std::error::Error + 'static>(error: E) -> PyErr {
     froct_error(&error)
+}
+
+/// A failure met without the interpreter (inside `Python::detach`): the message and the
+/// operating system's error number of its cause, raised as `FroctError` once attached, so
+/// that `errno` is set however far the error travelled.
+#[derive(Debug)]
+pub(crate) struct Failure {
+    text: String,
+    errno: Option<i32>,
+}
+
+impl<E: std::error::Error + 'static> From<E> for Failure {
+    fn from(error: E) -> Self {
+        Self {
+            text: message(&error),
+            errno: os_error_number(&error),
+        }
+    }
+}
+
+impl Failure {
+    /// A failure found by the binding itself (no OS cause).
+    pub(crate) fn text(text: impl Into<String>) -> Self {
+        Self {
+            text: text.into(),
+            errno: None,
+        }
+    }
+}
+
+impl From<Failure> for PyErr {
+    fn from(failure: Failure) -> Self {
+        raise(&failure.text, failure.errno)
+    }
 }

@@ -1,16 +1,19 @@
 //! `froctomap.open(path)`: a FROctomap file, its time axis and summary, and the maps in it.
 
-use crate::errors::{froct_error_text, to_py};
+use crate::errors::{froct_error_text, to_py, Failure};
 use crate::map::Map;
 use crate::times::instant;
 use crate::times::time_query;
+use froctomap_convert::tidy_float;
 use froctomap_convert::{
-    anomalies, describe_series, probabilities, read_snapshot, read_time_from_file_name,
-    resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport, Expectation,
-    FroctFile as SeriesFile, HistorySample, Pick, SeriesRead, TimeQuery, VoxelHistory, Zone,
+    anomalies, describe_series, probabilities, probabilities_at_times, read_snapshot,
+    read_time_from_file_name, resolve_observed_with, voxel_history, AnomalyOptions, AnomalyReport,
+    Expectation, FroctFile as SeriesFile, HistorySample, Pick, SeriesRead, TimeQuery, VoxelHistory,
+    Zone,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
+use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -136,13 +139,10 @@ impl FroctFile {
     #[pyo3(signature = (count = false))]
     fn describe<'py>(&self, py: Python<'py>, count: bool) -> PyResult<Bound<'py, PyAny>> {
         let reader = self.reader()?;
-        let text = py
-            .detach(|| {
-                describe_series(crate::context(), &reader, count)
-                    .map_err(|e| crate::errors::message(&e))
-                    .and_then(|info| serde_json::to_string(&info).map_err(|e| e.to_string()))
-            })
-            .map_err(froct_error_text)?;
+        let text = py.detach(|| -> Result<String, Failure> {
+            let info = describe_series(crate::context(), &reader, count)?;
+            report_json(&info)
+        })?;
         json_value(py, &text)
     }
 
@@ -190,28 +190,38 @@ impl FroctFile {
 
     /// The model's occupancy probability p(t) at each of `points` (an (N, 3) array of
     /// metres, the map's frame): a numpy float64 array of shape (N,), NaN where the file has
-    /// no cell (never observed, or outside the map). `t` as for `predict`: any instant.
+    /// no cell (never observed, or outside the map). `t` as for `predict`: any instant; or
+    /// several instants (a list, tuple or numpy array of them, T in all): an array of shape
+    /// (T, N), row i at `t[i]`, computed in one pass over the tiles holding the points.
     fn probability<'py>(
         &self,
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
         points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         let reader = self.reader()?;
-        let at = self.instant_of(&reader, t)?;
-        let points = float_array(py, points)?;
-        let shape = points.shape().to_vec();
-        if shape.len() != 2 || shape[1] != 3 {
-            return Err(PyValueError::new_err(format!(
-                "points must have shape (N, 3), not {shape:?}"
-            )));
+        let points = points_array(py, points)?;
+        let several = !t.is_instance_of::<pyo3::types::PyString>()
+            && (t.is_instance_of::<pyo3::types::PyList>()
+                || t.is_instance_of::<pyo3::types::PyTuple>()
+                || t.hasattr("ndim")? && t.getattr("ndim")?.extract::<usize>()? > 0);
+        if !several {
+            let at = self.instant_of(&reader, t)?;
+            let p = py
+                .detach(|| probabilities(reader.whole_history()?, at, &points))
+                .map_err(to_py)?;
+            return Ok(p.into_pyarray(py).into_any());
         }
-        let flat = points.as_slice()?;
-        let points: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let times = t
+            .try_iter()?
+            .map(|item| self.instant_of(&reader, &item?))
+            .collect::<PyResult<Vec<_>>>()?;
         let p = py
-            .detach(|| probabilities(reader.whole_history()?, at, &points))
+            .detach(|| probabilities_at_times(reader.whole_history()?, &times, &points))
             .map_err(to_py)?;
-        Ok(p.into_pyarray(py))
+        let rows = Array2::from_shape_vec((times.len(), points.len()), p)
+            .map_err(|e| froct_error_text(e.to_string()))?;
+        Ok(rows.into_pyarray(py).into_any())
     }
 
     /// One voxel's story: the cell holding `point` (x, y, z in metres), its class and model,
@@ -400,6 +410,19 @@ impl FroctFile {
     }
 }
 
+/// Points as an (N, 3) array of metres (anything numpy reads as one).
+pub(crate) fn points_array(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {
+    let points = float_array(py, points)?;
+    let shape = points.shape().to_vec();
+    if shape.len() != 2 || shape[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "points must have shape (N, 3), not {shape:?}"
+        )));
+    }
+    let flat = points.as_slice()?;
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
 /// `numpy.ascontiguousarray(value, dtype=float64)`, read-only.
 fn float_array<'py>(
     py: Python<'py>,
@@ -415,16 +438,19 @@ fn float_array<'py>(
 fn anomaly_dict<'py>(py: Python<'py>, report: &AnomalyReport) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item("time", iso8601(report.time))?;
-    dict.set_item("unix_time", crate::times::unix_seconds(report.time))?;
+    dict.set_item(
+        "unix_time",
+        tidy_float(crate::times::unix_seconds(report.time)),
+    )?;
     dict.set_item("scored_voxels", report.scored_voxels)?;
     dict.set_item("surprising_voxels", report.surprising_voxels)?;
     let regions = pyo3::types::PyList::empty(py);
     for region in &report.regions {
         let item = PyDict::new(py);
-        item.set_item("min", region.min.to_vec())?;
-        item.set_item("max", region.max.to_vec())?;
+        item.set_item("min", region.min.map(tidy_float).to_vec())?;
+        item.set_item("max", region.max.map(tidy_float).to_vec())?;
         item.set_item("voxels", region.voxels)?;
-        item.set_item("score", region.score)?;
+        item.set_item("score", tidy_float(region.score))?;
         item.set_item("kind", region.kind.name())?;
         regions.append(item)?;
     }
@@ -498,6 +524,14 @@ fn set_sample_columns(
     dict.set_item(format!("{prefix}samples"), indices.into_pyarray(py))?;
     dict.set_item(format!("{prefix}times"), times.into_pyarray(py))?;
     Ok(())
+}
+
+/// A report as JSON text, its floats tidied as the command line's `--json` prints them
+/// ([`froctomap_convert::tidy_floats`]).
+pub(crate) fn report_json(report: &impl serde::Serialize) -> Result<String, Failure> {
+    let mut value = serde_json::to_value(report)?;
+    froctomap_convert::tidy_floats(&mut value);
+    Ok(serde_json::to_string(&value)?)
 }
 
 /// JSON text as Python values (`json.loads`).

@@ -12,9 +12,11 @@
 mod errors;
 mod file;
 mod map;
+mod message;
 mod progress;
 mod series;
 mod times;
+mod verbs;
 
 use froctomap_convert::Context;
 use pyo3::prelude::*;
@@ -41,6 +43,16 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series::build, m)?)?;
     m.add_function(wrap_pyfunction!(series::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(series::parse_time, m)?)?;
+    m.add_function(wrap_pyfunction!(message::octomap_message_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(message::octomap_message_file, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::append, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::compact, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::convert, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::export, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::info, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::record, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::render, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::generate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -12,19 +12,15 @@ use froctomap_formats::WriteOptions;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::{PyBytes, PyTuple};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 /// `(occupied, free)` voxel centres, (N, 3) each.
 type PointCloud<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 
-/// `(centres, sizes, occupied)` of the leaves.
-type Leaves<'py> = (
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray1<bool>>,
-);
+/// `(state, p)` of points looked up in a map.
+type Found<'py> = (Bound<'py, PyArray1<i8>>, Bound<'py, PyArray1<f64>>);
 
 /// Which map of the file.
 #[derive(Clone, Copy)]
@@ -116,6 +112,11 @@ impl Map {
         }
         Ok(snapshot)
     }
+}
+
+/// The occupancy probability of a leaf's log-odds, as OctoMap's `getOccupancy`.
+fn probability_of(leaf: &froctomap_core::Leaf) -> f64 {
+    froctomap_core::probability(leaf.log_odds)
 }
 
 /// Voxel centres of the leaves of one state, expanded to the finest resolution.
@@ -240,27 +241,67 @@ impl Map {
 
     /// The map's leaves (one per octree node without children, coarse free space in one
     /// leaf): `(centres, sizes, occupied)`, numpy arrays of shapes (N, 3) float64 (metres),
-    /// (N,) float64 (edge length, metres) and (N,) bool.
-    fn leaves<'py>(&self, py: Python<'py>) -> PyResult<Leaves<'py>> {
+    /// (N,) float64 (edge length, metres) and (N,) bool; with `with_p=True` a fourth array,
+    /// (N,) float64, the occupancy probability each leaf holds (a prediction's p(t) as its
+    /// `.ot` log-odds store it, clamped to OctoMap's limits 0.1192 .. 0.971; a retrieved
+    /// map's states as OctoMap's clamping bounds).
+    #[pyo3(signature = (with_p = false))]
+    fn leaves<'py>(&self, py: Python<'py>, with_p: bool) -> PyResult<Bound<'py, PyTuple>> {
         let snapshot = self.snapshot(py)?;
         let resolution = snapshot.resolution();
         let leaves = snapshot.leaves();
         let mut centres = Vec::with_capacity(leaves.len() * 3);
         let mut sizes = Vec::with_capacity(leaves.len());
         let mut occupied = Vec::with_capacity(leaves.len());
+        let mut p = Vec::with_capacity(if with_p { leaves.len() } else { 0 });
         for leaf in leaves {
             let (min, max) = leaf.bounds(resolution);
             centres.extend((0..3).map(|i| (min[i] + max[i]) / 2.0));
             sizes.push(max[0] - min[0]);
             occupied.push(leaf.occupancy().is_occupied());
+            if with_p {
+                p.push(probability_of(leaf));
+            }
         }
         let centres = Array2::from_shape_vec((leaves.len(), 3), centres)
             .unwrap_or_else(|_| Array2::zeros((0, 3)));
-        Ok((
-            centres.into_pyarray(py),
-            sizes.into_pyarray(py),
-            occupied.into_pyarray(py),
-        ))
+        let mut items: Vec<Bound<'py, PyAny>> = vec![
+            centres.into_pyarray(py).into_any(),
+            sizes.into_pyarray(py).into_any(),
+            occupied.into_pyarray(py).into_any(),
+        ];
+        if with_p {
+            items.push(p.into_pyarray(py).into_any());
+        }
+        PyTuple::new(py, items)
+    }
+
+    /// Looks up `points` (an (N, 3) array of metres) in the map, as octomap-python's
+    /// `search` and `isNodeOccupied`/`getOccupancy` do on the map's `.ot`: `(state, p)`,
+    /// numpy arrays of shape (N,): `state` int8 (1 occupied, 0 free, -1 unknown: no leaf
+    /// there, or outside the map) and `p` float64 (the leaf's occupancy probability, as
+    /// `leaves(with_p=True)` gives it; NaN where unknown).
+    fn search<'py>(&self, py: Python<'py>, points: &Bound<'py, PyAny>) -> PyResult<Found<'py>> {
+        let points = crate::file::points_array(py, points)?;
+        let snapshot = self.snapshot(py)?;
+        let (states, p): (Vec<i8>, Vec<f64>) = py.detach(|| {
+            let resolution = snapshot.resolution();
+            points
+                .iter()
+                .map(|&point| {
+                    let leaf = VoxelKey::from_point(point, resolution)
+                        .and_then(|key| snapshot.leaf_at(key.morton()));
+                    match leaf {
+                        Some(leaf) => (
+                            i8::from(leaf.occupancy().is_occupied()),
+                            probability_of(leaf),
+                        ),
+                        None => (-1, f64::NAN),
+                    }
+                })
+                .unzip()
+        });
+        Ok((states.into_pyarray(py), p.into_pyarray(py)))
     }
 
     /// Leaves of the map.

@@ -5,8 +5,11 @@
 //! end), so that a progress bar costs nothing noticeable. The package's `progress=True`
 //! passes a callback that draws tqdm bars.
 
+use crate::errors::Failure;
 use froctomap_convert::Progress;
 use pyo3::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, RecvTimeoutError};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -41,6 +44,13 @@ impl Callback {
                 failed: None,
             }),
         }
+    }
+
+    /// Whether the callback raised (the work then stops at its next batch).
+    fn failed(&self) -> bool {
+        self.state
+            .lock()
+            .map_or(true, |state| state.failed.is_some())
     }
 
     /// Reports the end of the last stage; raises what the callback raised, if anything.
@@ -109,4 +119,89 @@ impl Progress for Callback {
             }
         }
     }
+}
+
+/// How often a long call looks for Ctrl-C (signals reach Python only through the thread
+/// that holds the interpreter, which waits meanwhile).
+const SIGNAL_CHECKS: Duration = Duration::from_millis(100);
+
+/// The [`Progress`] handed to the library: the callback's, and a stop asked for by Ctrl-C
+/// or by a callback that raised.
+struct Interruptible<'a> {
+    callback: Option<&'a Callback>,
+    stop: &'a AtomicBool,
+}
+
+impl Progress for Interruptible<'_> {
+    fn stage(&self, name: &str, total: u64) {
+        if let Some(callback) = self.callback {
+            callback.stage(name, total);
+        }
+    }
+
+    fn advance(&self, units: u64) {
+        if let Some(callback) = self.callback {
+            callback.advance(units);
+        }
+    }
+
+    fn cancelled(&self) -> bool {
+        self.stop.load(Ordering::Relaxed) || self.callback.is_some_and(Callback::failed)
+    }
+}
+
+/// Runs `work` on a thread of its own without the interpreter, reporting progress to the
+/// callable `progress` (if any), while this thread looks for signals every
+/// [`SIGNAL_CHECKS`]: Ctrl-C (or an exception in the callback) asks the work to stop at
+/// its next batch, and is raised once it stopped, with nothing written. Otherwise raises
+/// what the callback raised, else what `work` failed with.
+pub(crate) fn with_progress<T: Send>(
+    py: Python<'_>,
+    progress: Option<Py<PyAny>>,
+    work: impl FnOnce(&dyn Progress) -> Result<T, Failure> + Send,
+) -> PyResult<T> {
+    let callback = progress.map(Callback::new);
+    let stop = AtomicBool::new(false);
+    let watched = Interruptible {
+        callback: callback.as_ref(),
+        stop: &stop,
+    };
+    let (outcome, interrupted) = std::thread::scope(|scope| {
+        let (done, finished) = sync_channel::<()>(1);
+        let watched = &watched;
+        let worker = scope.spawn(move || {
+            let outcome = work(watched);
+            let _ = done.send(());
+            outcome
+        });
+        let mut interrupted = None;
+        let mut finished = finished;
+        loop {
+            // The receiver goes to the detached closure and back (it is Send, not Sync).
+            let (waited, back) =
+                py.detach(move || (finished.recv_timeout(SIGNAL_CHECKS), finished));
+            finished = back;
+            match waited {
+                Err(RecvTimeoutError::Timeout) => {}
+                Ok(()) | Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if interrupted.is_none() {
+                if let Err(signal) = py.check_signals() {
+                    stop.store(true, Ordering::Relaxed);
+                    interrupted = Some(signal);
+                }
+            }
+        }
+        let outcome = py
+            .detach(|| worker.join())
+            .unwrap_or_else(|_| Err(Failure::text("internal error: the work panicked")));
+        (outcome, interrupted)
+    });
+    if let Some(signal) = interrupted {
+        return Err(signal);
+    }
+    if let Some(callback) = callback {
+        callback.finish()?;
+    }
+    Ok(outcome?)
 }

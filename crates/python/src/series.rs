@@ -1,13 +1,12 @@
 //! `froctomap.build` and `froctomap.evaluate`: series of maps in, a file or error tables out.
 
-use crate::errors::{froct_error_text, message, to_py};
-use crate::file::json_value;
-use crate::progress::Callback;
+use crate::errors::{froct_error_text, to_py};
+use crate::file::{json_value, report_json};
+use crate::progress::with_progress;
 use crate::times::instant;
 use froctomap_convert::{
     collect_inputs_explained, collect_recording, evaluate as evaluate_file, ingest, parse_duration,
-    IngestOptions, IngestTarget, Progress, RecordedTime, RecordingOptions, Silent, TimeSource,
-    Zone,
+    IngestOptions, IngestTarget, RecordedTime, RecordingOptions, TimeSource, Zone,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -21,7 +20,7 @@ use std::time::Instant;
 
 /// How the inputs of a series get their times, as on the command line (`--start/--step`,
 /// `--times-file`, `--times-from-names`; manifests and file names otherwise).
-fn series_times(
+pub(crate) fn series_times(
     start: Option<&Bound<'_, PyAny>>,
     step: Option<&Bound<'_, PyAny>>,
     times_file: Option<PathBuf>,
@@ -42,7 +41,7 @@ fn series_times(
 }
 
 /// A duration: seconds as a number, or text such as `10min`, `1.5h`.
-fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
+pub(crate) fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
     let text = match value.extract::<String>() {
         Ok(text) => text,
         Err(_) => format!("{}", value.extract::<f64>()?),
@@ -51,7 +50,7 @@ fn duration_ns(value: &Bound<'_, PyAny>) -> PyResult<i64> {
 }
 
 /// The input paths: one path or a list of them.
-fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
+pub(crate) fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
     if let Ok(path) = value.extract::<PathBuf>() {
         return Ok(vec![path]);
     }
@@ -62,19 +61,36 @@ fn paths(value: &Bound<'_, PyAny>) -> PyResult<Vec<PathBuf>> {
 }
 
 /// What `build` was given: paths, or maps handed over as `(time, bytes)` pairs.
-enum BuildInputs {
+pub(crate) enum BuildInputs {
     Paths(Vec<PathBuf>),
     /// The pairs, spooled to disk as they came.
     Maps(froctomap_formats::Recording),
 }
 
+impl BuildInputs {
+    /// The inputs with their times, as the command line collects its arguments.
+    pub(crate) fn collect(
+        self,
+        context: &froctomap_convert::Context,
+        source: TimeSource,
+    ) -> Result<froctomap_convert::CollectedInputs, froctomap_convert::ConvertError> {
+        match self {
+            Self::Paths(inputs) => collect_inputs_explained(context, &inputs, source, &Zone::utc()),
+            Self::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
+        }
+    }
+}
+
 /// How messages name maps handed over as `(time, bytes)` pairs.
-const PAIRS_NAME: &str = "<maps>";
+pub(crate) const PAIRS_NAME: &str = "<maps>";
 
 /// `inputs` of `build`: a path, an iterable of paths, or an iterable of `(time, bytes)`
 /// pairs (any iterable, a generator too), each map spooled into a locked temporary
 /// directory in `spool_dir` as it comes, so memory does not hold the maps.
-fn build_inputs(value: &Bound<'_, PyAny>, spool_dir: Option<&Path>) -> PyResult<BuildInputs> {
+pub(crate) fn build_inputs(
+    value: &Bound<'_, PyAny>,
+    spool_dir: Option<&Path>,
+) -> PyResult<BuildInputs> {
     if let Ok(path) = value.extract::<PathBuf>() {
         return Ok(BuildInputs::Paths(vec![path]));
     }
@@ -118,7 +134,7 @@ fn build_inputs(value: &Bound<'_, PyAny>, spool_dir: Option<&Path>) -> PyResult<
 
 /// The model's settings from the keyword arguments, checked by the model (`--model`,
 /// `--model-option`, `--order`, `--max-order`, `--periods`, `--lossy`).
-fn model_config(
+pub(crate) fn model_config(
     model: &str,
     lossy: bool,
     order: Option<&Bound<'_, PyAny>>,
@@ -139,12 +155,7 @@ fn model_config(
     } else {
         OutlierMode::Lossless
     });
-    if let Some(options) = model_options {
-        for (key, value) in options.iter() {
-            let key: String = key.extract()?;
-            config.options.set(&key, value.str()?.to_string());
-        }
-    }
+    config.options = model_config_options(model_options)?;
     let has = |key: &str| descriptor.options.iter().any(|o| o.key == key);
     let order = match order {
         None => None,
@@ -186,8 +197,22 @@ fn model_config(
     Ok(config)
 }
 
+/// `model_options={"key": value}` as the model's options (`--model-option KEY=VALUE`).
+pub(crate) fn model_config_options(
+    model_options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<froctomap_temporal::ModelOptions> {
+    let mut options = froctomap_temporal::ModelOptions::new();
+    if let Some(given) = model_options {
+        for (key, value) in given.iter() {
+            let key: String = key.extract()?;
+            options.set(&key, value.str()?.to_string());
+        }
+    }
+    Ok(options)
+}
+
 /// `created`, else SOURCE_DATE_EPOCH (whole Unix seconds), as the command line reads them.
-fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestamp>> {
+pub(crate) fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestamp>> {
     if let Some(value) = created {
         return instant(value, "created").map(Some);
     }
@@ -208,7 +233,7 @@ fn creation_time(created: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Timestam
 }
 
 /// `tags` as the header metadata (`{"tags": {...}}`, as `--tag KEY=VALUE`).
-fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value>> {
+pub(crate) fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<String, Value>> {
     let mut metadata = Map::new();
     let Some(tags) = tags else {
         return Ok(metadata);
@@ -317,23 +342,11 @@ pub fn build<'py>(
             "inputs: (time, bytes) pairs carry their own times; start/step, times_file and times_from_names apply to files only",
         ));
     }
-    let callback = progress.map(Callback::new);
-    let report = py.detach(|| {
-        let progress: &dyn Progress = match &callback {
-            Some(callback) => callback,
-            None => &Silent,
-        };
-        let collected = match inputs {
-            BuildInputs::Paths(inputs) => {
-                collect_inputs_explained(&context, &inputs, source, &Zone::utc())
-            }
-            BuildInputs::Maps(recording) => collect_recording(PathBuf::from(PAIRS_NAME), recording),
-        }
-        .map_err(|e| message(&e))?;
+    let report = with_progress(py, progress, |progress| {
+        let collected = inputs.collect(&context, source)?;
         let target = IngestTarget::NewFile(&output);
-        let report =
-            ingest(&context, &collected, target, &options, progress).map_err(|e| message(&e))?;
-        let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+        let report = ingest(&context, &collected, target, &options, progress)?;
+        let mut value = serde_json::to_value(&report)?;
         if let Value::Object(map) = &mut value {
             let warnings: Vec<Value> = collected
                 .warnings
@@ -346,12 +359,9 @@ pub fn build<'py>(
                 Value::from(started.elapsed().as_secs_f64()),
             );
         }
-        serde_json::to_string(&value).map_err(|e| e.to_string())
-    });
-    if let Some(callback) = callback {
-        callback.finish()?;
-    }
-    json_value(py, &report.map_err(froct_error_text)?)
+        report_json(&value)
+    })?;
+    json_value(py, &report)
 }
 
 /// Compares a FROctomap file with ground-truth maps (`froctomap eval --json`).
@@ -371,31 +381,21 @@ pub fn evaluate<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let against = paths(against)?;
     let source = series_times(start, step, times_file, times_from_names)?;
-    let callback = progress.map(Callback::new);
-    let report = py.detach(|| {
-        let progress: &dyn Progress = match &callback {
-            Some(callback) => callback,
-            None => &Silent,
-        };
+    let report = with_progress(py, progress, |progress| {
         let context = crate::context();
-        let file = context.open_series(&path).map_err(|e| message(&e))?;
-        let reader = file.whole_history().map_err(|e| message(&e))?;
-        let collected = collect_inputs_explained(context, &against, source, &Zone::utc())
-            .map_err(|e| message(&e))?;
+        let file = context.open_series(&path)?;
+        let reader = file.whole_history()?;
+        let collected = collect_inputs_explained(context, &against, source, &Zone::utc())?;
         let report = evaluate_file(
             context,
             reader,
             &collected.series,
             ReadOptions::default(),
             progress,
-        )
-        .map_err(|e| message(&e))?;
-        serde_json::to_string(&report).map_err(|e| e.to_string())
-    });
-    if let Some(callback) = callback {
-        callback.finish()?;
-    }
-    json_value(py, &report.map_err(froct_error_text)?)
+        )?;
+        report_json(&report)
+    })?;
+    json_value(py, &report)
 }
 
 /// Reads a time as the command line does (`--time`): Unix seconds (float) of an instant, or

@@ -17,6 +17,11 @@ pub(crate) fn time_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
     if value.is_instance_of::<PyBool>() {
         return Err(PyTypeError::new_err("a time must not be a bool"));
     }
+    let type_name = value.get_type().name()?.to_string();
+    if type_name == "datetime64" {
+        // numpy prints datetime64 as ISO 8601 without a zone: UTC, as numpy means it.
+        return Ok(value.str()?.to_string());
+    }
     if let Ok(seconds) = value.extract::<i64>() {
         return Ok(seconds.to_string());
     }
@@ -29,11 +34,6 @@ pub(crate) fn time_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
         // Rust prints the shortest text that reads back as the same float, never in
         // exponent form: `1451865600.25` stays exact, as on the command line.
         return Ok(format!("{seconds}"));
-    }
-    let type_name = value.get_type().name()?.to_string();
-    if type_name == "datetime64" {
-        // numpy prints datetime64 as ISO 8601 without a zone: UTC, as numpy means it.
-        return Ok(value.str()?.to_string());
     }
     if value.hasattr("isoformat")? {
         return value.call_method0("isoformat")?.extract();

@@ -28,8 +28,19 @@ pub fn register_font(bytes: Vec<u8>, path: &Path) -> Result<(), RenderError> {
     })
 }
 
+/// A font file to use when neither `$FROCTOMAP_FONT` nor a system DejaVu Sans is there
+/// (a copy shipped with a program, e.g. the Python wheel's). Set before the first picture.
+static FALLBACK: OnceLock<PathBuf> = OnceLock::new();
+
+/// Names the font file [`ensure_font`] uses when `$FROCTOMAP_FONT` is unset and no system
+/// DejaVu Sans is found; only the first call counts.
+pub fn set_fallback_font(path: PathBuf) {
+    let _ = FALLBACK.set(path);
+}
+
 /// Makes sure a font is registered: `$FROCTOMAP_FONT`, else DejaVu Sans where Linux
-/// distributions install it. Looked up once per process.
+/// distributions install it, else the fallback ([`set_fallback_font`]). Looked up once per
+/// process.
 pub fn ensure_font() -> Result<(), RenderError> {
     static FOUND: OnceLock<Result<PathBuf, String>> = OnceLock::new();
     let found = FOUND.get_or_init(|| {
@@ -38,6 +49,7 @@ pub fn ensure_font() -> Result<(), RenderError> {
         for path in given
             .into_iter()
             .chain(CANDIDATES.iter().map(PathBuf::from))
+            .chain(FALLBACK.get().cloned())
         {
             if let Ok(bytes) = std::fs::read(&path) {
                 if register_font(bytes, &path).is_ok() {

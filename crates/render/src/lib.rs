@@ -33,7 +33,7 @@ pub use dynamics::{
     dynamic_colour, render_dynamics, MIN_DYNAMIC_HEIGHT, NO_PERIOD, OTHER_PERIODS, PERIOD_HUES,
 };
 pub use error::RenderError;
-pub use font::{ensure_font, register_font, FONT_VARIABLE};
+pub use font::{ensure_font, register_font, set_fallback_font, FONT_VARIABLE};
 pub use map::{
     is_occupied_shade, occupied_shade, render_map, MapTime, View, FREE, OCCUPIED_HIGH,
     OCCUPIED_LOW, TALL_METRES, UNKNOWN,

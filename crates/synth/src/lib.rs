@@ -82,6 +82,10 @@ mod series;
 mod spec;
 
 pub use doors::DoorSeries;
+
+/// Where Debian's liboctomap-dev puts the FR-079 corridor scan, the default base map of a
+/// generated series (the command line's `generate --base`).
+pub const DEBIAN_GEB079: &str = "/usr/share/doc/liboctomap-dev/examples/data/geb079.bt";
 pub use elements::{DoorDriver, ElementKind, WeeklySlot};
 pub use error::SynthError;
 pub use generator::{

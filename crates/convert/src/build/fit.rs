@@ -207,6 +207,7 @@ pub(crate) fn fit_and_write(
         let mut pending = PendingTiles::default();
         let mut chunks = receiver.into_iter().peekable();
         while chunks.peek().is_some() || !pending.complete.is_empty() {
+            crate::progress::stop_if_cancelled(progress)?;
             let mut step: Vec<Chunk> = Vec::new();
             let mut runs = 0usize;
             while step.len() < step_chunks && runs < STEP_RUNS {

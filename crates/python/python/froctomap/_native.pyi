@@ -28,6 +28,47 @@ def build(inputs: Any, output: PathLike, **options: Any) -> Dict[str, Any]:
 def evaluate(path: PathLike, against: List[Any], **options: Any) -> Dict[str, Any]:
     """See froctomap.evaluate."""
 
+def append(file: PathLike, inputs: Any, **options: Any) -> Dict[str, Any]:
+    """See froctomap.append."""
+
+def record(file: PathLike, sources: Any, **options: Any) -> Dict[str, Any]:
+    """See froctomap.record."""
+
+def compact(file: PathLike, output: Optional[PathLike] = None, **options: Any) -> Dict[str, Any]:
+    """See froctomap.compact."""
+
+def export(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.export."""
+
+def render(file: PathLike, output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.render."""
+
+def generate(output: PathLike, **options: Any) -> Dict[str, Any]:
+    """See froctomap.generate."""
+
+def convert(
+    input: PathLike,
+    output: PathLike,
+    *,
+    format: Optional[str] = None,
+    input_format: Optional[str] = None,
+) -> Dict[str, Any]:
+    """Converts one map file into another format (``froctomap convert``): the output's
+    extension names the format unless ``format`` does; the output is written atomically
+    and is never the input. Returns ``input_format``, ``output_format``, ``leaves`` and the
+    reader's ``warnings``."""
+
+def info(path: PathLike, *, count: bool = False, input_format: Optional[str] = None) -> Dict[str, Any]:
+    """Describes a file as ``froctomap info --json`` does: a FROctomap file (the fields of
+    ``FroctFile.info``; ``count=True`` recounts its cells) or one map file (format,
+    resolution, nodes, leaves, voxels, bounds, warnings)."""
+
+def octomap_message_fields(data: bytes) -> Dict[str, Any]:
+    """The octomap_msgs/Octomap fields of a map file (see froctomap.message_from_map)."""
+
+def octomap_message_file(binary: bool, id: str, resolution: float, data: bytes) -> bytes:
+    """The map file of octomap_msgs/Octomap fields (see froctomap.map_from_message)."""
+
 class FroctFile:
     """An open FROctomap file (from froctomap.open); a context manager."""
 
@@ -57,9 +98,12 @@ class FroctFile:
         first one or for an index beyond the axis."""
     def predict(self, t: Time) -> Map:
         """The map predicted for any instant t (p(t) per cell)."""
-    def probability(self, t: Time, points: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    def probability(
+        self, t: Union[Time, List[Time], npt.ArrayLike], points: npt.ArrayLike
+    ) -> npt.NDArray[np.float64]:
         """p(t) at each point of an (N, 3) array (metres), shape (N,); NaN where the file has
-        no cell."""
+        no cell. Several instants (a list, tuple or array of T times): shape (T, N), in one
+        call without the interpreter lock."""
     def history(
         self, point: npt.ArrayLike, start: Optional[Time] = None, end: Optional[Time] = None
     ) -> Dict[str, Any]:
@@ -116,9 +160,15 @@ class Map:
         self, max_points: int = 50_000_000
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """(occupied, free) voxel centres, each of shape (N, 3), metres."""
-    def leaves(
-        self,
-    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
-        """(centres (N, 3), edge lengths (N,), occupied (N,)) of the map's leaves."""
+    def leaves(self, with_p: bool = False) -> Tuple[npt.NDArray[Any], ...]:
+        """(centres (N, 3), edge lengths (N,), occupied (N,)) of the map's leaves; with
+        with_p=True also p (N,), each leaf's occupancy probability (clamped as OctoMap
+        stores it)."""
+    def search(
+        self, points: npt.ArrayLike
+    ) -> Tuple[npt.NDArray[np.int8], npt.NDArray[np.float64]]:
+        """(state, p) at each point of an (N, 3) array, as octomap-python's search and
+        isNodeOccupied/getOccupancy: state 1 occupied, 0 free, -1 unknown; p NaN where
+        unknown."""
     def __len__(self) -> int:
         """Leaves of the map."""
