@@ -42,6 +42,7 @@ pub fn octomap_message_file<'py>(
 ) -> PyResult<Bound<'py, PyBytes>> {
     let message = OctomapMessage {
         stamp_ns: 0,
+        frame_id: "",
         binary,
         id,
         resolution,
