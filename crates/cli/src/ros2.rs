@@ -366,11 +366,11 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
         Some(port) => {
             let view =
                 crate::foxglove::FoxgloveView::start(&args.foxglove_address.to_string(), port)?;
-            // Port 0 asks for a free one: the line says which (scripts read it).
+            // Port 0 asks for a free one: the line says which (scripts read it); an IPv6
+            // address in brackets.
             eprintln!(
-                "Foxglove WebSocket server on ws://{}:{}: the predicted map on {}",
-                args.foxglove_address,
-                view.port(),
+                "Foxglove WebSocket server on ws://{}: the predicted map on {}",
+                std::net::SocketAddr::new(args.foxglove_address, view.port()),
                 froctomap_ros::POINT_CLOUD_TOPIC
             );
             Some(view)
