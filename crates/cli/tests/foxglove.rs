@@ -4,7 +4,9 @@
 //! name, and `foxglove.sdk.v1`, the same protocol as the Foxglove SDK names it and only
 //! accepts), receives the server's advertisement, subscribes to the point-cloud channel
 //! and decodes its message; its voxels and probabilities are those of the map `froctomap
-//! predict` writes for the message's time, as octomap-python reads them from the `.ot`.
+//! predict` writes for the message's time, as octomap-python reads them from the `.ot`. A
+//! client that subscribes after the publication gets the same message (channels do not
+//! latch; the view sends the last one again).
 #![cfg(all(unix, feature = "foxglove"))]
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests fail by panicking
 
@@ -50,6 +52,65 @@ fn next(socket: &mut tungstenite::WebSocket<TcpStream>) -> Message {
         .unwrap_or_else(|e| panic!("no message from the Foxglove server within a minute: {e}"))
 }
 
+/// A client of the server at `address` (host:port), the handshake done.
+fn connect(address: &str) -> tungstenite::WebSocket<TcpStream> {
+    let stream = TcpStream::connect(address).expect("connect");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(60)))
+        .unwrap();
+    let mut request = format!("ws://{address}").into_client_request().unwrap();
+    request.headers_mut().insert(
+        "Sec-WebSocket-Protocol",
+        "foxglove.websocket.v1, foxglove.sdk.v1".parse().unwrap(),
+    );
+    let (socket, response) = tungstenite::client(request, stream).expect("handshake");
+    assert_eq!(
+        response.headers().get("Sec-WebSocket-Protocol").unwrap(),
+        "foxglove.sdk.v1"
+    );
+    socket
+}
+
+/// The advertised channel (checked), subscribed as `subscription`: its first messageData
+/// frame (opcode 1, the subscription as u32, the log time as u64, the message).
+fn first_message(
+    socket: &mut tungstenite::WebSocket<TcpStream>,
+    subscription: u32,
+) -> tungstenite::Bytes {
+    // serverInfo, then the advertisement of the channel.
+    let channel = loop {
+        let Message::Text(text) = next(socket) else {
+            continue;
+        };
+        let message: serde_json::Value = serde_json::from_str(text.as_str()).unwrap();
+        if message["op"] == "advertise" {
+            let channels = message["channels"].as_array().unwrap();
+            assert_eq!(channels.len(), 1, "{message}");
+            break channels[0].clone();
+        }
+    };
+    assert_eq!(channel["topic"], "/froctomap/occupied_voxels", "{channel}");
+    assert_eq!(channel["encoding"], "json", "{channel}");
+    assert_eq!(channel["schemaName"], "foxglove.PointCloud", "{channel}");
+    assert_eq!(channel["schemaEncoding"], "jsonschema", "{channel}");
+    let subscribe = serde_json::json!({"op": "subscribe",
+        "subscriptions": [{"id": subscription, "channelId": channel["id"]}]});
+    socket
+        .send(Message::Text(subscribe.to_string().into()))
+        .unwrap();
+    let data = loop {
+        if let Message::Binary(data) = next(socket) {
+            break data;
+        }
+    };
+    assert_eq!(data[0], 1, "not a messageData frame");
+    assert_eq!(
+        u32::from_le_bytes(data[1..5].try_into().unwrap()),
+        subscription
+    );
+    data
+}
+
 #[test]
 fn a_foxglove_client_receives_the_predicted_map() {
     let dir = scratch();
@@ -69,7 +130,9 @@ fn a_foxglove_client_receives_the_predicted_map() {
 
     let mut children = Reap(Vec::new());
     let mut node = Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .args(["ros2", s(&file), "--no-record", "--foxglove", "0"])
+        // One publication (at the start): later subscribers get it again, not a new one.
+        .args(["ros2", s(&file), "--no-record", "--publish-every", "1h"])
+        .args(["--foxglove", "0"])
         .env("ROS_DOMAIN_ID", random_domain().to_string())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -85,51 +148,8 @@ fn a_foxglove_client_receives_the_predicted_map() {
         .unwrap_or_else(|| panic!("no address in `{line}`"));
     assert!(address.starts_with("127.0.0.1:"), "{line}");
 
-    let stream = TcpStream::connect(address).expect("connect");
-    stream
-        .set_read_timeout(Some(Duration::from_secs(60)))
-        .unwrap();
-    let mut request = format!("ws://{address}").into_client_request().unwrap();
-    request.headers_mut().insert(
-        "Sec-WebSocket-Protocol",
-        "foxglove.websocket.v1, foxglove.sdk.v1".parse().unwrap(),
-    );
-    let (mut socket, response) = tungstenite::client(request, stream).expect("handshake");
-    assert_eq!(
-        response.headers().get("Sec-WebSocket-Protocol").unwrap(),
-        "foxglove.sdk.v1"
-    );
-
-    // serverInfo, then the advertisement of the channel.
-    let channel = loop {
-        let Message::Text(text) = next(&mut socket) else {
-            continue;
-        };
-        let message: serde_json::Value = serde_json::from_str(text.as_str()).unwrap();
-        if message["op"] == "advertise" {
-            let channels = message["channels"].as_array().unwrap();
-            assert_eq!(channels.len(), 1, "{message}");
-            break channels[0].clone();
-        }
-    };
-    assert_eq!(channel["topic"], "/froctomap/occupied_voxels", "{channel}");
-    assert_eq!(channel["encoding"], "json", "{channel}");
-    assert_eq!(channel["schemaName"], "foxglove.PointCloud", "{channel}");
-    assert_eq!(channel["schemaEncoding"], "jsonschema", "{channel}");
-    let subscribe = serde_json::json!({"op": "subscribe",
-        "subscriptions": [{"id": 7, "channelId": channel["id"]}]});
-    socket
-        .send(Message::Text(subscribe.to_string().into()))
-        .unwrap();
-
-    // messageData: opcode 1, the subscription (u32), the log time (u64), the message.
-    let data = loop {
-        if let Message::Binary(data) = next(&mut socket) {
-            break data;
-        }
-    };
-    assert_eq!(data[0], 1, "not a messageData frame");
-    assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 7);
+    let mut socket = connect(address);
+    let data = first_message(&mut socket, 7);
     let log_time = u64::from_le_bytes(data[5..13].try_into().unwrap());
     let cloud: serde_json::Value = serde_json::from_slice(&data[13..]).unwrap();
     let (sec, nsec) = (
@@ -222,5 +242,14 @@ fn a_foxglove_client_receives_the_predicted_map() {
     }
     // The maps alternate: some cells are certain, some not.
     assert!(got.values().any(|&p| p < 0.99), "{got:?}");
-    drop(socket);
+
+    // A client subscribing after the publication gets the same message.
+    let mut late = connect(address);
+    let again = first_message(&mut late, 3);
+    assert_eq!(
+        again[5..],
+        data[5..],
+        "the message sent again to a later subscriber"
+    );
+    drop((socket, late));
 }
