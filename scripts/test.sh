@@ -35,6 +35,10 @@ step cargo test --workspace --locked "$@"
 # loopback; its code linted with the feature on.
 step cargo clippy --locked -p froctomap-cli --features ros2 --all-targets -- -D warnings
 step cargo test --locked -p froctomap-cli --features ros2 --test ros2
+# `froctomap ros2 --foxglove` (cargo feature `foxglove`, implies `ros2`): a WebSocket client
+# on loopback against the Foxglove server.
+step cargo clippy --locked -p froctomap-cli --features foxglove --all-targets -- -D warnings
+step cargo test --locked -p froctomap-cli --features foxglove --test foxglove
 
 # The README's Install section: `cargo install` of the CLI (debug profile, reusing this
 # build's artifacts), then the installed binary runs from outside the checkout; the pure-Rust

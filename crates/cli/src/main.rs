@@ -31,6 +31,8 @@ mod append;
 mod commands;
 mod compact;
 mod errors;
+#[cfg(feature = "foxglove")]
+mod foxglove;
 mod froct_info;
 mod generate;
 mod history;

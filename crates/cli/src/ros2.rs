@@ -70,6 +70,22 @@ pub struct Ros2Args {
     /// `ros2 param`): `jazzy` (Iron and later) or `humble` (Humble and before).
     #[arg(long, value_name = "DISTRO", default_value = "jazzy")]
     ros_distro: GraphLayout,
+    /// Serve the predicted map to the Foxglove app on a WebSocket server at PORT (0: a
+    /// free port, printed): its occupied voxels with their probability, as
+    /// `foxglove.PointCloud` on /froctomap/occupied_voxels.
+    #[cfg(feature = "foxglove")]
+    #[arg(long, value_name = "PORT")]
+    foxglove: Option<u16>,
+    /// The address the Foxglove server listens on (default: loopback only; 0.0.0.0 for
+    /// every interface).
+    #[cfg(feature = "foxglove")]
+    #[arg(
+        long,
+        value_name = "ADDR",
+        default_value = "127.0.0.1",
+        requires = "foxglove"
+    )]
+    foxglove_address: IpAddr,
     /// ROS arguments, last on the line: `--ros-args -r from:=to` (topic and service
     /// remapping), `-r __ns:=/robot1`, `-r __node:=name`, `-p name:=value` (a parameter:
     /// the options above by their names with `_`, and `use_sim_time`).
@@ -345,6 +361,22 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     let mut frame_id = args.frame_id.clone().unwrap_or_else(|| "map".to_string());
     let mut predicted = PredictedPublisher::new(&args.file, &frame_id);
     let mut services = FileServices::new(&args.file, &frame_id);
+    #[cfg(feature = "foxglove")]
+    let mut foxglove = match args.foxglove {
+        Some(port) => {
+            let view =
+                crate::foxglove::FoxgloveView::start(&args.foxglove_address.to_string(), port)?;
+            // Port 0 asks for a free one: the line says which (scripts read it); an IPv6
+            // address in brackets.
+            eprintln!(
+                "Foxglove WebSocket server on ws://{}: the predicted map on {}",
+                std::net::SocketAddr::new(args.foxglove_address, view.port()),
+                froctomap_ros::POINT_CLOUD_TOPIC
+            );
+            Some(view)
+        }
+        None => None,
+    };
     let context = Context::with_default_plugins();
     let mut recording = if args.no_record {
         None
@@ -365,11 +397,19 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
         };
         match published {
             // What a publication costs (predicting, encoding the map and its markers).
-            Ok(true) => eprintln!(
-                "published the map predicted for {} ({} ms)",
-                t.map(froctomap_core::calendar::iso8601).unwrap_or_default(),
-                started.elapsed().as_millis()
-            ),
+            Ok(true) => {
+                eprintln!(
+                    "published the map predicted for {} ({} ms)",
+                    t.map(froctomap_core::calendar::iso8601).unwrap_or_default(),
+                    started.elapsed().as_millis()
+                );
+                #[cfg(feature = "foxglove")]
+                if let (Some(view), Some(t)) = (foxglove.as_mut(), t) {
+                    if let Err(e) = view.show_predicted(&args.file, t, &frame_id) {
+                        eprintln!("warning: {e:#}");
+                    }
+                }
+            }
             Ok(false) => {}
             Err(e) => eprintln!("warning: {e}"),
         }
@@ -396,6 +436,10 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 frame_id = fixed;
             }
             node.serve_requests(&mut services);
+            #[cfg(feature = "foxglove")]
+            if let Some(view) = foxglove.as_mut() {
+                view.tick();
+            }
         }
     }
     if let Some(mut sink) = recording {

@@ -9,51 +9,10 @@
 
 mod common;
 
-use common::{ok, s};
+use common::{lines, ok, random_domain, s, wait_for, Reap};
 use froctomap_test_support::{octomap_fixture, octomap_python, scratch, workspace_root};
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
-
-/// Lines of a child's output, read on a thread.
-fn lines(out: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
-    let (send, receive) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if send.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    receive
-}
-
-/// Kills and reaps the children still running when the test ends (a failed assertion
-/// must not leave a node or a peer behind).
-struct Reap(Vec<Child>);
-
-impl Drop for Reap {
-    fn drop(&mut self) {
-        for child in &mut self.0 {
-            if matches!(child.try_wait(), Ok(None)) {
-                let _ = child.kill();
-            }
-            let _ = child.wait();
-        }
-    }
-}
-
-/// The next line that satisfies `wanted`, within a minute.
-fn wait_for(lines: &mpsc::Receiver<String>, wanted: impl Fn(&str) -> bool) -> String {
-    loop {
-        match lines.recv_timeout(Duration::from_secs(60)) {
-            Ok(line) if wanted(&line) => return line,
-            Ok(_) => {}
-            Err(e) => panic!("no such line: {e}"),
-        }
-    }
-}
+use std::io::Write;
+use std::process::{Command, Stdio};
 
 #[test]
 fn the_node_records_serves_and_stops_on_sigterm() {
@@ -63,11 +22,7 @@ fn the_node_records_serves_and_stops_on_sigterm() {
         octomap_fixture("coarse_leaves.bt"),
         octomap_fixture("few_voxels.bt"),
     ];
-    let nanos = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(11);
-    let domain = 1 + (nanos ^ std::process::id()) % 200;
+    let domain = random_domain();
     let mut children = Reap(Vec::new());
     let mut peer = Command::new(octomap_python())
         .arg(workspace_root().join("tests/scripts/ros2_peer.py"))

@@ -98,8 +98,9 @@ fn points(
     Ok((data, value_field))
 }
 
-/// The JSON `foxglove.PointCloud` message of a map's occupied cells.
-pub(crate) fn point_cloud(
+/// The JSON `foxglove.PointCloud` message of a map's occupied cells (the MCAP export's
+/// [`POINT_CLOUD_TOPIC`](crate::POINT_CLOUD_TOPIC) messages, and the node's Foxglove view).
+pub fn point_cloud_json(
     time: Timestamp,
     frame_id: &str,
     kind: ExportedKind,

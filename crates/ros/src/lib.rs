@@ -47,7 +47,7 @@ pub use encode::{
     POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
 };
 pub use error::{McapWriteError, MessageError, RosError};
-pub use foxglove::{MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+pub use foxglove::{point_cloud_json, MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
 pub use markers::{
     encode_occupied_marker_array_cdr, CUBE_LIST, MARKER_ARRAY_TYPE, MARKER_DELETE, MARKER_NAMESPACE,
 };

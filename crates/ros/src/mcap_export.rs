@@ -11,7 +11,9 @@ use crate::encode::{
     encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
 };
 use crate::error::McapWriteError;
-use crate::foxglove::{point_cloud, point_cloud2, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+use crate::foxglove::{
+    point_cloud2, point_cloud_json, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA,
+};
 use crate::topics::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -67,7 +69,7 @@ impl McapMapWriter {
 
     fn write(&mut self, map: &ExportedMap<'_>) -> Result<(), McapWriteError> {
         let (log_time, stamp, message) = octomap_message(map.time, map.bt, Some(map.resolution))?;
-        let cloud = point_cloud(map.time, FRAME_ID, map.kind, map.resolution, map.occupied)?;
+        let cloud = point_cloud_json(map.time, FRAME_ID, map.kind, map.resolution, map.occupied)?;
         let cloud2 = point_cloud2(stamp, FRAME_ID, map.kind, map.resolution, map.occupied)?;
         for (channel_id, data) in [
             (self.octomap, &message),

@@ -2,8 +2,11 @@
 // Each test binary compiles this module and uses a part of it.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output};
+use std::sync::mpsc;
+use std::time::Duration;
 
 /// Runs the binary built for these tests.
 pub fn froctomap(args: &[&str]) -> Output {
@@ -62,4 +65,52 @@ pub fn generated_stream(args: &[&str]) -> Vec<u8> {
         .expect("run froctomap");
     assert!(output.status.success());
     output.stdout
+}
+
+/// Lines of a child's output, read on a thread.
+pub fn lines(out: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
+    let (send, receive) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if send.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    receive
+}
+
+/// Kills and reaps the children still running when the test ends (a failed assertion
+/// must not leave a node or a peer behind).
+pub struct Reap(pub Vec<Child>);
+
+impl Drop for Reap {
+    fn drop(&mut self) {
+        for child in &mut self.0 {
+            if matches!(child.try_wait(), Ok(None)) {
+                let _ = child.kill();
+            }
+            let _ = child.wait();
+        }
+    }
+}
+
+/// The next line that satisfies `wanted`, within a minute.
+pub fn wait_for(lines: &mpsc::Receiver<String>, wanted: impl Fn(&str) -> bool) -> String {
+    loop {
+        match lines.recv_timeout(Duration::from_secs(60)) {
+            Ok(line) if wanted(&line) => return line,
+            Ok(_) => {}
+            Err(e) => panic!("no such line: {e}"),
+        }
+    }
+}
+
+/// A ROS domain of the test's own (1..=200), so parallel tests' DDS traffic stays apart.
+pub fn random_domain() -> u32 {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(11);
+    1 + (nanos ^ std::process::id()) % 200
 }
