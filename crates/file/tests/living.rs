@@ -330,6 +330,27 @@ fn reseal_record(bytes: &mut [u8], at: usize, body: usize) {
     bytes[at + 24 + body..at + 28 + body].copy_from_slice(&crc.to_le_bytes());
 }
 
+/// The newest record (at `at`, body length `body`) re-framed as its bytes up to `keep`
+/// followed by `tail`: body length, record checksum and the root's committed length
+/// recomputed.
+fn reframed(bytes: &[u8], at: usize, keep: usize, tail: &[u8]) -> Vec<u8> {
+    let mut out = bytes[..keep].to_vec();
+    out.extend_from_slice(tail);
+    let new_body = out.len() - at - 24;
+    out[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
+    out.extend_from_slice(&[0; 4]);
+    reseal_record(&mut out, at, new_body);
+    let end = out.len() as u64;
+    let slot = (0..2)
+        .map(|s| ROOT_SLOTS_AT as usize + s * ROOT_SLOT_LEN)
+        .max_by_key(|&slot| u64::from_le_bytes(out[slot..slot + 8].try_into().unwrap()))
+        .unwrap();
+    out[slot + 8..slot + 16].copy_from_slice(&end.to_le_bytes());
+    let crc = crc32c::crc32c(&out[slot..slot + 60]);
+    out[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
 /// Rewrites the current root slot with `patch` applied to it, checksum recomputed.
 fn patch_root(bytes: &mut [u8], patch: impl FnOnce(&mut Root)) {
     let reader = open_bytes(bytes, ReadLimits::default()).unwrap();
@@ -932,6 +953,26 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
 }
 
 #[test]
+fn resealed_patch_tile_mask_whose_gap_overflows_is_a_typed_error() {
+    let (_dir, path, _, _) = patch_file();
+    let bytes = std::fs::read(&path).unwrap();
+    let (at, body) = newest_record(&bytes);
+    let section = at + 24 + body - 13;
+    assert_eq!(bytes[section..section + 8], [0x01, 0x02, 1, 0, 5, 0, 0, 0]);
+    // The same run, then a mask of two positions: 0, then a gap of u64::MAX (wraps to 0).
+    let mut payload = vec![1u8, 0, 1, 2, 0];
+    payload.extend_from_slice(&[0xFF; 9]);
+    payload.push(0x01);
+    let mut tail = bytes[section..section + 4].to_vec();
+    tail.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    tail.extend_from_slice(&payload);
+    let hostile = reframed(&bytes, at, section, &tail);
+    assert_violation(&hostile, ReadLimits::default(), |v| {
+        matches!(v, FormatViolation::Corrupt { .. })
+    });
+}
+
+#[test]
 fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     let (_dir, path, axis, _) = patch_file();
     let bytes = std::fs::read(&path).unwrap();
@@ -987,20 +1028,7 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     );
     // The section twice: the record re-framed with a copy of it, the root's committed
     // length moved to the record's new end.
-    let mut twice = bytes[..at + 24 + body].to_vec();
-    twice.extend_from_slice(&bytes[section..section + 13]);
-    let new_body = body + 13;
-    twice[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
-    twice.extend_from_slice(&[0; 4]);
-    reseal_record(&mut twice, at, new_body);
-    let end = twice.len() as u64;
-    let slot = (0..2)
-        .map(|s| ROOT_SLOTS_AT as usize + s * ROOT_SLOT_LEN)
-        .max_by_key(|&slot| u64::from_le_bytes(twice[slot..slot + 8].try_into().unwrap()))
-        .unwrap();
-    twice[slot + 8..slot + 16].copy_from_slice(&end.to_le_bytes());
-    let crc = crc32c::crc32c(&twice[slot..slot + 60]);
-    twice[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
+    let twice = reframed(&bytes, at, at + 24 + body, &bytes[section..section + 13]);
     assert_violation(&twice, ReadLimits::default(), corrupt);
     // A patch tile where the base has no tile: its entry's code moved past the base's last.
     let axis_len = encode_axis(&axis).len();
