@@ -432,15 +432,36 @@ impl LivingReader {
                 format!("patch tile {:#x} has no base tile", code.0),
             )));
         };
+        // A stored cell can split a base cell into ~112 aligned nodes: the tile's cells,
+        // stored and inherited, count against `max_cells_per_tile` (FORMAT.md §10.6).
+        let limit = self.limits.max_cells_per_tile;
+        let mut cells = covered.len() as u64;
         let mut parts = Vec::new();
-        self.base.walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
-            parts.clear();
-            let range = (cell.start.0, cell.start.0 + voxels_per_node(cell.depth));
-            subtract(range, covered, &mut parts);
-            for &(a, b) in &parts {
-                aligned_nodes(a, b, |start, depth| visit(start, depth, &cell));
-            }
-        })
+        self.base
+            .walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
+                if cells > limit {
+                    return;
+                }
+                parts.clear();
+                let range = (cell.start.0, cell.start.0 + voxels_per_node(cell.depth));
+                subtract(range, covered, &mut parts);
+                for &(a, b) in &parts {
+                    aligned_nodes(a, b, |start, depth| {
+                        cells += 1;
+                        if cells <= limit {
+                            visit(start, depth, &cell);
+                        }
+                    });
+                }
+            })?;
+        if cells > limit {
+            return Err(self.invalid(FormatViolation::Limit {
+                what: "cells of a patch tile with its remainder",
+                value: cells,
+                limit,
+            }));
+        }
+        Ok(())
     }
 
     /// The raw streams of tile `tile` of segment `k` by name (as

@@ -973,6 +973,74 @@ fn resealed_patch_tile_mask_whose_gap_overflows_is_a_typed_error() {
 }
 
 #[test]
+fn a_patch_tile_whose_remainder_expands_past_the_cell_limit_is_refused() {
+    // Single voxels stored at the start of coarse base cells: each leaves the rest of its
+    // base cell to the remainder, dozens of aligned nodes per stored voxel.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("living.froct");
+    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), &path).unwrap();
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let base = writer.reader().base();
+    let (base_cells, coarse) = (0..base.tiles().len())
+        .map(|t| {
+            let cells = base.read_tile(t).unwrap();
+            let coarse: Vec<_> = cells.iter().filter(|c| c.depth < 16).cloned().collect();
+            (cells, coarse)
+        })
+        .max_by_key(|(_, coarse)| coarse.len())
+        .unwrap();
+    assert!(!coarse.is_empty(), "the golden base has coarse cells");
+    let mut segment = writer
+        .begin_segment(golden_segment_axes()[0].clone())
+        .unwrap();
+    let mut encoder = segment.tile_encoder();
+    for cell in &coarse {
+        encoder
+            .push(SegmentCell {
+                start: cell.start,
+                depth: 16,
+                mask: None,
+                content: SegmentContent::Constant(Occupancy::Occupied),
+            })
+            .unwrap();
+    }
+    segment
+        .write_patch_tile(&encoder.finish().unwrap(), None)
+        .unwrap();
+    segment.commit().unwrap();
+    drop(writer);
+    let bytes = std::fs::read(&path).unwrap();
+    let expanded = open_bytes(&bytes, ReadLimits::default())
+        .unwrap()
+        .read_segment_tile(0, 0)
+        .unwrap()
+        .len() as u64;
+    // Every coarse cell splits into at least 2 nodes besides its stored voxel.
+    let stored = coarse.len() as u64;
+    let untouched = (base_cells.len() - coarse.len()) as u64;
+    assert!(expanded >= untouched + 3 * stored, "{expanded}");
+    // Limits the base tile and the stored cells fit in, the expansion does not.
+    let limits = ReadLimits {
+        max_cells_per_tile: expanded - 1,
+        ..ReadLimits::DEFAULT
+    };
+    assert!(base_cells.len() as u64 <= limits.max_cells_per_tile);
+    let reader = open_bytes(&bytes, limits).unwrap();
+    let is_limit = |err: &FileError| {
+        matches!(
+            violation(err),
+            FormatViolation::Limit { what, value, limit }
+                if what.contains("remainder") && *value > *limit
+        ) && err.to_string().starts_with("living.froct: ")
+    };
+    let err = reader.read_segment_tile(0, 0).unwrap_err();
+    assert!(is_limit(&err), "{err}");
+    let first = reader.base().header().axis.len();
+    let err = reader.observed_states(first + 1).unwrap_err();
+    assert!(is_limit(&err), "{err}");
+}
+
+#[test]
 fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     let (_dir, path, axis, _) = patch_file();
     let bytes = std::fs::read(&path).unwrap();
