@@ -1227,9 +1227,10 @@ impl SegmentWriter<'_> {
     /// tile with the same code that they do not cover, observed where `remainder` says
     /// (an observation mask over the segment's samples; `None`: at every sample that is not
     /// missing) in the base cell's frozen prediction. So a tile whose maps match the base's
-    /// predictions stores only where they differ. The base must have a tile with this code
-    /// (an empty mask counts as `None`) and the mask must lie within the segment's samples ([`FileError::TileEncode`]
-    /// otherwise, nothing written).
+    /// predictions stores only where they differ. The base must have a tile with this code,
+    /// the mask must lie within the segment's samples and hold at least one position (an
+    /// empty mask would observe nothing; the format has no way to say so)
+    /// ([`FileError::TileEncode`] otherwise, nothing written).
     pub fn write_patch_tile(
         &mut self,
         tile: &EncodedTile,
@@ -1245,6 +1246,14 @@ impl SegmentWriter<'_> {
                 source: TileEncodeError::BeyondAxis {
                     start: tile.code().0,
                     list: "remainder mask",
+                },
+            });
+        }
+        if remainder.as_ref().is_some_and(|mask| mask.is_empty()) {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::EmptyRemainderMask {
+                    code: tile.code().0,
                 },
             });
         }
@@ -1267,9 +1276,7 @@ impl SegmentWriter<'_> {
             source: TileEncodeError::TooLarge("segment index"),
         })?;
         self.write_tile(tile)?;
-        // An empty mask would observe nothing: `None` says "every sample".
-        self.patches
-            .push((index, remainder.filter(|mask| !mask.is_empty())));
+        self.patches.push((index, remainder));
         Ok(())
     }
 

@@ -953,6 +953,45 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
 }
 
 #[test]
+fn an_empty_remainder_mask_is_refused_by_the_writer() {
+    let (_dir, path, _, base_cells) = patch_file();
+    let before = std::fs::read(&path).unwrap();
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let next = Timestamp(writer.reader().last_instant().0 + 1_000_000_000);
+    let mut segment = writer
+        .begin_segment(TimeAxis::regular(next, 1_000_000_000, 2, vec![]).unwrap())
+        .unwrap();
+    let mut encoder = segment.tile_encoder();
+    encoder
+        .push(SegmentCell {
+            start: base_cells[0].start,
+            depth: base_cells[0].depth,
+            mask: None,
+            content: SegmentContent::Constant(Occupancy::Occupied),
+        })
+        .unwrap();
+    let err = segment
+        .write_patch_tile(&encoder.finish().unwrap(), Some(Arc::new(Toggles::empty())))
+        .unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            FileError::TileEncode {
+                source: froctomap_file::TileEncodeError::EmptyRemainderMask { .. },
+                ..
+            }
+        ),
+        "{err}"
+    );
+    drop(segment);
+    drop(writer);
+    // Nothing committed: the file reads as before.
+    let reader = LivingReader::open(&path).unwrap();
+    assert_eq!(reader.segment_count(), 1);
+    assert_eq!(std::fs::read(&path).unwrap().len(), before.len());
+}
+
+#[test]
 fn resealed_patch_tile_mask_whose_gap_overflows_is_a_typed_error() {
     let (_dir, path, _, _) = patch_file();
     let bytes = std::fs::read(&path).unwrap();
