@@ -672,25 +672,8 @@ impl Node {
             return i64::try_from(now.as_nanos()).ok().map(Timestamp);
         };
         while let Ok(Some(sample)) = reader.try_take_one() {
-            // builtin_interfaces/Time behind the encapsulation header; others are skipped.
-            let message = sample.into_value();
-            let little = message.get(1) == Some(&1);
-            let field = |at: usize| {
-                let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
-                Some(if little {
-                    u32::from_le_bytes(bytes)
-                } else {
-                    u32::from_be_bytes(bytes)
-                })
-            };
-            if let (Some(sec), Some(nanosec)) = (field(4), field(8)) {
-                last.set(Some(
-                    Time {
-                        sec: sec as i32,
-                        nanosec,
-                    }
-                    .timestamp(),
-                ));
+            if let Some(time) = decode_clock(&sample.into_value()) {
+                last.set(Some(time.timestamp()));
             }
         }
         last.get()
@@ -1304,8 +1287,53 @@ impl SerializerAdapter<Vec<u8>> for RawCdr {
     }
 }
 
+/// The `builtin_interfaces/Time` of a `/clock` message (`rosgraph_msgs/Clock`) behind its
+/// encapsulation header: `[0, 1]` (CDR) or `[0, 7]` (XCDR2) little-endian, `[0, 0]` or
+/// `[0, 6]` big-endian; `None` for any other header or a short message.
+fn decode_clock(message: &[u8]) -> Option<Time> {
+    let little = match message.get(..2)? {
+        [0, 1] | [0, 7] => true,
+        [0, 0] | [0, 6] => false,
+        _ => return None,
+    };
+    let field = |at: usize| {
+        let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
+        Some(if little {
+            u32::from_le_bytes(bytes)
+        } else {
+            u32::from_be_bytes(bytes)
+        })
+    };
+    Some(Time {
+        sec: field(4)? as i32,
+        nanosec: field(8)?,
+    })
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn clock_messages_decode_by_their_encapsulation() {
+        let le = [0u8, 1, 0, 0, 5, 0, 0, 0, 7, 0, 0, 0];
+        let be = [0u8, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 7];
+        let want = Some(Time { sec: 5, nanosec: 7 });
+        assert_eq!(decode_clock(&le), want);
+        assert_eq!(decode_clock(&be), want);
+        let mut xcdr2_le = le;
+        xcdr2_le[1] = 7;
+        assert_eq!(decode_clock(&xcdr2_le), want);
+        let mut xcdr2_be = be;
+        xcdr2_be[1] = 6;
+        assert_eq!(decode_clock(&xcdr2_be), want);
+        // PL_CDR, an unknown header, a non-zero first byte, a short message: skipped.
+        for header in [[0u8, 3], [0, 9], [1, 1], [0xFF, 0xFF]] {
+            let mut message = le;
+            message[..2].copy_from_slice(&header);
+            assert_eq!(decode_clock(&message), None, "{header:?}");
+        }
+        assert_eq!(decode_clock(&le[..11]), None);
+    }
+
     use super::*;
 
     #[test]
