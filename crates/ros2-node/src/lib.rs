@@ -344,6 +344,15 @@ pub enum Refused {
     /// Not an `octomap_msgs/Octomap` holding a map.
     #[error(transparent)]
     Message(#[from] MessageError),
+    /// A `header.frame_id` no tf2 frame has: over [`MAX_FRAME_ID_BYTES`] bytes, or with
+    /// characters outside letters, digits, `_`, `-`, `.` and `/`.
+    #[error("the map's frame_id `{shown}` is not a frame name: {reason}")]
+    FrameName {
+        /// The frame_id, cut to 64 characters and escaped.
+        shown: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// In another frame than the maps taken before (or than [`NodeOptions::frame_id`]).
     #[error("the map is in frame `{got}`, not `{expected}` as the maps before it (one file holds one frame)")]
     Frame {
@@ -910,6 +919,7 @@ impl Node {
             });
         }
         let decoded = decode_message(message, Encoding::Cdr, MessageType::Octomap)?;
+        check_frame_id(decoded.frame_id)?;
         Ok(ReceivedMap {
             stamp: Timestamp(decoded.stamp_ns),
             frame_id: decoded.frame_id.to_string(),
@@ -1287,6 +1297,33 @@ impl SerializerAdapter<Vec<u8>> for RawCdr {
     }
 }
 
+/// Longest `header.frame_id` a map may carry: the frame is written into the file's
+/// metadata and every message the node publishes.
+pub const MAX_FRAME_ID_BYTES: usize = 256;
+
+/// `Ok` when `frame_id` can name a tf2 frame (empty: no frame given).
+fn check_frame_id(frame_id: &str) -> Result<(), Refused> {
+    let refuse = |reason| {
+        Err(Refused::FrameName {
+            shown: frame_id
+                .chars()
+                .take(64)
+                .collect::<String>()
+                .escape_debug()
+                .to_string(),
+            reason,
+        })
+    };
+    if frame_id.len() > MAX_FRAME_ID_BYTES {
+        return refuse("longer than 256 bytes");
+    }
+    let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/');
+    if !frame_id.chars().all(allowed) {
+        return refuse("only letters, digits, `_`, `-`, `.` and `/` name a tf2 frame");
+    }
+    Ok(())
+}
+
 /// The `builtin_interfaces/Time` of a `/clock` message (`rosgraph_msgs/Clock`) behind its
 /// encapsulation header: `[0, 1]` (CDR) or `[0, 7]` (XCDR2) little-endian, `[0, 0]` or
 /// `[0, 6]` big-endian; `None` for any other header or a short message.
@@ -1312,6 +1349,27 @@ fn decode_clock(message: &[u8]) -> Option<Time> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn frame_ids_that_name_no_frame_are_refused() {
+        for good in [
+            "",
+            "map",
+            "/odom",
+            "base_link",
+            "robot1/map",
+            "cam-0.optical",
+        ] {
+            assert!(check_frame_id(good).is_ok(), "{good}");
+        }
+        let long = "m".repeat(MAX_FRAME_ID_BYTES + 1);
+        for bad in [long.as_str(), "map frame", "map\n", "kart\u{e9}", "a;b"] {
+            let err = check_frame_id(bad).unwrap_err();
+            assert!(matches!(err, Refused::FrameName { .. }), "{bad}: {err}");
+            assert!(err.to_string().len() < 200, "{err}");
+        }
+        assert!(check_frame_id(&"m".repeat(MAX_FRAME_ID_BYTES)).is_ok());
+    }
+
     #[test]
     fn clock_messages_decode_by_their_encapsulation() {
         let le = [0u8, 1, 0, 0, 5, 0, 0, 0, 7, 0, 0, 0];
