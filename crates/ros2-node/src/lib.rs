@@ -1139,7 +1139,9 @@ impl PredictedPublisher {
 
     /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
     /// published, with its occupied cells on [`DYNAMIC_TOPIC`] (coloured by their
-    /// probability); says whether it did.
+    /// probability); says whether it did. The map counts as published once it is, even when
+    /// its markers then fail ([`NodeError::Publish`] on the markers' topic, saying the
+    /// map went out): the same map is not sent again for them.
     pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
         let reader = self.open()?;
         let bt = froctomap_convert::predicted_bt(&reader, t).map_err(|e| self.failed(e))?;
@@ -1147,10 +1149,16 @@ impl PredictedPublisher {
             return Ok(false);
         }
         node.publish_predicted(&bt, t, &self.frame_id)?;
-        let occupied = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
-            .map_err(|e| self.failed(e))?;
-        node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)?;
         self.last = Some(bt);
+        let markers = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
+            .map_err(|e| self.failed(e))
+            .and_then(|occupied| {
+                node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)
+            });
+        markers.map_err(|e| NodeError::Publish {
+            topic: node.names.dynamic.clone(),
+            reason: format!("the predicted map was published, its markers were not: {e}"),
+        })?;
         Ok(true)
     }
 }
