@@ -238,6 +238,15 @@ pub enum TileEncodeError {
         /// The tile's code.
         code: u64,
     },
+    /// A patch tile's remainder mask with no position would observe the remainder at no
+    /// sample; the format reads an empty mask as "every sample" (FORMAT.md §10.6).
+    #[error(
+        "patch tile {code:#x}: an empty remainder mask observes nothing (None means every sample)"
+    )]
+    EmptyRemainderMask {
+        /// The tile's code.
+        code: u64,
+    },
     /// The compressor failed.
     #[error("zstd compression failed")]
     Compression(#[source] std::io::Error),

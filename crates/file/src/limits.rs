@@ -21,7 +21,8 @@ pub struct ReadLimits {
     pub max_tiles: u64,
     /// Stored or decoded bytes of one tile (default 1 GiB).
     pub max_tile_bytes: u64,
-    /// Cells in one tile (default 2^24).
+    /// Cells in one tile (default 2^24); a patch tile counts its stored cells and the
+    /// aligned nodes of its remainder together (FORMAT.md §10.6).
     pub max_cells_per_tile: u64,
     /// Index bytes (default 1 GiB).
     pub max_index_bytes: u64,

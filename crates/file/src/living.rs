@@ -432,15 +432,36 @@ impl LivingReader {
                 format!("patch tile {:#x} has no base tile", code.0),
             )));
         };
+        // A stored cell can split a base cell into ~112 aligned nodes: the tile's cells,
+        // stored and inherited, count against `max_cells_per_tile` (FORMAT.md §10.6).
+        let limit = self.limits.max_cells_per_tile;
+        let mut cells = covered.len() as u64;
         let mut parts = Vec::new();
-        self.base.walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
-            parts.clear();
-            let range = (cell.start.0, cell.start.0 + voxels_per_node(cell.depth));
-            subtract(range, covered, &mut parts);
-            for &(a, b) in &parts {
-                aligned_nodes(a, b, |start, depth| visit(start, depth, &cell));
-            }
-        })
+        self.base
+            .walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
+                if cells > limit {
+                    return;
+                }
+                parts.clear();
+                let range = (cell.start.0, cell.start.0 + voxels_per_node(cell.depth));
+                subtract(range, covered, &mut parts);
+                for &(a, b) in &parts {
+                    aligned_nodes(a, b, |start, depth| {
+                        cells += 1;
+                        if cells <= limit {
+                            visit(start, depth, &cell);
+                        }
+                    });
+                }
+            })?;
+        if cells > limit {
+            return Err(self.invalid(FormatViolation::Limit {
+                what: "cells of a patch tile with its remainder",
+                value: cells,
+                limit,
+            }));
+        }
+        Ok(())
     }
 
     /// The raw streams of tile `tile` of segment `k` by name (as
@@ -1206,9 +1227,10 @@ impl SegmentWriter<'_> {
     /// tile with the same code that they do not cover, observed where `remainder` says
     /// (an observation mask over the segment's samples; `None`: at every sample that is not
     /// missing) in the base cell's frozen prediction. So a tile whose maps match the base's
-    /// predictions stores only where they differ. The base must have a tile with this code
-    /// (an empty mask counts as `None`) and the mask must lie within the segment's samples ([`FileError::TileEncode`]
-    /// otherwise, nothing written).
+    /// predictions stores only where they differ. The base must have a tile with this code,
+    /// the mask must lie within the segment's samples and hold at least one position (an
+    /// empty mask would observe nothing; the format has no way to say so)
+    /// ([`FileError::TileEncode`] otherwise, nothing written).
     pub fn write_patch_tile(
         &mut self,
         tile: &EncodedTile,
@@ -1224,6 +1246,14 @@ impl SegmentWriter<'_> {
                 source: TileEncodeError::BeyondAxis {
                     start: tile.code().0,
                     list: "remainder mask",
+                },
+            });
+        }
+        if remainder.as_ref().is_some_and(|mask| mask.is_empty()) {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::EmptyRemainderMask {
+                    code: tile.code().0,
                 },
             });
         }
@@ -1246,9 +1276,7 @@ impl SegmentWriter<'_> {
             source: TileEncodeError::TooLarge("segment index"),
         })?;
         self.write_tile(tile)?;
-        // An empty mask would observe nothing: `None` says "every sample".
-        self.patches
-            .push((index, remainder.filter(|mask| !mask.is_empty())));
+        self.patches.push((index, remainder));
         Ok(())
     }
 

@@ -330,6 +330,27 @@ fn reseal_record(bytes: &mut [u8], at: usize, body: usize) {
     bytes[at + 24 + body..at + 28 + body].copy_from_slice(&crc.to_le_bytes());
 }
 
+/// The newest record (at `at`, body length `body`) re-framed as its bytes up to `keep`
+/// followed by `tail`: body length, record checksum and the root's committed length
+/// recomputed.
+fn reframed(bytes: &[u8], at: usize, keep: usize, tail: &[u8]) -> Vec<u8> {
+    let mut out = bytes[..keep].to_vec();
+    out.extend_from_slice(tail);
+    let new_body = out.len() - at - 24;
+    out[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
+    out.extend_from_slice(&[0; 4]);
+    reseal_record(&mut out, at, new_body);
+    let end = out.len() as u64;
+    let slot = (0..2)
+        .map(|s| ROOT_SLOTS_AT as usize + s * ROOT_SLOT_LEN)
+        .max_by_key(|&slot| u64::from_le_bytes(out[slot..slot + 8].try_into().unwrap()))
+        .unwrap();
+    out[slot + 8..slot + 16].copy_from_slice(&end.to_le_bytes());
+    let crc = crc32c::crc32c(&out[slot..slot + 60]);
+    out[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
 /// Rewrites the current root slot with `patch` applied to it, checksum recomputed.
 fn patch_root(bytes: &mut [u8], patch: impl FnOnce(&mut Root)) {
     let reader = open_bytes(bytes, ReadLimits::default()).unwrap();
@@ -932,6 +953,133 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
 }
 
 #[test]
+fn an_empty_remainder_mask_is_refused_by_the_writer() {
+    let (_dir, path, _, base_cells) = patch_file();
+    let before = std::fs::read(&path).unwrap();
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let next = Timestamp(writer.reader().last_instant().0 + 1_000_000_000);
+    let mut segment = writer
+        .begin_segment(TimeAxis::regular(next, 1_000_000_000, 2, vec![]).unwrap())
+        .unwrap();
+    let mut encoder = segment.tile_encoder();
+    encoder
+        .push(SegmentCell {
+            start: base_cells[0].start,
+            depth: base_cells[0].depth,
+            mask: None,
+            content: SegmentContent::Constant(Occupancy::Occupied),
+        })
+        .unwrap();
+    let err = segment
+        .write_patch_tile(&encoder.finish().unwrap(), Some(Arc::new(Toggles::empty())))
+        .unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            FileError::TileEncode {
+                source: froctomap_file::TileEncodeError::EmptyRemainderMask { .. },
+                ..
+            }
+        ),
+        "{err}"
+    );
+    drop(segment);
+    drop(writer);
+    // Nothing committed: the file reads as before.
+    let reader = LivingReader::open(&path).unwrap();
+    assert_eq!(reader.segment_count(), 1);
+    assert_eq!(std::fs::read(&path).unwrap().len(), before.len());
+}
+
+#[test]
+fn resealed_patch_tile_mask_whose_gap_overflows_is_a_typed_error() {
+    let (_dir, path, _, _) = patch_file();
+    let bytes = std::fs::read(&path).unwrap();
+    let (at, body) = newest_record(&bytes);
+    let section = at + 24 + body - 13;
+    assert_eq!(bytes[section..section + 8], [0x01, 0x02, 1, 0, 5, 0, 0, 0]);
+    // The same run, then a mask of two positions: 0, then a gap of u64::MAX (wraps to 0).
+    let mut payload = vec![1u8, 0, 1, 2, 0];
+    payload.extend_from_slice(&[0xFF; 9]);
+    payload.push(0x01);
+    let mut tail = bytes[section..section + 4].to_vec();
+    tail.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    tail.extend_from_slice(&payload);
+    let hostile = reframed(&bytes, at, section, &tail);
+    assert_violation(&hostile, ReadLimits::default(), |v| {
+        matches!(v, FormatViolation::Corrupt { .. })
+    });
+}
+
+#[test]
+fn a_patch_tile_whose_remainder_expands_past_the_cell_limit_is_refused() {
+    // Single voxels stored at the start of coarse base cells: each leaves the rest of its
+    // base cell to the remainder, dozens of aligned nodes per stored voxel.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("living.froct");
+    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), &path).unwrap();
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let base = writer.reader().base();
+    let (base_cells, coarse) = (0..base.tiles().len())
+        .map(|t| {
+            let cells = base.read_tile(t).unwrap();
+            let coarse: Vec<_> = cells.iter().filter(|c| c.depth < 16).cloned().collect();
+            (cells, coarse)
+        })
+        .max_by_key(|(_, coarse)| coarse.len())
+        .unwrap();
+    assert!(!coarse.is_empty(), "the golden base has coarse cells");
+    let mut segment = writer
+        .begin_segment(golden_segment_axes()[0].clone())
+        .unwrap();
+    let mut encoder = segment.tile_encoder();
+    for cell in &coarse {
+        encoder
+            .push(SegmentCell {
+                start: cell.start,
+                depth: 16,
+                mask: None,
+                content: SegmentContent::Constant(Occupancy::Occupied),
+            })
+            .unwrap();
+    }
+    segment
+        .write_patch_tile(&encoder.finish().unwrap(), None)
+        .unwrap();
+    segment.commit().unwrap();
+    drop(writer);
+    let bytes = std::fs::read(&path).unwrap();
+    let expanded = open_bytes(&bytes, ReadLimits::default())
+        .unwrap()
+        .read_segment_tile(0, 0)
+        .unwrap()
+        .len() as u64;
+    // Every coarse cell splits into at least 2 nodes besides its stored voxel.
+    let stored = coarse.len() as u64;
+    let untouched = (base_cells.len() - coarse.len()) as u64;
+    assert!(expanded >= untouched + 3 * stored, "{expanded}");
+    // Limits the base tile and the stored cells fit in, the expansion does not.
+    let limits = ReadLimits {
+        max_cells_per_tile: expanded - 1,
+        ..ReadLimits::DEFAULT
+    };
+    assert!(base_cells.len() as u64 <= limits.max_cells_per_tile);
+    let reader = open_bytes(&bytes, limits).unwrap();
+    let is_limit = |err: &FileError| {
+        matches!(
+            violation(err),
+            FormatViolation::Limit { what, value, limit }
+                if what.contains("remainder") && *value > *limit
+        ) && err.to_string().starts_with("living.froct: ")
+    };
+    let err = reader.read_segment_tile(0, 0).unwrap_err();
+    assert!(is_limit(&err), "{err}");
+    let first = reader.base().header().axis.len();
+    let err = reader.observed_states(first + 1).unwrap_err();
+    assert!(is_limit(&err), "{err}");
+}
+
+#[test]
 fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     let (_dir, path, axis, _) = patch_file();
     let bytes = std::fs::read(&path).unwrap();
@@ -987,20 +1135,7 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
     );
     // The section twice: the record re-framed with a copy of it, the root's committed
     // length moved to the record's new end.
-    let mut twice = bytes[..at + 24 + body].to_vec();
-    twice.extend_from_slice(&bytes[section..section + 13]);
-    let new_body = body + 13;
-    twice[at + 20..at + 24].copy_from_slice(&(new_body as u32).to_le_bytes());
-    twice.extend_from_slice(&[0; 4]);
-    reseal_record(&mut twice, at, new_body);
-    let end = twice.len() as u64;
-    let slot = (0..2)
-        .map(|s| ROOT_SLOTS_AT as usize + s * ROOT_SLOT_LEN)
-        .max_by_key(|&slot| u64::from_le_bytes(twice[slot..slot + 8].try_into().unwrap()))
-        .unwrap();
-    twice[slot + 8..slot + 16].copy_from_slice(&end.to_le_bytes());
-    let crc = crc32c::crc32c(&twice[slot..slot + 60]);
-    twice[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
+    let twice = reframed(&bytes, at, at + 24 + body, &bytes[section..section + 13]);
     assert_violation(&twice, ReadLimits::default(), corrupt);
     // A patch tile where the base has no tile: its entry's code moved past the base's last.
     let axis_len = encode_axis(&axis).len();

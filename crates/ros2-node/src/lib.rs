@@ -344,6 +344,15 @@ pub enum Refused {
     /// Not an `octomap_msgs/Octomap` holding a map.
     #[error(transparent)]
     Message(#[from] MessageError),
+    /// A `header.frame_id` no tf2 frame has: over [`MAX_FRAME_ID_BYTES`] bytes, or with
+    /// characters outside letters, digits, `_`, `-`, `.` and `/`.
+    #[error("the map's frame_id `{shown}` is not a frame name: {reason}")]
+    FrameName {
+        /// The frame_id, cut to 64 characters and escaped.
+        shown: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// In another frame than the maps taken before (or than [`NodeOptions::frame_id`]).
     #[error("the map is in frame `{got}`, not `{expected}` as the maps before it (one file holds one frame)")]
     Frame {
@@ -672,25 +681,8 @@ impl Node {
             return i64::try_from(now.as_nanos()).ok().map(Timestamp);
         };
         while let Ok(Some(sample)) = reader.try_take_one() {
-            // builtin_interfaces/Time behind the encapsulation header; others are skipped.
-            let message = sample.into_value();
-            let little = message.get(1) == Some(&1);
-            let field = |at: usize| {
-                let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
-                Some(if little {
-                    u32::from_le_bytes(bytes)
-                } else {
-                    u32::from_be_bytes(bytes)
-                })
-            };
-            if let (Some(sec), Some(nanosec)) = (field(4), field(8)) {
-                last.set(Some(
-                    Time {
-                        sec: sec as i32,
-                        nanosec,
-                    }
-                    .timestamp(),
-                ));
+            if let Some(time) = decode_clock(&sample.into_value()) {
+                last.set(Some(time.timestamp()));
             }
         }
         last.get()
@@ -927,6 +919,7 @@ impl Node {
             });
         }
         let decoded = decode_message(message, Encoding::Cdr, MessageType::Octomap)?;
+        check_frame_id(decoded.frame_id)?;
         Ok(ReceivedMap {
             stamp: Timestamp(decoded.stamp_ns),
             frame_id: decoded.frame_id.to_string(),
@@ -1146,7 +1139,9 @@ impl PredictedPublisher {
 
     /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
     /// published, with its occupied cells on [`DYNAMIC_TOPIC`] (coloured by their
-    /// probability); says whether it did.
+    /// probability); says whether it did. The map counts as published once it is, even when
+    /// its markers then fail ([`NodeError::Publish`] on the markers' topic, saying the
+    /// map went out): the same map is not sent again for them.
     pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
         let reader = self.open()?;
         let bt = froctomap_convert::predicted_bt(&reader, t).map_err(|e| self.failed(e))?;
@@ -1154,10 +1149,16 @@ impl PredictedPublisher {
             return Ok(false);
         }
         node.publish_predicted(&bt, t, &self.frame_id)?;
-        let occupied = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
-            .map_err(|e| self.failed(e))?;
-        node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)?;
         self.last = Some(bt);
+        let markers = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
+            .map_err(|e| self.failed(e))
+            .and_then(|occupied| {
+                node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)
+            });
+        markers.map_err(|e| NodeError::Publish {
+            topic: node.names.dynamic.clone(),
+            reason: format!("the predicted map was published, its markers were not: {e}"),
+        })?;
         Ok(true)
     }
 }
@@ -1304,8 +1305,101 @@ impl SerializerAdapter<Vec<u8>> for RawCdr {
     }
 }
 
+/// Longest `header.frame_id` a map may carry: the frame is written into the file's
+/// metadata and every message the node publishes.
+pub const MAX_FRAME_ID_BYTES: usize = 256;
+
+/// `Ok` when `frame_id` can name a tf2 frame (empty: no frame given).
+fn check_frame_id(frame_id: &str) -> Result<(), Refused> {
+    let refuse = |reason| {
+        Err(Refused::FrameName {
+            shown: frame_id
+                .chars()
+                .take(64)
+                .collect::<String>()
+                .escape_debug()
+                .to_string(),
+            reason,
+        })
+    };
+    if frame_id.len() > MAX_FRAME_ID_BYTES {
+        return refuse("longer than 256 bytes");
+    }
+    let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/');
+    if !frame_id.chars().all(allowed) {
+        return refuse("only letters, digits, `_`, `-`, `.` and `/` name a tf2 frame");
+    }
+    Ok(())
+}
+
+/// The `builtin_interfaces/Time` of a `/clock` message (`rosgraph_msgs/Clock`) behind its
+/// encapsulation header: `[0, 1]` (CDR) or `[0, 7]` (XCDR2) little-endian, `[0, 0]` or
+/// `[0, 6]` big-endian; `None` for any other header or a short message.
+fn decode_clock(message: &[u8]) -> Option<Time> {
+    let little = match message.get(..2)? {
+        [0, 1] | [0, 7] => true,
+        [0, 0] | [0, 6] => false,
+        _ => return None,
+    };
+    let field = |at: usize| {
+        let bytes: [u8; 4] = message.get(at..at + 4)?.try_into().ok()?;
+        Some(if little {
+            u32::from_le_bytes(bytes)
+        } else {
+            u32::from_be_bytes(bytes)
+        })
+    };
+    Some(Time {
+        sec: field(4)? as i32,
+        nanosec: field(8)?,
+    })
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn frame_ids_that_name_no_frame_are_refused() {
+        for good in [
+            "",
+            "map",
+            "/odom",
+            "base_link",
+            "robot1/map",
+            "cam-0.optical",
+        ] {
+            assert!(check_frame_id(good).is_ok(), "{good}");
+        }
+        let long = "m".repeat(MAX_FRAME_ID_BYTES + 1);
+        for bad in [long.as_str(), "map frame", "map\n", "kart\u{e9}", "a;b"] {
+            let err = check_frame_id(bad).unwrap_err();
+            assert!(matches!(err, Refused::FrameName { .. }), "{bad}: {err}");
+            assert!(err.to_string().len() < 200, "{err}");
+        }
+        assert!(check_frame_id(&"m".repeat(MAX_FRAME_ID_BYTES)).is_ok());
+    }
+
+    #[test]
+    fn clock_messages_decode_by_their_encapsulation() {
+        let le = [0u8, 1, 0, 0, 5, 0, 0, 0, 7, 0, 0, 0];
+        let be = [0u8, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 7];
+        let want = Some(Time { sec: 5, nanosec: 7 });
+        assert_eq!(decode_clock(&le), want);
+        assert_eq!(decode_clock(&be), want);
+        let mut xcdr2_le = le;
+        xcdr2_le[1] = 7;
+        assert_eq!(decode_clock(&xcdr2_le), want);
+        let mut xcdr2_be = be;
+        xcdr2_be[1] = 6;
+        assert_eq!(decode_clock(&xcdr2_be), want);
+        // PL_CDR, an unknown header, a non-zero first byte, a short message: skipped.
+        for header in [[0u8, 3], [0, 9], [1, 1], [0xFF, 0xFF]] {
+            let mut message = le;
+            message[..2].copy_from_slice(&header);
+            assert_eq!(decode_clock(&message), None, "{header:?}");
+        }
+        assert_eq!(decode_clock(&le[..11]), None);
+    }
+
     use super::*;
 
     #[test]

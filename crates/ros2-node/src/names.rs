@@ -35,7 +35,12 @@ impl RosArgs {
     /// Parses the arguments after `--ros-args` (up to a `--` or their end): `-r`/`--remap
     /// from:=to` (`__ns`, `__node` and `__name` set the namespace and name), `-p`/`--param
     /// name:=value` (the value read as YAML scalars are: `true`/`false`, an integer, a
-    /// number, else a string; quotes keep a string). Anything else is an error naming it.
+    /// number, else a string; quotes keep a string). A remap rule may name the node it is for
+    /// (`node:from:=to`, skipped for another node) and mark its kind (`rostopic://`,
+    /// `rosservice://`); a rule whose `from` is no valid name matches nothing, as in rcl.
+    /// `--params-file`, `--log-level`, `-e`/`--enclave` (each with its value) and the
+    /// `--disable-…-logs`/`--enable-…-logs` flags are accepted and ignored with a warning.
+    /// Anything else is an error naming it.
     ///
     /// ```
     /// use froctomap_ros2_node::RosArgs;
@@ -51,6 +56,9 @@ impl RosArgs {
         let mut ros = Self::default();
         let mut args = args.iter();
         let bad = |text: String| NodeError::RosArgs(text);
+        // Topic rules with the node they are for (`node:from:=to`), kept until the node's
+        // name is known: a later `__node` renames it.
+        let mut remaps: Vec<(Option<String>, String, String)> = Vec::new();
         while let Some(flag) = args.next() {
             match flag.as_str() {
                 "--" => break,
@@ -68,33 +76,61 @@ impl RosArgs {
                     if flag.starts_with("-p") || flag == "--param" {
                         ros.parameters
                             .push((name.to_string(), ParameterValue::from_yaml_scalar(value)));
-                    } else {
-                        match name {
-                            "__ns" => {
-                                if !value.starts_with('/') {
-                                    return Err(bad(format!(
-                                        "-r {rule}: a namespace is absolute (starts with /)"
-                                    )));
-                                }
-                                ros.namespace = value.trim_end_matches('/').to_string();
-                                if ros.namespace.is_empty() {
-                                    ros.namespace = "/".to_string();
-                                }
-                                crate::dds_topic_name(&format!("{}/x", ros.namespace))
-                                    .map_err(|_| bad(format!("-r {rule}: not a namespace")))?;
+                        continue;
+                    }
+                    let (node, name) = split_node_prefix(name);
+                    match name {
+                        "__ns" | "__node" | "__name"
+                            if node.is_some_and(|n| n != crate::NODE_NAME) =>
+                        {
+                            // For another node (rcl matches the name the node is created with).
+                        }
+                        "__ns" => {
+                            if !value.starts_with('/') {
+                                return Err(bad(format!(
+                                    "-r {rule}: a namespace is absolute (starts with /)"
+                                )));
                             }
-                            "__node" | "__name" => {
-                                let valid = !value.is_empty()
-                                    && !value.starts_with(|c: char| c.is_ascii_digit())
-                                    && value.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-                                if !valid {
-                                    return Err(bad(format!("-r {rule}: not a node name")));
-                                }
-                                ros.node_name = value.to_string();
+                            let trimmed = value.trim_end_matches('/');
+                            crate::dds_topic_name(&format!("{trimmed}/x"))
+                                .map_err(|_| bad(format!("-r {rule}: not a namespace")))?;
+                            ros.namespace = if trimmed.is_empty() {
+                                "/".to_string()
+                            } else {
+                                trimmed.to_string()
+                            };
+                        }
+                        "__node" | "__name" => {
+                            let valid = !value.is_empty()
+                                && !value.starts_with(|c: char| c.is_ascii_digit())
+                                && value.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+                            if !valid {
+                                return Err(bad(format!("-r {rule}: not a node name")));
                             }
-                            _ => ros.remaps.push((name.to_string(), value.to_string())),
+                            ros.node_name = value.to_string();
+                        }
+                        _ => {
+                            let from = name
+                                .strip_prefix("rostopic://")
+                                .or_else(|| name.strip_prefix("rosservice://"))
+                                .unwrap_or(name);
+                            remaps.push((node.map(str::to_string), from.to_string(), value.into()));
                         }
                     }
+                }
+                "--params-file" | "--log-level" | "-e" | "--enclave" => {
+                    let value = args
+                        .next()
+                        .ok_or_else(|| bad(format!("{flag} needs a value after it")))?;
+                    log::warn!("--ros-args {flag} {value}: not used by froctomap, ignored");
+                }
+                "--disable-rosout-logs"
+                | "--disable-stdout-logs"
+                | "--disable-external-lib-logs"
+                | "--enable-rosout-logs"
+                | "--enable-stdout-logs"
+                | "--enable-external-lib-logs" => {
+                    log::warn!("--ros-args {flag}: not used by froctomap, ignored");
                 }
                 other => {
                     return Err(bad(format!(
@@ -103,6 +139,11 @@ impl RosArgs {
                 }
             }
         }
+        ros.remaps = remaps
+            .into_iter()
+            .filter(|(node, _, _)| node.as_ref().is_none_or(|n| *n == ros.node_name))
+            .map(|(_, from, to)| (from, to))
+            .collect();
         Ok(ros)
     }
 
@@ -127,7 +168,8 @@ impl RosArgs {
     pub fn resolve(&self, name: &str) -> Result<String, NodeError> {
         let expanded = self.expand(name)?;
         for (from, to) in &self.remaps {
-            if self.expand(from)? == expanded {
+            // A rule whose `from` is no valid name matches nothing (rcl skips it too).
+            if self.expand(from).is_ok_and(|from| from == expanded) {
                 return self.expand(to);
             }
         }
@@ -150,6 +192,14 @@ impl RosArgs {
             .rev()
             .find(|(n, _)| n == name)
             .map(|(_, v)| v)
+    }
+}
+
+/// `node:name` as the node a rule is for and the name (`rostopic://x` has no node).
+fn split_node_prefix(name: &str) -> (Option<&str>, &str) {
+    match name.split_once(':') {
+        Some((node, rest)) if !node.is_empty() && !rest.starts_with("//") => (Some(node), rest),
+        _ => (None, name),
     }
 }
 
@@ -225,10 +275,73 @@ mod tests {
             &["-r", "a=b"],
             &["-r", "__ns:=robot1"],
             &["-r", "__node:=1x"],
-            &["--log-level", "debug"],
+            &["--log-level"],
+            &["--frobnicate"],
             &["-p", ":=3"],
         ] {
             assert!(parse(bad).is_err(), "{bad:?}");
         }
+    }
+
+    #[test]
+    fn the_root_namespace_is_accepted() {
+        let ros = parse(&["-r", "__ns:=/"]).expect("root namespace");
+        assert_eq!(ros.namespace, "/");
+        assert_eq!(ros.fully_qualified_node_name(), "/froctomap");
+        assert_eq!(ros.resolve("a").ok().as_deref(), Some("/a"));
+    }
+
+    #[test]
+    fn rules_rcl_accepts_do_not_abort() {
+        let ros = parse(&[
+            "--ros-args",
+            "--log-level",
+            "debug",
+            "--params-file",
+            "/tmp/params.yaml",
+            "-e",
+            "/enclave",
+            "--enclave",
+            "/enclave",
+            "--disable-rosout-logs",
+            "--disable-stdout-logs",
+            "--disable-external-lib-logs",
+            // For another node: skipped, whatever it says.
+            "-r",
+            "other:octomap_binary:=elsewhere",
+            "-r",
+            "other:__ns:=/elsewhere",
+            "-r",
+            "other:__node:=elsewhere",
+            // For this node, renamed later: applies.
+            "-r",
+            "froctomap:__ns:=/robot1",
+            "-r",
+            "mapper:octomap_binary:=map_in",
+            "-r",
+            "rostopic://clock:=/sim/clock",
+            "-r",
+            "mapper:rosservice://~/get:=/get_map",
+            // A `from` that is no valid name: matches nothing.
+            "-r",
+            "bad name!:=x",
+            "-r",
+            "__node:=mapper",
+        ])
+        .expect("parses");
+        assert_eq!(ros.fully_qualified_node_name(), "/robot1/mapper");
+        assert_eq!(
+            ros.resolve("octomap_binary").ok().as_deref(),
+            Some("/robot1/map_in")
+        );
+        assert_eq!(ros.resolve("clock").ok().as_deref(), Some("/sim/clock"));
+        assert_eq!(ros.resolve("~/get").ok().as_deref(), Some("/get_map"));
+        assert_eq!(ros.resolve("other").ok().as_deref(), Some("/robot1/other"));
+        // Only for another node.
+        let other = parse(&["-r", "talker:octomap_binary:=x"]).expect("parses");
+        assert_eq!(
+            other.resolve("octomap_binary").ok().as_deref(),
+            Some("/octomap_binary")
+        );
     }
 }

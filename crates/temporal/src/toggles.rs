@@ -100,12 +100,15 @@ impl Toggles {
         let mut positions = Vec::with_capacity(count);
         let mut next = 0u64;
         for _ in 0..count {
-            let pos = next + r.u64()?;
-            if pos >= u64::from(sample_limit) {
-                return Err(TemporalError::Malformed(
-                    "toggles (position beyond the axis)",
-                ));
-            }
+            // A hostile gap may overflow u64: checked, or positions would wrap and repeat.
+            let pos = match next.checked_add(r.u64()?) {
+                Some(pos) if pos < u64::from(sample_limit) => pos,
+                _ => {
+                    return Err(TemporalError::Malformed(
+                        "toggles (position beyond the axis)",
+                    ))
+                }
+            };
             // pos < sample_limit <= u32::MAX, so the conversion cannot fail.
             positions.push(pos as u32);
             next = pos + 1;
@@ -244,5 +247,27 @@ mod tests {
         assert!(Toggles::decode(&out, 10).is_err());
         assert!(Toggles::decode(&out, 11).is_ok());
         assert!(Toggles::decode(&[0xFF, 0xFF, 0xFF, 0x7F], 100).is_err());
+    }
+
+    #[test]
+    fn decode_rejects_gaps_that_overflow_the_position() {
+        // Two toggles: position 5, then a gap of u64::MAX - 5, which wraps to 5 again when
+        // added without a check (a non-increasing position that `encode` then underflows on).
+        let mut out = Vec::new();
+        varint::write_u64(&mut out, 2);
+        varint::write_u64(&mut out, 5);
+        varint::write_u64(&mut out, u64::MAX - 5);
+        assert_eq!(
+            Toggles::decode(&out, 100),
+            Err(TemporalError::Malformed(
+                "toggles (position beyond the axis)"
+            ))
+        );
+        // A single gap of u64::MAX after position 0 as well.
+        let mut out = Vec::new();
+        varint::write_u64(&mut out, 2);
+        varint::write_u64(&mut out, 0);
+        varint::write_u64(&mut out, u64::MAX);
+        assert!(Toggles::decode(&out, 100).is_err());
     }
 }

@@ -489,6 +489,12 @@ impl BaseJoin<'_> {
                 Some(observed) => observed,
                 slot => slot.insert(chooser.observed(&cells[i].2)?),
             };
+            if observed.mask.as_ref().is_some_and(|mask| mask.is_empty()) {
+                // Observed at no sample: a remainder cannot say so (the writer refuses an
+                // empty remainder mask), so the tile is stored whole.
+                patchable = false;
+                return Ok(());
+            }
             let predicted = base
                 .as_ref()
                 .is_some_and(|base| chooser.predicts(observed, base));
