@@ -202,7 +202,7 @@ fn bad_ros_args_are_refused_by_name() {
         (&["-p", "use_sim_time:=maybe"], "true or false"),
         (&["-p", "commit_every:=0"], "commit_every"),
         (&["-r", "__ns:=robot1"], "absolute"),
-        (&["--log-level", "debug"], "--log-level"),
+        (&["--no-such-argument"], "--no-such-argument"),
     ] {
         let mut line = vec!["ros2", s(&living), "--ros-args"];
         line.extend_from_slice(args);
