@@ -317,8 +317,12 @@ def test_an_exception_in_the_callback_stops_the_build_and_writes_nothing(series,
 
 
 INTERRUPTED = """
-import sys, time
+import signal, sys, time
 import froctomap
+
+# A shell without job control starts background commands with SIGINT ignored, and Python
+# then installs no handler of its own (CI runs so): take Ctrl-C as an interactive user does.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 def slow(stage, done, total):
     print(stage, flush=True)
