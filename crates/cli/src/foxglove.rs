@@ -12,13 +12,12 @@ use foxglove::{
     ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer,
     WebSocketServerHandle,
 };
-use froctomap_convert::{occupied_cells_at, FroctFile, SeriesRead as _};
 use froctomap_core::Timestamp;
 use froctomap_formats::ExportedKind;
 use froctomap_ros::{
     point_cloud_json, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA, POINT_CLOUD_TOPIC,
 };
-use std::path::Path;
+use froctomap_ros2_node::PublishedCells;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -80,22 +79,20 @@ impl FoxgloveView {
         self.server.port()
     }
 
-    /// Logs the occupied voxels of the map `froct` predicts for `t`, stamped `t`.
+    /// Logs the occupied voxels of the map predicted for `t` (as the node published them),
+    /// stamped `t`.
     pub fn show_predicted(
         &mut self,
-        froct: &Path,
+        published: &PublishedCells,
         t: Timestamp,
         frame_id: &str,
     ) -> anyhow::Result<()> {
-        let reader = FroctFile::open(froct).with_context(|| froct.display().to_string())?;
-        let occupied = occupied_cells_at(&reader, ExportedKind::Predicted, t)
-            .with_context(|| froct.display().to_string())?;
         let message = point_cloud_json(
             t,
             frame_id,
             ExportedKind::Predicted,
-            reader.header().resolution,
-            &occupied,
+            published.resolution,
+            &published.occupied,
         )
         .context("--foxglove: the predicted map")?;
         self.log(&message, t);

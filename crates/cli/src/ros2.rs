@@ -393,11 +393,12 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
         let started = Instant::now();
         let published = match t {
             Some(t) if args.file.exists() => predicted.publish_if_changed(&node, t),
-            _ => Ok(false),
+            _ => Ok(None),
         };
         match published {
             // What a publication costs (predicting, encoding the map and its markers).
-            Ok(true) => {
+            #[cfg_attr(not(feature = "foxglove"), allow(unused_variables))]
+            Ok(Some(cells)) => {
                 eprintln!(
                     "published the map predicted for {} ({} ms)",
                     t.map(froctomap_core::calendar::iso8601).unwrap_or_default(),
@@ -405,12 +406,12 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 );
                 #[cfg(feature = "foxglove")]
                 if let (Some(view), Some(t)) = (foxglove.as_mut(), t) {
-                    if let Err(e) = view.show_predicted(&args.file, t, &frame_id) {
+                    if let Err(e) = view.show_predicted(&cells, t, &frame_id) {
                         eprintln!("warning: {e:#}");
                     }
                 }
             }
-            Ok(false) => {}
+            Ok(None) => {}
             Err(e) => eprintln!("warning: {e}"),
         }
         let next = Instant::now() + period;

@@ -1139,28 +1139,48 @@ impl PredictedPublisher {
 
     /// Publishes the map predicted for `t` stamped `t` if it differs from the last one
     /// published, with its occupied cells on [`DYNAMIC_TOPIC`] (coloured by their
-    /// probability); says whether it did. The map counts as published once it is, even when
-    /// its markers then fail ([`NodeError::Publish`] on the markers' topic, saying the
-    /// map went out): the same map is not sent again for them.
-    pub fn publish_if_changed(&mut self, node: &Node, t: Timestamp) -> Result<bool, NodeError> {
+    /// probability); returns those cells when it did, for other views of the same map
+    /// (the CLI's Foxglove view), so that they need not predict it again. The map counts as
+    /// published once it is, even when its markers then fail ([`NodeError::Publish`] on the
+    /// markers' topic, saying the map went out): the same map is not sent again for them.
+    pub fn publish_if_changed(
+        &mut self,
+        node: &Node,
+        t: Timestamp,
+    ) -> Result<Option<PublishedCells>, NodeError> {
         let reader = self.open()?;
         let bt = froctomap_convert::predicted_bt(&reader, t).map_err(|e| self.failed(e))?;
         if self.last.as_ref() == Some(&bt) {
-            return Ok(false);
+            return Ok(None);
         }
         node.publish_predicted(&bt, t, &self.frame_id)?;
         self.last = Some(bt);
+        let resolution = reader.header().resolution;
         let markers = froctomap_convert::occupied_cells_at(&reader, ExportedKind::Predicted, t)
             .map_err(|e| self.failed(e))
             .and_then(|occupied| {
-                node.publish_dynamic(&occupied, reader.header().resolution, t, &self.frame_id)
+                node.publish_dynamic(&occupied, resolution, t, &self.frame_id)?;
+                Ok(occupied)
             });
-        markers.map_err(|e| NodeError::Publish {
+        let occupied = markers.map_err(|e| NodeError::Publish {
             topic: node.names.dynamic.clone(),
             reason: format!("the predicted map was published, its markers were not: {e}"),
         })?;
-        Ok(true)
+        Ok(Some(PublishedCells {
+            occupied,
+            resolution,
+        }))
     }
+}
+
+/// The occupied cells of a map [`PredictedPublisher::publish_if_changed`] published, with
+/// their probabilities.
+#[derive(Clone, Debug)]
+pub struct PublishedCells {
+    /// The cells, as [`DYNAMIC_TOPIC`]'s markers show them.
+    pub occupied: Vec<OccupiedCell>,
+    /// The map's resolution in metres.
+    pub resolution: f64,
 }
 
 /// The last instant of a `.froct` file's time axis.
