@@ -46,6 +46,22 @@ impl MapSink for FilesSink<'_> {
     }
 }
 
+/// Lets `node` hand maps to `sink` until `done` holds (at most a minute, then fails
+/// saying what arrived).
+fn receive_until(node: &Node, sink: &mut FilesSink, done: impl Fn(&FilesSink) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !done(sink) && Instant::now() < deadline {
+        node.receive_into(sink, Duration::from_millis(100))
+            .expect("the node never stops on input");
+    }
+    assert!(
+        done(sink),
+        "received {:?}, skipped {:?}",
+        sink.received.len(),
+        sink.skipped
+    );
+}
+
 /// A domain id of this run's own (0..=232 are valid; 0 is everyone's default).
 fn random_domain() -> u16 {
     let nanos = SystemTime::now()
@@ -195,11 +211,15 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
     let mut predicted = PredictedPublisher::new(&froct, "map");
     let t = froctomap_ros2_node::last_instant(&froct).expect("read the .froct");
-    assert!(predicted.publish_if_changed(&node, t).expect("publish"));
+    assert!(predicted
+        .publish_if_changed(&node, t)
+        .expect("publish")
+        .is_some());
     assert!(
-        !predicted
+        predicted
             .publish_if_changed(&node, t)
-            .expect("publish again"),
+            .expect("publish again")
+            .is_none(),
         "unchanged maps are not republished"
     );
 
@@ -800,27 +820,14 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
         skipped: Vec::new(),
         recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
     };
-    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while !done(sink) && Instant::now() < deadline {
-            node.receive_into(sink, Duration::from_millis(100))
-                .expect("the node never stops on input");
-        }
-        assert!(
-            done(sink),
-            "received {:?}, skipped {:?}",
-            sink.received.len(),
-            sink.skipped
-        );
-    };
-    receive_until(&mut sink, &|s| s.received.len() == 1);
+    receive_until(&node, &mut sink, |s| s.received.len() == 1);
     peer.command(&serde_json::json!("go"));
     assert_eq!(
         peer.next_event(Duration::from_secs(30))["event"],
         "published"
     );
     // Two maps: the base is committed.
-    receive_until(&mut sink, &|s| s.received.len() == 2);
+    receive_until(&node, &mut sink, |s| s.received.len() == 2);
     let base = std::fs::read(&living).expect("the base is written");
 
     // The bad ones, each refused with its reason while the node goes on.
@@ -839,7 +846,7 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
             "published"
         );
     }
-    receive_until(&mut sink, &|s| s.skipped.len() == bad.len());
+    receive_until(&node, &mut sink, |s| s.skipped.len() == bad.len());
     assert_eq!(
         sink.received.len(),
         2,
@@ -866,7 +873,7 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
             "published"
         );
     }
-    receive_until(&mut sink, &|s| s.received.len() == 5);
+    receive_until(&node, &mut sink, |s| s.received.len() == 5);
     let FilesSink {
         recording, skipped, ..
     } = sink;
@@ -1003,20 +1010,7 @@ fn maps_in_another_frame_are_refused_and_the_node_goes_on() {
         skipped: Vec::new(),
         recording: RecordingSink::new(recorder, TimeSource::Header, Duration::ZERO),
     };
-    let receive_until = |sink: &mut FilesSink, done: &dyn Fn(&FilesSink) -> bool| {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while !done(sink) && Instant::now() < deadline {
-            node.receive_into(sink, Duration::from_millis(100))
-                .expect("the node never stops on input");
-        }
-        assert!(
-            done(sink),
-            "received {:?}, skipped {:?}",
-            sink.received.len(),
-            sink.skipped
-        );
-    };
-    receive_until(&mut sink, &|s| s.received.len() == 1);
+    receive_until(&node, &mut sink, |s| s.received.len() == 1);
     assert_eq!(
         node.frame_id().as_deref(),
         Some("map"),
@@ -1035,7 +1029,9 @@ fn maps_in_another_frame_are_refused_and_the_node_goes_on() {
             "published"
         );
     }
-    receive_until(&mut sink, &|s| s.received.len() + s.skipped.len() == 4);
+    receive_until(&node, &mut sink, |s| {
+        s.received.len() + s.skipped.len() == 4
+    });
     let FilesSink {
         recording,
         received,
@@ -1196,7 +1192,10 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
     let t = Timestamp(clock_sec * 1_000_000_000 + horizon);
     let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
     let mut predicted = PredictedPublisher::new(&froct, "map");
-    assert!(predicted.publish_if_changed(&node, t).expect("publish"));
+    assert!(predicted
+        .publish_if_changed(&node, t)
+        .expect("publish")
+        .is_some());
     let event = peer.next_event(Duration::from_secs(60));
     assert_eq!(event["event"], "predicted", "{event}");
     assert_eq!(
