@@ -4,16 +4,53 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Output};
+use std::process::{Child, Command, Output, Stdio};
 use std::sync::mpsc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-/// Runs the binary built for these tests.
+/// Longest a single run may take before the test fails: generous (debug builds on loaded
+/// machines), but bounded, so that a command expected to refuse and that starts working
+/// instead (a node that serves, a recorder that waits for input) fails the test rather
+/// than hanging it.
+const RUN_BOUND: Duration = Duration::from_secs(900);
+
+/// Runs the binary built for these tests, with standard input closed, within [`RUN_BOUND`].
 pub fn froctomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_froctomap"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_froctomap"))
         .args(args)
-        .output()
-        .expect("run froctomap")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run froctomap");
+    let stdout = drain(child.stdout.take().expect("piped stdout"));
+    let stderr = drain(child.stderr.take().expect("piped stderr"));
+    let started = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for froctomap") {
+            break status;
+        }
+        if started.elapsed() > RUN_BOUND {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("froctomap {args:?} still ran after {RUN_BOUND:?}: killed");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Output {
+        status,
+        stdout: stdout.join().expect("stdout reader"),
+        stderr: stderr.join().expect("stderr reader"),
+    }
+}
+
+/// All of a child's pipe, read on a thread (so that a full pipe never blocks the child).
+fn drain(mut pipe: impl std::io::Read + Send + 'static) -> std::thread::JoinHandle<Vec<u8>> {
+    std::thread::spawn(move || {
+        let mut bytes = Vec::new();
+        let _ = pipe.read_to_end(&mut bytes);
+        bytes
+    })
 }
 
 /// Runs it, expecting success; its standard output.
