@@ -283,6 +283,13 @@ impl TimeAxis {
         }
     }
 
+    /// Seconds covered by the samples `first..=last`: from the first to the last plus one
+    /// step, since each sample stands for its step (n samples `s` apart cover `n·s`). What a
+    /// period's cycles are counted in when deciding whether a voxel may use it (`min-cycles`).
+    pub(crate) fn coverage_seconds(&self, first: u32, last: u32) -> f64 {
+        self.sample_seconds(last) - self.sample_seconds(first) + self.mean_step_seconds()
+    }
+
     /// Seconds since the start for any sample index: extrapolated along the grid beyond the
     /// end of a regular axis, the last instant beyond the end of an explicit axis.
     pub(crate) fn sample_seconds(&self, i: u32) -> f64 {

@@ -62,12 +62,47 @@ pub(crate) trait Spectral: Send + Sync {
     /// Turns per second of a component's base angle.
     fn rate(&self, component: &Component) -> f64;
 
-    /// The longest candidate period (seconds) usable on a voxel observed from sample
-    /// `first` to `last` (`min_cycles` of it fit in that span).
-    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64>;
+    /// The longest candidate period (seconds) `usable` on samples `range` (first, last).
+    fn longest_usable_period(&self, range: (u32, u32), usable: Usable) -> Option<f64>;
 
-    /// Up to `max` strongest usable components of `obs` (mean `mean`), strongest first.
-    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate>;
+    /// Up to `max` strongest components of `obs` (mean `mean`) among the periods `usable` on
+    /// its observed range, strongest first.
+    fn candidates(
+        &self,
+        obs: &VoxelObservations,
+        mean: f64,
+        max: usize,
+        usable: Usable,
+    ) -> Vec<Candidate>;
+}
+
+/// Cycles of a period that the earlier part of a voxel's samples (the validation fit) must
+/// span, first sample to last, for the fit to estimate it there (at most `min-cycles`).
+pub(crate) const VALIDATION_MIN_CYCLES: f64 = 1.5;
+
+/// Relative slack when comparing a number of cycles with a span, so that a period that
+/// fits exactly (the day on 48 half-hourly samples a day for 2 days) is not lost to rounding.
+pub(crate) const CYCLE_TOLERANCE: f64 = 1e-9;
+
+/// Which candidate periods a fit may use: the two roles of `min-cycles`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Usable {
+    /// *Eligibility*, for the voxel's own fit: the periods whose `min_cycles` cycles the
+    /// samples cover, counted from the first to the last plus one step (each sample stands
+    /// for its step: n samples `s` apart cover `n·s`).
+    Eligible,
+    /// *Validation*, for a fit on the earlier part of a voxel observed from sample
+    /// `whole.0` to `whole.1`: the periods eligible on the whole voxel that the earlier
+    /// part spans [`VALIDATION_MIN_CYCLES`] times (or `min_cycles`, when less), counted
+    /// first to last. So the held-out part never judges a period the final fit may not use,
+    /// and a period with exactly two cycles in the whole span (the day on a 2-day series)
+    /// is not estimated from the 1.5 days before the held-out part.
+    Validation { whole: (u32, u32) },
+}
+
+/// Cycles the earlier part must span in a validation fit, for a model requiring `min_cycles`.
+pub(crate) fn validation_cycles(min_cycles: f64) -> f64 {
+    VALIDATION_MIN_CYCLES.min(min_cycles)
 }
 
 /// Settings the pipeline needs.
@@ -119,13 +154,13 @@ pub(crate) fn fit_voxel<S: Spectral>(
     }
     match (settings.order, settings.mode) {
         (Order::Fixed(_), mode) => {
-            let comps = quantise(&model.candidates(obs, mean, max));
+            let comps = quantise(&model.candidates(obs, mean, max, Usable::Eligible));
             finish(model, mean_q, comps, obs, OrderChoice::Single(max), mode)
         }
         (Order::Auto { .. }, OutlierMode::Lossless)
             if settings.criterion == crate::OrderCriterion::SmallestFile =>
         {
-            let comps = quantise(&model.candidates(obs, mean, max));
+            let comps = quantise(&model.candidates(obs, mean, max, Usable::Eligible));
             finish(
                 model,
                 mean_q,
@@ -142,7 +177,7 @@ pub(crate) fn fit_voxel<S: Spectral>(
                 &SHRINKS[..1]
             };
             let (m, shrink) = holdout_order(model, obs, max, settings.holdout_fraction, shrinks);
-            let mut cands = model.candidates(obs, mean, m);
+            let mut cands = model.candidates(obs, mean, m, Usable::Eligible);
             for c in &mut cands {
                 c.amplitude *= shrink;
             }
@@ -163,6 +198,9 @@ fn holdout_order<S: Spectral>(
     shrinks: &[f64],
 ) -> (usize, f64) {
     let n = obs.observed_count();
+    let Some(whole) = obs.observed_range() else {
+        return (0, 1.0);
+    };
     let fraction = holdout_fraction(model, obs, fraction);
     let train_count = ((1.0 - fraction) * n as f64).ceil() as u64;
     let split = obs.sample_after_observed(train_count.min(n));
@@ -172,7 +210,7 @@ fn holdout_order<S: Spectral>(
         return (0, 1.0);
     }
     let train_mean = train.occupied_count() as f64 / train.observed_count() as f64;
-    let comps = quantise(&model.candidates(&train, train_mean, max));
+    let comps = quantise(&model.candidates(&train, train_mean, max, Usable::Validation { whole }));
     if comps.is_empty() {
         return (0, 1.0);
     }
@@ -298,10 +336,10 @@ fn holdout_order<S: Spectral>(
 /// Largest part of a voxel's samples held out to validate its order and shrinkage.
 pub(crate) const MAX_HOLDOUT_FRACTION: f64 = 0.5;
 
-/// The part of `obs`'s observed samples held out: half of them when the first half still
-/// spans the longest period the whole voxel can use (`min_cycles` times), so that the held-out
-/// part holds as many cycles of every period as it can without the fit losing one; else
-/// `fraction` (the option).
+/// The part of `obs`'s observed samples held out: half of them when a validation fit on the
+/// first half may still use the longest period the whole voxel may use ([`Usable`]), so that
+/// the held-out part holds as many cycles of every period as it can without the fit losing
+/// one; else `fraction` (the option).
 fn holdout_fraction<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f64) -> f64 {
     let Some((first, last)) = obs.observed_range() else {
         return fraction;
@@ -311,8 +349,13 @@ fn holdout_fraction<S: Spectral>(model: &S, obs: &VoxelObservations, fraction: f
     let split = obs.sample_after_observed(half.min(n));
     let fit_last = split.saturating_sub(1).max(first);
     match (
-        model.longest_usable_period(first, last),
-        model.longest_usable_period(first, fit_last),
+        model.longest_usable_period((first, last), Usable::Eligible),
+        model.longest_usable_period(
+            (first, fit_last),
+            Usable::Validation {
+                whole: (first, last),
+            },
+        ),
     ) {
         (Some(whole), Some(fit)) if fit >= whole => fraction.max(MAX_HOLDOUT_FRACTION),
         _ => fraction,

@@ -27,8 +27,8 @@
 //!   toggles may sit anywhere in a gap, which gives the fewest toggles possible.
 //! - **Real time, not frame numbers.** [`models::FremenPeriods`] works on any
 //!   [`TimeAxis`] (jittered or missed snapshots) at a candidate period set (one week / k,
-//!   k ≤ 48, plus user periods); a period is used only once `min_cycles` (1.5) of it were
-//!   observed, and never beside a stronger chosen period it aliases (closer than `1/span` in
+//!   k ≤ 48, plus user periods); a period is used only once the observed samples cover
+//!   `min_cycles` (2) whole cycles of it (first to last plus one step), and never beside a stronger chosen period it aliases (closer than `1/span` in
 //!   frequency, directly or through the sampling grid).
 //!   [`models::FremenRegular`] keeps the FFT formulation for regular grids, over *all* DFT
 //!   bins instead of the first 99.

@@ -1,7 +1,10 @@
 //! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
 
 use super::SpectralLine;
-use crate::fit::{fit_voxel, pick_distinct, Candidate, Evaluator, FitSettings, Spectral};
+use crate::fit::{
+    fit_voxel, pick_distinct, validation_cycles, Candidate, Evaluator, FitSettings, Spectral,
+    Usable, CYCLE_TOLERANCE,
+};
 use crate::model::{expect_end, read_parameters_header, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, BASE_PERIOD, CRITERION, HARMONICS, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES,
@@ -42,9 +45,11 @@ pub const MAX_TABLE_BYTES: u64 = 4 << 30;
 /// each candidate period `P` (seconds), with `t_i` the real time of sample `i`.
 ///
 /// Candidates: `base_period / k` for `k = 1..=harmonics` plus the configured extra periods,
-/// deduplicated, longest first, keeping those the axis spans `min_cycles` times; per voxel a
-/// period is used only when the voxel's observed span covers it `min_cycles` times. The list
-/// is the model's parameter block, so a reader evaluates the same periods.
+/// deduplicated, longest first, keeping those of which the axis's samples cover `min_cycles`
+/// (default 2) whole cycles, counted from the first sample to the last plus one step (each
+/// sample stands for its step: `n` samples `s` apart cover `n·s`); per voxel a period is used
+/// only when the voxel's observed samples cover `min_cycles` cycles of it the same way. The
+/// list is the model's parameter block, so a reader evaluates the same periods.
 ///
 /// Fitting cost: the axis gets prefix sums of `(cos, sin)(2π·t_i/P)` per period (shared by
 /// all voxels; `16·K·(n+1)` bytes for `K` periods and `n` samples), so a voxel's spectrum
@@ -93,8 +98,9 @@ impl FremenPeriods {
             .collect();
         periods.sort_by(|a, b| b.total_cmp(a));
         periods.dedup_by(|b, a| (*a - *b).abs() <= 1e-9 * a.abs());
-        let span = axis.span_seconds();
-        periods.retain(|p| p * options.min_cycles <= span);
+        // Eligibility on the whole axis: `min_cycles` cycles in the samples' coverage.
+        let coverage = axis.coverage_seconds(0, axis.len().saturating_sub(1));
+        periods.retain(|p| p * options.min_cycles <= coverage * (1.0 + CYCLE_TOLERANCE));
         Ok(PreparedFremenPeriods::new(
             axis,
             periods,
@@ -281,6 +287,19 @@ impl PreparedFremenPeriods {
             .collect())
     }
 
+    /// Whether a period (seconds) is `usable` on samples `first..=last` (see [`Usable`]).
+    fn is_usable(&self, period: f64, (first, last): (u32, u32), usable: Usable) -> bool {
+        let fits = |cycles: f64, seconds: f64| period * cycles <= seconds * (1.0 + CYCLE_TOLERANCE);
+        match usable {
+            Usable::Eligible => fits(self.min_cycles, self.axis.coverage_seconds(first, last)),
+            Usable::Validation { whole } => {
+                let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
+                fits(validation_cycles(self.min_cycles), span)
+                    && self.is_usable(period, whole, Usable::Eligible)
+            }
+        }
+    }
+
     fn frequency(&self, index: u32) -> f64 {
         self.frequencies.get(index as usize).copied().unwrap_or(0.0)
     }
@@ -375,15 +394,20 @@ impl Spectral for PreparedFremenPeriods {
         self.frequency(component.frequency)
     }
 
-    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
-        let span = self.axis.sample_seconds(last) - self.axis.sample_seconds(first);
+    fn longest_usable_period(&self, range: (u32, u32), usable: Usable) -> Option<f64> {
         self.periods
             .iter()
             .copied()
-            .find(|p| p * self.min_cycles <= span)
+            .find(|&p| self.is_usable(p, range, usable))
     }
 
-    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
+    fn candidates(
+        &self,
+        obs: &VoxelObservations,
+        mean: f64,
+        max: usize,
+        usable: Usable,
+    ) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
         };
@@ -395,7 +419,7 @@ impl Spectral for PreparedFremenPeriods {
             .iter()
             .zip(&self.periods)
             .enumerate()
-            .filter(|(_, (_, p))| *p * self.min_cycles <= span)
+            .filter(|(_, (_, p))| self.is_usable(**p, (first, last), usable))
             .map(|(j, (x, p))| (4.0 * (x[0] * x[0] + x[1] * x[1]), j as u32, 1.0 / p))
             .collect();
         // The samples cover their span plus one step (each stands for its step).
@@ -489,6 +513,7 @@ impl PreparedModel for PreparedFremenPeriods {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::Usable;
     use froctomap_core::Timestamp;
 
     #[test]
@@ -502,7 +527,7 @@ mod tests {
         assert_eq!(p.iter().filter(|&&x| x == 86_400.0).count(), 1); // week/7 == 1 day
         assert!(p.contains(&18_000.0));
         assert!(!p.contains(&1e9));
-        // The span is 503 hours: one week (168 h) fits 1.5 times, so it is kept.
+        // The samples cover 504 hours: one week (168 h) fits 3 times, so it is kept.
         assert_eq!(p.first(), Some(&604_800.0));
         assert_eq!(p.len(), 48 + 1); // the default 48 harmonics and 5 h
 
@@ -511,6 +536,49 @@ mod tests {
             .prepare_from_parameters(&axis, &params)
             .unwrap();
         assert_eq!(back.encode_parameters(), params);
+    }
+
+    #[test]
+    fn eligibility_counts_two_cycles_in_coverage_and_validation_one_and_a_half_in_span() {
+        // 2 days of half-hourly samples: 96 samples cover 48 h (the last one stands for the
+        // half hour after it), so the day has exactly two cycles and is a candidate; 28 h
+        // (week / 6) is not, nor is the day on one sample less.
+        let step = 1_800_000_000_000;
+        let axis = TimeAxis::regular(Timestamp(0), step, 96, vec![]).unwrap();
+        let model = FremenPeriods
+            .prepare_periods(&axis, &ModelConfig::default())
+            .unwrap();
+        assert_eq!(model.periods().first(), Some(&86_400.0));
+        let longest = |range, usable| model.longest_usable_period(range, usable);
+        assert_eq!(longest((0, 95), Usable::Eligible), Some(86_400.0));
+        assert_eq!(longest((1, 95), Usable::Eligible), Some(604_800.0 / 8.0));
+        // A validation fit on the first 72 samples (35.5 h first to last) keeps periods with
+        // 1.5 cycles there: 21 h, not the day (36 h needed).
+        let whole = (0, 95);
+        let validation = Usable::Validation { whole };
+        assert_eq!(longest((0, 71), validation), Some(604_800.0 / 8.0));
+        // With min-cycles 1.5 the axis keeps 28 h; validation on the whole range would
+        // offer it, but not when the voxel itself covers less than 42 h.
+        let model = FremenPeriods
+            .prepare_periods(
+                &axis,
+                &ModelConfig::default().with_option("min-cycles", 1.5),
+            )
+            .unwrap();
+        assert_eq!(model.periods().first(), Some(&(604_800.0 / 6.0)));
+        assert_eq!(
+            model.longest_usable_period((0, 95), validation),
+            Some(604_800.0 / 6.0)
+        );
+        assert_eq!(
+            model.longest_usable_period((0, 95), Usable::Validation { whole: (0, 80) }),
+            Some(86_400.0)
+        );
+        let shorter = TimeAxis::regular(Timestamp(0), step, 95, vec![]).unwrap();
+        let model = FremenPeriods
+            .prepare_periods(&shorter, &ModelConfig::default())
+            .unwrap();
+        assert_eq!(model.periods().first(), Some(&(604_800.0 / 8.0)));
     }
 
     #[test]

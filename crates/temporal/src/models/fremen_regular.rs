@@ -1,7 +1,10 @@
 //! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
 
 use super::SpectralLine;
-use crate::fit::{fit_voxel, pick_distinct, Candidate, Evaluator, FitSettings, Spectral};
+use crate::fit::{
+    fit_voxel, pick_distinct, validation_cycles, Candidate, Evaluator, FitSettings, Spectral,
+    Usable, CYCLE_TOLERANCE,
+};
 use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::options::{
     SpectralOptions, CRITERION, HOLDOUT_FRACTION, MAX_ORDER, MIN_CYCLES, ORDER, SHRINK,
@@ -42,7 +45,8 @@ const MAX_ROOT_TABLE: u32 = 1 << 22;
 /// FreMEn on a regular axis of `n` samples (gaps allowed): the spectrum of `s_i − mean` over
 /// the observed samples at every DFT bin `k` (period `n·step/k`), from one real FFT with
 /// unknown samples set to zero, normalised by the observed count. Bins `k ≥ min_cycles·n /
-/// span` up to the Nyquist bin `n/2` are candidates; the strongest are kept.
+/// coverage` (the voxel's observed samples, first to last plus one, hold `min_cycles` whole
+/// cycles, default 2) up to the Nyquist bin `n/2` are candidates; the strongest are kept.
 ///
 /// ```
 /// use froctomap_core::{Occupancy::*, Timestamp};
@@ -252,6 +256,26 @@ impl PreparedFremenRegular {
         self.n / 2 + 1
     }
 
+    /// The lowest bin (a whole number ≥ 1, as f64; NaN or above `n/2` when none) `usable`
+    /// on samples `first..=last` (see [`Usable`]): bin k has period n/k samples.
+    fn lowest_usable_bin(&self, (first, last): (u32, u32), usable: Usable) -> f64 {
+        let n = f64::from(self.n);
+        let least = |cycles: f64, samples: f64| {
+            (cycles * n / samples * (1.0 - CYCLE_TOLERANCE))
+                .ceil()
+                .max(1.0)
+        };
+        match usable {
+            // The samples cover their span plus one step (each stands for its step).
+            Usable::Eligible => least(self.min_cycles, f64::from(last.saturating_sub(first)) + 1.0),
+            Usable::Validation { whole } => least(
+                validation_cycles(self.min_cycles),
+                f64::from(last.saturating_sub(first)),
+            )
+            .max(self.lowest_usable_bin(whole, Usable::Eligible)),
+        }
+    }
+
     /// Turns per second of bin `k`.
     fn frequency_hz(&self, k: u32) -> f64 {
         f64::from(k) / self.base_seconds
@@ -312,23 +336,27 @@ impl Spectral for PreparedFremenRegular {
         self.frequency_hz(component.frequency)
     }
 
-    fn longest_usable_period(&self, first: u32, last: u32) -> Option<f64> {
-        let span = f64::from(last.saturating_sub(first));
-        let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
+    fn longest_usable_period(&self, range: (u32, u32), usable: Usable) -> Option<f64> {
+        let k_min = self.lowest_usable_bin(range, usable);
         if k_min.is_nan() || k_min > f64::from(self.n / 2) {
             return None;
         }
         Some(1.0 / self.frequency_hz(k_min as u32))
     }
 
-    fn candidates(&self, obs: &VoxelObservations, mean: f64, max: usize) -> Vec<Candidate> {
+    fn candidates(
+        &self,
+        obs: &VoxelObservations,
+        mean: f64,
+        max: usize,
+        usable: Usable,
+    ) -> Vec<Candidate> {
         let Some((first, last)) = obs.observed_range() else {
             return Vec::new();
         };
         let span = f64::from(last - first);
         let nyquist = self.n / 2;
-        // Bin k has period n/k samples; it needs min_cycles periods within the span.
-        let k_min = (self.min_cycles * f64::from(self.n) / span).ceil().max(1.0);
+        let k_min = self.lowest_usable_bin((first, last), usable);
         if k_min.is_nan() || k_min > f64::from(nyquist) {
             return Vec::new();
         }
@@ -432,6 +460,7 @@ impl PreparedModel for PreparedFremenRegular {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::Usable;
     use crate::{ObservationsBuilder, SpectralParameters};
     use froctomap_core::{Occupancy, Timestamp};
 
@@ -462,8 +491,8 @@ mod tests {
 
     #[test]
     fn short_observed_span_excludes_long_periods() {
-        // A voxel seen only during samples 100..160 of 1000: periods above 40 samples
-        // (bins below 25) are not usable with min_cycles 1.5.
+        // A voxel seen only during samples 100..160 of 1000: its 60 samples cover 60, so
+        // periods above 30 samples (bins below 34) are not usable with min_cycles 2.
         let model = prepared(1000, 3);
         let mut b = ObservationsBuilder::new();
         for i in 100..160 {
@@ -476,11 +505,43 @@ mod tests {
         assert!(!components.is_empty());
         for c in components {
             assert!(
-                1000.0 / f64::from(c.frequency) * 1.5 <= 59.0,
+                1000.0 / f64::from(c.frequency) * 2.0 <= 60.0,
                 "bin {}",
                 c.frequency
             );
         }
+    }
+
+    #[test]
+    fn eligibility_counts_coverage_and_validation_needs_one_and_a_half_cycles_of_eligible_bins() {
+        // 96 samples: bin 2 (48 samples) has exactly two cycles in their coverage; bin 1
+        // has one. Usable::Validation on the first 72 (71 samples first to last): bins of
+        // 1.5 cycles, k ≥ 1.5·96/71 → k ≥ 3, and never a bin not eligible on the whole.
+        let model = prepared(96, 3);
+        let longest = |range, usable| {
+            model
+                .longest_usable_period(range, usable)
+                .map(|p: f64| p.round())
+        };
+        assert_eq!(longest((0, 95), Usable::Eligible), Some(48.0));
+        assert_eq!(longest((1, 95), Usable::Eligible), Some(32.0)); // 95 cover < 96
+        let validation = Usable::Validation { whole: (0, 95) };
+        assert_eq!(longest((0, 71), validation), Some(32.0));
+        assert_eq!(longest((0, 95), validation), Some(48.0)); // 1.5 · 48 ≤ 95
+                                                              // The whole voxel decides eligibility: seen over 60 samples, no bin below 4.
+        let validation = Usable::Validation { whole: (0, 59) };
+        assert_eq!(longest((0, 95), validation), Some(24.0));
+        // Validation never needs more cycles than eligibility asks for.
+        let axis = TimeAxis::regular(Timestamp(0), 1_000_000_000, 96, vec![]).unwrap();
+        let one = FremenRegular
+            .prepare_regular(&axis, &ModelConfig::default().with_option("min-cycles", 1))
+            .unwrap();
+        let validation = Usable::Validation { whole: (0, 95) };
+        assert_eq!(
+            one.longest_usable_period((0, 48), validation)
+                .map(f64::round),
+            Some(48.0)
+        );
     }
 
     #[test]

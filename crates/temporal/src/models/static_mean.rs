@@ -1,6 +1,6 @@
 //! The static baseline: `p(t)` is the voxel's mean occupancy, at every time.
 
-use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral};
+use crate::fit::{fit_voxel, Candidate, Evaluator, FitSettings, Spectral, Usable};
 use crate::model::{read_header_only_parameters, write_parameters_header};
 use crate::spectral::{self, canonical_sum, SpectralView};
 use crate::{
@@ -93,11 +93,17 @@ impl Spectral for PreparedStaticMean {
         0.0
     }
 
-    fn longest_usable_period(&self, _first: u32, _last: u32) -> Option<f64> {
+    fn longest_usable_period(&self, _range: (u32, u32), _usable: Usable) -> Option<f64> {
         None
     }
 
-    fn candidates(&self, _obs: &VoxelObservations, _mean: f64, _max: usize) -> Vec<Candidate> {
+    fn candidates(
+        &self,
+        _obs: &VoxelObservations,
+        _mean: f64,
+        _max: usize,
+        _usable: Usable,
+    ) -> Vec<Candidate> {
         Vec::new()
     }
 }

@@ -17,8 +17,10 @@ pub enum Order {
     ///   (a component must earn its place: noise-like voxels keep the mean alone); the
     ///   chosen order is then refitted on all samples. This targets prediction;
     ///   in lossless mode the outliers still make the states exact. The held-out part is
-    ///   half the samples when the first half still spans the voxel's longest usable
-    ///   period (else `holdout-fraction`). Where it spans a whole cycle of every period of
+    ///   half the samples when a validation fit on the first half may still use the
+    ///   voxel's longest eligible period (else `holdout-fraction`); the validation fit
+    ///   uses only periods eligible for the voxel (`min-cycles`) of which its samples span
+    ///   1.5 cycles, first to last. Where the held-out part spans a whole cycle of every period of
     ///   an order, that order may also be shrunk (`shrink`) and may exceed 5, but its
     ///   decisions (p > 0.5) that differ from the mean's must be right on the held-out part
     ///   significantly more often than wrong (net gain ≥ 2·√changes); where it does not,
@@ -106,12 +108,12 @@ pub(crate) const HARMONICS: OptionDescriptor = OptionDescriptor {
 };
 pub(crate) const MIN_CYCLES: OptionDescriptor = OptionDescriptor {
     key: "min-cycles",
-    help: "a period is used for a voxel only when its observed span covers that many periods",
-    default: "1.5",
+    help: "a period is used for a voxel only when its observed samples cover that many cycles of it, counted from the first sample to the last plus one step (n samples s apart cover n·s)",
+    default: "2",
 };
 pub(crate) const HOLDOUT_FRACTION: OptionDescriptor = OptionDescriptor {
     key: "holdout-fraction",
-    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); half when the first half still spans the longest usable period",
+    help: "least fraction of each voxel's latest observed samples held out to choose the order, in (0, 1); half when a fit on the first half still keeps the longest eligible period",
     default: "0.25",
 };
 
@@ -137,12 +139,17 @@ pub struct SpectralOptions {
     /// Harmonics of `base_period` in the default period set. Default 48 (one week down to
     /// 3.5 hours, including 1 day, 12 h, 8 h, 6 h and 4 h).
     pub harmonics: u32,
-    /// A period is used for a voxel only when the voxel's observed time span is at least
-    /// `min_cycles` periods long. Default 1.5. Applies to DFT bins too.
+    /// A period is *eligible* for a voxel only when the time its observed samples cover is
+    /// at least `min_cycles` periods long, counted from the first sample to the last plus
+    /// one step (each sample stands for its step: `n` samples `s` apart cover `n·s`, so 2
+    /// days of half-hourly samples hold exactly 2 days). Default 2 (issue 28: two whole
+    /// cycles). Applies to DFT bins too. The validation fit of [`Order::Auto`] (on the
+    /// earlier samples) uses only eligible periods, of which it must span 1.5 cycles (or
+    /// `min_cycles`, when less), first sample to last.
     pub min_cycles: f64,
     /// Least fraction of each voxel's observed samples (the latest ones) held out to choose
-    /// the order: half of them when the first half still spans the longest period the voxel
-    /// can use (`min_cycles` times), so that the held-out part holds as many whole cycles as
+    /// the order: half of them when a validation fit on the first half may still use the
+    /// longest period eligible for the voxel, so that the held-out part holds as many whole cycles as
     /// the fit can spare. Default 0.25.
     pub holdout_fraction: f64,
     /// With [`Order::Auto`] and the prediction criterion, let the held-out samples also
@@ -160,7 +167,7 @@ impl Default for SpectralOptions {
             periods: Vec::new(),
             base_period: 604_800.0,
             harmonics: 48,
-            min_cycles: 1.5,
+            min_cycles: 2.0,
             holdout_fraction: 0.25,
             shrink: true,
         }
