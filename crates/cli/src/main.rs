@@ -31,6 +31,7 @@ mod append;
 mod commands;
 mod compact;
 mod errors;
+mod follow;
 #[cfg(feature = "foxglove")]
 mod foxglove;
 mod froct_info;
