@@ -717,6 +717,14 @@ fn read_splits(
                 }
                 Ok(None) => break None,
                 Err(_) if STOP.load(Ordering::SeqCst) => return,
+                Err(RosError::Stream {
+                    bytes,
+                    messages,
+                    source,
+                    ..
+                }) => break Some(format!(
+                    "it stops after {messages} message(s), at byte {bytes} ({source}): its writer did not finish it; its complete chunks are taken"
+                )),
                 Err(cut) => break Some(cut.to_string()),
             };
             if sender.send(event).is_err() {

@@ -8,7 +8,8 @@
 //!   recording), its splits written by PyPI `mcap`/`mcap-ros2-support`: recorded whole, its
 //!   splits are read in order and the last one, cut inside a chunk, up to its last complete
 //!   chunk; followed, each split's maps are taken as its bytes arrive (a split appearing
-//!   cut mid-chunk gives its complete chunks, then the rest once written), a map of an
+//!   cut mid-chunk gives its complete chunks, then the rest once written; one whose writer
+//!   died mid-chunk gives its complete chunks once a later split exists), a map of an
 //!   overlapping split not later than the last one taken is skipped and counted.
 //!
 //! Every wait is bounded: a recorder that misbehaves fails the test instead of hanging it.
@@ -401,8 +402,13 @@ fn follow_reads_a_growing_bag_split_by_split_and_skips_overlapping_maps() {
     growing.write_all(&bytes[cut..]).unwrap();
     drop(growing);
     until(&stdout, &received(4, "taken"));
-    std::fs::copy(&staged[2], split(2)).unwrap();
-    until(&stdout, &received(5, "taken"));
+    // Split 2 stops inside the chunk of map 5 (its writer died); split 3 holds map 5 again.
+    let bytes = std::fs::read(&staged[2]).unwrap();
+    let cut = inside_chunk_of(&bytes, &maps[5].0);
+    std::fs::write(split(2), &bytes[..cut]).unwrap();
+    std::fs::copy(&staged[2], split(3)).unwrap();
+    let seen = until(&stdout, &received(5, "taken"));
+    assert_eq!(seen, [received(5, "taken")]);
 
     let status = interrupt(&mut reap.0[0]);
     let (_, errors) = (rest(&stdout), rest(&stderr));
@@ -414,6 +420,11 @@ fn follow_reads_a_growing_bag_split_by_split_and_skips_overlapping_maps() {
         "{errors}"
     );
     assert!(errors.contains("bag_1.mcap: read to its end"), "{errors}");
+    assert!(
+        errors.contains("bag_2.mcap: it stops after")
+            && errors.contains("its writer did not finish it"),
+        "{errors}"
+    );
     assert_eq!(samples(&file), 6);
     for (i, (map, _)) in maps.iter().enumerate() {
         retrieves_as(&file, i, map);
