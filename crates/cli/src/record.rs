@@ -6,6 +6,12 @@
 //! (`froctomap_ros::McapStreamMaps`); its maps go to the recorder as bytes (spooled beside
 //! the file until committed, so memory and disk follow one commit, not the stream). SIGINT/SIGTERM/SIGHUP reach the same channel: the maps
 //! received are committed and `record` exits 0 (a second signal ends it at once).
+//!
+//! `--follow DIR` (after the sources, until a signal; `follow.rs` watches DIR): map
+//! files reach the channel as paths once closed or renamed into DIR, and are taken as
+//! `build` collects files; a ROS 2 bag directory's splits are read one after the other on a
+//! thread of their own, as streams that wait for their file to grow, their maps taken as a
+//! stream's are.
 
 use crate::follow::DirEvent;
 use crate::series::{print_input_notes, SpillArgs, TimeArgs};
