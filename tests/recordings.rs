@@ -78,16 +78,7 @@ fn write_recordings(dir: &Path, recordings: &[(&str, PathBuf, &str, Vec<&SeriesI
     spec.push_str("]}");
     let spec_path = dir.join("spec.json");
     std::fs::write(&spec_path, spec).unwrap();
-    let out = Command::new(octomap_python())
-        .arg(workspace_root().join("tests/scripts/write_recordings.py"))
-        .arg(&spec_path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    froctomap_test_support::write_recordings(&spec_path);
 }
 
 /// The leaves of the map observed at each time.
@@ -572,16 +563,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     }
     spec.push_str("]}");
     std::fs::write(path("spec.json"), spec).unwrap();
-    let out = Command::new(octomap_python())
-        .arg(workspace_root().join("tests/scripts/write_recordings.py"))
-        .arg(path("spec.json"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    froctomap_test_support::write_recordings(&path("spec.json"));
 
     let bag = std::fs::read(path("bag.bag")).unwrap();
     let mcap = std::fs::read(path("mcap.mcap")).unwrap();

@@ -176,6 +176,22 @@ pub fn octomap_python() -> PathBuf {
         .clone()
 }
 
+/// Runs `tests/scripts/write_recordings.py SPEC` (the ROS recordings written by PyPI
+/// rosbags and mcap-ros2-support), asserting it succeeded.
+pub fn write_recordings(spec: &Path) {
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/write_recordings.py"))
+        .arg(spec)
+        .output()
+        .expect("run python");
+    assert!(
+        out.status.success(),
+        "write_recordings.py {}: {}",
+        spec.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn python_has_octomap(python: &Path) -> bool {
     Command::new(python)
         // The recording tests' writers and the ROS 2 peer's DDS too (scripts/python-client.sh

@@ -31,6 +31,7 @@ mod append;
 mod commands;
 mod compact;
 mod errors;
+mod follow;
 #[cfg(feature = "foxglove")]
 mod foxglove;
 mod froct_info;
@@ -204,9 +205,13 @@ enum Command {
     /// out and logged); a cut stream likewise. Ctrl-C/SIGTERM commit the maps received and
     /// exit 0. A missing file gets the first commit's maps as its base (built with the
     /// default model); a 1.x file is converted to 2.0 first. `fremen-regular` files are
-    /// refused (their model cannot grow).
+    /// refused (their model cannot grow). --follow DIR then records what appears in DIR
+    /// until Ctrl-C: map files once closed or renamed into place, or the splits of a
+    /// `ros2 bag record` directory as they grow.
     ///
     /// Example: froctomap generate --stream --days 1 | froctomap record office.froct - --commit-every 60
+    ///
+    /// Example: froctomap record office.froct --follow /robot/maps/
     Record(record::RecordArgs),
     /// Write the map as observed at a time (exact in lossless files).
     ///

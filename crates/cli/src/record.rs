@@ -6,14 +6,21 @@
 //! (`froctomap_ros::McapStreamMaps`); its maps go to the recorder as bytes (spooled beside
 //! the file until committed, so memory and disk follow one commit, not the stream). SIGINT/SIGTERM/SIGHUP reach the same channel: the maps
 //! received are committed and `record` exits 0 (a second signal ends it at once).
+//!
+//! `--follow DIR` (after the sources, until a signal; `follow.rs` watches DIR): map
+//! files reach the channel as paths once closed or renamed into DIR, and are taken as
+//! `build` collects files; a ROS 2 bag directory's splits are read one after the other on a
+//! thread of their own, as streams that wait for their file to grow, their maps taken as a
+//! stream's are.
 
+use crate::follow::DirEvent;
 use crate::series::{print_input_notes, SpillArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
     group_thousands, parse_duration, AppendOptions, CommitEvery, Context, Opened, RecordError,
-    RecordEvent, RecordOptions, Recorder, SeriesInput, STDIN_INPUT,
+    RecordEvent, RecordOptions, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -38,8 +45,19 @@ pub struct RecordArgs {
     /// as for `build` (directories, globs, manifests, files, recordings). Maps not later
     /// than the last one taken (the file's last sample at first) are skipped and counted,
     /// so overlapping bag splits can be given whole.
-    #[arg(required = true, value_name = "SOURCE")]
+    #[arg(required_unless_present = "follow", value_name = "SOURCE")]
     sources: Vec<PathBuf>,
+    /// After the SOURCEs, record what appears in DIR until SIGINT/SIGTERM: a directory of
+    /// map files (.bt, .ot) takes the files there first (in time order), then each new one
+    /// once its writer closed it or renamed it into place (a file being written is never
+    /// read; hidden and temporary names such as `map.bt.tmp` are ignored), its time from
+    /// its name as `build` reads names; a ROS 2 bag directory being recorded (`ros2 bag
+    /// record`: `NAME_0.mcap`, `NAME_1.mcap`…, with or without metadata.yaml) is read split
+    /// by split in order, each map as soon as its chunk is complete, new splits as they
+    /// appear. Maps not later than the last one taken are skipped and counted. A map file
+    /// must stay in DIR until the commit that holds it.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["start", "times_file"])]
+    follow: Option<PathBuf>,
     /// Commit a segment every N maps (a plain number) or every so much time (5s, 1min:
     /// measured from the first map of the commit as it arrives).
     #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = commit_every)]
@@ -98,13 +116,21 @@ pub(crate) fn commit_every(text: &str) -> Result<CommitEvery, String> {
 enum Event {
     Map(StreamedMap),
     /// A map message that does not read, and (bytes, messages) read when it came.
-    BadMap(RosError, (u64, u64)),
+    BadMap(anyhow::Error, (u64, u64)),
     /// The stream ended whole.
     End,
     /// The stream stopped reading (cut, garbage, read error).
     Failed(RosError),
+    /// `--follow`: a map file closed after writing or renamed into the directory.
+    Ready(PathBuf),
+    /// `--follow`: events were lost; the directory is listed again.
+    Rescan,
+    /// `--follow`: watching the directory failed.
+    WatchFailed(String),
     /// SIGINT, SIGTERM or SIGHUP.
     Stop,
+    /// `--follow BAGDIR`: a split was read to its end (`None`), or up to where it is cut.
+    SplitEnded(PathBuf, Option<String>),
 }
 
 /// Set once a signal asked `record` to stop.
@@ -113,6 +139,9 @@ static STOP: AtomicBool = AtomicBool::new(false);
 pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     if let Some((limit, default)) = args.spill.max_memory.limit() {
         crate::memory_guard::watch(limit, default, "record");
+    }
+    if let Some(dir) = &args.follow {
+        crate::follow::check_dir(dir)?;
     }
     let (sender, events) = sync_channel::<Event>(4);
     stop_on_signals(sender.clone());
@@ -186,6 +215,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         verbose: args.verbose,
         printing,
     };
+    let follow_sender = sender.clone();
     let mut sender = Some(sender);
     for source in &args.sources {
         if STOP.load(Ordering::SeqCst) {
@@ -200,14 +230,16 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             read_files(&mut recording, args, source)
         };
         if let Err(error) = result {
-            // What came before the failure is committed; its own commit failing is said
-            // with the failure.
-            if let Err(commit) = recording.commit() {
-                return Err(error.context(format!(
-                    "record stopped, and the maps received before were not all committed: {commit:#}"
-                )));
-            }
-            return Err(error);
+            return Err(recording.stopped(error));
+        }
+    }
+    if let Some(dir) = args
+        .follow
+        .as_deref()
+        .filter(|_| !STOP.load(Ordering::SeqCst))
+    {
+        if let Err(error) = follow(&mut recording, args, dir, follow_sender, &events) {
+            return Err(recording.stopped(error));
         }
     }
     recording.commit()?;
@@ -281,6 +313,32 @@ impl Recording<'_> {
     fn commit(&mut self) -> Result<()> {
         let result = self.recorder.commit();
         self.printed(result)
+    }
+
+    /// `error`, after the maps received before it are committed (a failure of that commit
+    /// is said with it).
+    fn stopped(&mut self, error: anyhow::Error) -> anyhow::Error {
+        match self.commit() {
+            Ok(()) => error,
+            Err(commit) => error.context(format!(
+                "record stopped, and the maps received before were not all committed: {commit:#}"
+            )),
+        }
+    }
+
+    /// The next event, committing whenever a commit by time falls due while waiting
+    /// (`None`: no sender is left).
+    fn next_event(&mut self, events: &Receiver<Event>) -> Result<Option<Event>> {
+        loop {
+            match self.recorder.time_left() {
+                Some(left) => match events.recv_timeout(left) {
+                    Ok(event) => return Ok(Some(event)),
+                    Err(RecvTimeoutError::Timeout) => self.commit()?,
+                    Err(RecvTimeoutError::Disconnected) => return Ok(None),
+                },
+                None => return Ok(events.recv().ok()),
+            }
+        }
     }
 }
 
@@ -383,7 +441,7 @@ fn read_stream(
             loop {
                 let event = match maps.next_map() {
                     Ok(Some(Ok(map))) => Event::Map(map),
-                    Ok(Some(Err(bad))) => Event::BadMap(bad, maps.position()),
+                    Ok(Some(Err(bad))) => Event::BadMap(anyhow!(bad), maps.position()),
                     Ok(None) => Event::End,
                     Err(failed) => Event::Failed(failed),
                 };
@@ -394,19 +452,8 @@ fn read_stream(
             }
         })?;
     loop {
-        let event = match recorder.recorder.time_left() {
-            Some(left) => match events.recv_timeout(left) {
-                Ok(event) => event,
-                Err(RecvTimeoutError::Timeout) => {
-                    recorder.commit()?;
-                    continue;
-                }
-                Err(RecvTimeoutError::Disconnected) => return Ok(()),
-            },
-            None => match events.recv() {
-                Ok(event) => event,
-                Err(_) => return Ok(()),
-            },
+        let Some(event) = recorder.next_event(events)? else {
+            return Ok(());
         };
         match event {
             Event::Map(map) => recorder.take_streamed(&map)?,
@@ -430,7 +477,273 @@ fn read_stream(
             Event::Failed(failed) => {
                 return Err(anyhow!(failed).context("record stopped: the stream does not read on"))
             }
+            // Only `--follow` sends these.
+            Event::Ready(_) | Event::Rescan | Event::WatchFailed(_) | Event::SplitEnded(..) => {}
         }
+    }
+}
+
+/// `--follow DIR`: a ROS 2 bag directory (`metadata.yaml`, or `.mcap` files) split by
+/// split, else the map files there and then each one that becomes ready, until a signal.
+fn follow(
+    recording: &mut Recording<'_>,
+    args: &RecordArgs,
+    dir: &Path,
+    sender: SyncSender<Event>,
+    events: &Receiver<Event>,
+) -> Result<()> {
+    let splits = crate::follow::listed(dir, &[SPLIT_EXTENSION])?;
+    if !splits.is_empty() || dir.join("metadata.yaml").is_file() {
+        return follow_bag(recording, dir, sender, events);
+    }
+    let ui = recording.ui;
+    let extensions: Vec<String> = recording
+        .context
+        .formats()
+        .formats()
+        .iter()
+        .flat_map(|f| f.extensions.iter().map(|e| e.to_string()))
+        .collect();
+    let extensions: Vec<&str> = extensions.iter().map(String::as_str).collect();
+    let watched: Vec<String> = extensions.iter().map(|e| e.to_string()).collect();
+    // Watching starts before the directory is listed, so that no file closed in between
+    // is missed (one seen twice is skipped as not later the second time).
+    let _watcher = crate::follow::watch(dir, move |event| {
+        let event = match event {
+            DirEvent::Ready(path) => {
+                let watched: Vec<&str> = watched.iter().map(String::as_str).collect();
+                if !crate::follow::is_followed(&path, &watched) {
+                    return;
+                }
+                Event::Ready(path)
+            }
+            DirEvent::Rescan => Event::Rescan,
+            DirEvent::Failed(error) => Event::WatchFailed(error),
+            DirEvent::Written => return,
+        };
+        let _ = sender.send(event);
+    })?;
+    if dir.join(MANIFEST_NAME).is_file() {
+        ui.note(&format!(
+            "warning: --follow {}: its {MANIFEST_NAME} is not read; each map's time comes from its file name",
+            escaped(dir.display())
+        ));
+    }
+    let present = crate::follow::listed(dir, &extensions)?;
+    ui.note(&format!(
+        "following {}: {} map file(s) there first, then each new one once closed or renamed into place (Ctrl-C commits and stops)",
+        escaped(dir.display()),
+        present.len()
+    ));
+    take_listed(recording, args, &present, false)?;
+    // Until the signal's event: what became ready before it is taken.
+    loop {
+        let Some(event) = recording.next_event(events)? else {
+            return Ok(());
+        };
+        match event {
+            Event::Ready(path) => take_listed(recording, args, &[path], false)?,
+            Event::Rescan => {
+                let present = crate::follow::listed(dir, &extensions)?;
+                take_listed(recording, args, &present, true)?;
+            }
+            Event::WatchFailed(error) => {
+                bail!(
+                    "--follow {}: watching failed: {error}",
+                    escaped(dir.display())
+                )
+            }
+            Event::Stop => return Ok(()),
+            _ => {}
+        }
+    }
+}
+
+/// Takes the map files `paths` in time order, their times from their names (as `build`
+/// reads them). A file that went away again is passed over; one without a time in its
+/// name stops `record`, or with `--skip-bad` is left out and counted. `later_only`: files
+/// not later than the last one taken are passed over without being counted (a listing
+/// after lost events sees files taken before).
+fn take_listed(
+    recording: &mut Recording<'_>,
+    args: &RecordArgs,
+    paths: &[PathBuf],
+    later_only: bool,
+) -> Result<()> {
+    let paths: Vec<PathBuf> = paths.iter().filter(|p| p.is_file()).cloned().collect();
+    if paths.is_empty() {
+        return Ok(());
+    }
+    let ui = recording.ui;
+    let collected = match args.times.collect(ui, recording.context, &paths) {
+        Ok(collected) => collected,
+        Err(error) if recording.skip_bad && paths.len() == 1 => {
+            recording.recorder.count_bad();
+            ui.note(&format!(
+                "warning: left out: {}",
+                escaped(format!("{error:#}"))
+            ));
+            return Ok(());
+        }
+        // Files of a listing one by one, so that --skip-bad leaves out only the bad one.
+        Err(_) if recording.skip_bad => {
+            for path in paths {
+                take_listed(recording, args, &[path], later_only)?;
+            }
+            return Ok(());
+        }
+        Err(error) => return Err(error.context("record stopped")),
+    };
+    print_input_notes(ui, &[], &collected.skipped);
+    let listing = collected.series.len() > 1;
+    for input in collected.series {
+        // A signal cuts a listing short; a file that became ready before it is taken.
+        if listing && STOP.load(Ordering::SeqCst) {
+            break;
+        }
+        let last = recording.recorder.last_time();
+        if later_only && last.is_some_and(|last| input.time <= last) {
+            continue;
+        }
+        recording.take_file(input)?;
+    }
+    Ok(())
+}
+
+/// The extension of a ROS 2 bag's MCAP splits.
+const SPLIT_EXTENSION: &str = "mcap";
+
+/// `--follow BAGDIR`: the bag's splits in name order (`NAME_0.mcap`, `NAME_1.mcap`…) read
+/// on a thread as streams that wait for their file to grow: each map is taken once its
+/// chunk is complete, a split ends at its footer (or, cut by a writer that died, once a
+/// later split exists and it stayed unchanged or was closed), and the next one is read
+/// when it appears.
+fn follow_bag(
+    recording: &mut Recording<'_>,
+    dir: &Path,
+    sender: SyncSender<Event>,
+    events: &Receiver<Event>,
+) -> Result<()> {
+    let ui = recording.ui;
+    let (wake, woken) = sync_channel::<DirEvent>(64);
+    let _watcher = crate::follow::watch(dir, move |event| {
+        // A wake-up only: one lost to a full queue is made up by the reader's polling.
+        let _ = wake.try_send(event);
+    })?;
+    ui.note(&format!(
+        "following the bag {}: its splits in order, each map once its chunk is complete (Ctrl-C commits and stops)",
+        escaped(dir.display())
+    ));
+    let options = recording.context.recording_options().clone();
+    let limit = recording.context.limits().max_map_file_bytes;
+    let dir_owned = dir.to_path_buf();
+    // Not joined: at a signal it may be waiting for a split to grow, and ends with the
+    // process.
+    std::thread::Builder::new()
+        .name("splits".into())
+        .spawn(move || read_splits(&dir_owned, &options, limit, &sender, &woken))?;
+    let skip_bad = recording.skip_bad;
+    // Until the signal's event: what became ready before it is taken.
+    loop {
+        let Some(event) = recording.next_event(events)? else {
+            return Ok(());
+        };
+        match event {
+            Event::Map(map) => recording.take_streamed(&map)?,
+            Event::BadMap(bad, (bytes, messages)) => {
+                if !skip_bad {
+                    return Err(anyhow!(bad).context("record stopped"));
+                }
+                recording.recorder.count_bad();
+                if recording.verbose {
+                    outln!("received map message {messages} of a split (byte {bytes}): bad")?;
+                }
+                ui.note(&format!(
+                    "warning: left out {}",
+                    escaped(format!("{bad:#}"))
+                ));
+            }
+            Event::SplitEnded(path, cut) => match cut {
+                None => ui.note(&format!("{}: read to its end", escaped(path.display()))),
+                Some(cut) => ui.note(&format!(
+                    "warning: {}: {}; the next split is read",
+                    escaped(path.display()),
+                    escaped(cut)
+                )),
+            },
+            Event::Failed(failed) => return Err(anyhow!(failed).context("record stopped")),
+            Event::WatchFailed(error) => {
+                bail!(
+                    "--follow {}: watching failed: {error}",
+                    escaped(dir.display())
+                )
+            }
+            Event::Stop | Event::End => return Ok(()),
+            Event::Ready(_) | Event::Rescan => {}
+        }
+    }
+}
+
+/// The splits thread of [`follow_bag`]: each split in turn, its maps sent as they come.
+fn read_splits(
+    dir: &Path,
+    options: &froctomap_formats::RecordingOptions,
+    limit: u64,
+    sender: &SyncSender<Event>,
+    woken: &Receiver<DirEvent>,
+) {
+    let mut last: Option<PathBuf> = None;
+    loop {
+        let split = match crate::follow::next_split(dir, last.as_deref(), woken, &STOP) {
+            Ok(Some(split)) => split,
+            Ok(None) => return,
+            Err(error) => {
+                let _ = sender.send(Event::WatchFailed(format!("{error:#}")));
+                return;
+            }
+        };
+        let growing = match crate::follow::GrowingSplit::open(&split, woken, &STOP) {
+            Ok(growing) => growing,
+            Err(error) => {
+                let _ = sender.send(Event::WatchFailed(format!("{error:#}")));
+                return;
+            }
+        };
+        let mut maps = McapStreamMaps::new(growing, options, limit);
+        let ended = loop {
+            let event = match maps.next_map() {
+                Ok(Some(Ok(map))) => Event::Map(map),
+                Ok(Some(Err(bad))) => {
+                    let (bytes, messages) = maps.position();
+                    let at = format!(
+                        "{}: map message {messages} (byte {bytes})",
+                        escaped(split.display())
+                    );
+                    Event::BadMap(anyhow!(bad).context(at), (bytes, messages))
+                }
+                Ok(None) => break None,
+                Err(_) if STOP.load(Ordering::SeqCst) => return,
+                Err(RosError::Stream {
+                    bytes,
+                    messages,
+                    source,
+                    ..
+                }) => break Some(format!(
+                    "it stops after {messages} message(s), at byte {bytes} ({source}): its writer did not finish it; its complete chunks are taken"
+                )),
+                Err(cut) => break Some(cut.to_string()),
+            };
+            if sender.send(event).is_err() {
+                return;
+            }
+        };
+        if sender
+            .send(Event::SplitEnded(split.clone(), ended))
+            .is_err()
+        {
+            return;
+        }
+        last = Some(split);
     }
 }
 

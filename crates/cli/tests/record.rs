@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{ok, s, temporaries};
+use common::{ok, retrieves_as, s, samples, temporaries};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -100,11 +100,6 @@ fn segments(file: &Path) -> Vec<u64> {
         .iter()
         .map(|segment| segment["samples"].as_u64().unwrap())
         .collect()
-}
-
-fn samples(file: &Path) -> u64 {
-    let info: Value = serde_json::from_str(&ok(&["info", s(file), "--json"])).unwrap();
-    info["time"]["samples"].as_u64().unwrap()
 }
 
 /// Snapshots `0..count` of `file` retrieve byte-identical to those of `expected`.
@@ -574,20 +569,6 @@ fn manifest_of(maps: &Path, name: &str, range: std::ops::Range<usize>) -> (PathB
 
 fn size(file: &Path) -> u64 {
     std::fs::metadata(file).unwrap().len()
-}
-
-/// Sample `i` of `file` retrieves byte-identical to the generated map `input`.
-fn retrieves_as(file: &Path, i: usize, input: &Path) {
-    let got = file.with_extension(format!("{i}.bt"));
-    let time = format!("index:{i}");
-    ok(&["-q", "retrieve", s(file), "--time", &time, "-o", s(&got)]);
-    assert!(
-        std::fs::read(&got).unwrap() == std::fs::read(input).unwrap(),
-        "sample {i} of {} differs from {}",
-        file.display(),
-        input.display()
-    );
-    std::fs::remove_file(got).unwrap();
 }
 
 /// Recorded one map per `record` run, each run a commit: after every run the file is at

@@ -100,17 +100,29 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     create: Some(mcap_export::create),
 };
 
-/// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage.
+/// ROS 2 bag directories with MCAP storage: `metadata.yaml` beside the storage files, or,
+/// while `ros2 bag record` is writing a bag (it writes `metadata.yaml` when it ends), a
+/// directory `NAME` holding its first split `NAME_0.mcap`. The splits are read in name
+/// order (`NAME_2` before `NAME_10`), each up to its last complete chunk when it has no
+/// summary yet (the split being written).
 pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     name: "ros2bag",
     description: "ROS 2 bag directory",
     extensions: &[],
     probe: |_| Confidence::No,
-    probe_dir: Some(|path| path.join("metadata.yaml").is_file()),
+    probe_dir: Some(|path| path.join("metadata.yaml").is_file() || has_first_split(path)),
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     open_stream: None,
     create: None,
 };
+
+/// Whether the directory `NAME` holds `NAME_0.mcap`, the first split `ros2 bag record`
+/// writes into it.
+fn has_first_split(dir: &Path) -> bool {
+    dir.file_name()
+        .and_then(|name| name.to_str())
+        .is_some_and(|name| dir.join(format!("{name}_0.mcap")).is_file())
+}
 
 fn confidence(certain: bool) -> Confidence {
     if certain {

@@ -151,3 +151,24 @@ pub fn random_domain() -> u32 {
         .unwrap_or(11);
     1 + (nanos ^ std::process::id()) % 200
 }
+
+/// The samples of a FROctomap file (`info --json`).
+pub fn samples(file: &Path) -> u64 {
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(&["info", s(file), "--json"])).expect("info --json");
+    info["time"]["samples"].as_u64().expect("time.samples")
+}
+
+/// Sample `i` of `file` retrieves byte-identical to the map file `input`.
+pub fn retrieves_as(file: &Path, i: usize, input: &Path) {
+    let got = file.with_extension(format!("{i}.bt"));
+    let time = format!("index:{i}");
+    ok(&["-q", "retrieve", s(file), "--time", &time, "-o", s(&got)]);
+    assert!(
+        std::fs::read(&got).expect("the retrieved map") == std::fs::read(input).expect("the map"),
+        "sample {i} of {} differs from {}",
+        file.display(),
+        input.display()
+    );
+    std::fs::remove_file(got).expect("remove the retrieved map");
+}
