@@ -7,7 +7,6 @@
 mod common;
 
 use common::living::*;
-use common::*;
 use froctomap_core::{MortonCode, Occupancy};
 use froctomap_file::{
     Cell, FileError, FormatViolation, LivingReader, LivingWriter, MemorySource, ReadLimits,
@@ -26,7 +25,7 @@ fn open_bytes(bytes: &[u8], limits: ReadLimits) -> Result<LivingReader, FileErro
 }
 
 fn mask(positions: &[u32]) -> Option<Arc<Toggles>> {
-    Some(Arc::new(Toggles::new(positions.to_vec()).unwrap()))
+    remainder_mask(positions)
 }
 
 /// Whether a remainder mask (`None`: every sample) observes segment sample `j`.
@@ -35,51 +34,11 @@ fn observes(mask: &Option<Arc<Toggles>>, j: u32) -> bool {
         .is_none_or(|m| m.as_slice().iter().filter(|&&p| p <= j).count() % 2 == 1)
 }
 
-/// The golden 1.2 base converted, then a segment of `golden_segment_axes()[0]` (20 samples,
-/// sample 5 missing) whose one tile is a patch tile over the base's largest tile (4 cells):
-/// base cell 0 stored occupied throughout; base cell 1 left to the mask `[0, 1]` (sample 0
-/// only), base cell 2 to no sample, every other one to the default `[1]` (from sample 1).
+/// `common::living::write_remainder_golden` into `dir`: the file, its segment's axis and
+/// the base tile's cells.
 fn regional_file(dir: &tempfile::TempDir) -> (std::path::PathBuf, TimeAxis, Vec<Cell>) {
     let path = dir.path().join("living.froct");
-    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), &path).unwrap();
-    let axis = golden_segment_axes()[0].clone();
-    let mut writer = LivingWriter::open(&path).unwrap();
-    let base = writer.reader().base();
-    let largest = (0..base.tiles().len())
-        .max_by_key(|&t| base.tiles()[t].cell_count)
-        .unwrap();
-    let base_cells = base.read_tile(largest).unwrap();
-    assert!(base_cells.len() >= 4, "{}", base_cells.len());
-    let mut segment = writer.begin_segment(axis.clone()).unwrap();
-    let mut encoder = segment.tile_encoder();
-    encoder
-        .push(SegmentCell {
-            start: base_cells[0].start,
-            depth: base_cells[0].depth,
-            mask: None,
-            content: SegmentContent::Constant(Occupancy::Occupied),
-        })
-        .unwrap();
-    let remainder = TileRemainder {
-        default: mask(&[1]),
-        masks: vec![mask(&[0, 1])],
-        runs: vec![
-            RemainderRun {
-                first: 1,
-                len: 1,
-                mask: 1,
-            },
-            RemainderRun {
-                first: 2,
-                len: 1,
-                mask: 0,
-            },
-        ],
-    };
-    segment
-        .write_patch_tile_with(&encoder.finish().unwrap(), remainder)
-        .unwrap();
-    segment.commit().unwrap();
+    let (axis, base_cells) = write_remainder_golden(&path);
     (path, axis, base_cells)
 }
 
