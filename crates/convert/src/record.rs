@@ -81,8 +81,8 @@ impl Default for RecordOptions {
 ///
 /// The first rule keeps a file at most 1.5× its base; its guard makes every compaction of a
 /// base of `n` samples follow at least `n / 4` new ones, so that a compaction (a build of
-/// the whole history) costs at most 5 builds' worth of work per map added, however long the
-/// history; the second makes compactions a geometric series in time (each one's history
+/// the whole history) costs at most what compacting 5 maps does per map added, however
+/// long the history; the second makes compactions a geometric series in time (each one's history
 /// twice the last one's), refitting models as the span grows.
 pub const SEGMENTS_PER_BASE: (u64, u64) = (1, 2);
 /// See [`SEGMENTS_PER_BASE`].
