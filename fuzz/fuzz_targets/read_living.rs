@@ -1,7 +1,9 @@
 //! The format 2.0 reader on arbitrary bytes: opening (root slots, the base, the segment
 //! chain), observed maps at the first, middle and last samples of the base and of every
 //! segment, predicted maps, every segment tile read whole (a patch tile with the parts of
-//! the base tile it leaves to the base, FORMAT.md §10.6), and a refresh, under small
+//! the base tile it leaves to the base, FORMAT.md §10.6, each observed by the mask its run
+//! of base cells gives, §10.7; the corpus holds `golden-v2.0-remainder.froct`), every
+//! remainder's masks looked up by rank, and a refresh, under small
 //! limits. Each input is read as it is and, when that differs, once more with the header,
 //! root slot and segment record checksums recomputed, so that mutations reach the decoders.
 #![no_main]
@@ -52,6 +54,14 @@ fn read_every_way(data: &[u8]) {
                 if reader.is_patch_tile(k, tile) {
                     let stored = reader.segment_tiles(k)[tile].cell_count as usize;
                     assert!(cells.len() >= stored);
+                }
+            }
+            if let Some(remainder) = reader.remainder(k, tile) {
+                // Runs name only ranks the base tile has (checked at open), so few.
+                let named = remainder.ranks_named();
+                assert!(named <= LIMITS.max_cells_per_tile);
+                for rank in 0..u32::try_from(named).unwrap_or(0) {
+                    let _ = remainder.mask_of(rank);
                 }
             }
         }

@@ -66,20 +66,21 @@ pub struct RecordArgs {
     /// a bad map stops `record` after committing the maps before it.
     #[arg(long)]
     skip_bad: bool,
-    /// Compact automatically: after a commit, the file is compacted in place (as `froctomap
-    /// compact` does, in the build's memory: --memory, --max-memory) when its segments
-    /// exceed half of its base's size or its span has doubled since the last compaction, so
-    /// that it stays at most 1.5× its compacted size; one line says so, with the time it
-    /// took. Off by default: today's segments hold every cell their maps saw, so the size
-    /// rule compacts every few commits and the cost per map grows with the history; and a
-    /// compaction refits with the model options given here (--model-option), not the ones
-    /// the file was built with, which files do not record.
+    /// Never compact automatically. By default, after a commit the file is compacted in
+    /// place (as `froctomap compact` does, in the build's memory: --memory, --max-memory)
+    /// when its segments exceed half of its base's size (once the maps added since the base
+    /// are a quarter of the base's) or its span has doubled since the last compaction: the
+    /// file stays at most 1.5× its base where segments cost per map at most twice what the
+    /// base does, and the cost of compacting, amortised, does not grow with the history; one
+    /// line says so, with the time it took. A compaction refits with the model options given
+    /// here (--model-option), not the ones the file was built with, which files do not
+    /// record.
     #[arg(long)]
-    auto_compact: bool,
-    /// The default since automatic compaction became opt-in (--auto-compact); accepted so
-    /// that scripts written for the release that compacted by default keep working.
-    #[arg(long, hide = true, conflicts_with = "auto_compact")]
     no_compact: bool,
+    /// The default (see --no-compact); accepted so that scripts written for the release
+    /// where automatic compaction was opt-in keep working.
+    #[arg(long, hide = true, conflicts_with = "no_compact")]
+    auto_compact: bool,
     /// A temporal model option (KEY=VALUE, repeatable): for the base a missing FILE is
     /// built with and for automatic compactions (see `froctomap models`).
     #[arg(long, value_name = "KEY=VALUE")]
@@ -171,7 +172,7 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
-        compact: args.auto_compact,
+        compact: !args.no_compact,
     };
     for assignment in &args.model_option {
         options

@@ -177,10 +177,10 @@ fn record_killed_at_random_instants_keeps_every_printed_commit() {
         let file = work.join("map.froct");
         first_map(&series, &file);
         let delay = delays.next(whole);
-        // Every other run may compact, and may be killed compacting.
+        // Every other run may compact (the default), and may be killed compacting.
         let mut args = vec!["record", s(&file), "-", "--commit-every", "2"];
-        if run % 2 == 0 {
-            args.push("--auto-compact");
+        if run % 2 == 1 {
+            args.push("--no-compact");
         }
         let stdout = killed_after(&args, &series.stream, delay);
         let held = samples(&file);

@@ -573,9 +573,10 @@ fn size(file: &Path) -> u64 {
 
 /// Recorded one map per `record` run, each run a commit: after every run the file is at
 /// most 1.5× a `build` of the maps so far, and every snapshot retrieves byte-identical to
-/// its generated map (`--auto-compact`). The same runs without it (`--no-compact`) pass that
-/// bound too on this series: segments store only what differs from the base's predictions
-/// (patch tiles, FORMAT.md §10.6), not every cell their maps saw.
+/// its generated map (automatic compaction, the default). The same runs without it
+/// (`--no-compact`) pass that bound too on this series: segments store only what differs
+/// from the base's predictions (patch tiles, FORMAT.md §10.6, §10.7), not every cell their
+/// maps saw.
 #[test]
 fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
     let dir = tempfile::tempdir().unwrap();
@@ -592,14 +593,8 @@ fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
         let (prefix, _) = manifest_of(&maps, &format!("prefix-{k}.csv"), 0..k + 1);
         let built = dir.path().join(format!("built-{k}.froct"));
         ok(&["-q", "build", s(&prefix), "-o", s(&built)]);
-        let stdout = ok(&[
-            "record",
-            s(&compacted),
-            s(&one),
-            "--commit-every",
-            "1",
-            "--auto-compact",
-        ]);
+        // Automatic compaction is the default.
+        let stdout = ok(&["record", s(&compacted), s(&one), "--commit-every", "1"]);
         compactions += stdout.matches("compacted: ").count();
         ok(&[
             "record",

@@ -112,7 +112,7 @@ pub use query::{
 };
 pub use record::{
     CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,
-    Recorder,
+    Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
 };
 pub use recording::RecordedMap;
 pub use recording_export::occupied_cells_at;

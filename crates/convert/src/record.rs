@@ -47,7 +47,7 @@ impl Default for CommitEvery {
 }
 
 /// How to record.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct RecordOptions {
     /// When to commit.
     pub commit_every: CommitEvery,
@@ -57,12 +57,38 @@ pub struct RecordOptions {
     pub append: AppendOptions,
     /// Where the spool of maps taken as bytes goes; `None`: beside the file.
     pub spool_dir: Option<PathBuf>,
-    /// Compact the file after a commit when due (see [`Recorder`]); `false` by default: the
-    /// size rule compacts every few commits while segments hold every cell their maps saw,
-    /// and a compaction refits with `append.config.options`, not the options the file was
-    /// built with (files do not record them).
+    /// Compact the file after a commit when due (see [`Recorder`]); `true` by default. A
+    /// compaction refits with `append.config.options`, not the options the file was built
+    /// with (files do not record them).
     pub compact: bool,
 }
+
+impl Default for RecordOptions {
+    fn default() -> Self {
+        Self {
+            commit_every: CommitEvery::default(),
+            append: AppendOptions::default(),
+            spool_dir: None,
+            compact: true,
+        }
+    }
+}
+
+/// When a [`Recorder`] compacts (LIVING-MAP.md, "Refits and compaction"): after a commit,
+/// when the segments' bytes exceed [`SEGMENTS_PER_BASE`] of the base's and the samples
+/// added since the base are at least [`ADDED_PER_BASE`] of the base's, or when the span
+/// from the first sample to the last has reached [`SPAN_GROWTH`] times the base's.
+///
+/// The first rule keeps a file at most 1.5× its base; its guard makes every compaction of a
+/// base of `n` samples follow at least `n / 4` new ones, so that a compaction (a build of
+/// the whole history) costs at most what compacting 5 maps does per map added, however
+/// long the history; the second makes compactions a geometric series in time (each one's history
+/// twice the last one's), refitting models as the span grows.
+pub const SEGMENTS_PER_BASE: (u64, u64) = (1, 2);
+/// See [`SEGMENTS_PER_BASE`].
+pub const ADDED_PER_BASE: (u64, u64) = (1, 4);
+/// See [`SEGMENTS_PER_BASE`].
+pub const SPAN_GROWTH: i64 = 2;
 
 impl RecordOptions {
     /// The options of a live source (a ROS 2 subscription): commits every `commit_every`,
@@ -233,10 +259,12 @@ type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 /// is compacted in place ([`compact`](crate::compact()): base and segments refitted into one
 /// base, equal to a build of the same maps; the build's bounded memory,
 /// [`AppendOptions::memory`]; atomic; under the writer lock the recorder holds) when its
-/// segments exceed half of its base's bytes, or when the span from its first sample to its
-/// last has reached twice the base's span. The first bound keeps the file at most 1.5× its
-/// compacted size at every commit; the second makes compactions a geometric series in time.
-/// Maps are not taken while it runs (a caller's queue or pipe holds them).
+/// segments exceed half of its base's bytes (once the samples added since the base are a
+/// quarter of the base's), or when the span from its first sample to its last has reached
+/// twice the base's span ([`SEGMENTS_PER_BASE`]): at most 1.5× the base at every commit
+/// where segments cost per map at most twice what the base does, at an amortised cost per
+/// map that does not grow with the history. Maps are not taken while it runs (a caller's
+/// queue or pipe holds them).
 ///
 /// ```no_run
 /// use froctomap_convert::*;
@@ -455,13 +483,19 @@ impl<'a> Recorder<'a> {
             return false;
         }
         let root = reader.root();
-        if root.committed_len.saturating_sub(root.base_len) > root.base_len / 2 {
+        let base = &reader.header().axis;
+        let segments = root.committed_len.saturating_sub(root.base_len);
+        let added = u64::from(reader.sample_count().saturating_sub(base.len()));
+        let (s_num, s_den) = SEGMENTS_PER_BASE;
+        let (a_num, a_den) = ADDED_PER_BASE;
+        if segments.saturating_mul(s_den) > root.base_len.saturating_mul(s_num)
+            && added.saturating_mul(a_den) >= u64::from(base.len()).saturating_mul(a_num)
+        {
             return true;
         }
-        let base = &reader.header().axis;
         let base_span = base.end().0.saturating_sub(base.start().0);
         let span = reader.last_instant().0.saturating_sub(base.start().0);
-        span >= base_span.saturating_mul(2)
+        span >= base_span.saturating_mul(SPAN_GROWTH)
     }
 
     /// Compacts the file in place, holding its lock throughout, then opens it again.

@@ -257,8 +257,16 @@ fn appended_segments_retrieve_every_snapshot_as_a_full_build_does() {
     // and the box are new or changing: each kind of cell is exercised.
     assert!(inherited > 0, "no inherited cell");
     assert!(constant > 0 && exceptions > 0, "{constant} {exceptions}");
-    // Segments store what differs from the base: patch tiles occur.
+    // Segments store what differs from the base: patch tiles occur, and the hidden corner
+    // gives some base cells of a patch tile another remainder mask than the rest, or none
+    // (FORMAT.md §10.7).
     assert!(patch_tiles(&reader) > 0, "no patch tile");
+    let regional = (0..reader.segment_count())
+        .flat_map(|k| (0..reader.segment_tiles(k).len()).map(move |t| (k, t)))
+        .filter_map(|(k, t)| reader.remainder(k, t))
+        .filter(|r| !r.runs.is_empty())
+        .count();
+    assert!(regional > 0, "no patch tile with remainder runs");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! Which part of a format 2.0 file's segments costs what: per segment, its stored tile bytes,
 //! record bytes, and each tile stream compressed on its own (zstd level 19), summed over the
-//! segments; the cells of the segments by kind (a patch tile's inherited parts included);
+//! segments; the cells of the segments by kind (a patch tile's inherited parts included,
+//! those observed at no sample left out); the patch tiles and their remainder runs;
 //! and each segment tile's payload (its streams joined) compressed at zstd levels 19, 9, 3
 //! and 1: bytes and compression time, what a commit pays per level.
 //!
@@ -26,7 +27,7 @@ fn main() {
     let (mut stored, mut tiles) = (0u64, 0u64);
     let mut kinds = [0u64; 4]; // constant, constant-except, inherited, with mask
     let mut payloads: Vec<Vec<u8>> = Vec::new();
-    let mut patches = 0u64;
+    let (mut patches, mut regional, mut runs) = (0u64, 0u64, 0u64);
     for k in 0..reader.segment_count() {
         let entries = reader.segment_tiles(k);
         let seg_stored: u64 = entries.iter().map(|t| u64::from(t.stored_len)).sum();
@@ -39,6 +40,10 @@ fn main() {
         tiles += entries.len() as u64;
         for t in 0..entries.len() {
             patches += u64::from(reader.is_patch_tile(k, t));
+            if let Some(remainder) = reader.remainder(k, t).filter(|r| !r.runs.is_empty()) {
+                regional += 1;
+                runs += remainder.runs.len() as u64;
+            }
             let mut payload = Vec::new();
             for (i, (name, s)) in reader
                 .segment_tile_streams(k, t)
@@ -75,7 +80,7 @@ fn main() {
         root.committed_len - root.base_len
     );
     println!(
-        "cells: {} constant, {} constant with exceptions, {} inherited, {} with a mask; {patches} patch tiles",
+        "cells: {} constant, {} constant with exceptions, {} inherited, {} with a mask; {patches} patch tiles, {regional} with {runs} remainder runs (FORMAT.md §10.7)",
         kinds[0], kinds[1], kinds[2], kinds[3]
     );
     println!("| zstd level | segment payload bytes | compression time |");

@@ -16,6 +16,11 @@ pub(crate) struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
+    /// The part of the file being read, for errors.
+    pub(crate) fn part(&self) -> &'static str {
+        self.part
+    }
+
     pub(crate) fn new(bytes: &'a [u8], part: &'static str) -> Self {
         Self {
             bytes,

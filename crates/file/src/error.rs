@@ -247,6 +247,13 @@ pub enum TileEncodeError {
         /// The tile's code.
         code: u64,
     },
+    /// A patch tile's remainder runs must be sorted, disjoint and non-empty, and name masks
+    /// it has and cells of its base tile (FORMAT.md §10.7).
+    #[error("patch tile {code:#x}: remainder runs out of order, empty, or naming a mask or base cell that does not exist")]
+    BadRemainderRuns {
+        /// The tile's code.
+        code: u64,
+    },
     /// The compressor failed.
     #[error("zstd compression failed")]
     Compression(#[source] std::io::Error),

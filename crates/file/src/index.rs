@@ -211,6 +211,9 @@ pub(crate) type IndexParts<'a> = (Vec<TileEntry>, Map<String, Value>, Vec<(u16, 
 
 /// Tag of a segment record's *patch tiles* section (FORMAT.md §10.3, critical).
 pub(crate) const TAG_PATCH_TILES: u16 = 0x0201;
+/// Tag of a segment record's *remainder masks* section (FORMAT.md §10.7, critical): patch
+/// tiles whose remainder more than one mask observes.
+pub(crate) const TAG_REMAINDER_MASKS: u16 = 0x0202;
 
 pub(crate) fn encode_footer(index_offset: u64, index: &[u8]) -> [u8; FOOTER_LEN] {
     let mut out = [0u8; FOOTER_LEN];

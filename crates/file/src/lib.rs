@@ -94,7 +94,8 @@ pub use query::CellValue;
 pub use reader::{FroctReader, FrozenPrediction};
 pub use root::{Root, LIVING_MAJOR_VERSION, LIVING_MINOR_VERSION, ROOT_SLOTS_AT, ROOT_SLOT_LEN};
 pub use segment::{
-    SegmentCell, SegmentContent, SegmentTileEncoder, SEGMENT_MAGIC, SEGMENT_ZSTD_LEVEL,
+    RemainderMask, RemainderRun, SegmentCell, SegmentContent, SegmentTileEncoder, TileRemainder,
+    SEGMENT_MAGIC, SEGMENT_ZSTD_LEVEL,
 };
 pub use source::{ByteSource, FileSource, MemorySource, SeekSource};
 pub use tile::{

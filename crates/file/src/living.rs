@@ -48,8 +48,8 @@ use crate::root::{
     ROOT_SLOT_LEN,
 };
 use crate::segment::{
-    encode_record, InheritedModel, RawRecord, SegmentCell, SegmentContent, SegmentRecord,
-    SegmentTileEncoder,
+    encode_record, InheritedModel, RawRecord, RemainderMask, SegmentCell, SegmentContent,
+    SegmentRecord, SegmentTileEncoder, TileRemainder,
 };
 use crate::source::{ByteSource, FileSource};
 use crate::tile::{CellRef, EncodedTile, WalkNeed};
@@ -266,21 +266,23 @@ impl LivingReader {
                 }));
             }
             let base_tiles = self.base.tiles();
-            let orphan = record
-                .tiles
-                .iter()
-                .zip(&record.patches)
-                .find(|(entry, patch)| {
-                    patch.is_some()
-                        && base_tiles
-                            .binary_search_by_key(&entry.code, |t| t.code)
-                            .is_err()
-                });
-            if let Some((entry, _)) = orphan {
-                return Err(invalid(corrupt(
-                    "segment patch tiles",
-                    format!("patch tile {:#x} has no base tile", entry.code.0),
-                )));
+            for (entry, patch) in record.tiles.iter().zip(&record.patches) {
+                let Some(remainder) = patch else { continue };
+                let Ok(base) = base_tiles.binary_search_by_key(&entry.code, |t| t.code) else {
+                    return Err(invalid(corrupt(
+                        "segment patch tiles",
+                        format!("patch tile {:#x} has no base tile", entry.code.0),
+                    )));
+                };
+                if remainder.ranks_named() > u64::from(base_tiles[base].cell_count) {
+                    return Err(invalid(corrupt(
+                        "segment remainder masks",
+                        format!(
+                            "patch tile {:#x} names base cells its base tile does not have",
+                            entry.code.0
+                        ),
+                    )));
+                }
             }
             last_instant = record.axis.end();
             tiles_from = record.end;
@@ -380,21 +382,24 @@ impl LivingReader {
         segment
             .tiles
             .visit_cells(tile, |cell| cells.push(SegmentCell::from_cell(cell)))?;
-        if let Some(mask) = self.remainder_mask(k, tile) {
+        if let Some(remainder) = self.remainder(k, tile) {
             let covered: Vec<(u64, u64)> = cells
                 .iter()
                 .map(|c| (c.start.0, c.start.0 + voxels_per_node(c.depth)))
                 .collect();
             let code = segment.tiles.tiles()[tile].code;
-            self.visit_uncovered_base_cells(code, &covered, |start, depth, _| {
-                cells.push(SegmentCell {
-                    start,
-                    depth,
-                    mask: mask.clone(),
-                    content: SegmentContent::Inherited {
-                        outliers: Toggles::default(),
-                    },
-                });
+            self.visit_uncovered_base_cells(code, &covered, |start, depth, rank, _| {
+                // A part observed at no sample is not a cell of the segment.
+                if let Some(mask) = remainder.mask_of(rank) {
+                    cells.push(SegmentCell {
+                        start,
+                        depth,
+                        mask: mask.clone(),
+                        content: SegmentContent::Inherited {
+                            outliers: Toggles::default(),
+                        },
+                    });
+                }
             })?;
             cells.sort_unstable_by_key(|c| c.start);
         }
@@ -407,24 +412,30 @@ impl LivingReader {
         self.remainder_mask(k, tile).is_some()
     }
 
-    /// For a patch tile, the observation mask of what it leaves to the base (`Some(None)`:
-    /// observed at every sample that is not missing); `None` for any other tile.
+    /// For a patch tile, the observation mask of what it leaves to the base where no
+    /// remainder run says otherwise (`Some(None)`: observed at every sample that is not
+    /// missing); `None` for any other tile.
     pub fn remainder_mask(&self, k: usize, tile: usize) -> Option<Option<Arc<Toggles>>> {
+        self.remainder(k, tile).map(|r| r.default.clone())
+    }
+
+    /// For a patch tile, what observes what it leaves to the base (its default mask, and
+    /// the masks of runs of base cells, FORMAT.md §10.7); `None` for any other tile.
+    pub fn remainder(&self, k: usize, tile: usize) -> Option<&TileRemainder> {
         self.segments
             .get(k)
             .and_then(|s| s.record.patches.get(tile))
-            .cloned()
-            .flatten()
+            .and_then(Option::as_deref)
     }
 
     /// Calls `visit` with the parts of the cells of the base tile `code` that no range of
-    /// `covered` (sorted, disjoint) overlaps, as aligned nodes, each with the base cell it
-    /// lies in: the cell's start and depth.
+    /// `covered` (sorted, disjoint) overlaps, as aligned nodes, each with the rank (position
+    /// in the base tile) of the base cell it lies in and that cell.
     fn visit_uncovered_base_cells(
         &self,
         code: MortonCode,
         covered: &[(u64, u64)],
-        mut visit: impl FnMut(MortonCode, u8, &CellRef<'_>),
+        mut visit: impl FnMut(MortonCode, u8, u32, &CellRef<'_>),
     ) -> Result<(), FileError> {
         let Some(base_tile) = self.base.tile_containing(code) else {
             return Err(self.invalid(corrupt(
@@ -437,8 +448,11 @@ impl LivingReader {
         let limit = self.limits.max_cells_per_tile;
         let mut cells = covered.len() as u64;
         let mut parts = Vec::new();
+        let mut rank = 0u32;
         self.base
             .walk_tile(base_tile, WalkNeed::ModelOnly, |cell| {
+                let this = rank;
+                rank = rank.saturating_add(1);
                 if cells > limit {
                     return;
                 }
@@ -449,7 +463,7 @@ impl LivingReader {
                     aligned_nodes(a, b, |start, depth| {
                         cells += 1;
                         if cells <= limit {
-                            visit(start, depth, &cell);
+                            visit(start, depth, this, &cell);
                         }
                     });
                 }
@@ -566,7 +580,7 @@ impl LivingReader {
                 tiles: segment.tiles.tiles().len(),
             });
         };
-        let remainder = self.remainder_mask(k, tile);
+        let remainder = self.remainder(k, tile);
         let patch = remainder.is_some();
         if !entry.may_observe(local) && !patch {
             return Ok(());
@@ -608,17 +622,38 @@ impl LivingReader {
                 }
             }
         }
-        let remainder_observed =
-            remainder.is_some_and(|mask| mask.is_none_or(|mask| mask.parity_at(local)));
-        if remainder_observed && !segment.record.axis.is_missing(local) {
-            // The rest of the base tile, observed in its frozen prediction.
+        // Whether the default mask and each further one observe the remainder here.
+        let observes = |mask: &RemainderMask| mask.as_ref().is_none_or(|m| m.parity_at(local));
+        let observed: Option<(bool, Vec<bool>)> = remainder
+            .filter(|_| !segment.record.axis.is_missing(local))
+            .map(|r| {
+                (
+                    observes(&r.default),
+                    r.masks.iter().map(observes).collect::<Vec<bool>>(),
+                )
+            })
+            .filter(|(default, masks)| *default || masks.contains(&true));
+        if let (Some(remainder), Some((default, masks))) = (remainder, observed) {
+            // The rest of the base tile, observed in its frozen prediction where its masks
+            // say.
             let seconds = self
                 .sample_time(sample)
                 .map_or(0.0, |t| t.secs_since(self.base.header().axis.start()));
             let base_model = self.base.model();
-            self.visit_uncovered_base_cells(entry.code, &covered, |start, depth, cell| {
-                let state = Occupancy::from(cell.probability(base_model, seconds) > 0.5);
-                cells.push((start, depth, Ok(state)));
+            let seen = |rank: u32| {
+                let i = remainder.runs.partition_point(|run| run.first <= rank);
+                match i.checked_sub(1).map(|i| remainder.runs[i]) {
+                    Some(run) if rank - run.first < run.len => {
+                        run.mask.checked_sub(1).is_some_and(|v| masks[v as usize])
+                    }
+                    _ => default,
+                }
+            };
+            self.visit_uncovered_base_cells(entry.code, &covered, |start, depth, rank, cell| {
+                if seen(rank) {
+                    let state = Occupancy::from(cell.probability(base_model, seconds) > 0.5);
+                    cells.push((start, depth, Ok(state)));
+                }
             })?;
             cells.sort_unstable_by_key(|c| c.0);
         }
@@ -1146,8 +1181,8 @@ pub struct SegmentWriter<'w> {
     first_sample: u32,
     offset: u64,
     entries: Vec<TileEntry>,
-    /// Indices (into `entries`) of the patch tiles, with their remainder masks.
-    patches: Vec<(u32, Option<Arc<Toggles>>)>,
+    /// Indices (into `entries`) of the patch tiles, with what observes their remainders.
+    patches: Vec<(u32, TileRemainder)>,
 }
 
 impl std::fmt::Debug for SegmentWriter<'_> {
@@ -1236,10 +1271,26 @@ impl SegmentWriter<'_> {
         tile: &EncodedTile,
         remainder: Option<Arc<Toggles>>,
     ) -> Result<(), FileError> {
-        let beyond = remainder
-            .as_ref()
-            .and_then(|mask| mask.as_slice().last())
-            .is_some_and(|&last| last >= self.axis.len());
+        self.write_patch_tile_with(tile, TileRemainder::uniform(remainder))
+    }
+
+    /// [`write_patch_tile`](Self::write_patch_tile) whose remainder several masks observe
+    /// (FORMAT.md §10.7): the base cells that `remainder`'s runs name (by rank in the base
+    /// tile) take their run's mask, or are observed at no sample, the others the default
+    /// mask. The runs must be sorted, disjoint, non-empty, name masks the remainder has and
+    /// base cells the base tile has; every mask obeys `write_patch_tile`'s rules
+    /// ([`FileError::TileEncode`] otherwise, nothing written).
+    pub fn write_patch_tile_with(
+        &mut self,
+        tile: &EncodedTile,
+        remainder: TileRemainder,
+    ) -> Result<(), FileError> {
+        let masks = || std::iter::once(&remainder.default).chain(&remainder.masks);
+        let beyond = masks().any(|mask| {
+            mask.as_ref()
+                .and_then(|mask| mask.as_slice().last())
+                .is_some_and(|&last| last >= self.axis.len())
+        });
         if beyond {
             return Err(FileError::TileEncode {
                 path: self.writer.path.clone(),
@@ -1249,7 +1300,7 @@ impl SegmentWriter<'_> {
                 },
             });
         }
-        if remainder.as_ref().is_some_and(|mask| mask.is_empty()) {
+        if masks().any(|mask| mask.as_ref().is_some_and(|mask| mask.is_empty())) {
             return Err(FileError::TileEncode {
                 path: self.writer.path.clone(),
                 source: TileEncodeError::EmptyRemainderMask {
@@ -1257,16 +1308,20 @@ impl SegmentWriter<'_> {
                 },
             });
         }
-        if self
-            .writer
-            .reader
-            .base
-            .tile_containing(tile.code())
-            .is_none()
-        {
+        let base = &self.writer.reader.base;
+        let Some(base_tile) = base.tile_containing(tile.code()) else {
             return Err(FileError::TileEncode {
                 path: self.writer.path.clone(),
                 source: TileEncodeError::NoBaseTile {
+                    code: tile.code().0,
+                },
+            });
+        };
+        let base_cells = u64::from(base.tiles()[base_tile].cell_count);
+        if !remainder.is_well_formed() || remainder.ranks_named() > base_cells {
+            return Err(FileError::TileEncode {
+                path: self.writer.path.clone(),
+                source: TileEncodeError::BadRemainderRuns {
                     code: tile.code().0,
                 },
             });

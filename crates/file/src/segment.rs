@@ -6,7 +6,9 @@ use crate::cursor::Cursor;
 use crate::error::{corrupt, FormatViolation, TileEncodeError};
 use crate::header::push_section;
 use crate::header::{decode_axis, encode_axis};
-use crate::index::{decode_index_with, encode_index, TileEntry, TAG_PATCH_TILES, TAG_SUMMARY};
+use crate::index::{
+    decode_index_with, encode_index, TileEntry, TAG_PATCH_TILES, TAG_REMAINDER_MASKS, TAG_SUMMARY,
+};
 use crate::layout::{Codec, TileLayout};
 use crate::limits::ReadLimits;
 use crate::source::ByteSource;
@@ -215,16 +217,83 @@ pub(crate) struct SegmentRecord {
     /// The segment's tiles (sample ranges in the segment's samples).
     pub(crate) tiles: Vec<TileEntry>,
     /// Per tile: for a *patch tile*, whose base tile's cells are inherited where its own
-    /// cells do not cover them, the observation mask of that remainder (`None` inside: at
-    /// every sample that is not missing); `None` for a plain tile.
-    pub(crate) patches: Vec<Option<RemainderMask>>,
+    /// cells do not cover them, what observes that remainder; `None` for a plain tile.
+    pub(crate) patches: Vec<Option<Arc<TileRemainder>>>,
     /// One past the record's last byte.
     pub(crate) end: u64,
 }
 
 /// The observation mask of what a patch tile leaves to the base (`None`: observed at every
 /// sample of the segment that is not missing).
-pub(crate) type RemainderMask = Option<Arc<Toggles>>;
+pub type RemainderMask = Option<Arc<Toggles>>;
+
+/// What observes the remainder of a patch tile (FORMAT.md §10.6, §10.7): by default the
+/// tile's remainder mask; the base cells (by rank: their position in the base tile, in
+/// Morton order) that `runs` list take one of `masks` instead, or are observed at no sample
+/// of the segment. A partial view hides whole regions: the base cells inside one share a
+/// mask, and a run of ranks says so for all of them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TileRemainder {
+    /// The mask of base cells no run lists.
+    pub default: RemainderMask,
+    /// Further masks, which runs name from 1 (`masks[v - 1]`).
+    pub masks: Vec<RemainderMask>,
+    /// Runs of base cells with another mask, by increasing, disjoint rank ranges.
+    pub runs: Vec<RemainderRun>,
+}
+
+/// Consecutive base cells of a patch tile whose remainder another mask observes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RemainderRun {
+    /// Rank of the first base cell (its position in the base tile, from 0).
+    pub first: u32,
+    /// Base cells in the run (≥ 1).
+    pub len: u32,
+    /// `0`: observed at no sample of the segment; `v ≥ 1`: at `masks[v - 1]`.
+    pub mask: u32,
+}
+
+impl TileRemainder {
+    /// One mask for the whole remainder.
+    pub fn uniform(mask: RemainderMask) -> Self {
+        Self {
+            default: mask,
+            masks: Vec::new(),
+            runs: Vec::new(),
+        }
+    }
+
+    /// The mask observing the remainder of base cell `rank` (`None`: observed at no sample).
+    pub fn mask_of(&self, rank: u32) -> Option<&RemainderMask> {
+        let i = self.runs.partition_point(|run| run.first <= rank);
+        match i.checked_sub(1).map(|i| self.runs[i]) {
+            Some(run) if rank - run.first < run.len => match run.mask {
+                0 => None,
+                v => self.masks.get(v as usize - 1),
+            },
+            _ => Some(&self.default),
+        }
+    }
+
+    /// One past the last base cell rank the runs name (0 without runs).
+    pub fn ranks_named(&self) -> u64 {
+        self.runs
+            .last()
+            .map_or(0, |run| u64::from(run.first) + u64::from(run.len))
+    }
+
+    /// `true` when the runs are sorted, disjoint, non-empty and name existing masks.
+    pub(crate) fn is_well_formed(&self) -> bool {
+        let mut end = 0u64;
+        self.runs.iter().all(|run| {
+            let ok = run.len >= 1
+                && u64::from(run.first) >= end
+                && run.mask as usize <= self.masks.len();
+            end = u64::from(run.first) + u64::from(run.len);
+            ok
+        })
+    }
+}
 
 /// The record's bytes: head, body (axis piece, tile index, and the patch tiles section when
 /// `patches`, the indices of the patch tiles in increasing order with their remainder
@@ -234,20 +303,31 @@ pub(crate) fn encode_record(
     first_sample: u32,
     axis: &TimeAxis,
     tiles: &[TileEntry],
-    patches: &[(u32, RemainderMask)],
+    patches: &[(u32, TileRemainder)],
 ) -> Result<Vec<u8>, TileEncodeError> {
     let mut body = encode_axis(axis);
     body.extend(encode_index(tiles, &Map::new()));
     if !patches.is_empty() {
         let indices: Vec<u32> = patches.iter().map(|p| p.0).collect();
         let mut payload = encode_runs(&indices);
-        for (_, mask) in patches {
-            match mask {
-                Some(mask) => mask.encode(&mut payload),
-                None => Toggles::default().encode(&mut payload),
-            }
+        for (_, remainder) in patches {
+            encode_mask(&remainder.default, &mut payload);
         }
         push_section(&mut body, TAG_PATCH_TILES, true, &payload);
+        let regional: Vec<(usize, &TileRemainder)> = patches
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, r))| !r.runs.is_empty())
+            .map(|(i, (_, r))| (i, r))
+            .collect();
+        if !regional.is_empty() {
+            push_section(
+                &mut body,
+                TAG_REMAINDER_MASKS,
+                true,
+                &encode_regions(&regional),
+            );
+        }
     }
     let body_len =
         u32::try_from(body.len()).map_err(|_| TileEncodeError::TooLarge("segment index"))?;
@@ -361,12 +441,17 @@ impl RawRecord {
             tiles_from..self.offset,
             tile_depth,
             limits,
-            &[TAG_SUMMARY, TAG_PATCH_TILES],
+            &[TAG_SUMMARY, TAG_PATCH_TILES, TAG_REMAINDER_MASKS],
         )?;
         let mut patches = vec![None; tiles.len()];
-        if let Some((_, payload)) = sections.iter().find(|(tag, _)| *tag == TAG_PATCH_TILES) {
+        let section = |tag: u16| sections.iter().find(|s| s.0 == tag).map(|s| s.1);
+        if let Some(payload) = section(TAG_PATCH_TILES) {
             decode_patches(payload, axis.len(), &mut patches)?;
         }
+        if let Some(payload) = section(TAG_REMAINDER_MASKS) {
+            decode_regions(payload, axis.len(), &mut patches)?;
+        }
+        let patches = patches.into_iter().map(|p| p.map(Arc::new)).collect();
         if let Some(t) = tiles.iter().find(|t| t.last_sample >= axis.len()) {
             return Err(corrupt(
                 "segment index",
@@ -381,6 +466,39 @@ impl RawRecord {
             end,
         })
     }
+}
+
+/// A remainder mask as FORMAT.md §10.6 stores it: a toggle list, empty for every sample.
+fn encode_mask(mask: &RemainderMask, out: &mut Vec<u8>) {
+    match mask {
+        Some(mask) => mask.encode(out),
+        None => Toggles::default().encode(out),
+    }
+}
+
+/// The `REMAINDER_MASKS` payload (FORMAT.md §10.7) of the patch tiles with runs, given by
+/// their position among the patch tiles, increasing.
+fn encode_regions(regional: &[(usize, &TileRemainder)]) -> Vec<u8> {
+    let mut out = Vec::new();
+    varint::write_u64(&mut out, regional.len() as u64);
+    let mut next = 0usize;
+    for &(position, remainder) in regional {
+        varint::write_u64(&mut out, (position - next) as u64);
+        next = position + 1;
+        varint::write_u64(&mut out, remainder.masks.len() as u64);
+        for mask in &remainder.masks {
+            encode_mask(mask, &mut out);
+        }
+        varint::write_u64(&mut out, remainder.runs.len() as u64);
+        let mut end = 0u32;
+        for run in &remainder.runs {
+            varint::write_u32(&mut out, run.first - end);
+            varint::write_u32(&mut out, run.len);
+            varint::write_u32(&mut out, run.mask);
+            end = run.first + run.len;
+        }
+    }
+    out
 }
 
 /// Increasing tile indices as runs (FORMAT.md §10.3): a varint run count, then per run the
@@ -410,7 +528,7 @@ fn encode_runs(indices: &[u32]) -> Vec<u8> {
 fn decode_patches(
     payload: &[u8],
     samples: u32,
-    patches: &mut [Option<RemainderMask>],
+    patches: &mut [Option<TileRemainder>],
 ) -> Result<(), FormatViolation> {
     let mut c = Cursor::new(payload, "segment patch tiles");
     let count = c.varint()?;
@@ -436,18 +554,101 @@ fn decode_patches(
         }
     }
     for tile in listed {
-        let rest = c.take(c.remaining())?;
-        let (mask, used) = Toggles::decode(rest, samples).map_err(|_| {
-            corrupt(
-                "segment patch tiles",
-                "a remainder mask is malformed or reaches past the segment's samples",
-            )
-        })?;
-        c = Cursor::new(&rest[used..], "segment patch tiles");
-        patches[tile] = Some((!mask.is_empty()).then(|| Arc::new(mask)));
+        let mask = decode_mask(&mut c, samples)?;
+        patches[tile] = Some(TileRemainder::uniform(mask));
     }
     if !c.is_empty() {
         return Err(corrupt("segment patch tiles", "bytes after the last mask"));
+    }
+    Ok(())
+}
+
+/// One remainder mask (a toggle list, positions below `samples`; empty: every sample).
+fn decode_mask(c: &mut Cursor<'_>, samples: u32) -> Result<RemainderMask, FormatViolation> {
+    let part = c.part();
+    let rest = c.take(c.remaining())?;
+    let (mask, used) = Toggles::decode(rest, samples).map_err(|_| {
+        corrupt(
+            part,
+            "a remainder mask is malformed or reaches past the segment's samples",
+        )
+    })?;
+    *c = Cursor::new(&rest[used..], part);
+    Ok((!mask.is_empty()).then(|| Arc::new(mask)))
+}
+
+/// Adds the `REMAINDER_MASKS` section's masks and runs (FORMAT.md §10.7) to the patch tiles
+/// (`patches`, one per tile of the segment, `Some` for a patch tile) it names by position
+/// among them. A run's ranks are checked against the base tile when the segment is opened.
+fn decode_regions(
+    payload: &[u8],
+    samples: u32,
+    patches: &mut [Option<TileRemainder>],
+) -> Result<(), FormatViolation> {
+    const PART: &str = "segment remainder masks";
+    let mut c = Cursor::new(payload, PART);
+    let listed: Vec<usize> = (0..patches.len())
+        .filter(|&t| patches[t].is_some())
+        .collect();
+    let count = c.varint()?;
+    // Each tile takes at least three bytes (gap, masks, runs).
+    let count = c.check_count("tiles with remainder masks", count, listed.len() as u64, 3)?;
+    let mut next = 0u64;
+    for _ in 0..count {
+        let position = next
+            .checked_add(c.varint()?)
+            .filter(|&p| p < listed.len() as u64);
+        let Some(position) = position else {
+            return Err(corrupt(
+                PART,
+                "names a patch tile the segment does not have",
+            ));
+        };
+        next = position + 1;
+        let masks = c.varint()?;
+        // A mask takes at least one byte.
+        let masks = c.check_count("remainder masks of a tile", masks, u64::from(u32::MAX), 1)?;
+        let masks = (0..masks)
+            .map(|_| decode_mask(&mut c, samples))
+            .collect::<Result<Vec<_>, _>>()?;
+        let runs = c.varint()?;
+        // A run takes three bytes; a tile lists at least one.
+        let runs = c.check_count("remainder runs of a tile", runs, u64::from(u32::MAX), 3)?;
+        if runs == 0 {
+            return Err(corrupt(PART, "a tile lists no run"));
+        }
+        let mut end = 0u64;
+        let mut parsed = Vec::with_capacity(runs);
+        for _ in 0..runs {
+            let (gap, len, mask) = (c.varint()?, c.varint()?, c.varint()?);
+            let first = end.checked_add(gap).filter(|&f| f <= u64::from(u32::MAX));
+            let stop = first
+                .and_then(|f| f.checked_add(len))
+                .filter(|&s| s <= u64::from(u32::MAX) + 1);
+            let (Some(first), Some(stop)) = (first, stop) else {
+                return Err(corrupt(PART, "a run's ranks overflow"));
+            };
+            if len == 0 || mask > masks.len() as u64 {
+                return Err(corrupt(
+                    PART,
+                    "a run is empty or names a mask the tile does not have",
+                ));
+            }
+            parsed.push(RemainderRun {
+                first: first as u32,
+                len: (stop - first) as u32,
+                mask: mask as u32,
+            });
+            end = stop;
+        }
+        let tile = listed[position as usize];
+        if let Some(remainder) = &mut patches[tile] {
+            remainder.masks = masks;
+            remainder.runs = parsed;
+        }
+    }
+    if !c.is_empty() {
+        return Err(corrupt(PART, "bytes after the last run"));
     }
     Ok(())
 }

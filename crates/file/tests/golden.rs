@@ -261,6 +261,37 @@ fn writer_reproduces_the_patch_golden_file() {
     assert!(reader.is_patch_tile(0, 0));
 }
 
+/// A format 2.0 file with a patch tile whose remainder several masks observe (FORMAT.md
+/// §10.7), which readers before that section refuse: `common::living::write_remainder_golden`.
+/// Regenerated like the others.
+const REMAINDER_GOLDEN: &str = "golden-v2.0-remainder.froct";
+
+#[test]
+fn writer_reproduces_the_remainder_golden_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fresh = dir.path().join(REMAINDER_GOLDEN);
+    common::living::write_remainder_golden(&fresh);
+    let fresh = std::fs::read(&fresh).unwrap();
+    if std::env::var_os("FROCTOMAP_REGENERATE_GOLDEN").is_some() {
+        froctomap_core::write_atomically(&golden_path_of(REMAINDER_GOLDEN), |out| {
+            out.write_all(&fresh)
+        })
+        .unwrap();
+    }
+    let committed =
+        std::fs::read(golden_path_of(REMAINDER_GOLDEN)).expect("the golden file is committed");
+    assert!(
+        committed == fresh,
+        "the writer's output differs from fixtures/froct/{REMAINDER_GOLDEN}; if the format \
+         changed on purpose, bump the version, keep reading the old golden file, and add a new one"
+    );
+    let reader = froctomap_file::LivingReader::open(&golden_path_of(REMAINDER_GOLDEN)).unwrap();
+    assert_eq!(reader.remainder(0, 0).map(|r| r.runs.len()), Some(2));
+    // The patch golden file, written before remainder runs, reads with one mask throughout.
+    let reader = froctomap_file::LivingReader::open(&golden_path_of(PATCH_GOLDEN)).unwrap();
+    assert!(reader.remainder(0, 0).is_some_and(|r| r.runs.is_empty()));
+}
+
 /// The format 2.0 golden file the first 2.0 release wrote, never regenerated.
 const RELEASED_LIVING_GOLDEN: &str = "golden-v2.0-r0.froct";
 

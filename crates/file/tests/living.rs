@@ -1127,9 +1127,10 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
         |v| !matches!(v, FormatViolation::Checksum(_)),
     );
     // What the first 2.0 release does with a patch tile section: an unknown critical
-    // segment record section is an unsupported feature, never a plain tile.
+    // segment record section (here 0x0203, which no release knows) is an unsupported
+    // feature, never a plain tile.
     assert_violation(
-        &patched(&|b| b[section] = 0x02),
+        &patched(&|b| b[section] = 0x03),
         ReadLimits::default(),
         |v| matches!(v, FormatViolation::UnsupportedFeature(_)),
     );

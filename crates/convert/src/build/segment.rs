@@ -47,11 +47,9 @@ use crate::progress::Progress;
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
 use froctomap_file::{
     mask_from_ranges, EncodedTile, FroctReader, FrozenPrediction, LivingReader, LivingWriter,
-    SegmentCell, SegmentContent, SegmentTileEncoder,
+    RemainderMask, RemainderRun, SegmentCell, SegmentContent, SegmentTileEncoder, TileRemainder,
 };
-use froctomap_temporal::{
-    OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, Toggles, VoxelObservations,
-};
+use froctomap_temporal::{OutlierMode, PreparedModel, TimeAxis, ToggleBuilder, VoxelObservations};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -155,7 +153,7 @@ pub(super) fn add_segment(
                 .take(batch)
                 .map(|tile| Ok((tile?, segment.tile_encoder())))
                 .collect::<Result<_, ConvertError>>()?;
-            let encoded: Vec<(EncodedTile, Option<RemainderMask>, TileStats, u64)> = chunk
+            let encoded: Vec<(EncodedTile, Option<TileRemainder>, TileStats, u64)> = chunk
                 .into_par_iter()
                 .map(|(tile, encoder)| {
                     let cells: Vec<PackedCell> = tile.into_packed();
@@ -170,7 +168,7 @@ pub(super) fn add_segment(
                 .collect::<Result<_, ConvertError>>()?;
             for (tile, patch, tile_stats, cells) in encoded {
                 match patch {
-                    Some(remainder) => segment.write_patch_tile(&tile, remainder)?,
+                    Some(remainder) => segment.write_patch_tile_with(&tile, remainder)?,
                     None => segment.write_tile(&tile)?,
                 }
                 stats.add(&tile_stats);
@@ -438,33 +436,42 @@ impl BaseJoin<'_> {
 }
 
 impl BaseJoin<'_> {
-    /// The tile as a *patch tile* (FORMAT.md §10.3) when it can be one: `Ok` with the
-    /// pieces (of the cells' common refinement with the base tile's) whose states differ
-    /// from the base cell's frozen prediction or that are not observed at every sample (at
-    /// least one piece, as a tile holds a cell), all others being inherited by the patch
-    /// tile; `Err` with the cells when some base voxel is never observed over the segment
-    /// (a patch tile would make it observed) or the base has no tile there.
+    /// The tile as a *patch tile* (FORMAT.md §10.6, §10.7) when the base has a tile with its
+    /// code: `Ok` with the pieces (of the cells' common refinement with the base tile's)
+    /// it stores (at least one, as a tile holds a cell) and what observes the rest, which
+    /// it leaves to the base's frozen predictions; `Err` with the cells when the base has
+    /// no tile there.
+    ///
+    /// Each base cell's remainder takes the most common mask among its pieces that follow
+    /// its frozen prediction wherever observed (a partial view hides whole regions, whose
+    /// pieces share one), or no sample when a part of it is never observed over the
+    /// segment; the tile's default mask is the one most base cells take, the others are
+    /// runs of ranks. Every other piece is stored: another state than the prediction at
+    /// some sample, another mask, outside every base cell, or in a base cell of which a
+    /// part is never observed.
     #[allow(clippy::type_complexity)]
     fn patch(
         &self,
         chooser: &ContentChooser<'_>,
         cells: Vec<PackedCell>,
-    ) -> Result<Result<(Vec<JoinedPiece>, RemainderMask), Vec<PackedCell>>, ConvertError> {
+    ) -> Result<Result<(Vec<JoinedPiece>, TileRemainder), Vec<PackedCell>>, ConvertError> {
         let Some(index) = cells
             .first()
             .and_then(|cell| self.base.tile_containing(cell.0))
         else {
             return Ok(Err(cells));
         };
-        let mut base_cells: Vec<Piece<Frozen>> = Vec::new();
+        let mut base_cells: Vec<Piece<(u32, Frozen)>> = Vec::new();
         self.base
             .visit_frozen_predictions(index, |start, depth, prediction| {
                 let owned = match prediction {
                     FrozenPrediction::State(state) => Frozen::State(state),
                     FrozenPrediction::Model(parameters) => Frozen::Model(Arc::from(parameters)),
                 };
-                base_cells.push((start, depth, owned));
+                let rank = base_cells.len() as u32;
+                base_cells.push((start, depth, (rank, owned)));
             })?;
+        let ranks = base_cells.len();
         let indexed: Vec<Piece<usize>> = cells
             .iter()
             .enumerate()
@@ -472,17 +479,19 @@ impl BaseJoin<'_> {
             .collect();
         // Each cell decoded once, when its first piece needs it.
         let mut decoded: Vec<Option<Observed>> = vec![None; cells.len()];
-        // The pieces with the cell they come from and whether they follow the prediction
-        // wherever observed.
-        let mut pieces: Vec<(MortonCode, u8, usize, Option<Frozen>, bool)> = Vec::new();
-        let mut patchable = true;
+        // Per base cell: a part of it is never observed over the segment.
+        let mut unobserved = vec![false; ranks];
+        // The observed pieces with the cell they come from, the base cell holding them, and
+        // whether they follow its prediction wherever observed.
+        let mut pieces: Vec<(MortonCode, u8, usize, Option<(u32, Frozen)>, bool)> = Vec::new();
         common_refinement(indexed, base_cells, |start, depth, new, base| {
-            if !patchable {
-                return Ok(());
-            }
+            let never = |base: &Option<(u32, Frozen)>, unobserved: &mut Vec<bool>| {
+                if let Some((rank, _)) = base {
+                    unobserved[*rank as usize] = true;
+                }
+            };
             let Some(i) = new else {
-                // A base voxel the segment never observes.
-                patchable = false;
+                never(&base, &mut unobserved);
                 return Ok(());
             };
             let observed = match &mut decoded[i] {
@@ -490,41 +499,120 @@ impl BaseJoin<'_> {
                 slot => slot.insert(chooser.observed(&cells[i].2)?),
             };
             if observed.mask.as_ref().is_some_and(|mask| mask.is_empty()) {
-                // Observed at no sample: a remainder cannot say so (the writer refuses an
-                // empty remainder mask), so the tile is stored whole.
-                patchable = false;
+                // Observed at no sample: unknown, as a part no cell covers.
+                never(&base, &mut unobserved);
                 return Ok(());
             }
             let predicted = base
                 .as_ref()
-                .is_some_and(|base| chooser.predicts(observed, base));
+                .is_some_and(|(_, base)| chooser.predicts(observed, base));
             pieces.push((start, depth, i, base, predicted));
             Ok::<(), ConvertError>(())
         })?;
-        if !patchable {
-            return Ok(Err(cells));
-        }
-        // The remainder's mask: the most common one among the predicted pieces (a partial
-        // view hides whole regions, whose pieces share it).
-        let mut masks: Vec<(&RemainderMask, usize)> = Vec::new();
-        for piece in pieces.iter().filter(|p| p.4) {
-            let mask = decoded[piece.2].as_ref().map(|o| &o.mask);
-            let Some(mask) = mask else { continue };
-            if let Some((_, count)) = masks.iter_mut().find(|(m, _)| *m == mask) {
-                *count += 1;
-            } else if masks.len() < MAX_REMAINDER_CANDIDATES {
-                // Bounded: a tile of many distinct masks keeps the first ones.
-                masks.push((mask, 1));
+        // The candidate masks (bounded: a tile of many distinct masks keeps the first
+        // ones), each predicted piece's, and per base cell the votes of its pieces (pieces
+        // of one base cell are consecutive).
+        let mut candidates: Vec<&RemainderMask> = Vec::new();
+        let mut candidate_of: Vec<Option<usize>> = vec![None; pieces.len()];
+        let mut choice: Vec<Option<usize>> = vec![None; ranks];
+        let mut votes: Vec<(usize, usize)> = Vec::new();
+        let mut group: Option<u32> = None;
+        let mut close = |rank: Option<u32>, votes: &mut Vec<(usize, usize)>| {
+            if let Some(rank) = rank {
+                choice[rank as usize] = votes.iter().max_by_key(|v| v.1).map(|v| v.0);
+            }
+            votes.clear();
+        };
+        for (p, piece) in pieces.iter().enumerate() {
+            let rank = piece.3.as_ref().map(|b| b.0);
+            if rank != group {
+                close(group, &mut votes);
+                group = rank;
+            }
+            let (Some(rank), true) = (rank, piece.4) else {
+                continue;
+            };
+            if unobserved[rank as usize] {
+                continue;
+            }
+            let Some(mask) = decoded[piece.2].as_ref().map(|o| &o.mask) else {
+                continue;
+            };
+            let c = match candidates.iter().position(|m| *m == mask) {
+                Some(c) => c,
+                None if candidates.len() < MAX_REMAINDER_CANDIDATES => {
+                    candidates.push(mask);
+                    candidates.len() - 1
+                }
+                None => continue,
+            };
+            candidate_of[p] = Some(c);
+            match votes.iter_mut().find(|v| v.0 == c) {
+                Some(v) => v.1 += 1,
+                None => votes.push((c, 1)),
             }
         }
-        let remainder: RemainderMask = masks
-            .iter()
-            .max_by_key(|(_, count)| *count)
-            .and_then(|(mask, _)| (*mask).clone());
+        close(group, &mut votes);
+        // The default: the mask most base cells take.
+        let mut takers = vec![0usize; candidates.len()];
+        for c in choice.iter().flatten() {
+            takers[*c] += 1;
+        }
+        let default = (0..candidates.len()).max_by_key(|&c| takers[c]);
+        // Per base cell, what observes its remainder (`None`: no sample); a base cell
+        // without a predicted piece has no remainder and takes its neighbour's, so that
+        // runs stay long.
+        let mut resolved: Vec<Option<usize>> = Vec::with_capacity(ranks);
+        for rank in 0..ranks {
+            let value = if unobserved[rank] {
+                None
+            } else {
+                match choice[rank] {
+                    Some(c) => Some(c),
+                    None => resolved.last().copied().unwrap_or(default),
+                }
+            };
+            resolved.push(value);
+        }
+        let mut extras: Vec<usize> = Vec::new();
+        let mut runs: Vec<RemainderRun> = Vec::new();
+        for (rank, &value) in resolved.iter().enumerate() {
+            if value.is_some() && value == default {
+                continue;
+            }
+            let mask = match value {
+                None => 0,
+                Some(c) => match extras.iter().position(|&e| e == c) {
+                    Some(e) => e as u32 + 1,
+                    None => {
+                        extras.push(c);
+                        extras.len() as u32
+                    }
+                },
+            };
+            let rank = rank as u32;
+            match runs.last_mut() {
+                Some(run) if run.first + run.len == rank && run.mask == mask => run.len += 1,
+                _ => runs.push(RemainderRun {
+                    first: rank,
+                    len: 1,
+                    mask,
+                }),
+            }
+        }
+        let mask_of = |c: usize| candidates[c].clone();
+        let remainder = TileRemainder {
+            default: default.and_then(mask_of),
+            masks: extras.iter().map(|&c| mask_of(c)).collect(),
+            runs,
+        };
         let mut differing: Vec<JoinedPiece> = Vec::new();
         let mut first: Option<JoinedPiece> = None;
-        for (start, depth, i, base, predicted) in pieces {
-            let inherits = predicted && decoded[i].as_ref().is_some_and(|o| o.mask == remainder);
+        for (p, (start, depth, i, base, _)) in pieces.into_iter().enumerate() {
+            let inherits = match (&base, candidate_of[p]) {
+                (Some((rank, _)), Some(c)) => resolved[*rank as usize] == Some(c),
+                _ => false,
+            };
             if inherits && first.is_some() {
                 continue;
             }
@@ -532,7 +620,7 @@ impl BaseJoin<'_> {
                 start,
                 depth,
                 cells[i].2.clone(),
-                base.map(BasePrediction::from),
+                base.map(|(_, frozen)| BasePrediction::from(frozen)),
             );
             if inherits {
                 first = Some(piece);
@@ -549,9 +637,6 @@ impl BaseJoin<'_> {
 
 /// Distinct observation masks a tile's remainder is chosen from.
 const MAX_REMAINDER_CANDIDATES: usize = 64;
-
-/// The observation mask of what a patch tile leaves to the base (`None`: every sample).
-type RemainderMask = Option<Arc<Toggles>>;
 
 /// A base cell's frozen prediction, owned.
 #[derive(Clone, Debug)]

@@ -361,3 +361,58 @@ pub fn write_patch_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
     segment.commit().unwrap();
     (axis, base_cells)
 }
+
+/// The remainder golden file (format 2.0 with remainder runs, FORMAT.md §10.7): the golden
+/// 1.2 base converted, then a segment of `golden_segment_axes()[0]` (20 samples,
+/// sample 5 missing) whose one tile is a patch tile over the base's largest tile (4 cells):
+/// base cell 0 stored occupied throughout; base cell 1 left to the mask `[0, 1]` (sample 0
+/// only), base cell 2 to no sample, every other one to the default `[1]` (from sample 1).
+pub fn write_remainder_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
+    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
+    let axis = golden_segment_axes()[0].clone();
+    let mut writer = LivingWriter::open(path).unwrap();
+    let base = writer.reader().base();
+    let largest = (0..base.tiles().len())
+        .max_by_key(|&t| base.tiles()[t].cell_count)
+        .unwrap();
+    let base_cells = base.read_tile(largest).unwrap();
+    assert!(base_cells.len() >= 4, "{}", base_cells.len());
+    let mut segment = writer.begin_segment(axis.clone()).unwrap();
+    let mut encoder = segment.tile_encoder();
+    encoder
+        .push(SegmentCell {
+            start: base_cells[0].start,
+            depth: base_cells[0].depth,
+            mask: None,
+            content: SegmentContent::Constant(Occupancy::Occupied),
+        })
+        .unwrap();
+    let remainder = froctomap_file::TileRemainder {
+        default: remainder_mask(&[1]),
+        masks: vec![remainder_mask(&[0, 1])],
+        runs: vec![
+            froctomap_file::RemainderRun {
+                first: 1,
+                len: 1,
+                mask: 1,
+            },
+            froctomap_file::RemainderRun {
+                first: 2,
+                len: 1,
+                mask: 0,
+            },
+        ],
+    };
+    segment
+        .write_patch_tile_with(&encoder.finish().unwrap(), remainder)
+        .unwrap();
+    segment.commit().unwrap();
+    (axis, base_cells)
+}
+
+/// A remainder mask of these positions.
+pub fn remainder_mask(positions: &[u32]) -> Option<std::sync::Arc<Toggles>> {
+    Some(std::sync::Arc::new(
+        Toggles::new(positions.to_vec()).unwrap(),
+    ))
+}
