@@ -29,6 +29,7 @@
 //! ```
 
 mod bag;
+mod bag_metadata;
 mod encode;
 mod error;
 mod foxglove;
@@ -39,6 +40,7 @@ mod mcap_file;
 mod mcap_lengths;
 mod message;
 mod source;
+mod sqlite_bag;
 mod stream;
 mod topics;
 
@@ -100,7 +102,8 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     create: Some(mcap_export::create),
 };
 
-/// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage.
+/// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage, or
+/// sqlite3 storage (uncompressed, or zstd per message or per file).
 pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     name: "ros2bag",
     description: "ROS 2 bag directory",
@@ -129,30 +132,38 @@ pub fn register(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
     Ok(())
 }
 
-/// A ROS 2 bag directory: its `.mcap` files in name order, read as one recording.
+/// A ROS 2 bag directory: sqlite3 storage (its databases), or MCAP storage (its `.mcap`
+/// files in name order), read as one recording.
 fn open_ros2_bag(
     path: &Path,
     options: &RecordingOptions,
     limit: u64,
 ) -> Result<Recording, RosError> {
+    let metadata = bag_metadata::BagMetadata::read(path)?;
+    if sqlite_bag::is_sqlite_bag(path, &metadata) {
+        return sqlite_bag::open(path, &metadata, options, limit);
+    }
+    if !metadata.compression_mode.is_empty() {
+        return Err(RosError::UnsupportedBagCompression {
+            path: path.to_path_buf(),
+            mode: metadata.compression_mode,
+            format: metadata.compression_format,
+        });
+    }
     let io = |source| RosError::Io {
         path: path.to_path_buf(),
         source,
     };
     let mut files: Vec<PathBuf> = Vec::new();
-    let mut sqlite = false;
     for entry in std::fs::read_dir(path).map_err(io)? {
         let file = entry.map_err(io)?.path();
-        match file.extension().and_then(|e| e.to_str()) {
-            Some("mcap") if file.is_file() => files.push(file),
-            Some("db3") => sqlite = true,
-            _ => {}
+        if file.extension().is_some_and(|e| e == "mcap") && file.is_file() {
+            files.push(file);
         }
     }
     if files.is_empty() {
-        return Err(RosError::NoMcapInBag {
+        return Err(RosError::NoStorageInBag {
             path: path.to_path_buf(),
-            sqlite,
         });
     }
     files.sort_by(|a, b| froctomap_formats::natural_cmp(a, b));
