@@ -801,16 +801,8 @@ fn sqlite3_ros2_bags_build_and_retrieve_their_maps_byte_for_byte() {
 #[test]
 fn hostile_sqlite3_bags_are_refused_naming_the_file() {
     let dir = scratch();
-    let fixtures = workspace_root().join("fixtures/octomap");
     let t0 = 1_700_000_000_000_000_000;
-    let inputs: Vec<SeriesInput> = (0..3)
-        .map(|k| {
-            SeriesInput::new(
-                fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
-                Timestamp(t0 + 60_000_000_000 * k as i64),
-            )
-        })
-        .collect();
+    let inputs = fixture_maps(t0);
     let good = dir.path().join("good");
     let message = dir.path().join("message");
     let file = dir.path().join("file");
@@ -924,4 +916,84 @@ fn chain(error: &dyn std::error::Error) -> String {
         cause = next.source();
     }
     text
+}
+
+/// `info` on every kind of recording (ROS 1 bag, MCAP file, ROS 2 bag directories with MCAP
+/// and sqlite3 storage, compressed per file): its topics, types, message counts and log-time
+/// spans are what rosbags (bags) and mcap (MCAP files) read from the same file.
+#[test]
+fn info_on_recordings_lists_what_rosbags_and_mcap_read() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let t0 = 1_700_000_000_000_000_000;
+    let inputs = fixture_maps(t0);
+    let path = |name: &str| dir.path().join(name);
+    let recordings = [
+        ("ros1", path("run.bag"), "lz4", "rosbag"),
+        ("mcap", path("run.mcap"), "zstd", "mcap"),
+        ("ros2bag", path("mcap_bag"), "none", "ros2bag"),
+        ("ros2sqlite", path("sqlite_bag"), "file", "ros2bag"),
+    ];
+    write_recordings(
+        dir.path(),
+        &recordings
+            .clone()
+            .map(|(kind, path, compression, _)| (kind, path, compression, inputs.iter().collect())),
+    );
+    let context = context(RecordedTime::Header);
+    for (_, path, _, format) in &recordings {
+        let info = froctomap_convert::describe_recording(&context, path)
+            .unwrap()
+            .unwrap();
+        assert_eq!(info.format, *format);
+        let out = run_script("recording_info.py", &[path]);
+        let expected: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let expected = expected.as_object().unwrap();
+        assert_eq!(info.topics.len(), expected.len(), "{path:?}: {info:?}");
+        for topic in &info.topics {
+            let want = &expected[&topic.topic];
+            // rosbags names ROS 1 types as ROS 2 ones (`octomap_msgs/msg/Octomap`).
+            let ros2_name = |name: &str| name.replace("/msg/", "/");
+            assert_eq!(
+                ros2_name(&topic.type_name),
+                ros2_name(want["type"].as_str().unwrap()),
+                "{path:?}"
+            );
+            assert_eq!(
+                topic.messages,
+                want["messages"].as_u64().unwrap(),
+                "{path:?}"
+            );
+            assert_eq!(topic.first_ns, want["first"].as_i64(), "{path:?}");
+            assert_eq!(topic.last_ns, want["last"].as_i64(), "{path:?}");
+        }
+        // The maps' topic: three messages, logged a second after each stamp.
+        let maps = info
+            .topics
+            .iter()
+            .find(|t| t.topic == "/octomap_binary")
+            .unwrap();
+        assert_eq!(maps.messages, 3);
+        assert_eq!(maps.first_ns, Some(t0 + 1_000_000_000));
+        assert_eq!(info.messages, 4, "{path:?}");
+        assert_eq!(info.duration_s, Some(120.0));
+    }
+    // A map file is not a recording.
+    let map = fixtures.join("few_voxels.bt");
+    assert!(froctomap_convert::describe_recording(&context, &map)
+        .unwrap()
+        .is_none());
+}
+
+/// Three fixture maps a minute apart from `t0`.
+fn fixture_maps(t0: i64) -> Vec<SeriesInput> {
+    let fixtures = workspace_root().join("fixtures/octomap");
+    (0..3)
+        .map(|k| {
+            SeriesInput::new(
+                fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
+                Timestamp(t0 + 60_000_000_000 * k as i64),
+            )
+        })
+        .collect()
 }

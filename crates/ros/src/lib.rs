@@ -30,6 +30,7 @@
 
 mod bag;
 mod bag_metadata;
+mod describe;
 mod encode;
 mod error;
 mod foxglove;
@@ -63,6 +64,7 @@ pub use topics::{
 
 use froctomap_formats::{
     Confidence, DuplicateName, FormatRegistry, Recording, RecordingFormat, RecordingOptions,
+    RecordingSummary,
 };
 use std::path::{Path, PathBuf};
 
@@ -76,6 +78,7 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     open_stream: None,
     create: None,
+    describe: Some(|path, limit| Ok(describe::describe_bag(path, limit)?)),
 };
 
 /// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4),
@@ -100,6 +103,7 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     },
     open_stream: Some(|input, options, limit| Ok(stream::open_mcap_stream(input, options, limit)?)),
     create: Some(mcap_export::create),
+    describe: Some(|path, limit| Ok(describe::describe_mcap(path, &[path.to_path_buf()], limit)?)),
 };
 
 /// ROS 2 bag directories (`metadata.yaml` beside the storage files) with MCAP storage, or
@@ -113,6 +117,7 @@ pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     open_stream: None,
     create: None,
+    describe: Some(|path, limit| Ok(describe_ros2_bag(path, limit)?)),
 };
 
 fn confidence(certain: bool) -> Confidence {
@@ -143,6 +148,15 @@ fn open_ros2_bag(
     if sqlite_bag::is_sqlite_bag(path, &metadata) {
         return sqlite_bag::open(path, &metadata, options, limit);
     }
+    refuse_mcap_compression(path, metadata)?;
+    source::open_mcap(path, &mcap_files(path)?, options, limit)
+}
+
+/// MCAP storage with rosbag2 compression is not read.
+fn refuse_mcap_compression(
+    path: &Path,
+    metadata: bag_metadata::BagMetadata,
+) -> Result<(), RosError> {
     if !metadata.compression_mode.is_empty() {
         return Err(RosError::UnsupportedBagCompression {
             path: path.to_path_buf(),
@@ -150,6 +164,11 @@ fn open_ros2_bag(
             format: metadata.compression_format,
         });
     }
+    Ok(())
+}
+
+/// The `.mcap` files of a ROS 2 bag directory with MCAP storage, in name order.
+fn mcap_files(path: &Path) -> Result<Vec<PathBuf>, RosError> {
     let io = |source| RosError::Io {
         path: path.to_path_buf(),
         source,
@@ -167,5 +186,15 @@ fn open_ros2_bag(
         });
     }
     files.sort_by(|a, b| froctomap_formats::natural_cmp(a, b));
-    source::open_mcap(path, &files, options, limit)
+    Ok(files)
+}
+
+/// The topics of a ROS 2 bag directory (`info`).
+fn describe_ros2_bag(path: &Path, limit: u64) -> Result<RecordingSummary, RosError> {
+    let metadata = bag_metadata::BagMetadata::read(path)?;
+    if sqlite_bag::is_sqlite_bag(path, &metadata) {
+        return describe::describe_sqlite(path, &metadata, limit);
+    }
+    refuse_mcap_compression(path, metadata)?;
+    describe::describe_mcap(path, &mcap_files(path)?, limit)
 }

@@ -14,6 +14,7 @@
 //!   A compressed file decompresses to at most [`MAX_FILE_RATIO`] times its size.
 
 use crate::bag_metadata::BagMetadata;
+use crate::describe::{Span, TopicKey};
 use crate::error::RosError;
 use crate::message::{decode_stamp, Encoding, MessageType};
 use crate::source::{message_map_file, select_topic, times, Damage, TopicEntry};
@@ -61,7 +62,7 @@ fn compression(dir: &Path, metadata: &BagMetadata) -> Result<Compression, RosErr
 }
 
 /// One database of the bag.
-struct Database {
+pub(crate) struct Database {
     /// The storage file as the bag names it (`*.db3` or `*.db3.zstd`).
     path: PathBuf,
     /// Its (decompressed) size: no blob is longer.
@@ -183,6 +184,32 @@ impl Database {
         let rows = statement
             .query_map([], |row| {
                 Ok((row.get(0)?, row.get(1)?, row.get(2)?, row.get(3)?))
+            })
+            .and_then(|rows| rows.collect())
+            .map_err(self.sqlite_error());
+        rows
+    }
+
+    /// Every topic with its message count and first and last log times: name, type,
+    /// serialization format, count, span.
+    pub(crate) fn topic_counts(&self) -> Result<Vec<(TopicKey, u64, Span)>, RosError> {
+        let connection = self.connection();
+        let mut statement = connection
+            .prepare(
+                "SELECT topics.name, topics.type, topics.serialization_format, count(messages.topic_id), \
+                 min(messages.timestamp), max(messages.timestamp) \
+                 FROM topics LEFT JOIN messages ON messages.topic_id = topics.id GROUP BY topics.id",
+            )
+            .map_err(self.sqlite_error())?;
+        let rows = statement
+            .query_map([], |row| {
+                let first: Option<i64> = row.get(4)?;
+                let last: Option<i64> = row.get(5)?;
+                Ok((
+                    (row.get(0)?, row.get(1)?, row.get(2)?),
+                    row.get::<_, i64>(3)?.max(0) as u64,
+                    first.zip(last),
+                ))
             })
             .and_then(|rows| rows.collect())
             .map_err(self.sqlite_error());
@@ -428,13 +455,13 @@ pub(crate) fn is_sqlite_bag(dir: &Path, metadata: &BagMetadata) -> bool {
 /// The opened databases of a sqlite3 bag, and the temporary directory holding decompressed
 /// ones.
 pub(crate) struct OpenedBag {
-    databases: Vec<Database>,
+    pub databases: Vec<Database>,
     spool: Option<froctomap_core::TemporaryDir>,
     compressed: bool,
 }
 
 /// Opens the databases of the sqlite3 bag `dir`.
-fn open_databases(
+pub(crate) fn open_databases(
     dir: &Path,
     metadata: &BagMetadata,
     options: &RecordingOptions,
