@@ -15,7 +15,7 @@ use froctomap_formats::{FormatRegistry, ReadOptions};
 use froctomap_synth::{write_series, Generator, SeriesSpec, WriteSeriesOptions};
 use froctomap_test_support::{geb079, octomap_python, scratch, workspace_root};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn context(time: RecordedTime) -> Context {
     let mut context = Context::with_default_plugins();
@@ -213,16 +213,7 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     std::fs::write(&bt_json, bt_of).unwrap();
     let data_dir = dir.path().join("data");
     std::fs::create_dir(&data_dir).unwrap();
-    let out = Command::new(octomap_python())
-        .arg(workspace_root().join("tests/scripts/read_exported_mcap.py"))
-        .args([&mcap, &data_dir, &bt_json])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_script("read_exported_mcap.py", &[&mcap, &data_dir, &bt_json]);
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(report["profile"], "ros2");
     assert_eq!(report["schemas"]["octomap_msgs/msg/Octomap"], "ros2msg");
@@ -703,4 +694,306 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         let (expected, times) = from_bt(&[0, 1], name);
         assert!(observed(&out, &times) == expected, "{name}");
     }
+}
+
+/// The bytes of the map observed at each time, as `retrieve` writes them (`.bt`).
+fn retrieved_bytes(context: &Context, froct: &Path, times: &[Timestamp]) -> Vec<Vec<u8>> {
+    let reader = FroctReader::open(froct).unwrap();
+    let dir = scratch();
+    times
+        .iter()
+        .map(|&t| {
+            let when = resolve_observed(&reader, TimeQuery::Instant(t)).unwrap();
+            assert!(when.exact);
+            let out = dir.path().join(format!("{}.bt", t.0));
+            froctomap_convert::write_observed_map(
+                context,
+                &reader,
+                when.sample,
+                &out,
+                Default::default(),
+            )
+            .unwrap();
+            std::fs::read(&out).unwrap()
+        })
+        .collect()
+}
+
+/// ROS 2 bags with sqlite3 storage written by rosbags, uncompressed and with both of
+/// rosbag2's zstd compression modes (per message, per file): each builds a file from which
+/// every map retrieves byte for byte as the input `.bt` file, at its header stamp (or, with
+/// `--time-source log`, at its log time); `append` takes one too.
+#[test]
+fn sqlite3_ros2_bags_build_and_retrieve_their_maps_byte_for_byte() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
+    let expected: Vec<Vec<u8>> = inputs
+        .iter()
+        .map(|i| std::fs::read(&i.path).unwrap())
+        .collect();
+    let bag = |mode: &str| dir.path().join(format!("sqlite_{mode}"));
+    write_recordings(
+        dir.path(),
+        &["none", "message", "file"]
+            .map(|mode| ("ros2sqlite", bag(mode), mode, inputs.iter().collect())),
+    );
+    // What rosbags wrote: a .db3 (a .db3.zstd for file compression) beside metadata.yaml.
+    assert!(bag("none").join("sqlite_none.db3").is_file());
+    assert!(bag("file").join("sqlite_file.db3.zstd").is_file());
+    let spool = dir.path().join("spool");
+    std::fs::create_dir(&spool).unwrap();
+    for mode in ["none", "message", "file"] {
+        let context = context(RecordedTime::Header);
+        let context = context.with_recording_options(
+            RecordingOptions::new(None, RecordedTime::Header).with_spool_dir(Some(spool.clone())),
+        );
+        let collected = collect_inputs(&context, &[bag(mode)], TimeSource::Auto).unwrap();
+        let got: Vec<Timestamp> = collected.iter().map(|i| i.time).collect();
+        assert_eq!(got, times, "{mode}");
+        let out = dir.path().join(format!("{mode}.froct"));
+        let report = build_with_defaults(&context, &collected, &out);
+        assert_eq!(report.used, inputs.len(), "{mode}");
+        assert!(report.warnings.is_empty(), "{mode}: {:?}", report.warnings);
+        drop(collected);
+        // The decompressed database is gone with the recording.
+        assert_eq!(std::fs::read_dir(&spool).unwrap().count(), 0, "{mode}");
+        let retrieved = retrieved_bytes(&context, &out, &times);
+        for (k, (got, want)) in retrieved.iter().zip(&expected).enumerate() {
+            assert!(got == want, "{mode}: map {k} differs from its input");
+        }
+    }
+    // Log times (one second after each stamp), and append.
+    let context = context(RecordedTime::Log);
+    let logged = collect_inputs(&context, &[bag("message")], TimeSource::Auto).unwrap();
+    let shifted: Vec<Timestamp> = times
+        .iter()
+        .map(|t| Timestamp(t.0 + 1_000_000_000))
+        .collect();
+    assert_eq!(logged.iter().map(|i| i.time).collect::<Vec<_>>(), shifted);
+    let (early, late) = inputs.split_at(inputs.len() / 2);
+    let appended = dir.path().join("appended.froct");
+    build_with_defaults(&Context::with_default_plugins(), early, &appended);
+    let context = self::context(RecordedTime::Header).with_recording_options(
+        RecordingOptions::new(None, RecordedTime::Header).with_skip_bad(false),
+    );
+    let recorded: Vec<SeriesInput> = collect_inputs(&context, &[bag("file")], TimeSource::Auto)
+        .unwrap()
+        .into_iter()
+        .skip(early.len())
+        .collect();
+    assert_eq!(recorded.len(), late.len());
+    append(
+        &context,
+        &appended,
+        &recorded,
+        &AppendOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let retrieved = retrieved_bytes(&context, &appended, &times);
+    assert!(retrieved == expected, "appended from the bag");
+}
+
+/// Hostile sqlite3 storage (made by Python's sqlite3, or rosbags' file cut or changed here):
+/// each is a typed error naming the database file, never a panic, a hang or a large
+/// allocation.
+#[test]
+fn hostile_sqlite3_bags_are_refused_naming_the_file() {
+    let dir = scratch();
+    let t0 = 1_700_000_000_000_000_000;
+    let inputs = fixture_maps(t0);
+    let good = dir.path().join("good");
+    let message = dir.path().join("message");
+    let file = dir.path().join("file");
+    write_recordings(
+        dir.path(),
+        &[
+            ("ros2sqlite", good.clone(), "none", inputs.iter().collect()),
+            (
+                "ros2sqlite",
+                message.clone(),
+                "message",
+                inputs.iter().collect(),
+            ),
+            ("ros2sqlite", file.clone(), "file", inputs.iter().collect()),
+        ],
+    );
+    let db = good.join("good.db3");
+    let hostile = dir.path().join("hostile");
+    std::fs::create_dir(&hostile).unwrap();
+    let out = run_script("hostile_sqlite.py", &[&db, &hostile]);
+    let declared: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let context = context(RecordedTime::Header);
+    // Opened and every map read: the first error.
+    let read_all = |bag: &Path| -> Result<usize, String> {
+        let collected = collect_inputs(&context, &[bag.to_path_buf()], TimeSource::Auto)
+            .map_err(|e| chain(&e))?;
+        let out = bag.with_extension("froct");
+        build(
+            &context,
+            &collected,
+            &out,
+            &BuildOptions::default(),
+            &Silent,
+        )
+        .map_err(|e| chain(&e))?;
+        Ok(collected.len())
+    };
+    assert_eq!(read_all(&good), Ok(3));
+    for (case, expect) in [
+        ("no_messages", "no table `messages`"),
+        ("no_data", "no column `data`"),
+        ("view", "no table `messages`"),
+        ("huge_blob", "good.db3"),
+        ("not_sqlite", "not a database"),
+    ] {
+        let err = read_all(&hostile.join(case)).unwrap_err();
+        assert!(
+            err.contains("good.db3") && err.contains(expect),
+            "{case}: {err}"
+        );
+        if case == "huge_blob" {
+            // Refused for what it claims, before anything of that size is allocated.
+            let claimed = declared["huge_declared"].as_u64().unwrap();
+            assert!(
+                err.contains(&claimed.to_string()) || err.contains("malformed"),
+                "{case}: {err}"
+            );
+        }
+    }
+    // Cut anywhere (the plain and the zstd-compressed database): an error naming the file,
+    // or the maps before the cut.
+    for (bag, name) in [(&good, "good.db3"), (&file, "file.db3.zstd")] {
+        let bytes = std::fs::read(bag.join(name)).unwrap();
+        let cut = dir.path().join(format!("cut_{name}"));
+        std::fs::create_dir(&cut).unwrap();
+        std::fs::copy(bag.join("metadata.yaml"), cut.join("metadata.yaml")).unwrap();
+        for end in (0..bytes.len()).step_by(bytes.len() / 40 + 1) {
+            std::fs::write(cut.join(name), &bytes[..end]).unwrap();
+            if let Err(err) = read_all(&cut) {
+                assert!(err.contains(name), "cut at {end}: {err}");
+            }
+        }
+    }
+    // A compression this reader does not read: named with its mode and format.
+    let metadata = std::fs::read_to_string(message.join("metadata.yaml")).unwrap();
+    assert!(metadata.contains("compression_format: zstd"), "{metadata}");
+    std::fs::write(
+        message.join("metadata.yaml"),
+        metadata.replace("compression_format: zstd", "compression_format: lz4"),
+    )
+    .unwrap();
+    let err = read_all(&message).unwrap_err();
+    assert!(
+        err.contains("message") && err.contains("`lz4`") && err.contains("is not read"),
+        "{err}"
+    );
+}
+
+/// Runs a script of `tests/scripts` with the interop Python, which must succeed: its
+/// standard output.
+fn run_script(script: &str, args: &[&Path]) -> Output {
+    let out = Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts").join(script))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// An error and its causes, one text.
+fn chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut cause = error.source();
+    while let Some(next) = cause {
+        text.push_str(&format!(": {next}"));
+        cause = next.source();
+    }
+    text
+}
+
+/// `info` on every kind of recording (ROS 1 bag, MCAP file, ROS 2 bag directories with MCAP
+/// and sqlite3 storage, compressed per file): its topics, types, message counts and log-time
+/// spans are what rosbags (bags) and mcap (MCAP files) read from the same file.
+#[test]
+fn info_on_recordings_lists_what_rosbags_and_mcap_read() {
+    let dir = scratch();
+    let fixtures = workspace_root().join("fixtures/octomap");
+    let t0 = 1_700_000_000_000_000_000;
+    let inputs = fixture_maps(t0);
+    let path = |name: &str| dir.path().join(name);
+    let recordings = [
+        ("ros1", path("run.bag"), "lz4", "rosbag"),
+        ("mcap", path("run.mcap"), "zstd", "mcap"),
+        ("ros2bag", path("mcap_bag"), "none", "ros2bag"),
+        ("ros2sqlite", path("sqlite_bag"), "file", "ros2bag"),
+    ];
+    write_recordings(
+        dir.path(),
+        &recordings
+            .clone()
+            .map(|(kind, path, compression, _)| (kind, path, compression, inputs.iter().collect())),
+    );
+    let context = context(RecordedTime::Header);
+    for (_, path, _, format) in &recordings {
+        let info = froctomap_convert::describe_recording(&context, path)
+            .unwrap()
+            .unwrap();
+        assert_eq!(info.format, *format);
+        let out = run_script("recording_info.py", &[path]);
+        let expected: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let expected = expected.as_object().unwrap();
+        assert_eq!(info.topics.len(), expected.len(), "{path:?}: {info:?}");
+        for topic in &info.topics {
+            let want = &expected[&topic.topic];
+            // rosbags names ROS 1 types as ROS 2 ones (`octomap_msgs/msg/Octomap`).
+            let ros2_name = |name: &str| name.replace("/msg/", "/");
+            assert_eq!(
+                ros2_name(&topic.type_name),
+                ros2_name(want["type"].as_str().unwrap()),
+                "{path:?}"
+            );
+            assert_eq!(
+                topic.messages,
+                want["messages"].as_u64().unwrap(),
+                "{path:?}"
+            );
+            assert_eq!(topic.first_ns, want["first"].as_i64(), "{path:?}");
+            assert_eq!(topic.last_ns, want["last"].as_i64(), "{path:?}");
+        }
+        // The maps' topic: three messages, logged a second after each stamp.
+        let maps = info
+            .topics
+            .iter()
+            .find(|t| t.topic == "/octomap_binary")
+            .unwrap();
+        assert_eq!(maps.messages, 3);
+        assert_eq!(maps.first_ns, Some(t0 + 1_000_000_000));
+        assert_eq!(info.messages, 4, "{path:?}");
+        assert_eq!(info.duration_s, Some(120.0));
+    }
+    // A map file is not a recording.
+    let map = fixtures.join("few_voxels.bt");
+    assert!(froctomap_convert::describe_recording(&context, &map)
+        .unwrap()
+        .is_none());
+}
+
+/// Three fixture maps a minute apart from `t0`.
+fn fixture_maps(t0: i64) -> Vec<SeriesInput> {
+    let fixtures = workspace_root().join("fixtures/octomap");
+    (0..3)
+        .map(|k| {
+            SeriesInput::new(
+                fixtures.join(["few_voxels.bt", "coarse_leaves.bt"][k % 2]),
+                Timestamp(t0 + 60_000_000_000 * k as i64),
+            )
+        })
+        .collect()
 }

@@ -1,11 +1,12 @@
 """Writes ROS recordings of octomap maps with independent implementations (PyPI rosbags for
-ROS 1 bags and ROS 2 bags with MCAP storage, mcap-ros2-support for plain MCAP), for the
-recording tests of froctomap.
+ROS 1 bags and ROS 2 bags with MCAP or sqlite3 storage, mcap-ros2-support for plain MCAP),
+for the recording tests of froctomap.
 
 Usage: python write_recordings.py SPEC.json
-SPEC: {"recordings": [{"kind": "ros1" | "ros2bag" | "mcap", "path": ... ("-": an MCAP stream
-                        on standard output, written in order without seeking),
-                       "compression": "none" | "bz2" | "lz4" | "zstd",
+SPEC: {"recordings": [{"kind": "ros1" | "ros2bag" | "ros2sqlite" | "mcap", "path": ... ("-":
+                        an MCAP stream on standard output, written in order without seeking),
+                       "compression": "none" | "bz2" | "lz4" | "zstd"
+                                      (ros2sqlite: "none" | "message" | "file", zstd),
                        "chunk_bytes": int (optional: a chunk ends past this size),
                        "messages": [{"topic": ..., "map": FILE.bt, "stamp_ns": int,
                                      "log_ns": int, "whole_file": bool}]}]}
@@ -75,10 +76,15 @@ def write_ros1(spec):
         writer.write(other, spec["messages"][0]["log_ns"], ts.serialize_ros1(chatter(ts), "std_msgs/msg/String"))
 
 
-def write_ros2bag(spec):
-    from rosbags.rosbag2 import StoragePlugin, Writer
+def write_ros2bag(spec, storage="mcap"):
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     ts = typestore(Stores.ROS2_HUMBLE)
-    with Writer(spec["path"], version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+    plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
+    writer = Writer(spec["path"], version=8, storage_plugin=plugin)
+    mode = {"message": CompressionMode.MESSAGE, "file": CompressionMode.FILE}.get(spec["compression"])
+    if mode is not None:
+        writer.set_compression(mode, CompressionFormat.ZSTD)
+    with writer:
         connections = {}
         for m in spec["messages"]:
             if m["topic"] not in connections:
@@ -136,8 +142,10 @@ def write_mcap(spec):
 
 def main():
     spec = json.load(open(sys.argv[1]))
+    writers = {"ros1": write_ros1, "ros2bag": write_ros2bag, "mcap": write_mcap,
+               "ros2sqlite": lambda spec: write_ros2bag(spec, "sqlite3")}
     for recording in spec["recordings"]:
-        {"ros1": write_ros1, "ros2bag": write_ros2bag, "mcap": write_mcap}[recording["kind"]](recording)
+        writers[recording["kind"]](recording)
 
 
 main()

@@ -4,7 +4,8 @@ use crate::ui::{escaped, Ui};
 use anyhow::Result;
 use clap::Args;
 use froctomap_convert::{
-    describe_map_file, group_thousands, refuse_overwriting_input, MapFileInfo, MetricBounds, FROCT,
+    describe_map_file, describe_recording, group_thousands, refuse_overwriting_input, MapFileInfo,
+    MetricBounds, RecordingInfo, FROCT,
 };
 use froctomap_core::Snapshot;
 use froctomap_formats::{Identified, ReadOptions, WriteOptions};
@@ -13,7 +14,8 @@ use std::path::{Path, PathBuf};
 #[derive(Args)]
 pub struct InfoArgs {
     /// The map file: an OctoMap file or a FROctomap file (for format 2.0 also its
-    /// segments, their samples and the committed length).
+    /// segments, their samples and the committed length); or a recording (ROS 1 bag, MCAP
+    /// file, ROS 2 bag directory): its topics, types, message counts and log-time spans.
     file: PathBuf,
     /// For a FROctomap file: recount cells by decoding every tile instead of trusting the
     /// summary written at build time.
@@ -30,6 +32,15 @@ pub struct InfoArgs {
 pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
     let registry = ui.context.formats();
     if args.input_format.is_none() {
+        if let Some(recording) = describe_recording(ui.context, &args.file)? {
+            if args.json {
+                outln!("{}", crate::ui::json_report(&recording)?)?;
+            } else {
+                ui.warn(&args.file, &recording.warnings);
+                print_recording(&recording)?;
+            }
+            return Ok(());
+        }
         if let Some(Identified::Series(format)) = registry.identify_file(&args.file)? {
             if format.name == FROCT.name {
                 return crate::froct_info::froct_info(ui, &args.file, args.json, args.count);
@@ -49,6 +60,35 @@ pub fn info(ui: &Ui, args: &InfoArgs) -> Result<()> {
     } else {
         ui.warn(&args.file, &info.warnings);
         print_info(&info)?;
+    }
+    Ok(())
+}
+
+/// A recording as `ros2 bag info` shows one: span, messages, then each topic.
+fn print_recording(info: &RecordingInfo) -> std::io::Result<()> {
+    let n = group_thousands;
+    outln!("file:      {}", escaped(info.file.display()))?;
+    outln!("format:    {} ({})", info.format, info.format_description)?;
+    if let (Some(start), Some(end), Some(duration)) = (&info.start, &info.end, info.duration_s) {
+        outln!("start:     {start}")?;
+        outln!("end:       {end}")?;
+        outln!("duration:  {duration:.3} s")?;
+    }
+    outln!("messages:  {}", n(info.messages))?;
+    outln!("topics:    {}", info.topics.len())?;
+    for topic in &info.topics {
+        let span = match (&topic.first, &topic.last) {
+            (Some(first), Some(last)) if first == last => format!(", at {first}"),
+            (Some(first), Some(last)) => format!(", {first} .. {last}"),
+            _ => String::new(),
+        };
+        outln!(
+            "  {} [{}, {}]: {} message(s){span}",
+            escaped(&topic.topic),
+            escaped(&topic.type_name),
+            escaped(&topic.encoding),
+            n(topic.messages)
+        )?;
     }
     Ok(())
 }

@@ -114,7 +114,7 @@ pub use record::{
     CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,
     Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
 };
-pub use recording::RecordedMap;
+pub use recording::{describe_recording, RecordedMap, RecordedTopicInfo, RecordingInfo};
 pub use recording_export::occupied_cells_at;
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
 pub use text::{group_thousands, tidy_float, tidy_floats};

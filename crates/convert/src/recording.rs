@@ -96,3 +96,97 @@ pub(crate) fn snapshot_bytes(input: &SeriesInput, limit: u64) -> Result<Vec<u8>,
             .map_err(|e| SnapshotError::Recorded(Arc::from(e))),
     }
 }
+
+/// What `info` says of a recording: its format, messages, log-time span and topics (as
+/// `ros2 bag info` lists them), ready for `--json`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RecordingInfo {
+    /// The recording.
+    pub file: PathBuf,
+    /// Its format's name and description.
+    pub format: &'static str,
+    /// Its format's description.
+    pub format_description: &'static str,
+    /// Messages of all topics.
+    pub messages: u64,
+    /// The first and last log times (ISO 8601), and the span in seconds.
+    pub start: Option<String>,
+    /// The last log time (ISO 8601).
+    pub end: Option<String>,
+    /// Seconds from the first to the last message.
+    pub duration_s: Option<f64>,
+    /// The topics, in name order.
+    pub topics: Vec<RecordedTopicInfo>,
+    /// What the reader tolerated.
+    pub warnings: Vec<String>,
+}
+
+/// One topic of [`RecordingInfo`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RecordedTopicInfo {
+    /// Its name.
+    pub topic: String,
+    /// Its message type.
+    #[serde(rename = "type")]
+    pub type_name: String,
+    /// How its messages are serialised.
+    pub encoding: String,
+    /// Its messages.
+    pub messages: u64,
+    /// Log time of its first message (ISO 8601; nanoseconds in `first_ns`).
+    pub first: Option<String>,
+    /// Log time of its last message.
+    pub last: Option<String>,
+    /// Its first log time, nanoseconds since 1970.
+    pub first_ns: Option<i64>,
+    /// Its last log time, nanoseconds since 1970.
+    pub last_ns: Option<i64>,
+}
+
+/// Describes `path` if it is a recording of a format that can list its topics (`None`: not
+/// a recording).
+pub fn describe_recording(
+    context: &Context,
+    path: &Path,
+) -> Result<Option<RecordingInfo>, ConvertError> {
+    use froctomap_core::calendar::iso8601;
+    let Some(format) = context.formats().recording_for(path) else {
+        return Ok(None);
+    };
+    let Some(describe) = format.describe else {
+        return Ok(None);
+    };
+    let summary = describe(path, context.limits().max_map_file_bytes).map_err(|source| {
+        ConvertError::Recording {
+            path: path.to_path_buf(),
+            format: format.name,
+            source,
+        }
+    })?;
+    let span = summary.log_times();
+    let topics = summary
+        .topics
+        .iter()
+        .map(|t| RecordedTopicInfo {
+            topic: t.topic.clone(),
+            type_name: t.type_name.clone(),
+            encoding: t.encoding.clone(),
+            messages: t.messages,
+            first: t.log_times.map(|(a, _)| iso8601(a)),
+            last: t.log_times.map(|(_, b)| iso8601(b)),
+            first_ns: t.log_times.map(|(a, _)| a.0),
+            last_ns: t.log_times.map(|(_, b)| b.0),
+        })
+        .collect();
+    Ok(Some(RecordingInfo {
+        file: path.to_path_buf(),
+        format: format.name,
+        format_description: format.description,
+        messages: summary.messages(),
+        start: span.map(|(a, _)| iso8601(a)),
+        end: span.map(|(_, b)| iso8601(b)),
+        duration_s: span.map(|(a, b)| b.secs_since(a)),
+        topics,
+        warnings: summary.warnings,
+    }))
+}

@@ -36,6 +36,7 @@ mod tar_maps {
         open,
         open_stream: None,
         create: None,
+        describe: None,
     };
 
     /// Where each map's bytes lie in the archive.

@@ -50,8 +50,9 @@ pub use file_kind::special_kind;
 pub use natural::natural_cmp;
 pub use probe::{Confidence, PROBE_BYTES};
 pub use recording::{
-    CellShade, CreateRecording, ExportedKind, ExportedMap, OccupiedCell, OpenStream, RecordedMaps,
-    RecordedTime, Recording, RecordingFormat, RecordingOptions, RecordingSink, RecordingWriter,
+    CellShade, CreateRecording, DescribeRecording, ExportedKind, ExportedMap, OccupiedCell,
+    OpenStream, RecordedMaps, RecordedTime, RecordedTopic, Recording, RecordingFormat,
+    RecordingOptions, RecordingSink, RecordingSummary, RecordingWriter,
 };
 pub use registry::{
     Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,

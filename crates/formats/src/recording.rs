@@ -138,6 +138,79 @@ pub struct RecordingFormat {
     pub open_stream: Option<OpenStream>,
     /// Writes a new recording of exported maps, if the format can be written.
     pub create: Option<CreateRecording>,
+    /// Lists what a recording holds (every topic, not only maps), if the format can tell:
+    /// `froctomap info` on a recording.
+    pub describe: Option<DescribeRecording>,
+}
+
+/// Lists the topics of the recording at a path (`info`). The `u64` is the largest part
+/// (chunk, message) read whole.
+pub type DescribeRecording = fn(&Path, u64) -> Result<RecordingSummary, PluginError>;
+
+/// One topic of a recording, as `ros2 bag info` lists it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct RecordedTopic {
+    /// Its name.
+    pub topic: String,
+    /// Its message type as the recording names it.
+    pub type_name: String,
+    /// How its messages are serialised (`cdr`, `ros1`…).
+    pub encoding: String,
+    /// Its messages.
+    pub messages: u64,
+    /// The log times of its first and last messages (`None`: no message).
+    pub log_times: Option<(Timestamp, Timestamp)>,
+}
+
+impl RecordedTopic {
+    /// A topic with its messages' count and log-time span.
+    pub fn new(
+        topic: String,
+        type_name: String,
+        encoding: String,
+        messages: u64,
+        log_times: Option<(Timestamp, Timestamp)>,
+    ) -> Self {
+        Self {
+            topic,
+            type_name,
+            encoding,
+            messages,
+            log_times,
+        }
+    }
+}
+
+/// What a recording holds: its topics (in name order) and what its reader tolerated.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct RecordingSummary {
+    /// The topics, in name order.
+    pub topics: Vec<RecordedTopic>,
+    /// Things to tell the user (a missing index read in order…).
+    pub warnings: Vec<String>,
+}
+
+impl RecordingSummary {
+    /// A summary of these topics (sorted by name here).
+    pub fn new(mut topics: Vec<RecordedTopic>, warnings: Vec<String>) -> Self {
+        topics.sort_by(|a, b| a.topic.cmp(&b.topic).then(a.type_name.cmp(&b.type_name)));
+        Self { topics, warnings }
+    }
+
+    /// Messages of all topics.
+    pub fn messages(&self) -> u64 {
+        self.topics.iter().map(|t| t.messages).sum()
+    }
+
+    /// The log times of the first and last messages of all topics.
+    pub fn log_times(&self) -> Option<(Timestamp, Timestamp)> {
+        self.topics
+            .iter()
+            .filter_map(|t| t.log_times)
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+    }
 }
 
 /// Reads a recording from a stream whose first bytes the format's probe recognised

@@ -806,6 +806,7 @@ mod registration_tests {
             open: |_, _, _| Err("not opened".into()),
             open_stream: None,
             create: None,
+            describe: None,
         };
         registry.register_series(series).unwrap();
         // Series and recordings share one namespace: `identify` names either.

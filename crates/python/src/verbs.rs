@@ -8,10 +8,11 @@ use crate::progress::with_progress;
 use crate::series::{build_inputs, duration_ns, model_config_options, series_times, BuildInputs};
 use crate::times::instant;
 use froctomap_convert::{
-    compact as compact_file, describe_map_file, describe_series, export as export_maps, ingest,
-    is_living_file, refuse_overwriting_input, AppendReport, CollectedInputs, CommitEvery,
-    CompactFormat, CompactOptions, ExportMode, ExportOptions, IngestOptions, IngestTarget,
-    RecordEvent, RecordOptions, Recorder, SeriesInput, TimeSource, FROCT,
+    compact as compact_file, describe_map_file, describe_recording, describe_series,
+    export as export_maps, ingest, is_living_file, refuse_overwriting_input, AppendReport,
+    CollectedInputs, CommitEvery, CompactFormat, CompactOptions, ExportMode, ExportOptions,
+    IngestOptions, IngestTarget, RecordEvent, RecordOptions, Recorder, SeriesInput, TimeSource,
+    FROCT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -215,7 +216,8 @@ pub fn convert<'py>(
     json_value(py, &report?)
 }
 
-/// Any file described (`froctomap info --json`): a FROctomap file, or one map file.
+/// Any file described (`froctomap info --json`): a FROctomap file, one map file, or a
+/// recording (ROS 1 bag, MCAP file, ROS 2 bag directory: its topics).
 #[pyfunction]
 #[pyo3(signature = (path, *, count = false, input_format = None))]
 pub fn info<'py>(
@@ -227,6 +229,9 @@ pub fn info<'py>(
     let report = py.detach(|| -> Result<String, Failure> {
         let context = crate::context();
         if input_format.is_none() {
+            if let Some(recording) = describe_recording(context, &path)? {
+                return report_json(&recording);
+            }
             let identified = context
                 .formats()
                 .identify_file(&path)

@@ -71,13 +71,31 @@ pub enum RosError {
         /// The recording.
         path: PathBuf,
     },
-    /// A ROS 2 bag directory whose storage is not MCAP.
-    #[error("{}: ROS 2 bag without .mcap files{}; convert it with `ros2 bag convert` to MCAP storage", path.display(), if *sqlite { " (it uses sqlite3 storage)" } else { "" })]
-    NoMcapInBag {
+    /// A ROS 2 bag directory without storage files (`.mcap`, `.db3`, `.db3.zstd`).
+    #[error("{}: ROS 2 bag without storage files (.mcap, .db3)", path.display())]
+    NoStorageInBag {
         /// The bag directory.
         path: PathBuf,
-        /// It holds `.db3` files.
-        sqlite: bool,
+    },
+    /// A ROS 2 bag compressed in a way this reader does not read (its `metadata.yaml`'s
+    /// `compression_mode` and `compression_format`).
+    #[error("{}: compression mode `{mode}` with format `{format}` is not read (sqlite3 storage: none, message or file with zstd; MCAP storage: none — `ros2 bag convert` rewrites it)", path.display())]
+    UnsupportedBagCompression {
+        /// The bag directory (or its storage file).
+        path: PathBuf,
+        /// `compression_mode`.
+        mode: String,
+        /// `compression_format`.
+        format: String,
+    },
+    /// SQLite refused a database of a ROS 2 bag (it is not a database, is damaged or cut).
+    #[error("{}: SQLite: {source}", path.display())]
+    Sqlite {
+        /// The storage file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: rusqlite::Error,
     },
     /// No topic of an octomap message type.
     #[error("{}: no topic of type octomap_msgs/Octomap; topics: {}", path.display(), list_topics(topics))]

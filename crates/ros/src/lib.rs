@@ -29,6 +29,8 @@
 //! ```
 
 mod bag;
+mod bag_metadata;
+mod describe;
 mod encode;
 mod error;
 mod foxglove;
@@ -39,6 +41,7 @@ mod mcap_file;
 mod mcap_lengths;
 mod message;
 mod source;
+mod sqlite_bag;
 mod stream;
 mod topics;
 
@@ -61,6 +64,7 @@ pub use topics::{
 
 use froctomap_formats::{
     Confidence, DuplicateName, FormatRegistry, Recording, RecordingFormat, RecordingOptions,
+    RecordingSummary,
 };
 use std::path::{Path, PathBuf};
 
@@ -74,6 +78,7 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     open_stream: None,
     create: None,
+    describe: Some(|path, limit| Ok(describe::describe_bag(path, limit)?)),
 };
 
 /// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4),
@@ -98,13 +103,15 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     },
     open_stream: Some(|input, options, limit| Ok(stream::open_mcap_stream(input, options, limit)?)),
     create: Some(mcap_export::create),
+    describe: Some(|path, limit| Ok(describe::describe_mcap(path, &[path.to_path_buf()], limit)?)),
 };
 
-/// ROS 2 bag directories with MCAP storage: `metadata.yaml` beside the storage files, or,
-/// while `ros2 bag record` is writing a bag (it writes `metadata.yaml` when it ends), a
-/// directory `NAME` holding its first split `NAME_0.mcap`. The splits are read in name
-/// order (`NAME_2` before `NAME_10`), each up to its last complete chunk when it has no
-/// summary yet (the split being written).
+/// ROS 2 bag directories: `metadata.yaml` beside the storage files, MCAP storage or sqlite3
+/// storage (uncompressed, or zstd per message or per file); or, while `ros2 bag record` is
+/// writing an MCAP bag (it writes `metadata.yaml` when it ends), a directory `NAME` holding
+/// its first split `NAME_0.mcap`. MCAP splits are read in name order (`NAME_2` before
+/// `NAME_10`), each up to its last complete chunk when it has no summary yet (the split
+/// being written).
 pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     name: "ros2bag",
     description: "ROS 2 bag directory",
@@ -114,6 +121,7 @@ pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     open_stream: None,
     create: None,
+    describe: Some(|path, limit| Ok(describe_ros2_bag(path, limit)?)),
 };
 
 /// Whether the directory `NAME` holds `NAME_0.mcap`, the first split `ros2 bag record`
@@ -141,32 +149,64 @@ pub fn register(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
     Ok(())
 }
 
-/// A ROS 2 bag directory: its `.mcap` files in name order, read as one recording.
+/// A ROS 2 bag directory: sqlite3 storage (its databases), or MCAP storage (its `.mcap`
+/// files in name order), read as one recording.
 fn open_ros2_bag(
     path: &Path,
     options: &RecordingOptions,
     limit: u64,
 ) -> Result<Recording, RosError> {
+    let metadata = bag_metadata::BagMetadata::read(path)?;
+    if sqlite_bag::is_sqlite_bag(path, &metadata) {
+        return sqlite_bag::open(path, &metadata, options, limit);
+    }
+    refuse_mcap_compression(path, metadata)?;
+    source::open_mcap(path, &mcap_files(path)?, options, limit)
+}
+
+/// MCAP storage with rosbag2 compression is not read.
+fn refuse_mcap_compression(
+    path: &Path,
+    metadata: bag_metadata::BagMetadata,
+) -> Result<(), RosError> {
+    if !metadata.compression_mode.is_empty() {
+        return Err(RosError::UnsupportedBagCompression {
+            path: path.to_path_buf(),
+            mode: metadata.compression_mode,
+            format: metadata.compression_format,
+        });
+    }
+    Ok(())
+}
+
+/// The `.mcap` files of a ROS 2 bag directory with MCAP storage, in name order.
+fn mcap_files(path: &Path) -> Result<Vec<PathBuf>, RosError> {
     let io = |source| RosError::Io {
         path: path.to_path_buf(),
         source,
     };
     let mut files: Vec<PathBuf> = Vec::new();
-    let mut sqlite = false;
     for entry in std::fs::read_dir(path).map_err(io)? {
         let file = entry.map_err(io)?.path();
-        match file.extension().and_then(|e| e.to_str()) {
-            Some("mcap") if file.is_file() => files.push(file),
-            Some("db3") => sqlite = true,
-            _ => {}
+        if file.extension().is_some_and(|e| e == "mcap") && file.is_file() {
+            files.push(file);
         }
     }
     if files.is_empty() {
-        return Err(RosError::NoMcapInBag {
+        return Err(RosError::NoStorageInBag {
             path: path.to_path_buf(),
-            sqlite,
         });
     }
     files.sort_by(|a, b| froctomap_formats::natural_cmp(a, b));
-    source::open_mcap(path, &files, options, limit)
+    Ok(files)
+}
+
+/// The topics of a ROS 2 bag directory (`info`).
+fn describe_ros2_bag(path: &Path, limit: u64) -> Result<RecordingSummary, RosError> {
+    let metadata = bag_metadata::BagMetadata::read(path)?;
+    if sqlite_bag::is_sqlite_bag(path, &metadata) {
+        return describe::describe_sqlite(path, &metadata, limit);
+    }
+    refuse_mcap_compression(path, metadata)?;
+    describe::describe_mcap(path, &mcap_files(path)?, limit)
 }

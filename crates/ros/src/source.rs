@@ -135,6 +135,35 @@ impl ChunkCache {
     }
 }
 
+/// The map file a message of `topic` in `path`, logged at `log_ns`, stands for (refused
+/// above `limit` bytes).
+pub(crate) fn message_map_file(
+    path: &Path,
+    topic: &str,
+    kind: MessageType,
+    log_ns: i64,
+    bytes: &[u8],
+    encoding: Encoding,
+    limit: u64,
+) -> Result<Vec<u8>, RosError> {
+    if bytes.len() as u64 > limit {
+        return Err(RosError::TooLarge {
+            path: path.to_path_buf(),
+            what: "map message",
+            bytes: bytes.len() as u64,
+            limit,
+        });
+    }
+    decode_message(bytes, encoding, kind)
+        .and_then(|m| m.map_file())
+        .map_err(|problem| RosError::BadMessage {
+            path: path.to_path_buf(),
+            topic: topic.to_string(),
+            time: iso8601(Timestamp(log_ns)),
+            problem: Box::new(problem),
+        })
+}
+
 impl TopicMaps {
     fn bad_message(&self, log_ns: i64, problem: crate::MessageError) -> RosError {
         RosError::BadMessage {
@@ -172,17 +201,15 @@ impl TopicMaps {
             });
         };
         let decode = |bytes: &[u8], encoding| {
-            if bytes.len() as u64 > limit {
-                return Err(RosError::TooLarge {
-                    path: self.path.clone(),
-                    what: "map message",
-                    bytes: bytes.len() as u64,
-                    limit,
-                });
-            }
-            decode_message(bytes, encoding, self.kind)
-                .and_then(|m| m.map_file())
-                .map_err(|e| self.bad_message(*log_ns, e))
+            message_map_file(
+                &self.path,
+                &self.topic,
+                self.kind,
+                *log_ns,
+                bytes,
+                encoding,
+                limit,
+            )
         };
         match (&self.files, location) {
             (Files::Bag(bag), Location::Bag(found)) => {

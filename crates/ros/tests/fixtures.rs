@@ -118,7 +118,7 @@ fn topics_are_chosen_or_listed() {
 }
 
 #[test]
-fn a_directory_of_bags_is_not_a_ros2_bag_and_a_ros2_bag_without_mcap_is_refused() {
+fn a_directory_of_bags_is_not_a_ros2_bag_and_a_ros2_bag_without_storage_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     assert!(!ROS2_BAG.recognises(dir.path()));
     std::fs::write(
@@ -126,16 +126,26 @@ fn a_directory_of_bags_is_not_a_ros2_bag_and_a_ros2_bag_without_mcap_is_refused(
         "rosbag2_bagfile_information:\n",
     )
     .unwrap();
-    std::fs::write(dir.path().join("x_0.db3"), b"SQLite format 3\0").unwrap();
     assert!(ROS2_BAG.recognises(dir.path()));
     let err = open(&ROS2_BAG, dir.path(), None, RecordedTime::Header).unwrap_err();
     assert!(
         matches!(
             err.downcast_ref::<RosError>(),
-            Some(RosError::NoMcapInBag { sqlite: true, .. })
+            Some(RosError::NoStorageInBag { .. })
         ),
         "{err}"
     );
+    // A database cut after SQLite's magic: SQLite's error, naming the file.
+    std::fs::write(dir.path().join("x_0.db3"), b"SQLite format 3\0").unwrap();
+    let err = open(&ROS2_BAG, dir.path(), None, RecordedTime::Header).unwrap_err();
+    assert!(
+        matches!(
+            err.downcast_ref::<RosError>(),
+            Some(RosError::Sqlite { .. })
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("x_0.db3"), "{err}");
 }
 
 /// Opens a damaged copy and fetches every map: any outcome but a panic.

@@ -60,8 +60,11 @@ def convert(
 
 def info(path: PathLike, *, count: bool = False, input_format: Optional[str] = None) -> Dict[str, Any]:
     """Describes a file as ``froctomap info --json`` does: a FROctomap file (the fields of
-    ``FroctFile.info``; ``count=True`` recounts its cells) or one map file (format,
-    resolution, nodes, leaves, voxels, bounds, warnings)."""
+    ``FroctFile.info``; ``count=True`` recounts its cells), one map file (format,
+    resolution, nodes, leaves, voxels, bounds, warnings) or a recording (a ROS 1 bag, an
+    MCAP file, a ROS 2 bag directory: ``format``, ``messages``, ``start``, ``end``,
+    ``duration_s`` and ``topics``, each with ``topic``, ``type``, ``encoding``,
+    ``messages`` and its first and last log times)."""
 
 def octomap_message_fields(data: bytes) -> Dict[str, Any]:
     """The octomap_msgs/Octomap fields of a map file (see froctomap.message_from_map)."""
