@@ -44,6 +44,12 @@ pub struct GenerateArgs {
     /// Time of the first snapshot (default 2016-01-04T00:00:00Z, a Monday).
     #[arg(long, value_name = "TIME")]
     start: Option<String>,
+    /// Make only the frames at or after TIME of the series: the same maps a run from the
+    /// start gives from TIME on, without making the frames before (unlike --start, which
+    /// moves the whole series). How a long `generate --stream | record` resumes: give the
+    /// recorded file's last sample (`froctomap info`); `record` skips a map it already has.
+    #[arg(long, value_name = "TIME")]
+    from: Option<String>,
     /// Seed of every random choice; the same seed gives the same series.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -122,7 +128,10 @@ pub fn generate_command(ui: &Ui, args: &GenerateArgs) -> Result<()> {
         .map
         .snapshot
         .to_max_likelihood();
-    let generator = Generator::new(&base, spec, None)?;
+    let mut generator = Generator::new(&base, spec, None)?;
+    if let Some(from) = &args.from {
+        generator = generator.with_frames_from(ui.time(from, "--from")?);
+    }
     for warning in generator.warnings() {
         ui.note(&format!("warning: {warning}"));
     }

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::Duration;
 
 #[derive(Args)]
@@ -137,6 +138,40 @@ enum Event {
 /// Set once a signal asked `record` to stop.
 static STOP: AtomicBool = AtomicBool::new(false);
 
+/// Map bytes the stream thread may hold ahead of the recorder (one map at least, however
+/// large): it goes on reading, and the producer of a pipe (`generate --stream |`) on
+/// making maps, while a commit runs, in memory bounded by this and not by the commit.
+const READ_AHEAD_BYTES: usize = 16 << 20;
+
+/// The map bytes read and not yet taken by the recorder, which the stream thread waits on
+/// to stay within [`READ_AHEAD_BYTES`].
+#[derive(Default)]
+struct ReadAhead {
+    bytes: Mutex<usize>,
+    taken: Condvar,
+}
+
+impl ReadAhead {
+    /// Waits until `bytes` more fit (or nothing is held), then holds them.
+    fn hold(&self, bytes: usize) {
+        let mut held = self.bytes.lock().unwrap_or_else(PoisonError::into_inner);
+        while *held > 0 && *held + bytes > READ_AHEAD_BYTES {
+            held = self
+                .taken
+                .wait(held)
+                .unwrap_or_else(PoisonError::into_inner);
+        }
+        *held += bytes;
+    }
+
+    /// `bytes` were taken by the recorder.
+    fn release(&self, bytes: usize) {
+        let mut held = self.bytes.lock().unwrap_or_else(PoisonError::into_inner);
+        *held = held.saturating_sub(bytes);
+        self.taken.notify_one();
+    }
+}
+
 pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     if let Some((limit, default)) = args.spill.max_memory.limit() {
         crate::memory_guard::watch(limit, default, "record");
@@ -144,7 +179,8 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     if let Some(dir) = &args.follow {
         crate::follow::check_dir(dir)?;
     }
-    let (sender, events) = sync_channel::<Event>(4);
+    // Bounded by bytes (ReadAhead), the count only keeps small maps from piling up.
+    let (sender, events) = sync_channel::<Event>(256);
     stop_on_signals(sender.clone());
     if args
         .sources
@@ -434,6 +470,8 @@ fn read_stream(
     let options = recorder.context.recording_options().clone();
     let limit = recorder.context.limits().max_map_file_bytes;
     let skip_bad = recorder.skip_bad;
+    let read_ahead = Arc::new(ReadAhead::default());
+    let held = Arc::clone(&read_ahead);
     // Not joined: at a signal it may be blocked reading, and ends with the process.
     std::thread::Builder::new()
         .name("stream".into())
@@ -441,7 +479,10 @@ fn read_stream(
             let mut maps = McapStreamMaps::new(stdin.lock(), &options, limit);
             loop {
                 let event = match maps.next_map() {
-                    Ok(Some(Ok(map))) => Event::Map(map),
+                    Ok(Some(Ok(map))) => {
+                        held.hold(map.bytes.len());
+                        Event::Map(map)
+                    }
                     Ok(Some(Err(bad))) => Event::BadMap(anyhow!(bad), maps.position()),
                     Ok(None) => Event::End,
                     Err(failed) => Event::Failed(failed),
@@ -457,7 +498,10 @@ fn read_stream(
             return Ok(());
         };
         match event {
-            Event::Map(map) => recorder.take_streamed(&map)?,
+            Event::Map(map) => {
+                read_ahead.release(map.bytes.len());
+                recorder.take_streamed(&map)?
+            }
             Event::BadMap(bad, (bytes, messages)) => {
                 let at = format!("map message {messages} of the stream (byte {bytes})");
                 if !skip_bad {
@@ -638,11 +682,13 @@ fn follow_bag(
     let options = recording.context.recording_options().clone();
     let limit = recording.context.limits().max_map_file_bytes;
     let dir_owned = dir.to_path_buf();
+    let read_ahead = Arc::new(ReadAhead::default());
+    let held = Arc::clone(&read_ahead);
     // Not joined: at a signal it may be waiting for a split to grow, and ends with the
     // process.
     std::thread::Builder::new()
         .name("splits".into())
-        .spawn(move || read_splits(&dir_owned, &options, limit, &sender, &woken))?;
+        .spawn(move || read_splits(&dir_owned, &options, limit, &sender, &woken, &held))?;
     let skip_bad = recording.skip_bad;
     // Until the signal's event: what became ready before it is taken.
     loop {
@@ -650,7 +696,10 @@ fn follow_bag(
             return Ok(());
         };
         match event {
-            Event::Map(map) => recording.take_streamed(&map)?,
+            Event::Map(map) => {
+                read_ahead.release(map.bytes.len());
+                recording.take_streamed(&map)?
+            }
             Event::BadMap(bad, (bytes, messages)) => {
                 if !skip_bad {
                     return Err(anyhow!(bad).context("record stopped"));
@@ -692,6 +741,7 @@ fn read_splits(
     limit: u64,
     sender: &SyncSender<Event>,
     woken: &Receiver<DirEvent>,
+    held: &ReadAhead,
 ) {
     let mut last: Option<PathBuf> = None;
     loop {
@@ -713,7 +763,10 @@ fn read_splits(
         let mut maps = McapStreamMaps::new(growing, options, limit);
         let ended = loop {
             let event = match maps.next_map() {
-                Ok(Some(Ok(map))) => Event::Map(map),
+                Ok(Some(Ok(map))) => {
+                    held.hold(map.bytes.len());
+                    Event::Map(map)
+                }
                 Ok(Some(Err(bad))) => {
                     let (bytes, messages) = maps.position();
                     let at = format!(

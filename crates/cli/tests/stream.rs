@@ -385,3 +385,34 @@ fn append_takes_a_stream() {
     let samples = manifest(&first).len() + manifest(&later).len();
     same_apart_from_metadata(&from_stream, &from_dir, samples, "append -");
 }
+
+/// `generate --from TIME` writes the very files a run from the start writes at or after
+/// TIME (same names, same bytes), and none before: how a long stream resumes.
+#[test]
+fn a_generated_series_resumed_from_a_time_writes_the_same_maps() {
+    let dir = scratch();
+    let whole = dir.path().join("whole");
+    let mut generate = vec!["generate", "-o", s(&whole)];
+    generate.extend(SERIES);
+    ok(&generate);
+    let maps = manifest(&whole);
+    assert!(maps.len() >= 5, "{} maps", maps.len());
+    let from = maps[2].1;
+    let resumed = dir.path().join("resumed");
+    let from_text = from.to_string();
+    let mut generate = vec!["generate", "-o", s(&resumed), "--from", &from_text];
+    generate.extend(SERIES);
+    ok(&generate);
+    let later = manifest(&resumed);
+    let expected: Vec<&(PathBuf, i64)> = maps.iter().filter(|(_, t)| *t >= from).collect();
+    assert_eq!(later.len(), expected.len());
+    for ((path, time), (expected_path, expected_time)) in later.iter().zip(expected) {
+        assert_eq!(time, expected_time);
+        assert_eq!(path.file_name(), expected_path.file_name());
+        assert!(
+            std::fs::read(path).unwrap() == std::fs::read(expected_path).unwrap(),
+            "{} differs",
+            path.display()
+        );
+    }
+}

@@ -205,6 +205,20 @@ impl SeriesHistory {
         }
         self.last_sample = Some(sample);
         self.gaps.extend(self.growing_gap.take());
+        if self.cells.is_empty() {
+            // The first map (of a build, of each segment): every change is space seen for
+            // the first time, so the cells are built in one pass in Morton order instead
+            // of being inserted one by one (what `apply` would do, split and gap free).
+            let mut cells = Vec::new();
+            for &change in changes {
+                self.changed_voxels += change.end - change.start;
+                if let Some(state) = change.new {
+                    self.push_cells(&mut cells, change.start, change.end, sample, state);
+                }
+            }
+            self.cells = cells.into_iter().collect();
+            return Ok(());
+        }
         for &change in changes {
             self.changed_voxels += change.end - change.start;
             self.apply(sample, change);
@@ -260,7 +274,22 @@ impl SeriesHistory {
     }
 
     /// Covers `[from, to)` with maximal aligned cells no coarser than a tile.
-    fn add_cells(&mut self, mut from: u64, to: u64, sample: u32, state: Occupancy) {
+    fn add_cells(&mut self, from: u64, to: u64, sample: u32, state: Occupancy) {
+        let mut cells = Vec::new();
+        self.push_cells(&mut cells, from, to, sample, state);
+        self.cells.extend(cells);
+    }
+
+    /// The maximal aligned cells no coarser than a tile that cover `[from, to)`, in Morton
+    /// order, pushed onto `cells`.
+    fn push_cells(
+        &self,
+        cells: &mut Vec<(u64, CellHistory)>,
+        mut from: u64,
+        to: u64,
+        sample: u32,
+        state: Occupancy,
+    ) {
         while from < to {
             let mut depth = TREE_DEPTH;
             while depth > self.tile_depth {
@@ -270,8 +299,7 @@ impl SeriesHistory {
                 }
                 depth -= 1;
             }
-            self.cells
-                .insert(from, CellHistory::new(depth, Some((state, sample))));
+            cells.push((from, CellHistory::new(depth, Some((state, sample)))));
             from += voxels_per_node(depth);
         }
     }
@@ -573,6 +601,24 @@ mod tests {
         )
     }
 
+    /// A snapshot of a proptest frame: a leaf per `(slot, depth, state)` at voxel `4 * slot`,
+    /// those overlapping an earlier one left out.
+    fn frame_snapshot(frame: Vec<(u16, u8, Option<bool>)>) -> Snapshot {
+        let mut leaves: Vec<Leaf> = Vec::new();
+        for (slot, depth, state) in frame {
+            if let Some(occupied) = state {
+                let l = leaf(slot * 4, depth, occupied);
+                if leaves
+                    .iter()
+                    .all(|o| o.end() <= l.start.0 || l.end() <= o.start.0)
+                {
+                    leaves.push(l);
+                }
+            }
+        }
+        Snapshot::from_leaves(0.1, leaves).unwrap()
+    }
+
     /// The state of a voxel at a sample according to the cells, by brute force.
     fn state(
         cells: &[(MortonCode, u8, VoxelObservations)],
@@ -705,16 +751,7 @@ mod tests {
             let mut sample = 0u32;
             for (i, frame) in frames.into_iter().enumerate() {
                 while absent.contains(&sample) { sample += 1; }
-                let mut leaves: Vec<Leaf> = Vec::new();
-                for (slot, depth, state) in frame {
-                    if let Some(occupied) = state {
-                        let l = leaf(slot * 4, depth, occupied);
-                        if leaves.iter().all(|o| o.end() <= l.start.0 || l.end() <= o.start.0) {
-                            leaves.push(l);
-                        }
-                    }
-                }
-                let snapshot = Snapshot::from_leaves(0.1, leaves).unwrap();
+                let snapshot = frame_snapshot(frame);
                 let diff = changes(&previous, snapshot.leaves());
                 kept.apply_changes(sample, &diff).unwrap();
                 spilling.apply_changes(sample, &diff).unwrap();
@@ -787,6 +824,37 @@ mod tests {
                     prop_assert_eq!(state(&cells, VoxelKey::new(x, 0, 0).morton().0, *s), None);
                 }
             }
+        }
+    }
+
+    proptest! {
+        /// The first map's cells built in one pass are the cells `apply` inserts one by one
+        /// (the same cells, depths and observations), and stay so as later maps split them.
+        #[test]
+        fn first_map_in_one_pass_equals_change_by_change(
+            frames in proptest::collection::vec(proptest::collection::vec((0u16..24, 11u8..=16, proptest::option::of(any::<bool>())), 0..12), 1..5),
+        ) {
+            let mut one_pass = SeriesHistory::new(11);
+            let mut by_change = SeriesHistory::new(11);
+            let mut previous: Vec<Leaf> = Vec::new();
+            for (sample, frame) in (0u32..).zip(frames) {
+                let snapshot = frame_snapshot(frame);
+                let diff = changes(&previous, snapshot.leaves());
+                one_pass.apply_changes(sample, &diff).unwrap();
+                // `apply` itself, as for any later map.
+                by_change.last_sample = Some(sample);
+                by_change.gaps.extend(by_change.growing_gap.take());
+                for &change in &diff {
+                    by_change.changed_voxels += change.end - change.start;
+                    by_change.apply(sample, change);
+                }
+                previous = snapshot.leaves().to_vec();
+            }
+            prop_assert_eq!(one_pass.changed_voxels(), by_change.changed_voxels());
+            let axis_len = one_pass.last_sample.map_or(0, |s| s + 1);
+            let a: Vec<_> = one_pass.finish(axis_len, &[]).map(Result::unwrap).collect();
+            let b: Vec<_> = by_change.finish(axis_len, &[]).map(Result::unwrap).collect();
+            prop_assert_eq!(a, b);
         }
     }
 }

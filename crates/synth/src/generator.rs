@@ -193,6 +193,8 @@ pub struct Generator {
     noise: Vec<(u64, Occupancy)>,
     noise_sampler: BernoulliBlocks,
     warnings: Vec<String>,
+    /// [`frames`](Generator::frames) starts at the first frame at or after this time.
+    frames_from: Option<Timestamp>,
 }
 
 impl fmt::Debug for Generator {
@@ -312,7 +314,19 @@ impl Generator {
             noise,
             noise_sampler: BernoulliBlocks::new(spec_noise),
             warnings,
+            frames_from: None,
         })
+    }
+
+    /// The same series with [`frames`](Self::frames) (and so what
+    /// [`encode_series`](crate::encode_series) and [`write_series`](crate::write_series)
+    /// make) starting at the first frame at or after `time`: a long run that stopped
+    /// resumes where it was without making the frames before. Every frame is deterministic
+    /// per `(seed, index)`, so these are the very maps a run from the start gives from
+    /// `time` on (unlike another `start` in the spec, which moves the whole series).
+    pub fn with_frames_from(mut self, time: Timestamp) -> Self {
+        self.frames_from = Some(time);
+        self
     }
 
     /// The spec the series follows.
@@ -373,15 +387,26 @@ impl Generator {
         Timestamp((grid + i128::from(jitter)) as i64)
     }
 
-    /// The frames of the series, in time order (strictly increasing), missed frames left out.
+    /// The frames of the series, in time order (strictly increasing), missed frames left out,
+    /// from the time given to [`with_frames_from`](Self::with_frames_from) if any.
     /// Lazy: nothing is held per frame.
     pub fn frames(&self) -> impl Iterator<Item = FrameInfo> + '_ {
-        (0..self.spec.count)
+        let from = self.frames_from.unwrap_or(Timestamp(i64::MIN));
+        // The grid frame at `from`, less one for jitter; the rest is skipped by time.
+        let first = match self.timing.step {
+            step if step > 0 => {
+                let offset = i128::from(from.0) - i128::from(self.spec.start.0);
+                u64::try_from(offset / i128::from(step) - 1).unwrap_or(0)
+            }
+            _ => 0,
+        };
+        (first.min(self.spec.count)..self.spec.count)
             .filter(|&i| !self.is_missed(i))
             .map(|i| FrameInfo {
                 index: i,
                 time: self.time_unchecked(i),
             })
+            .skip_while(move |frame| frame.time < from)
     }
 
     /// The map of frame `index`: the base map with every element present at the frame's

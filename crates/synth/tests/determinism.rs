@@ -145,3 +145,59 @@ fn missed_frames_are_absent_and_jitter_stays_in_bounds() {
         .collect();
     assert_eq!(times, expected);
 }
+
+/// A run resumed from a time (`generate --from`) makes exactly the maps, bytes and times
+/// that a run from the start makes from that time on, with jitter and missed frames, from
+/// times on a frame, between frames and before the series.
+#[test]
+fn a_run_resumed_from_a_time_continues_the_same_series() {
+    use froctomap_formats::FormatRegistry;
+    let base = common::office();
+    let spec = SeriesSpec {
+        jitter_secs: 600.0,
+        missed_frames: 0.2,
+        ..spec(13)
+    };
+    let formats = FormatRegistry::with_default_formats();
+    let encoded = |generator: &Generator| {
+        let mut maps = Vec::new();
+        froctomap_synth::encode_series(
+            &formats,
+            generator,
+            "bt",
+            0,
+            &|_, _| {},
+            &mut |frame, bytes, _| {
+                maps.push((frame.index, frame.time, bytes));
+                Ok(())
+            },
+        )
+        .unwrap();
+        maps
+    };
+    let whole = encoded(&Generator::new(&base, spec.clone(), None).unwrap());
+    assert!(
+        whole.len() < 60 && whole.len() > 30,
+        "{} frames",
+        whole.len()
+    );
+    let on_a_frame = whole[whole.len() / 2].1;
+    let between_frames = Timestamp(whole[whole.len() / 3].1 .0 + 1);
+    let before = Timestamp(spec.start.0 - 3_600_000_000_000);
+    for from in [on_a_frame, between_frames, before, whole[0].1] {
+        let resumed = encoded(
+            &Generator::new(&base, spec.clone(), None)
+                .unwrap()
+                .with_frames_from(from),
+        );
+        let expected: Vec<_> = whole.iter().filter(|m| m.1 >= from).cloned().collect();
+        assert!(!expected.is_empty());
+        assert_eq!(resumed.len(), expected.len(), "from {from:?}");
+        assert!(resumed == expected, "from {from:?}: other maps");
+    }
+    let after = Timestamp(whole[whole.len() - 1].1 .0 + 1);
+    let none = Generator::new(&base, spec, None)
+        .unwrap()
+        .with_frames_from(after);
+    assert_eq!(none.frames().count(), 0);
+}
