@@ -80,13 +80,13 @@ impl Default for RecordOptions {
 /// from the first sample to the last has reached [`SPAN_GROWTH`] times the base's.
 ///
 /// The first rule keeps a file at most 1.5× its base; its guard makes every compaction of a
-/// base of `n` samples follow at least `n / 4` new ones, so that a compaction (a build of
-/// the whole history) costs at most what compacting 5 maps does per map added, however
-/// long the history; the second makes compactions a geometric series in time (each one's history
+/// base of `n` samples follow at least `n` new ones, so that a compaction (a build of the
+/// whole history) costs at most what compacting 2 maps does per map added, however long
+/// the history; the second makes compactions a geometric series in time (each one's history
 /// twice the last one's), refitting models as the span grows.
 pub const SEGMENTS_PER_BASE: (u64, u64) = (1, 2);
 /// See [`SEGMENTS_PER_BASE`].
-pub const ADDED_PER_BASE: (u64, u64) = (1, 4);
+pub const ADDED_PER_BASE: (u64, u64) = (1, 1);
 /// See [`SEGMENTS_PER_BASE`].
 pub const SPAN_GROWTH: i64 = 2;
 
@@ -259,8 +259,8 @@ type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 /// is compacted in place ([`compact`](crate::compact()): base and segments refitted into one
 /// base, equal to a build of the same maps; the build's bounded memory,
 /// [`AppendOptions::memory`]; atomic; under the writer lock the recorder holds) when its
-/// segments exceed half of its base's bytes (once the samples added since the base are a
-/// quarter of the base's), or when the span from its first sample to its last has reached
+/// segments exceed half of its base's bytes (once the samples added since the base are as
+/// many as the base's), or when the span from its first sample to its last has reached
 /// twice the base's span ([`SEGMENTS_PER_BASE`]): at most 1.5× the base at every commit
 /// where segments cost per map at most twice what the base does, at an amortised cost per
 /// map that does not grow with the history. Maps are not taken while it runs (a caller's
