@@ -207,16 +207,17 @@ impl SeriesHistory {
         self.gaps.extend(self.growing_gap.take());
         if self.cells.is_empty() {
             // The first map (of a build, of each segment): every change is space seen for
-            // the first time, so the cells are built in one pass in Morton order instead
-            // of being inserted one by one (what `apply` would do, split and gap free).
-            let mut cells = Vec::new();
+            // the first time, so its cells are added in one pass in Morton order, without
+            // `apply`'s search for cells to split. They go straight into the map (appended
+            // at its right edge), not through a collected vector: a bulk build would hold
+            // every cell twice, and a map of millions of leaves must stay within the
+            // memory limit.
             for &change in changes {
                 self.changed_voxels += change.end - change.start;
                 if let Some(state) = change.new {
-                    self.push_cells(&mut cells, change.start, change.end, sample, state);
+                    self.add_cells(change.start, change.end, sample, state);
                 }
             }
-            self.cells = cells.into_iter().collect();
             return Ok(());
         }
         for &change in changes {
@@ -274,22 +275,7 @@ impl SeriesHistory {
     }
 
     /// Covers `[from, to)` with maximal aligned cells no coarser than a tile.
-    fn add_cells(&mut self, from: u64, to: u64, sample: u32, state: Occupancy) {
-        let mut cells = Vec::new();
-        self.push_cells(&mut cells, from, to, sample, state);
-        self.cells.extend(cells);
-    }
-
-    /// The maximal aligned cells no coarser than a tile that cover `[from, to)`, in Morton
-    /// order, pushed onto `cells`.
-    fn push_cells(
-        &self,
-        cells: &mut Vec<(u64, CellHistory)>,
-        mut from: u64,
-        to: u64,
-        sample: u32,
-        state: Occupancy,
-    ) {
+    fn add_cells(&mut self, mut from: u64, to: u64, sample: u32, state: Occupancy) {
         while from < to {
             let mut depth = TREE_DEPTH;
             while depth > self.tile_depth {
@@ -299,7 +285,8 @@ impl SeriesHistory {
                 }
                 depth -= 1;
             }
-            cells.push((from, CellHistory::new(depth, Some((state, sample)))));
+            self.cells
+                .insert(from, CellHistory::new(depth, Some((state, sample))));
             from += voxels_per_node(depth);
         }
     }
