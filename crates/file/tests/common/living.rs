@@ -320,6 +320,21 @@ pub fn expected_maps(plans: &[PlannedSegment]) -> Vec<Vec<(MortonCode, u8, Occup
     maps
 }
 
+/// What both patch golden files start from: the 1.2 golden file converted at `path`, its
+/// writer, the first golden segment axis, and the cells of the base's largest tile (the
+/// tile the patch covers).
+fn golden_base_for_a_patch(path: &Path) -> (LivingWriter, TimeAxis, Vec<Cell>) {
+    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
+    let axis = golden_segment_axes()[0].clone();
+    let writer = LivingWriter::open(path).unwrap();
+    let base = writer.reader().base();
+    let largest = (0..base.tiles().len())
+        .max_by_key(|&t| base.tiles()[t].cell_count)
+        .unwrap();
+    let base_cells = base.read_tile(largest).unwrap();
+    (writer, axis, base_cells)
+}
+
 /// The patch golden file (format 2.0 with a patch tile, FORMAT.md §10.6): the 1.2 golden file
 /// converted, then one segment of `golden_segment_axes()[0]` (which has a missing sample)
 /// whose only tile is a patch tile over the base's largest tile: its first base cell stored
@@ -327,14 +342,7 @@ pub fn expected_maps(plans: &[PlannedSegment]) -> Vec<Vec<(MortonCode, u8, Occup
 /// else left to the base from sample 1 on (the remainder's mask). Returns the segment's
 /// axis and the base tile's cells.
 pub fn write_patch_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
-    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
-    let axis = golden_segment_axes()[0].clone();
-    let mut writer = LivingWriter::open(path).unwrap();
-    let base = writer.reader().base();
-    let largest = (0..base.tiles().len())
-        .max_by_key(|&t| base.tiles()[t].cell_count)
-        .unwrap();
-    let base_cells = base.read_tile(largest).unwrap();
+    let (mut writer, axis, base_cells) = golden_base_for_a_patch(path);
     assert!(base_cells.len() >= 3);
     let mut segment = writer.begin_segment(axis.clone()).unwrap();
     let mut encoder = segment.tile_encoder();
@@ -368,14 +376,7 @@ pub fn write_patch_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
 /// base cell 0 stored occupied throughout; base cell 1 left to the mask `[0, 1]` (sample 0
 /// only), base cell 2 to no sample, every other one to the default `[1]` (from sample 1).
 pub fn write_remainder_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
-    LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
-    let axis = golden_segment_axes()[0].clone();
-    let mut writer = LivingWriter::open(path).unwrap();
-    let base = writer.reader().base();
-    let largest = (0..base.tiles().len())
-        .max_by_key(|&t| base.tiles()[t].cell_count)
-        .unwrap();
-    let base_cells = base.read_tile(largest).unwrap();
+    let (mut writer, axis, base_cells) = golden_base_for_a_patch(path);
     assert!(base_cells.len() >= 4, "{}", base_cells.len());
     let mut segment = writer.begin_segment(axis.clone()).unwrap();
     let mut encoder = segment.tile_encoder();
