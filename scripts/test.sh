@@ -33,12 +33,12 @@ step cargo clippy --workspace --all-targets --locked -- -D warnings
 step cargo test --workspace --locked "$@"
 # `froctomap ros2` (cargo feature `ros2`, off by default) against the Cyclone DDS peer, on
 # loopback; its code linted with the feature on.
-step cargo clippy --locked -p froctomap-cli --features ros2 --all-targets -- -D warnings
-step cargo test --locked -p froctomap-cli --features ros2 --test ros2
 # `froctomap ros2 --foxglove` (cargo feature `foxglove`, implies `ros2`): a WebSocket client
-# on loopback against the Foxglove server.
+# on loopback against the Foxglove server. Both tests run in one build with `foxglove` on
+# (a second feature set costs a whole compile of the CLI); clippy still sees `ros2` alone.
+step cargo clippy --locked -p froctomap-cli --features ros2 --all-targets -- -D warnings
 step cargo clippy --locked -p froctomap-cli --features foxglove --all-targets -- -D warnings
-step cargo test --locked -p froctomap-cli --features foxglove --test foxglove
+step cargo test --locked -p froctomap-cli --features foxglove --test ros2 --test foxglove
 
 # The README's Install section: `cargo install` of the CLI (debug profile, reusing this
 # build's artifacts), then the installed binary runs from outside the checkout; the pure-Rust
@@ -61,7 +61,10 @@ for library in "${libraries[@]}"; do
     exit 1
   fi
 done
-step cargo test --locked "${libraries[@]}"
+# Built (all targets) without it; only the format registry differs in behaviour without the
+# feature (its default backend), so only its tests run again: the workspace step ran the rest.
+step cargo check --locked --all-targets "${libraries[@]}"
+step cargo test --locked -p froctomap-formats
 
 # The Python package: `pip install .` into a venv (a release build of crates/python through
 # maturin), then its tests against the command line built above (tests/python: round trips
