@@ -13,7 +13,7 @@ import octomap
 import pytest
 
 import froctomap
-from conftest import CREATED, run_cli, snapshot_files
+from conftest import CREATED, ROOT, run_cli, snapshot_files
 
 APPENDED = "2016-01-11T00:00:00Z"
 
@@ -250,3 +250,21 @@ def test_generate_without_the_debian_base_map_asks_for_one(tmp_path, monkeypatch
     with pytest.raises(froctomap.FroctError, match="no base map: pass base="):
         froctomap.generate(tmp_path / "out", progress=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_info_of_recordings_is_the_command_lines_and_counts_the_written_messages():
+    """`info` on each recording fixture (ROS 1 bags, a ROS 2 bag directory, an MCAP file):
+    the command line's JSON, and per map topic the messages and log times the fixtures were
+    written with (fixtures/ros/spec.json, the writers' side)."""
+    spec = json.loads((ROOT / "fixtures" / "ros" / "spec.json").read_text())
+    for recording in spec["recordings"]:
+        path = ROOT / recording["path"]
+        ours = froctomap.info(path)
+        assert ours == json.loads(run_cli("info", "--json", path).stdout), path
+        topics = {t["topic"]: t for t in ours["topics"]}
+        for name in {m["topic"] for m in recording["messages"]}:
+            written = [m["log_ns"] for m in recording["messages"] if m["topic"] == name]
+            topic = topics[name]
+            assert topic["messages"] == len(written), (path, name)
+            assert (topic["first_ns"], topic["last_ns"]) == (min(written), max(written))
+            assert topic["type"].replace("/msg/", "/") == "octomap_msgs/Octomap"
