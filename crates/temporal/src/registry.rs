@@ -80,6 +80,7 @@ impl ModelRegistry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::TemporalModel;
 
     // Prepared models are shared across fitting threads.
     const _: () = {
