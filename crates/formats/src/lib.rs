@@ -34,6 +34,7 @@
 //! # Ok::<(), froctomap_formats::FormatError>(())
 //! ```
 
+mod defaults;
 mod error;
 mod file_kind;
 mod natural;
@@ -45,6 +46,7 @@ mod recording;
 mod registry;
 mod spool;
 
+pub use defaults::register_default_formats;
 pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
 pub use natural::natural_cmp;
@@ -60,16 +62,3 @@ pub use registry::{
     WriteOptions,
 };
 pub use spool::{MapSpool, SpoolError, SPOOL_PREFIX};
-
-/// Registers every format enabled at compile time, preferred backends first: the native
-/// Rust codec is the default for `.bt`/`.ot`, the upstream C++ library stays selectable
-/// with backend `octomap`. Refuses (like every registration) a name already registered.
-pub fn register_default_formats(registry: &mut FormatRegistry) -> Result<(), DuplicateName> {
-    registry.register(octomap_native::BINARY)?;
-    registry.register(octomap_native::FULL)?;
-    #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::BINARY)?;
-    #[cfg(feature = "octomap-upstream")]
-    registry.register(octomap_upstream::FULL)?;
-    Ok(())
-}

@@ -289,14 +289,6 @@ impl FormatRegistry {
         Self::default()
     }
 
-    /// A registry with every format enabled at compile time.
-    pub fn with_default_formats() -> Self {
-        let mut registry = Self::new();
-        // Built-in names and backends are distinct (a test registers them twice).
-        let _ = crate::register_default_formats(&mut registry);
-        registry
-    }
-
     /// Adds a format. Several backends may share a name (OctoMap's `bt` is native or
     /// upstream); a name and backend already registered are refused.
     pub fn register(&mut self, format: MapFormat) -> Result<(), DuplicateName> {

@@ -1,5 +1,6 @@
 //! `froctomap.open(path)`: a FROctomap file, its time axis and summary, and the maps in it.
 
+use crate::arrays::{float_array, points_array};
 use crate::errors::{froct_error_text, to_py, Failure};
 use crate::map::Map;
 use crate::times::instant;
@@ -14,7 +15,7 @@ use froctomap_convert::{
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -30,7 +31,7 @@ use std::sync::{Arc, Mutex};
 #[pyfunction]
 pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<FroctFile> {
     let reader = py
-        .detach(|| crate::context().open_series(&path))
+        .detach(|| crate::plugins::context().open_series(&path))
         .map_err(to_py)?;
     Ok(FroctFile {
         reader: Mutex::new(Some(Arc::new(reader))),
@@ -140,7 +141,7 @@ impl FroctFile {
     fn describe<'py>(&self, py: Python<'py>, count: bool) -> PyResult<Bound<'py, PyAny>> {
         let reader = self.reader()?;
         let text = py.detach(|| -> Result<String, Failure> {
-            let info = describe_series(crate::context(), &reader, count)?;
+            let info = describe_series(crate::plugins::context(), &reader, count)?;
             report_json(&info)
         })?;
         json_value(py, &text)
@@ -316,7 +317,7 @@ impl FroctFile {
         let report = py
             .detach(|| {
                 let whole = reader.whole_history()?;
-                let map = read_snapshot(crate::context(), whole, &snapshot)?;
+                let map = read_snapshot(crate::plugins::context(), whole, &snapshot)?;
                 anomalies(whole, &map, at, &options)
             })
             .map_err(to_py)?;
@@ -348,7 +349,7 @@ impl FroctFile {
         let seen = held.living().map(|l| l.root());
         let path = &self.path;
         let reopened = py
-            .detach(|| crate::context().open_series(path))
+            .detach(|| crate::plugins::context().open_series(path))
             .map_err(to_py)?;
         let changed = reopened.living().map(|l| l.root()) != seen;
         *held = Arc::new(reopened);
@@ -408,30 +409,6 @@ impl FroctFile {
             ),
         }
     }
-}
-
-/// Points as an (N, 3) array of metres (anything numpy reads as one).
-pub(crate) fn points_array(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {
-    let points = float_array(py, points)?;
-    let shape = points.shape().to_vec();
-    if shape.len() != 2 || shape[1] != 3 {
-        return Err(PyValueError::new_err(format!(
-            "points must have shape (N, 3), not {shape:?}"
-        )));
-    }
-    let flat = points.as_slice()?;
-    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
-}
-
-/// `numpy.ascontiguousarray(value, dtype=float64)`, read-only.
-fn float_array<'py>(
-    py: Python<'py>,
-    value: &Bound<'py, PyAny>,
-) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
-    let array = py
-        .import("numpy")?
-        .call_method1("ascontiguousarray", (value, "float64"))?;
-    array.extract::<PyReadonlyArrayDyn<'py, f64>>()
 }
 
 /// An [`AnomalyReport`] as the dict `FroctFile.anomalies` documents (the CLI's JSON).

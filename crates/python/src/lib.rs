@@ -9,30 +9,18 @@
 //! The pure-Python part of the package (`crates/python/python/froctomap/`) defines the
 //! exception class, the progress bars and the stubs; see `docs/PYTHON.md`.
 
+mod arrays;
 mod errors;
 mod file;
 mod map;
 mod message;
+mod plugins;
 mod progress;
 mod series;
 mod times;
 mod verbs;
 
-use froctomap_convert::Context;
 use pyo3::prelude::*;
-use std::sync::OnceLock;
-
-/// The formats, models and recording sources every call uses, registered once (as the CLI's
-/// `plugins::context`).
-pub(crate) fn context() -> &'static Context {
-    static CONTEXT: OnceLock<Context> = OnceLock::new();
-    CONTEXT.get_or_init(|| {
-        let mut context = Context::with_default_plugins();
-        // Distinct names: a clash would be a bug of this program, seen by its tests.
-        let _ = froctomap_ros::register(context.formats_mut());
-        context
-    })
-}
 
 /// The extension module.
 #[pymodule]

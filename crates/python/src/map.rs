@@ -70,7 +70,7 @@ impl Map {
             format,
             backend: None,
         };
-        let context = crate::context();
+        let context = crate::plugins::context();
         match self.query {
             Query::Observed { sample, .. } => {
                 write_observed_map(context, &*self.reader, sample, path, options)
@@ -282,7 +282,7 @@ impl Map {
     /// there, or outside the map) and `p` float64 (the leaf's occupancy probability, as
     /// `leaves(with_p=True)` gives it; NaN where unknown).
     fn search<'py>(&self, py: Python<'py>, points: &Bound<'py, PyAny>) -> PyResult<Found<'py>> {
-        let points = crate::file::points_array(py, points)?;
+        let points = crate::arrays::points_array(py, points)?;
         let snapshot = self.snapshot(py)?;
         let (states, p): (Vec<i8>, Vec<f64>) = py.detach(|| {
             let resolution = snapshot.resolution();

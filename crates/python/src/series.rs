@@ -142,7 +142,7 @@ pub(crate) fn model_config(
     periods: Option<&Bound<'_, PyAny>>,
     model_options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<ModelConfig> {
-    let models = crate::context().models();
+    let models = crate::plugins::context().models();
     let descriptor = models.by_name(model).ok_or_else(|| {
         let known: Vec<&str> = models.iter().map(|d| d.name).collect();
         froct_error_text(format!(
@@ -332,7 +332,7 @@ pub fn build<'py>(
         tmp_dir,
         ..IngestOptions::default()
     };
-    let context = crate::context().clone().with_recording_options(
+    let context = crate::plugins::context().clone().with_recording_options(
         RecordingOptions::new(topic, recorded)
             .with_skip_bad(skip_bad)
             .with_spool_dir(spool_dir),
@@ -382,7 +382,7 @@ pub fn evaluate<'py>(
     let against = paths(against)?;
     let source = series_times(start, step, times_file, times_from_names)?;
     let report = with_progress(py, progress, |progress| {
-        let context = crate::context();
+        let context = crate::plugins::context();
         let file = context.open_series(&path)?;
         let reader = file.whole_history()?;
         let collected = collect_inputs_explained(context, &against, source, &Zone::utc())?;

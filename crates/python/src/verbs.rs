@@ -99,7 +99,7 @@ pub fn append<'py>(
         tmp_dir,
         ..IngestOptions::default()
     };
-    let context = crate::context().clone().with_recording_options(
+    let context = crate::plugins::context().clone().with_recording_options(
         froctomap_convert::RecordingOptions::default()
             .with_skip_bad(skip_bad)
             .with_spool_dir(Some(spool_dir)),
@@ -157,7 +157,7 @@ pub fn compact<'py>(
         ..CompactOptions::default()
     };
     let report = with_progress(py, progress, |progress| {
-        let context = crate::context();
+        let context = crate::plugins::context();
         options.format = match layout {
             None => CompactFormat::Living,
             Some(layout) => {
@@ -189,7 +189,7 @@ pub fn convert<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let report = py.detach(|| -> Result<String, Failure> {
         refuse_overwriting_input(&output, [input.as_path()])?;
-        let registry = crate::context().formats();
+        let registry = crate::plugins::context().formats();
         let write = WriteOptions {
             format: format.as_deref(),
             backend: None,
@@ -227,7 +227,7 @@ pub fn info<'py>(
     input_format: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let report = py.detach(|| -> Result<String, Failure> {
-        let context = crate::context();
+        let context = crate::plugins::context();
         if input_format.is_none() {
             if let Some(recording) = describe_recording(context, &path)? {
                 return report_json(&recording);
@@ -300,7 +300,7 @@ pub fn export<'py>(
         overwrite,
     };
     let report = with_progress(py, progress, |progress| {
-        let context = crate::context();
+        let context = crate::plugins::context();
         let reader = context.open_series(&file)?;
         let report = export_maps(context, &reader, &output, &options, progress)?;
         let files: Vec<Value> = report
@@ -375,7 +375,7 @@ pub fn record<'py>(
         compact: auto_compact,
     };
     options.append.config.options = model_config_options(model_options)?;
-    let context = crate::context().clone().with_recording_options(
+    let context = crate::plugins::context().clone().with_recording_options(
         froctomap_convert::RecordingOptions::default()
             .with_skip_bad(skip_bad)
             .with_spool_dir(Some(spool_dir)),
@@ -576,7 +576,7 @@ pub fn render<'py>(
             Some(text) => View::slice(text)?,
             None => View::TopDown,
         };
-        let opened = crate::context().open_series(&file)?;
+        let opened = crate::plugins::context().open_series(&file)?;
         let reader = opened.whole_history()?;
         let (picture, kind, time) = match query {
             Some(query) => {
@@ -659,7 +659,7 @@ pub fn generate<'py>(
             ..SpecOverrides::default()
         };
         let spec = overrides.apply(scenario)?;
-        let context = crate::context();
+        let context = crate::plugins::context();
         let map = context
             .formats()
             .read_file(&base, ReadOptions::default())?

@@ -8,16 +8,11 @@ use crate::bag_metadata::BagMetadata;
 use crate::error::RosError;
 use crate::mcap_file::McapFile;
 use crate::sqlite_bag;
+use crate::topic_counts::{Span, TopicKey};
 use froctomap_core::Timestamp;
 use froctomap_formats::{RecordedTopic, RecordingOptions, RecordingSummary};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-/// A topic: name, type, encoding.
-pub(crate) type TopicKey = (String, String, String);
-
-/// The first and last log times of some messages (`None`: no message).
-pub(crate) type Span = Option<(i64, i64)>;
 
 /// Topics: message count and log-time span.
 #[derive(Default)]

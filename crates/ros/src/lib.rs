@@ -43,6 +43,7 @@ mod message;
 mod source;
 mod sqlite_bag;
 mod stream;
+mod topic_counts;
 mod topics;
 
 pub use encode::{

@@ -14,10 +14,10 @@
 //!   A compressed file decompresses to at most [`MAX_FILE_RATIO`] times its size.
 
 use crate::bag_metadata::BagMetadata;
-use crate::describe::{Span, TopicKey};
 use crate::error::RosError;
 use crate::message::{decode_stamp, Encoding, MessageType};
 use crate::source::{message_map_file, select_topic, times, Damage, TopicEntry};
+use crate::topic_counts::{Span, TopicKey};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{temporary_dir_in, Timestamp};
 use froctomap_formats::{PluginError as Cause, RecordedMaps, Recording, RecordingOptions};

@@ -34,12 +34,15 @@
 //! # Ok::<(), froctomap_ros2_node::NodeError>(())
 //! ```
 
+mod error;
 mod names;
 mod params;
 mod recording;
 mod services;
+mod sink;
 
-pub use names::RosArgs;
+pub use error::NodeError;
+pub use names::{dds_topic_name, RosArgs, NODE_NAME};
 pub use params::{
     parameter_type, DescribeParametersResponse, GetParameterTypesResponse, GetParametersResponse,
     ListParametersRequest, ListParametersResponse, NamesRequest, Parameter, ParameterDescriptor,
@@ -47,6 +50,7 @@ pub use params::{
 };
 
 pub use recording::{CommitFailed, RecordingSink, TimeSource};
+pub use sink::{MapSink, ReceivedMap};
 
 pub use services::{
     decode_cdr, encode_cdr, FileServices, GetOctomapAtRequest, GetOctomapAtResponse, Header,
@@ -75,8 +79,6 @@ use std::net::{IpAddr, Ipv4Addr};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// The node's default name.
-pub const NODE_NAME: &str = "froctomap";
 /// The topic subscribed by default, relative (in the node's namespace), as octomap_server
 /// names its binary map topic: `/octomap_binary` without a namespace.
 pub const DEFAULT_TOPIC: &str = "octomap_binary";
@@ -240,94 +242,6 @@ pub fn domain_id_from_env() -> Result<u16, NodeError> {
             _ => Err(NodeError::DomainId(text)),
         },
     }
-}
-
-/// The DDS topic name of a ROS topic (`/a/b` → `rt/a/b`), as every ROS 2 RMW maps it.
-pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
-    let name = ros_topic.strip_prefix('/').unwrap_or(ros_topic);
-    let valid = !name.is_empty()
-        && !name.starts_with('/')
-        && !name.contains("//")
-        && !name.ends_with('/')
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/')
-        && !name.starts_with(|c: char| c.is_ascii_digit());
-    if valid {
-        Ok(format!("rt/{name}"))
-    } else {
-        Err(NodeError::TopicName(ros_topic.to_string()))
-    }
-}
-
-/// A map received over the wire, as a map file.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ReceivedMap {
-    /// The message's `header.stamp` (0: the publisher left it unset).
-    pub stamp: Timestamp,
-    /// The message's `header.frame_id`.
-    pub frame_id: String,
-    /// When the node took it: [`Node::now`], the system clock or with `use_sim_time`
-    /// `/clock`'s time (`None` before `/clock` said one).
-    pub received: Option<Timestamp>,
-    /// `true`: a `.bt` file (`binary` messages); `false`: an `.ot` file.
-    pub binary: bool,
-    /// The map file: the message's data behind the header OctoMap writes for it
-    /// ([`froctomap_ros::OctomapMessage::map_file`]).
-    pub file: Vec<u8>,
-}
-
-/// Where received maps go: the recording path implements it (`record`'s commit), tests
-/// write files.
-pub trait MapSink {
-    /// Takes one map. An error is logged with the map's stamp; the node keeps running.
-    fn receive(&mut self, map: ReceivedMap)
-        -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
-
-    /// A message was skipped, for `reason` (a refused message, or `receive`'s error). The
-    /// default logs it as a warning (`log`).
-    fn skipped(&mut self, reason: String) {
-        log::warn!("{reason}");
-    }
-}
-
-/// Why the node cannot start or go on.
-#[derive(Debug, thiserror::Error)]
-pub enum NodeError {
-    /// `ROS_DOMAIN_ID` is not a domain.
-    #[error("ROS_DOMAIN_ID `{0}` is not a domain id (0..=232)")]
-    DomainId(String),
-    /// A topic name ROS would refuse.
-    #[error("`{0}` is not a valid ROS topic name")]
-    TopicName(String),
-    /// `--ros-args` that do not parse.
-    #[error("--ros-args: {0}")]
-    RosArgs(String),
-    /// The DDS participant, topic, reader or writer could not be created.
-    #[error("DDS setup failed: {0}")]
-    Dds(String),
-    /// A map could not be published.
-    #[error("publishing on {topic} failed: {reason}")]
-    Publish {
-        /// The ROS topic.
-        topic: String,
-        /// What DDS said.
-        reason: String,
-    },
-    /// The `.froct` file could not be read or its map predicted.
-    #[error("{}: {source}", path.display())]
-    Froct {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: Box<dyn std::error::Error + Send + Sync>,
-    },
-    /// A map could not be put in a message (a field longer than CDR can say).
-    #[error("the map of {bytes} bytes does not fit an octomap_msgs/Octomap message")]
-    MessageTooLong {
-        /// The data length.
-        bytes: usize,
-    },
 }
 
 /// Why one received message was refused (logged; the node goes on).

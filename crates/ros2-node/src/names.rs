@@ -4,13 +4,34 @@
 //! an absolute one (`/clock`) stays; then the remapping rules apply to the resolved name,
 //! as rcl applies them.
 
+use crate::error::NodeError;
 use crate::params::ParameterValue;
-use crate::NodeError;
+
+/// The node's default name.
+pub const NODE_NAME: &str = "froctomap";
+
+/// The DDS topic name of a ROS topic (`/a/b` → `rt/a/b`), as every ROS 2 RMW maps it.
+pub fn dds_topic_name(ros_topic: &str) -> Result<String, NodeError> {
+    let name = ros_topic.strip_prefix('/').unwrap_or(ros_topic);
+    let valid = !name.is_empty()
+        && !name.starts_with('/')
+        && !name.contains("//")
+        && !name.ends_with('/')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/')
+        && !name.starts_with(|c: char| c.is_ascii_digit());
+    if valid {
+        Ok(format!("rt/{name}"))
+    } else {
+        Err(NodeError::TopicName(ros_topic.to_string()))
+    }
+}
 
 /// What `--ros-args` says: the node's name and namespace, remapping rules and parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RosArgs {
-    /// The node's name (`__node:=`; default [`crate::NODE_NAME`]).
+    /// The node's name (`__node:=`; default [`NODE_NAME`]).
     pub node_name: String,
     /// The node's namespace (`__ns:=`; default `/`).
     pub namespace: String,
@@ -23,7 +44,7 @@ pub struct RosArgs {
 impl Default for RosArgs {
     fn default() -> Self {
         Self {
-            node_name: crate::NODE_NAME.to_string(),
+            node_name: NODE_NAME.to_string(),
             namespace: "/".to_string(),
             remaps: Vec::new(),
             parameters: Vec::new(),
@@ -80,9 +101,7 @@ impl RosArgs {
                     }
                     let (node, name) = split_node_prefix(name);
                     match name {
-                        "__ns" | "__node" | "__name"
-                            if node.is_some_and(|n| n != crate::NODE_NAME) =>
-                        {
+                        "__ns" | "__node" | "__name" if node.is_some_and(|n| n != NODE_NAME) => {
                             // For another node (rcl matches the name the node is created with).
                         }
                         "__ns" => {
@@ -92,7 +111,7 @@ impl RosArgs {
                                 )));
                             }
                             let trimmed = value.trim_end_matches('/');
-                            crate::dds_topic_name(&format!("{trimmed}/x"))
+                            dds_topic_name(&format!("{trimmed}/x"))
                                 .map_err(|_| bad(format!("-r {rule}: not a namespace")))?;
                             ros.namespace = if trimmed.is_empty() {
                                 "/".to_string()
@@ -159,7 +178,7 @@ impl RosArgs {
         } else {
             format!("{ns}/{name}")
         };
-        crate::dds_topic_name(&expanded)?;
+        dds_topic_name(&expanded)?;
         Ok(expanded)
     }
 

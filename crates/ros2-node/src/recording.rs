@@ -3,7 +3,7 @@
 //! every so many maps or so much time, a missing file created from the first commit, maps
 //! not later than the last one skipped and counted, bad maps left out).
 
-use crate::{MapSink, ReceivedMap};
+use crate::sink::{MapSink, ReceivedMap};
 use froctomap_convert::{RecordError, RecordSummary, Recorder};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;

@@ -134,6 +134,7 @@ mod error;
 mod fit;
 mod fitted;
 mod model;
+mod model_id;
 pub mod models;
 mod observations;
 mod options;
@@ -147,11 +148,13 @@ pub use axis::{AxisKind, TimeAxis};
 pub use error::TemporalError;
 pub use fitted::FittedVoxel;
 pub use model::{
-    ModelConfig, ModelId, OutlierMode, PeriodicTerm, PreparedModel, TemporalModel, VoxelDescription,
+    ModelConfig, ModelDescriptor, OutlierMode, PeriodicTerm, PreparedModel, TemporalModel,
+    VoxelDescription,
 };
+pub use model_id::ModelId;
 pub use observations::{ObservationsBuilder, Run, VoxelObservations};
 pub use options::{ModelOptions, OptionDescriptor};
-pub use registry::{ModelDescriptor, ModelRegistry};
+pub use registry::ModelRegistry;
 pub use spectral::options::{Order, OrderCriterion, SpectralOptions};
 pub use spectral::{Component, SpectralParameters, MAX_COMPONENTS};
 pub use toggles::{ToggleBuilder, Toggles, MAX_TOGGLES};

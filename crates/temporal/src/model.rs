@@ -2,27 +2,32 @@
 
 use crate::varint::Reader;
 use crate::{
-    FittedVoxel, ModelDescriptor, ModelOptions, TemporalError, TimeAxis, Toggles, VoxelObservations,
+    FittedVoxel, ModelId, ModelOptions, OptionDescriptor, TemporalError, TimeAxis, Toggles,
+    VoxelObservations,
 };
 use froctomap_core::Occupancy;
-use std::fmt;
 
-/// Stable numeric id of a temporal model, recorded in files. Never reuse a retired id.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct ModelId(pub u16);
-
-impl ModelId {
-    /// [`StaticMean`](crate::models::StaticMean): the mean only.
-    pub const STATIC: ModelId = ModelId(0);
-    /// [`FremenRegular`](crate::models::FremenRegular): FreMEn over all DFT bins of a regular axis.
-    pub const FREMEN_REGULAR: ModelId = ModelId(1);
-    /// [`FremenPeriods`](crate::models::FremenPeriods): FreMEn at a candidate period set, any axis.
-    pub const FREMEN_PERIODS: ModelId = ModelId(2);
+/// Describes one model: its stable id and name, a one-line description, its options, and a
+/// factory.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelDescriptor {
+    /// Stable id recorded in files.
+    pub id: ModelId,
+    /// Stable name used on command lines.
+    pub name: &'static str,
+    /// One line for `--help` and listings.
+    pub description: &'static str,
+    /// The options the model accepts in [`ModelConfig::options`](crate::ModelConfig), with
+    /// their defaults.
+    pub options: &'static [OptionDescriptor],
+    /// Creates the model.
+    pub factory: fn() -> Box<dyn TemporalModel>,
 }
 
-impl fmt::Display for ModelId {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.0)
+impl ModelDescriptor {
+    /// A new instance of the model.
+    pub fn create(&self) -> Box<dyn TemporalModel> {
+        (self.factory)()
     }
 }
 

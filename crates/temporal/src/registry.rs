@@ -1,30 +1,6 @@
 //! Models as data: a registry resolving file-recorded ids and command-line names.
 
-use crate::{ModelId, OptionDescriptor, PreparedModel, TemporalError, TemporalModel, TimeAxis};
-
-/// Describes one model: its stable id and name, a one-line description, its options, and a
-/// factory.
-#[derive(Debug, Clone, Copy)]
-pub struct ModelDescriptor {
-    /// Stable id recorded in files.
-    pub id: ModelId,
-    /// Stable name used on command lines.
-    pub name: &'static str,
-    /// One line for `--help` and listings.
-    pub description: &'static str,
-    /// The options the model accepts in [`ModelConfig::options`](crate::ModelConfig), with
-    /// their defaults.
-    pub options: &'static [OptionDescriptor],
-    /// Creates the model.
-    pub factory: fn() -> Box<dyn TemporalModel>,
-}
-
-impl ModelDescriptor {
-    /// A new instance of the model.
-    pub fn create(&self) -> Box<dyn TemporalModel> {
-        (self.factory)()
-    }
-}
+use crate::{ModelDescriptor, ModelId, PreparedModel, TemporalError, TimeAxis};
 
 /// The models a program knows, looked up by id (reading files) or name (command lines).
 ///
@@ -104,6 +80,7 @@ impl ModelRegistry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::TemporalModel;
 
     // Prepared models are shared across fitting threads.
     const _: () = {

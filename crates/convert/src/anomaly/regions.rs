@@ -1,7 +1,7 @@
 //! Surprising pieces grouped into connected regions (26-neighbourhood, one kind per region).
 
+use super::report::{AnomalyKind, AnomalyRegion};
 use super::score::Piece;
-use super::{AnomalyKind, AnomalyRegion};
 use froctomap_core::VoxelKey;
 use std::collections::BTreeMap;
 

@@ -2,7 +2,8 @@
 //! snapshot's leaves and the file's cells are walked together in Morton order, one tile of
 //! the file at a time, and every piece whose state the model found unlikely is kept.
 
-use super::{AnomalyKind, AnomalyOptions, Expectation};
+use super::options::{AnomalyOptions, Expectation};
+use super::report::AnomalyKind;
 use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, TREE_DEPTH};
 use froctomap_file::{Cell, CellContent, FileError, FroctReader};
 use froctomap_temporal::{PreparedModel, TimeAxis, Toggles};

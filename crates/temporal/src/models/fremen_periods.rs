@@ -1,6 +1,6 @@
 //! FreMEn at a candidate period set, for any time axis (jittered times, missed frames).
 
-use super::SpectralLine;
+use super::spectral_line::SpectralLine;
 use crate::fit::{
     fit_voxel, pick_distinct, validation_cycles, Candidate, Evaluator, FitSettings, Spectral,
     Usable, CYCLE_TOLERANCE,

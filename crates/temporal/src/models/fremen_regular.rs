@@ -1,6 +1,6 @@
 //! FreMEn on a regular axis: the whole DFT spectrum by real FFT, every bin a candidate.
 
-use super::SpectralLine;
+use super::spectral_line::SpectralLine;
 use crate::fit::{
     fit_voxel, pick_distinct, validation_cycles, Candidate, Evaluator, FitSettings, Spectral,
     Usable, CYCLE_TOLERANCE,
