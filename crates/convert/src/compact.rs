@@ -228,7 +228,14 @@ fn compact_with(
             path: temp_parent.clone(),
             source,
         })?;
-    let built = temp.path().join("compacted.froct");
+    // The writer locks the directory it writes into (shared) while the temporary directory
+    // is locked exclusively: it writes into a directory of its own inside.
+    let work = temp.path().join("build");
+    std::fs::create_dir(&work).map_err(|source| froctomap_core::AtomicWriteError {
+        path: work.clone(),
+        source,
+    })?;
+    let built = work.join("compacted.froct");
     let sample_count = series.sample_count();
     let (base, living) = match &series {
         FroctFile::Flat(reader) => (reader, None),
