@@ -1,34 +1,30 @@
 //! `compact`: a FROctomap file's base and segments rewritten as one base, every cell refitted
-//! on its whole history through the build's own stages, so that the result equals a
-//! [`build`] of the same maps apart from metadata.
+//! on its whole history, so that the result equals a [`build`](crate::build) of the same maps
+//! apart from metadata.
 //!
-//! The file feeds the build as a recording would ([`RecordedMaps`]): each sample with a map
-//! is one input whose bytes are the canonical `.bt` of the map observed there (what
-//! `retrieve` writes), made when the build's extraction asks for it. So compaction reads no
-//! input but the file, holds what a build holds (bounded by [`CompactOptions::memory`]),
-//! and needs no path of its own through the pipeline. The result is written into a
-//! temporary directory beside the output, then put in place atomically: converted to
-//! format 2.0 without segments (the default) by [`LivingWriter::convert`], or renamed as a
-//! 1.x file. Compacting a 2.0 file in place holds its writer lock from before the maps are
-//! read until the new file is in place, so no segment is committed meanwhile and lost.
+//! No map is retrieved: each cell's history is read where it is stored (the base's cells on
+//! the base axis, each segment's cells on its own axis piece, inherited cells and patch
+//! remainders through the base's frozen prediction), the histories are joined tile by tile
+//! in time order and brought to the build's cells, then fitted and written by the build's
+//! own stages (`build::compacted`). Memory holds one tile of each part (base, segments) and
+//! the fit's chunks, whatever the number of maps. The result is written into a temporary
+//! directory beside the output, then put in place atomically: converted to format 2.0
+//! without segments (the default) by [`LivingWriter::convert`], or renamed as a 1.x file.
+//! Compacting a 2.0 file in place holds its writer lock from before the file is read until
+//! the new file is in place, so no segment is committed meanwhile and lost.
 
-use crate::build::{ingest, IngestOptions, IngestTarget, DEFAULT_BUILD_MEMORY};
+use crate::build::{merge_into, MergeSettings, DEFAULT_BUILD_MEMORY};
 use crate::context::Context;
 use crate::error::ConvertError;
-use crate::inputs::SeriesInput;
-use crate::maps::observed_bt;
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
-use crate::recording::RecordedMap;
 use crate::series_file::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
 use froctomap_file::{LivingWriter, ToggleLayout};
-use froctomap_formats::{PluginError, RecordedMaps};
 use froctomap_temporal::{ModelConfig, ModelOptions};
 use serde::Serialize;
-use serde_json::Map;
+use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
 /// The prefix of the hidden directory a compaction works in, beside its output.
@@ -57,14 +53,18 @@ pub struct CompactOptions {
     pub model_options: ModelOptions,
     /// Output format.
     pub format: CompactFormat,
-    /// Creation time stored in the metadata; `None`: now (see [`IngestOptions::time`]).
+    /// Creation time stored in the metadata; `None`: now (see
+    /// [`IngestOptions::time`](crate::IngestOptions::time)).
     pub created: Option<Timestamp>,
-    /// Memory budget of the accumulated histories ([`IngestOptions::memory`]).
+    /// Memory budget of a rebuild from maps. Unused since compaction merges histories
+    /// (it holds one tile per part of the file); kept so that callers keep compiling.
     pub memory: u64,
-    /// Where spill data goes; `None`: beside the output (where the intermediate file always
-    /// goes, in a hidden `.froct-compact-*` directory).
+    /// Where a rebuild from maps spilled. Unused since compaction merges histories (the
+    /// intermediate file goes beside the output, in a hidden `.froct-compact-*`
+    /// directory); kept so that callers keep compiling.
     pub tmp_dir: Option<PathBuf>,
-    /// Maps decoded in parallel per batch.
+    /// Maps decoded in parallel per batch by a rebuild from maps. Unused since compaction
+    /// merges histories; kept so that callers keep compiling.
     pub batch: usize,
 }
 
@@ -109,47 +109,12 @@ pub struct CompactReport {
     pub seconds: f64,
 }
 
-/// The maps of an open file, as a recording whose map `i` is the `i`-th sample with a map,
-/// as the canonical `.bt` observed there.
-struct FileMaps {
-    file: FroctFile,
-    samples: Vec<u32>,
-    topic: String,
-}
-
-impl std::fmt::Debug for FileMaps {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FileMaps")
-            .field("file", &self.file.path())
-            .field("maps", &self.samples.len())
-            .finish()
-    }
-}
-
-impl RecordedMaps for FileMaps {
-    fn map_bytes(&self, index: usize, _limit: u64) -> Result<Vec<u8>, PluginError> {
-        // The map is made from the file's cells, whose size the reader bounded at open.
-        let sample = *self.samples.get(index).ok_or_else(|| {
-            PluginError::from(format!(
-                "{}: no map {index} among its {} maps",
-                self.file.path().display(),
-                self.samples.len()
-            ))
-        })?;
-        observed_bt(&self.file, sample).map_err(PluginError::from)
-    }
-
-    fn topic(&self) -> &str {
-        &self.topic
-    }
-}
-
 /// Rewrites `file`'s base and segments as one base: into `output`, or in place (replacing
-/// `file` atomically) when `output` is `None`. Every cell is refitted on its whole history
-/// by [`build`], which reads the file as a recording of its maps (each sample's canonical
-/// `.bt`), in the build's bounded memory; the result equals a build of the same maps apart
-/// from metadata. In place, a 2.0 file's writer lock is held from before its maps are read
-/// until the result replaces it.
+/// `file` atomically) when `output` is `None`. Every cell's history is merged from the base
+/// and the segments, without retrieving any map, and refitted; the result equals a
+/// [`build`](crate::build) of the same maps apart from metadata. Memory holds a tile of each
+/// part of the file at a time. In place, a 2.0 file's writer lock is held from before the
+/// file is read until the result replaces it.
 ///
 /// ```no_run
 /// use froctomap_convert::*;
@@ -227,7 +192,24 @@ fn compact_with(
         ))?;
     let mut config = ModelConfig::default().with_outliers(body.model().outlier_mode());
     config.options = options.model_options.clone();
+    // As a build of the file's maps writes it (its inputs being the file).
+    let maps = (0..series.sample_count())
+        .filter(|&s| !series.is_missing(s))
+        .count();
     let mut metadata = Map::new();
+    metadata.insert(
+        "creator".into(),
+        Value::from(format!("froctomap {}", env!("CARGO_PKG_VERSION"))),
+    );
+    metadata.insert("created".into(), crate::build::stamp(options.created));
+    metadata.insert(
+        "source".into(),
+        Value::from(crate::build::output_dir(file).display().to_string()),
+    );
+    metadata.insert("sources".into(), Value::from(maps));
+    if let Some(bytes) = header.metadata.get("input_bytes") {
+        metadata.insert("input_bytes".into(), bytes.clone());
+    }
     if let Some(tags) = header.metadata.get("tags") {
         metadata.insert("tags".to_string(), tags.clone());
     }
@@ -239,75 +221,35 @@ fn compact_with(
         CompactFormat::Flat(Some(layout)) => layout,
         _ => header.toggles,
     };
-    let build_options = IngestOptions {
-        model: model.name.to_string(),
-        config,
-        tile_depth: header.tile_depth,
-        codec: header.codec,
-        toggles,
-        resolution: Some(header.resolution),
-        metadata,
-        batch: options.batch,
-        time: options.created,
-        memory: options.memory,
-        tmp_dir: options.tmp_dir.clone(),
-        ..IngestOptions::default()
-    };
-
-    let samples: Vec<u32> = (0..series.sample_count())
-        .filter(|&s| !series.is_missing(s))
-        .collect();
-    let times: Vec<Timestamp> = samples
-        .iter()
-        .map(|&s| {
-            series
-                .sample_time(s)
-                .ok_or(ConvertError::internal("a sample without a time"))
-        })
-        .collect::<Result<_, _>>()?;
-    let sample_count = series.sample_count();
-    let maps: Arc<dyn RecordedMaps> = Arc::new(FileMaps {
-        file: series,
-        samples,
-        topic: "compact".to_string(),
-    });
-    let inputs: Vec<SeriesInput> = times
-        .iter()
-        .enumerate()
-        .map(|(i, &time)| {
-            SeriesInput::recorded_map(
-                file.to_path_buf(),
-                time,
-                RecordedMap::new(Arc::clone(&maps), i),
-            )
-        })
-        .collect();
-
-    // Beside the output, so that the result is renamed into place on one file system (spill
-    // data goes to `tmp_dir` when given).
+    // Beside the output, so that the result is renamed into place on one file system.
     let temp_parent = crate::build::output_dir(target).to_path_buf();
     let temp = froctomap_core::temporary_dir_in(&temp_parent, std::ffi::OsStr::new(COMPACT_PREFIX))
         .map_err(|source| froctomap_core::AtomicWriteError {
             path: temp_parent.clone(),
             source,
         })?;
-    // The build locks the directory it writes into (shared) while the temporary directory is
-    // locked exclusively: it writes into a directory of its own inside.
+    // The writer locks the directory it writes into (shared) while the temporary directory
+    // is locked exclusively: it writes into a directory of its own inside.
     let work = temp.path().join("build");
     std::fs::create_dir(&work).map_err(|source| froctomap_core::AtomicWriteError {
         path: work.clone(),
         source,
     })?;
     let built = work.join("compacted.froct");
-    let report = ingest(
-        context,
-        &inputs,
-        IngestTarget::NewFile(&built),
-        &build_options,
-        progress,
-    )?;
-    drop(inputs);
-    drop(maps);
+    let sample_count = series.sample_count();
+    let (base, living) = match &series {
+        FroctFile::Flat(reader) => (reader, None),
+        FroctFile::Living(living) => (living.base(), Some(living)),
+    };
+    let settings = MergeSettings {
+        model: model.create(),
+        config: &config,
+        toggles,
+        metadata,
+        reproducible: options.created.is_some(),
+    };
+    let merged = merge_into(base, living, &built, settings, progress)?;
+    drop(series);
     progress.stage("writing the compacted file", 1);
     let version = match options.format {
         CompactFormat::Living => {
@@ -340,10 +282,10 @@ fn compact_with(
         version,
         segments_before,
         samples: sample_count,
-        maps: report.used,
+        maps: merged.maps,
         bytes_before,
         bytes,
-        toggles: report.toggles,
+        toggles: merged.toggles,
         seconds: started.elapsed().as_secs_f64(),
     })
 }

@@ -517,3 +517,61 @@ fn a_map_skipped_as_bad_is_a_missing_sample_of_the_segment() {
         );
     }
 }
+
+/// The tiles of a 1.x file (their bytes, from the first tile to the end of the last), its
+/// axis and its model parameters: what a compaction must share with a build.
+fn tiles_and_model(file: &Path) -> (Vec<u8>, String, Vec<u8>) {
+    let reader = FroctReader::open(file).unwrap();
+    let bytes = std::fs::read(file).unwrap();
+    let tiles = reader.tiles();
+    let (first, last) = (tiles.first().unwrap(), tiles.last().unwrap());
+    let range = first.offset as usize..(last.offset + u64::from(last.stored_len)) as usize;
+    let header = reader.header();
+    (
+        bytes[range].to_vec(),
+        format!("{:?}", header.axis),
+        header.model_parameters.clone(),
+    )
+}
+
+/// The 1.2 series (fremen-periods) built once for the property test below.
+fn shared_series() -> &'static Series {
+    static SERIES: std::sync::OnceLock<Series> = std::sync::OnceLock::new();
+    SERIES.get_or_init(|| series("fremen-periods"))
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig { cases: 6, ..Default::default() })]
+
+    /// Whatever the split of the last day into segments (map by map, batches, one
+    /// segment), `compact` merges the base's and the segments' histories into the tiles
+    /// and model a 1.2 build of all the maps from their files has, byte for byte.
+    #[test]
+    fn compacting_any_split_into_segments_gives_the_build(
+        cuts in proptest::collection::btree_set(BASE_FRAMES + 1..FRAMES, 0..6)
+    ) {
+        let context = Context::with_default_plugins();
+        let series = shared_series();
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("living.froct");
+        LivingWriter::convert(&series.base, &file).unwrap();
+        let mut start = BASE_FRAMES as usize;
+        for end in cuts.iter().map(|&c| c as usize).chain([FRAMES as usize]) {
+            append_part(&context, &file, &series.frames[start..end]);
+            start = end;
+        }
+        let flat = dir.path().join("compacted.froct");
+        let options = CompactOptions {
+            format: CompactFormat::Flat(None),
+            ..CompactOptions::default()
+        };
+        let report = compact(&context, &file, Some(&flat), &options, &Silent).unwrap();
+        proptest::prop_assert_eq!(report.segments_before, cuts.len() + 1);
+        proptest::prop_assert_eq!(report.maps, FRAMES as usize);
+        let (tiles, axis, model) = tiles_and_model(&flat);
+        let (built_tiles, built_axis, built_model) = tiles_and_model(&series.full);
+        proptest::prop_assert_eq!(axis, built_axis);
+        proptest::prop_assert!(model == built_model, "model parameters differ");
+        proptest::prop_assert!(tiles == built_tiles, "tiles differ from the build's");
+    }
+}

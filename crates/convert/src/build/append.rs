@@ -406,7 +406,7 @@ impl<'a> SampleMap<'a> {
 
     /// Appends to `out` the runs on the new axis of the old samples `[first, end)` observed in
     /// `state`, without the old axis' missing samples.
-    fn push_run(
+    pub(super) fn push_run(
         &self,
         first: u32,
         end: u32,
@@ -516,14 +516,14 @@ fn old_observations(
 
 /// A file's tiles as [`TileHistory`] values on the new axis, in Morton order, decoded one
 /// at a time (each tile's cells in parallel).
-struct OldTiles<'a> {
+pub(super) struct OldTiles<'a> {
     reader: &'a FroctReader,
     samples: &'a SampleMap<'a>,
     next: usize,
 }
 
 impl<'a> OldTiles<'a> {
-    fn new(reader: &'a FroctReader, samples: &'a SampleMap<'a>) -> Self {
+    pub(super) fn new(reader: &'a FroctReader, samples: &'a SampleMap<'a>) -> Self {
         Self {
             reader,
             samples,

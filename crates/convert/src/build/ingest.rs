@@ -479,7 +479,7 @@ impl Intake<'_> {
 }
 
 /// Ingest metadata's time: the one given, else now, to the second.
-pub(super) fn stamp(time: Option<Timestamp>) -> Value {
+pub(crate) fn stamp(time: Option<Timestamp>) -> Value {
     let now = time.unwrap_or_else(|| {
         std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)

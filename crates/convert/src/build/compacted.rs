@@ -1,0 +1,428 @@
+//! Compaction by merging histories: a file's base and segments become one base without
+//! retrieving a single map. Each cell's observations are read from where they are stored
+//! (the base's tiles on the base axis, each segment's tiles on its own axis piece, inherited
+//! cells and patch-tile remainders through the base cell's frozen prediction), placed on
+//! the axis of all the file's maps, joined in time order tile by tile, and refitted by the
+//! build's own fit and write stages.
+//!
+//! In: a base reader and (for 2.0) the segments of the living reader. Out: a 1.x file whose
+//! tiles are those of a [`build`](super::build) of the same maps: the merged cells are
+//! brought to the build's cells ([`coarsest`]: eight sibling cells with the same history
+//! are one cell, as the build never splits a cell that no change boundary falls inside).
+//! Memory: one tile of each stream (base, segments) at a time, and the fit's chunks.
+
+use super::accumulate::{pack, TileHistory};
+use super::append::{OldTiles, SampleMap};
+use super::axis_for_times;
+use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
+use super::merge::merge_tiles;
+use super::write::{TileEncoder, TileWriter};
+use crate::error::ConvertError;
+use crate::history::PackedCell;
+use crate::progress::Progress;
+use froctomap_core::{voxels_per_node, Occupancy, Timestamp};
+use froctomap_file::{
+    Cell, CellContent, FroctReader, Header, LivingReader, SegmentCell, SegmentContent, ToggleLayout,
+};
+use froctomap_temporal::{ModelConfig, OutlierMode, TemporalModel, Toggles, VoxelObservations};
+use rayon::prelude::*;
+use serde_json::{json, Map, Value};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// What [`merge_into`] wrote.
+#[derive(Debug)]
+pub(crate) struct Merged {
+    /// Maps (samples with a map) of the series.
+    pub maps: usize,
+    /// Outlier toggles stored.
+    pub toggles: u64,
+}
+
+/// How [`merge_into`] writes.
+pub(crate) struct MergeSettings<'a> {
+    /// The file's model, created from its registry entry.
+    pub model: Box<dyn TemporalModel>,
+    /// The model's configuration for the refit (outlier mode from the file).
+    pub config: &'a ModelConfig,
+    /// Toggle layout written.
+    pub toggles: ToggleLayout,
+    /// Header metadata written.
+    pub metadata: Map<String, Value>,
+    /// `true`: no wall-clock measurement in the file.
+    pub reproducible: bool,
+}
+
+/// Writes into `output` (a new 1.x file) the compaction of `base` and, for a 2.0 file, the
+/// segments of `living` (whose base is `base`): every cell's history over every map of the
+/// series, refitted.
+pub(crate) fn merge_into(
+    base: &FroctReader,
+    living: Option<&LivingReader>,
+    output: &Path,
+    settings: MergeSettings<'_>,
+    progress: &dyn Progress,
+) -> Result<Merged, ConvertError> {
+    let old = base.header();
+    let segments = living.map_or(0, LivingReader::segment_count);
+    let mut times: Vec<Timestamp> = present_times(&old.axis);
+    for k in 0..segments {
+        if let Some((_, axis)) = living.and_then(|l| l.segment_axis(k)) {
+            times.extend(present_times(axis));
+        }
+    }
+    let maps = times.len();
+    let axis = axis_for_times(&times)?;
+    drop(times);
+    let prepared = settings.model.prepare(&axis, settings.config)?;
+    let mut header = Header::new(
+        old.resolution,
+        old.tile_depth,
+        axis.clone(),
+        settings.model.id(),
+        prepared.encode_parameters(),
+        old.codec,
+    );
+    header.toggles = settings.toggles;
+    header.metadata = settings.metadata;
+    let mut writer = TileWriter::create(output, &header)?;
+    let stored: u64 = base
+        .tiles()
+        .iter()
+        .map(|t| u64::from(t.cell_count))
+        .sum::<u64>()
+        + (0..segments)
+            .map(|k| {
+                living.map_or(0, |l| {
+                    l.segment_tiles(k)
+                        .iter()
+                        .map(|t| u64::from(t.cell_count))
+                        .sum()
+                })
+            })
+            .sum::<u64>();
+    progress.stage("merging and modelling cells", stored);
+    let started = std::time::Instant::now();
+
+    let base_samples = SampleMap::new(&old.axis, &axis);
+    let segment_samples: Vec<SampleMap<'_>> = (0..segments)
+        .filter_map(|k| living.and_then(|l| l.segment_axis(k)))
+        .map(|(_, piece)| SampleMap::new(piece, &axis))
+        .collect();
+    let tile_depth = old.tile_depth;
+    let mut tiles: Box<dyn Iterator<Item = Result<TileHistory, ConvertError>> + Send + '_> =
+        Box::new(OldTiles::new(base, &base_samples));
+    if let Some(living) = living {
+        for (k, samples) in segment_samples.iter().enumerate() {
+            tiles = Box::new(merge_tiles(
+                tiles,
+                SegmentTiles::new(living, k, samples),
+                tile_depth,
+            ));
+        }
+    }
+    let tiles = tiles.map(move |tile| {
+        tile.map(|tile| TileHistory::from_packed(coarsest(tile.into_packed(), tile_depth)))
+    });
+    let fitter = TileFitter::new(&axis, prepared.as_ref());
+    let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
+    fit_and_write(
+        cells_of_tiles(tiles),
+        tile_depth,
+        &fitter,
+        &encoder,
+        &mut writer,
+        progress,
+    )?;
+    let stats = writer.stats().clone();
+    let lossless = settings.config.outliers == OutlierMode::Lossless;
+    let mut summary = Map::new();
+    let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
+    put("cell_classes", json!(stats.cells));
+    put("voxel_classes", json!(stats.voxels));
+    put("toggles", json!(stats.toggles));
+    put("model_errors", json!(stats.model_errors));
+    put(
+        "outliers",
+        json!(if lossless { "lossless" } else { "lossy" }),
+    );
+    put("snapshots_used", json!(maps));
+    put("snapshots_skipped", json!(0));
+    if !settings.reproducible {
+        put("model_seconds", json!(started.elapsed().as_secs_f64()));
+    }
+    writer.finish(summary)?;
+    Ok(Merged {
+        maps,
+        toggles: stats.toggles,
+    })
+}
+
+/// The instants of an axis's samples that have a map.
+fn present_times(axis: &froctomap_temporal::TimeAxis) -> Vec<Timestamp> {
+    (0..axis.len())
+        .filter(|&s| !axis.is_missing(s))
+        .filter_map(|s| axis.time(s))
+        .collect()
+}
+
+/// Cells (one tile's, in Morton order) brought to the coarsest cells a build makes of the
+/// same histories: eight siblings below the tile depth with the same runs become their
+/// parent, repeatedly. A build splits a cell only where a change boundary falls inside it,
+/// so its siblings never share a whole history; the merge splits a cell wherever any
+/// stream did (a segment splits a base cell around what changed in its maps only).
+pub(crate) fn coarsest(cells: Vec<PackedCell>, tile_depth: u8) -> Vec<PackedCell> {
+    let mut out: Vec<PackedCell> = Vec::with_capacity(cells.len());
+    for cell in cells {
+        out.push(cell);
+        while let Some(parent) = siblings_as_parent(&out, tile_depth) {
+            out.truncate(out.len() - 8);
+            out.push(parent);
+        }
+    }
+    out
+}
+
+/// The parent of the last eight cells of `cells` when they are its eight children with the
+/// same runs.
+fn siblings_as_parent(cells: &[PackedCell], tile_depth: u8) -> Option<PackedCell> {
+    let last = cells.get(cells.len().checked_sub(8)?..)?;
+    let (start, depth, runs) = &last[0];
+    if *depth <= tile_depth || start.0 % voxels_per_node(depth - 1) != 0 {
+        return None;
+    }
+    let size = voxels_per_node(*depth);
+    let same = last.iter().enumerate().all(|(i, (s, d, r))| {
+        d == depth
+            && s.0 == start.0 + i as u64 * size
+            && r.run_count() == runs.run_count()
+            && r.packed_bytes() == runs.packed_bytes()
+    });
+    same.then(|| (*start, depth - 1, runs.clone()))
+}
+
+/// Segment `k`'s tiles as [`TileHistory`] values on the compacted axis, in Morton order,
+/// one tile at a time (its cells in parallel).
+struct SegmentTiles<'a> {
+    living: &'a LivingReader,
+    k: usize,
+    samples: &'a SampleMap<'a>,
+    /// Seconds from the base axis's first instant of each sample of the segment (where the
+    /// base's models are evaluated for the frozen prediction).
+    seconds: Vec<f64>,
+    next: usize,
+}
+
+impl<'a> SegmentTiles<'a> {
+    fn new(living: &'a LivingReader, k: usize, samples: &'a SampleMap<'a>) -> Self {
+        let origin = living.base().header().axis.start();
+        let seconds = living.segment_axis(k).map_or_else(Vec::new, |(_, axis)| {
+            (0..axis.len())
+                .map(|j| axis.time(j).map_or(0.0, |t| t.secs_since(origin)))
+                .collect()
+        });
+        Self {
+            living,
+            k,
+            samples,
+            seconds,
+            next: 0,
+        }
+    }
+
+    fn tile(&self, i: usize) -> Result<TileHistory, ConvertError> {
+        let living = self.living;
+        let cells = living.read_segment_tile(self.k, i)?;
+        let inherits = cells
+            .iter()
+            .any(|c| matches!(c.content, SegmentContent::Inherited { .. }));
+        let base = living.base();
+        let base_cells: Vec<Cell> = match cells.first() {
+            Some(first) if inherits => match base.tile_containing(first.start) {
+                Some(t) => base.read_tile(t)?,
+                None => return Err(no_base_cell()),
+            },
+            _ => Vec::new(),
+        };
+        // The base cell holding each inherited cell, and the frozen prediction at each of
+        // the segment's samples of the modelled ones among them (computed once per base
+        // cell: a patch tile's remainder gives a base cell many parts).
+        let holder = |cell: &SegmentCell| -> Result<usize, ConvertError> {
+            let i = base_cells
+                .partition_point(|b| b.start <= cell.start)
+                .checked_sub(1)
+                .ok_or_else(no_base_cell)?;
+            let b = &base_cells[i];
+            let inside =
+                cell.start.0 + voxels_per_node(cell.depth) <= b.start.0 + voxels_per_node(b.depth);
+            inside.then_some(i).ok_or_else(no_base_cell)
+        };
+        let mut modelled: Vec<usize> = Vec::new();
+        for cell in &cells {
+            if matches!(cell.content, SegmentContent::Inherited { .. }) {
+                let i = holder(cell)?;
+                if matches!(base_cells[i].content, CellContent::Modelled(_)) {
+                    modelled.push(i);
+                }
+            }
+        }
+        modelled.sort_unstable();
+        modelled.dedup();
+        let model = base.model();
+        let predictions: HashMap<usize, Vec<Occupancy>> = modelled
+            .par_iter()
+            .map(|&i| {
+                let cell = &base_cells[i];
+                let states = self
+                    .seconds
+                    .iter()
+                    .map(|&s| Occupancy::from(cell.probability(model, s) > 0.5))
+                    .collect();
+                (i, states)
+            })
+            .collect();
+        let len = self.seconds.len() as u32;
+        let packed = cells
+            .par_iter()
+            .map(|cell| {
+                let frozen = match cell.content {
+                    SegmentContent::Inherited { .. } => {
+                        let i = holder(cell)?;
+                        match &base_cells[i].content {
+                            CellContent::Constant(state)
+                            | CellContent::ConstantExcept { state, .. } => Frozen::Constant(*state),
+                            CellContent::Modelled(_) => {
+                                Frozen::Predicted(predictions.get(&i).ok_or_else(no_base_cell)?)
+                            }
+                        }
+                    }
+                    _ => Frozen::Constant(Occupancy::Free),
+                };
+                let observations = segment_observations(cell, &frozen, len, self.samples)?;
+                Ok((cell.start, cell.depth, pack(&observations)))
+            })
+            .collect::<Result<Vec<PackedCell>, ConvertError>>()?;
+        Ok(TileHistory::from_packed(packed))
+    }
+}
+
+fn no_base_cell() -> ConvertError {
+    ConvertError::internal("a segment's inherited cell lies inside no base cell")
+}
+
+impl Iterator for SegmentTiles<'_> {
+    type Item = Result<TileHistory, ConvertError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let i = self.next;
+        if i >= self.living.segment_tiles(self.k).len() {
+            return None;
+        }
+        self.next += 1;
+        Some(self.tile(i))
+    }
+}
+
+/// The base's frozen prediction for an inherited cell over a segment's samples.
+enum Frozen<'p> {
+    Constant(Occupancy),
+    /// The state at each sample of the segment.
+    Predicted(&'p [Occupancy]),
+}
+
+/// A segment cell's observations on the compacted axis: over its mask's ranges of the
+/// segment's `len` samples, its state (constant, flipped at exceptions, or the frozen
+/// prediction flipped at outliers).
+fn segment_observations(
+    cell: &SegmentCell,
+    frozen: &Frozen<'_>,
+    len: u32,
+    samples: &SampleMap<'_>,
+) -> Result<VoxelObservations, ConvertError> {
+    let ranges: Vec<(u32, u32)> = match &cell.mask {
+        None => vec![(0, len)],
+        Some(mask) => mask
+            .as_slice()
+            .chunks(2)
+            .map(|pair| (pair[0], pair.get(1).copied().unwrap_or(len).min(len)))
+            .filter(|(a, b)| a < b)
+            .collect(),
+    };
+    let none = Toggles::default();
+    let (state, flips) = match &cell.content {
+        SegmentContent::Constant(state) => (*state, &none),
+        SegmentContent::ConstantExcept { state, exceptions } => (*state, exceptions),
+        SegmentContent::Inherited { outliers } => match frozen {
+            Frozen::Constant(state) => (*state, outliers),
+            Frozen::Predicted(states) => {
+                let mut runs = Vec::new();
+                for (first, end) in ranges {
+                    predicted_runs(first, end, states, outliers, samples, &mut runs)?;
+                }
+                return Ok(VoxelObservations::from_runs(runs)?);
+            }
+        },
+    };
+    let mut runs = Vec::new();
+    for (first, end) in ranges {
+        flipped_runs(first, end, state, flips, samples, &mut runs)?;
+    }
+    Ok(VoxelObservations::from_runs(runs)?)
+}
+
+/// Runs of samples `[first, end)` in `state`, flipped where `flips` has odd parity.
+fn flipped_runs(
+    first: u32,
+    end: u32,
+    state: Occupancy,
+    flips: &Toggles,
+    samples: &SampleMap<'_>,
+    out: &mut Vec<(u32, u32, Occupancy)>,
+) -> Result<(), ConvertError> {
+    let at = |s: u32| if flips.parity_at(s) { !state } else { state };
+    let positions = flips.as_slice();
+    let from = positions.partition_point(|&p| p <= first);
+    let mut cursor = first;
+    for &flip in positions[from..].iter().take_while(|&&p| p < end) {
+        samples.push_run(cursor, flip, at(cursor), out)?;
+        cursor = flip;
+    }
+    samples.push_run(cursor, end, at(cursor), out)
+}
+
+/// Runs of samples `[first, end)` in the predicted `states`, flipped where `flips` has odd
+/// parity.
+fn predicted_runs(
+    first: u32,
+    end: u32,
+    states: &[Occupancy],
+    flips: &Toggles,
+    samples: &SampleMap<'_>,
+    out: &mut Vec<(u32, u32, Occupancy)>,
+) -> Result<(), ConvertError> {
+    let positions = flips.as_slice();
+    let mut next = positions.partition_point(|&p| p <= first);
+    let mut parity = flips.parity_at(first);
+    let state_at = |s: u32, parity: bool| {
+        let predicted = states.get(s as usize).copied().unwrap_or(Occupancy::Free);
+        if parity {
+            !predicted
+        } else {
+            predicted
+        }
+    };
+    let mut cursor = first;
+    let mut current = state_at(first, parity);
+    for s in first + 1..end {
+        while positions.get(next).is_some_and(|&p| p <= s) {
+            parity = !parity;
+            next += 1;
+        }
+        let state = state_at(s, parity);
+        if state != current {
+            samples.push_run(cursor, s, current, out)?;
+            (cursor, current) = (s, state);
+        }
+    }
+    samples.push_run(cursor, end, current, out)
+}
