@@ -11,8 +11,9 @@ use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
-use froctomap_formats::{Backend, MapFormat, WriteOptions};
-use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
+use froctomap_formats::{
+    octomap_native, Backend, MapFormat, PluginError, TiledMapWriter, WriteOptions,
+};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -268,13 +269,10 @@ fn collect_tiles(
 
 /// A file whose cells do not make a map (overlapping, out of order): only a damaged or
 /// foreign writer's file gets past the reader's checks this way.
-fn inconsistent_cells(
-    reader: &dyn SeriesRead,
-    e: impl std::error::Error + Send + Sync + 'static,
-) -> ConvertError {
+fn inconsistent_cells(reader: &dyn SeriesRead, e: impl Into<crate::error::Cause>) -> ConvertError {
     ConvertError::InconsistentCells {
         path: reader.path().to_path_buf(),
-        source: Box::new(e),
+        source: e.into(),
     }
 }
 
@@ -332,11 +330,9 @@ pub fn write_owned_map(
 }
 
 /// Writes the map as observed at `sample` to `path` (as [`write_owned_map`] of
-/// [`observed_map`] would). An output format whose writer gives the canonical OctoMap
-/// binary ([`Capabilities::writes_canonical_binary`], the native `.bt`) is built tile by
-/// tile in parallel straight from the cells' states, without the map in memory.
-///
-/// [`Capabilities::writes_canonical_binary`]: froctomap_formats::Capabilities::writes_canonical_binary
+/// [`observed_map`] would). An output format with a writer fed the map a part at a time
+/// ([`MapFormat::states_tiled_writer`], the native `.bt`) gets it tile by tile in parallel
+/// straight from the cells' states, without the map in memory.
 pub fn write_observed_map(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -355,7 +351,7 @@ pub fn write_observed_map(
 }
 
 /// Writes the map predicted for `t` to `path` (as [`write_owned_map`] of [`predicted_map`]
-/// would), a native `.bt` tile by tile as [`write_observed_map`] does.
+/// would), tile by tile where the format allows as [`write_observed_map`] does.
 pub fn write_predicted_map(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -374,8 +370,8 @@ pub fn write_predicted_map(
     )
 }
 
-/// The tiled canonical-binary writer where the output format allows it, else the map
-/// `whole` builds, written whole.
+/// The output format's tiled writer where it has one, else the map `whole` builds, written
+/// whole.
 fn write_query(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -389,14 +385,20 @@ fn write_query(
         .formats()
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
-    if chosen.capabilities.writes_canonical_binary {
-        write_states_bt(reader, chosen, path, query)
-    } else {
-        write_owned_map(context, whole()?, path, options)
+    match chosen.states_tiled_writer() {
+        Some(writer) => {
+            let (bytes, leaves) = states_file(reader, writer.as_ref(), query)?;
+            write_atomically(path, |out| out.write_all(&bytes))?;
+            Ok(WrittenMap {
+                format: chosen,
+                leaves,
+            })
+        }
+        None => write_owned_map(context, whole()?, path, options),
     }
 }
 
-/// Which states of the cells a `.bt` is written from.
+/// Which states of the cells a map is written from.
 #[derive(Clone, Copy)]
 enum StateQuery {
     /// As observed at a sample.
@@ -405,23 +407,14 @@ enum StateQuery {
     Predicted(f64),
 }
 
-/// The canonical `.bt` of the cells' states: each tile's subtree built on its own thread
-/// ([`CanonicalBinaryBuilder`]), then joined under the root and written atomically.
-fn write_states_bt(
+/// The file of the cells' states and its leaf count, each tile's part built on its own
+/// thread by `writer`, then joined.
+fn states_file(
     reader: &dyn SeriesRead,
-    format: MapFormat,
-    path: &Path,
+    writer: &dyn TiledMapWriter,
     query: StateQuery,
-) -> Result<WrittenMap, ConvertError> {
-    let (bytes, leaves) = states_bt(reader, query)?;
-    write_atomically(path, |out| out.write_all(&bytes))?;
-    Ok(WrittenMap { format, leaves })
-}
-
-/// The canonical `.bt` file of the cells' states and its leaf count, built tile by tile in
-/// parallel.
-fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usize), ConvertError> {
-    let inconsistent = |e: EncodeError| inconsistent_cells(reader, e);
+) -> Result<(Vec<u8>, usize), ConvertError> {
+    let inconsistent = |e: PluginError| inconsistent_cells(reader, e);
     let tile_depth = reader.header().tile_depth;
     let tiles: Vec<MortonCode> = match query {
         StateQuery::Observed(sample) => reader
@@ -439,12 +432,11 @@ fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usi
         .par_iter()
         .enumerate()
         .map(|(tile, &code)| {
-            let mut builder =
-                CanonicalBinaryBuilder::new(code, tile_depth).map_err(inconsistent)?;
+            let mut part = writer.part(code, tile_depth).map_err(inconsistent)?;
             let mut refused = None;
             let mut push = |start: MortonCode, depth: u8, state: Occupancy| {
                 if refused.is_none() {
-                    if let Err(e) = builder.push_state(start, depth, state.is_occupied()) {
+                    if let Err(e) = part.push(start, depth, state) {
                         refused = Some(e);
                     }
                 }
@@ -455,34 +447,39 @@ fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usi
             }?;
             match refused {
                 Some(e) => Err(inconsistent(e)),
-                None => Ok(builder.finish()),
+                None => part.finish().map_err(inconsistent),
             }
         })
         .collect::<Result<Vec<_>, ConvertError>>()?;
-    let mut root = CanonicalBinaryBuilder::new(MortonCode(0), 0).map_err(inconsistent)?;
-    for part in parts {
-        root.push_part(part).map_err(inconsistent)?;
-    }
-    let whole = root.finish();
-    let leaves = usize::try_from(whole.leaves()).unwrap_or(usize::MAX);
-    let bytes = whole
-        .into_file(reader.header().resolution)
+    let mut bytes = Vec::new();
+    let leaves = writer
+        .join(reader.header().resolution, parts, &mut bytes)
         .map_err(inconsistent)?;
-    Ok((bytes, leaves))
+    Ok((bytes, usize::try_from(leaves).unwrap_or(usize::MAX)))
+}
+
+/// The tiled writer of the canonical `.bt` ([`octomap_native::BINARY`]): what ROS messages
+/// carry, whatever formats a context registers.
+fn canonical_bt_writer() -> Result<Box<dyn TiledMapWriter>, ConvertError> {
+    octomap_native::BINARY
+        .states_tiled_writer()
+        .ok_or(ConvertError::internal("the native .bt has no tiled writer"))
 }
 
 /// The canonical `.bt` file of the map observed at `sample` (the bytes
 /// [`write_observed_map`] writes to a `.bt`), in memory: what the ROS 2 node's
 /// `get_octomap_at` service answers.
 pub fn observed_bt(reader: &dyn SeriesRead, sample: u32) -> Result<Vec<u8>, ConvertError> {
-    states_bt(reader, StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
+    let writer = canonical_bt_writer()?;
+    states_file(reader, writer.as_ref(), StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
 }
 
 /// The canonical `.bt` file of the map predicted for `t` (the bytes
 /// [`write_predicted_map`] writes to a `.bt`), in memory: what the ROS 2 node publishes.
 pub fn predicted_bt(reader: &dyn SeriesRead, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
-    states_bt(reader, StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
+    let writer = canonical_bt_writer()?;
+    states_file(reader, writer.as_ref(), StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
 }
 
 /// What [`write_map`] wrote.
@@ -602,7 +599,7 @@ pub fn export(
     // A format written tile by tile holds little of each map, so maps are made in
     // parallel; others hold a whole map while writing it, so one map at a time (each built
     // from tiles in parallel) keeps memory at one map.
-    let files: Vec<(SeriesInput, u64)> = if format.capabilities.writes_canonical_binary {
+    let files: Vec<(SeriesInput, u64)> = if format.states_tiled_writer().is_some() {
         times
             .par_iter()
             .zip(samples.par_iter())

@@ -215,10 +215,7 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
         sample: seam,
         changes: froctomap_core::changes(&[], last_map.leaves()),
     };
-    let previous = Accepted::from_map(
-        froctomap_octomap_codec::encode_binary(&last_map),
-        last_map.into_leaves(),
-    );
+    let previous = Accepted::from_map(last_map);
 
     // The file fixes the series' resolution: inputs of another one are refused (or left
     // out with `skip_bad`), whatever most of them give.
