@@ -25,9 +25,10 @@ use super::ingest::{
 };
 use super::merge::merge_tiles;
 use super::write::{TileEncoder, TileWriter};
-use super::{axis_for_times, output_dir, ClassCounts};
+use super::{axis_for_times, ClassCounts};
 use crate::context::Context;
 use crate::error::ConvertError;
+use crate::files::output_dir;
 use crate::history::PackedCell;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;

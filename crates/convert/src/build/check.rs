@@ -251,7 +251,7 @@ fn header_resolution(
 ) -> Result<Option<f64>, SnapshotError> {
     use std::io::Read;
     let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
-    super::refuse_special(path, &metadata)?;
+    crate::files::refuse_special(path, &metadata)?;
     let mut head = Vec::with_capacity(PROBE_BYTES as usize);
     std::fs::File::open(path)
         .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
