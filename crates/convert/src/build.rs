@@ -42,7 +42,8 @@ mod test_support;
 mod write;
 
 use crate::context::Context;
-use crate::error::{ConvertError, SnapshotError};
+use crate::error::ConvertError;
+pub use crate::files::{is_living_file, output_dir};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use accumulate::{Accumulated, Accumulator};
@@ -53,12 +54,11 @@ use extract::ChangeExtractor;
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::Timestamp;
 use froctomap_file::{Header, WrittenFile};
-use froctomap_formats::FormatError;
 use froctomap_temporal::{OutlierMode, TimeAxis};
 pub(crate) use ingest::stamp;
 pub use ingest::{ingest, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget};
 use ingest::{Intake, Run};
-pub use segment::{append_living, append_segment, is_living_file, refuse_growing_fixed_span};
+pub use segment::{append_living, append_segment, refuse_growing_fixed_span};
 use serde_json::{json, Map, Value};
 use spill::SpillPlace;
 use std::path::Path;
@@ -102,31 +102,6 @@ pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
         return TimeAxis::regular(first, gcd, count as u32, missing).map_err(invalid);
     }
     TimeAxis::explicit(times.to_vec()).map_err(invalid)
-}
-
-/// An input file's bytes, refused above `limit` bytes before reading them.
-pub(crate) fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, SnapshotError> {
-    let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
-    refuse_special(path, &metadata)?;
-    let bytes = metadata.len();
-    if bytes > limit {
-        return Err(SnapshotError::TooLarge { bytes, limit });
-    }
-    std::fs::read(path).map_err(SnapshotError::Io)
-}
-
-/// A FIFO or device is refused before it is opened (reading one may never end).
-pub(crate) fn refuse_special(
-    path: &Path,
-    metadata: &std::fs::Metadata,
-) -> Result<(), SnapshotError> {
-    match froctomap_formats::special_kind(metadata.file_type()) {
-        None => Ok(()),
-        Some(kind) => Err(SnapshotError::Format(FormatError::NotAFile {
-            path: path.to_path_buf(),
-            kind,
-        })),
-    }
 }
 
 fn gcd(a: i64, b: i64) -> i64 {
@@ -282,21 +257,6 @@ fn new_file(run: &Run<'_>, output: &Path) -> Result<IngestReport, ConvertError> 
         spills,
         extended: None,
     })
-}
-
-/// The directory an output goes into (`.` for a bare file name): where its temporary files,
-/// spill data and spooled inputs go unless a directory is given.
-///
-/// ```
-/// use std::path::Path;
-/// assert_eq!(froctomap_convert::output_dir(Path::new("maps/a.froct")), Path::new("maps"));
-/// assert_eq!(froctomap_convert::output_dir(Path::new("a.froct")), Path::new("."));
-/// ```
-pub fn output_dir(output: &Path) -> &Path {
-    match output.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
-    }
 }
 
 /// Runs extraction and accumulation side by side: changes are extracted in parallel batches

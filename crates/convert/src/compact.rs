@@ -137,7 +137,7 @@ pub fn compact(
     }
     // In place, the writer lock of a 2.0 file is taken before its state is read and held
     // until the new file replaces it.
-    let writer = match (output, crate::build::is_living_file(file)?) {
+    let writer = match (output, crate::files::is_living_file(file)?) {
         (None, true) => Some(LivingWriter::open_with_limits(
             file,
             context.limits().froct,
@@ -268,7 +268,7 @@ fn compact_with(
                 path: target.to_path_buf(),
                 source,
             })?;
-            sync_parent(target);
+            crate::files::sync_parent(target);
             drop(writer);
             version_text(froctomap_file::FroctReader::open(target)?.header().version)
         }
@@ -292,13 +292,4 @@ fn compact_with(
 
 fn version_text((major, minor): (u16, u16)) -> String {
     format!("{major}.{minor}")
-}
-
-/// Makes a rename in `path`'s directory durable (best effort: not every system can sync a
-/// directory).
-pub(crate) fn sync_parent(path: &Path) {
-    let dir = crate::build::output_dir(path);
-    if let Ok(dir) = std::fs::File::open(dir) {
-        let _ = dir.sync_all();
-    }
 }

@@ -139,8 +139,8 @@ impl Context {
     /// [`open_froct`](Self::open_froct) does: what retrieval, prediction, export and `info`
     /// read. Whole-history analyses take [`FroctFile::whole_history`].
     pub fn open_series(&self, path: &Path) -> Result<FroctFile, ConvertError> {
-        crate::inputs::refuse_special_file(path)?;
-        if crate::build::is_living_file(path)? {
+        crate::files::refuse_special_file(path)?;
+        if crate::files::is_living_file(path)? {
             return LivingReader::open_with_limits(path, self.limits.froct, &self.models)
                 .map(FroctFile::Living)
                 .map_err(ConvertError::File);
@@ -153,7 +153,7 @@ impl Context {
     /// see [`open_series`](Self::open_series)). A map file of a registered format (a `.bt`
     /// snapshot, say) is refused as such rather than as a damaged series file.
     pub fn open_froct(&self, path: &Path) -> Result<FroctReader, ConvertError> {
-        crate::inputs::refuse_special_file(path)?;
+        crate::files::refuse_special_file(path)?;
         FroctReader::open_with_limits(path, self.limits.froct, &self.models).map_err(|error| {
             match self.formats.identify_file(path) {
                 Ok(Some(Identified::Map(format))) => ConvertError::MapNotSeries {

@@ -441,11 +441,13 @@ fn read_truth(
     let axis = &reader.header().axis;
     // A file, or a map of a recording the inputs were collected from (named
     // `recording/topic@time`).
-    let name = crate::recording::input_name(truth);
-    let bytes = crate::recording::snapshot_bytes(truth, context.limits().max_map_file_bytes)
-        .map_err(|e| ConvertError::Snapshot {
-            path: name.clone(),
-            source: std::sync::Arc::new(e),
+    let name = crate::inputs::input_name(truth);
+    let bytes =
+        crate::inputs::snapshot_bytes(truth, context.limits().max_map_file_bytes).map_err(|e| {
+            ConvertError::Snapshot {
+                path: name.clone(),
+                source: std::sync::Arc::new(e),
+            }
         })?;
     let snapshot = context
         .formats()

@@ -1,7 +1,8 @@
 //! Which files make a series, and at what time each snapshot was taken.
 
 use crate::context::Context;
-use crate::error::{ConvertError, ManifestProblem};
+use crate::error::{ConvertError, ManifestProblem, SnapshotError};
+use crate::files::{refuse_special_file, special_kind};
 use crate::glob_walk::recursive_matches;
 use crate::recording::RecordedMap;
 use crate::time::{
@@ -591,21 +592,25 @@ fn assign_times(
     }
 }
 
-/// What `path` is when it exists but is not a regular file (symbolic links followed).
-pub(crate) fn special_kind(path: &Path) -> Option<&'static str> {
-    let metadata = std::fs::metadata(path).ok()?;
-    froctomap_formats::special_kind(metadata.file_type())
+/// How messages name an input: its path, or for a recorded map
+/// `recording/topic@time` (a name without an extension, so that no reader takes the
+/// recording's extension for the map's).
+pub(crate) fn input_name(input: &SeriesInput) -> PathBuf {
+    match input.recorded() {
+        None => input.path.clone(),
+        Some(recorded) => {
+            let time = froctomap_core::calendar::iso8601(input.time).replace('.', ",");
+            let topic = recorded.topic().trim_matches('/').replace('.', "_");
+            input.path.join(format!("{topic}@{time}"))
+        }
+    }
 }
 
-/// Refuses `path`, before it is opened, when it exists but is not a regular file (a FIFO
-/// could block the read forever).
-pub(crate) fn refuse_special_file(path: &Path) -> Result<(), ConvertError> {
-    match special_kind(path) {
-        None => Ok(()),
-        Some(kind) => Err(ConvertError::NotAFile {
-            path: path.to_path_buf(),
-            kind,
-        }),
+/// The bytes of an input's map: the file, or the recorded map it holds.
+pub(crate) fn snapshot_bytes(input: &SeriesInput, limit: u64) -> Result<Vec<u8>, SnapshotError> {
+    match input.recorded() {
+        None => crate::files::read_input(&input.path, limit),
+        Some(recorded) => recorded.map_bytes(limit),
     }
 }
 

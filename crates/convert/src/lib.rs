@@ -50,6 +50,8 @@ mod context;
 mod dynamics;
 mod error;
 mod eval;
+mod export;
+mod files;
 mod glob_walk;
 mod history;
 mod info;
@@ -71,10 +73,9 @@ pub use anomaly::{
     Expectation,
 };
 pub use build::{
-    append, append_living, append_segment, axis_for_times, build, ingest, is_living_file,
-    output_dir, refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport,
-    ClassCounts, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget,
-    DEFAULT_BUILD_MEMORY,
+    append, append_living, append_segment, axis_for_times, build, ingest,
+    refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport, ClassCounts,
+    Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget, DEFAULT_BUILD_MEMORY,
 };
 pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};
 pub use context::{Context, Limits, FROCT};
@@ -87,6 +88,8 @@ pub use eval::{
     evaluate, log_loss, Calibration, CalibrationBin, ErrorRates, EvalReport, Rate,
     CALIBRATION_BINS, LOG_LOSS_EPSILON, METHODS,
 };
+pub use export::{export, ExportMode, ExportOptions, ExportReport};
+pub use files::{is_living_file, output_dir};
 pub use froctomap_core::calendar::unix_seconds;
 pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
 pub use history::SeriesHistory;
@@ -98,12 +101,12 @@ pub use inputs::{
     collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,
     InputWarning, SeriesInput, TimeOrigin, TimeSource, MANIFEST_NAME, STDIN_INPUT,
 };
-pub use maps::{
-    export, observed_map, predicted_map, probability_log_odds, resolve_observed,
-    resolve_observed_with, write_map, write_observed_map, write_owned_map, write_predicted_map,
-    ExportMode, ExportOptions, ExportReport, Pick, ResolvedSample, TimeQuery, WrittenMap,
-};
 pub use maps::{observed_bt, predicted_bt};
+pub use maps::{
+    observed_map, predicted_map, probability_log_odds, resolve_observed, resolve_observed_with,
+    write_map, write_observed_map, write_owned_map, write_predicted_map, Pick, ResolvedSample,
+    TimeQuery, WrittenMap,
+};
 pub use outputs::refuse_overwriting_input;
 pub use progress::{Progress, Silent};
 pub use query::{

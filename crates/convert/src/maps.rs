@@ -1,20 +1,17 @@
-//! Maps out of a FROctomap file: retrieved (as observed), predicted (any instant), exported.
+//! Maps out of a FROctomap file: retrieved (as observed) and predicted (any instant), in
+//! memory or written to a file ([`export`](crate::export()) writes many).
 
 use crate::context::Context;
 use crate::error::ConvertError;
-use crate::inputs::{manifest_text, SeriesInput, MANIFEST_NAME};
-use crate::outputs::{refuse_non_empty_dir, refuse_overwriting_input};
-use crate::progress::Progress;
+use crate::outputs::refuse_overwriting_input;
 use crate::series_file::SeriesRead;
-use crate::time::{check_range, parse_time, read_time, Zone};
-use froctomap_core::calendar::iso8601_basic;
+use crate::time::{parse_time, read_time, Zone};
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
-use froctomap_formats::{Backend, MapFormat, WriteOptions};
-use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
+use froctomap_formats::{octomap_native, MapFormat, PluginError, TiledMapWriter, WriteOptions};
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A time as a user gives it for `retrieve`/`predict`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -268,13 +265,10 @@ fn collect_tiles(
 
 /// A file whose cells do not make a map (overlapping, out of order): only a damaged or
 /// foreign writer's file gets past the reader's checks this way.
-fn inconsistent_cells(
-    reader: &dyn SeriesRead,
-    e: impl std::error::Error + Send + Sync + 'static,
-) -> ConvertError {
+fn inconsistent_cells(reader: &dyn SeriesRead, e: impl Into<crate::error::Cause>) -> ConvertError {
     ConvertError::InconsistentCells {
         path: reader.path().to_path_buf(),
-        source: Box::new(e),
+        source: e.into(),
     }
 }
 
@@ -332,11 +326,9 @@ pub fn write_owned_map(
 }
 
 /// Writes the map as observed at `sample` to `path` (as [`write_owned_map`] of
-/// [`observed_map`] would). An output format whose writer gives the canonical OctoMap
-/// binary ([`Capabilities::writes_canonical_binary`], the native `.bt`) is built tile by
-/// tile in parallel straight from the cells' states, without the map in memory.
-///
-/// [`Capabilities::writes_canonical_binary`]: froctomap_formats::Capabilities::writes_canonical_binary
+/// [`observed_map`] would). An output format with a writer fed the map a part at a time
+/// ([`MapFormat::states_tiled_writer`], the native `.bt`) gets it tile by tile in parallel
+/// straight from the cells' states, without the map in memory.
 pub fn write_observed_map(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -355,7 +347,7 @@ pub fn write_observed_map(
 }
 
 /// Writes the map predicted for `t` to `path` (as [`write_owned_map`] of [`predicted_map`]
-/// would), a native `.bt` tile by tile as [`write_observed_map`] does.
+/// would), tile by tile where the format allows as [`write_observed_map`] does.
 pub fn write_predicted_map(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -374,8 +366,8 @@ pub fn write_predicted_map(
     )
 }
 
-/// The tiled canonical-binary writer where the output format allows it, else the map
-/// `whole` builds, written whole.
+/// The output format's tiled writer where it has one, else the map `whole` builds, written
+/// whole.
 fn write_query(
     context: &Context,
     reader: &dyn SeriesRead,
@@ -389,14 +381,20 @@ fn write_query(
         .formats()
         .output_format(path, options)
         .map_err(ConvertError::Write)?;
-    if chosen.capabilities.writes_canonical_binary {
-        write_states_bt(reader, chosen, path, query)
-    } else {
-        write_owned_map(context, whole()?, path, options)
+    match chosen.states_tiled_writer() {
+        Some(writer) => {
+            let (bytes, leaves) = states_file(reader, writer.as_ref(), query)?;
+            write_atomically(path, |out| out.write_all(&bytes))?;
+            Ok(WrittenMap {
+                format: chosen,
+                leaves,
+            })
+        }
+        None => write_owned_map(context, whole()?, path, options),
     }
 }
 
-/// Which states of the cells a `.bt` is written from.
+/// Which states of the cells a map is written from.
 #[derive(Clone, Copy)]
 enum StateQuery {
     /// As observed at a sample.
@@ -405,23 +403,14 @@ enum StateQuery {
     Predicted(f64),
 }
 
-/// The canonical `.bt` of the cells' states: each tile's subtree built on its own thread
-/// ([`CanonicalBinaryBuilder`]), then joined under the root and written atomically.
-fn write_states_bt(
+/// The file of the cells' states and its leaf count, each tile's part built on its own
+/// thread by `writer`, then joined.
+fn states_file(
     reader: &dyn SeriesRead,
-    format: MapFormat,
-    path: &Path,
+    writer: &dyn TiledMapWriter,
     query: StateQuery,
-) -> Result<WrittenMap, ConvertError> {
-    let (bytes, leaves) = states_bt(reader, query)?;
-    write_atomically(path, |out| out.write_all(&bytes))?;
-    Ok(WrittenMap { format, leaves })
-}
-
-/// The canonical `.bt` file of the cells' states and its leaf count, built tile by tile in
-/// parallel.
-fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usize), ConvertError> {
-    let inconsistent = |e: EncodeError| inconsistent_cells(reader, e);
+) -> Result<(Vec<u8>, usize), ConvertError> {
+    let inconsistent = |e: PluginError| inconsistent_cells(reader, e);
     let tile_depth = reader.header().tile_depth;
     let tiles: Vec<MortonCode> = match query {
         StateQuery::Observed(sample) => reader
@@ -439,12 +428,11 @@ fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usi
         .par_iter()
         .enumerate()
         .map(|(tile, &code)| {
-            let mut builder =
-                CanonicalBinaryBuilder::new(code, tile_depth).map_err(inconsistent)?;
+            let mut part = writer.part(code, tile_depth).map_err(inconsistent)?;
             let mut refused = None;
             let mut push = |start: MortonCode, depth: u8, state: Occupancy| {
                 if refused.is_none() {
-                    if let Err(e) = builder.push_state(start, depth, state.is_occupied()) {
+                    if let Err(e) = part.push(start, depth, state) {
                         refused = Some(e);
                     }
                 }
@@ -455,34 +443,39 @@ fn states_bt(reader: &dyn SeriesRead, query: StateQuery) -> Result<(Vec<u8>, usi
             }?;
             match refused {
                 Some(e) => Err(inconsistent(e)),
-                None => Ok(builder.finish()),
+                None => part.finish().map_err(inconsistent),
             }
         })
         .collect::<Result<Vec<_>, ConvertError>>()?;
-    let mut root = CanonicalBinaryBuilder::new(MortonCode(0), 0).map_err(inconsistent)?;
-    for part in parts {
-        root.push_part(part).map_err(inconsistent)?;
-    }
-    let whole = root.finish();
-    let leaves = usize::try_from(whole.leaves()).unwrap_or(usize::MAX);
-    let bytes = whole
-        .into_file(reader.header().resolution)
+    let mut bytes = Vec::new();
+    let leaves = writer
+        .join(reader.header().resolution, parts, &mut bytes)
         .map_err(inconsistent)?;
-    Ok((bytes, leaves))
+    Ok((bytes, usize::try_from(leaves).unwrap_or(usize::MAX)))
+}
+
+/// The tiled writer of the canonical `.bt` ([`octomap_native::BINARY`]): what ROS messages
+/// carry, whatever formats a context registers.
+fn canonical_bt_writer() -> Result<Box<dyn TiledMapWriter>, ConvertError> {
+    octomap_native::BINARY
+        .states_tiled_writer()
+        .ok_or(ConvertError::internal("the native .bt has no tiled writer"))
 }
 
 /// The canonical `.bt` file of the map observed at `sample` (the bytes
 /// [`write_observed_map`] writes to a `.bt`), in memory: what the ROS 2 node's
 /// `get_octomap_at` service answers.
 pub fn observed_bt(reader: &dyn SeriesRead, sample: u32) -> Result<Vec<u8>, ConvertError> {
-    states_bt(reader, StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
+    let writer = canonical_bt_writer()?;
+    states_file(reader, writer.as_ref(), StateQuery::Observed(sample)).map(|(bytes, _)| bytes)
 }
 
 /// The canonical `.bt` file of the map predicted for `t` (the bytes
 /// [`write_predicted_map`] writes to a `.bt`), in memory: what the ROS 2 node publishes.
 pub fn predicted_bt(reader: &dyn SeriesRead, t: Timestamp) -> Result<Vec<u8>, ConvertError> {
     let seconds = t.secs_since(reader.header().axis.start());
-    states_bt(reader, StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
+    let writer = canonical_bt_writer()?;
+    states_file(reader, writer.as_ref(), StateQuery::Predicted(seconds)).map(|(bytes, _)| bytes)
 }
 
 /// What [`write_map`] wrote.
@@ -492,191 +485,6 @@ pub struct WrittenMap {
     pub format: MapFormat,
     /// Leaves in the file.
     pub leaves: usize,
-}
-
-/// What `export` produces at each instant.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum ExportMode {
-    /// The predicted map (any instant).
-    #[default]
-    Predict,
-    /// The last observed snapshot at or before the instant: each snapshot once, named and
-    /// listed in the manifest at its own time.
-    Retrieve,
-    /// Retrieved inside the file's span (as [`Retrieve`](Self::Retrieve)), predicted
-    /// outside it.
-    Auto,
-}
-
-/// Settings of an export.
-#[derive(Clone, Debug)]
-pub struct ExportOptions {
-    /// First instant.
-    pub from: Timestamp,
-    /// Last instant, inclusive: a map is made at `to` when it lies on the grid
-    /// `from + i · every`.
-    pub to: Timestamp,
-    /// Nanoseconds between instants.
-    pub every_ns: i64,
-    /// Predicted or retrieved maps.
-    pub mode: ExportMode,
-    /// Output format name: a writable map format of the context (e.g. `bt` or `ot`, one file
-    /// per map in a directory) or a recording format that can be written (e.g. `mcap`, one
-    /// file holding every map).
-    pub format: String,
-    /// Preferred writer implementation.
-    pub backend: Option<Backend>,
-    /// File name prefix.
-    pub prefix: String,
-    /// Write into a directory that already holds files (replacing those of the same names);
-    /// otherwise such a directory is refused.
-    pub overwrite: bool,
-}
-
-/// What `export` wrote.
-#[derive(Clone, Debug)]
-#[non_exhaustive]
-pub struct ExportReport {
-    /// Maps and their instants, in time order (for a recording, each map's path is the
-    /// recording's).
-    pub files: Vec<SeriesInput>,
-    /// The manifest (`path,time`), which `build` accepts; `None` for a recording, which
-    /// holds its maps' times itself.
-    pub manifest: Option<PathBuf>,
-    /// Bytes written.
-    pub bytes: u64,
-}
-
-/// Writes one map per instant of `from..=to` (every `every_ns`): into `output`, a directory
-/// (missing or empty, unless [`ExportOptions::overwrite`]), one file per map, each written
-/// atomically, then a manifest; or, when [`ExportOptions::format`] names a recording format
-/// of the context that can be written ([`RecordingFormat::create`], e.g. `mcap`), into
-/// `output` as one recording, written atomically, one map at a time. A failure leaves only
-/// complete files behind. At most [`Limits::max_exports`](crate::Limits) maps are written.
-///
-/// [`RecordingFormat::create`]: froctomap_formats::RecordingFormat::create
-pub fn export(
-    context: &Context,
-    reader: &dyn SeriesRead,
-    output: &Path,
-    options: &ExportOptions,
-    progress: &dyn Progress,
-) -> Result<ExportReport, ConvertError> {
-    let (times, samples) = export_instants(context, reader, options)?;
-    if let Some(format) = context.formats().writable_recording(&options.format) {
-        return crate::recording_export::export_recording(
-            reader, output, format, &times, &samples, progress,
-        );
-    }
-    let dir = output;
-    let format = context
-        .formats()
-        .by_name(&options.format, options.backend)
-        .map_err(ConvertError::Write)?;
-    refuse_non_empty_dir(dir, options.overwrite)?;
-    std::fs::create_dir_all(dir).map_err(|source| froctomap_core::AtomicWriteError {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let extension = format.extensions.first().copied().unwrap_or(format.name);
-    progress.stage("exporting maps", times.len() as u64);
-    let write_one = |(&t, sample): (&Timestamp, &Option<u32>)| {
-        crate::progress::stop_if_cancelled(progress)?;
-        let path = dir.join(format!(
-            "{}_{}.{extension}",
-            options.prefix,
-            iso8601_basic(t)
-        ));
-        let write = WriteOptions {
-            format: Some(options.format.as_str()),
-            backend: options.backend,
-        };
-        match sample {
-            Some(s) => write_observed_map(context, reader, *s, &path, write)?,
-            None => write_predicted_map(context, reader, t, &path, write)?,
-        };
-        let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-        progress.advance(1);
-        Ok((SeriesInput::new(path, t), bytes))
-    };
-    // A format written tile by tile holds little of each map, so maps are made in
-    // parallel; others hold a whole map while writing it, so one map at a time (each built
-    // from tiles in parallel) keeps memory at one map.
-    let files: Vec<(SeriesInput, u64)> = if format.capabilities.writes_canonical_binary {
-        times
-            .par_iter()
-            .zip(samples.par_iter())
-            .map(write_one)
-            .collect::<Result<_, ConvertError>>()?
-    } else {
-        times
-            .iter()
-            .zip(samples.iter())
-            .map(write_one)
-            .collect::<Result<_, ConvertError>>()?
-    };
-    let bytes = files.iter().map(|(_, b)| b).sum();
-    let files: Vec<SeriesInput> = files.into_iter().map(|(f, _)| f).collect();
-    let manifest = dir.join(MANIFEST_NAME);
-    let text = manifest_text(dir, &files);
-    write_atomically(&manifest, |out| out.write_all(text.as_bytes()))?;
-    Ok(ExportReport {
-        files,
-        manifest: Some(manifest),
-        bytes,
-    })
-}
-
-/// The instants of an export and, for each, the sample retrieved there (`None`: predicted).
-/// Retrieval takes each snapshot once, at its own time (instants between snapshots would
-/// otherwise give the same map again under other times).
-type Instants = (Vec<Timestamp>, Vec<Option<u32>>);
-
-fn export_instants(
-    context: &Context,
-    reader: &dyn SeriesRead,
-    options: &ExportOptions,
-) -> Result<Instants, ConvertError> {
-    for (what, t) in [("from", options.from), ("to", options.to)] {
-        check_range(what, t)?;
-    }
-    if options.to < options.from {
-        return Err(ConvertError::EmptyRange {
-            from: options.from,
-            to: options.to,
-        });
-    }
-    if options.every_ns <= 0 {
-        return Err(ConvertError::NonPositiveInterval);
-    }
-    let count =
-        (i128::from(options.to.0) - i128::from(options.from.0)) / i128::from(options.every_ns) + 1;
-    let limit = context.limits().max_exports;
-    if count > i128::from(limit) {
-        return Err(ConvertError::TooManyMaps { count, limit });
-    }
-    let (start, end) = (reader.first_instant(), reader.last_instant());
-    let mut instants: Vec<(Timestamp, Option<u32>)> = Vec::with_capacity(count as usize);
-    for i in 0..count as i64 {
-        let t = Timestamp(options.from.0 + i * options.every_ns);
-        let retrieve = match options.mode {
-            ExportMode::Predict => false,
-            ExportMode::Retrieve => true,
-            ExportMode::Auto => start <= t && t <= end,
-        };
-        if !retrieve {
-            instants.push((t, None));
-            continue;
-        }
-        let r = resolve_observed(reader, TimeQuery::Instant(t))?;
-        if instants
-            .last()
-            .is_none_or(|&(_, last)| last != Some(r.sample))
-        {
-            instants.push((r.time, Some(r.sample)));
-        }
-    }
-    Ok(instants.into_iter().unzip())
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@
 
 use crate::context::Context;
 use crate::error::{ConvertError, SnapshotError};
-use crate::inputs::SeriesInput;
 use froctomap_formats::{RecordedMaps, Recording, RecordingFormat};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -34,6 +33,13 @@ impl RecordedMap {
     /// The map's index in its recording.
     pub fn index(&self) -> usize {
         self.index
+    }
+
+    /// The map's bytes (the `.bt`/`.ot` file its message stands for), refused above `limit`.
+    pub(crate) fn map_bytes(&self, limit: u64) -> Result<Vec<u8>, SnapshotError> {
+        self.maps
+            .map_bytes(self.index, limit)
+            .map_err(|e| SnapshotError::Recorded(Arc::from(e)))
     }
 }
 
@@ -70,31 +76,6 @@ pub(crate) fn open_recording(
             source,
         }
     })
-}
-
-/// How messages name an input: its path, or for a recorded map
-/// `recording/topic@time` (a name without an extension, so that no reader takes the
-/// recording's extension for the map's).
-pub(crate) fn input_name(input: &SeriesInput) -> PathBuf {
-    match input.recorded() {
-        None => input.path.clone(),
-        Some(recorded) => {
-            let time = froctomap_core::calendar::iso8601(input.time).replace('.', ",");
-            let topic = recorded.topic().trim_matches('/').replace('.', "_");
-            input.path.join(format!("{topic}@{time}"))
-        }
-    }
-}
-
-/// The bytes of an input's map: the file, or the recorded map it holds.
-pub(crate) fn snapshot_bytes(input: &SeriesInput, limit: u64) -> Result<Vec<u8>, SnapshotError> {
-    match input.recorded() {
-        None => crate::build::read_input(&input.path, limit),
-        Some(recorded) => recorded
-            .maps
-            .map_bytes(recorded.index, limit)
-            .map_err(|e| SnapshotError::Recorded(Arc::from(e))),
-    }
 }
 
 /// What `info` says of a recording: its format, messages, log-time span and topics (as

@@ -8,7 +8,7 @@
 
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
-use crate::maps::{observed_bt, predicted_bt, ExportReport};
+use crate::maps::{observed_bt, predicted_bt};
 use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::series_file::SeriesRead;
@@ -20,7 +20,8 @@ use std::io::BufWriter;
 use std::path::Path;
 
 /// Writes the maps at `times` (retrieved at `samples[i]`, or predicted where `None`) into
-/// one recording of `format` at `output`.
+/// one recording of `format` at `output`; gives each map's entry (the recording's path at
+/// the map's time) and the bytes written.
 pub(crate) fn export_recording(
     reader: &dyn SeriesRead,
     output: &Path,
@@ -28,7 +29,7 @@ pub(crate) fn export_recording(
     times: &[Timestamp],
     samples: &[Option<u32>],
     progress: &dyn Progress,
-) -> Result<ExportReport, ConvertError> {
+) -> Result<(Vec<SeriesInput>, u64), ConvertError> {
     let create = format
         .create
         .ok_or_else(|| ConvertError::internal("a recording format without a writer"))?;
@@ -72,11 +73,7 @@ pub(crate) fn export_recording(
         .iter()
         .map(|&time| SeriesInput::new(output.to_path_buf(), time))
         .collect();
-    Ok(ExportReport {
-        files,
-        manifest: None,
-        bytes,
-    })
+    Ok((files, bytes))
 }
 
 /// The occupied cells of the map of `kind` at `time`, in Morton order, with their shades

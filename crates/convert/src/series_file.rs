@@ -273,7 +273,7 @@ impl FroctFile {
     /// uses [`Context::open_series`](crate::Context::open_series).
     pub fn open(path: &Path) -> Result<Self, FileError> {
         // A FIFO or device is refused before it is opened: opening one may never return.
-        let living = crate::build::is_living_file(path).map_err(|error| match error {
+        let living = crate::files::is_living_file(path).map_err(|error| match error {
             ConvertError::File(error) => error,
             other => FileError::Io {
                 path: path.to_path_buf(),

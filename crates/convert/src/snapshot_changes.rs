@@ -6,7 +6,7 @@
 //! [`froctomap_core::changes`]. Either way the result is the same list of changes.
 
 use crate::error::SnapshotError;
-use froctomap_core::{changes, Leaf, StateChange};
+use froctomap_core::{changes, Leaf, Snapshot, StateChange};
 use froctomap_formats::{DiffState, FormatRegistry, MapDiff, PreviousFile, ReadOptions};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -28,23 +28,31 @@ pub(crate) struct FileChanges {
 /// The last file accepted, carried from one batch to the next.
 #[derive(Default)]
 pub(crate) struct Accepted {
-    bytes: Vec<u8>,
+    /// Its bytes; `None` for a map not read from a file, until they are written.
+    bytes: Option<Vec<u8>>,
     /// Its leaves, when it had to be decoded.
     leaves: Option<Vec<Leaf>>,
     /// What its format's differ kept, when it was compared from the bytes.
     state: Option<DiffState>,
+    /// The map itself, when it was not read from a file.
+    map: Option<Snapshot>,
 }
 
 impl Accepted {
     /// A map that was not read from a file (an existing `.froct`'s last observed map, which
-    /// an append continues from): its canonical bytes, for byte-level comparison with files
-    /// of the same format, and its leaves, for the others.
-    pub fn from_map(bytes: Vec<u8>, leaves: Vec<Leaf>) -> Self {
+    /// an append continues from): its leaves, and, once the first file to be compared with
+    /// it is seen, its bytes in that file's format when the format compares files from
+    /// their bytes ([`ChangeReader::batch`]).
+    pub fn from_map(map: Snapshot) -> Self {
         Self {
-            bytes,
-            leaves: Some(leaves),
-            state: None,
+            map: Some(map),
+            ..Self::default()
         }
+    }
+
+    /// Its leaves, when at hand.
+    fn leaves(&self) -> Option<&[Leaf]> {
+        (self.leaves.as_deref()).or_else(|| self.map.as_ref().map(Snapshot::leaves))
     }
 }
 
@@ -90,8 +98,13 @@ impl ChangeReader<'_> {
         raw: &[Result<Vec<u8>, Refusal>],
         carried: &mut Option<Accepted>,
     ) -> Vec<Result<FileChanges, Refusal>> {
+        if let (Some(accepted), Some(&path), Some(Ok(bytes))) =
+            (carried.as_mut(), paths.first(), raw.first())
+        {
+            self.write_unwritten(accepted, path, bytes);
+        }
         let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
-        let carried_bytes = carried.as_ref().map(|a| a.bytes.as_slice());
+        let carried_bytes = carried.as_ref().and_then(|a| a.bytes.as_deref());
         let looks: Vec<Result<FirstLook, Refusal>> = (0..raw.len())
             .into_par_iter()
             .map(|k| {
@@ -202,10 +215,7 @@ impl ChangeReader<'_> {
                             raw[j].as_deref().ok(),
                             decoded[j].as_ref().map(|(l, _)| l.as_slice()),
                         ),
-                        None => (
-                            carried_bytes,
-                            carried.as_ref().and_then(|a| a.leaves.as_deref()),
-                        ),
+                        None => (carried_bytes, carried.as_ref().and_then(Accepted::leaves)),
                     };
                     let before = self
                         .leaves_before(paths[k], before_bytes, before_leaves)
@@ -222,9 +232,10 @@ impl ChangeReader<'_> {
             Some(j) => {
                 if let Ok(bytes) = &raw[j] {
                     *carried = Some(Accepted {
-                        bytes: bytes.clone(),
+                        bytes: Some(bytes.clone()),
                         leaves: decoded[j].take().map(|(leaves, _)| leaves),
                         state: states[j].take(),
+                        map: None,
                     });
                 }
             }
@@ -235,6 +246,29 @@ impl ChangeReader<'_> {
             }
         }
         outcomes
+    }
+
+    /// Writes a map not read from a file (`accepted`) in the format of `bytes`, the first
+    /// file to be compared with it, when that format compares files from their bytes: the
+    /// file is then compared from the bytes too (its format's own [`MapWriter`] wrote the
+    /// map, so no format is named here). Otherwise, or when the writer fails, the map stays
+    /// leaves only and the file is decoded and compared by its leaves.
+    ///
+    /// [`MapWriter`]: froctomap_formats::MapWriter
+    fn write_unwritten(&self, accepted: &mut Accepted, path: &Path, bytes: &[u8]) {
+        let (None, Some(map)) = (&accepted.bytes, &accepted.map) else {
+            return;
+        };
+        let Ok(format) = self.registry.format_of(path, bytes, self.options) else {
+            return;
+        };
+        let (Some(_), Some(make_writer)) = (format.differ, format.writer) else {
+            return;
+        };
+        let mut written = Vec::new();
+        if make_writer().write(map, &mut written).is_ok() {
+            accepted.bytes = Some(written);
+        }
     }
 
     /// Compares from the bytes; `Ok(None)` when the formats do not allow it. A file the

@@ -7,7 +7,11 @@
 //!
 //! A format may also offer a [`MapDiffer`], which compares two files straight from their
 //! bytes ([`FormatRegistry::diff_bytes`]); building a series from consecutive snapshots uses
-//! it to skip decoding what did not change.
+//! it to skip decoding what did not change. Two more optional hooks let the converters
+//! treat every format alike: a [`header`](MapFormat::header) read from a file's first bytes
+//! ([`MapHeader`]: its resolution, checked for every input before any is decoded), and a
+//! [`TiledMapWriter`] that writes a map of states from parts built on several threads
+//! (retrieval writes a FROctomap file's map tile by tile with it).
 //!
 //! Adding a format is one module defining a `MapFormat` constant plus one line in
 //! [`register_default_formats`] (or, for a format of one program, one
@@ -37,6 +41,7 @@
 mod defaults;
 mod error;
 mod file_kind;
+mod hooks;
 mod natural;
 pub mod octomap_native;
 #[cfg(feature = "octomap-upstream")]
@@ -49,6 +54,7 @@ mod spool;
 pub use defaults::register_default_formats;
 pub use error::{DuplicateName, FormatError, PluginError};
 pub use file_kind::special_kind;
+pub use hooks::{MapHeader, MapPartWriter, TiledMapWriter, WrittenPart};
 pub use natural::natural_cmp;
 pub use probe::{Confidence, PROBE_BYTES};
 pub use recording::{
@@ -58,7 +64,7 @@ pub use recording::{
 };
 pub use registry::{
     Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,
-    MapFormat, MapReader, MapWriter, PreviousFile, ReadMap, ReadOptions, ReadOutcome, SeriesFormat,
-    WriteOptions,
+    MapFormat, MapReader, MapWriter, PreviousFile, ReadHeader, ReadMap, ReadOptions, ReadOutcome,
+    SeriesFormat, WriteOptions,
 };
 pub use spool::{MapSpool, SpoolError, SPOOL_PREFIX};

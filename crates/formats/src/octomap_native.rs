@@ -8,15 +8,16 @@
 //! and give the same warnings and error messages.
 
 use crate::error::PluginError;
+use crate::hooks::{MapHeader, MapPartWriter, TiledMapWriter, WrittenPart};
 use crate::probe::Confidence;
 use crate::registry::{
     Backend, Capabilities, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile,
     ReadMap,
 };
-use froctomap_core::{validate_resolution, MapError, Snapshot, StateChange};
+use froctomap_core::{validate_resolution, MapError, MortonCode, Occupancy, Snapshot, StateChange};
 use froctomap_octomap_codec::{
-    decode, detect_kind, diff, encode_binary, encode_full, looks_like_legacy_binary, CodecError,
-    FileKind, ReadLimits, TreeIndex,
+    decode, detect_kind, diff, encode_binary, encode_full, looks_like_legacy_binary, parse_header,
+    BinaryPart, CanonicalBinaryBuilder, CodecError, FileKind, ReadLimits, TreeIndex,
 };
 use std::io::Write;
 
@@ -30,9 +31,9 @@ pub const BINARY: MapFormat = MapFormat {
     reader: Some(|| Box::new(NativeReader(FileKind::Binary))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Binary))),
     differ: Some(|| Box::new(NativeDiffer(FileKind::Binary))),
-    capabilities: Capabilities::NONE
-        .with_states_only()
-        .with_canonical_binary_writer(),
+    header: Some(header_binary),
+    tiled_writer: Some(|| Box::new(CanonicalBinaryWriter)),
+    capabilities: Capabilities::NONE.with_states_only(),
 };
 
 /// OctoMap full (`.ot`): log-odds per node, read and written in Rust.
@@ -45,6 +46,8 @@ pub const FULL: MapFormat = MapFormat {
     reader: Some(|| Box::new(NativeReader(FileKind::Full))),
     writer: Some(|| Box::new(NativeWriter(FileKind::Full))),
     differ: Some(|| Box::new(NativeDiffer(FileKind::Full))),
+    header: Some(header_full),
+    tiled_writer: None,
     capabilities: Capabilities::NONE,
 };
 
@@ -63,6 +66,21 @@ pub(crate) fn probe_full(bytes: &[u8]) -> Confidence {
         Some(FileKind::Full) => Confidence::Certain,
         _ => Confidence::No,
     }
+}
+
+/// The header of a `.bt` (or of a pre-1.4 headerless one), when the first bytes hold it.
+pub(crate) fn header_binary(bytes: &[u8]) -> Option<MapHeader> {
+    header_of(bytes, FileKind::Binary)
+}
+
+/// The header of a `.ot`, when the first bytes hold it.
+pub(crate) fn header_full(bytes: &[u8]) -> Option<MapHeader> {
+    header_of(bytes, FileKind::Full)
+}
+
+fn header_of(bytes: &[u8], kind: FileKind) -> Option<MapHeader> {
+    let header = parse_header(bytes, kind).ok()?;
+    Some(MapHeader::new(header.resolution))
 }
 
 /// Why the native codec could not read a file. The messages are those of the upstream
@@ -136,5 +154,49 @@ impl MapWriter for NativeWriter {
         };
         out.write_all(&bytes)?;
         Ok(())
+    }
+}
+
+/// The canonical `.bt` built a tile at a time ([`CanonicalBinaryBuilder`]): byte-identical
+/// to [`encode_binary`] of the map reduced to maximum likelihood and made canonical.
+struct CanonicalBinaryWriter;
+
+impl TiledMapWriter for CanonicalBinaryWriter {
+    fn part(&self, start: MortonCode, depth: u8) -> Result<Box<dyn MapPartWriter>, PluginError> {
+        Ok(Box::new(CanonicalBinaryPart(CanonicalBinaryBuilder::new(
+            start, depth,
+        )?)))
+    }
+
+    fn join(
+        &self,
+        resolution: f64,
+        parts: Vec<WrittenPart>,
+        out: &mut dyn Write,
+    ) -> Result<u64, PluginError> {
+        let mut root = CanonicalBinaryBuilder::new(MortonCode(0), 0)?;
+        for part in parts {
+            let part = part
+                .downcast::<BinaryPart>()
+                .map_err(|_| "a part finished by another format's writer")?;
+            root.push_part(*part)?;
+        }
+        let whole = root.finish();
+        let leaves = whole.leaves();
+        out.write_all(&whole.into_file(resolution)?)?;
+        Ok(leaves)
+    }
+}
+
+struct CanonicalBinaryPart(CanonicalBinaryBuilder);
+
+impl MapPartWriter for CanonicalBinaryPart {
+    #[inline]
+    fn push(&mut self, start: MortonCode, depth: u8, state: Occupancy) -> Result<(), PluginError> {
+        Ok(self.0.push_state(start, depth, state.is_occupied())?)
+    }
+
+    fn finish(self: Box<Self>) -> Result<WrittenPart, PluginError> {
+        Ok(Box::new(self.0.finish()))
     }
 }

@@ -1,7 +1,7 @@
 //! OctoMap `.bt` and `.ot` through the upstream C++ library (`froctomap-octomap-ffi`).
 
 use crate::error::PluginError;
-use crate::octomap_native::{probe_binary, probe_full};
+use crate::octomap_native::{header_binary, header_full, probe_binary, probe_full};
 use crate::registry::{Backend, Capabilities, MapFormat, MapReader, MapWriter, ReadMap};
 use froctomap_core::Snapshot;
 use froctomap_octomap_codec::FileKind;
@@ -19,8 +19,10 @@ pub const BINARY: MapFormat = MapFormat {
     reader: Some(|| Box::new(UpstreamReader(FileKind::Binary))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Binary))),
     differ: None,
-    // The bytes are the same as the native writer's, but choosing this backend means
+    header: Some(header_binary),
+    // The bytes are the same as the native tiled writer's, but choosing this backend means
     // asking for liboctomap's writer, so froctomap does not write the file itself.
+    tiled_writer: None,
     capabilities: Capabilities::NONE.with_states_only(),
 };
 
@@ -35,6 +37,8 @@ pub const FULL: MapFormat = MapFormat {
     reader: Some(|| Box::new(UpstreamReader(FileKind::Full))),
     writer: Some(|| Box::new(UpstreamWriter(FileKind::Full))),
     differ: None,
+    header: Some(header_full),
+    tiled_writer: None,
     capabilities: Capabilities::NONE,
 };
 

@@ -2,6 +2,7 @@
 
 use crate::error::{DuplicateName, FormatError, PluginError};
 use crate::file_kind::check_regular_file;
+use crate::hooks::{MapHeader, TiledMapWriter};
 use crate::probe::{file_head, Confidence};
 use crate::recording::RecordingFormat;
 use froctomap_core::{write_atomically, Snapshot, StateChange};
@@ -92,6 +93,9 @@ impl Backend {
     }
 }
 
+/// A format's header hook ([`MapFormat::header`]): the header a file's first bytes give.
+pub type ReadHeader = fn(&[u8]) -> Option<MapHeader>;
+
 /// One map format plugin, described by data (like Symphonia's probe descriptors).
 #[derive(Clone, Copy)]
 pub struct MapFormat {
@@ -111,6 +115,15 @@ pub struct MapFormat {
     pub writer: Option<fn() -> Box<dyn MapWriter>>,
     /// Creates a differ, if two files of the format can be compared without decoding them.
     pub differ: Option<fn() -> Box<dyn MapDiffer>>,
+    /// Reads the header from a file's first [`PROBE_BYTES`](crate::PROBE_BYTES), if the
+    /// format has one: `None` when those bytes do not give it (damaged, or a header longer
+    /// than that), and the full read decides. Converters check every input's header before
+    /// decoding any, so a file of another resolution is refused early.
+    pub header: Option<ReadHeader>,
+    /// Creates a writer fed the map a part at a time, in parallel, if the format stores
+    /// states only ([`Capabilities::states_only`]; ignored otherwise): converters then write
+    /// a FROctomap file's map tile by tile without holding it whole ([`Self::states_tiled_writer`]).
+    pub tiled_writer: Option<fn() -> Box<dyn TiledMapWriter>>,
     /// What callers may rely on beyond reading and writing (consulted instead of names).
     pub capabilities: Capabilities,
 }
@@ -121,7 +134,7 @@ pub struct MapFormat {
 /// ```
 /// use froctomap_formats::Capabilities;
 /// let states = Capabilities::NONE.with_states_only();
-/// assert!(states.states_only && !states.writes_canonical_binary);
+/// assert!(states.states_only && !Capabilities::NONE.states_only);
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -130,30 +143,16 @@ pub struct Capabilities {
     /// reduced to maximum likelihood before it is written, so that nodes merge as the stored
     /// states allow.
     pub states_only: bool,
-    /// The writer's bytes are exactly the canonical OctoMap binary of the map's states as
-    /// `froctomap_octomap_codec::CanonicalBinaryBuilder` assembles it, so a caller may build
-    /// the file itself from parts (tile by tile, in parallel) instead of handing the writer a
-    /// whole map in memory.
-    pub writes_canonical_binary: bool,
 }
 
 impl Capabilities {
     /// Nothing beyond reading and writing.
-    pub const NONE: Capabilities = Capabilities {
-        states_only: false,
-        writes_canonical_binary: false,
-    };
+    pub const NONE: Capabilities = Capabilities { states_only: false };
 
     /// These capabilities and [`states_only`](Self::states_only) (for plugins outside this
     /// crate, which cannot name every field of a non-exhaustive struct).
     pub const fn with_states_only(mut self) -> Self {
         self.states_only = true;
-        self
-    }
-
-    /// These capabilities and [`writes_canonical_binary`](Self::writes_canonical_binary).
-    pub const fn with_canonical_binary_writer(mut self) -> Self {
-        self.writes_canonical_binary = true;
         self
     }
 }
@@ -221,6 +220,21 @@ impl MapFormat {
     /// `true` when `path` ends in one of this format's extensions (case-insensitive).
     pub fn matches_extension(&self, path: &Path) -> bool {
         extension_of(path).is_some_and(|ext| self.extensions.contains(&ext.as_str()))
+    }
+
+    /// A writer fed a map of states a part at a time, when the format offers one and stores
+    /// states only (a part writer sees no probabilities, so only then are its bytes the
+    /// [`MapWriter`]'s).
+    ///
+    /// ```
+    /// use froctomap_formats::octomap_native;
+    /// assert!(octomap_native::BINARY.states_tiled_writer().is_some());
+    /// assert!(octomap_native::FULL.states_tiled_writer().is_none()); // .ot keeps log-odds
+    /// ```
+    pub fn states_tiled_writer(&self) -> Option<Box<dyn TiledMapWriter>> {
+        self.tiled_writer
+            .filter(|_| self.capabilities.states_only)
+            .map(|make| make())
     }
 }
 

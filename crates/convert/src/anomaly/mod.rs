@@ -115,7 +115,7 @@ pub fn read_snapshot(
     path: &Path,
 ) -> Result<Snapshot, ConvertError> {
     let bytes =
-        crate::build::read_input(path, context.limits().max_map_file_bytes).map_err(|e| {
+        crate::files::read_input(path, context.limits().max_map_file_bytes).map_err(|e| {
             ConvertError::Snapshot {
                 path: path.to_path_buf(),
                 source: Arc::new(e),

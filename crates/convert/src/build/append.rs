@@ -25,9 +25,10 @@ use super::ingest::{
 };
 use super::merge::merge_tiles;
 use super::write::{TileEncoder, TileWriter};
-use super::{axis_for_times, output_dir, ClassCounts};
+use super::{axis_for_times, ClassCounts};
 use crate::context::Context;
 use crate::error::ConvertError;
+use crate::files::output_dir;
 use crate::history::PackedCell;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;
@@ -215,10 +216,7 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
         sample: seam,
         changes: froctomap_core::changes(&[], last_map.leaves()),
     };
-    let previous = Accepted::from_map(
-        froctomap_octomap_codec::encode_binary(&last_map),
-        last_map.into_leaves(),
-    );
+    let previous = Accepted::from_map(last_map);
 
     // The file fixes the series' resolution: inputs of another one are refused (or left
     // out with `skip_bad`), whatever most of them give.

@@ -1,4 +1,5 @@
-//! Stage 1, input check: every input's header, read in parallel, so that an unreadable file
+//! Stage 1, input check: every input's header, read in parallel by its format's header hook
+//! ([`MapFormat::header`](froctomap_formats::MapFormat::header)), so that an unreadable file
 //! or a mixed resolution stops the build (or is left out with `skip_bad`) before anything is
 //! decoded.
 //!
@@ -9,14 +10,17 @@ use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
 use froctomap_core::{voxels_per_node, StateChange};
-use froctomap_formats::PROBE_BYTES;
-use froctomap_octomap_codec::{detect_kind, parse_header, FileKind};
+use froctomap_formats::{FormatRegistry, ReadOptions, PROBE_BYTES};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The header check of a series.
-pub(crate) struct InputCheck {
+pub(crate) struct InputCheck<'a> {
+    /// The formats that read the headers.
+    pub formats: &'a FormatRegistry,
+    /// How the inputs are read (a forced format).
+    pub read: ReadOptions<'a>,
     /// Leave unreadable files and files of another resolution out instead of stopping.
     pub skip_bad: bool,
     /// The series' resolution as the user gave it; `None`: the one most headers give.
@@ -39,7 +43,7 @@ pub(crate) struct CheckedInputs {
     pub resolution_file: Option<usize>,
 }
 
-impl InputCheck {
+impl InputCheck<'_> {
     /// Reads every input's header (in parallel, one progress unit each) and decides.
     /// Maps of a recording (`recorded`) have no header to check here: their reading decides.
     pub fn run(
@@ -55,7 +59,7 @@ impl InputCheck {
                 let resolution = if recorded(input) {
                     Ok(None)
                 } else {
-                    header_resolution(&input.path)
+                    header_resolution(&input.path, self.formats, self.read)
                 };
                 progress.advance(1);
                 resolution
@@ -239,11 +243,15 @@ impl TileBudget {
     }
 }
 
-/// A file's resolution from its first bytes, when its format is OctoMap's.
-fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
+/// A file's resolution from its first bytes, when its format has a header that gives it.
+fn header_resolution(
+    path: &Path,
+    formats: &FormatRegistry,
+    read: ReadOptions<'_>,
+) -> Result<Option<f64>, SnapshotError> {
     use std::io::Read;
     let metadata = std::fs::metadata(path).map_err(SnapshotError::Io)?;
-    super::refuse_special(path, &metadata)?;
+    crate::files::refuse_special(path, &metadata)?;
     let mut head = Vec::with_capacity(PROBE_BYTES as usize);
     std::fs::File::open(path)
         .and_then(|f| f.take(PROBE_BYTES).read_to_end(&mut head))
@@ -251,18 +259,24 @@ fn header_resolution(path: &Path) -> Result<Option<f64>, SnapshotError> {
     if head.is_empty() {
         return Err(SnapshotError::Empty);
     }
-    let kind = detect_kind(&head).unwrap_or(FileKind::Binary);
-    match parse_header(&head, kind) {
-        Ok(header) => Ok(Some(header.resolution)),
-        // Not an OctoMap header (another format, or a long header): the full read decides.
-        Err(_) => Ok(None),
-    }
+    // No format recognises the first bytes, or its header is not in them: the full read
+    // decides.
+    let header = formats
+        .format_of(path, &head, read)
+        .ok()
+        .and_then(|format| format.header)
+        .and_then(|header| header(&head));
+    Ok(header.map(|h| h.resolution))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use froctomap_core::Timestamp;
+
+    /// The decisions are taken from header resolutions given to them.
+    static NO_FORMATS: std::sync::LazyLock<FormatRegistry> =
+        std::sync::LazyLock::new(FormatRegistry::new);
 
     fn series(n: usize) -> Vec<SeriesInput> {
         (0..n)
@@ -275,8 +289,10 @@ mod tests {
             .collect()
     }
 
-    fn check(skip_bad: bool) -> InputCheck {
+    fn check(skip_bad: bool) -> InputCheck<'static> {
         InputCheck {
+            formats: &NO_FORMATS,
+            read: ReadOptions::default(),
             skip_bad,
             resolution: None,
             allow_mostly_skipped: false,
@@ -360,9 +376,9 @@ mod tests {
         // The user's resolution wins: 28 of 30 left out is refused, listing all of them,
         // unless allowed.
         let given = |allow_mostly_skipped| InputCheck {
-            skip_bad: true,
             resolution: Some(0.1),
             allow_mostly_skipped,
+            ..check(true)
         };
         match given(false).decide(&inputs, headers()) {
             Err(err @ ConvertError::MostlySkipped { .. }) => {
@@ -414,9 +430,8 @@ mod tests {
         );
         assert_eq!(checked.skipped.len(), 1);
         let given = InputCheck {
-            skip_bad: false,
             resolution: Some(0.5),
-            allow_mostly_skipped: false,
+            ..check(false)
         };
         match given.decide(&inputs, headers()) {
             Err(ConvertError::Snapshot { path, source }) => {
@@ -469,24 +484,28 @@ mod tests {
     #[test]
     fn headers_give_the_resolution_or_leave_it_to_the_full_read() {
         let dir = tempfile::tempdir().unwrap();
+        let (formats, read) = (
+            FormatRegistry::with_default_formats(),
+            ReadOptions::default(),
+        );
         let empty = dir.path().join("empty.bt");
         std::fs::write(&empty, b"").unwrap();
         assert!(matches!(
-            header_resolution(&empty),
+            header_resolution(&empty, &formats, read),
             Err(SnapshotError::Empty)
         ));
         let other = dir.path().join("other.xyz");
         std::fs::write(&other, b"not a map header").unwrap();
-        assert_eq!(header_resolution(&other).unwrap(), None);
+        assert_eq!(header_resolution(&other, &formats, read).unwrap(), None);
         let bt = dir.path().join("map.bt");
         std::fs::write(
             &bt,
             b"# Octomap OcTree binary file\nid OcTree\nsize 0\nres 0.05\ndata\n",
         )
         .unwrap();
-        assert_eq!(header_resolution(&bt).unwrap(), Some(0.05));
+        assert_eq!(header_resolution(&bt, &formats, read).unwrap(), Some(0.05));
         assert!(matches!(
-            header_resolution(&dir.path().join("missing.bt")),
+            header_resolution(&dir.path().join("missing.bt"), &formats, read),
             Err(SnapshotError::Io(_))
         ));
     }

@@ -10,9 +10,8 @@
 use super::check::{CheckedInputs, TileBudget};
 use crate::context::Context;
 use crate::error::ConvertError;
-use crate::inputs::SeriesInput;
+use crate::inputs::{input_name, snapshot_bytes, SeriesInput};
 use crate::progress::Progress;
-use crate::recording::{input_name, snapshot_bytes};
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use froctomap_core::StateChange;
 use froctomap_formats::ReadOptions;

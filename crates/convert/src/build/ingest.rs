@@ -398,7 +398,10 @@ impl Intake<'_> {
             progress,
             ..
         } = *run;
+        let extract = options.extract_options(context, self.tile_depth);
         let check = InputCheck {
+            formats: context.formats(),
+            read: extract.read,
             skip_bad: options.skip_bad,
             resolution: self.file.map(|(_, r)| r).or(options.resolution),
             allow_mostly_skipped: options.allow_mostly_skipped,
@@ -410,7 +413,6 @@ impl Intake<'_> {
 
         let seeded = u64::from(self.seed.is_some());
         progress.stage("reading snapshots", inputs.len() as u64 + seeded);
-        let extract = options.extract_options(context, self.tile_depth);
         let mut extractor =
             ChangeExtractor::new(context, extract, inputs, &checked, &self.axis, progress);
         let mut seed_voxels = 0;

@@ -34,12 +34,13 @@
 
 use super::accumulate::TileHistory;
 use super::append::{refuse_overlap, AppendOptions, AppendReport};
+use super::axis_for_times;
 use super::counts::TileStats;
 use super::ingest::{ingest, Extended, IngestReport, IngestTarget, Intake, Run};
 use super::merge::{common_refinement, Piece};
-use super::{axis_for_times, output_dir};
 use crate::context::Context;
 use crate::error::ConvertError;
+use crate::files::{is_living_file, output_dir};
 use crate::history::PackedCell;
 use crate::history::PackedObservations;
 use crate::inputs::SeriesInput;
@@ -314,7 +315,7 @@ pub(super) fn into_living(run: &Run<'_>, path: &Path) -> Result<IngestReport, Co
     let mut report = add_segment(run, &mut open(&converted.0)?)?;
     std::fs::rename(&converted.0, path).map_err(io)?;
     // The rename is durable only once the directory is synced, as compaction's.
-    crate::compact::sync_parent(path);
+    crate::files::sync_parent(path);
     report.output = path.to_path_buf();
     if let Some(extended) = &mut report.extended {
         extended.bytes_before = before;
@@ -836,27 +837,4 @@ fn count_cell(cell: &SegmentCell, stats: &mut TileStats) {
             stats.toggles += toggles.len() as u64;
         }
     }
-}
-
-/// `true` when the file at `path` is a format 2.0 file (its preamble's magic and major
-/// version); `false` for any other file, including 1.x files and files too short to tell.
-pub fn is_living_file(path: &Path) -> Result<bool, ConvertError> {
-    use std::io::Read;
-    // A FIFO is refused before it is opened (opening one may never return).
-    crate::inputs::refuse_special_file(path)?;
-    let io = |source| {
-        ConvertError::File(froctomap_file::FileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
-    };
-    let mut head = Vec::with_capacity(12);
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(12)
-        .read_to_end(&mut head)
-        .map_err(io)?;
-    Ok(head.len() == 12
-        && head[..8] == froctomap_file::MAGIC
-        && u16::from_le_bytes([head[8], head[9]]) == froctomap_file::LIVING_MAJOR_VERSION)
 }
