@@ -28,6 +28,7 @@
 
 mod accumulate;
 mod append;
+mod axis;
 mod check;
 mod compacted;
 mod counts;
@@ -45,22 +46,23 @@ use crate::context::Context;
 use crate::error::ConvertError;
 pub use crate::files::{is_living_file, output_dir};
 use crate::inputs::SeriesInput;
+use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
-use accumulate::{Accumulated, Accumulator};
-pub use append::{append, AppendOptions, AppendReport};
+pub use append::{AppendOptions, AppendReport};
+pub use axis::axis_for_times;
 pub(crate) use compacted::{merge_into, MergeSettings};
 pub use counts::ClassCounts;
-use extract::ChangeExtractor;
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::Timestamp;
-use froctomap_file::{Header, WrittenFile};
-use froctomap_temporal::{OutlierMode, TimeAxis};
+use froctomap_file::{Header, LivingWriter, WrittenFile};
+use froctomap_temporal::OutlierMode;
 pub(crate) use ingest::stamp;
-pub use ingest::{ingest, Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget};
+pub use ingest::{
+    Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget, DEFAULT_BUILD_MEMORY,
+};
 use ingest::{Intake, Run};
-pub use segment::{append_living, append_segment, refuse_growing_fixed_span};
+pub use segment::refuse_growing_fixed_span;
 use serde_json::{json, Map, Value};
-use spill::SpillPlace;
 use std::path::Path;
 use std::time::Instant;
 use write::{TileEncoder, TileWriter};
@@ -68,49 +70,8 @@ use write::{TileEncoder, TileWriter};
 /// How to build: the options of [`ingest`], kept under their old name.
 pub type BuildOptions = IngestOptions;
 
-/// The default [`IngestOptions::memory`]: 64 MiB. Small enough that peak memory stops growing
-/// with the series within hours of 5 s snapshots (on the benchmark's map a quarter of a day's
-/// histories take about 80 MiB), at the price of writing the histories to disk once; series
-/// whose histories fit in it never spill.
-pub const DEFAULT_BUILD_MEMORY: u64 = 64 << 20;
-
 /// What a build did: the report of [`ingest`], kept under its old name.
 pub type BuildReport = IngestReport;
-
-/// The time axis of sorted, distinct instants: a regular grid (with missing samples) when
-/// the instants lie on one with at most as many gaps as snapshots, else an explicit list.
-pub fn axis_for_times(times: &[Timestamp]) -> Result<TimeAxis, ConvertError> {
-    let first = *times.first().ok_or(ConvertError::NoInputs)?;
-    let invalid = ConvertError::TimeAxis;
-    if times.len() == 1 {
-        return TimeAxis::regular(first, 1_000_000_000, 1, Vec::new()).map_err(invalid);
-    }
-    let gcd = times.windows(2).fold(0i64, |g, w| gcd(g, w[1].0 - w[0].0));
-    let span = times[times.len() - 1].0 - first.0;
-    let count = span / gcd.max(1) + 1;
-    if gcd > 0 && count <= 2 * times.len() as i64 && count <= i64::from(u32::MAX) {
-        let present: Vec<i64> = times.iter().map(|t| (t.0 - first.0) / gcd).collect();
-        let mut missing = Vec::new();
-        let mut next = 0usize;
-        for i in 0..count {
-            if present.get(next) == Some(&i) {
-                next += 1;
-            } else {
-                missing.push(i as u32);
-            }
-        }
-        return TimeAxis::regular(first, gcd, count as u32, missing).map_err(invalid);
-    }
-    TimeAxis::explicit(times.to_vec()).map_err(invalid)
-}
-
-fn gcd(a: i64, b: i64) -> i64 {
-    if b == 0 {
-        a.abs()
-    } else {
-        gcd(b, a % b)
-    }
-}
 
 /// Builds a FROctomap file from snapshots (sorted by time, distinct times): [`ingest`]
 /// into [`IngestTarget::NewFile`].
@@ -137,6 +98,163 @@ pub fn build(
         options,
         progress,
     )
+}
+
+/// Adds a time-sorted series of maps to `target`: builds a new file, rewrites an existing
+/// one with every cell refitted, or adds the maps to a format 2.0 file as one segment.
+///
+/// The stages are the same for every target (plan → input check → change extraction →
+/// accumulation → write, see the module `build`); what is written is atomic: on any error
+/// a new file does not appear, an existing one is left as it was. The report's `skipped`
+/// lists the parts of recordings left out while collecting (`inputs.left_out`), then the
+/// inputs left out with `skip_bad`. Maps added to an existing file
+/// must all be later than its last sample and of its resolution
+/// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`] naming the file).
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let options = IngestOptions::default();
+/// let monday = collect_inputs_explained(&context, &[PathBuf::from("maps/monday/")], TimeSource::Auto, &Zone::utc())?;
+/// let built = ingest(&context, &monday, IngestTarget::NewFile(Path::new("office.froct")), &options, &Silent)?;
+/// let tuesday = collect_inputs(&context, &[PathBuf::from("maps/tuesday/")], TimeSource::Auto)?;
+/// let added = ingest(&context, &tuesday, IngestTarget::Segment(Path::new("office.froct")), &options, &Silent)?;
+/// println!("{} + {} snapshots, {} bytes", built.used, added.used, added.file_bytes);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn ingest<'a>(
+    context: &Context,
+    inputs: impl Into<IngestInputs<'a>>,
+    target: IngestTarget<'_>,
+    options: &IngestOptions,
+    progress: &dyn Progress,
+) -> Result<IngestReport, ConvertError> {
+    let started = Instant::now();
+    let inputs = inputs.into();
+    let maps = inputs.maps;
+    let file = match &target {
+        IngestTarget::NewFile(path) | IngestTarget::Rewrite(path) | IngestTarget::Segment(path) => {
+            path.to_path_buf()
+        }
+        IngestTarget::Writer(writer) => writer.reader().path().to_path_buf(),
+    };
+    refuse_overwriting_input(&file, maps.iter().map(|i| i.path.as_path()))?;
+    let run = Run {
+        context,
+        inputs: maps,
+        options,
+        progress,
+        started,
+    };
+    let mut report = match target {
+        IngestTarget::NewFile(path) => new_file(&run, path)?,
+        IngestTarget::Rewrite(path) => append::rewrite(&run, path)?,
+        IngestTarget::Segment(path) => segment::into_living(&run, path)?,
+        IngestTarget::Writer(writer) => segment::add_segment(&run, writer)?,
+    };
+    // Left out before the pipeline saw their maps: listed first.
+    report.skipped.splice(0..0, inputs.left_out.iter().cloned());
+    Ok(report)
+}
+
+/// Appends snapshots later than the last sample of the FROctomap file `file` to it.
+///
+/// Inputs are a time-sorted series as for [`build`](crate::build()) (from
+/// [`collect_inputs`](crate::collect_inputs)), all later than the file's last sample and of
+/// its resolution; otherwise the append is refused ([`ConvertError::AppendOverlap`],
+/// [`ConvertError::MixedResolution`] naming the file) before anything is written. The work
+/// reads the file and the new snapshots only: the snapshots the file was built from are
+/// not needed. Every earlier and every new observed state is kept (exactly, in a lossless
+/// file; a lossy file's past is its reconstruction), and every cell's model is refitted on
+/// the whole history, so the file is what a build of all the snapshots would give, up to its
+/// metadata. The file is replaced atomically: on any error it is left as it was.
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
+/// let report = append(&context, Path::new("office.froct"), &tonight, &AppendOptions::default(), &Silent)?;
+/// println!("{} snapshots added, {} → {} bytes", report.added, report.bytes_before, report.file_bytes);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn append(
+    context: &Context,
+    file: &Path,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<AppendReport, ConvertError> {
+    ingest(
+        context,
+        inputs,
+        IngestTarget::Rewrite(file),
+        options,
+        progress,
+    )
+    .map(AppendReport::from)
+}
+
+/// Appends later maps to the format 2.0 file `writer` holds as one segment, committed once.
+///
+/// Inputs are a time-sorted series as for [`append`](crate::append()), all later than the
+/// file's last sample and of its resolution; otherwise nothing is written
+/// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`]). Only the new maps
+/// and the base tiles they touch are read: neither the earlier segments nor the base's
+/// masks and toggles, so the cost follows the new maps. Every earlier and every new
+/// observed state is kept exactly; the base's models stay frozen (no refit: compaction
+/// refits). Files of `fremen-regular` are refused ([`ConvertError::ModelCannotGrow`]).
+///
+/// ```no_run
+/// use froctomap_convert::*;
+/// use froctomap_file::LivingWriter;
+/// use std::path::{Path, PathBuf};
+/// let context = Context::with_default_plugins();
+/// let mut writer = LivingWriter::open(Path::new("office.froct"))?;
+/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
+/// let report = append_segment(&context, &mut writer, &tonight, &AppendOptions::default(), &Silent)?;
+/// println!("{} maps added as segment {:?}", report.added, report.segments);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn append_segment(
+    context: &Context,
+    writer: &mut LivingWriter,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<AppendReport, ConvertError> {
+    ingest(
+        context,
+        inputs,
+        IngestTarget::Writer(writer),
+        options,
+        progress,
+    )
+    .map(AppendReport::from)
+}
+
+/// Appends later maps to the file at `path` as one segment of format 2.0: a 2.0 file gets a
+/// segment ([`append_segment`], under its writer's lock); a 1.x file is first converted
+/// (its tiles copied, [`LivingWriter::convert`]) into a file beside it, the segment appended
+/// there, and that file renamed over `path` only once committed, so a failed append leaves
+/// the 1.x file as it was. Returns the report and whether the file was converted.
+pub fn append_living(
+    context: &Context,
+    path: &Path,
+    inputs: &[SeriesInput],
+    options: &AppendOptions,
+    progress: &dyn Progress,
+) -> Result<(AppendReport, bool), ConvertError> {
+    let report = ingest(
+        context,
+        inputs,
+        IngestTarget::Segment(path),
+        options,
+        progress,
+    )?;
+    let converted = report.extended.as_ref().is_some_and(|e| e.converted);
+    Ok((AppendReport::from(report), converted))
 }
 
 /// A new file: the plan (the model, and the axis of the inputs' times, refused before
@@ -259,71 +377,6 @@ fn new_file(run: &Run<'_>, output: &Path) -> Result<IngestReport, ConvertError> 
     })
 }
 
-/// Runs extraction and accumulation side by side: changes are extracted in parallel batches
-/// while the accumulating threads apply the previous batch's.
-fn accumulate_series(
-    extractor: &mut ChangeExtractor<'_>,
-    tile_depth: u8,
-    (spill_place, memory): (&SpillPlace, u64),
-    progress: &dyn Progress,
-) -> Result<Accumulated, ConvertError> {
-    let budget = usize::try_from(memory).unwrap_or(usize::MAX);
-    let parts = rayon::current_num_threads().clamp(1, 8);
-    std::thread::scope(|scope| {
-        let mut accumulator =
-            Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_place, budget);
-        let produced = (|| -> Result<(), ConvertError> {
-            for batch in extractor.by_ref() {
-                crate::progress::stop_if_cancelled(progress)?;
-                if !accumulator.push(batch?) {
-                    // An accumulating thread stopped on an error, which `finish` reports.
-                    break;
-                }
-            }
-            Ok(())
-        })();
-        let accumulated = accumulator.finish()?;
-        produced?;
-        Ok(accumulated)
-    })
-}
-
-/// A regular axis with the samples in `absent` (sorted, including its own gaps) missing,
-/// when some snapshots were left out; `None` when nothing changes (an explicit axis keeps
-/// the instants, with nothing observed at them).
-fn with_absent_missing(axis: &TimeAxis, absent: &[u32]) -> Result<Option<TimeAxis>, ConvertError> {
-    match axis.step_ns() {
-        Some(step) if absent.len() > axis.missing().len() => {
-            TimeAxis::regular(axis.start(), step, axis.len(), absent.to_vec())
-                .map(Some)
-                .map_err(ConvertError::TimeAxis)
-        }
-        _ => Ok(None),
-    }
-}
-
-/// The samples without a snapshot (sorted): the axis' own gaps and the inputs left out by
-/// the check (`usable`) or by extraction (`refused`).
-fn samples_left_out(
-    axis: &TimeAxis,
-    inputs: &[SeriesInput],
-    usable: &[bool],
-    refused: &[u32],
-) -> Vec<u32> {
-    let mut absent: Vec<u32> = axis.missing().to_vec();
-    absent.extend_from_slice(refused);
-    absent.extend(
-        inputs
-            .iter()
-            .zip(usable)
-            .filter(|(_, &usable)| !usable)
-            .filter_map(|(input, _)| axis.index_of(input.time)),
-    );
-    absent.sort_unstable();
-    absent.dedup();
-    absent
-}
-
 /// A new file's metadata.
 fn metadata(
     inputs: &[SeriesInput],
@@ -350,6 +403,7 @@ fn metadata(
 
 #[cfg(test)]
 mod tests {
+    use super::axis::samples_left_out;
     use super::*;
     use std::path::PathBuf;
 

@@ -19,12 +19,41 @@
 //! and writer do not change, and they work beside none of the accumulator's memory.
 //! Without a budget everything stays in memory.
 
-use super::extract::ChangeBatch;
+use super::extract::{ChangeBatch, ChangeExtractor};
 use super::spill::{CellFileReader, CellFileWriter, SpillPlace, SpillReader, SpillWriter};
 use crate::error::ConvertError;
 use crate::history::{PackedCell, PackedObservations, SeriesHistory};
 use crate::progress::Progress;
 use froctomap_core::{MortonCode, StateChange};
+/// Runs extraction and accumulation side by side: changes are extracted in parallel batches
+/// while the accumulating threads apply the previous batch's.
+pub(super) fn accumulate_series(
+    extractor: &mut ChangeExtractor<'_>,
+    tile_depth: u8,
+    (spill_place, memory): (&SpillPlace, u64),
+    progress: &dyn Progress,
+) -> Result<Accumulated, ConvertError> {
+    let budget = usize::try_from(memory).unwrap_or(usize::MAX);
+    let parts = rayon::current_num_threads().clamp(1, 8);
+    std::thread::scope(|scope| {
+        let mut accumulator =
+            Accumulator::new(scope, tile_depth, parts, progress).spill_into(spill_place, budget);
+        let produced = (|| -> Result<(), ConvertError> {
+            for batch in extractor.by_ref() {
+                crate::progress::stop_if_cancelled(progress)?;
+                if !accumulator.push(batch?) {
+                    // An accumulating thread stopped on an error, which `finish` reports.
+                    break;
+                }
+            }
+            Ok(())
+        })();
+        let accumulated = accumulator.finish()?;
+        produced?;
+        Ok(accumulated)
+    })
+}
+
 #[cfg(test)]
 use froctomap_temporal::TemporalError;
 use froctomap_temporal::VoxelObservations;

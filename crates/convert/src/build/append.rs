@@ -18,21 +18,18 @@
 //! taken as what was observed, and the result is lossy too.
 
 use super::accumulate::{pack, ObservedCell, TileHistory};
+use super::axis::axis_for_times;
+use super::counts::ClassCounts;
 use super::extract::SampleChanges;
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
-use super::ingest::{
-    as_iso8601, ingest, stamp, Extended, IngestOptions, IngestReport, IngestTarget, Intake, Run,
-};
+use super::ingest::{as_iso8601, stamp, Extended, IngestOptions, IngestReport, Intake, Run};
 use super::merge::merge_tiles;
 use super::write::{TileEncoder, TileWriter};
-use super::{axis_for_times, ClassCounts};
-use crate::context::Context;
 use crate::error::ConvertError;
 use crate::files::output_dir;
 use crate::history::PackedCell;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;
-use crate::progress::Progress;
 use crate::snapshot_changes::Accepted;
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader, Header};
@@ -128,44 +125,6 @@ impl From<IngestReport> for AppendReport {
             segments: before.segments,
         }
     }
-}
-
-/// Appends snapshots later than the last sample of the FROctomap file `file` to it.
-///
-/// Inputs are a time-sorted series as for [`build`](crate::build()) (from
-/// [`collect_inputs`](crate::collect_inputs)), all later than the file's last sample and of
-/// its resolution; otherwise the append is refused ([`ConvertError::AppendOverlap`],
-/// [`ConvertError::MixedResolution`] naming the file) before anything is written. The work
-/// reads the file and the new snapshots only: the snapshots the file was built from are
-/// not needed. Every earlier and every new observed state is kept (exactly, in a lossless
-/// file; a lossy file's past is its reconstruction), and every cell's model is refitted on
-/// the whole history, so the file is what a build of all the snapshots would give, up to its
-/// metadata. The file is replaced atomically: on any error it is left as it was.
-///
-/// ```no_run
-/// use froctomap_convert::*;
-/// use std::path::{Path, PathBuf};
-/// let context = Context::with_default_plugins();
-/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
-/// let report = append(&context, Path::new("office.froct"), &tonight, &AppendOptions::default(), &Silent)?;
-/// println!("{} snapshots added, {} → {} bytes", report.added, report.bytes_before, report.file_bytes);
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
-pub fn append(
-    context: &Context,
-    file: &Path,
-    inputs: &[SeriesInput],
-    options: &AppendOptions,
-    progress: &dyn Progress,
-) -> Result<AppendReport, ConvertError> {
-    ingest(
-        context,
-        inputs,
-        IngestTarget::Rewrite(file),
-        options,
-        progress,
-    )
-    .map(AppendReport::from)
 }
 
 /// An existing file rewritten: the plan (the file's settings, its axis extended by the new

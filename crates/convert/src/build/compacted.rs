@@ -13,7 +13,7 @@
 
 use super::accumulate::{pack, TileHistory};
 use super::append::{OldTiles, SampleMap};
-use super::axis_for_times;
+use super::axis::axis_for_times;
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::merge::merge_tiles;
 use super::write::{TileEncoder, TileWriter};

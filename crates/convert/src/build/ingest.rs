@@ -13,18 +13,16 @@
 //!    maps joined to a format 2.0 file's base and committed as a segment
 //!    ([`IngestTarget::Segment`], [`IngestTarget::Writer`]).
 
+use super::accumulate::accumulate_series;
 use super::accumulate::Accumulated;
+use super::axis::{samples_left_out, with_absent_missing};
 use super::check::{self, InputCheck, TileBudget};
+use super::counts::ClassCounts;
 use super::extract::{ChangeExtractor, ExtractOptions, SampleChanges};
 use super::spill::SpillPlace;
-use super::{
-    accumulate_series, append, samples_left_out, segment, with_absent_missing, ClassCounts,
-    DEFAULT_BUILD_MEMORY,
-};
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{CollectedInputs, SeriesInput};
-use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::snapshot_changes::Accepted;
 use froctomap_core::calendar::iso8601;
@@ -36,6 +34,12 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The default [`IngestOptions::memory`]: 64 MiB. Small enough that peak memory stops growing
+/// with the series within hours of 5 s snapshots (on the benchmark's map a quarter of a day's
+/// histories take about 80 MiB), at the price of writing the histories to disk once; series
+/// whose histories fit in it never spill.
+pub const DEFAULT_BUILD_MEMORY: u64 = 64 << 20;
 
 /// How to ingest: one set of options for every target. The file settings (`model`,
 /// `config`'s outlier mode, `tile_depth`, `codec`, `toggles`, `resolution`) make a new
@@ -276,64 +280,6 @@ pub(super) fn as_iso8601<S: serde::Serializer>(
     serializer: S,
 ) -> Result<S::Ok, S::Error> {
     serializer.serialize_str(&iso8601(*t))
-}
-
-/// Adds a time-sorted series of maps to `target`: builds a new file, rewrites an existing
-/// one with every cell refitted, or adds the maps to a format 2.0 file as one segment.
-///
-/// The stages are the same for every target (plan → input check → change extraction →
-/// accumulation → write, see the module `build`); what is written is atomic: on any error
-/// a new file does not appear, an existing one is left as it was. The report's `skipped`
-/// lists the parts of recordings left out while collecting (`inputs.left_out`), then the
-/// inputs left out with `skip_bad`. Maps added to an existing file
-/// must all be later than its last sample and of its resolution
-/// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`] naming the file).
-///
-/// ```no_run
-/// use froctomap_convert::*;
-/// use std::path::{Path, PathBuf};
-/// let context = Context::with_default_plugins();
-/// let options = IngestOptions::default();
-/// let monday = collect_inputs_explained(&context, &[PathBuf::from("maps/monday/")], TimeSource::Auto, &Zone::utc())?;
-/// let built = ingest(&context, &monday, IngestTarget::NewFile(Path::new("office.froct")), &options, &Silent)?;
-/// let tuesday = collect_inputs(&context, &[PathBuf::from("maps/tuesday/")], TimeSource::Auto)?;
-/// let added = ingest(&context, &tuesday, IngestTarget::Segment(Path::new("office.froct")), &options, &Silent)?;
-/// println!("{} + {} snapshots, {} bytes", built.used, added.used, added.file_bytes);
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
-pub fn ingest<'a>(
-    context: &Context,
-    inputs: impl Into<IngestInputs<'a>>,
-    target: IngestTarget<'_>,
-    options: &IngestOptions,
-    progress: &dyn Progress,
-) -> Result<IngestReport, ConvertError> {
-    let started = Instant::now();
-    let inputs = inputs.into();
-    let maps = inputs.maps;
-    let file = match &target {
-        IngestTarget::NewFile(path) | IngestTarget::Rewrite(path) | IngestTarget::Segment(path) => {
-            path.to_path_buf()
-        }
-        IngestTarget::Writer(writer) => writer.reader().path().to_path_buf(),
-    };
-    refuse_overwriting_input(&file, maps.iter().map(|i| i.path.as_path()))?;
-    let run = Run {
-        context,
-        inputs: maps,
-        options,
-        progress,
-        started,
-    };
-    let mut report = match target {
-        IngestTarget::NewFile(path) => super::new_file(&run, path)?,
-        IngestTarget::Rewrite(path) => append::rewrite(&run, path)?,
-        IngestTarget::Segment(path) => segment::into_living(&run, path)?,
-        IngestTarget::Writer(writer) => segment::add_segment(&run, writer)?,
-    };
-    // Left out before the pipeline saw their maps: listed first.
-    report.skipped.splice(0..0, inputs.left_out.iter().cloned());
-    Ok(report)
 }
 
 /// One ingest's inputs and settings, handed to the target's plan and write.

@@ -33,10 +33,10 @@
 //!    what was written.
 
 use super::accumulate::TileHistory;
-use super::append::{refuse_overlap, AppendOptions, AppendReport};
-use super::axis_for_times;
+use super::append::refuse_overlap;
+use super::axis::axis_for_times;
 use super::counts::TileStats;
-use super::ingest::{ingest, Extended, IngestReport, IngestTarget, Intake, Run};
+use super::ingest::{Extended, IngestReport, Intake, Run};
 use super::merge::{common_refinement, Piece};
 use crate::context::Context;
 use crate::error::ConvertError;
@@ -44,7 +44,6 @@ use crate::files::{is_living_file, output_dir};
 use crate::history::PackedCell;
 use crate::history::PackedObservations;
 use crate::inputs::SeriesInput;
-use crate::progress::Progress;
 use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
 use froctomap_file::{
     mask_from_ranges, EncodedTile, FroctReader, FrozenPrediction, LivingReader, LivingWriter,
@@ -61,44 +60,6 @@ const FIXED_SPAN_MODEL: &str = "fremen-regular";
 /// The model whose `p(t)` after its last observation uses `exp`, which differs across
 /// platforms: its cells are stored constant with exceptions, never inherited.
 const PLATFORM_DEPENDENT_MODEL: &str = "markov";
-
-/// Appends later maps to the format 2.0 file `writer` holds as one segment, committed once.
-///
-/// Inputs are a time-sorted series as for [`append`](crate::append()), all later than the
-/// file's last sample and of its resolution; otherwise nothing is written
-/// ([`ConvertError::AppendOverlap`], [`ConvertError::MixedResolution`]). Only the new maps
-/// and the base tiles they touch are read: neither the earlier segments nor the base's
-/// masks and toggles, so the cost follows the new maps. Every earlier and every new
-/// observed state is kept exactly; the base's models stay frozen (no refit: compaction
-/// refits). Files of `fremen-regular` are refused ([`ConvertError::ModelCannotGrow`]).
-///
-/// ```no_run
-/// use froctomap_convert::*;
-/// use froctomap_file::LivingWriter;
-/// use std::path::{Path, PathBuf};
-/// let context = Context::with_default_plugins();
-/// let mut writer = LivingWriter::open(Path::new("office.froct"))?;
-/// let tonight = collect_inputs(&context, &[PathBuf::from("maps/today/")], TimeSource::Auto)?;
-/// let report = append_segment(&context, &mut writer, &tonight, &AppendOptions::default(), &Silent)?;
-/// println!("{} maps added as segment {:?}", report.added, report.segments);
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
-pub fn append_segment(
-    context: &Context,
-    writer: &mut LivingWriter,
-    inputs: &[SeriesInput],
-    options: &AppendOptions,
-    progress: &dyn Progress,
-) -> Result<AppendReport, ConvertError> {
-    ingest(
-        context,
-        inputs,
-        IngestTarget::Writer(writer),
-        options,
-        progress,
-    )
-    .map(AppendReport::from)
-}
 
 /// The new maps as one segment of the file `writer` holds: the plan, the intake, then
 /// join, choose, write and commit.
@@ -258,29 +219,6 @@ fn refuse_fixed_span<'c>(
         });
     }
     Ok(model)
-}
-
-/// Appends later maps to the file at `path` as one segment of format 2.0: a 2.0 file gets a
-/// segment ([`append_segment`], under its writer's lock); a 1.x file is first converted
-/// (its tiles copied, [`LivingWriter::convert`]) into a file beside it, the segment appended
-/// there, and that file renamed over `path` only once committed, so a failed append leaves
-/// the 1.x file as it was. Returns the report and whether the file was converted.
-pub fn append_living(
-    context: &Context,
-    path: &Path,
-    inputs: &[SeriesInput],
-    options: &AppendOptions,
-    progress: &dyn Progress,
-) -> Result<(AppendReport, bool), ConvertError> {
-    let report = ingest(
-        context,
-        inputs,
-        IngestTarget::Segment(path),
-        options,
-        progress,
-    )?;
-    let converted = report.extended.as_ref().is_some_and(|e| e.converted);
-    Ok((AppendReport::from(report), converted))
 }
 
 /// The new maps as a segment of the file at `path`, a 1.x file converted first.
