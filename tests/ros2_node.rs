@@ -13,7 +13,7 @@ use froctomap_ros2_node::{
     RecordingSink, TimeSource,
 };
 use froctomap_test_support::{
-    octomap_fixture, octomap_python, python_leaves, scratch, workspace_root,
+    octomap_fixture, octomap_python, python_leaves, scratch, workspace_root, LeafTuple,
 };
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -272,7 +272,31 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         sink.skipped
     );
 
-    // Each map arrives whole: the file the sink got is the one the peer published.
+    assert_maps_arrived_whole(&sink, &maps, &received_dir);
+    let (resolution, leaves) =
+        peer_reads_the_predicted_map(&peer, &predicted, t, &predicted_out, dir.path());
+    assert_markers_are_the_occupied_leaves(&peer, &markers_out, t, resolution, &leaves);
+    assert_recording_retrieves_each_map(sink, &maps, &living, dir.path(), &context);
+    living_services_answer_as_upstream(&mut peer, &node, &living, &maps, dir.path());
+    file_services_answer_as_retrieve(&mut peer, &node, &froct, dir.path());
+    assert_loopback_only(&peer);
+}
+
+/// Where the data of an OctoMap file starts (after its `data` line).
+fn data_at(file: &[u8]) -> usize {
+    file.windows(6)
+        .position(|w| w == b"\ndata\n")
+        .expect("data")
+        + 6
+}
+
+/// Whole seconds and nanoseconds of `t`, as a ROS stamp.
+fn sec_nanosec(t: Timestamp) -> (i64, i64) {
+    (t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000))
+}
+
+/// Each map arrives whole: the file the sink got is the one the peer published.
+fn assert_maps_arrived_whole(sink: &FilesSink, maps: &[PathBuf], received_dir: &Path) {
     for (i, map) in maps.iter().enumerate() {
         let stamp = (1_700_000_000 + i as i64) * 1_000_000_000;
         let got = sink
@@ -307,39 +331,51 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
             map.display()
         );
     }
+}
 
-    // The peer got the latched predicted map and upstream OctoMap reads it.
+/// The peer got the latched predicted map and upstream OctoMap reads it; returns what
+/// octomap-python reads of it.
+fn peer_reads_the_predicted_map(
+    peer: &Peer,
+    predicted: &PredictedPublisher,
+    t: Timestamp,
+    predicted_out: &Path,
+    dir: &Path,
+) -> (f64, Vec<LeafTuple>) {
     let event = peer.next_event(Duration::from_secs(60));
     assert_eq!(event["event"], "predicted", "{event}");
     let sent = predicted.predicted_bt(t).expect("predict");
-    let got = std::fs::read(&predicted_out).expect("the peer wrote the predicted map");
-    let at = |file: &[u8]| {
-        file.windows(6)
-            .position(|w| w == b"\ndata\n")
-            .expect("data")
-            + 6
-    };
+    let got = std::fs::read(predicted_out).expect("the peer wrote the predicted map");
     assert_eq!(
-        got[at(&got)..],
-        sent[at(&sent)..],
+        got[data_at(&got)..],
+        sent[data_at(&sent)..],
         "the predicted map's data arrived unchanged"
     );
-    let (resolution, leaves) = python_leaves(&predicted_out, "bt");
+    let (resolution, leaves) = python_leaves(predicted_out, "bt");
     assert!(
         resolution > 0.0 && !leaves.is_empty(),
         "octomap-python reads the predicted map"
     );
-    let ours = dir.path().join("ours.bt");
+    let ours = dir.join("ours.bt");
     std::fs::write(&ours, &sent).expect("write");
     assert_eq!(python_leaves(&ours, "bt"), (resolution, leaves.clone()));
+    (resolution, leaves)
+}
 
-    // With it, /froctomap/dynamic: a MarkerArray as octomap_server's occupied_cells_vis_array,
-    // decoded by the peer through the types it declares. Its cubes are the occupied leaves
-    // upstream OctoMap reads from the predicted map, each at its depth's marker.
+/// With it, /froctomap/dynamic: a MarkerArray as octomap_server's occupied_cells_vis_array,
+/// decoded by the peer through the types it declares. Its cubes are the occupied leaves
+/// upstream OctoMap reads from the predicted map, each at its depth's marker.
+fn assert_markers_are_the_occupied_leaves(
+    peer: &Peer,
+    markers_out: &Path,
+    t: Timestamp,
+    resolution: f64,
+    leaves: &[LeafTuple],
+) {
     let event = peer.next_event(Duration::from_secs(60));
     assert_eq!(event["event"], "markers", "{event}");
     let markers: Vec<serde_json::Value> =
-        serde_json::from_slice(&std::fs::read(&markers_out).expect("the peer wrote the markers"))
+        serde_json::from_slice(&std::fs::read(markers_out).expect("the peer wrote the markers"))
             .expect("JSON");
     assert_eq!(markers.len(), 17, "one marker per depth 0..=16");
     let stamp_of_t = [t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000)];
@@ -391,12 +427,20 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         cubes, occupied,
         "the cubes are the predicted map's occupied leaves"
     );
+}
 
-    // The node stops: what it recorded retrieves as each map the peer published.
+/// The node stops: what it recorded retrieves as each map the peer published.
+fn assert_recording_retrieves_each_map(
+    sink: FilesSink,
+    maps: &[PathBuf],
+    living: &Path,
+    dir: &Path,
+    context: &Context,
+) {
     let FilesSink { recording, .. } = sink;
     let summary = recording.finish().expect("the last commit");
     assert_eq!((summary.committed_maps, summary.commits), (maps.len(), 2));
-    let recorded = FroctFile::open(&living).expect("the living map");
+    let recorded = FroctFile::open(living).expect("the living map");
     for (i, map) in maps.iter().enumerate() {
         let stamp = Timestamp((1_700_000_000 + i as i64) * 1_000_000_000);
         let resolved = froctomap_convert::resolve_observed(
@@ -406,9 +450,9 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         .expect("a map at each stamp");
         assert!(resolved.exact);
         let kind = map.extension().and_then(|e| e.to_str()).expect("ext");
-        let out = dir.path().join(format!("recorded-{i}.{kind}"));
+        let out = dir.join(format!("recorded-{i}.{kind}"));
         froctomap_convert::write_observed_map(
-            &context,
+            context,
             &recorded,
             resolved.sample,
             &out,
@@ -435,24 +479,32 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
         };
         assert_eq!(states(&out), states(map), "{}", map.display());
     }
+}
 
-    // The services answer from the living file as the upstream maps it was recorded from
-    // say: get_octomap_at gives the data of the .bt published at that stamp, and
-    // probability_at is a number exactly where octomap-python finds a node in one of the
-    // maps recorded (the file's map is their union), NaN elsewhere.
-    let mut from_living = FileServices::new(&living, "map");
-    let living_path = dir.path().join("living-get.bt");
+/// The services answer from the living file as the upstream maps it was recorded from
+/// say: get_octomap_at gives the data of the .bt published at that stamp, and
+/// probability_at is a number exactly where octomap-python finds a node in one of the
+/// maps recorded (the file's map is their union), NaN elsewhere.
+fn living_services_answer_as_upstream(
+    peer: &mut Peer,
+    node: &Node,
+    living: &Path,
+    maps: &[PathBuf],
+    dir: &Path,
+) {
+    let mut from_living = FileServices::new(living, "map");
+    let living_path = dir.join("living-get.bt");
     peer.command(
         &serde_json::json!({"call": "get_octomap_at", "sec": 1_700_000_001, "nanosec": 0,
         "predict": false, "out": living_path}),
     );
-    let event = peer.event_while_serving(&node, &mut from_living, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, &mut from_living, Duration::from_secs(60));
     assert_eq!(event["success"], true, "{event}");
     let upstream = std::fs::read(&maps[1]).expect("read");
     let got = std::fs::read(&living_path).expect("the peer wrote the map");
     assert_eq!(
-        got[at(&got)..],
-        upstream[at(&upstream)..],
+        got[data_at(&got)..],
+        upstream[data_at(&upstream)..],
         "get_octomap_at gives the map published at that stamp"
     );
     let (upstream_resolution, upstream_leaves) = python_leaves(&maps[1], "bt");
@@ -470,42 +522,13 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     }
     probes.push([1.0e6, 0.0, 0.0]);
     probes.push([40.0, -40.0, 40.0]);
-    let found = {
-        let script = r#"
-import json, sys, numpy as np, octomap
-points = json.loads(sys.argv[1])
-trees = []
-for path in sys.argv[2:]:
-    if path.endswith(".bt"):
-        tree = octomap.OcTree(0.1)
-        assert tree.readBinary(path.encode())
-    else:
-        tree = octomap.OcTree.read(path.encode())
-    trees.append(tree)
-def found(tree, p):
-    try:
-        tree.search(np.array(p, dtype=float)).getValue()
-        return True
-    except Exception:
-        return False
-print(json.dumps([any(found(t, p) for t in trees) for p in points]))
-"#;
-        let out = Command::new(octomap_python())
-            .args(["-c", script])
-            .arg(serde_json::json!(probes).to_string())
-            .args(&maps)
-            .stderr(Stdio::null())
-            .output()
-            .expect("run python");
-        assert!(out.status.success(), "octomap-python search");
-        serde_json::from_slice::<Vec<bool>>(&out.stdout).expect("one bool a point")
-    };
+    let found = found_by_octomap_python(&probes, maps);
     assert!(found.iter().any(|f| *f) && found.iter().any(|f| !*f));
     peer.command(
         &serde_json::json!({"call": "probability_at", "sec": 1_700_000_001, "nanosec": 0,
         "points": probes}),
     );
-    let event = peer.event_while_serving(&node, &mut from_living, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, &mut from_living, Duration::from_secs(60));
     let p_bits = event["p_bits"].as_array().expect("p").clone();
     assert_eq!(p_bits.len(), probes.len());
     for ((hex, point), found) in p_bits.iter().zip(&probes).zip(&found) {
@@ -516,31 +539,78 @@ print(json.dumps([any(found(t, p) for t in trees) for p in points]))
             "probability_at {point:?} is {p} where octomap-python finds a node: {found}"
         );
     }
+}
 
-    // The services, as an rmw_cyclonedds client calls them (the Cyclone mapping).
-    let mut services = FileServices::new(&froct, "map");
-    let file = FroctFile::open(&froct).expect("open the .froct");
+/// Whether octomap-python finds a node at each of `probes` in any of `maps`.
+fn found_by_octomap_python(probes: &[[f64; 3]], maps: &[PathBuf]) -> Vec<bool> {
+    let script = r#"
+    import json, sys, numpy as np, octomap
+    points = json.loads(sys.argv[1])
+    trees = []
+    for path in sys.argv[2:]:
+        if path.endswith(".bt"):
+            tree = octomap.OcTree(0.1)
+            assert tree.readBinary(path.encode())
+        else:
+            tree = octomap.OcTree.read(path.encode())
+        trees.append(tree)
+    def found(tree, p):
+        try:
+            tree.search(np.array(p, dtype=float)).getValue()
+            return True
+        except Exception:
+            return False
+    print(json.dumps([any(found(t, p) for t in trees) for p in points]))
+    "#;
+    let out = Command::new(octomap_python())
+        .args(["-c", script])
+        .arg(serde_json::json!(probes).to_string())
+        .args(maps)
+        .stderr(Stdio::null())
+        .output()
+        .expect("run python");
+    assert!(out.status.success(), "octomap-python search");
+    serde_json::from_slice::<Vec<bool>>(&out.stdout).expect("one bool a point")
+}
+
+/// The services, as an rmw_cyclonedds client calls them (the Cyclone mapping).
+fn file_services_answer_as_retrieve(peer: &mut Peer, node: &Node, froct: &Path, dir: &Path) {
+    let mut services = FileServices::new(froct, "map");
+    let file = FroctFile::open(froct).expect("open the .froct");
     let (start, end) = (file.first_instant(), file.last_instant());
     let sample = 1;
     let past = file.sample_time(sample).expect("a second sample");
     assert!(past > start && past < end);
-    let seconds = |t: Timestamp| (t.0.div_euclid(1_000_000_000), t.0.rem_euclid(1_000_000_000));
+    let (resolution, leaves) =
+        get_octomap_at_gives_the_retrieved_map(peer, node, &mut services, &file, sample, dir);
+    get_octomap_at_outside_the_span(peer, node, &mut services, &file, end, dir);
+    probability_at_is_the_files(peer, node, &mut services, &file, past, resolution, &leaves);
+}
 
-    // A past stamp of the file: the map recorded then, exactly as `retrieve` writes it.
-    let (sec, nanosec) = seconds(past);
-    let got_path = dir.path().join("get_octomap_at.bt");
+/// A past stamp of the file: the map recorded then, exactly as `retrieve` writes it.
+fn get_octomap_at_gives_the_retrieved_map(
+    peer: &mut Peer,
+    node: &Node,
+    services: &mut FileServices,
+    file: &FroctFile,
+    sample: u32,
+    dir: &Path,
+) -> (f64, Vec<LeafTuple>) {
+    let past = file.sample_time(sample).expect("a second sample");
+    let (sec, nanosec) = sec_nanosec(past);
+    let got_path = dir.join("get_octomap_at.bt");
     peer.command(
         &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
         "predict": false, "out": got_path}),
     );
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     assert_eq!(event["event"], "get_octomap_at", "{event}");
     assert_eq!(event["success"], true, "{event}");
     assert_eq!(event["stamp"], serde_json::json!([sec, nanosec]), "{event}");
-    let retrieved = dir.path().join("retrieved.bt");
+    let retrieved = dir.join("retrieved.bt");
     froctomap_convert::write_observed_map(
         &Context::with_default_plugins(),
-        &file,
+        file,
         sample,
         &retrieved,
         Default::default(),
@@ -549,22 +619,32 @@ print(json.dumps([any(found(t, p) for t in trees) for p in points]))
     let retrieved_bytes = std::fs::read(&retrieved).expect("read");
     let got_bytes = std::fs::read(&got_path).expect("the peer wrote the map");
     assert_eq!(
-        got_bytes[at(&got_bytes)..],
-        retrieved_bytes[at(&retrieved_bytes)..],
+        got_bytes[data_at(&got_bytes)..],
+        retrieved_bytes[data_at(&retrieved_bytes)..],
         "the map of get_octomap_at is the one retrieve writes"
     );
     let (resolution, leaves) = python_leaves(&retrieved, "bt");
     assert!(!leaves.is_empty());
     assert_eq!(python_leaves(&got_path, "bt"), (resolution, leaves.clone()));
+    (resolution, leaves)
+}
 
-    // predict=false outside the recorded span fails with a reason; predict=true there is
-    // the model's estimate.
-    let (sec, nanosec) = seconds(Timestamp(end.0 + 86_400_000_000_000));
+/// predict=false outside the recorded span fails with a reason; predict=true there is
+/// the model's estimate.
+fn get_octomap_at_outside_the_span(
+    peer: &mut Peer,
+    node: &Node,
+    services: &mut FileServices,
+    file: &FroctFile,
+    end: Timestamp,
+    dir: &Path,
+) {
+    let (sec, nanosec) = sec_nanosec(Timestamp(end.0 + 86_400_000_000_000));
     peer.command(
         &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
-        "predict": false, "out": dir.path().join("never.bt")}),
+        "predict": false, "out": dir.join("never.bt")}),
     );
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     assert_eq!(event["success"], false, "{event}");
     assert!(
         event["message"]
@@ -572,26 +652,39 @@ print(json.dumps([any(found(t, p) for t in trees) for p in points]))
             .is_some_and(|m| m.contains("outside the recorded span")),
         "{event}"
     );
-    assert!(!dir.path().join("never.bt").exists());
-    let future_path = dir.path().join("future.bt");
+    assert!(!dir.join("never.bt").exists());
+    let future_path = dir.join("future.bt");
     peer.command(
         &serde_json::json!({"call": "get_octomap_at", "sec": sec, "nanosec": nanosec,
         "predict": true, "out": future_path}),
     );
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     assert_eq!(event["success"], true, "{event}");
-    let future = froctomap_convert::predicted_bt(&file, Timestamp(end.0 + 86_400_000_000_000))
+    let future = froctomap_convert::predicted_bt(file, Timestamp(end.0 + 86_400_000_000_000))
         .expect("predict");
     let got_future = std::fs::read(&future_path).expect("the predicted map");
-    assert_eq!(got_future[at(&got_future)..], future[at(&future)..]);
-    let ours = dir.path().join("future-ours.bt");
+    assert_eq!(
+        got_future[data_at(&got_future)..],
+        future[data_at(&future)..]
+    );
+    let ours = dir.join("future-ours.bt");
     std::fs::write(&ours, &future).expect("write");
     assert_eq!(
         python_leaves(&future_path, "bt"),
         python_leaves(&ours, "bt")
     );
+}
 
-    // probability_at: points inside leaves of the map, and one far outside (NaN).
+/// probability_at: points inside leaves of the map, and one far outside (NaN).
+fn probability_at_is_the_files(
+    peer: &mut Peer,
+    node: &Node,
+    services: &mut FileServices,
+    file: &FroctFile,
+    past: Timestamp,
+    resolution: f64,
+    leaves: &[LeafTuple],
+) {
     let metric = |k: u16| (f64::from(k) - 32768.0 + 0.5) * resolution;
     let mut points: Vec<[f64; 3]> = leaves
         .iter()
@@ -599,12 +692,12 @@ print(json.dumps([any(found(t, p) for t in trees) for p in points]))
         .map(|&(x, y, z, _, _)| [metric(x), metric(y), metric(z)])
         .collect();
     points.push([1.0e6, 0.0, 0.0]);
-    let (sec, nanosec) = seconds(past);
+    let (sec, nanosec) = sec_nanosec(past);
     peer.command(
         &serde_json::json!({"call": "probability_at", "sec": sec, "nanosec": nanosec,
         "points": points}),
     );
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     assert_eq!(event["event"], "probability_at", "{event}");
     let expected =
         froctomap_convert::probabilities(file.whole_history().expect("a 1.x file"), past, &points)
@@ -628,9 +721,11 @@ print(json.dumps([any(found(t, p) for t in trees) for p in points]))
             f64::from_bits(*got)
         );
     }
+}
 
-    // Loopback only: no socket of the peer or of this process is bound to an address other
-    // than 127.0.0.1 or the wildcard (RustDDS binds the wildcard; see docs/ROS.md).
+/// Loopback only: no socket of the peer or of this process is bound to an address other
+/// than 127.0.0.1 or the wildcard (RustDDS binds the wildcard; see docs/ROS.md).
+fn assert_loopback_only(peer: &Peer) {
     for (who, pid) in [("peer", peer.child.id()), ("node", std::process::id())] {
         for entry in udp_binds(pid) {
             let bound = address(&entry);
@@ -802,18 +897,7 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
         froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
     let mut recorder =
         froctomap_convert::Recorder::open(&context, &living, record_options).expect("record");
-    // The maps a commit left out, with why.
-    let left_out: std::rc::Rc<std::cell::RefCell<Vec<String>>> = Default::default();
-    let seen = std::rc::Rc::clone(&left_out);
-    recorder.on_event(move |event| match event {
-        froctomap_convert::RecordEvent::Committed(commit) => seen
-            .borrow_mut()
-            .extend(commit.skipped.iter().map(|(_, why)| why.clone())),
-        froctomap_convert::RecordEvent::LeftOut { what, .. } => {
-            seen.borrow_mut().push(what.to_string())
-        }
-        _ => {}
-    });
+    let left_out = note_left_out(&mut recorder);
     let mut sink = FilesSink {
         dir: received_dir,
         received: Vec::new(),
@@ -839,13 +923,7 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
         serde_json::json!({"call": "publish_garbage", "stamp": first + 4, "size": 300, "binary": false}),
         serde_json::json!({"call": "publish_garbage", "stamp": first + 5, "size": 100_000, "binary": true}),
     ];
-    for command in &bad {
-        peer.command(command);
-        assert_eq!(
-            peer.next_event(Duration::from_secs(30))["event"],
-            "published"
-        );
-    }
+    publish(&mut peer, &bad);
     receive_until(&node, &mut sink, |s| s.skipped.len() == bad.len());
     assert_eq!(
         sink.received.len(),
@@ -862,17 +940,14 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
 
     // A huge resolution decodes as a map but is not this file's: left out at the commit. A
     // stamp going backwards is skipped; the next good map is committed.
-    for command in [
-        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 6, "resolution": 1.0e300}),
-        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 2}),
-        serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 7}),
-    ] {
-        peer.command(&command);
-        assert_eq!(
-            peer.next_event(Duration::from_secs(30))["event"],
-            "published"
-        );
-    }
+    publish(
+        &mut peer,
+        &[
+            serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 6, "resolution": 1.0e300}),
+            serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 2}),
+            serde_json::json!({"call": "publish_map", "path": bt, "stamp": first + 7}),
+        ],
+    );
     receive_until(&node, &mut sink, |s| s.received.len() == 5);
     let FilesSink {
         recording, skipped, ..
@@ -888,8 +963,48 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
     assert_eq!(left_out.len(), 1, "{left_out:?}");
     assert!(left_out[0].contains("resolution"), "{left_out:?}");
 
-    // The file reads, and holds the good maps exactly.
-    let recorded = FroctFile::open(&living).expect("the living map reads");
+    assert_holds_exactly(&context, &living, dir.path(), &good, first);
+}
+
+/// Has the peer publish each of `commands`, each acknowledged by a `published` event.
+fn publish(peer: &mut Peer, commands: &[serde_json::Value]) {
+    for command in commands {
+        peer.command(command);
+        assert_eq!(
+            peer.next_event(Duration::from_secs(30))["event"],
+            "published"
+        );
+    }
+}
+
+/// The maps a commit of `recorder` leaves out, with why, as they come.
+fn note_left_out(
+    recorder: &mut froctomap_convert::Recorder<'_>,
+) -> std::rc::Rc<std::cell::RefCell<Vec<String>>> {
+    let left_out: std::rc::Rc<std::cell::RefCell<Vec<String>>> = Default::default();
+    let seen = std::rc::Rc::clone(&left_out);
+    recorder.on_event(move |event| match event {
+        froctomap_convert::RecordEvent::Committed(commit) => seen
+            .borrow_mut()
+            .extend(commit.skipped.iter().map(|(_, why)| why.clone())),
+        froctomap_convert::RecordEvent::LeftOut { what, .. } => {
+            seen.borrow_mut().push(what.to_string())
+        }
+        _ => {}
+    });
+    left_out
+}
+
+/// The file reads, and holds the `good` maps (at seconds `first`, `first + 1` and
+/// `first + 7`) exactly.
+fn assert_holds_exactly(
+    context: &Context,
+    living: &Path,
+    dir: &Path,
+    good: &[PathBuf],
+    first: i64,
+) {
+    let recorded = FroctFile::open(living).expect("the living map reads");
     for (stamp, map) in [
         (first, &good[0]),
         (first + 1, &good[1]),
@@ -901,9 +1016,9 @@ fn bad_maps_over_the_wire_are_skipped_and_the_file_stays_whole() {
         )
         .expect("a map at the stamp");
         assert!(resolved.exact, "{stamp}");
-        let out = dir.path().join(format!("{stamp}.bt"));
+        let out = dir.join(format!("{stamp}.bt"));
         froctomap_convert::write_observed_map(
-            &context,
+            context,
             &recorded,
             resolved.sample,
             &out,
@@ -1149,7 +1264,16 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
     assert_eq!(node.names().topic, "/robot1/maps_in");
     assert_eq!(node.names().predicted, "/robot1/mapper/predicted");
 
-    // The map arrives on the remapped topic in the namespace.
+    assert_map_arrives_on_the_remapped_topic(&node);
+    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
+    assert_predicted_map_is_at_clock_now(&node, &peer, clock_sec, &froct);
+    let mut services = FileServices::new(&froct, "map");
+    assert_parameters_are_served(&mut peer, &node, &mut services);
+    assert_node_is_in_the_ros_graph(&mut peer, &node, &mut services);
+}
+
+/// The map arrives on the remapped topic in the namespace.
+fn assert_map_arrives_on_the_remapped_topic(node: &Node) {
     struct Count(Vec<ReceivedMap>);
     impl MapSink for Count {
         fn receive(
@@ -1172,8 +1296,10 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
         Timestamp(1_700_000_000 * 1_000_000_000),
         "the peer's map"
     );
+}
 
-    // "Now" is /clock's time, not the system's; the predicted map is at now + horizon.
+/// "Now" is /clock's time, not the system's; the predicted map is at now + horizon.
+fn assert_predicted_map_is_at_clock_now(node: &Node, peer: &Peer, clock_sec: i64, froct: &Path) {
     let deadline = Instant::now() + Duration::from_secs(60);
     let mut now = node.now();
     while now.is_none() && Instant::now() < deadline {
@@ -1190,10 +1316,9 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
     )
     .expect("a duration");
     let t = Timestamp(clock_sec * 1_000_000_000 + horizon);
-    let froct = workspace_root().join("fixtures/froct/golden-v1.2.froct");
-    let mut predicted = PredictedPublisher::new(&froct, "map");
+    let mut predicted = PredictedPublisher::new(froct, "map");
     assert!(predicted
-        .publish_if_changed(&node, t)
+        .publish_if_changed(node, t)
         .expect("publish")
         .is_some());
     let event = peer.next_event(Duration::from_secs(60));
@@ -1203,11 +1328,12 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
         clock_sec + 3600,
         "the predicted map is at /clock's now + 1 h"
     );
+}
 
-    // The parameters, through rcl_interfaces/srv/GetParameters and ListParameters.
-    let mut services = FileServices::new(&froct, "map");
+/// The parameters, through rcl_interfaces/srv/GetParameters and ListParameters.
+fn assert_parameters_are_served(peer: &mut Peer, node: &Node, services: &mut FileServices) {
     peer.command(&serde_json::json!({"call": "list_parameters"}));
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     assert_eq!(
         event["names"],
         serde_json::json!(["horizon", "use_sim_time"]),
@@ -1215,7 +1341,7 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
     );
     peer.command(&serde_json::json!({"call": "get_parameters",
         "names": ["horizon", "use_sim_time", "no_such_parameter"]}));
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     let values = event["values"].as_array().expect("values");
     assert_eq!(values.len(), 3, "{event}");
     assert_eq!(
@@ -1227,12 +1353,14 @@ fn remapped_names_parameters_and_sim_time_as_ros_args_say() {
         (&serde_json::json!(1), &serde_json::json!(true))
     );
     assert_eq!(values[2]["type"], 0, "NOT_SET");
+}
 
-    // The node's entry in the ROS graph (what `ros2 node list` and `ros2 param` look it up
-    // in): its namespace and name, its participant's GUID as Cyclone discovered it, and the
-    // predicted map's writer among its writers.
+/// The node's entry in the ROS graph (what `ros2 node list` and `ros2 param` look it up
+/// in): its namespace and name, its participant's GUID as Cyclone discovered it, and the
+/// predicted map's writer among its writers.
+fn assert_node_is_in_the_ros_graph(peer: &mut Peer, node: &Node, services: &mut FileServices) {
     peer.command(&serde_json::json!({"call": "graph"}));
-    let event = peer.event_while_serving(&node, &mut services, Duration::from_secs(60));
+    let event = peer.event_while_serving(node, services, Duration::from_secs(60));
     let entries = event["entries"].as_array().expect("entries");
     assert_eq!(entries.len(), 1, "{event}");
     let entry = &entries[0];

@@ -581,13 +581,7 @@ fn run(args: &GregDoorArgs, fit_weeks: Option<u32>, out: &Path) -> Result<GregDo
     let stride = args.stride.unwrap_or(default_stride).max(1);
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let context = Context::with_default_plugins();
-    let closed = out.join("door-closed.bt");
-    let open = out.join("door-open.bt");
-    for (path, is_closed) in [(&closed, true), (&open, false)] {
-        context
-            .formats()
-            .write_file(&room(is_closed)?, path, WriteOptions::default())?;
-    }
+    let (closed, open) = write_rooms(&context, out)?;
 
     let training_path = args.data.join("training_data.txt");
     let mut training = read_pairs(&training_path, None)?;
@@ -638,19 +632,9 @@ fn run(args: &GregDoorArgs, fit_weeks: Option<u32>, out: &Path) -> Result<GregDo
     let mut rows = Vec::new();
     for &week in &weeks {
         let pairs = if validate {
-            let pairs = training_week(&held_back, start, week);
-            if pairs.is_empty() {
-                bail!(
-                    "{}: no samples in training week {week}",
-                    training_path.display()
-                );
-            }
-            pairs
+            held_back_week(&held_back, start, week, &training_path)?
         } else {
-            read_pairs(
-                &args.data.join(format!("test_times_{week}.txt")),
-                Some(&args.data.join(format!("test_data_{week}.txt"))),
-            )?
+            test_week(args, week)?
         };
         let truths: Vec<SeriesInput> = inputs(&pairs, &closed, &open)
             .into_iter()
@@ -672,27 +656,12 @@ fn run(args: &GregDoorArgs, fit_weeks: Option<u32>, out: &Path) -> Result<GregDo
             last_seen: scores(&report, "last seen"),
             reference: reference["weeks"][week.to_string()].clone(),
         };
-        // The numpy reference splits and strides the samples on its own: its static mean
-        // scoring as froctomap's (up to the 16-bit quantised mean) shows both scored the
-        // same samples against the same training mean.
-        let ours = row.static_mean.brier;
-        let theirs = reference_scores(&row.reference, "static mean").brier;
-        match (ours, theirs) {
-            (Some(a), Some(b)) if (a - b).abs() <= 1e-4 * a.abs().max(1e-3) => {}
-            _ => bail!(
-                "week {week}: the static mean's Brier score is {ours:?} here and {theirs:?} in the numpy reference: the two did not score the same samples"
-            ),
-        }
+        check_same_samples(&row)?;
         rows.push(row);
     }
     Ok(GregDoorResults {
         mode: if validate { "validation" } else { "test" }.into(),
-        fitted: match (fit_weeks, train_days) {
-            (None, None) => "all training weeks".into(),
-            (None, Some(days)) => format!("the last {days} training days"),
-            (Some(n), None) => format!("training weeks 1-{n}"),
-            (Some(n), Some(days)) => format!("the {days} days before training week {}", n + 1),
-        },
+        fitted: fitted(fit_weeks, train_days),
         size: args.size.clone(),
         stride,
         training_maps: training.len(),
@@ -704,6 +673,70 @@ fn run(args: &GregDoorArgs, fit_weeks: Option<u32>, out: &Path) -> Result<GregDo
         weeks: rows,
         reference_periods_strongest_first: reference["strongest_first"].clone(),
     })
+}
+
+/// The room with the door closed and open, written as door-closed.bt and door-open.bt
+/// in `out`: every sample is one of the two.
+fn write_rooms(context: &Context, out: &Path) -> Result<(PathBuf, PathBuf)> {
+    let closed = out.join("door-closed.bt");
+    let open = out.join("door-open.bt");
+    for (path, is_closed) in [(&closed, true), (&open, false)] {
+        context
+            .formats()
+            .write_file(&room(is_closed)?, path, WriteOptions::default())?;
+    }
+    Ok((closed, open))
+}
+
+/// The held-back training samples of `week` (validating), which must not be empty.
+fn held_back_week(
+    held_back: &[(i64, u8)],
+    start: i64,
+    week: u32,
+    training_path: &Path,
+) -> Result<Vec<(i64, u8)>> {
+    let pairs = training_week(held_back, start, week);
+    if pairs.is_empty() {
+        bail!(
+            "{}: no samples in training week {week}",
+            training_path.display()
+        );
+    }
+    Ok(pairs)
+}
+
+/// The samples of test week `week`.
+fn test_week(args: &GregDoorArgs, week: u32) -> Result<Vec<(i64, u8)>> {
+    read_pairs(
+        &args.data.join(format!("test_times_{week}.txt")),
+        Some(&args.data.join(format!("test_data_{week}.txt"))),
+    )
+}
+
+/// Checks that the numpy reference scored the same samples as froctomap in `row`.
+fn check_same_samples(row: &WeekRow) -> Result<()> {
+    // The numpy reference splits and strides the samples on its own: its static mean
+    // scoring as froctomap's (up to the 16-bit quantised mean) shows both scored the
+    // same samples against the same training mean.
+    let week = row.week;
+    let ours = row.static_mean.brier;
+    let theirs = reference_scores(&row.reference, "static mean").brier;
+    match (ours, theirs) {
+        (Some(a), Some(b)) if (a - b).abs() <= 1e-4 * a.abs().max(1e-3) => Ok(()),
+        _ => bail!(
+            "week {week}: the static mean's Brier score is {ours:?} here and {theirs:?} in the numpy reference: the two did not score the same samples"
+        ),
+    }
+}
+
+/// What the model was fitted on, in words.
+fn fitted(fit_weeks: Option<u32>, train_days: Option<i64>) -> String {
+    match (fit_weeks, train_days) {
+        (None, None) => "all training weeks".into(),
+        (None, Some(days)) => format!("the last {days} training days"),
+        (Some(n), None) => format!("training weeks 1-{n}"),
+        (Some(n), Some(days)) => format!("the {days} days before training week {}", n + 1),
+    }
 }
 
 #[cfg(test)]

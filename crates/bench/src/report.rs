@@ -284,6 +284,19 @@ impl Results {
     /// The whole report as markdown.
     pub fn markdown(&self) -> String {
         let mut out = String::new();
+        self.series_markdown(&mut out);
+        self.storage_markdown(&mut out);
+        self.builds_markdown(&mut out);
+        self.one_snapshot_markdown(&mut out);
+        self.memory_markdown(&mut out);
+        self.accuracy_markdown(&mut out);
+        self.targets_markdown(&mut out);
+        let _ = writeln!(out, "\nTotal benchmark time: {:.0} s.", self.total_seconds);
+        out
+    }
+
+    /// The series, its elements and the machine.
+    fn series_markdown(&self, out: &mut String) {
         let d = &self.dataset;
         let _ = writeln!(
             out,
@@ -321,7 +334,11 @@ impl Results {
             m.kernel,
             m.tools.join(", ")
         );
+    }
 
+    /// The storage table.
+    fn storage_markdown(&self, out: &mut String) {
+        let d = &self.dataset;
         out.push_str("## Storage\n\n");
         let raw = d.bt_bytes as f64;
         let rows: Vec<Vec<String>> = self
@@ -350,7 +367,12 @@ impl Results {
             &label_then_numbers(6),
             &rows,
         ));
+    }
 
+    /// The C++ read of all inputs and the builds against it.
+    fn builds_markdown(&self, out: &mut String) {
+        let d = &self.dataset;
+        let m = &self.machine;
         let t = &self.time;
         let _ = writeln!(
             out,
@@ -391,6 +413,11 @@ impl Results {
             &label_then_numbers(8),
             &rows,
         ));
+    }
+
+    /// Reading, retrieving and predicting one snapshot against one C++ read.
+    fn one_snapshot_markdown(&self, out: &mut String) {
+        let t = &self.time;
         let one = t.cpp_read_one_seconds;
         let mut rows = vec![
             vec![
@@ -434,7 +461,10 @@ impl Results {
             &label_then_numbers(3),
             &rows,
         ));
+    }
 
+    /// Peak memory against the series length.
+    fn memory_markdown(&self, out: &mut String) {
         out.push_str("\n## Peak memory vs series length\n\n");
         let rows: Vec<Vec<String>> = self
             .memory
@@ -466,7 +496,11 @@ impl Results {
             ],
             &rows,
         ));
+    }
 
+    /// The accuracy table, baselines included.
+    fn accuracy_markdown(&self, out: &mut String) {
+        let d = &self.dataset;
         let _ = writeln!(
             out,
             "\n## Accuracy\n\nError rates (wrong voxels / compared voxels). Reconstruction: the model \
@@ -503,7 +537,10 @@ impl Results {
             &label_then_numbers(7),
             &rows,
         ));
+    }
 
+    /// The targets and their verdicts.
+    fn targets_markdown(&self, out: &mut String) {
         out.push_str("\n## Targets\n\n");
         let rows: Vec<Vec<String>> = self
             .targets
@@ -525,8 +562,6 @@ impl Results {
             &[Align::Left, Align::Left, Align::Left],
             &rows,
         ));
-        let _ = writeln!(out, "\nTotal benchmark time: {:.0} s.", self.total_seconds);
-        out
     }
 }
 

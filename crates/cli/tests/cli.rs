@@ -332,7 +332,20 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
     assert!(bytes > input, "{bytes} vs {input}");
     assert!(summary.contains("x larger"), "{summary}");
     assert!(!summary.contains("smaller"), "{summary}");
-    // Every float of a --json report reads back as printed: no `1.6800000000000002`.
+    json_floats_read_back_as_printed(&build(true, true), &out);
+    zero_durations_are_named(dir, &out);
+    retrieve_reports_json_beside_the_map(dir, &out);
+    predict_and_export_report_json(dir, &out);
+    let help = text(&froctomap(&["build", "--help"]).stdout);
+    assert!(
+        help.contains("\n\nfroctomap build maps/ -o office.froct\n\nfroctomap build 'scans/*.bt'"),
+        "{help}"
+    );
+}
+
+/// Every float of a --json report reads back as printed: no `1.6800000000000002`
+/// (`build_report`: a build's; then `info` of a map and of `froct`).
+fn json_floats_read_back_as_printed(build_report: &str, froct: &Path) {
     fn floats(value: &serde_json::Value, out: &mut Vec<f64>) {
         match value {
             serde_json::Value::Number(n) if !(n.is_i64() || n.is_u64()) => {
@@ -344,9 +357,9 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
         }
     }
     for report in [
-        build(true, true),
+        build_report.to_string(),
         text(&froctomap(&["info", "--json", path_str(&geb079())]).stdout),
-        text(&froctomap(&["info", "--json", path_str(&out)]).stdout),
+        text(&froctomap(&["info", "--json", path_str(froct)]).stdout),
     ] {
         let mut found = Vec::new();
         floats(&serde_json::from_str(&report).unwrap(), &mut found);
@@ -355,9 +368,13 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
             assert_eq!(froctomap_convert::tidy_float(x), x, "{report}");
         }
     }
+}
+
+/// A zero `--every` is named as one, and nothing is written.
+fn zero_durations_are_named(dir: &Path, out: &Path) {
     let zero = froctomap(&[
         "export",
-        path_str(&out),
+        path_str(out),
         "--from",
         "2016-01-04T00:00:00Z",
         "--to",
@@ -373,13 +390,16 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
         text(&zero.stderr)
     );
     assert!(!dir.join("none").exists());
+}
+
+fn retrieve_reports_json_beside_the_map(dir: &Path, out: &Path) {
     // --json of retrieve, predict and export; with `-o -` the report goes to stderr and the
     // map's bytes alone to stdout.
     let file_out = dir.join("then.bt");
     let report = text(
         &froctomap(&[
             "retrieve",
-            path_str(&out),
+            path_str(out),
             "--time",
             "last",
             "-o",
@@ -395,7 +415,7 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
     );
     let piped = froctomap(&[
         "retrieve",
-        path_str(&out),
+        path_str(out),
         "--time",
         "last",
         "-o",
@@ -410,10 +430,14 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
         report["leaves"],
         report["leaves"].as_u64().filter(|&n| n > 0).unwrap()
     );
+}
+
+/// `--json` of predict and export.
+fn predict_and_export_report_json(dir: &Path, out: &Path) {
     let predicted = text(
         &froctomap(&[
             "predict",
-            path_str(&out),
+            path_str(out),
             "--time",
             "2016-02-01T00:00:00Z",
             "-o",
@@ -433,7 +457,7 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
     let exported = text(
         &froctomap(&[
             "export",
-            path_str(&out),
+            path_str(out),
             "--from",
             "2016-01-04T00:00:00Z",
             "--to",
@@ -451,9 +475,4 @@ fn summaries_ratios_json_numbers_durations_and_help_read_right() {
     for map in exported["maps"].as_array().unwrap() {
         assert!(Path::new(map["path"].as_str().unwrap()).is_file());
     }
-    let help = text(&froctomap(&["build", "--help"]).stdout);
-    assert!(
-        help.contains("\n\nfroctomap build maps/ -o office.froct\n\nfroctomap build 'scans/*.bt'"),
-        "{help}"
-    );
 }

@@ -203,6 +203,15 @@ fn every_map_of_a_living_file_retrieves_as_a_build_of_the_same_maps() {
 fn info_predict_and_export_read_living_files() {
     let series = living_series();
     let out = series.dir.path().join("out");
+    info_shows_the_segments(&series);
+    predict_reads_base_and_segments(&series, &out);
+    export_retrieves_the_inputs(&series, &out);
+    export_to_mcap_matches_the_bt_export(&series, &out);
+    export_past_the_span_predicts(&series, &out);
+}
+
+/// `info` shows the base and the two segments.
+fn info_shows_the_segments(series: &Living) {
     let living = info(&series.living);
     assert_eq!(living["version"], "2.0");
     assert_eq!(living["time"]["samples"], 24);
@@ -225,13 +234,15 @@ fn info_predict_and_export_read_living_files() {
     let text = ok(&["info", s(&series.living)]);
     assert!(text.contains("FROctomap 2.0"), "{text}");
     assert!(text.contains("2 segment(s) of 6, 6 samples"), "{text}");
+}
 
-    // A prediction: every base cell by its model, as in the base's own 1.x file; space
-    // only the segments saw (the strip behind the wall) by the newest segment's state.
-    // Upstream reads it.
+/// A prediction: every base cell by its model, as in the base's own 1.x file; space
+/// only the segments saw (the strip behind the wall) by the newest segment's state.
+/// Upstream reads it.
+fn predict_reads_base_and_segments(series: &Living, out: &Path) {
     let later = format!("{}", START + 40 * STEP);
     let predicted = out.join("predicted.bt");
-    std::fs::create_dir_all(&out).unwrap();
+    std::fs::create_dir_all(out).unwrap();
     ok(&[
         "predict",
         s(&series.living),
@@ -278,8 +289,10 @@ fn info_predict_and_export_read_living_files() {
             .expect("the door voxel is a leaf")
     };
     assert_eq!(door(&living_ot), door(&base_ot));
+}
 
-    // Export in both modes: retrieved maps are the inputs.
+/// Export in both modes: retrieved maps are the inputs.
+fn export_retrieves_the_inputs(series: &Living, out: &Path) {
     let exported = out.join("export");
     ok(&[
         "export",
@@ -309,9 +322,13 @@ fn info_predict_and_export_read_living_files() {
             "{name}"
         );
     }
-    // One MCAP recording of the same maps (occupied voxels from the states: the segments'
-    // cells have no models to shade them by), read by the PyPI mcap readers: each message's
-    // map is the .bt export's, each point cloud its occupied voxels per octomap-python.
+}
+
+/// One MCAP recording of the same maps (occupied voxels from the states: the segments'
+/// cells have no models to shade them by), read by the PyPI mcap readers: each message's
+/// map is the .bt export's, each point cloud its occupied voxels per octomap-python.
+fn export_to_mcap_matches_the_bt_export(series: &Living, out: &Path) {
+    let exported = out.join("export");
     let mcap = out.join("maps.mcap");
     ok(&[
         "export",
@@ -369,7 +386,11 @@ fn info_predict_and_export_read_living_files() {
         let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
         assert!(data == bt[body_at..], "map {i}");
     }
-    // Past the span: predicted maps, as `predict` writes them.
+}
+
+/// Past the span: predicted maps, as `predict` writes them.
+fn export_past_the_span_predicts(series: &Living, out: &Path) {
+    let exported = out.join("export");
     let last = exported.join(format!(
         "map_{}.bt",
         froctomap_core::calendar::iso8601_basic(froctomap_core::Timestamp::from_secs(i64::from(

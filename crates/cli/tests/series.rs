@@ -55,8 +55,16 @@ fn series_in_subdir(n: u32) -> (tempfile::TempDir, PathBuf, Vec<PathBuf>) {
 fn build_info_retrieve_predict_export_eval() {
     let (dir, inputs, files) = series_in_subdir(8);
     let map = dir.path().join("room.froct");
+    build_and_describe(&inputs, &map);
+    retrieve_gives_the_inputs_back(dir.path(), &map, &files);
+    predict_a_week_later(dir.path(), &map);
+    export_and_build_again(dir.path(), &map, &files);
+    eval_against_the_inputs(dir.path(), &map, &inputs);
+}
 
-    let built = ok(&["build", s(&inputs), "-o", s(&map)]);
+/// `build` (text and --json) and `info` (text and --json) of the 8-frame series.
+fn build_and_describe(inputs: &Path, map: &Path) {
+    let built = ok(&["build", s(inputs), "-o", s(map)]);
     assert!(
         built.contains("snapshots:   8 used of 8 (8 samples, regular axis)"),
         "{built}"
@@ -65,16 +73,16 @@ fn build_info_retrieve_predict_export_eval() {
         "build",
         "--quiet",
         "--json",
-        s(&inputs),
+        s(inputs),
         "-o",
-        s(&map),
+        s(map),
     ]))
     .unwrap();
     assert_eq!(report["used"], 8);
     assert_eq!(report["cells"]["dynamic"], 4);
     assert!(report["peak_memory_bytes"].as_u64().unwrap() > 0);
 
-    let info = ok(&["info", s(&map)]);
+    let info = ok(&["info", s(map)]);
     assert!(
         info.contains("2016-01-04T00:00:00Z .. 2016-01-04T01:10:00Z"),
         "{info}"
@@ -84,18 +92,21 @@ fn build_info_retrieve_predict_export_eval() {
         info.contains("model:           fremen-periods (lossless)"),
         "{info}"
     );
-    let json: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(&map)])).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(map)])).unwrap();
     assert_eq!(json["voxels"]["dynamic"], 4);
     assert_eq!(json["input_files"], 8);
+}
 
+/// `retrieve` of stored snapshots gives the inputs back; between them, the one before.
+fn retrieve_gives_the_inputs_back(dir: &Path, map: &Path, files: &[PathBuf]) {
     // Retrieve by ISO time, by Unix seconds and by index: identical to the input file.
     for (i, time) in [
         (2usize, "2016-01-04T00:20:00Z"),
         (3, "1451867400"),
         (5, "index:5"),
     ] {
-        let out = dir.path().join(format!("r{i}.bt"));
-        ok(&["retrieve", s(&map), "--time", time, "-o", s(&out)]);
+        let out = dir.join(format!("r{i}.bt"));
+        ok(&["retrieve", s(map), "--time", time, "-o", s(&out)]);
         assert_eq!(
             std::fs::read(&out).unwrap(),
             std::fs::read(&files[i]).unwrap(),
@@ -105,20 +116,23 @@ fn build_info_retrieve_predict_export_eval() {
     // Between snapshots: the last earlier one, with a note.
     let between = froctomap(&[
         "retrieve",
-        s(&map),
+        s(map),
         "--time",
         "2016-01-04T00:25:00Z",
         "-o",
-        s(&dir.path().join("b.bt")),
+        s(&dir.join("b.bt")),
     ]);
     assert!(String::from_utf8_lossy(&between.stderr)
         .contains("using the last one before it, at 2016-01-04T00:20:00Z"));
+}
 
+/// `predict` beyond the series, with a note.
+fn predict_a_week_later(dir: &Path, map: &Path) {
     // Predict a week later as .ot and .bt.
-    let ot = dir.path().join("later.ot");
+    let ot = dir.join("later.ot");
     let note = froctomap(&[
         "predict",
-        s(&map),
+        s(map),
         "--time",
         "2016-01-11T00:00:00Z",
         "-o",
@@ -130,12 +144,15 @@ fn build_info_retrieve_predict_export_eval() {
         .read_file(&ot, ReadOptions::default())
         .unwrap();
     assert_eq!(predicted.map.snapshot.voxels().count(), 256);
+}
 
+/// `export` writes maps and a manifest that `build` reads again.
+fn export_and_build_again(dir: &Path, map: &Path, files: &[PathBuf]) {
     // Export retrieved maps every 20 minutes: files + manifest that build reads again.
-    let exported = dir.path().join("exported");
+    let exported = dir.join("exported");
     ok(&[
         "export",
-        s(&map),
+        s(map),
         "--from",
         "2016-01-04T00:00:00Z",
         "--to",
@@ -158,17 +175,20 @@ fn build_info_retrieve_predict_export_eval() {
         "--quiet",
         s(&exported.join("manifest.csv")),
         "-o",
-        s(&dir.path().join("again.froct")),
+        s(&dir.join("again.froct")),
     ]);
+}
 
+/// `eval` against the inputs: JSON, table and reliability picture.
+fn eval_against_the_inputs(dir: &Path, map: &Path, inputs: &Path) {
     // Evaluation against the inputs: stored states exact.
     let eval: serde_json::Value = serde_json::from_str(&ok(&[
         "eval",
         "--quiet",
         "--json",
-        s(&map),
+        s(map),
         "--against",
-        s(&inputs),
+        s(inputs),
     ]))
     .unwrap();
     assert_eq!(eval["inside"], 8);
@@ -184,13 +204,13 @@ fn build_info_retrieve_predict_export_eval() {
     let epsilon = eval["log_loss_epsilon"].as_f64().unwrap();
     let loss = stored[1]["dynamic"]["log_loss"].as_f64().unwrap();
     assert!((loss + (1.0 - epsilon).ln()).abs() < 1e-9, "{loss}");
-    let png = dir.path().join("reliability.png");
+    let png = dir.join("reliability.png");
     let table = ok(&[
         "eval",
         "--quiet",
-        s(&map),
+        s(map),
         "--against",
-        s(&inputs),
+        s(inputs),
         "--png",
         s(&png),
     ]);

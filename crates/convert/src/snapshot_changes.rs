@@ -83,6 +83,57 @@ pub(crate) struct ChangeReader<'a> {
     pub resolution: Option<f64>,
 }
 
+/// The files of one batch, in time order, and the bytes of the last file accepted before it.
+struct Batch<'b> {
+    paths: &'b [&'b Path],
+    raw: &'b [Result<Vec<u8>, Refusal>],
+    carried_bytes: Option<&'b [u8]>,
+}
+
+impl<'b> Batch<'b> {
+    /// The bytes of file `k`, or `None` when they could not be read.
+    fn bytes(&self, k: usize) -> Option<&'b [u8]> {
+        self.raw[k].as_deref().ok()
+    }
+}
+
+/// The files of a batch once each knows the accepted file it follows (in time order).
+struct Planned {
+    plans: Vec<Plan>,
+    /// What the differ kept of each file compared from its bytes.
+    states: Vec<Option<DiffState>>,
+    /// The leaves (and reader warnings) of the files that were decoded.
+    decoded: Vec<Option<(Vec<Leaf>, Vec<String>)>>,
+    /// The last file accepted so far.
+    last: Option<usize>,
+}
+
+impl Planned {
+    fn with_capacity(files: usize) -> Self {
+        Self {
+            plans: Vec::with_capacity(files),
+            states: Vec::with_capacity(files),
+            decoded: Vec::with_capacity(files),
+            last: None,
+        }
+    }
+
+    /// Records the plan of the next file, what the differ kept of it and its leaves.
+    fn push(
+        &mut self,
+        plan: Plan,
+        state: Option<DiffState>,
+        leaves: Option<(Vec<Leaf>, Vec<String>)>,
+    ) {
+        if !matches!(plan, Plan::Failed(_)) {
+            self.last = Some(self.plans.len());
+        }
+        self.plans.push(plan);
+        self.states.push(state);
+        self.decoded.push(leaves);
+    }
+}
+
 impl ChangeReader<'_> {
     /// For each file of a batch (in time order, with its bytes or why they could not be read)
     /// its changes from the last file before it that was accepted, or why it is refused. A
@@ -104,129 +155,25 @@ impl ChangeReader<'_> {
             self.write_unwritten(accepted, path, bytes);
         }
         let mut carried_state = carried.as_mut().and_then(|a| a.state.take());
-        let carried_bytes = carried.as_ref().and_then(|a| a.bytes.as_deref());
-        let looks: Vec<Result<FirstLook, Refusal>> = (0..raw.len())
-            .into_par_iter()
-            .map(|k| {
-                let bytes = raw[k].as_ref().map_err(Clone::clone)?;
-                let before = match k {
-                    0 => carried_bytes,
-                    _ => raw[k - 1].as_deref().ok(),
-                };
-                if before == Some(bytes.as_slice()) {
-                    return Ok(FirstLook::Same);
-                }
-                match self.registry.format_of(paths[k], bytes, self.options) {
-                    Ok(format) if format.differ.is_some() => Ok(FirstLook::Comparable),
-                    _ => {
-                        let (leaves, warnings) =
-                            self.read_leaves(paths[k], bytes).map_err(Arc::new)?;
-                        Ok(FirstLook::Leaves(leaves, warnings))
-                    }
-                }
-            })
-            .collect();
+        let batch = Batch {
+            paths,
+            raw,
+            carried_bytes: carried.as_ref().and_then(|a| a.bytes.as_deref()),
+        };
+        let looks = self.first_looks(&batch);
         // In time order: which accepted file each one follows, and the byte comparisons.
-        let mut plans: Vec<Plan> = Vec::with_capacity(looks.len());
-        let mut last: Option<usize> = None;
-        let mut states: Vec<Option<DiffState>> = Vec::with_capacity(looks.len());
-        // The leaves (and reader warnings) of the files that were decoded.
-        let mut decoded: Vec<Option<(Vec<Leaf>, Vec<String>)>> = Vec::with_capacity(looks.len());
+        let mut planned = Planned::with_capacity(looks.len());
         for (k, look) in looks.into_iter().enumerate() {
-            let mut state = None;
-            let mut leaves = None;
-            let plan = match look {
-                Err(reason) => Plan::Failed(reason),
-                Ok(FirstLook::Same) => match k.checked_sub(1).map(|j| &plans[j]) {
-                    Some(Plan::Failed(reason)) => match reason.as_ref() {
-                        SnapshotError::SameAsRefused(_) => Plan::Failed(reason.clone()),
-                        _ => Plan::Failed(Arc::new(SnapshotError::SameAsRefused(reason.clone()))),
-                    },
-                    _ => {
-                        // The same bytes: what the differ kept of the predecessor holds.
-                        state = match k {
-                            0 => carried_state.take(),
-                            _ => states[k - 1].take(),
-                        };
-                        Plan::Done(FileChanges {
-                            changes: Vec::new(),
-                            warnings: Vec::new(),
-                        })
-                    }
-                },
-                Ok(FirstLook::Leaves(read, warnings)) => {
-                    leaves = Some((read, warnings));
-                    Plan::CompareWith(last)
-                }
-                Ok(FirstLook::Comparable) => {
-                    let before = match last {
-                        Some(j) => raw[j].as_deref().ok().map(|bytes| PreviousFile {
-                            bytes,
-                            state: states[j].as_ref(),
-                        }),
-                        None => carried_bytes.map(|bytes| PreviousFile {
-                            bytes,
-                            state: carried_state.as_ref(),
-                        }),
-                    };
-                    let bytes = raw[k].as_deref().unwrap_or_default();
-                    match self.compare_bytes(paths[k], before, bytes) {
-                        Ok(Some((changes, diff))) => {
-                            state = diff.state;
-                            Plan::Done(FileChanges {
-                                changes,
-                                warnings: diff.warnings,
-                            })
-                        }
-                        // The file before is of another format.
-                        Ok(None) => match self.read_leaves(paths[k], bytes) {
-                            Ok(read) => {
-                                leaves = Some(read);
-                                Plan::CompareWith(last)
-                            }
-                            Err(reason) => Plan::Failed(Arc::new(reason)),
-                        },
-                        Err(reason) => Plan::Failed(Arc::new(reason)),
-                    }
-                }
-            };
-            if !matches!(plan, Plan::Failed(_)) {
-                last = Some(k);
-            }
-            plans.push(plan);
-            states.push(state);
-            decoded.push(leaves);
+            self.plan(&batch, &mut planned, k, look, &mut carried_state);
         }
-        // Leaves compared with their predecessor's, in parallel.
-        let outcomes: Vec<Result<FileChanges, Refusal>> = plans
-            .into_par_iter()
-            .enumerate()
-            .map(|(k, plan)| match plan {
-                Plan::Done(done) => Ok(done),
-                Plan::Failed(reason) => Err(reason),
-                Plan::CompareWith(j) => {
-                    let (leaves, warnings) = decoded[k].as_ref().ok_or_else(|| {
-                        Arc::new(SnapshotError::Internal(
-                            "a file to compare by its leaves was not decoded",
-                        ))
-                    })?;
-                    let (before_bytes, before_leaves) = match j {
-                        Some(j) => (
-                            raw[j].as_deref().ok(),
-                            decoded[j].as_ref().map(|(l, _)| l.as_slice()),
-                        ),
-                        None => (carried_bytes, carried.as_ref().and_then(Accepted::leaves)),
-                    };
-                    let before = self
-                        .leaves_before(paths[k], before_bytes, before_leaves)
-                        .map_err(Arc::new)?;
-                    Ok(FileChanges {
-                        changes: changes(&before, leaves),
-                        warnings: warnings.clone(),
-                    })
-                }
-            })
-            .collect();
+        let Planned {
+            plans,
+            mut states,
+            mut decoded,
+            last,
+        } = planned;
+        let carried_leaves = carried.as_ref().and_then(Accepted::leaves);
+        let outcomes = self.compare_leaves(&batch, plans, &decoded, carried_leaves);
         // Carry the last accepted file into the next batch.
         match last {
             Some(j) => {
@@ -269,6 +216,142 @@ impl ChangeReader<'_> {
         if make_writer().write(map, &mut written).is_ok() {
             accepted.bytes = Some(written);
         }
+    }
+
+    /// The parallel stage: which files repeat their predecessor, which compare from their
+    /// bytes, and the leaves of the others.
+    fn first_looks(&self, batch: &Batch<'_>) -> Vec<Result<FirstLook, Refusal>> {
+        (0..batch.raw.len())
+            .into_par_iter()
+            .map(|k| {
+                let bytes = batch.raw[k].as_ref().map_err(Clone::clone)?;
+                let before = match k {
+                    0 => batch.carried_bytes,
+                    _ => batch.bytes(k - 1),
+                };
+                if before == Some(bytes.as_slice()) {
+                    return Ok(FirstLook::Same);
+                }
+                match self.registry.format_of(batch.paths[k], bytes, self.options) {
+                    Ok(format) if format.differ.is_some() => Ok(FirstLook::Comparable),
+                    _ => {
+                        let (leaves, warnings) =
+                            self.read_leaves(batch.paths[k], bytes).map_err(Arc::new)?;
+                        Ok(FirstLook::Leaves(leaves, warnings))
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// Plans file `k` of the batch after its first `look`, comparing it from its bytes with
+    /// the last accepted file where the format allows.
+    fn plan(
+        &self,
+        batch: &Batch<'_>,
+        planned: &mut Planned,
+        k: usize,
+        look: Result<FirstLook, Refusal>,
+        carried_state: &mut Option<DiffState>,
+    ) {
+        let mut state = None;
+        let mut leaves = None;
+        let plan = match look {
+            Err(reason) => Plan::Failed(reason),
+            Ok(FirstLook::Same) => match k.checked_sub(1).map(|j| &planned.plans[j]) {
+                Some(Plan::Failed(reason)) => match reason.as_ref() {
+                    SnapshotError::SameAsRefused(_) => Plan::Failed(reason.clone()),
+                    _ => Plan::Failed(Arc::new(SnapshotError::SameAsRefused(reason.clone()))),
+                },
+                _ => {
+                    // The same bytes: what the differ kept of the predecessor holds.
+                    state = match k {
+                        0 => carried_state.take(),
+                        _ => planned.states[k - 1].take(),
+                    };
+                    Plan::Done(FileChanges {
+                        changes: Vec::new(),
+                        warnings: Vec::new(),
+                    })
+                }
+            },
+            Ok(FirstLook::Leaves(read, warnings)) => {
+                leaves = Some((read, warnings));
+                Plan::CompareWith(planned.last)
+            }
+            Ok(FirstLook::Comparable) => {
+                let before = match planned.last {
+                    Some(j) => batch.bytes(j).map(|bytes| PreviousFile {
+                        bytes,
+                        state: planned.states[j].as_ref(),
+                    }),
+                    None => batch.carried_bytes.map(|bytes| PreviousFile {
+                        bytes,
+                        state: carried_state.as_ref(),
+                    }),
+                };
+                let bytes = batch.bytes(k).unwrap_or_default();
+                match self.compare_bytes(batch.paths[k], before, bytes) {
+                    Ok(Some((changes, diff))) => {
+                        state = diff.state;
+                        Plan::Done(FileChanges {
+                            changes,
+                            warnings: diff.warnings,
+                        })
+                    }
+                    // The file before is of another format.
+                    Ok(None) => match self.read_leaves(batch.paths[k], bytes) {
+                        Ok(read) => {
+                            leaves = Some(read);
+                            Plan::CompareWith(planned.last)
+                        }
+                        Err(reason) => Plan::Failed(Arc::new(reason)),
+                    },
+                    Err(reason) => Plan::Failed(Arc::new(reason)),
+                }
+            }
+        };
+        planned.push(plan, state, leaves);
+    }
+
+    /// The last stage: leaves compared with their predecessor's, in parallel
+    /// (`carried_leaves`: those of the file carried from earlier batches, if decoded).
+    fn compare_leaves(
+        &self,
+        batch: &Batch<'_>,
+        plans: Vec<Plan>,
+        decoded: &[Option<(Vec<Leaf>, Vec<String>)>],
+        carried_leaves: Option<&[Leaf]>,
+    ) -> Vec<Result<FileChanges, Refusal>> {
+        plans
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, plan)| match plan {
+                Plan::Done(done) => Ok(done),
+                Plan::Failed(reason) => Err(reason),
+                Plan::CompareWith(j) => {
+                    let (leaves, warnings) = decoded[k].as_ref().ok_or_else(|| {
+                        Arc::new(SnapshotError::Internal(
+                            "a file to compare by its leaves was not decoded",
+                        ))
+                    })?;
+                    let (before_bytes, before_leaves) = match j {
+                        Some(j) => (
+                            batch.bytes(j),
+                            decoded[j].as_ref().map(|(l, _)| l.as_slice()),
+                        ),
+                        None => (batch.carried_bytes, carried_leaves),
+                    };
+                    let before = self
+                        .leaves_before(batch.paths[k], before_bytes, before_leaves)
+                        .map_err(Arc::new)?;
+                    Ok(FileChanges {
+                        changes: changes(&before, leaves),
+                        warnings: warnings.clone(),
+                    })
+                }
+            })
+            .collect()
     }
 
     /// Compares from the bytes; `Ok(None)` when the formats do not allow it. A file the

@@ -198,85 +198,69 @@ impl Header {
         supported: u16,
     ) -> Result<Header, FormatViolation> {
         let (version, len) = Self::decode_preamble(preamble, limits, supported)?;
-        if sections_and_crc.len() != len + 4 {
-            return Err(corrupt("header", "truncated"));
-        }
-        let (sections, crc) = sections_and_crc.split_at(len);
-        let mut hasher_input = preamble.to_vec();
-        hasher_input.extend_from_slice(sections);
-        let expected = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-        if crc32c::crc32c(&hasher_input) != expected {
-            return Err(FormatViolation::Checksum("header"));
-        }
-        let mut map = None;
-        let mut axis = None;
-        let mut model = None;
-        let mut codec = None;
-        let mut toggle_blocks = None;
-        let mut toggle_code = None;
-        let mut metadata = Map::new();
+        let sections = checked_sections(preamble, sections_and_crc, len)?;
+        HeaderSections::read(sections, limits)?.into_header(version, limits)
+    }
+}
+
+/// The header's sections (after the preamble) once the header crc, which covers the
+/// preamble too, matched; `len` is the sections' length the preamble announced.
+fn checked_sections<'a>(
+    preamble: &[u8; PREAMBLE_LEN],
+    sections_and_crc: &'a [u8],
+    len: usize,
+) -> Result<&'a [u8], FormatViolation> {
+    if sections_and_crc.len() != len + 4 {
+        return Err(corrupt("header", "truncated"));
+    }
+    let (sections, crc) = sections_and_crc.split_at(len);
+    let mut hasher_input = preamble.to_vec();
+    hasher_input.extend_from_slice(sections);
+    let expected = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+    if crc32c::crc32c(&hasher_input) != expected {
+        return Err(FormatViolation::Checksum("header"));
+    }
+    Ok(sections)
+}
+
+/// The header sections met so far, each at most once; required ones are checked at the end.
+#[derive(Default)]
+struct HeaderSections {
+    map: Option<(f64, u8)>,
+    axis: Option<TimeAxis>,
+    model: Option<(ModelId, Vec<u8>)>,
+    codec: Option<Codec>,
+    toggle_blocks: Option<u32>,
+    toggle_code: Option<u8>,
+    metadata: Map<String, Value>,
+}
+
+impl HeaderSections {
+    /// Reads every section of `sections`, checking each payload is used up exactly.
+    fn read(sections: &[u8], limits: &ReadLimits) -> Result<Self, FormatViolation> {
+        let mut found = Self::default();
         for section in Sections::new(sections, "header") {
             let section = section?;
             let mut c = Cursor::new(section.payload, "header section");
             match section.tag {
-                TAG_MAP => {
-                    let resolution = c.f64()?;
-                    validate_resolution(resolution)
-                        .map_err(|e| corrupt("MAP section", e.to_string()))?;
-                    let tree_depth = c.u8()?;
-                    if tree_depth != TREE_DEPTH {
-                        return Err(FormatViolation::UnsupportedFeature(format!(
-                            "tree depth {tree_depth} (only 16 exists in OctoMap)"
-                        )));
-                    }
-                    let tile_depth = c.u8()?;
-                    if !(1..=TREE_DEPTH).contains(&tile_depth) {
-                        return Err(corrupt("MAP section", format!("tile depth {tile_depth}")));
-                    }
-                    set_once(&mut map, (resolution, tile_depth), "MAP")?;
+                TAG_MAP => set_once(&mut found.map, decode_map(&mut c)?, "MAP")?,
+                TAG_TIME_AXIS => {
+                    set_once(&mut found.axis, decode_axis(&mut c, limits)?, "TIME_AXIS")?;
                 }
-                TAG_TIME_AXIS => set_once(&mut axis, decode_axis(&mut c, limits)?, "TIME_AXIS")?,
-                TAG_MODEL => {
-                    let id = ModelId(c.u16()?);
-                    let n = c.count(
-                        "model parameter length",
-                        limits.max_model_parameter_bytes,
-                        1,
-                    )?;
-                    let parameters = c.take(n)?.to_vec();
-                    set_once(&mut model, (id, parameters), "MODEL")?;
-                }
-                TAG_CODEC => {
-                    // Both codecs carry the (informative) level byte.
-                    let codec_value = match (c.u8()?, c.i8()?) {
-                        (0, _) => Codec::Raw,
-                        (1, level) => Codec::Zstd { level },
-                        (other, _) => {
-                            return Err(FormatViolation::UnsupportedFeature(format!(
-                                "tile codec {other}"
-                            )))
-                        }
-                    };
-                    set_once(&mut codec, codec_value, "CODEC")?;
-                }
-                TAG_TOGGLE_BLOCKS => {
-                    let len = c.u32()?;
-                    if len == 0 {
-                        return Err(corrupt("TOGGLE_BLOCKS section", "blocks of 0 samples"));
-                    }
-                    set_once(&mut toggle_blocks, len, "TOGGLE_BLOCKS")?;
-                }
-                TAG_TOGGLE_CODE => {
-                    let code = c.u8()?;
-                    if code != TOGGLE_CODE_RANGE {
-                        return Err(FormatViolation::UnsupportedFeature(format!(
-                            "toggle code {code}"
-                        )));
-                    }
-                    set_once(&mut toggle_code, code, "TOGGLE_CODE")?;
-                }
+                TAG_MODEL => set_once(&mut found.model, decode_model(&mut c, limits)?, "MODEL")?,
+                TAG_CODEC => set_once(&mut found.codec, decode_codec(&mut c)?, "CODEC")?,
+                TAG_TOGGLE_BLOCKS => set_once(
+                    &mut found.toggle_blocks,
+                    decode_toggle_blocks(&mut c)?,
+                    "TOGGLE_BLOCKS",
+                )?,
+                TAG_TOGGLE_CODE => set_once(
+                    &mut found.toggle_code,
+                    decode_toggle_code(&mut c)?,
+                    "TOGGLE_CODE",
+                )?,
                 TAG_METADATA => {
-                    metadata = match serde_json::from_slice(section.payload) {
+                    found.metadata = match serde_json::from_slice(section.payload) {
                         Ok(Value::Object(object)) => object,
                         _ => return Err(corrupt("METADATA section", "not a JSON object")),
                     };
@@ -291,11 +275,21 @@ impl Header {
                 ));
             }
         }
+        Ok(found)
+    }
+
+    /// The header of file version `version`, once the required sections are there and
+    /// the toggle layout is consistent and within `limits`.
+    fn into_header(
+        self,
+        version: (u16, u16),
+        limits: &ReadLimits,
+    ) -> Result<Header, FormatViolation> {
         let missing = |name: &str| corrupt("header", format!("required section {name} is missing"));
-        let (resolution, tile_depth) = map.ok_or_else(|| missing("MAP"))?;
-        let (model_id, model_parameters) = model.ok_or_else(|| missing("MODEL"))?;
-        let axis = axis.ok_or_else(|| missing("TIME_AXIS"))?;
-        let toggles = match (toggle_blocks, toggle_code) {
+        let (resolution, tile_depth) = self.map.ok_or_else(|| missing("MAP"))?;
+        let (model_id, model_parameters) = self.model.ok_or_else(|| missing("MODEL"))?;
+        let axis = self.axis.ok_or_else(|| missing("TIME_AXIS"))?;
+        let toggles = match (self.toggle_blocks, self.toggle_code) {
             (None, None) => ToggleLayout::Whole,
             (Some(len), None) => ToggleLayout::Blocked(len),
             (Some(len), Some(_)) => ToggleLayout::Coded(len),
@@ -321,12 +315,75 @@ impl Header {
             axis,
             model_id,
             model_parameters,
-            codec: codec.ok_or_else(|| missing("CODEC"))?,
-            metadata,
+            codec: self.codec.ok_or_else(|| missing("CODEC"))?,
+            metadata: self.metadata,
             toggles,
             version,
         })
     }
+}
+
+/// The MAP section: resolution and tile depth (the tree depth is OctoMap's 16).
+fn decode_map(c: &mut Cursor<'_>) -> Result<(f64, u8), FormatViolation> {
+    let resolution = c.f64()?;
+    validate_resolution(resolution).map_err(|e| corrupt("MAP section", e.to_string()))?;
+    let tree_depth = c.u8()?;
+    if tree_depth != TREE_DEPTH {
+        return Err(FormatViolation::UnsupportedFeature(format!(
+            "tree depth {tree_depth} (only 16 exists in OctoMap)"
+        )));
+    }
+    let tile_depth = c.u8()?;
+    if !(1..=TREE_DEPTH).contains(&tile_depth) {
+        return Err(corrupt("MAP section", format!("tile depth {tile_depth}")));
+    }
+    Ok((resolution, tile_depth))
+}
+
+/// The MODEL section: the model's id and its parameters, within `limits`.
+fn decode_model(
+    c: &mut Cursor<'_>,
+    limits: &ReadLimits,
+) -> Result<(ModelId, Vec<u8>), FormatViolation> {
+    let id = ModelId(c.u16()?);
+    let n = c.count(
+        "model parameter length",
+        limits.max_model_parameter_bytes,
+        1,
+    )?;
+    Ok((id, c.take(n)?.to_vec()))
+}
+
+/// The CODEC section.
+fn decode_codec(c: &mut Cursor<'_>) -> Result<Codec, FormatViolation> {
+    // Both codecs carry the (informative) level byte.
+    match (c.u8()?, c.i8()?) {
+        (0, _) => Ok(Codec::Raw),
+        (1, level) => Ok(Codec::Zstd { level }),
+        (other, _) => Err(FormatViolation::UnsupportedFeature(format!(
+            "tile codec {other}"
+        ))),
+    }
+}
+
+/// The TOGGLE_BLOCKS section: samples per toggle block.
+fn decode_toggle_blocks(c: &mut Cursor<'_>) -> Result<u32, FormatViolation> {
+    let len = c.u32()?;
+    if len == 0 {
+        return Err(corrupt("TOGGLE_BLOCKS section", "blocks of 0 samples"));
+    }
+    Ok(len)
+}
+
+/// The TOGGLE_CODE section: the code of the toggle blocks (only range coding exists).
+fn decode_toggle_code(c: &mut Cursor<'_>) -> Result<u8, FormatViolation> {
+    let code = c.u8()?;
+    if code != TOGGLE_CODE_RANGE {
+        return Err(FormatViolation::UnsupportedFeature(format!(
+            "toggle code {code}"
+        )));
+    }
+    Ok(code)
 }
 
 fn set_once<T>(slot: &mut Option<T>, value: T, name: &str) -> Result<(), FormatViolation> {

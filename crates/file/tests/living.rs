@@ -424,66 +424,102 @@ fn resealed_hostile_roots_are_typed_errors() {
     }
 }
 
-#[test]
-fn resealed_hostile_segment_records_are_typed_errors() {
-    let (_dir, path, plans) = living_file(2);
-    let bytes = std::fs::read(&path).unwrap();
-    let (at, body) = newest_record(&bytes);
-    let axis_len = encode_axis(&plans[1].axis).len();
-    let patched = |patch: &dyn Fn(&mut Vec<u8>)| {
-        let mut hostile = bytes.clone();
+/// The newest segment record of a two-segment living file, to patch and reseal.
+struct NewestRecord {
+    _dir: tempfile::TempDir,
+    bytes: Vec<u8>,
+    /// Where the record starts.
+    at: usize,
+    /// Its body length.
+    body: usize,
+    /// The length of the second segment's encoded axis.
+    axis_len: usize,
+}
+
+impl NewestRecord {
+    fn of_living_file() -> Self {
+        let (dir, path, plans) = living_file(2);
+        let bytes = std::fs::read(&path).unwrap();
+        let (at, body) = newest_record(&bytes);
+        let axis_len = encode_axis(&plans[1].axis).len();
+        Self {
+            _dir: dir,
+            bytes,
+            at,
+            body,
+            axis_len,
+        }
+    }
+
+    /// The file with `patch` applied and the record's checksum recomputed.
+    fn patched(&self, patch: &dyn Fn(&mut Vec<u8>)) -> Vec<u8> {
+        let mut hostile = self.bytes.clone();
         patch(&mut hostile);
-        reseal_record(&mut hostile, at, body);
+        reseal_record(&mut hostile, self.at, self.body);
         hostile
-    };
-    let set32 =
-        |b: &mut Vec<u8>, at: usize, v: u32| b[at..at + 4].copy_from_slice(&v.to_le_bytes());
-    let set64 =
-        |b: &mut Vec<u8>, at: usize, v: u64| b[at..at + 8].copy_from_slice(&v.to_le_bytes());
-    let corrupt = |v: &FormatViolation| matches!(v, FormatViolation::Corrupt { .. });
+    }
+}
+
+fn set32(b: &mut [u8], at: usize, v: u32) {
+    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn set64(b: &mut [u8], at: usize, v: u64) {
+    b[at..at + 8].copy_from_slice(&v.to_le_bytes());
+}
+
+fn is_corrupt(v: &FormatViolation) -> bool {
+    matches!(v, FormatViolation::Corrupt { .. })
+}
+
+/// A check that the violation is the limit on `what`.
+fn is_limit(what: &'static str) -> impl Fn(&FormatViolation) -> bool {
+    move |v| matches!(v, FormatViolation::Limit { what: w, .. } if *w == what)
+}
+
+#[test]
+fn resealed_hostile_segment_record_chains_are_typed_errors() {
+    let record = NewestRecord::of_living_file();
+    let at = record.at;
     // The chain: previous record, first sample.
-    assert_violation(
-        &patched(&|b| set64(b, at + 8, at as u64)),
-        ReadLimits::default(),
-        corrupt,
-    );
-    assert_violation(
-        &patched(&|b| set64(b, at + 8, 0)),
-        ReadLimits::default(),
-        corrupt,
-    );
-    assert_violation(
-        &patched(&|b| set64(b, at + 8, 1 << 40)),
-        ReadLimits::default(),
-        corrupt,
-    );
-    assert_violation(
-        &patched(&|b| set32(b, at + 16, 0)),
-        ReadLimits::default(),
-        corrupt,
-    );
-    assert_violation(&patched(&|b| b[at] = b'X'), ReadLimits::default(), corrupt);
+    for patch in [
+        &(|b: &mut Vec<u8>| set64(b, at + 8, at as u64)) as &dyn Fn(&mut Vec<u8>),
+        &|b| set64(b, at + 8, 0),
+        &|b| set64(b, at + 8, 1 << 40),
+        &|b| set32(b, at + 16, 0),
+        &|b| b[at] = b'X',
+    ] {
+        assert_violation(&record.patched(patch), ReadLimits::default(), is_corrupt);
+    }
+}
+
+#[test]
+fn hostile_segment_record_lengths_and_counts_are_typed_errors() {
+    let record = NewestRecord::of_living_file();
+    let NewestRecord {
+        ref bytes,
+        at,
+        body,
+        axis_len,
+        ..
+    } = record;
     // Counts and lengths: the body length, the axis piece, the tile count.
     let mut huge_body = bytes.clone();
     set32(&mut huge_body, at + 20, u32::MAX - 64);
-    assert_violation(&huge_body, ReadLimits::default(), |v| {
-        matches!(
-            v,
-            FormatViolation::Limit {
-                what: "segment index bytes",
-                ..
-            }
-        )
-    });
+    assert_violation(
+        &huge_body,
+        ReadLimits::default(),
+        is_limit("segment index bytes"),
+    );
     // Within the limit, but past the committed bytes.
     set32(&mut huge_body, at + 20, 1 << 20);
-    assert_violation(&huge_body, ReadLimits::default(), corrupt);
+    assert_violation(&huge_body, ReadLimits::default(), is_corrupt);
     // The segment indexes, summed, count against the index limit (the base's index on its
     // own).
     let first = u64::from_le_bytes(bytes[at + 8..at + 16].try_into().unwrap()) as usize;
     let first_body = u32::from_le_bytes(bytes[first + 20..first + 24].try_into().unwrap());
     let base_index = u64::from_le_bytes(
-        bytes[reader_base_end(&bytes) - 24..reader_base_end(&bytes) - 16]
+        bytes[reader_base_end(bytes) - 24..reader_base_end(bytes) - 16]
             .try_into()
             .unwrap(),
     );
@@ -493,65 +529,47 @@ fn resealed_hostile_segment_records_are_typed_errors() {
         max_index_bytes: limit,
         ..ReadLimits::DEFAULT
     };
-    assert_violation(&bytes, small, |v| {
-        matches!(
-            v,
-            FormatViolation::Limit {
-                what: "segment index bytes",
-                ..
-            }
-        )
-    });
+    assert_violation(bytes, small, is_limit("segment index bytes"));
     let tiles_at = at + 24 + axis_len;
     assert_violation(
-        &patched(&|b| set32(b, tiles_at, u32::MAX)),
+        &record.patched(&|b| set32(b, tiles_at, u32::MAX)),
         ReadLimits::default(),
-        |v| {
-            matches!(
-                v,
-                FormatViolation::Limit {
-                    what: "tile count",
-                    ..
-                }
-            )
-        },
+        is_limit("tile count"),
     );
     assert_violation(
-        &patched(&|b| set32(b, tiles_at, 1000)),
+        &record.patched(&|b| set32(b, tiles_at, 1000)),
         ReadLimits::default(),
-        corrupt,
+        is_corrupt,
     );
+}
+
+#[test]
+fn hostile_segment_record_axes_are_typed_errors() {
+    let record = NewestRecord::of_living_file();
+    let at = record.at;
     // The segment's axis (explicit instants: kind, count, first instant, differences):
     // 2^31 samples, or starting before the previous segment ended.
     assert_eq!(
-        bytes[at + 24],
+        record.bytes[at + 24],
         1,
         "the second segment's instants are explicit"
     );
     assert_violation(
-        &patched(&|b| set32(b, at + 25, 1 << 31)),
+        &record.patched(&|b| set32(b, at + 25, 1 << 31)),
         ReadLimits::default(),
-        |v| {
-            matches!(
-                v,
-                FormatViolation::Limit {
-                    what: "sample count",
-                    ..
-                }
-            )
-        },
+        is_limit("sample count"),
     );
     let start = golden_axis().start().0 as u64;
     assert_violation(
-        &patched(&|b| set64(b, at + 29, start)),
+        &record.patched(&|b| set64(b, at + 29, start)),
         ReadLimits::default(),
-        corrupt,
+        is_corrupt,
     );
     let blocks = ReadLimits {
         max_toggle_blocks: 1,
         ..ReadLimits::DEFAULT
     };
-    assert_violation(&bytes, blocks, |v| {
+    assert_violation(&record.bytes, blocks, |v| {
         matches!(
             v,
             FormatViolation::Limit {

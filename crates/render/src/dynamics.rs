@@ -85,130 +85,189 @@ pub fn render_dynamics(reader: &FroctReader, width: u32) -> Result<Picture, Rend
     })?;
     let (max_x, max_y) = grid_limits(width);
     let grid = Grid::covering(&extent, resolution, max_x, max_y);
-    let mut columns = vec![Column::default(); grid.len()];
-    // Periods by whole seconds, numbered as met.
-    let mut period_ids: HashMap<i64, u32> = HashMap::new();
-    let mut periods: Vec<f64> = Vec::new();
-    let model = reader.model();
-    for tile in 0..reader.tiles().len() {
-        reader.visit_cells(tile, |cell| {
-            let edge = f64::from(
-                froctomap_core::Leaf {
-                    start: cell.start,
-                    depth: cell.depth,
-                    log_odds: 0.0,
-                }
-                .edge_voxels(),
-            );
-            let dynamics = CellDynamics::of(&cell, model);
-            let id = match dynamics {
-                CellDynamics::Modelled {
-                    period_seconds: Some(p),
-                    ..
-                } => {
-                    let next = periods.len() as u32;
-                    let id = *period_ids.entry(p.round() as i64).or_insert(next);
-                    if id == next {
-                        periods.push(p);
+    let survey = Survey::of(reader, &grid)?;
+    let ranking = PeriodRanking::of(&survey.columns, &grid);
+    let colours = ranking.colours(&survey.columns, resolution);
+    let legend = ranking.legend(&survey.periods);
+    paint(&grid, &colours, width, &decorations(reader, &grid, legend))
+}
+
+/// The columns of the picture and the periods met while filling them.
+struct Survey {
+    columns: Vec<Column>,
+    /// Periods in seconds, by the id the columns know them by (numbered as met).
+    periods: Vec<f64>,
+}
+
+impl Survey {
+    /// Spreads every cell of `reader` over the columns of `grid` it covers, one tile at a time.
+    fn of(reader: &FroctReader, grid: &Grid) -> Result<Self, RenderError> {
+        let mut columns = vec![Column::default(); grid.len()];
+        // Periods by whole seconds, numbered as met.
+        let mut period_ids: HashMap<i64, u32> = HashMap::new();
+        let mut periods: Vec<f64> = Vec::new();
+        let model = reader.model();
+        for tile in 0..reader.tiles().len() {
+            reader.visit_cells(tile, |cell| {
+                let edge = f64::from(
+                    froctomap_core::Leaf {
+                        start: cell.start,
+                        depth: cell.depth,
+                        log_odds: 0.0,
                     }
-                    id
-                }
-                _ => NONE,
-            };
-            grid.overlaps(cell.start, cell.depth, |o| {
-                let column = &mut columns[o.column];
-                column.known = true;
-                let voxels = o.area as f64 * edge;
-                match dynamics {
-                    CellDynamics::Static(state) | CellDynamics::RareFlips(state)
-                        if state.is_occupied() =>
-                    {
-                        column.static_occupied += o.area * edge as u64;
+                    .edge_voxels(),
+                );
+                let dynamics = CellDynamics::of(&cell, model);
+                let id = match dynamics {
+                    CellDynamics::Modelled {
+                        period_seconds: Some(p),
+                        ..
+                    } => {
+                        let next = periods.len() as u32;
+                        let id = *period_ids.entry(p.round() as i64).or_insert(next);
+                        if id == next {
+                            periods.push(p);
+                        }
+                        id
                     }
-                    CellDynamics::Modelled { mean, .. } => {
-                        column.dynamic += voxels;
-                        column.occupied += mean * voxels;
-                        column.add_period(id, voxels);
-                    }
-                    _ => {}
-                }
-            });
-        })?;
-    }
-    // The periods that dominate the most dynamic space in the picture get their own hue.
-    let area = f64::from(grid.cell) * f64::from(grid.cell);
-    let shown = |c: &Column| c.dynamic >= MIN_DYNAMIC_HEIGHT * area;
-    let mut weights: HashMap<u32, f64> = HashMap::new();
-    for column in columns.iter().filter(|c| shown(c)) {
-        *weights
-            .entry(column.dominant().unwrap_or(NONE))
-            .or_default() += column.dynamic;
-    }
-    let unperiodic = weights.remove(&NONE).is_some();
-    let mut ranked: Vec<(u32, f64)> = weights.into_iter().collect();
-    ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-    let hue_of: HashMap<u32, [u8; 3]> = ranked
-        .iter()
-        .zip(PERIOD_HUES)
-        .map(|(&(id, _), hue)| (id, hue))
-        .collect();
-    let colours: Vec<[u8; 3]> = columns
-        .iter()
-        .map(|c| {
-            if shown(c) {
-                let hue = match c.dominant() {
-                    Some(NONE) | None => NO_PERIOD,
-                    Some(id) => hue_of.get(&id).copied().unwrap_or(OTHER_PERIODS),
+                    _ => NONE,
                 };
-                dynamic_colour(hue, c.occupied / c.dynamic)
-            } else if c.static_occupied > 0 {
-                occupied_shade(c.static_occupied as f64 / area * resolution)
-            } else if c.known {
-                FREE
-            } else {
-                UNKNOWN
-            }
-        })
-        .collect();
-    let mut legend: Vec<LegendItem> = ranked
-        .iter()
-        .zip(PERIOD_HUES)
-        .map(|(&(id, _), hue)| LegendItem {
-            colour: hue,
-            label: format!(
-                "period {}",
-                periods
-                    .get(id as usize)
-                    .map_or_else(String::new, |p| period_text(*p))
-            ),
-        })
-        .collect();
-    if ranked.len() > PERIOD_HUES.len() {
-        legend.push(LegendItem {
-            colour: OTHER_PERIODS,
-            label: format!("{} other periods", ranked.len() - PERIOD_HUES.len()),
-        });
+                grid.overlaps(cell.start, cell.depth, |o| {
+                    let column = &mut columns[o.column];
+                    column.known = true;
+                    let voxels = o.area as f64 * edge;
+                    match dynamics {
+                        CellDynamics::Static(state) | CellDynamics::RareFlips(state)
+                            if state.is_occupied() =>
+                        {
+                            column.static_occupied += o.area * edge as u64;
+                        }
+                        CellDynamics::Modelled { mean, .. } => {
+                            column.dynamic += voxels;
+                            column.occupied += mean * voxels;
+                            column.add_period(id, voxels);
+                        }
+                        _ => {}
+                    }
+                });
+            })?;
+        }
+        Ok(Self { columns, periods })
     }
-    if unperiodic {
-        legend.push(LegendItem {
-            colour: NO_PERIOD,
-            label: "changing, no period".to_string(),
-        });
+}
+
+/// The periods that dominate the most dynamic space in the picture, strongest first, and
+/// the hue each of them gets.
+struct PeriodRanking {
+    /// Area of one column in voxels.
+    area: f64,
+    ranked: Vec<(u32, f64)>,
+    hue_of: HashMap<u32, [u8; 3]>,
+    /// Whether some shown column is dominated by voxels without a period.
+    unperiodic: bool,
+}
+
+impl PeriodRanking {
+    fn of(columns: &[Column], grid: &Grid) -> Self {
+        let area = f64::from(grid.cell) * f64::from(grid.cell);
+        let mut weights: HashMap<u32, f64> = HashMap::new();
+        for column in columns.iter().filter(|c| shown(c, area)) {
+            *weights
+                .entry(column.dominant().unwrap_or(NONE))
+                .or_default() += column.dynamic;
+        }
+        let unperiodic = weights.remove(&NONE).is_some();
+        let mut ranked: Vec<(u32, f64)> = weights.into_iter().collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let hue_of: HashMap<u32, [u8; 3]> = ranked
+            .iter()
+            .zip(PERIOD_HUES)
+            .map(|(&(id, _), hue)| (id, hue))
+            .collect();
+        Self {
+            area,
+            ranked,
+            hue_of,
+            unperiodic,
+        }
     }
-    legend.extend([
-        LegendItem {
-            colour: occupied_shade(TALL_METRES),
-            label: "static occupied (darker: taller)".to_string(),
-        },
-        LegendItem {
-            colour: FREE,
-            label: "free".to_string(),
-        },
-        LegendItem {
-            colour: UNKNOWN,
-            label: "unknown".to_string(),
-        },
-    ]);
+
+    /// The colour of each column: dynamic by its dominant period's hue, else static
+    /// occupied, free or unknown.
+    fn colours(&self, columns: &[Column], resolution: f64) -> Vec<[u8; 3]> {
+        columns
+            .iter()
+            .map(|c| {
+                if shown(c, self.area) {
+                    let hue = match c.dominant() {
+                        Some(NONE) | None => NO_PERIOD,
+                        Some(id) => self.hue_of.get(&id).copied().unwrap_or(OTHER_PERIODS),
+                    };
+                    dynamic_colour(hue, c.occupied / c.dynamic)
+                } else if c.static_occupied > 0 {
+                    occupied_shade(c.static_occupied as f64 / self.area * resolution)
+                } else if c.known {
+                    FREE
+                } else {
+                    UNKNOWN
+                }
+            })
+            .collect()
+    }
+
+    /// The legend: the ranked periods' hues (`periods` in seconds by id), then the rest.
+    fn legend(&self, periods: &[f64]) -> Vec<LegendItem> {
+        let mut legend: Vec<LegendItem> = self
+            .ranked
+            .iter()
+            .zip(PERIOD_HUES)
+            .map(|(&(id, _), hue)| LegendItem {
+                colour: hue,
+                label: format!(
+                    "period {}",
+                    periods
+                        .get(id as usize)
+                        .map_or_else(String::new, |p| period_text(*p))
+                ),
+            })
+            .collect();
+        if self.ranked.len() > PERIOD_HUES.len() {
+            legend.push(LegendItem {
+                colour: OTHER_PERIODS,
+                label: format!("{} other periods", self.ranked.len() - PERIOD_HUES.len()),
+            });
+        }
+        if self.unperiodic {
+            legend.push(LegendItem {
+                colour: NO_PERIOD,
+                label: "changing, no period".to_string(),
+            });
+        }
+        legend.extend([
+            LegendItem {
+                colour: occupied_shade(TALL_METRES),
+                label: "static occupied (darker: taller)".to_string(),
+            },
+            LegendItem {
+                colour: FREE,
+                label: "free".to_string(),
+            },
+            LegendItem {
+                colour: UNKNOWN,
+                label: "unknown".to_string(),
+            },
+        ]);
+        legend
+    }
+}
+
+/// Whether column `c` (of `area` voxels) holds enough dynamic space to be drawn as dynamic.
+fn shown(c: &Column, area: f64) -> bool {
+    c.dynamic >= MIN_DYNAMIC_HEIGHT * area
+}
+
+/// Title, subtitle (time span and extent), `legend` and ramp of the picture.
+fn decorations(reader: &FroctReader, grid: &Grid, legend: Vec<LegendItem>) -> Decorations {
     let name = reader
         .path()
         .file_name()
@@ -216,7 +275,7 @@ pub fn render_dynamics(reader: &FroctReader, width: u32) -> Result<Picture, Rend
     let axis = &reader.header().axis;
     let [x0, y0] = grid.min_m();
     let [w, h] = grid.size_m();
-    let decorations = Decorations {
+    Decorations {
         title: format!("{name}: where the world changes"),
         subtitle: format!(
             "{} .. {}; colour: strongest period of a column's modelled voxels (columns with {MIN_DYNAMIC_HEIGHT}+ dynamic voxels); x {:.2} .. {:.2} m, y {:.2} .. {:.2} m",
@@ -234,6 +293,5 @@ pub fn render_dynamics(reader: &FroctReader, width: u32) -> Result<Picture, Rend
             high: "1".to_string(),
             colour: Box::new(|f| dynamic_colour(PERIOD_HUES[0], f)),
         }),
-    };
-    paint(&grid, &colours, width, &decorations)
+    }
 }
