@@ -11,7 +11,7 @@ use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{
     defaults, log_odds, write_atomically, Leaf, MortonCode, Occupancy, Snapshot, Timestamp,
 };
-use froctomap_formats::{Backend, MapFormat, WriteOptions};
+use froctomap_formats::{Backend, MapFormat, RecordingWriteOptions, WriteOptions};
 use froctomap_octomap_codec::{CanonicalBinaryBuilder, EncodeError};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -531,6 +531,8 @@ pub struct ExportOptions {
     /// Write into a directory that already holds files (replacing those of the same names);
     /// otherwise such a directory is refused.
     pub overwrite: bool,
+    /// How a recording format writes (its profile…); unused by map formats.
+    pub recording: RecordingWriteOptions,
 }
 
 /// What `export` wrote.
@@ -565,7 +567,13 @@ pub fn export(
     let (times, samples) = export_instants(context, reader, options)?;
     if let Some(format) = context.formats().writable_recording(&options.format) {
         return crate::recording_export::export_recording(
-            reader, output, format, &times, &samples, progress,
+            reader,
+            output,
+            format,
+            &options.recording,
+            &times,
+            &samples,
+            progress,
         );
     }
     let dir = output;
