@@ -7,7 +7,7 @@
 use froctomap_convert::{
     append, build, collect_inputs, evaluate, export, observed_map, resolve_observed, AppendOptions,
     BuildOptions, BuildReport, Context, ExportMode, ExportOptions, RecordedTime, RecordingOptions,
-    SeriesInput, Silent, TimeQuery, TimeSource,
+    RecordingProfile, RecordingWriteOptions, SeriesInput, Silent, TimeQuery, TimeSource,
 };
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
@@ -149,10 +149,13 @@ fn builds_from_bags_and_mcap_equal_the_build_from_bt_files() {
     assert_eq!(logged, shifted);
 }
 
-/// `export --format mcap`, read back by PyPI mcap and mcap-ros2-support: one Octomap message
-/// per exported time whose data is the body of the `.bt` export of that time, byte for byte,
-/// and one foxglove.PointCloud whose points are the occupied voxels octomap-python reads
-/// from that `.bt`.
+/// `export --format mcap`, read back by PyPI mcap and mcap-ros2-support: by default (profile
+/// ros2) every message of the whole file decodes through its embedded ros2msg schema; one
+/// Octomap message per exported time whose data is the body of the `.bt` export of that time,
+/// byte for byte, and a PointCloud2 and a MarkerArray (CUBE_LIST per depth) whose voxels are
+/// the occupied voxels octomap-python reads from that `.bt`. Profile foxglove adds a
+/// foxglove.PointCloud and foxglove.SceneUpdate cubes of the same voxels, in the structure of
+/// Foxglove's schemas.
 #[test]
 fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     let dir = scratch();
@@ -166,7 +169,7 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     let last = inputs.last().unwrap().time;
     // Retrieved inside the span (instants between snapshots give each snapshot once),
     // predicted before and after it.
-    let options = |format: &str| ExportOptions {
+    let options = |format: &str, recording: RecordingWriteOptions| ExportOptions {
         from: Timestamp(first.0 - 40 * minute),
         to: Timestamp(last.0 + 60 * minute),
         every_ns: 20 * minute,
@@ -175,30 +178,20 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
         backend: None,
         prefix: "map".to_string(),
         overwrite: false,
+        recording,
     };
     let bt_dir = dir.path().join("bt");
-    let bts = export(&plain, &reader, &bt_dir, &options("bt"), &Silent).unwrap();
-    let out_dir = dir.path().join("mcap");
-    std::fs::create_dir(&out_dir).unwrap();
-    let mcap = out_dir.join("maps.mcap");
-    let exported = export(
-        &context(RecordedTime::Header),
+    let bts = export(
+        &plain,
         &reader,
-        &mcap,
-        &options("mcap"),
+        &bt_dir,
+        &options("bt", RecordingWriteOptions::default()),
         &Silent,
     )
     .unwrap();
-    assert!(exported.manifest.is_none());
     let times: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();
-    let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
-    assert_eq!(got, times);
     let predicted = |t: Timestamp| t < first || t > last;
     assert!(times.iter().any(|&t| predicted(t)) && times.iter().any(|&t| !predicted(t)));
-    // Only the finished file is left: no temporary beside it.
-    let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().collect();
-    assert_eq!(left.len(), 1, "{left:?}");
-
     let mut bt_of = String::from("{");
     for (i, file) in bts.files.iter().enumerate() {
         let sep = if i > 0 { ", " } else { "" };
@@ -211,70 +204,197 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     bt_of.push('}');
     let bt_json = dir.path().join("bt.json");
     std::fs::write(&bt_json, bt_of).unwrap();
-    let data_dir = dir.path().join("data");
-    std::fs::create_dir(&data_dir).unwrap();
-    let out = run_script("read_exported_mcap.py", &[&mcap, &data_dir, &bt_json]);
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(report["profile"], "ros2");
-    assert_eq!(report["schemas"]["octomap_msgs/msg/Octomap"], "ros2msg");
-    assert_eq!(report["schemas"]["foxglove.PointCloud"], "jsonschema");
-    assert_eq!(report["channels"]["/octomap_binary"]["encoding"], "cdr");
-    assert_eq!(
-        report["channels"]["/froctomap/occupied_voxels"]["schema"],
-        "foxglove.PointCloud"
-    );
-    assert_eq!(report["schemas"]["sensor_msgs/msg/PointCloud2"], "ros2msg");
-    assert_eq!(
-        report["channels"]["/froctomap/occupied_voxels_pc2"]["encoding"],
-        "cdr"
-    );
-    let octomaps = report["octomap"].as_array().unwrap();
-    let clouds = report["cloud"].as_array().unwrap();
-    let clouds2 = report["cloud2"].as_array().unwrap();
-    assert_eq!((octomaps.len(), clouds.len()), (times.len(), times.len()));
-    assert_eq!(clouds2.len(), times.len());
-    // The PointCloud2 messages hold the points of the foxglove clouds (which the loop below
-    // checks against octomap-python), with the same colours and values.
-    for (cloud, cloud2) in clouds.iter().zip(clouds2) {
-        assert_eq!(cloud2["same_points"], true, "{cloud2}");
-        assert_eq!(cloud2["points"], cloud["points"]);
-        assert_eq!(cloud2["value"], cloud["value"]);
-        assert_eq!(cloud2["types"], serde_json::json!([7, 7, 7, 6, 7]));
-        for key in ["log_time", "stamp_ns", "frame_id"] {
-            assert_eq!(cloud2[key], cloud[key]);
-        }
-    }
     let resolution = reader.header().resolution;
-    for ((file, octomap), cloud) in bts.files.iter().zip(octomaps).zip(clouds) {
-        let t = file.time.0;
-        for message in [octomap, cloud] {
-            assert_eq!(message["log_time"], t);
-            assert_eq!(message["stamp_ns"], t);
-            assert_eq!(message["frame_id"], "map");
-        }
-        assert_eq!(octomap["binary"], true);
-        assert_eq!(octomap["id"], "OcTree");
-        assert_eq!(octomap["resolution"], resolution);
-        let bt = std::fs::read(&file.path).unwrap();
-        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
-        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
-        assert!(data == bt[body_at..], "data of the message at {t}");
 
-        assert_eq!(cloud["same_voxels"], true, "points of the cloud at {t}");
-        assert_eq!(cloud["remainder"], 0);
-        assert_eq!(cloud["points"], cloud["distinct_points"]);
-        assert!(cloud["points"].as_u64().unwrap() > 0);
-        if predicted(file.time) {
-            assert_eq!(cloud["value"], "p");
-            assert!(cloud["min"].as_f64().unwrap() > 0.5);
-            assert!(cloud["max"].as_f64().unwrap() <= 1.0);
-        } else {
-            assert_eq!(cloud["value"], "dynamic");
-            // Dynamic and static voxels, each in its own colour.
-            assert_eq!(cloud["colours"], 2, "{cloud}");
+    // The defaults, and Foxglove's channels with every option changed.
+    let cases = [
+        RecordingWriteOptions::default(),
+        RecordingWriteOptions::default()
+            .with_profile(RecordingProfile::Foxglove)
+            .with_frame_id("odom")
+            .with_topic_prefix("/robot1")
+            .with_threshold(0.2),
+    ];
+    for write in cases {
+        let profile = write.profile;
+        let (frame, prefix, threshold) = (
+            write.frame_id.as_str(),
+            &write.topic_prefix,
+            write.threshold,
+        );
+        let out_dir = dir.path().join(format!("{profile:?}"));
+        std::fs::create_dir(&out_dir).unwrap();
+        let mcap = out_dir.join("maps.mcap");
+        let exported = export(
+            &context(RecordedTime::Header),
+            &reader,
+            &mcap,
+            &options("mcap", write.clone()),
+            &Silent,
+        )
+        .unwrap();
+        assert!(exported.manifest.is_none());
+        let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
+        assert_eq!(got, times);
+        // Only the finished file is left: no temporary beside it.
+        let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().collect();
+        assert_eq!(left.len(), 1, "{left:?}");
+
+        let data_dir = out_dir.join("data");
+        std::fs::create_dir(&data_dir).unwrap();
+        let out = run_script("read_exported_mcap.py", &[&mcap, &data_dir, &bt_json]);
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["profile"], "ros2");
+        let foxglove = profile == RecordingProfile::Foxglove;
+        let mut topics = vec![
+            ("/octomap_binary", "cdr", "octomap_msgs/msg/Octomap"),
+            (
+                "/froctomap/occupied_voxels_pc2",
+                "cdr",
+                "sensor_msgs/msg/PointCloud2",
+            ),
+            (
+                "/froctomap/occupied_cells_vis_array",
+                "cdr",
+                "visualization_msgs/msg/MarkerArray",
+            ),
+        ];
+        if foxglove {
+            topics.push(("/froctomap/occupied_voxels", "json", "foxglove.PointCloud"));
+            topics.push(("/froctomap/occupied_cubes", "json", "foxglove.SceneUpdate"));
+        }
+        let mut channels = serde_json::json!({});
+        for (topic, encoding, schema) in topics {
+            channels[format!("{prefix}{topic}")] =
+                serde_json::json!({"encoding": encoding, "schema": schema});
+        }
+        assert_eq!(report["channels"], channels, "{profile:?}");
+        // Every message of every channel read (decoded for CDR), one per map.
+        let n = times.len();
+        for topic in channels.as_object().unwrap().keys() {
+            assert_eq!(report["counts"][topic], n, "{topic}");
+        }
+        // Each map's kind in an MCAP metadata record.
+        let kind_of = |t: Timestamp| {
+            if predicted(t) {
+                "predicted"
+            } else {
+                "retrieved"
+            }
+        };
+        let expected: Vec<serde_json::Value> = times
+            .iter()
+            .map(|&t| serde_json::json!([t.0.to_string(), kind_of(t)]))
+            .collect();
+        let records = report["metadata"].as_array().unwrap();
+        for record in records {
+            assert_eq!(record["name"], "froctomap.map");
             assert_eq!(
-                (cloud["min"].as_f64(), cloud["max"].as_f64()),
-                (Some(0.0), Some(1.0))
+                record.get("sample").is_some(),
+                record["map"] == "retrieved",
+                "{record}"
+            );
+        }
+        let got: Vec<serde_json::Value> = records
+            .iter()
+            .map(|m| serde_json::json!([m["time_ns"], m["map"]]))
+            .collect();
+        assert_eq!(got, expected);
+
+        let octomaps = report["octomap"].as_array().unwrap();
+        let clouds2 = report["cloud2"].as_array().unwrap();
+        let markers = report["markers"].as_array().unwrap();
+        for (i, file) in bts.files.iter().enumerate() {
+            let t = file.time.0;
+            let (octomap, cloud2, marker) = (&octomaps[i], &clouds2[i], &markers[i]);
+            for message in [octomap, cloud2, marker] {
+                assert_eq!(message["log_time"], t);
+                assert_eq!(message["stamp_ns"], t);
+                assert_eq!(message["frame_id"], frame);
+            }
+            assert_eq!(octomap["binary"], true);
+            assert_eq!(octomap["id"], "OcTree");
+            assert_eq!(octomap["resolution"], resolution);
+            let bt = std::fs::read(&file.path).unwrap();
+            let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+            let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+            assert!(data == bt[body_at..], "data of the message at {t}");
+
+            // The voxels octomap-python reads from the .bt (a predicted map holds p > 0.5):
+            // the same unless the threshold is lower.
+            let compared = !predicted(file.time) || threshold == 0.5;
+            assert_eq!(
+                cloud2["same_voxels"], compared,
+                "points of the cloud at {t}"
+            );
+            assert_eq!(cloud2["points"], cloud2["distinct_points"]);
+            assert!(cloud2["points"].as_u64().unwrap() > 0);
+            assert_eq!(
+                marker["same_voxels"], compared,
+                "cubes of the markers at {t}"
+            );
+            assert_eq!(marker["markers"], 17);
+            assert_eq!(marker["problems"], serde_json::json!([]));
+            // Cells, not voxels: coarse cells are one cube.
+            assert!(marker["cubes"].as_u64() <= cloud2["points"].as_u64());
+            // The same fields in every message, retrieved or predicted.
+            assert_eq!(
+                cloud2["fields"],
+                serde_json::json!([
+                    ["x", 7],
+                    ["y", 7],
+                    ["z", 7],
+                    ["rgba", 6],
+                    ["p", 7],
+                    ["dynamic", 7]
+                ])
+            );
+            let value = &cloud2["values"];
+            if predicted(file.time) {
+                let low = value["p"][0].as_f64().unwrap();
+                assert!(
+                    low > threshold && value["p"][1].as_f64().unwrap() <= 1.0,
+                    "{cloud2}"
+                );
+                // Below 0.5 too when the threshold is lower: uncertain space drawn.
+                assert_eq!(low <= 0.5, threshold < 0.5, "{cloud2}");
+                assert_eq!(value["dynamic"], "nan");
+            } else {
+                // Dynamic and static voxels, each in its own colour, observed occupied.
+                assert_eq!(cloud2["colours"], 2, "{cloud2}");
+                assert_eq!(value["dynamic"], serde_json::json!([0.0, 1.0]));
+                assert_eq!(value["p"], serde_json::json!([1.0, 1.0]));
+            }
+            if foxglove {
+                let (cloud, scene) = (&report["cloud"][i], &report["scene"][i]);
+                assert_eq!(cloud["same_voxels"], compared, "points of the cloud at {t}");
+                assert_eq!(cloud["remainder"], 0);
+                assert_eq!(cloud["points"], cloud2["points"]);
+                assert_eq!(scene["problems"], serde_json::json!([]), "{scene}");
+                assert_eq!(scene["same_voxels"], compared, "cubes at {t}");
+                assert_eq!(scene["cubes"], marker["cubes"]);
+                assert_eq!(scene["stamp_ns"], t);
+                assert_eq!(scene["frame_id"], frame);
+                assert_eq!(scene["metadata"]["map"], kind_of(file.time));
+            }
+        }
+        if foxglove {
+            // Cubes sized by their cells: some coarse.
+            let sizes: Vec<u64> = report["scene"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .flat_map(|s| {
+                    s["sizes"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|v| v.as_u64().unwrap())
+                })
+                .collect();
+            assert!(
+                sizes.contains(&1) && sizes.iter().any(|&s| s > 1),
+                "{sizes:?}"
             );
         }
     }

@@ -120,6 +120,7 @@ fn generated_series_round_trips_and_outputs_are_read_by_upstream_clients() {
             backend: None,
             prefix: "map".into(),
             overwrite: false,
+            recording: Default::default(),
         },
         &Silent,
     )

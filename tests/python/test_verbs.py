@@ -155,15 +155,29 @@ def test_export_to_mcap_is_the_command_lines_and_holds_octomap_messages(cli_file
 
     ours, theirs = tmp_path / "ours.mcap", tmp_path / "theirs.mcap"
     span = dict(start="2016-01-04T00:00:00Z", end="2016-01-04T06:00:00Z", every="2h")
+    # The recording options, as keyword arguments and as flags: the same bytes.
+    froctomap.export(cli_file, tmp_path / "opts.mcap", mode="auto", profile="foxglove",
+                     frame_id="odom", topic_prefix="/r1", threshold=0.3, progress=False, **span)
+    run_cli("-q", "export", cli_file, "--from", span["start"], "--to", span["end"], "--every",
+            span["every"], "--mode", "auto", "--profile", "foxglove", "--frame-id", "odom",
+            "--topic-prefix", "/r1", "--threshold", "0.3", "-o", tmp_path / "opts-cli.mcap")
+    assert (tmp_path / "opts.mcap").read_bytes() == (tmp_path / "opts-cli.mcap").read_bytes()
+    with pytest.raises(froctomap.FroctError, match="topic prefix"):
+        froctomap.export(cli_file, tmp_path / "bad.mcap", topic_prefix="r1/", progress=False,
+                         **span)
+    assert not (tmp_path / "bad.mcap").exists()
     froctomap.export(cli_file, ours, mode="retrieve", progress=False, **span)
     run_cli("-q", "export", cli_file, "--from", span["start"], "--to", span["end"], "--every",
             span["every"], "--mode", "retrieve", "-o", theirs)
     assert ours.read_bytes() == theirs.read_bytes()
-    # mcap-ros2-support decodes the maps; each message holds the retrieved .bt's body.
+    # mcap-ros2-support decodes the whole file (CDR only by default); each Octomap message
+    # holds the retrieved .bt's body.
     with open(ours, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-        maps = [(m.log_time, message) for _, channel, m, message
-                in reader.iter_decoded_messages(topics=["/octomap_binary"])]
+        decoded = [(channel.topic, m.log_time, message) for _, channel, m, message
+                   in reader.iter_decoded_messages()]
+    maps = [(t, message) for topic, t, message in decoded if topic == "/octomap_binary"]
+    assert len(decoded) == 3 * len(maps)
     assert len(maps) == 4
     for i, (_, message) in enumerate(maps):
         retrieved = tmp_path / f"{i}.bt"

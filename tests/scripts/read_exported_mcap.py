@@ -2,15 +2,20 @@
 mcap-ros2-support) and reports what it holds, for the recording tests.
 
 Usage: python read_exported_mcap.py FILE.mcap OUT_DIR [BT_FILES.json]
+Every CDR message of the whole file is decoded by mcap-ros2-support's DecoderFactory through
+its embedded ros2msg schema (`iter_decoded_messages()` without a topic filter when the file
+has only CDR channels: a channel it cannot decode raises DecoderNotFoundError); JSON channels
+(profile foxglove) are parsed and checked against the structure of Foxglove's schemas.
 Writes OUT_DIR/<log_time>.data (each octomap message's decoded `data` field) and prints one
-JSON object: the header profile, the schemas and channels, each octomap message's fields,
-each point-cloud message's point count, distinct colours and value range, and for each
-sensor_msgs/PointCloud2 message (decoded by mcap-ros2-support through its embedded schema)
-whether its points, colours and values are those of the point cloud of the same time. BT_FILES.json maps
-log times to .bt files (the .bt export of the same times): each cloud's points are then
-compared with the occupied voxels octomap-python reads from that file ("same_voxels").
+JSON object: the header profile, the schemas and channels, the message count per topic, each
+octomap message's fields, and per message of the point clouds, markers and scene updates its
+stamp, frame, point or cube count, value range and colours. BT_FILES.json maps log times to
+.bt files (the .bt export of the same times): the occupied voxels of each cloud, marker array
+and scene update are then compared with those octomap-python reads from that file
+("same_voxels").
 """
 import base64
+import collections
 import json
 import os
 import struct
@@ -20,28 +25,83 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 
-
 def occupied_voxels(bt, resolution):
     """The integer keys (x, y, z) of every occupied voxel of a .bt file, per octomap-python."""
     import octomap
     tree = octomap.OcTree(bt.encode())
     keys = set()
-    it = tree.begin_leafs()
-    for leaf in it:
-        if not tree.isNodeOccupied(leaf):
-            continue
-        n = round(leaf.getSize() / resolution)
-        low = [round((c - leaf.getSize() / 2) / resolution) for c in leaf.getCoordinate()]
-        for i in range(n):
-            for j in range(n):
-                for k in range(n):
-                    keys.add((low[0] + i, low[1] + j, low[2] + k))
+    for leaf in tree.begin_leafs():
+        if tree.isNodeOccupied(leaf):
+            keys |= box_voxels(leaf.getCoordinate(), leaf.getSize(), resolution)
     return keys
+
+
+def box_voxels(centre, size, resolution):
+    """The keys of the voxels a cube of edge `size` centred on `centre` covers."""
+    n = round(size / resolution)
+    low = [round((c - size / 2) / resolution) for c in centre]
+    return {(low[0] + i, low[1] + j, low[2] + k) for i in range(n) for j in range(n) for k in range(n)}
+
+
+# The structure of Foxglove's foxglove.SceneUpdate (docs.foxglove.dev, schemas/jsonschema):
+# per object its fields' JSON types, the required ones marked "!".
+VECTOR3 = {"x!": "number", "y!": "number", "z!": "number"}
+QUATERNION = {"x!": "number", "y!": "number", "z!": "number", "w!": "number"}
+COLOR = {"r!": "number", "g!": "number", "b!": "number", "a!": "number"}
+TIME = {"sec": "integer", "nsec": "integer"}
+CUBE = {"pose!": {"position!": VECTOR3, "orientation!": QUATERNION}, "size!": VECTOR3, "color!": COLOR}
+ENTITY = {
+    "timestamp!": TIME, "frame_id!": "string", "id!": "string", "lifetime!": TIME,
+    "frame_locked!": "boolean", "metadata!": [{"key!": "string", "value!": "string"}],
+    "arrows!": [dict], "cubes!": [CUBE], "spheres!": [dict], "cylinders!": [dict], "lines!": [dict],
+    "triangles!": [dict], "texts!": [dict], "models!": [dict],
+}
+SCENE_UPDATE = {"deletions": [dict], "entities": [ENTITY]}
+JSON_TYPES = {"number": (int, float), "integer": int, "string": str, "boolean": bool}
+
+
+def conforms(value, spec, where="$"):
+    """Problems of `value` against `spec` (a list of strings, empty when it conforms)."""
+    if spec is dict:
+        return [] if isinstance(value, dict) else [f"{where}: not an object"]
+    if isinstance(spec, str):
+        ok = isinstance(value, JSON_TYPES[spec]) and not (spec != "boolean" and isinstance(value, bool))
+        return [] if ok else [f"{where}: not a {spec}"]
+    if isinstance(spec, list):
+        if not isinstance(value, list):
+            return [f"{where}: not an array"]
+        return [p for i, item in enumerate(value) for p in conforms(item, spec[0], f"{where}[{i}]")]
+    if not isinstance(value, dict):
+        return [f"{where}: not an object"]
+    problems = []
+    for key, field in spec.items():
+        name = key.rstrip("!")
+        if name in value:
+            problems += conforms(value[name], field, f"{where}.{name}")
+        elif key.endswith("!"):
+            problems.append(f"{where}: no {name}")
+    return problems
+
+
+def stamp_ns(header):
+    return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
 
 
 path, out_dir = sys.argv[1], sys.argv[2]
 bt_files = json.load(open(sys.argv[3])) if len(sys.argv) > 3 else {}
-report = {"octomap": [], "cloud": []}
+voxels_of = {}
+
+
+def same_voxels(log_time, keys, resolution):
+    bt = bt_files.get(str(log_time))
+    if bt is None:
+        return None
+    if log_time not in voxels_of:
+        voxels_of[log_time] = occupied_voxels(bt, resolution)
+    return voxels_of[log_time] == keys
+
+
+report = {"octomap": [], "cloud2": [], "markers": [], "cloud": [], "scene": []}
 with open(path, "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     report["profile"] = reader.get_header().profile
@@ -51,80 +111,123 @@ with open(path, "rb") as f:
         c.topic: {"encoding": c.message_encoding, "schema": summary.schemas[c.schema_id].name}
         for c in summary.channels.values()
     }
-    for _, _, message, decoded in reader.iter_decoded_messages(topics=["/octomap_binary"]):
-        data = bytes(b & 0xFF for b in decoded.data)
-        with open(os.path.join(out_dir, f"{message.log_time}.data"), "wb") as out:
-            out.write(data)
-        stamp = decoded.header.stamp
-        report["octomap"].append({
-            "log_time": message.log_time,
-            "stamp_ns": stamp.sec * 1_000_000_000 + stamp.nanosec,
-            "frame_id": decoded.header.frame_id,
-            "binary": decoded.binary,
-            "id": decoded.id,
-            "resolution": decoded.resolution,
-        })
-    f.seek(0)
-    reader = make_reader(f)
-    for _, _, message in reader.iter_messages(topics=["/froctomap/occupied_voxels"]):
-        cloud = json.loads(message.data)
-        data = base64.b64decode(cloud["data"])
-        stride = cloud["point_stride"]
-        fields = {field["name"]: (field["offset"], field["type"]) for field in cloud["fields"]}
-        value_name = next(name for name in fields if name not in ("x", "y", "z", "red", "green", "blue", "alpha"))
-        colours, values, keys, full = set(), [], [], set()
-        resolution = report["octomap"][0]["resolution"] if report["octomap"] else 1.0
-        for i in range(0, len(data), stride):
-            point = data[i:i + stride]
-            centre = [struct.unpack_from("<f", point, fields[c][0])[0] for c in ("x", "y", "z")]
-            keys.append(tuple(int(c // resolution) for c in centre))
-            colours.add(tuple(point[fields[c][0]] for c in ("red", "green", "blue", "alpha")))
-            values.append(struct.unpack_from("<f", point, fields[value_name][0])[0])
-            full.add((keys[-1], tuple(point[fields[c][0]] for c in ("red", "green", "blue", "alpha")), values[-1]))
-        report["cloud"].append({
-            "log_time": message.log_time,
-            "stamp_ns": cloud["timestamp"]["sec"] * 1_000_000_000 + cloud["timestamp"]["nsec"],
-            "frame_id": cloud["frame_id"],
-            "points": len(data) // stride,
-            "remainder": len(data) % stride,
-            "value": value_name,
-            "min": min(values, default=None),
-            "max": max(values, default=None),
-            "colours": len(colours),
-            "distinct_points": len(set(keys)),
-            "_points": full,
-        })
-        bt = bt_files.get(str(message.log_time))
-        if bt is not None:
-            report["cloud"][-1]["same_voxels"] = occupied_voxels(bt, resolution) == set(keys)
-    # The PointCloud2 channel: the same points as the foxglove cloud of the same time.
+    report["metadata"] = [{"name": m.name, **m.metadata} for m in reader.iter_metadata()]
+    cdr_topics = [c.topic for c in summary.channels.values() if c.message_encoding == "cdr"]
+    only_cdr = len(cdr_topics) == len(summary.channels)
+    counts = collections.Counter()
     f.seek(0)
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
-    clouds = {c["log_time"]: c for c in report["cloud"]}
-    report["cloud2"] = []
-    for _, _, message, decoded in reader.iter_decoded_messages(topics=["/froctomap/occupied_voxels_pc2"]):
-        data = bytes(decoded.data)
-        fields = {field.name: (field.offset, field.datatype) for field in decoded.fields}
-        value_name = next(name for name in fields if name not in ("x", "y", "z", "rgba"))
-        resolution = report["octomap"][0]["resolution"] if report["octomap"] else 1.0
-        points = set()
-        for i in range(0, len(data), decoded.point_step):
-            point = data[i:i + decoded.point_step]
-            centre = [struct.unpack_from("<f", point, fields[c][0])[0] for c in ("x", "y", "z")]
-            argb = struct.unpack_from("<I", point, fields["rgba"][0])[0]
-            rgba = ((argb >> 16) & 0xFF, (argb >> 8) & 0xFF, argb & 0xFF, argb >> 24)
-            value = struct.unpack_from("<f", point, fields[value_name][0])[0]
-            points.add((tuple(int(c // resolution) for c in centre), rgba, value))
-        stamp = decoded.header.stamp
-        report["cloud2"].append({
-            "log_time": message.log_time,
-            "stamp_ns": stamp.sec * 1_000_000_000 + stamp.nanosec,
-            "frame_id": decoded.header.frame_id,
-            "points": decoded.width * decoded.height,
-            "types": [fields[c][1] for c in ("x", "y", "z", "rgba", value_name)],
-            "value": value_name,
-            "same_points": points == clouds[message.log_time].pop("_points"),
-        })
-    for cloud in report["cloud"]:
-        cloud.pop("_points", None)
+    # The whole file when it is CDR only: a message that does not decode stops the test.
+    decoded_messages = reader.iter_decoded_messages() if only_cdr else reader.iter_decoded_messages(topics=cdr_topics)
+    resolution = None
+    for _, channel, message, decoded in decoded_messages:
+        counts[channel.topic] += 1
+        schema = report["channels"][channel.topic]["schema"]
+        if schema == "octomap_msgs/msg/Octomap":
+            resolution = decoded.resolution
+            data = bytes(b & 0xFF for b in decoded.data)
+            with open(os.path.join(out_dir, f"{message.log_time}.data"), "wb") as out:
+                out.write(data)
+            report["octomap"].append({
+                "topic": channel.topic,
+                "log_time": message.log_time,
+                "stamp_ns": stamp_ns(decoded.header),
+                "frame_id": decoded.header.frame_id,
+                "binary": decoded.binary,
+                "id": decoded.id,
+                "resolution": decoded.resolution,
+            })
+        elif schema == "sensor_msgs/msg/PointCloud2":
+            data = bytes(decoded.data)
+            fields = {field.name: (field.offset, field.datatype) for field in decoded.fields}
+            keys, colours, values = set(), set(), collections.defaultdict(list)
+            for i in range(0, len(data), decoded.point_step):
+                point = data[i:i + decoded.point_step]
+                centre = [struct.unpack_from("<f", point, fields[c][0])[0] for c in "xyz"]
+                keys.add(tuple(int(c // resolution) for c in centre))
+                colours.add(struct.unpack_from("<I", point, fields["rgba"][0])[0])
+                for name in fields:
+                    if name not in ("x", "y", "z", "rgba"):
+                        values[name].append(struct.unpack_from("<f", point, fields[name][0])[0])
+            report["cloud2"].append({
+                "topic": channel.topic,
+                "log_time": message.log_time,
+                "stamp_ns": stamp_ns(decoded.header),
+                "frame_id": decoded.header.frame_id,
+                "points": decoded.width * decoded.height,
+                "distinct_points": len(keys),
+                "fields": [[field.name, field.datatype] for field in decoded.fields],
+                "values": {n: [min(v), max(v)] if v and all(x == x for x in v) else ("nan" if v else None)
+                           for n, v in values.items()},
+                "colours": len(colours),
+                "same_voxels": same_voxels(message.log_time, keys, resolution),
+            })
+        elif schema == "visualization_msgs/msg/MarkerArray":
+            keys, cubes, problems = set(), 0, []
+            for marker in decoded.markers:
+                depth = marker.id
+                size = resolution * 2 ** (16 - depth)
+                if marker.type != 6:
+                    problems.append(f"marker {depth}: type {marker.type}")
+                if abs(marker.scale.x - size) > 1e-9 or marker.scale.x != marker.scale.z:
+                    problems.append(f"marker {depth}: scale {marker.scale.x}")
+                if len(marker.colors) != len(marker.points):
+                    problems.append(f"marker {depth}: colours")
+                if (marker.action == 0) != bool(marker.points):
+                    problems.append(f"marker {depth}: action {marker.action}")
+                for p in marker.points:
+                    cubes += 1
+                    keys |= box_voxels((p.x, p.y, p.z), size, resolution)
+            report["markers"].append({
+                "topic": channel.topic,
+                "log_time": message.log_time,
+                "stamp_ns": stamp_ns(decoded.markers[0].header),
+                "frame_id": decoded.markers[0].header.frame_id,
+                "markers": len(decoded.markers),
+                "cubes": cubes,
+                "problems": problems,
+                "same_voxels": same_voxels(message.log_time, keys, resolution),
+            })
+    # JSON channels (profile foxglove): parsed, checked against Foxglove's schemas.
+    f.seek(0)
+    reader = make_reader(f)
+    json_topics = [c.topic for c in summary.channels.values() if c.message_encoding == "json"]
+    for _, channel, message in reader.iter_messages(topics=json_topics):
+        counts[channel.topic] += 1
+        body = json.loads(message.data)
+        schema = report["channels"][channel.topic]["schema"]
+        if schema == "foxglove.PointCloud":
+            data = base64.b64decode(body["data"])
+            stride = body["point_stride"]
+            fields = {field["name"]: field["offset"] for field in body["fields"]}
+            keys = {tuple(int(struct.unpack_from("<f", data, i + fields[c])[0] // resolution) for c in "xyz")
+                    for i in range(0, len(data), stride)}
+            report["cloud"].append({
+                "log_time": message.log_time,
+                "frame_id": body["frame_id"],
+                "points": len(data) // stride,
+                "remainder": len(data) % stride,
+                "fields": sorted(fields),
+                "same_voxels": same_voxels(message.log_time, keys, resolution),
+            })
+        elif schema == "foxglove.SceneUpdate":
+            problems = conforms(body, SCENE_UPDATE)
+            keys, sizes = set(), set()
+            entity = body["entities"][0]
+            for cube in entity["cubes"]:
+                p, s = cube["pose"]["position"], cube["size"]
+                sizes.add(round(s["x"] / resolution))
+                keys |= box_voxels((p["x"], p["y"], p["z"]), s["x"], resolution)
+            report["scene"].append({
+                "log_time": message.log_time,
+                "stamp_ns": entity["timestamp"]["sec"] * 1_000_000_000 + entity["timestamp"]["nsec"],
+                "frame_id": entity["frame_id"],
+                "entities": len(body["entities"]),
+                "cubes": len(entity["cubes"]),
+                "sizes": sorted(sizes),
+                "metadata": {kv["key"]: kv["value"] for kv in entity["metadata"]},
+                "problems": problems,
+                "same_voxels": same_voxels(message.log_time, keys, resolution),
+            })
+    report["counts"] = dict(counts)
 print(json.dumps(report))

@@ -238,9 +238,17 @@ enum Command {
     ///
     /// Example: froctomap history office.froct --at 23.5,-0.5,1.0 -o voxel.png
     History(history::HistoryArgs),
-    /// Write one OctoMap file per instant of a range, plus a manifest.csv.
+    /// Write one OctoMap file per instant of a range, plus a manifest.csv, or every map into
+    /// one MCAP recording (an output named *.mcap).
     ///
-    /// Example: froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h -o hourly/
+    /// Examples (a directory of .bt files; an MCAP for rviz2; one for Foxglove, uncertain
+    /// space drawn, under a robot's namespace):
+    ///
+    /// froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h -o hourly/
+    ///
+    /// froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h --mode auto -o office.mcap
+    ///
+    /// froctomap export office.froct --from 2016-01-04 --to 2016-01-05 --every 1h --profile foxglove --threshold 0.2 --frame-id odom --topic-prefix /robot1 -o office.mcap
     Export(series::ExportArgs),
     /// Compare a FROctomap file with ground-truth maps: reconstruction error inside the
     /// modelled span, prediction error outside it, against the static-mean and last-seen

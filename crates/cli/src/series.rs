@@ -10,8 +10,8 @@ use clap::{Args, ValueEnum};
 use froctomap_convert::{
     check_range, collect_inputs_explained, evaluate, export, ingest, parse_duration,
     resolve_observed_with, write_observed_map, write_predicted_map, EvalReport, ExportMode,
-    ExportOptions, IngestOptions, IngestTarget, Pick, RecordedTime, RecordingOptions, SeriesInput,
-    TimeQuery, TimeSource,
+    ExportOptions, IngestOptions, IngestTarget, Pick, RecordedTime, RecordingOptions,
+    RecordingProfile, RecordingWriteOptions, SeriesInput, TimeQuery, TimeSource,
 };
 use froctomap_convert::{group_thousands, SeriesRead};
 use froctomap_core::calendar::iso8601;
@@ -753,6 +753,14 @@ pub enum ExportModeArg {
     Auto,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ProfileArg {
+    /// Standard ROS 2 messages only, all CDR.
+    Ros2,
+    /// Also Foxglove's schemas (JSON).
+    Foxglove,
+}
+
 #[derive(Args)]
 pub struct ExportArgs {
     /// The FROctomap file.
@@ -777,15 +785,34 @@ pub struct ExportArgs {
     #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
     mode: ExportModeArg,
     /// Map format (see `froctomap formats`), or `mcap`: one MCAP file with the maps as
-    /// octomap_msgs/msg/Octomap on /octomap_binary (for ros2 bag play) and their occupied
-    /// voxels as a foxglove.PointCloud on /froctomap/occupied_voxels (for Foxglove) and as a
-    /// sensor_msgs/msg/PointCloud2 on /froctomap/occupied_voxels_pc2 (for rviz2, Rerun).
+    /// octomap_msgs/msg/Octomap on /octomap_binary (for ros2 bag play), their occupied
+    /// voxels as a sensor_msgs/msg/PointCloud2 on /froctomap/occupied_voxels_pc2 (for rviz2,
+    /// Rerun) and their occupied cells as a visualization_msgs/msg/MarkerArray on
+    /// /froctomap/occupied_cells_vis_array (CUBE_LIST per depth, for rviz2); see --profile.
     /// Default: mcap for an output named *.mcap, else bt.
     #[arg(long, value_parser = export_format())]
     format: Option<String>,
     /// File name prefix.
     #[arg(long, default_value = "map")]
     prefix: String,
+    /// Which messages a recording holds: ros2, CDR only (every message decodes with
+    /// ROS 2's tools and mcap-ros2-support); foxglove, also a foxglove.PointCloud on
+    /// /froctomap/occupied_voxels and foxglove.SceneUpdate cubes sized by the cell on
+    /// /froctomap/occupied_cubes (JSON, for Foxglove's 3D panel).
+    #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
+    profile: ProfileArg,
+    /// Recordings: the frame_id of every message (e.g. --frame-id odom).
+    #[arg(long, value_name = "FRAME", default_value = "map")]
+    frame_id: String,
+    /// Recordings: put before every topic name, e.g. --topic-prefix /robot1 writes
+    /// /robot1/octomap_binary, /robot1/froctomap/occupied_voxels_pc2…
+    #[arg(long, value_name = "PREFIX", default_value = "")]
+    topic_prefix: String,
+    /// Recordings: draw a predicted cell (point clouds, markers, cubes) where its
+    /// probability is above P, e.g. --threshold 0.2 to show uncertain space too; the maps
+    /// themselves hold p > 0.5 as occupied.
+    #[arg(long, value_name = "P", default_value_t = 0.5)]
+    threshold: f64,
     /// Write into a directory that already holds files, replacing those of the same names.
     #[arg(long)]
     overwrite: bool,
@@ -896,6 +923,14 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         backend: Some(ui.backend),
         prefix: args.prefix.clone(),
         overwrite: args.overwrite,
+        recording: RecordingWriteOptions::default()
+            .with_profile(match args.profile {
+                ProfileArg::Ros2 => RecordingProfile::Ros2,
+                ProfileArg::Foxglove => RecordingProfile::Foxglove,
+            })
+            .with_frame_id(args.frame_id.clone())
+            .with_topic_prefix(args.topic_prefix.clone())
+            .with_threshold(args.threshold),
     };
     check_export(ui, args, &reader, &options)?;
     let bars = Bars::new(ui.quiet);

@@ -12,7 +12,7 @@ use crate::series_file::SeriesRead;
 use crate::time::check_range;
 use froctomap_core::calendar::iso8601_basic;
 use froctomap_core::{write_atomically, Timestamp};
-use froctomap_formats::{Backend, WriteOptions};
+use froctomap_formats::{Backend, RecordingWriteOptions, WriteOptions};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -53,6 +53,8 @@ pub struct ExportOptions {
     /// Write into a directory that already holds files (replacing those of the same names);
     /// otherwise such a directory is refused.
     pub overwrite: bool,
+    /// How a recording format writes (its profile…); unused by map formats.
+    pub recording: RecordingWriteOptions,
 }
 
 /// What `export` wrote.
@@ -87,7 +89,13 @@ pub fn export(
     let (times, samples) = export_instants(context, reader, options)?;
     if let Some(format) = context.formats().writable_recording(&options.format) {
         let (files, bytes) = crate::recording_export::export_recording(
-            reader, output, format, &times, &samples, progress,
+            reader,
+            output,
+            format,
+            &options.recording,
+            &times,
+            &samples,
+            progress,
         )?;
         return Ok(ExportReport {
             files,

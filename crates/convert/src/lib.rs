@@ -91,7 +91,9 @@ pub use eval::{
 pub use export::{export, ExportMode, ExportOptions, ExportReport};
 pub use files::{is_living_file, output_dir};
 pub use froctomap_core::calendar::unix_seconds;
-pub use froctomap_formats::{natural_cmp, RecordedTime, RecordingOptions};
+pub use froctomap_formats::{
+    natural_cmp, RecordedTime, RecordingOptions, RecordingProfile, RecordingWriteOptions,
+};
 pub use history::SeriesHistory;
 pub use info::{
     describe, describe_map_file, describe_series, AxisInfo, FroctInfo, LivingInfo, MapFileInfo,
@@ -118,7 +120,7 @@ pub use record::{
     Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
 };
 pub use recording::{describe_recording, RecordedMap, RecordedTopicInfo, RecordingInfo};
-pub use recording_export::occupied_cells_at;
+pub use recording_export::{occupied_cells_above, occupied_cells_at};
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
 pub use text::{group_thousands, tidy_float, tidy_floats};
 pub use time::{

@@ -14,7 +14,9 @@ use crate::progress::Progress;
 use crate::series_file::SeriesRead;
 use froctomap_core::{temporary_beside, AtomicWriteError, Occupancy, Timestamp};
 use froctomap_file::{CellContent, FroctReader};
-use froctomap_formats::{CellShade, ExportedKind, ExportedMap, OccupiedCell, RecordingFormat};
+use froctomap_formats::{
+    CellShade, ExportedKind, ExportedMap, OccupiedCell, RecordingFormat, RecordingWriteOptions,
+};
 use rayon::prelude::*;
 use std::io::BufWriter;
 use std::path::Path;
@@ -26,6 +28,7 @@ pub(crate) fn export_recording(
     reader: &dyn SeriesRead,
     output: &Path,
     format: &RecordingFormat,
+    write_options: &RecordingWriteOptions,
     times: &[Timestamp],
     samples: &[Option<u32>],
     progress: &dyn Progress,
@@ -49,7 +52,7 @@ pub(crate) fn export_recording(
     prefix.push(".");
     let temp = temporary_beside(output, &prefix).map_err(io)?;
     let sink = BufWriter::new(temp.as_file().try_clone().map_err(io)?);
-    let mut writer = create(Box::new(sink)).map_err(|e| failed(None, e))?;
+    let mut writer = create(Box::new(sink), write_options).map_err(|e| failed(None, e))?;
     progress.stage("exporting maps", times.len() as u64);
     for (&time, &sample) in times.iter().zip(samples) {
         crate::progress::stop_if_cancelled(progress)?;
@@ -60,7 +63,7 @@ pub(crate) fn export_recording(
             ),
             None => (predicted_bt(reader, time)?, ExportedKind::Predicted),
         };
-        let occupied = occupied_cells_at(reader, kind, time)?;
+        let occupied = occupied_cells_above(reader, kind, time, write_options.threshold)?;
         let map = ExportedMap::new(time, kind, reader.header().resolution, &bt, &occupied);
         writer.write_map(&map).map_err(|e| failed(Some(time), e))?;
         progress.advance(1);
@@ -86,9 +89,20 @@ pub fn occupied_cells_at(
     kind: ExportedKind,
     time: Timestamp,
 ) -> Result<Vec<OccupiedCell>, ConvertError> {
+    occupied_cells_above(reader, kind, time, 0.5)
+}
+
+/// [`occupied_cells_at`], a predicted cell drawn where `p(t) > threshold` (the export's
+/// `--threshold`; retrieved maps are unchanged).
+pub fn occupied_cells_above(
+    reader: &dyn SeriesRead,
+    kind: ExportedKind,
+    time: Timestamp,
+    threshold: f64,
+) -> Result<Vec<OccupiedCell>, ConvertError> {
     match reader.whole_body() {
-        Some(whole) => occupied_cells(whole, kind, time),
-        None => occupied_states(reader, kind, time),
+        Some(whole) => occupied_cells(whole, kind, time, threshold),
+        None => occupied_states(reader, kind, time, threshold),
     }
 }
 
@@ -100,6 +114,7 @@ fn occupied_states(
     reader: &dyn SeriesRead,
     kind: ExportedKind,
     time: Timestamp,
+    threshold: f64,
 ) -> Result<Vec<OccupiedCell>, ConvertError> {
     let mut occupied = Vec::new();
     match kind {
@@ -126,7 +141,7 @@ fn occupied_states(
                 occupied.extend(
                     leaves
                         .iter()
-                        .filter(|l| l.log_odds > 0.5)
+                        .filter(|l| f64::from(l.log_odds) > threshold)
                         .map(|l| OccupiedCell {
                             start: l.start,
                             depth: l.depth,
@@ -141,12 +156,14 @@ fn occupied_states(
 
 /// The occupied cells of a map, in Morton order, with their shades: a retrieved cell is
 /// occupied in its observed state at the sample (the `.bt`'s occupied leaves), dynamic when
-/// its state changes over the span; a predicted one where `p(t) > 0.5` (as the `.bt`).
+/// its state changes over the span; a predicted one where `p(t) > threshold` (0.5: as the
+/// `.bt`).
 /// Tiles are walked in parallel, a few at a time.
 pub(crate) fn occupied_cells(
     reader: &FroctReader,
     kind: ExportedKind,
     time: Timestamp,
+    threshold: f64,
 ) -> Result<Vec<OccupiedCell>, ConvertError> {
     let axis = &reader.header().axis;
     let model = reader.model();
@@ -178,7 +195,7 @@ pub(crate) fn occupied_cells(
                         }
                         ExportedKind::Predicted => {
                             let p = cell.probability(model, seconds);
-                            if p <= 0.5 {
+                            if p <= threshold {
                                 return;
                             }
                             CellShade::Probability(p as f32)

@@ -327,6 +327,7 @@ fn the_tiled_writer_hook_writes_retrieved_maps_tile_by_tile() {
         backend: None,
         prefix: "room".into(),
         overwrite: false,
+        recording: Default::default(),
     };
     let exported = |context: &Context, name: &str| -> Vec<PathBuf> {
         let dir = dir.path().join(name);

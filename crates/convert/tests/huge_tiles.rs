@@ -237,6 +237,7 @@ fn counting_and_evaluating_hold_one_tile_not_the_map() {
         backend: None,
         prefix: "map".into(),
         overwrite: false,
+        recording: Default::default(),
     };
     let out = dir.path().join("export");
     let (report, peak) =

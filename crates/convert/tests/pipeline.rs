@@ -209,6 +209,7 @@ fn predictions_exports_and_evaluation() {
         backend: None,
         prefix: "map".into(),
         overwrite: false,
+        recording: Default::default(),
     };
     let report = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     assert_eq!(report.files.len(), 5);
@@ -395,6 +396,7 @@ fn a_format_registered_by_the_caller_is_used_by_build_and_export() {
         backend: None,
         prefix: "map".into(),
         overwrite: false,
+        recording: Default::default(),
     };
     let exported = export(&context, &reader, &export_dir, &options, &Silent).unwrap();
     let file = &exported.files[0].path;

@@ -60,7 +60,8 @@ pub use probe::{Confidence, PROBE_BYTES};
 pub use recording::{
     CellShade, CreateRecording, DescribeRecording, ExportedKind, ExportedMap, OccupiedCell,
     OpenStream, RecordedMaps, RecordedTime, RecordedTopic, Recording, RecordingFormat,
-    RecordingOptions, RecordingSink, RecordingSummary, RecordingWriter,
+    RecordingOptions, RecordingProfile, RecordingSink, RecordingSummary, RecordingWriteOptions,
+    RecordingWriter,
 };
 pub use registry::{
     Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,

@@ -235,9 +235,91 @@ pub trait RecordingSink: std::io::Write + std::io::Seek + Send {}
 
 impl<T: std::io::Write + std::io::Seek + Send> RecordingSink for T {}
 
-/// Makes a writer of a new recording into a sink.
-pub type CreateRecording =
-    fn(Box<dyn RecordingSink>) -> Result<Box<dyn RecordingWriter>, PluginError>;
+/// Makes a writer of a new recording into a sink, with the export's options.
+pub type CreateRecording = fn(
+    Box<dyn RecordingSink>,
+    &RecordingWriteOptions,
+) -> Result<Box<dyn RecordingWriter>, PluginError>;
+
+/// Which messages a written recording holds beside the maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum RecordingProfile {
+    /// Standard ROS 2 messages only, every one in CDR with its `ros2msg` schema: what
+    /// `ros2 bag play`, rviz2 and `mcap-ros2-support` read whole.
+    #[default]
+    Ros2,
+    /// The ROS 2 messages, and Foxglove's own schemas (`foxglove.PointCloud`,
+    /// `foxglove.SceneUpdate` cubes sized by the cell) in JSON for Foxglove's 3D panel.
+    Foxglove,
+}
+
+/// How a recording is written: what a [`RecordingFormat::create`] is handed (and, for
+/// `threshold`, what the exporter draws). Writers ignore what their format has no use for.
+///
+/// ```
+/// use froctomap_formats::{RecordingProfile, RecordingWriteOptions};
+/// let options = RecordingWriteOptions::default()
+///     .with_profile(RecordingProfile::Foxglove)
+///     .with_frame_id("odom")
+///     .with_topic_prefix("/robot1")
+///     .with_threshold(0.3);
+/// assert_eq!((options.frame_id.as_str(), options.threshold), ("odom", 0.3));
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct RecordingWriteOptions {
+    /// Which messages beside the maps.
+    pub profile: RecordingProfile,
+    /// The `frame_id` of every message (default `map`).
+    pub frame_id: String,
+    /// Put before every topic name (`/robot1`: `/robot1/octomap_binary`…); empty: none.
+    /// Starts with `/`, does not end with one.
+    pub topic_prefix: String,
+    /// A predicted cell is drawn (point clouds, markers, cubes) where its probability is
+    /// above this (default 0.5, what the predicted map holds as occupied). The maps
+    /// themselves are unchanged.
+    pub threshold: f64,
+}
+
+impl Default for RecordingWriteOptions {
+    fn default() -> Self {
+        Self {
+            profile: RecordingProfile::default(),
+            frame_id: "map".to_string(),
+            topic_prefix: String::new(),
+            threshold: 0.5,
+        }
+    }
+}
+
+impl RecordingWriteOptions {
+    /// The same options with `profile`.
+    pub fn with_profile(self, profile: RecordingProfile) -> Self {
+        Self { profile, ..self }
+    }
+
+    /// The same options with `frame_id`.
+    pub fn with_frame_id(self, frame_id: impl Into<String>) -> Self {
+        Self {
+            frame_id: frame_id.into(),
+            ..self
+        }
+    }
+
+    /// The same options with `topic_prefix`.
+    pub fn with_topic_prefix(self, topic_prefix: impl Into<String>) -> Self {
+        Self {
+            topic_prefix: topic_prefix.into(),
+            ..self
+        }
+    }
+
+    /// The same options with `threshold`.
+    pub fn with_threshold(self, threshold: f64) -> Self {
+        Self { threshold, ..self }
+    }
+}
 
 /// A recording being written, one map at a time in time order (an export
 /// to a recording format that has [`RecordingFormat::create`]).

@@ -11,8 +11,8 @@ use froctomap_convert::{
     compact as compact_file, describe_map_file, describe_recording, describe_series,
     export as export_maps, ingest, is_living_file, refuse_overwriting_input, AppendReport,
     CollectedInputs, CommitEvery, CompactFormat, CompactOptions, ExportMode, ExportOptions,
-    IngestOptions, IngestTarget, RecordEvent, RecordOptions, Recorder, SeriesInput, TimeSource,
-    FROCT,
+    IngestOptions, IngestTarget, RecordEvent, RecordOptions, Recorder, RecordingProfile,
+    RecordingWriteOptions, SeriesInput, TimeSource, FROCT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -261,7 +261,8 @@ pub fn info<'py>(
 #[pyfunction]
 #[pyo3(signature = (file, output, *, start, end, every, mode = "predict".to_string(),
                     format = None, prefix = "map".to_string(), overwrite = false,
-                    progress = None))]
+                    profile = "ros2".to_string(), frame_id = "map".to_string(),
+                    topic_prefix = String::new(), threshold = 0.5, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn export<'py>(
     py: Python<'py>,
@@ -274,8 +275,21 @@ pub fn export<'py>(
     format: Option<String>,
     prefix: String,
     overwrite: bool,
+    profile: String,
+    frame_id: String,
+    topic_prefix: String,
+    threshold: f64,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let profile = match profile.as_str() {
+        "ros2" => RecordingProfile::Ros2,
+        "foxglove" => RecordingProfile::Foxglove,
+        other => {
+            return Err(froct_error_text(format!(
+                "profile {other:?}: expected \"ros2\" or \"foxglove\""
+            )))
+        }
+    };
     let mode = match mode.as_str() {
         "predict" => ExportMode::Predict,
         "retrieve" => ExportMode::Retrieve,
@@ -298,6 +312,11 @@ pub fn export<'py>(
         backend: None,
         prefix,
         overwrite,
+        recording: RecordingWriteOptions::default()
+            .with_profile(profile)
+            .with_frame_id(frame_id)
+            .with_topic_prefix(topic_prefix)
+            .with_threshold(threshold),
     };
     let report = with_progress(py, progress, |progress| {
         let context = crate::plugins::context();

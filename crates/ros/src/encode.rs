@@ -106,6 +106,99 @@ uint32 count
 "
 );
 
+/// The `ros2msg` schema of `visualization_msgs/msg/MarkerArray` (the `Marker` of ROS 2
+/// Humble and later, with `texture`, `uv_coordinates` and `mesh_file`), with its nested
+/// types: what [`encode_occupied_marker_array_cdr`](crate::encode_occupied_marker_array_cdr)
+/// writes.
+pub const MARKER_ARRAY_ROS2MSG: &str = concat!(
+    "\
+visualization_msgs/Marker[] markers
+================================================================================
+MSG: visualization_msgs/Marker
+int32 ARROW=0
+int32 CUBE=1
+int32 SPHERE=2
+int32 CYLINDER=3
+int32 LINE_STRIP=4
+int32 LINE_LIST=5
+int32 CUBE_LIST=6
+int32 SPHERE_LIST=7
+int32 POINTS=8
+int32 TEXT_VIEW_FACING=9
+int32 MESH_RESOURCE=10
+int32 TRIANGLE_LIST=11
+int32 ADD=0
+int32 MODIFY=0
+int32 DELETE=2
+int32 DELETEALL=3
+std_msgs/Header header
+string ns
+int32 id
+int32 type
+int32 action
+geometry_msgs/Pose pose
+geometry_msgs/Vector3 scale
+std_msgs/ColorRGBA color
+builtin_interfaces/Duration lifetime
+bool frame_locked
+geometry_msgs/Point[] points
+std_msgs/ColorRGBA[] colors
+string texture_resource
+sensor_msgs/CompressedImage texture
+visualization_msgs/UVCoordinate[] uv_coordinates
+string text
+string mesh_resource
+visualization_msgs/MeshFile mesh_file
+bool mesh_use_embedded_materials
+",
+    header_definitions!(),
+    "\
+================================================================================
+MSG: geometry_msgs/Pose
+geometry_msgs/Point position
+geometry_msgs/Quaternion orientation
+================================================================================
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: geometry_msgs/Quaternion
+float64 x
+float64 y
+float64 z
+float64 w
+================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: std_msgs/ColorRGBA
+float32 r
+float32 g
+float32 b
+float32 a
+================================================================================
+MSG: builtin_interfaces/Duration
+int32 sec
+uint32 nanosec
+================================================================================
+MSG: sensor_msgs/CompressedImage
+std_msgs/Header header
+string format
+uint8[] data
+================================================================================
+MSG: visualization_msgs/UVCoordinate
+float32 u
+float32 v
+================================================================================
+MSG: visualization_msgs/MeshFile
+string filename
+uint8[] data
+"
+);
+
 /// The ROS 2 type name of the messages [`encode_point_cloud2_cdr`] writes.
 pub const POINT_CLOUD2_TYPE: &str = "sensor_msgs/msg/PointCloud2";
 

@@ -273,6 +273,16 @@ pub enum McapWriteError {
         /// The map's bytes.
         bytes: u64,
     },
+    /// An export option the recording cannot be written with.
+    #[error("{option} {value:?}: {reason}")]
+    BadOption {
+        /// The option (`frame id`, `topic prefix`, `threshold`).
+        option: &'static str,
+        /// Its value.
+        value: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// A map with more occupied voxels than one point cloud may hold.
     #[error("{voxels} occupied voxels, more than the {limit} one point-cloud message may hold")]
     TooManyPoints {

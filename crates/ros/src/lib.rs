@@ -47,20 +47,24 @@ mod topic_counts;
 mod topics;
 
 pub use encode::{
-    encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, OCTOMAP_ROS2MSG, OCTOMAP_TYPE,
-    POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
+    encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, MARKER_ARRAY_ROS2MSG,
+    OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
 };
 pub use error::{McapWriteError, MessageError, RosError};
-pub use foxglove::{point_cloud_json, MAX_POINTS, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA};
+pub use foxglove::{
+    kind_name, point_cloud_json, scene_update_json, MAX_POINTS, POINT_CLOUD_JSON_SCHEMA,
+    POINT_CLOUD_SCHEMA, SCENE_ENTITY_ID, SCENE_UPDATE_JSON_SCHEMA, SCENE_UPDATE_SCHEMA,
+};
 pub use markers::{
     encode_occupied_marker_array_cdr, CUBE_LIST, MARKER_ARRAY_TYPE, MARKER_DELETE, MARKER_NAMESPACE,
 };
-pub use mcap_export::McapMapStream;
+pub use mcap_export::{McapMapStream, MAP_METADATA};
 pub use message::{decode_message, decode_stamp, Encoding, MessageType, OctomapMessage};
 pub use stream::{McapStreamMaps, StreamedMap};
 pub use topics::{
-    CLOCK_TOPIC, DYNAMIC_TOPIC, FRAME_ID, GET_OCTOMAP_AT_SERVICE, OCTOMAP_TOPIC,
-    POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC, PREDICTED_TOPIC, PROBABILITY_AT_SERVICE,
+    CLOCK_TOPIC, DYNAMIC_TOPIC, FRAME_ID, GET_OCTOMAP_AT_SERVICE, OCCUPIED_CELLS_TOPIC,
+    OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC, PREDICTED_TOPIC, PROBABILITY_AT_SERVICE,
+    SCENE_TOPIC,
 };
 
 use froctomap_formats::{
@@ -84,10 +88,13 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
 
 /// MCAP files (ROS 2 `cdr` or ROS 1 `ros1` messages; chunks uncompressed, zstd or lz4),
 /// also as a stream on standard input (`-`; read to its end, the maps spooled to disk).
-/// Written by `export --format mcap`: the maps as `octomap_msgs/msg/Octomap` (CDR) on
-/// [`OCTOMAP_TOPIC`] and their occupied voxels as a `foxglove.PointCloud` (JSON) on
-/// [`POINT_CLOUD_TOPIC`] and as a `sensor_msgs/msg/PointCloud2` (CDR) on
-/// [`POINT_CLOUD2_TOPIC`].
+/// Written by `export --format mcap`: by default only CDR messages with their `ros2msg`
+/// schemas, the maps as `octomap_msgs/msg/Octomap` on [`OCTOMAP_TOPIC`], their occupied
+/// voxels as a `sensor_msgs/msg/PointCloud2` on [`POINT_CLOUD2_TOPIC`] and their occupied
+/// cells as a `visualization_msgs/msg/MarkerArray` on [`OCCUPIED_CELLS_TOPIC`]; with
+/// [`RecordingProfile::Foxglove`](froctomap_formats::RecordingProfile) also a
+/// `foxglove.PointCloud` on [`POINT_CLOUD_TOPIC`] and `foxglove.SceneUpdate` cubes on
+/// [`SCENE_TOPIC`] (JSON).
 pub const MCAP: RecordingFormat = RecordingFormat {
     name: "mcap",
     description: "MCAP recording",

@@ -80,15 +80,13 @@ pub fn encode_occupied_marker_array_cdr(
         out.bytes.push(0); // frame_locked
         out.u32(count);
         for cell in cells {
-            let key = MortonCode(cell.start.0).key();
-            let centre = |k: u16| (f64::from(k) - 32768.0 + side / 2.0) * resolution;
-            for c in [centre(key.x), centre(key.y), centre(key.z)] {
+            for c in cell_box(cell, resolution).0 {
                 out.f64(c);
             }
         }
         out.u32(count);
         for cell in cells {
-            let (rgba, _) = shade(cell.shade);
+            let (rgba, _, _) = shade(cell.shade);
             for c in rgba {
                 out.f32(f32::from(c) / 255.0);
             }
@@ -105,4 +103,16 @@ pub fn encode_occupied_marker_array_cdr(
         out.bytes.push(0); // mesh_use_embedded_materials
     }
     Some(out.bytes)
+}
+
+/// The centre of an occupied cell and its edge length, metres.
+pub(crate) fn cell_box(cell: &OccupiedCell, resolution: f64) -> ([f64; 3], f64) {
+    // 2^(16 - depth) voxels along each axis.
+    let side = f64::from(1u32 << (TREE_DEPTH - cell.depth.min(TREE_DEPTH)));
+    let key = MortonCode(cell.start.0).key();
+    let centre = |k: u16| (f64::from(k) - 32768.0 + side / 2.0) * resolution;
+    (
+        [centre(key.x), centre(key.y), centre(key.z)],
+        side * resolution,
+    )
 }

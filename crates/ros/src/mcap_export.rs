@@ -1,88 +1,265 @@
 //! Writes exported maps into one MCAP file, the [`MCAP`](crate::MCAP) format's
-//! [`RecordingWriter`]: each map as an `octomap_msgs/msg/Octomap` message in CDR on
-//! [`OCTOMAP_TOPIC`] (`binary`, the `ros2msg` schema embedded, so `ros2 bag play` replays
-//! it to rviz), and its occupied voxels as a `foxglove.PointCloud` in JSON on
-//! [`POINT_CLOUD_TOPIC`] (for Foxglove's 3D panel, without ROS), and the same points as a
-//! `sensor_msgs/msg/PointCloud2` in CDR on [`POINT_CLOUD2_TOPIC`] (the standard message
-//! rviz2 and Rerun draw). All are stamped with the map's time, as log and publish time
-//! too; chunks are zstd-compressed.
+//! [`RecordingWriter`]. With the default profile ([`RecordingProfile::Ros2`]) every channel
+//! is CDR with its `ros2msg` schema embedded, so `ros2 bag play` and `mcap-ros2-support`
+//! read the whole file: each map as an `octomap_msgs/msg/Octomap` on [`OCTOMAP_TOPIC`]
+//! (`binary`), its occupied voxels as a `sensor_msgs/msg/PointCloud2` on
+//! [`POINT_CLOUD2_TOPIC`] (what rviz2 and Rerun draw) and its occupied cells as a
+//! `visualization_msgs/msg/MarkerArray` on [`OCCUPIED_CELLS_TOPIC`] (one `CUBE_LIST` per
+//! depth, as `octomap_server`'s `occupied_cells_vis_array`, for rviz2). The profile
+//! [`RecordingProfile::Foxglove`] adds, in JSON with their `jsonschema` schemas, the voxels
+//! as a `foxglove.PointCloud` on [`POINT_CLOUD_TOPIC`] and the cells as
+//! `foxglove.SceneUpdate` cubes sized by the cell on [`SCENE_TOPIC`]. All are stamped with
+//! the map's time, as log and publish time too; chunks are zstd-compressed.
 
 use crate::encode::{
-    encode_octomap_cdr, OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
+    encode_octomap_cdr, MARKER_ARRAY_ROS2MSG, OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG,
+    POINT_CLOUD2_TYPE,
 };
 use crate::error::McapWriteError;
 use crate::foxglove::{
-    point_cloud2, point_cloud_json, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA,
+    kind_name, point_cloud2, point_cloud_json, scene_update_json, POINT_CLOUD_JSON_SCHEMA,
+    POINT_CLOUD_SCHEMA, SCENE_UPDATE_JSON_SCHEMA, SCENE_UPDATE_SCHEMA,
 };
-use crate::topics::{FRAME_ID, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC};
+use crate::markers::{encode_occupied_marker_array_cdr, MARKER_ARRAY_TYPE};
+use crate::topics::{
+    FRAME_ID, OCCUPIED_CELLS_TOPIC, OCTOMAP_TOPIC, POINT_CLOUD2_TOPIC, POINT_CLOUD_TOPIC,
+    SCENE_TOPIC,
+};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
-use froctomap_formats::{ExportedMap, PluginError as Cause, RecordingSink, RecordingWriter};
+use froctomap_formats::{
+    ExportedKind, ExportedMap, PluginError as Cause, RecordingProfile, RecordingSink,
+    RecordingWriteOptions, RecordingWriter,
+};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use mcap::records::MessageHeader;
 use std::collections::BTreeMap;
 use std::io::Write;
 
+/// The messages an exported map becomes, one channel each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Channel {
+    Octomap,
+    PointCloud2,
+    Markers,
+    FoxglovePointCloud,
+    FoxgloveScene,
+}
+
+impl Channel {
+    /// The channels of a profile, in the order each map's messages are written.
+    fn of(profile: RecordingProfile) -> &'static [Channel] {
+        use Channel::*;
+        match profile {
+            RecordingProfile::Foxglove => &[
+                Octomap,
+                PointCloud2,
+                Markers,
+                FoxglovePointCloud,
+                FoxgloveScene,
+            ],
+            _ => &[Octomap, PointCloud2, Markers],
+        }
+    }
+
+    /// Topic, schema name, schema encoding, schema, message encoding.
+    fn spec(
+        self,
+    ) -> (
+        &'static str,
+        &'static str,
+        &'static str,
+        &'static str,
+        &'static str,
+    ) {
+        match self {
+            Channel::Octomap => (
+                OCTOMAP_TOPIC,
+                OCTOMAP_TYPE,
+                "ros2msg",
+                OCTOMAP_ROS2MSG,
+                "cdr",
+            ),
+            Channel::PointCloud2 => (
+                POINT_CLOUD2_TOPIC,
+                POINT_CLOUD2_TYPE,
+                "ros2msg",
+                POINT_CLOUD2_ROS2MSG,
+                "cdr",
+            ),
+            Channel::Markers => (
+                OCCUPIED_CELLS_TOPIC,
+                MARKER_ARRAY_TYPE,
+                "ros2msg",
+                MARKER_ARRAY_ROS2MSG,
+                "cdr",
+            ),
+            Channel::FoxglovePointCloud => (
+                POINT_CLOUD_TOPIC,
+                POINT_CLOUD_SCHEMA,
+                "jsonschema",
+                POINT_CLOUD_JSON_SCHEMA,
+                "json",
+            ),
+            Channel::FoxgloveScene => (
+                SCENE_TOPIC,
+                SCENE_UPDATE_SCHEMA,
+                "jsonschema",
+                SCENE_UPDATE_JSON_SCHEMA,
+                "json",
+            ),
+        }
+    }
+}
+
 /// An MCAP file being written.
 struct McapMapWriter {
     writer: mcap::Writer<Box<dyn RecordingSink>>,
-    octomap: u16,
-    cloud: u16,
-    cloud2: u16,
+    /// The profile's channels and their ids.
+    channels: Vec<(Channel, u16)>,
+    frame_id: String,
     sequence: u32,
 }
 
+/// The name of the MCAP metadata record written with each map: `time_ns` (the map's time,
+/// nanoseconds since 1970), `map` (`retrieved` or `predicted`) and, for a retrieved map,
+/// `sample` (its index on the file's axis).
+pub const MAP_METADATA: &str = "froctomap.map";
+
+/// Refuses options an MCAP export cannot be written with, naming the option.
+fn check_options(options: &RecordingWriteOptions) -> Result<(), McapWriteError> {
+    let bad = |option, value: &str, reason| {
+        Err(McapWriteError::BadOption {
+            option,
+            value: value.to_string(),
+            reason,
+        })
+    };
+    let frame = &options.frame_id;
+    if frame.is_empty() || frame.len() > 256 || frame.chars().any(char::is_whitespace) {
+        return bad(
+            "frame id",
+            frame,
+            "expected a tf2 frame name: 1 to 256 bytes, no spaces",
+        );
+    }
+    let prefix = &options.topic_prefix;
+    let valid_name = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '/';
+    if !prefix.is_empty()
+        && (!prefix.starts_with('/')
+            || prefix.ends_with('/')
+            || prefix.contains("//")
+            || !prefix.chars().all(valid_name))
+    {
+        return bad(
+            "topic prefix",
+            prefix,
+            "expected a ROS name such as /robot1: starting with /, not ending with one, \
+             of letters, digits, _ and /",
+        );
+    }
+    if !(0.0..1.0).contains(&options.threshold) {
+        return bad(
+            "threshold",
+            &options.threshold.to_string(),
+            "expected a probability from 0 to below 1",
+        );
+    }
+    Ok(())
+}
+
 /// [`RecordingFormat::create`](froctomap_formats::RecordingFormat::create) of MCAP.
-pub(crate) fn create(sink: Box<dyn RecordingSink>) -> Result<Box<dyn RecordingWriter>, Cause> {
-    Ok(Box::new(McapMapWriter::new(sink)?))
+pub(crate) fn create(
+    sink: Box<dyn RecordingSink>,
+    options: &RecordingWriteOptions,
+) -> Result<Box<dyn RecordingWriter>, Cause> {
+    Ok(Box::new(McapMapWriter::new(sink, options)?))
 }
 
 impl McapMapWriter {
-    fn new(sink: Box<dyn RecordingSink>) -> Result<Self, McapWriteError> {
+    fn new(
+        sink: Box<dyn RecordingSink>,
+        options: &RecordingWriteOptions,
+    ) -> Result<Self, McapWriteError> {
+        check_options(options)?;
         let mut writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("froctomap ", env!("CARGO_PKG_VERSION")))
             .create(sink)?;
         let none = BTreeMap::new();
-        let schema = writer.add_schema(OCTOMAP_TYPE, "ros2msg", OCTOMAP_ROS2MSG.as_bytes())?;
-        let octomap = writer.add_channel(schema, OCTOMAP_TOPIC, "cdr", &none)?;
-        let schema = writer.add_schema(
-            POINT_CLOUD_SCHEMA,
-            "jsonschema",
-            POINT_CLOUD_JSON_SCHEMA.as_bytes(),
-        )?;
-        let cloud = writer.add_channel(schema, POINT_CLOUD_TOPIC, "json", &none)?;
-        let schema = writer.add_schema(
-            POINT_CLOUD2_TYPE,
-            "ros2msg",
-            POINT_CLOUD2_ROS2MSG.as_bytes(),
-        )?;
-        let cloud2 = writer.add_channel(schema, POINT_CLOUD2_TOPIC, "cdr", &none)?;
+        let mut channels = Vec::new();
+        for &channel in Channel::of(options.profile) {
+            let (topic, name, schema_encoding, schema, encoding) = channel.spec();
+            let topic = format!("{}{topic}", options.topic_prefix);
+            let schema = writer.add_schema(name, schema_encoding, schema.as_bytes())?;
+            channels.push((
+                channel,
+                writer.add_channel(schema, &topic, encoding, &none)?,
+            ));
+        }
         Ok(Self {
             writer,
-            octomap,
-            cloud,
-            cloud2,
+            channels,
+            frame_id: options.frame_id.clone(),
             sequence: 0,
         })
     }
 
     fn write(&mut self, map: &ExportedMap<'_>) -> Result<(), McapWriteError> {
-        let (log_time, stamp, message) = octomap_message(map.time, map.bt, Some(map.resolution))?;
-        let cloud = point_cloud_json(map.time, FRAME_ID, map.kind, map.resolution, map.occupied)?;
-        let cloud2 = point_cloud2(stamp, FRAME_ID, map.kind, map.resolution, map.occupied)?;
-        for (channel_id, data) in [
-            (self.octomap, &message),
-            (self.cloud, &cloud),
-            (self.cloud2, &cloud2),
-        ] {
+        let frame = self.frame_id.as_str();
+        let (log_time, stamp, message) =
+            octomap_message(map.time, frame, map.bt, Some(map.resolution))?;
+        let mut metadata = BTreeMap::from([
+            ("time_ns".to_string(), map.time.0.to_string()),
+            ("map".to_string(), kind_name(map.kind).to_string()),
+        ]);
+        if let ExportedKind::Retrieved { sample } = map.kind {
+            metadata.insert("sample".to_string(), sample.to_string());
+        }
+        self.writer.write_metadata(&mcap::records::Metadata {
+            name: MAP_METADATA.to_string(),
+            metadata,
+        })?;
+        let too_long = |bytes: usize| McapWriteError::MessageTooLong {
+            bytes: bytes as u64,
+        };
+        for &(channel, channel_id) in &self.channels {
+            let data = match channel {
+                Channel::Octomap => None,
+                Channel::PointCloud2 => Some(point_cloud2(
+                    stamp,
+                    frame,
+                    map.kind,
+                    map.resolution,
+                    map.occupied,
+                )?),
+                Channel::Markers => Some(
+                    encode_occupied_marker_array_cdr(stamp, frame, map.resolution, map.occupied)
+                        .ok_or_else(|| too_long(map.occupied.len()))?,
+                ),
+                Channel::FoxglovePointCloud => Some(point_cloud_json(
+                    map.time,
+                    frame,
+                    map.kind,
+                    map.resolution,
+                    map.occupied,
+                )?),
+                Channel::FoxgloveScene => Some(scene_update_json(
+                    map.time,
+                    frame,
+                    map.kind,
+                    map.resolution,
+                    map.occupied,
+                )?),
+            };
             let header = MessageHeader {
                 channel_id,
                 sequence: self.sequence,
                 log_time,
                 publish_time: log_time,
             };
-            self.writer.write_to_known_channel(&header, data)?;
+            self.writer
+                .write_to_known_channel(&header, data.as_deref().unwrap_or(&message))?;
         }
         self.sequence = self.sequence.wrapping_add(1);
         Ok(())
@@ -109,6 +286,7 @@ type OctomapMessage = (u64, (i32, u32), Vec<u8>);
 /// time and stamp; `resolution`: the map's (default: its header's).
 fn octomap_message(
     time: Timestamp,
+    frame_id: &str,
     bt: &[u8],
     resolution: Option<f64>,
 ) -> Result<OctomapMessage, McapWriteError> {
@@ -118,7 +296,7 @@ fn octomap_message(
     let header = parse_header(bt, FileKind::Binary).map_err(McapWriteError::NotBinary)?;
     let body = bt.get(header.body_offset..).unwrap_or_default();
     let resolution = resolution.unwrap_or(header.resolution);
-    let message = encode_octomap_cdr(stamp, FRAME_ID, true, &header.tree_id, resolution, body)
+    let message = encode_octomap_cdr(stamp, frame_id, true, &header.tree_id, resolution, body)
         .ok_or(McapWriteError::MessageTooLong {
             bytes: body.len() as u64,
         })?;
@@ -165,7 +343,7 @@ impl<W: Write> McapMapStream<W> {
 
     /// Adds the map `bt` (a `.bt` file) taken at `time`.
     pub fn write_map(&mut self, time: Timestamp, bt: &[u8]) -> Result<(), McapWriteError> {
-        let (log_time, _, message) = octomap_message(time, bt, None)?;
+        let (log_time, _, message) = octomap_message(time, FRAME_ID, bt, None)?;
         let header = MessageHeader {
             channel_id: self.octomap,
             sequence: self.sequence,

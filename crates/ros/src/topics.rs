@@ -11,8 +11,14 @@ pub const PREDICTED_TOPIC: &str = "/froctomap/predicted";
 /// `CUBE_LIST` per depth as `octomap_server`'s `occupied_cells_vis_array`), coloured by
 /// their probability: see [`encode_occupied_marker_array_cdr`](crate::encode_occupied_marker_array_cdr).
 pub const DYNAMIC_TOPIC: &str = "/froctomap/dynamic";
-/// The exported maps' occupied voxels (`foxglove.PointCloud`, JSON).
+/// The exported maps' occupied cells for rviz2 (`visualization_msgs/msg/MarkerArray`, one
+/// `CUBE_LIST` per depth, as `octomap_server`'s `occupied_cells_vis_array`).
+pub const OCCUPIED_CELLS_TOPIC: &str = "/froctomap/occupied_cells_vis_array";
+/// The exported maps' occupied voxels (`foxglove.PointCloud`, JSON; profile `foxglove`).
 pub const POINT_CLOUD_TOPIC: &str = "/froctomap/occupied_voxels";
+/// The exported maps' occupied cells as Foxglove cubes sized by the cell
+/// (`foxglove.SceneUpdate`, JSON; profile `foxglove`).
+pub const SCENE_TOPIC: &str = "/froctomap/occupied_cubes";
 /// The exported maps' occupied voxels as `sensor_msgs/msg/PointCloud2`.
 pub const POINT_CLOUD2_TOPIC: &str = "/froctomap/occupied_voxels_pc2";
 /// The simulated time (`rosgraph_msgs/msg/Clock`) a node with `use_sim_time` follows.

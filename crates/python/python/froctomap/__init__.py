@@ -331,6 +331,10 @@ def export(
     format: Optional[str] = None,
     prefix: str = "map",
     overwrite: bool = False,
+    profile: str = "ros2",
+    frame_id: str = "map",
+    topic_prefix: str = "",
+    threshold: float = 0.5,
     progress: Union[bool, ProgressCallback, None] = True,
 ) -> Dict[str, Any]:
     """Writes maps of a FROctomap file at ``start``, ``start + every``, ... up to ``end``
@@ -338,13 +342,18 @@ def export(
     ``output``, one ``.bt``/``.ot`` file per map (``format``) and a ``manifest.csv``; or,
     for ``format="mcap"`` or an output named ``*.mcap``, into one MCAP file. ``mode``:
     ``"predict"``, ``"retrieve"`` or ``"auto"`` (retrieved inside the file's span,
-    predicted outside). Returns ``{"files": [[path, time], ...], "manifest", "bytes", ...}``.
+    predicted outside). An MCAP file takes ``profile`` (``"ros2"``: CDR messages only;
+    ``"foxglove"``: also Foxglove's point cloud and cubes), ``frame_id``, ``topic_prefix``
+    (``"/robot1"``: ``/robot1/octomap_binary``...) and ``threshold`` (predicted cells drawn
+    where p > threshold), as ``export --profile/--frame-id/--topic-prefix/--threshold``
+    (docs/ROS.md). Returns ``{"files": [[path, time], ...], "manifest", "bytes", ...}``.
     """
     callback = _progress.reporter(progress)
     try:
         return _native.export(
             file, output, start=start, end=end, every=every, mode=mode, format=format,
-            prefix=prefix, overwrite=overwrite, progress=callback,
+            prefix=prefix, overwrite=overwrite, profile=profile, frame_id=frame_id,
+            topic_prefix=topic_prefix, threshold=threshold, progress=callback,
         )
     finally:
         _progress.close(callback)
