@@ -26,7 +26,7 @@ pub enum NodeError {
         reason: String,
     },
     /// The `.froct` file could not be read or its map predicted.
-    #[error("{}", path.display())]
+    #[error("{}: {source}", path.display())]
     Froct {
         /// The file.
         path: PathBuf,

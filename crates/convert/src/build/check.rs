@@ -142,10 +142,9 @@ impl InputCheck<'_> {
                     source: Arc::new(refusal),
                 });
             }
-            checked.skipped.push((
-                inputs[i].path.clone(),
-                froctomap_core::error_message(&refusal),
-            ));
+            checked
+                .skipped
+                .push((inputs[i].path.clone(), refusal.to_string()));
             checked.usable[i] = false;
         }
         refuse_mostly_skipped(
