@@ -544,24 +544,24 @@ fn living_services_answer_as_upstream(
 /// Whether octomap-python finds a node at each of `probes` in any of `maps`.
 fn found_by_octomap_python(probes: &[[f64; 3]], maps: &[PathBuf]) -> Vec<bool> {
     let script = r#"
-    import json, sys, numpy as np, octomap
-    points = json.loads(sys.argv[1])
-    trees = []
-    for path in sys.argv[2:]:
-        if path.endswith(".bt"):
-            tree = octomap.OcTree(0.1)
-            assert tree.readBinary(path.encode())
-        else:
-            tree = octomap.OcTree.read(path.encode())
-        trees.append(tree)
-    def found(tree, p):
-        try:
-            tree.search(np.array(p, dtype=float)).getValue()
-            return True
-        except Exception:
-            return False
-    print(json.dumps([any(found(t, p) for t in trees) for p in points]))
-    "#;
+import json, sys, numpy as np, octomap
+points = json.loads(sys.argv[1])
+trees = []
+for path in sys.argv[2:]:
+    if path.endswith(".bt"):
+        tree = octomap.OcTree(0.1)
+        assert tree.readBinary(path.encode())
+    else:
+        tree = octomap.OcTree.read(path.encode())
+    trees.append(tree)
+def found(tree, p):
+    try:
+        tree.search(np.array(p, dtype=float)).getValue()
+        return True
+    except Exception:
+        return False
+print(json.dumps([any(found(t, p) for t in trees) for p in points]))
+"#;
     let out = Command::new(octomap_python())
         .args(["-c", script])
         .arg(serde_json::json!(probes).to_string())

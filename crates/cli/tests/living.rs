@@ -374,7 +374,8 @@ fn export_to_mcap_matches_the_bt_export(series: &Living, out: &Path) {
         String::from_utf8_lossy(&read.stderr)
     );
     let report: Value = serde_json::from_slice(&read.stdout).unwrap();
-    let clouds = report["cloud"].as_array().unwrap();
+    // The default (`ros2`) profile's point cloud: `sensor_msgs/PointCloud2` in CDR.
+    let clouds = report["cloud2"].as_array().unwrap();
     assert_eq!(clouds.len(), 31);
     for cloud in clouds {
         assert_eq!(cloud["same_voxels"], true, "{cloud}");

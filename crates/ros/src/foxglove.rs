@@ -12,10 +12,10 @@
 
 use crate::encode::encode_point_cloud2_cdr;
 use crate::error::McapWriteError;
-use crate::markers::cell_box;
+use crate::markers::{cell_box, shade};
 use base64::Engine;
 use froctomap_core::{voxels_per_node, MortonCode, Timestamp};
-use froctomap_formats::{CellShade, ExportedKind, OccupiedCell};
+use froctomap_formats::{ExportedKind, OccupiedCell};
 
 /// The schema name Foxglove recognises.
 pub const POINT_CLOUD_SCHEMA: &str = "foxglove.PointCloud";
@@ -294,43 +294,5 @@ pub fn kind_name(kind: ExportedKind) -> &'static str {
     match kind {
         ExportedKind::Retrieved { .. } => "retrieved",
         ExportedKind::Predicted => "predicted",
-    }
-}
-
-/// A cell's colour, `p` and `dynamic` (see the module's documentation).
-pub(crate) fn shade(shade: CellShade) -> ([u8; 4], f32, f32) {
-    match shade {
-        CellShade::Probability(p) => (ramp(p), p, f32::NAN),
-        CellShade::Dynamic => ([230, 85, 13, 255], 1.0, 1.0),
-        _ => ([150, 150, 150, 255], 1.0, 0.0),
-    }
-}
-
-/// Purple (p = 0.5) through teal to yellow (p = 1), linear between three stops.
-fn ramp(p: f32) -> [u8; 4] {
-    const STOPS: [[f32; 3]; 3] = [
-        [68.0, 1.0, 84.0],
-        [33.0, 145.0, 140.0],
-        [253.0, 231.0, 37.0],
-    ];
-    let t = ((p - 0.5) * 2.0).clamp(0.0, 1.0) * 2.0;
-    let (low, high, f) = if t < 1.0 {
-        (STOPS[0], STOPS[1], t)
-    } else {
-        (STOPS[1], STOPS[2], t - 1.0)
-    };
-    let mix = |i: usize| (low[i] + (high[i] - low[i]) * f).round() as u8;
-    [mix(0), mix(1), mix(2), 255]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_ramp_runs_from_purple_to_yellow() {
-        assert_eq!(ramp(0.5), [68, 1, 84, 255]);
-        assert_eq!(ramp(0.75), [33, 145, 140, 255]);
-        assert_eq!(ramp(1.0), [253, 231, 37, 255]);
     }
 }

@@ -11,9 +11,8 @@
 //! `texture`, `uv_coordinates` and `mesh_file`, left empty).
 
 use crate::encode::{too_long, CdrWriter};
-use crate::foxglove::shade;
 use froctomap_core::MortonCode;
-use froctomap_formats::OccupiedCell;
+use froctomap_formats::{CellShade, OccupiedCell};
 
 /// The ROS 2 type name of the messages [`encode_occupied_marker_array_cdr`] writes.
 pub const MARKER_ARRAY_TYPE: &str = "visualization_msgs/msg/MarkerArray";
@@ -115,4 +114,42 @@ pub(crate) fn cell_box(cell: &OccupiedCell, resolution: f64) -> ([f64; 3], f64) 
         [centre(key.x), centre(key.y), centre(key.z)],
         side * resolution,
     )
+}
+
+/// A cell's colour, `p` and `dynamic` (the colours the `foxglove` module's documentation describes).
+pub(crate) fn shade(shade: CellShade) -> ([u8; 4], f32, f32) {
+    match shade {
+        CellShade::Probability(p) => (ramp(p), p, f32::NAN),
+        CellShade::Dynamic => ([230, 85, 13, 255], 1.0, 1.0),
+        _ => ([150, 150, 150, 255], 1.0, 0.0),
+    }
+}
+
+/// Purple (p = 0.5) through teal to yellow (p = 1), linear between three stops.
+fn ramp(p: f32) -> [u8; 4] {
+    const STOPS: [[f32; 3]; 3] = [
+        [68.0, 1.0, 84.0],
+        [33.0, 145.0, 140.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let t = ((p - 0.5) * 2.0).clamp(0.0, 1.0) * 2.0;
+    let (low, high, f) = if t < 1.0 {
+        (STOPS[0], STOPS[1], t)
+    } else {
+        (STOPS[1], STOPS[2], t - 1.0)
+    };
+    let mix = |i: usize| (low[i] + (high[i] - low[i]) * f).round() as u8;
+    [mix(0), mix(1), mix(2), 255]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ramp_runs_from_purple_to_yellow() {
+        assert_eq!(ramp(0.5), [68, 1, 84, 255]);
+        assert_eq!(ramp(0.75), [33, 145, 140, 255]);
+        assert_eq!(ramp(1.0), [253, 231, 37, 255]);
+    }
 }
