@@ -20,7 +20,7 @@ use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
     group_thousands, parse_duration, AppendOptions, CommitEvery, Context, Opened, RecordError,
-    RecordEvent, RecordOptions, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
+    RecordEvent, RecordOptions, RecordSummary, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -196,49 +196,9 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     let context = &args
         .times
         .context(ui, args.skip_bad, Some(spool_parent.clone()));
-    let mut options = RecordOptions {
-        commit_every: args.commit_every,
-        append: AppendOptions {
-            skip_bad: args.skip_bad,
-            allow_mostly_skipped: true,
-            input_format: args.input_format.clone(),
-            backend: Some(ui.backend),
-            memory: args.spill.memory,
-            tmp_dir: args.spill.tmp_dir.clone(),
-            ..AppendOptions::default()
-        },
-        spool_dir: Some(spool_parent),
-        compact: !args.no_compact,
-    };
-    for assignment in &args.model_option {
-        options
-            .append
-            .config
-            .options
-            .set_assignment(assignment)
-            .context("--model-option")?;
-    }
+    let options = record_options(ui, args, spool_parent)?;
     let mut recorder = Recorder::open(context, &args.file, options)?;
-    match recorder.opened() {
-        Opened::Missing => ui.note(&format!(
-            "{} does not exist: the first commit's maps become its base (a build with the default model, fremen-periods, lossless)",
-            escaped(args.file.display())
-        )),
-        Opened::Converted => ui.note(&format!(
-            "converting {} to format 2.0 (older releases cannot read it)",
-            escaped(args.file.display())
-        )),
-        _ => {}
-    }
-    ui.note(&format!(
-        "recording into {} (last sample {}), committing every {}",
-        escaped(args.file.display()),
-        recorder.last_time().map_or("none".to_string(), iso8601),
-        match args.commit_every {
-            CommitEvery::Maps(n) => format!("{n} maps"),
-            CommitEvery::Time(t) => format!("{:.3} s", t.as_secs_f64()),
-        }
-    ));
+    announce(ui, args, &recorder);
     // The first failure to print a commit line (standard output closed), said after the
     // call that committed.
     let printing: Rc<RefCell<Option<std::io::Error>>> = Rc::default();
@@ -284,6 +244,63 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
     if STOP.load(Ordering::SeqCst) {
         ui.note("stopped by a signal: the maps received are committed");
     }
+    say_recorded(ui, &summary);
+    Ok(())
+}
+
+/// The recorder's settings from the command line.
+fn record_options(ui: &Ui, args: &RecordArgs, spool_parent: PathBuf) -> Result<RecordOptions> {
+    let mut options = RecordOptions {
+        commit_every: args.commit_every,
+        append: AppendOptions {
+            skip_bad: args.skip_bad,
+            allow_mostly_skipped: true,
+            input_format: args.input_format.clone(),
+            backend: Some(ui.backend),
+            memory: args.spill.memory,
+            tmp_dir: args.spill.tmp_dir.clone(),
+            ..AppendOptions::default()
+        },
+        spool_dir: Some(spool_parent),
+        compact: !args.no_compact,
+    };
+    for assignment in &args.model_option {
+        options
+            .append
+            .config
+            .options
+            .set_assignment(assignment)
+            .context("--model-option")?;
+    }
+    Ok(options)
+}
+
+/// What the file is and how it will be committed to, before the first map.
+fn announce(ui: &Ui, args: &RecordArgs, recorder: &Recorder<'_>) {
+    match recorder.opened() {
+        Opened::Missing => ui.note(&format!(
+            "{} does not exist: the first commit's maps become its base (a build with the default model, fremen-periods, lossless)",
+            escaped(args.file.display())
+        )),
+        Opened::Converted => ui.note(&format!(
+            "converting {} to format 2.0 (older releases cannot read it)",
+            escaped(args.file.display())
+        )),
+        _ => {}
+    }
+    ui.note(&format!(
+        "recording into {} (last sample {}), committing every {}",
+        escaped(args.file.display()),
+        recorder.last_time().map_or("none".to_string(), iso8601),
+        match args.commit_every {
+            CommitEvery::Maps(n) => format!("{n} maps"),
+            CommitEvery::Time(t) => format!("{:.3} s", t.as_secs_f64()),
+        }
+    ));
+}
+
+/// The last line: what was committed and what was left out.
+fn say_recorded(ui: &Ui, summary: &RecordSummary) {
     ui.note(&format!(
         "recorded {} maps in {} segment(s); {} not later than the last one taken were skipped{}{}",
         summary.committed_maps,
@@ -298,7 +315,6 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
             n => format!("; compacted {n} time(s)"),
         }
     ));
-    Ok(())
 }
 
 /// The recorder and what the command adds to it: the printing of its events.

@@ -176,10 +176,6 @@ impl LivingReader {
             path: self.path.clone(),
             violation: v,
         };
-        let io = |source| FileError::Io {
-            path: self.path.clone(),
-            source,
-        };
         if u64::from(root.segment_count) > self.limits.max_segments {
             return Err(invalid(FormatViolation::Limit {
                 what: "segments",
@@ -197,40 +193,14 @@ impl LivingReader {
                 "the committed state shrank or its base changed under an open reader",
             )));
         }
-        // Newest first, back to the newest segment held.
         let mut budget = self.index_budget;
-        let mut raws = Vec::new();
-        let (mut at, mut limit) = (root.last_segment, root.committed_len);
-        for k in (held.segment_count..root.segment_count).rev() {
-            let raw = RawRecord::read(self.source.as_ref(), at, limit, &mut budget)
-                .map_err(io)?
-                .map_err(invalid)?;
-            if raws.is_empty() && raw.end() != root.committed_len {
-                return Err(invalid(corrupt(
-                    "segment record",
-                    "the newest segment does not end at the committed length",
-                )));
-            }
-            let expected_previous = (k == held.segment_count).then_some(held.last_segment);
-            let chained = match expected_previous {
-                Some(previous) => raw.previous == previous,
-                None => raw.previous >= self.root.base_len && raw.previous < at,
-            };
-            if !chained {
-                return Err(invalid(corrupt(
-                    "segment record",
-                    format!("segment {k} points to an impossible previous segment"),
-                )));
-            }
-            (at, limit) = (raw.previous, raw.offset);
-            raws.push(raw);
-        }
+        let raws = self.read_new_records(&root, &mut budget)?;
         let header = self.base.header().clone();
         let mut tiles_from = held.committed_len;
         let mut samples = u64::from(held.sample_count);
         let mut last_instant = self.last_instant();
         let mut added = Vec::with_capacity(raws.len());
-        for raw in raws.into_iter().rev() {
+        for raw in raws {
             if u64::from(raw.first_sample) != samples {
                 return Err(invalid(corrupt(
                     "segment record",
@@ -265,25 +235,7 @@ impl LivingReader {
                     limit: self.limits.max_samples,
                 }));
             }
-            let base_tiles = self.base.tiles();
-            for (entry, patch) in record.tiles.iter().zip(&record.patches) {
-                let Some(remainder) = patch else { continue };
-                let Ok(base) = base_tiles.binary_search_by_key(&entry.code, |t| t.code) else {
-                    return Err(invalid(corrupt(
-                        "segment patch tiles",
-                        format!("patch tile {:#x} has no base tile", entry.code.0),
-                    )));
-                };
-                if remainder.ranks_named() > u64::from(base_tiles[base].cell_count) {
-                    return Err(invalid(corrupt(
-                        "segment remainder masks",
-                        format!(
-                            "patch tile {:#x} names base cells its base tile does not have",
-                            entry.code.0
-                        ),
-                    )));
-                }
-            }
+            self.check_patches(&record)?;
             last_instant = record.axis.end();
             tiles_from = record.end;
             let segment_header = Header {
@@ -312,6 +264,71 @@ impl LivingReader {
         self.index_budget = budget;
         self.root = root;
         self.slot = slot;
+        Ok(())
+    }
+
+    /// The records of the segments `root` commits beyond those held, oldest first, each
+    /// checked to point to the one before it.
+    fn read_new_records(&self, root: &Root, budget: &mut u64) -> Result<Vec<RawRecord>, FileError> {
+        let invalid = |v| self.invalid(v);
+        let io = |source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let held = self.root;
+        // Newest first, back to the newest segment held.
+        let mut raws = Vec::new();
+        let (mut at, mut limit) = (root.last_segment, root.committed_len);
+        for k in (held.segment_count..root.segment_count).rev() {
+            let raw = RawRecord::read(self.source.as_ref(), at, limit, budget)
+                .map_err(io)?
+                .map_err(invalid)?;
+            if raws.is_empty() && raw.end() != root.committed_len {
+                return Err(invalid(corrupt(
+                    "segment record",
+                    "the newest segment does not end at the committed length",
+                )));
+            }
+            let expected_previous = (k == held.segment_count).then_some(held.last_segment);
+            let chained = match expected_previous {
+                Some(previous) => raw.previous == previous,
+                None => raw.previous >= self.root.base_len && raw.previous < at,
+            };
+            if !chained {
+                return Err(invalid(corrupt(
+                    "segment record",
+                    format!("segment {k} points to an impossible previous segment"),
+                )));
+            }
+            (at, limit) = (raw.previous, raw.offset);
+            raws.push(raw);
+        }
+        raws.reverse();
+        Ok(raws)
+    }
+
+    /// A segment's patch tiles each patch a base tile, naming only cells that tile has.
+    fn check_patches(&self, record: &SegmentRecord) -> Result<(), FileError> {
+        let invalid = |v| self.invalid(v);
+        let base_tiles = self.base.tiles();
+        for (entry, patch) in record.tiles.iter().zip(&record.patches) {
+            let Some(remainder) = patch else { continue };
+            let Ok(base) = base_tiles.binary_search_by_key(&entry.code, |t| t.code) else {
+                return Err(invalid(corrupt(
+                    "segment patch tiles",
+                    format!("patch tile {:#x} has no base tile", entry.code.0),
+                )));
+            };
+            if remainder.ranks_named() > u64::from(base_tiles[base].cell_count) {
+                return Err(invalid(corrupt(
+                    "segment remainder masks",
+                    format!(
+                        "patch tile {:#x} names base cells its base tile does not have",
+                        entry.code.0
+                    ),
+                )));
+            }
+        }
         Ok(())
     }
 
