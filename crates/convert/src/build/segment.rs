@@ -400,16 +400,7 @@ impl BaseJoin<'_> {
         else {
             return Ok(Err(cells));
         };
-        let mut base_cells: Vec<Piece<(u32, Frozen)>> = Vec::new();
-        self.base
-            .visit_frozen_predictions(index, |start, depth, prediction| {
-                let owned = match prediction {
-                    FrozenPrediction::State(state) => Frozen::State(state),
-                    FrozenPrediction::Model(parameters) => Frozen::Model(Arc::from(parameters)),
-                };
-                let rank = base_cells.len() as u32;
-                base_cells.push((start, depth, (rank, owned)));
-            })?;
+        let base_cells = self.frozen_cells(index)?;
         let ranks = base_cells.len();
         let indexed: Vec<Piece<usize>> = cells
             .iter()
@@ -492,53 +483,12 @@ impl BaseJoin<'_> {
             }
         }
         close(group, &mut votes);
-        // The default: the mask most base cells take.
-        let mut takers = vec![0usize; candidates.len()];
-        for c in choice.iter().flatten() {
-            takers[*c] += 1;
-        }
-        let default = (0..candidates.len()).max_by_key(|&c| takers[c]);
-        // Per base cell, what observes its remainder (`None`: no sample); a base cell
-        // without a predicted piece has no remainder and takes its neighbour's, so that
-        // runs stay long.
-        let mut resolved: Vec<Option<usize>> = Vec::with_capacity(ranks);
-        for rank in 0..ranks {
-            let value = if unobserved[rank] {
-                None
-            } else {
-                match choice[rank] {
-                    Some(c) => Some(c),
-                    None => resolved.last().copied().unwrap_or(default),
-                }
-            };
-            resolved.push(value);
-        }
-        let mut extras: Vec<usize> = Vec::new();
-        let mut runs: Vec<RemainderRun> = Vec::new();
-        for (rank, &value) in resolved.iter().enumerate() {
-            if value.is_some() && value == default {
-                continue;
-            }
-            let mask = match value {
-                None => 0,
-                Some(c) => match extras.iter().position(|&e| e == c) {
-                    Some(e) => e as u32 + 1,
-                    None => {
-                        extras.push(c);
-                        extras.len() as u32
-                    }
-                },
-            };
-            let rank = rank as u32;
-            match runs.last_mut() {
-                Some(run) if run.first + run.len == rank && run.mask == mask => run.len += 1,
-                _ => runs.push(RemainderRun {
-                    first: rank,
-                    len: 1,
-                    mask,
-                }),
-            }
-        }
+        let Resolution {
+            default,
+            resolved,
+            extras,
+            runs,
+        } = resolve_remainders(&choice, &unobserved, candidates.len());
         let mask_of = |c: usize| candidates[c].clone();
         let remainder = TileRemainder {
             default: default.and_then(mask_of),
@@ -571,6 +521,96 @@ impl BaseJoin<'_> {
             differing.extend(first);
         }
         Ok(Ok((differing, remainder)))
+    }
+
+    /// The base tile's cells with their ranks and frozen predictions, owned.
+    fn frozen_cells(&self, index: usize) -> Result<Vec<Piece<(u32, Frozen)>>, ConvertError> {
+        let mut base_cells: Vec<Piece<(u32, Frozen)>> = Vec::new();
+        self.base
+            .visit_frozen_predictions(index, |start, depth, prediction| {
+                let owned = match prediction {
+                    FrozenPrediction::State(state) => Frozen::State(state),
+                    FrozenPrediction::Model(parameters) => Frozen::Model(Arc::from(parameters)),
+                };
+                let rank = base_cells.len() as u32;
+                base_cells.push((start, depth, (rank, owned)));
+            })?;
+        Ok(base_cells)
+    }
+}
+
+/// How a patch tile's base cells' remainders are observed.
+struct Resolution {
+    /// The candidate mask most base cells take.
+    default: Option<usize>,
+    /// Per base cell, the candidate observing its remainder (`None`: no sample).
+    resolved: Vec<Option<usize>>,
+    /// The candidates other than the default that some base cell takes, in first use.
+    extras: Vec<usize>,
+    /// The base cells not taking the default, as runs of ranks.
+    runs: Vec<RemainderRun>,
+}
+
+/// The default mask, each base cell's, and the runs of those that differ, from the mask
+/// each base cell's pieces voted for (`choice`) among `candidates`.
+fn resolve_remainders(
+    choice: &[Option<usize>],
+    unobserved: &[bool],
+    candidates: usize,
+) -> Resolution {
+    let ranks = choice.len();
+    // The default: the mask most base cells take.
+    let mut takers = vec![0usize; candidates];
+    for c in choice.iter().flatten() {
+        takers[*c] += 1;
+    }
+    let default = (0..candidates).max_by_key(|&c| takers[c]);
+    // Per base cell, what observes its remainder (`None`: no sample); a base cell
+    // without a predicted piece has no remainder and takes its neighbour's, so that
+    // runs stay long.
+    let mut resolved: Vec<Option<usize>> = Vec::with_capacity(ranks);
+    for rank in 0..ranks {
+        let value = if unobserved[rank] {
+            None
+        } else {
+            match choice[rank] {
+                Some(c) => Some(c),
+                None => resolved.last().copied().unwrap_or(default),
+            }
+        };
+        resolved.push(value);
+    }
+    let mut extras: Vec<usize> = Vec::new();
+    let mut runs: Vec<RemainderRun> = Vec::new();
+    for (rank, &value) in resolved.iter().enumerate() {
+        if value.is_some() && value == default {
+            continue;
+        }
+        let mask = match value {
+            None => 0,
+            Some(c) => match extras.iter().position(|&e| e == c) {
+                Some(e) => e as u32 + 1,
+                None => {
+                    extras.push(c);
+                    extras.len() as u32
+                }
+            },
+        };
+        let rank = rank as u32;
+        match runs.last_mut() {
+            Some(run) if run.first + run.len == rank && run.mask == mask => run.len += 1,
+            _ => runs.push(RemainderRun {
+                first: rank,
+                len: 1,
+                mask,
+            }),
+        }
+    }
+    Resolution {
+        default,
+        resolved,
+        extras,
+        runs,
     }
 }
 
