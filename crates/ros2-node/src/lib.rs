@@ -432,7 +432,6 @@ impl Node {
     /// Joins the domain, subscribes the map topic (reliable, transient-local: latched maps
     /// are received too) and offers [`PREDICTED_TOPIC`] (reliable, transient-local).
     pub fn new(options: &NodeOptions) -> Result<Self, NodeError> {
-        let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
         let ros = &options.names;
         let names = ResolvedNames {
             node: ros.fully_qualified_node_name(),
@@ -443,17 +442,7 @@ impl Node {
             probability_at: ros.resolve(PROBABILITY_AT_NAME)?,
             clock: ros.resolve(froctomap_ros::CLOCK_TOPIC)?,
         };
-        let mut builder = DomainParticipantBuilder::new(options.domain_id);
-        match &options.network {
-            Network::Loopback => {
-                builder = builder
-                    .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
-                    .same_host_loopback(true);
-            }
-            Network::Only(addresses) => builder = builder.with_only_networks(addresses.clone()),
-            Network::All => {}
-        }
-        let participant = builder.build().map_err(dds)?;
+        let participant = join_domain(options)?;
         let qos = latched_qos();
         let reader = raw_reader(&participant, &names.topic, OCTOMAP_DDS_TYPE, &qos)?;
         let predicted = raw_writer(&participant, &names.predicted, OCTOMAP_DDS_TYPE, &qos)?;
@@ -490,18 +479,10 @@ impl Node {
             ParameterValue::bool(options.use_sim_time),
             "now is the time /clock says",
         );
-        let clock = if options.use_sim_time {
-            // As rclcpp's clock QoS: the last one, best effort (reads reliable writers too).
-            let qos = QosPolicyBuilder::new()
-                .reliability(Reliability::BestEffort)
-                .durability(Durability::Volatile)
-                .history(History::KeepLast { depth: 1 })
-                .build();
-            let reader = raw_reader(&participant, &names.clock, CLOCK_DDS_TYPE, &qos)?;
-            Some((reader, std::cell::Cell::new(None)))
-        } else {
-            None
-        };
+        let clock = options
+            .use_sim_time
+            .then(|| sim_clock(&participant, &names.clock))
+            .transpose()?;
         let graph = graph_entry(
             options.graph,
             participant.guid(),
@@ -523,34 +504,7 @@ impl Node {
                     .map(|s| s.replies.guid()),
             ),
         );
-        // The graph entry: reliable, transient-local, the last one, as the RMWs publish it.
-        let graph_qos = QosPolicyBuilder::new()
-            .reliability(Reliability::Reliable {
-                max_blocking_time: rustdds::Duration::from_millis(100),
-            })
-            .durability(Durability::TransientLocal)
-            .history(History::KeepLast { depth: 1 })
-            .build();
-        let graph_topic = participant
-            .create_topic(
-                GRAPH_TOPIC.to_string(),
-                GRAPH_DDS_TYPE.to_string(),
-                &graph_qos,
-                TopicKind::NoKey,
-            )
-            .map_err(dds)?;
-        let graph_writer = participant
-            .create_publisher(&graph_qos)
-            .and_then(|p| {
-                p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&graph_topic, Some(graph_qos.clone()))
-            })
-            .map_err(dds)?;
-        graph_writer
-            .write(graph, None)
-            .map_err(|e| NodeError::Publish {
-                topic: GRAPH_TOPIC.to_string(),
-                reason: e.to_string(),
-            })?;
+        let graph_writer = announce(&participant, graph)?;
         Ok(Self {
             participant,
             _graph_writer: graph_writer,
@@ -970,6 +924,72 @@ fn raw_topic(
             TopicKind::NoKey,
         )
         .map_err(|e| NodeError::Dds(e.to_string()))
+}
+
+/// The DDS participant on the options' domain and networks.
+fn join_domain(options: &NodeOptions) -> Result<DomainParticipant, NodeError> {
+    let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
+    let mut builder = DomainParticipantBuilder::new(options.domain_id);
+    match &options.network {
+        Network::Loopback => {
+            builder = builder
+                .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+                .same_host_loopback(true);
+        }
+        Network::Only(addresses) => builder = builder.with_only_networks(addresses.clone()),
+        Network::All => {}
+    }
+    builder.build().map_err(dds)
+}
+
+/// `/clock`'s reader, with no time yet.
+fn sim_clock(participant: &DomainParticipant, topic: &str) -> Result<SimClock, NodeError> {
+    // As rclcpp's clock QoS: the last one, best effort (reads reliable writers too).
+    let qos = QosPolicyBuilder::new()
+        .reliability(Reliability::BestEffort)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 1 })
+        .build();
+    let reader = raw_reader(participant, topic, CLOCK_DDS_TYPE, &qos)?;
+    Ok((reader, std::cell::Cell::new(None)))
+}
+
+/// Publishes the node's graph entry (`graph`, serialized) and keeps its writer, whose
+/// lifetime is the entry's.
+fn announce(
+    participant: &DomainParticipant,
+    graph: Vec<u8>,
+) -> Result<DataWriter<Vec<u8>, RawCdr>, NodeError> {
+    let dds = |e: rustdds::dds::CreateError| NodeError::Dds(e.to_string());
+    // The graph entry: reliable, transient-local, the last one, as the RMWs publish it.
+    let graph_qos = QosPolicyBuilder::new()
+        .reliability(Reliability::Reliable {
+            max_blocking_time: rustdds::Duration::from_millis(100),
+        })
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
+        .build();
+    let graph_topic = participant
+        .create_topic(
+            GRAPH_TOPIC.to_string(),
+            GRAPH_DDS_TYPE.to_string(),
+            &graph_qos,
+            TopicKind::NoKey,
+        )
+        .map_err(dds)?;
+    let graph_writer = participant
+        .create_publisher(&graph_qos)
+        .and_then(|p| {
+            p.create_datawriter_no_key::<Vec<u8>, RawCdr>(&graph_topic, Some(graph_qos.clone()))
+        })
+        .map_err(dds)?;
+    graph_writer
+        .write(graph, None)
+        .map_err(|e| NodeError::Publish {
+            topic: GRAPH_TOPIC.to_string(),
+            reason: e.to_string(),
+        })?;
+    Ok(graph_writer)
 }
 
 /// A reader of serialized messages of `dds_type` on the ROS topic `ros_topic`.
