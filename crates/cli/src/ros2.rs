@@ -332,51 +332,14 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
     if log::set_logger(&STDERR_LOG).is_ok() {
         log::set_max_level(log::LevelFilter::Warn);
     }
-    let mut options = NodeOptions::new(domain_id_from_env()?);
-    options.topic = args.topic.clone();
-    options.network = network(&args.network)?;
-    options.service_mapping = args.service_mapping;
-    options.max_message_bytes = args.max_message_bytes;
-    options.frame_id = args.frame_id.clone();
-    options.parameters = parameters(args); // The node adds use_sim_time.
-    options.use_sim_time = use_sim_time;
-    options.graph = args.ros_distro;
-    options.names = ros;
+    let options = node_options(args, ros, use_sim_time)?;
     let node = Node::new(&options)?;
-    let names = node.names();
-    eprintln!(
-        "froctomap node {} on ROS domain {}: receiving {}, publishing {} and {} from {} every {}{}, serving {} and {} ({:?} mapping)",
-        names.node,
-        node.domain_id(),
-        names.topic,
-        names.predicted,
-        names.dynamic,
-        args.file.display(),
-        args.publish_every,
-        if use_sim_time { " of /clock's time" } else { "" },
-        names.get_octomap_at,
-        names.probability_at,
-        args.service_mapping
-    );
+    say_started(&node, args, use_sim_time);
     let mut frame_id = args.frame_id.clone().unwrap_or_else(|| "map".to_string());
     let mut predicted = PredictedPublisher::new(&args.file, &frame_id);
     let mut services = FileServices::new(&args.file, &frame_id);
     #[cfg(feature = "foxglove")]
-    let mut foxglove = match args.foxglove {
-        Some(port) => {
-            let view =
-                crate::foxglove::FoxgloveView::start(&args.foxglove_address.to_string(), port)?;
-            // Port 0 asks for a free one: the line says which (scripts read it); an IPv6
-            // address in brackets.
-            eprintln!(
-                "Foxglove WebSocket server on ws://{}: the predicted map on {}",
-                std::net::SocketAddr::new(args.foxglove_address, view.port()),
-                froctomap_ros::POINT_CLOUD_TOPIC
-            );
-            Some(view)
-        }
-        None => None,
-    };
+    let mut foxglove = start_foxglove(args)?;
     let context = Context::with_default_plugins();
     let mut recording = if args.no_record {
         None
@@ -443,17 +406,77 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
             }
         }
     }
-    if let Some(mut sink) = recording {
-        // Maps DDS already delivered (and acknowledged) are taken before the last commit:
-        // one pass takes them all (the reader keeps 16, `MAPS_PER_PASS`).
-        node.receive_into(&mut sink, Duration::ZERO)?;
-        let (thinned, lost) = (sink.thinned(), sink.lost());
-        let summary = sink.finish()?;
-        eprintln!(
-            "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out, {} lost to failed commits",
-            summary.committed_maps, summary.commits, summary.older, thinned, summary.bad, lost
-        );
+    if let Some(sink) = recording {
+        finish_recording(&node, sink)?;
     }
+    Ok(())
+}
+
+/// The node's options from the command line and the ROS arguments.
+fn node_options(args: &Ros2Args, ros: RosArgs, use_sim_time: bool) -> anyhow::Result<NodeOptions> {
+    let mut options = NodeOptions::new(domain_id_from_env()?);
+    options.topic = args.topic.clone();
+    options.network = network(&args.network)?;
+    options.service_mapping = args.service_mapping;
+    options.max_message_bytes = args.max_message_bytes;
+    options.frame_id = args.frame_id.clone();
+    options.parameters = parameters(args); // The node adds use_sim_time.
+    options.use_sim_time = use_sim_time;
+    options.graph = args.ros_distro;
+    options.names = ros;
+    Ok(options)
+}
+
+/// The node's first line: its names, its file and its period.
+fn say_started(node: &Node, args: &Ros2Args, use_sim_time: bool) {
+    let names = node.names();
+    eprintln!(
+        "froctomap node {} on ROS domain {}: receiving {}, publishing {} and {} from {} every {}{}, serving {} and {} ({:?} mapping)",
+        names.node,
+        node.domain_id(),
+        names.topic,
+        names.predicted,
+        names.dynamic,
+        args.file.display(),
+        args.publish_every,
+        if use_sim_time { " of /clock's time" } else { "" },
+        names.get_octomap_at,
+        names.probability_at,
+        args.service_mapping
+    );
+}
+
+/// `--foxglove PORT`'s WebSocket server, saying where it listens.
+#[cfg(feature = "foxglove")]
+fn start_foxglove(args: &Ros2Args) -> anyhow::Result<Option<crate::foxglove::FoxgloveView>> {
+    Ok(match args.foxglove {
+        Some(port) => {
+            let view =
+                crate::foxglove::FoxgloveView::start(&args.foxglove_address.to_string(), port)?;
+            // Port 0 asks for a free one: the line says which (scripts read it); an IPv6
+            // address in brackets.
+            eprintln!(
+                "Foxglove WebSocket server on ws://{}: the predicted map on {}",
+                std::net::SocketAddr::new(args.foxglove_address, view.port()),
+                froctomap_ros::POINT_CLOUD_TOPIC
+            );
+            Some(view)
+        }
+        None => None,
+    })
+}
+
+/// Takes the maps DDS already delivered, commits and says what was recorded.
+fn finish_recording(node: &Node, mut sink: RecordingSink<'_>) -> anyhow::Result<()> {
+    // Maps DDS already delivered (and acknowledged) are taken before the last commit:
+    // one pass takes them all (the reader keeps 16, `MAPS_PER_PASS`).
+    node.receive_into(&mut sink, Duration::ZERO)?;
+    let (thinned, lost) = (sink.thinned(), sink.lost());
+    let summary = sink.finish()?;
+    eprintln!(
+        "stopped: {} maps recorded in {} commit(s); {} not later than the last one and {} thinned by --min-interval skipped, {} bad left out, {} lost to failed commits",
+        summary.committed_maps, summary.commits, summary.older, thinned, summary.bad, lost
+    );
     Ok(())
 }
 
