@@ -17,6 +17,7 @@ use common::{lines, ok, random_domain, s, wait_for, Reap};
 use froctomap_test_support::{octomap_fixture, octomap_python, scratch};
 use std::collections::BTreeMap;
 use std::net::TcpStream;
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 use tungstenite::client::IntoClientRequest as _;
@@ -111,6 +112,49 @@ fn first_message(
     data
 }
 
+/// The map `froctomap predict` writes for `time`, read by upstream's Python binding: its
+/// resolution, clamping bounds and occupied voxels.
+fn predicted_voxels(dir: &Path, file: &Path, time: &str) -> (f64, f64, f64, Voxels) {
+    let predicted = dir.join("predicted.ot");
+    ok(&[
+        "-q",
+        "predict",
+        s(file),
+        "--time",
+        time,
+        "-o",
+        s(&predicted),
+    ]);
+    let out = Command::new(octomap_python())
+        .args(["-c", OCCUPIED_VOXELS])
+        .arg(&predicted)
+        .output()
+        .expect("run octomap-python");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = String::from_utf8(out.stdout).unwrap();
+    let mut out = out.lines();
+    let numbers = |line: &str| -> Vec<f64> {
+        line.split_whitespace()
+            .map(|v| v.parse::<f64>().unwrap())
+            .collect()
+    };
+    let [resolution, clamp_min, clamp_max] = numbers(out.next().expect("the header line"))[..]
+    else {
+        panic!("no resolution and clamping bounds")
+    };
+    let expected: Voxels = out
+        .map(|line| {
+            let v = numbers(line);
+            ((v[0] as i64, v[1] as i64, v[2] as i64), v[3])
+        })
+        .collect();
+    (resolution, clamp_min, clamp_max, expected)
+}
+
 #[test]
 fn a_foxglove_client_receives_the_predicted_map() {
     let dir = scratch();
@@ -175,45 +219,8 @@ fn a_foxglove_client_receives_the_predicted_map() {
     assert_eq!(points.len() % stride, 0);
     let f32_at = |at: usize| f32::from_le_bytes(points[at..at + 4].try_into().unwrap());
 
-    // The map predicted for the message's time, read by upstream's Python binding.
-    let predicted = dir.path().join("predicted.ot");
-    let time = format!("{sec}.{nsec:09}");
-    ok(&[
-        "-q",
-        "predict",
-        s(&file),
-        "--time",
-        &time,
-        "-o",
-        s(&predicted),
-    ]);
-    let out = Command::new(octomap_python())
-        .args(["-c", OCCUPIED_VOXELS])
-        .arg(&predicted)
-        .output()
-        .expect("run octomap-python");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let out = String::from_utf8(out.stdout).unwrap();
-    let mut out = out.lines();
-    let numbers = |line: &str| -> Vec<f64> {
-        line.split_whitespace()
-            .map(|v| v.parse::<f64>().unwrap())
-            .collect()
-    };
-    let [resolution, clamp_min, clamp_max] = numbers(out.next().expect("the header line"))[..]
-    else {
-        panic!("no resolution and clamping bounds")
-    };
-    let expected: Voxels = out
-        .map(|line| {
-            let v = numbers(line);
-            ((v[0] as i64, v[1] as i64, v[2] as i64), v[3])
-        })
-        .collect();
+    let (resolution, clamp_min, clamp_max, expected) =
+        predicted_voxels(dir.path(), &file, &format!("{sec}.{nsec:09}"));
     let got: Voxels = (0..points.len() / stride)
         .map(|i| {
             let at = i * stride;

@@ -12,7 +12,9 @@ mod common;
 use common::{lines, ok, random_domain, s, wait_for, Reap};
 use froctomap_test_support::{octomap_fixture, octomap_python, scratch, workspace_root};
 use std::io::Write;
-use std::process::{Command, Stdio};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::Receiver;
 
 #[test]
 fn the_node_records_serves_and_stops_on_sigterm() {
@@ -24,22 +26,7 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     ];
     let domain = random_domain();
     let mut children = Reap(Vec::new());
-    let mut peer = Command::new(octomap_python())
-        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
-        .args(["--domain", &domain.to_string(), "--no-predicted"])
-        .args([
-            "--topic",
-            "/robot1/octomap_binary",
-            "--node",
-            "/robot1/froctomap",
-        ])
-        .arg("--predicted-out")
-        .arg(dir.path().join("unused.bt"))
-        .args(&maps[..2])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the peer");
+    let mut peer = robot1_peer(domain, &dir.path().join("unused.bt"), &maps[..2]);
     let events = lines(peer.stdout.take().expect("stdout"));
     let mut stdin = peer.stdin.take().expect("stdin");
     children.0.push(peer);
@@ -84,53 +71,14 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     .expect("call");
     let reply = wait_for(&events, |l| l.contains("get_octomap_at"));
     assert!(reply.contains("\"success\": true"), "{reply}");
-    let data = |path: &std::path::Path| {
-        let file = std::fs::read(path).expect("read");
-        let at = file
-            .windows(6)
-            .position(|w| w == b"\ndata\n")
-            .expect("data")
-            + 6;
-        file[at..].to_vec()
-    };
-    assert_eq!(data(&got), data(&maps[0]));
+    assert_eq!(tree_bytes(&got), tree_bytes(&maps[0]));
 
-    // Its parameters, read as `ros2 param get` reads them (rcl_interfaces GetParameters).
-    writeln!(
-        stdin,
-        "{}",
-        serde_json::json!({"call": "get_parameters", "names": ["commit_every", "use_sim_time", "file"]})
-    )
-    .expect("call");
-    let reply = wait_for(&events, |l| l.contains("get_parameters"));
-    let reply: serde_json::Value = serde_json::from_str(&reply).expect("JSON");
-    assert_eq!(reply["values"][0]["string"], "2", "{reply}");
-    assert_eq!(
-        (&reply["values"][1]["type"], &reply["values"][1]["bool"]),
-        (&serde_json::json!(1), &serde_json::json!(false)),
-        "{reply}"
-    );
-    assert_eq!(reply["values"][2]["string"], s(&living), "{reply}");
+    assert_parameters(&mut stdin, &events, &living);
 
     // A second client, while the first one's reply reader stays matched: its reply waits for
     // its own reply reader (a reply written before that is lost to it). Its latched map is
     // not later than the last one taken: skipped.
-    let mut second = Command::new(octomap_python())
-        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
-        .args(["--domain", &domain.to_string(), "--no-predicted"])
-        .args([
-            "--topic",
-            "/robot1/octomap_binary",
-            "--node",
-            "/robot1/froctomap",
-        ])
-        .arg("--predicted-out")
-        .arg(dir.path().join("unused2.bt"))
-        .arg(&maps[0])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the second client");
+    let mut second = robot1_peer(domain, &dir.path().join("unused2.bt"), &maps[..1]);
     let second_events = lines(second.stdout.take().expect("stdout"));
     let mut second_stdin = second.stdin.take().expect("stdin");
     children.0.push(second);
@@ -144,7 +92,7 @@ fn the_node_records_serves_and_stops_on_sigterm() {
     .expect("call");
     let reply = wait_for(&second_events, |l| l.contains("get_octomap_at"));
     assert!(reply.contains("\"success\": true"), "{reply}");
-    assert_eq!(data(&got2), data(&maps[1]));
+    assert_eq!(tree_bytes(&got2), tree_bytes(&maps[1]));
     drop(second_stdin);
 
     // A third map, acknowledged by the node's reader, then SIGTERM before its commit is due.
@@ -180,6 +128,56 @@ fn the_node_records_serves_and_stops_on_sigterm() {
             map.display()
         );
     }
+}
+
+/// The Cyclone DDS peer in namespace /robot1, publishing `maps` when told "go".
+fn robot1_peer(domain: u32, predicted_out: &Path, maps: &[PathBuf]) -> Child {
+    Command::new(octomap_python())
+        .arg(workspace_root().join("tests/scripts/ros2_peer.py"))
+        .args(["--domain", &domain.to_string(), "--no-predicted"])
+        .args([
+            "--topic",
+            "/robot1/octomap_binary",
+            "--node",
+            "/robot1/froctomap",
+        ])
+        .arg("--predicted-out")
+        .arg(predicted_out)
+        .args(maps)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the peer")
+}
+
+/// A .bt file's tree: what follows its `data` line.
+fn tree_bytes(path: &Path) -> Vec<u8> {
+    let file = std::fs::read(path).expect("read");
+    let at = file
+        .windows(6)
+        .position(|w| w == b"\ndata\n")
+        .expect("data")
+        + 6;
+    file[at..].to_vec()
+}
+
+/// The node's parameters, read as `ros2 param get` reads them (rcl_interfaces GetParameters).
+fn assert_parameters(stdin: &mut ChildStdin, events: &Receiver<String>, living: &Path) {
+    writeln!(
+        stdin,
+        "{}",
+        serde_json::json!({"call": "get_parameters", "names": ["commit_every", "use_sim_time", "file"]})
+    )
+    .expect("call");
+    let reply = wait_for(events, |l| l.contains("get_parameters"));
+    let reply: serde_json::Value = serde_json::from_str(&reply).expect("JSON");
+    assert_eq!(reply["values"][0]["string"], "2", "{reply}");
+    assert_eq!(
+        (&reply["values"][1]["type"], &reply["values"][1]["bool"]),
+        (&serde_json::json!(1), &serde_json::json!(false)),
+        "{reply}"
+    );
+    assert_eq!(reply["values"][2]["string"], s(living), "{reply}");
 }
 
 #[test]
