@@ -13,7 +13,7 @@ use froctomap_convert::{
     ExportOptions, IngestOptions, IngestTarget, Pick, RecordedTime, RecordingOptions,
     RecordingProfile, RecordingWriteOptions, SeriesInput, TimeQuery, TimeSource,
 };
-use froctomap_convert::{group_thousands, SeriesRead};
+use froctomap_convert::{group_thousands, IngestReport, SeriesRead};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -444,8 +444,40 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         .output
         .as_deref()
         .context("--output is required to build")?;
+    let options = build_options(ui, args)?;
+    ui.note(&format!(
+        "building {} from {} snapshots ({} .. {})",
+        escaped(output.display()),
+        inputs.len(),
+        inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
+        inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
+    ));
+    let bars = Bars::new(ui.quiet);
+    let target = IngestTarget::NewFile(output);
+    let report = ingest(series_context, &collected, target, &options, &bars)?;
+    drop(bars);
+    let peak = peak_memory_bytes();
+    if args.json {
+        let mut value = serde_json::to_value(&report)?;
+        if let Value::Object(map) = &mut value {
+            map.insert("peak_memory_bytes".into(), Value::from(peak));
+            map.insert(
+                "seconds".into(),
+                Value::from(started.elapsed().as_secs_f64()),
+            );
+        }
+        outln!("{}", crate::ui::json_report(&value)?)?;
+    } else if !ui.quiet {
+        print_built(args, &report, peak)?;
+    }
+    print_input_notes(ui, &report.warnings, &report.skipped);
+    Ok(())
+}
+
+/// `build`'s settings from its command line.
+fn build_options(ui: &Ui, args: &BuildArgs) -> Result<IngestOptions> {
     let metadata = tags_metadata(&args.tag)?;
-    let options = IngestOptions {
+    Ok(IngestOptions {
         model: args.model.clone(),
         config: model_config(args, context().models())?,
         tile_depth: args.tile_depth,
@@ -471,85 +503,64 @@ pub fn build_command(ui: &Ui, args: &BuildArgs) -> Result<()> {
         memory: args.spill.memory,
         tmp_dir: args.spill.tmp_dir.clone(),
         ..IngestOptions::default()
-    };
-    ui.note(&format!(
-        "building {} from {} snapshots ({} .. {})",
-        escaped(output.display()),
-        inputs.len(),
-        inputs.first().map_or_else(String::new, |i| iso8601(i.time)),
-        inputs.last().map_or_else(String::new, |i| iso8601(i.time)),
-    ));
-    let bars = Bars::new(ui.quiet);
-    let target = IngestTarget::NewFile(output);
-    let report = ingest(series_context, &collected, target, &options, &bars)?;
-    drop(bars);
-    let peak = peak_memory_bytes();
-    if args.json {
-        let mut value = serde_json::to_value(&report)?;
-        if let Value::Object(map) = &mut value {
-            map.insert("peak_memory_bytes".into(), Value::from(peak));
-            map.insert(
-                "seconds".into(),
-                Value::from(started.elapsed().as_secs_f64()),
-            );
-        }
-        outln!("{}", crate::ui::json_report(&value)?)?;
-    } else if !ui.quiet {
-        let n = group_thousands;
-        outln!(
-            "wrote {} ({} bytes)",
-            escaped(report.output.display()),
-            n(report.file_bytes)
-        )?;
-        outln!(
-            "snapshots:   {} used of {} ({} samples, {} axis)",
-            report.used,
-            report.inputs,
-            report.samples,
-            if report.regular_axis {
-                "regular"
-            } else {
-                "explicit"
-            }
-        )?;
-        outln!("cells:       {}", class_counts(&report.cells))?;
-        outln!(
-            "voxels:      {} ({} dynamic)",
-            n(report.voxels.total()),
-            n(report.voxels.dynamic)
-        )?;
-        outln!(
-            "size:        {} bytes from {} input bytes: {}",
-            n(report.file_bytes),
-            n(report.input_bytes),
-            size_ratio(report.file_bytes, report.input_bytes)
-        )?;
-        if args.lossy {
-            outln!(
-                "model error: {} observed cell-samples differ from the input (lossy)",
-                n(report.model_errors)
-            )?;
+    })
+}
+
+/// The report of a build, for people: what was written, from what, and what it cost.
+fn print_built(args: &BuildArgs, report: &IngestReport, peak: Option<u64>) -> Result<()> {
+    let n = group_thousands;
+    outln!(
+        "wrote {} ({} bytes)",
+        escaped(report.output.display()),
+        n(report.file_bytes)
+    )?;
+    outln!(
+        "snapshots:   {} used of {} ({} samples, {} axis)",
+        report.used,
+        report.inputs,
+        report.samples,
+        if report.regular_axis {
+            "regular"
         } else {
-            outln!(
-                "outliers:    {} toggles stored (lossless)",
-                n(report.toggles)
-            )?;
+            "explicit"
         }
+    )?;
+    outln!("cells:       {}", class_counts(&report.cells))?;
+    outln!(
+        "voxels:      {} ({} dynamic)",
+        n(report.voxels.total()),
+        n(report.voxels.dynamic)
+    )?;
+    outln!(
+        "size:        {} bytes from {} input bytes: {}",
+        n(report.file_bytes),
+        n(report.input_bytes),
+        size_ratio(report.file_bytes, report.input_bytes)
+    )?;
+    if args.lossy {
         outln!(
-            "time:        {:.1} s reading, {:.1} s modelling{}",
-            report.read_seconds,
-            report.model_seconds,
-            peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
+            "model error: {} observed cell-samples differ from the input (lossy)",
+            n(report.model_errors)
         )?;
-        if report.spilled_bytes > 0 {
-            outln!(
-                "spilled:     {} of history to disk to stay within --memory ({} spills)",
-                mib(report.spilled_bytes),
-                report.spills
-            )?;
-        }
+    } else {
+        outln!(
+            "outliers:    {} toggles stored (lossless)",
+            n(report.toggles)
+        )?;
     }
-    print_input_notes(ui, &report.warnings, &report.skipped);
+    outln!(
+        "time:        {:.1} s reading, {:.1} s modelling{}",
+        report.read_seconds,
+        report.model_seconds,
+        peak.map_or_else(String::new, |p| format!("; peak memory {}", mib(p)))
+    )?;
+    if report.spilled_bytes > 0 {
+        outln!(
+            "spilled:     {} of history to disk to stay within --memory ({} spills)",
+            mib(report.spilled_bytes),
+            report.spills
+        )?;
+    }
     Ok(())
 }
 

@@ -184,12 +184,7 @@ fn compact_with(
         FroctFile::Flat(reader) => reader,
         FroctFile::Living(living) => living.base(),
     };
-    let model = context
-        .models()
-        .by_id(header.model_id)
-        .ok_or(ConvertError::internal(
-            "the model of an opened file is not registered",
-        ))?;
+    let model = context.model_of(&header)?;
     let mut config = ModelConfig::default().with_outliers(body.model().outlier_mode());
     config.options = options.model_options.clone();
     // As a build of the file's maps writes it (its inputs being the file).

@@ -8,7 +8,7 @@ use crate::series_file::FroctFile;
 use froctomap_file::{FroctReader, LivingReader, ReadLimits};
 use froctomap_formats::RecordingOptions;
 use froctomap_formats::{Confidence, FormatRegistry, Identified, SeriesFormat};
-use froctomap_temporal::ModelRegistry;
+use froctomap_temporal::{ModelDescriptor, ModelRegistry};
 use std::path::Path;
 
 /// Resource bounds of a conversion: checked before the work they bound is started, so a
@@ -117,6 +117,18 @@ impl Context {
     /// The temporal models, to register more.
     pub fn models_mut(&mut self) -> &mut ModelRegistry {
         &mut self.models
+    }
+
+    /// The model of a file opened with this context (opening checks it is registered).
+    pub(crate) fn model_of(
+        &self,
+        header: &froctomap_file::Header,
+    ) -> Result<&ModelDescriptor, ConvertError> {
+        self.models
+            .by_id(header.model_id)
+            .ok_or(ConvertError::internal(
+                "the model of an opened file is not registered",
+            ))
     }
 
     /// The resource bounds.

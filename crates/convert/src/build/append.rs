@@ -20,6 +20,7 @@
 use super::accumulate::{pack, ObservedCell, TileHistory};
 use super::axis::axis_for_times;
 use super::counts::ClassCounts;
+use super::counts::TileStats;
 use super::extract::SampleChanges;
 use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::ingest::{as_iso8601, stamp, Extended, IngestOptions, IngestReport, Intake, Run};
@@ -145,13 +146,7 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
     if first.time <= old_axis.end() {
         return Err(refuse_overlap(file, inputs, old_axis.end()));
     }
-    let model = context
-        .models()
-        .by_id(old.model_id)
-        .ok_or(ConvertError::internal(
-            "the model of an opened file is not registered",
-        ))?
-        .create();
+    let model = context.model_of(&old)?.create();
     let mut config = ModelConfig::default().with_outliers(reader.model().outlier_mode());
     config.options = options.config.options.clone();
     let new_times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();
@@ -159,23 +154,7 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
     // Fail on a bad model/axis combination before reading anything.
     model.prepare(&axis, &config)?;
 
-    // The file's last observed map starts the new histories, at its sample on the new axis.
-    let last_observed = (0..old_axis.len())
-        .rev()
-        .find(|&s| !old_axis.is_missing(s))
-        .ok_or(ConvertError::internal("a file without a snapshot"))?;
-    let seam = old_axis
-        .time(last_observed)
-        .and_then(|t| axis.index_of(t))
-        .ok_or(ConvertError::internal(
-            "the file's last sample is not on the new axis",
-        ))?;
-    let last_map = observed_map(&reader, last_observed)?;
-    let start = SampleChanges {
-        sample: seam,
-        changes: froctomap_core::changes(&[], last_map.leaves()),
-    };
-    let previous = Accepted::from_map(last_map);
+    let (start, previous) = continue_from_last_map(&reader, &axis)?;
 
     // The file fixes the series' resolution: inputs of another one are refused (or left
     // out with `skip_bad`), whatever most of them give.
@@ -227,31 +206,18 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
     )?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let stats = writer.stats().clone();
-    let previously = |key: &str| reader.summary().get(key).and_then(Value::as_u64);
     let lossless = config.outliers == OutlierMode::Lossless;
-    let mut summary = Map::new();
-    let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
-    put("cell_classes", json!(stats.cells));
-    put("voxel_classes", json!(stats.voxels));
-    put("toggles", json!(stats.toggles));
-    put("model_errors", json!(stats.model_errors));
-    put(
-        "outliers",
-        json!(if lossless { "lossless" } else { "lossy" }),
-    );
-    let used = previously("snapshots_used").unwrap_or(0) + intaken.used as u64;
-    put("snapshots_used", json!(used));
-    let skipped_all = previously("snapshots_skipped").unwrap_or(0) + intaken.skipped.len() as u64;
-    put("snapshots_skipped", json!(skipped_all));
-    let input_bytes = previously("input_bytes").unwrap_or(0) + intaken.input_bytes;
-    put("input_bytes", json!(input_bytes));
-    let changed = previously("changed_voxels").unwrap_or(0) + intaken.changed_voxels;
-    put("changed_voxels", json!(changed));
-    put("appends", json!(previously("appends").unwrap_or(0) + 1));
-    if options.time.is_none() {
-        put("read_seconds", json!(intaken.read_seconds));
-        put("model_seconds", json!(model_seconds));
-    }
+    let added = Added {
+        used: intaken.used as u64,
+        skipped: intaken.skipped.len() as u64,
+        input_bytes: intaken.input_bytes,
+        changed_voxels: intaken.changed_voxels,
+    };
+    let seconds = options
+        .time
+        .is_none()
+        .then_some((intaken.read_seconds, model_seconds));
+    let summary = added.summary(reader.summary(), &stats, lossless, seconds);
     let bytes_before = reader.file_len();
     let written = writer.finish(summary)?;
     Ok(IngestReport {
@@ -288,6 +254,86 @@ pub(super) fn rewrite(run: &Run<'_>, file: &Path) -> Result<IngestReport, Conver
             converted: false,
         }),
     })
+}
+
+/// The file's last observed map, which starts the new histories at its sample on the new
+/// `axis`: its changes from nothing there, and the map as the intake's previous one.
+fn continue_from_last_map(
+    reader: &FroctReader,
+    axis: &TimeAxis,
+) -> Result<(SampleChanges, Accepted), ConvertError> {
+    let old_axis = &reader.header().axis;
+    let last_observed = (0..old_axis.len())
+        .rev()
+        .find(|&s| !old_axis.is_missing(s))
+        .ok_or(ConvertError::internal("a file without a snapshot"))?;
+    let seam = old_axis
+        .time(last_observed)
+        .and_then(|t| axis.index_of(t))
+        .ok_or(ConvertError::internal(
+            "the file's last sample is not on the new axis",
+        ))?;
+    let last_map = observed_map(reader, last_observed)?;
+    let start = SampleChanges {
+        sample: seam,
+        changes: froctomap_core::changes(&[], last_map.leaves()),
+    };
+    Ok((start, Accepted::from_map(last_map)))
+}
+
+/// What an append adds to the counts of the file's summary.
+struct Added {
+    used: u64,
+    skipped: u64,
+    input_bytes: u64,
+    changed_voxels: u64,
+}
+
+impl Added {
+    /// The rewritten file's summary: the write's statistics, the counts of the file before
+    /// (`previously`) plus these, and `seconds` (reading, modelling) unless the times are
+    /// to be left out.
+    fn summary(
+        self,
+        previously: &Map<String, Value>,
+        stats: &TileStats,
+        lossless: bool,
+        seconds: Option<(f64, f64)>,
+    ) -> Map<String, Value> {
+        let previously = |key: &str| previously.get(key).and_then(Value::as_u64).unwrap_or(0);
+        let mut summary = Map::new();
+        let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
+        put("cell_classes", json!(stats.cells));
+        put("voxel_classes", json!(stats.voxels));
+        put("toggles", json!(stats.toggles));
+        put("model_errors", json!(stats.model_errors));
+        put(
+            "outliers",
+            json!(if lossless { "lossless" } else { "lossy" }),
+        );
+        put(
+            "snapshots_used",
+            json!(previously("snapshots_used") + self.used),
+        );
+        put(
+            "snapshots_skipped",
+            json!(previously("snapshots_skipped") + self.skipped),
+        );
+        put(
+            "input_bytes",
+            json!(previously("input_bytes") + self.input_bytes),
+        );
+        put(
+            "changed_voxels",
+            json!(previously("changed_voxels") + self.changed_voxels),
+        );
+        put("appends", json!(previously("appends") + 1));
+        if let Some((read_seconds, model_seconds)) = seconds {
+            put("read_seconds", json!(read_seconds));
+            put("model_seconds", json!(model_seconds));
+        }
+        summary
+    }
 }
 
 /// The refusal of inputs not all after `last`, the file's last instant: names the last

@@ -206,12 +206,7 @@ fn refuse_fixed_span<'c>(
     path: &Path,
     header: &froctomap_file::Header,
 ) -> Result<&'c froctomap_temporal::ModelDescriptor, ConvertError> {
-    let model = context
-        .models()
-        .by_id(header.model_id)
-        .ok_or(ConvertError::internal(
-            "the model of an opened file is not registered",
-        ))?;
+    let model = context.model_of(header)?;
     if model.name == FIXED_SPAN_MODEL {
         return Err(ConvertError::ModelCannotGrow {
             file: path.to_path_buf(),
