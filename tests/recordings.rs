@@ -192,18 +192,8 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     let times: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();
     let predicted = |t: Timestamp| t < first || t > last;
     assert!(times.iter().any(|&t| predicted(t)) && times.iter().any(|&t| !predicted(t)));
-    let mut bt_of = String::from("{");
-    for (i, file) in bts.files.iter().enumerate() {
-        let sep = if i > 0 { ", " } else { "" };
-        bt_of.push_str(&format!(
-            "{sep}\"{}\": \"{}\"",
-            file.time.0,
-            file.path.display()
-        ));
-    }
-    bt_of.push('}');
     let bt_json = dir.path().join("bt.json");
-    std::fs::write(&bt_json, bt_of).unwrap();
+    write_time_index(&bts.files, &bt_json);
     let resolution = reader.header().resolution;
 
     // The defaults, and Foxglove's channels with every option changed.
@@ -223,22 +213,7 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
             write.threshold,
         );
         let out_dir = dir.path().join(format!("{profile:?}"));
-        std::fs::create_dir(&out_dir).unwrap();
-        let mcap = out_dir.join("maps.mcap");
-        let exported = export(
-            &context(RecordedTime::Header),
-            &reader,
-            &mcap,
-            &options("mcap", write.clone()),
-            &Silent,
-        )
-        .unwrap();
-        assert!(exported.manifest.is_none());
-        let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
-        assert_eq!(got, times);
-        // Only the finished file is left: no temporary beside it.
-        let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().collect();
-        assert_eq!(left.len(), 1, "{left:?}");
+        let mcap = export_mcap(&reader, &out_dir, &options("mcap", write.clone()), &times);
 
         let data_dir = out_dir.join("data");
         std::fs::create_dir(&data_dir).unwrap();
@@ -246,60 +221,20 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
         let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(report["profile"], "ros2");
         let foxglove = profile == RecordingProfile::Foxglove;
-        let mut topics = vec![
-            ("/octomap_binary", "cdr", "octomap_msgs/msg/Octomap"),
-            (
-                "/froctomap/occupied_voxels_pc2",
-                "cdr",
-                "sensor_msgs/msg/PointCloud2",
-            ),
-            (
-                "/froctomap/occupied_cells_vis_array",
-                "cdr",
-                "visualization_msgs/msg/MarkerArray",
-            ),
-        ];
-        if foxglove {
-            topics.push(("/froctomap/occupied_voxels", "json", "foxglove.PointCloud"));
-            topics.push(("/froctomap/occupied_cubes", "json", "foxglove.SceneUpdate"));
-        }
-        let mut channels = serde_json::json!({});
-        for (topic, encoding, schema) in topics {
-            channels[format!("{prefix}{topic}")] =
-                serde_json::json!({"encoding": encoding, "schema": schema});
-        }
+        let channels = expected_channels(prefix, foxglove);
         assert_eq!(report["channels"], channels, "{profile:?}");
         // Every message of every channel read (decoded for CDR), one per map.
         let n = times.len();
+        let kind_of = |t: Timestamp| map_kind(predicted(t));
         for topic in channels.as_object().unwrap().keys() {
             assert_eq!(report["counts"][topic], n, "{topic}");
         }
         // Each map's kind in an MCAP metadata record.
-        let kind_of = |t: Timestamp| {
-            if predicted(t) {
-                "predicted"
-            } else {
-                "retrieved"
-            }
-        };
         let expected: Vec<serde_json::Value> = times
             .iter()
             .map(|&t| serde_json::json!([t.0.to_string(), kind_of(t)]))
             .collect();
-        let records = report["metadata"].as_array().unwrap();
-        for record in records {
-            assert_eq!(record["name"], "froctomap.map");
-            assert_eq!(
-                record.get("sample").is_some(),
-                record["map"] == "retrieved",
-                "{record}"
-            );
-        }
-        let got: Vec<serde_json::Value> = records
-            .iter()
-            .map(|m| serde_json::json!([m["time_ns"], m["map"]]))
-            .collect();
-        assert_eq!(got, expected);
+        assert_map_kinds(&report["metadata"], &expected);
 
         let octomaps = report["octomap"].as_array().unwrap();
         let clouds2 = report["cloud2"].as_array().unwrap();
@@ -312,13 +247,12 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
                 assert_eq!(message["stamp_ns"], t);
                 assert_eq!(message["frame_id"], frame);
             }
-            assert_eq!(octomap["binary"], true);
-            assert_eq!(octomap["id"], "OcTree");
-            assert_eq!(octomap["resolution"], resolution);
-            let bt = std::fs::read(&file.path).unwrap();
-            let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
-            let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
-            assert!(data == bt[body_at..], "data of the message at {t}");
+            assert_octomap_message(
+                octomap,
+                &file.path,
+                &data_dir.join(format!("{t}.data")),
+                resolution,
+            );
 
             // The voxels octomap-python reads from the .bt (a predicted map holds p > 0.5):
             // the same unless the threshold is lower.
@@ -337,66 +271,222 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
             assert_eq!(marker["problems"], serde_json::json!([]));
             // Cells, not voxels: coarse cells are one cube.
             assert!(marker["cubes"].as_u64() <= cloud2["points"].as_u64());
-            // The same fields in every message, retrieved or predicted.
-            assert_eq!(
-                cloud2["fields"],
-                serde_json::json!([
-                    ["x", 7],
-                    ["y", 7],
-                    ["z", 7],
-                    ["rgba", 6],
-                    ["p", 7],
-                    ["dynamic", 7]
-                ])
-            );
-            let value = &cloud2["values"];
-            if predicted(file.time) {
-                let low = value["p"][0].as_f64().unwrap();
-                assert!(
-                    low > threshold && value["p"][1].as_f64().unwrap() <= 1.0,
-                    "{cloud2}"
-                );
-                // Below 0.5 too when the threshold is lower: uncertain space drawn.
-                assert_eq!(low <= 0.5, threshold < 0.5, "{cloud2}");
-                assert_eq!(value["dynamic"], "nan");
-            } else {
-                // Dynamic and static voxels, each in its own colour, observed occupied.
-                assert_eq!(cloud2["colours"], 2, "{cloud2}");
-                assert_eq!(value["dynamic"], serde_json::json!([0.0, 1.0]));
-                assert_eq!(value["p"], serde_json::json!([1.0, 1.0]));
-            }
+            assert_cloud_values(cloud2, predicted(file.time), threshold);
             if foxglove {
-                let (cloud, scene) = (&report["cloud"][i], &report["scene"][i]);
-                assert_eq!(cloud["same_voxels"], compared, "points of the cloud at {t}");
-                assert_eq!(cloud["remainder"], 0);
-                assert_eq!(cloud["points"], cloud2["points"]);
-                assert_eq!(scene["problems"], serde_json::json!([]), "{scene}");
-                assert_eq!(scene["same_voxels"], compared, "cubes at {t}");
-                assert_eq!(scene["cubes"], marker["cubes"]);
-                assert_eq!(scene["stamp_ns"], t);
-                assert_eq!(scene["frame_id"], frame);
-                assert_eq!(scene["metadata"]["map"], kind_of(file.time));
+                let expected = (&report["cloud"][i], &report["scene"][i]);
+                assert_foxglove_map(
+                    expected,
+                    cloud2,
+                    marker,
+                    compared,
+                    frame,
+                    kind_of(file.time),
+                );
             }
         }
         if foxglove {
-            // Cubes sized by their cells: some coarse.
-            let sizes: Vec<u64> = report["scene"]
+            assert_some_coarse_cubes(&report["scene"]);
+        }
+    }
+}
+
+/// `reader` exported as `out_dir/maps.mcap` with `options`: a map at each of `times`, and
+/// only the finished file left (no temporary beside it).
+fn export_mcap(
+    reader: &FroctReader,
+    out_dir: &Path,
+    options: &ExportOptions,
+    times: &[Timestamp],
+) -> PathBuf {
+    std::fs::create_dir(out_dir).unwrap();
+    let mcap = out_dir.join("maps.mcap");
+    let exported = export(
+        &context(RecordedTime::Header),
+        reader,
+        &mcap,
+        options,
+        &Silent,
+    )
+    .unwrap();
+    assert!(exported.manifest.is_none());
+    let got: Vec<Timestamp> = exported.files.iter().map(|f| f.time).collect();
+    assert_eq!(got, times);
+    let left: Vec<_> = std::fs::read_dir(out_dir).unwrap().collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    mcap
+}
+
+/// An exported Octomap message: binary, an OcTree at `resolution`, its data (as the script
+/// saved it in `data_path`) the body of the `.bt` export at `bt_path`.
+fn assert_octomap_message(
+    octomap: &serde_json::Value,
+    bt_path: &Path,
+    data_path: &Path,
+    resolution: f64,
+) {
+    assert_eq!(octomap["binary"], true);
+    assert_eq!(octomap["id"], "OcTree");
+    assert_eq!(octomap["resolution"], resolution);
+    let bt = std::fs::read(bt_path).unwrap();
+    let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+    let data = std::fs::read(data_path).unwrap();
+    assert!(
+        data == bt[body_at..],
+        "data of the message in {}",
+        data_path.display()
+    );
+}
+
+/// "predicted" or "retrieved", as the exported metadata says.
+fn map_kind(predicted: bool) -> &'static str {
+    if predicted {
+        "predicted"
+    } else {
+        "retrieved"
+    }
+}
+
+/// A map's Foxglove messages (`cloud`, `scene`) hold the voxels and cubes of its
+/// PointCloud2 and MarkerArray, in `frame`, saying its `kind`.
+fn assert_foxglove_map(
+    (cloud, scene): (&serde_json::Value, &serde_json::Value),
+    cloud2: &serde_json::Value,
+    marker: &serde_json::Value,
+    compared: bool,
+    frame: &str,
+    kind: &str,
+) {
+    assert_eq!(
+        cloud["same_voxels"], compared,
+        "points of the cloud at {}",
+        scene["stamp_ns"]
+    );
+    assert_eq!(cloud["remainder"], 0);
+    assert_eq!(cloud["points"], cloud2["points"]);
+    assert_eq!(scene["problems"], serde_json::json!([]), "{scene}");
+    assert_eq!(
+        scene["same_voxels"], compared,
+        "cubes at {}",
+        scene["stamp_ns"]
+    );
+    assert_eq!(scene["cubes"], marker["cubes"]);
+    assert_eq!(scene["stamp_ns"], cloud2["stamp_ns"]);
+    assert_eq!(scene["frame_id"], frame);
+    assert_eq!(scene["metadata"]["map"], kind);
+}
+
+/// The SceneUpdate cubes are sized by their cells: some are coarse.
+fn assert_some_coarse_cubes(scenes: &serde_json::Value) {
+    // Cubes sized by their cells: some coarse.
+    let sizes: Vec<u64> = scenes
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|s| {
+            s["sizes"]
                 .as_array()
                 .unwrap()
                 .iter()
-                .flat_map(|s| {
-                    s["sizes"]
-                        .as_array()
-                        .unwrap()
-                        .iter()
-                        .map(|v| v.as_u64().unwrap())
-                })
-                .collect();
-            assert!(
-                sizes.contains(&1) && sizes.iter().any(|&s| s > 1),
-                "{sizes:?}"
-            );
-        }
+                .map(|v| v.as_u64().unwrap())
+        })
+        .collect();
+    assert!(
+        sizes.contains(&1) && sizes.iter().any(|&s| s > 1),
+        "{sizes:?}"
+    );
+}
+
+/// The exported files' paths by their times (ns), as JSON in `path`, for the reading script.
+fn write_time_index(files: &[SeriesInput], path: &Path) {
+    let mut bt_of = String::from("{");
+    for (i, file) in files.iter().enumerate() {
+        let sep = if i > 0 { ", " } else { "" };
+        bt_of.push_str(&format!(
+            "{sep}\"{}\": \"{}\"",
+            file.time.0,
+            file.path.display()
+        ));
+    }
+    bt_of.push('}');
+    std::fs::write(path, bt_of).unwrap();
+}
+
+/// The channels of an exported MCAP (topic: encoding and schema), under `prefix`.
+fn expected_channels(prefix: &str, foxglove: bool) -> serde_json::Value {
+    let mut topics = vec![
+        ("/octomap_binary", "cdr", "octomap_msgs/msg/Octomap"),
+        (
+            "/froctomap/occupied_voxels_pc2",
+            "cdr",
+            "sensor_msgs/msg/PointCloud2",
+        ),
+        (
+            "/froctomap/occupied_cells_vis_array",
+            "cdr",
+            "visualization_msgs/msg/MarkerArray",
+        ),
+    ];
+    if foxglove {
+        topics.push(("/froctomap/occupied_voxels", "json", "foxglove.PointCloud"));
+        topics.push(("/froctomap/occupied_cubes", "json", "foxglove.SceneUpdate"));
+    }
+    let mut channels = serde_json::json!({});
+    for (topic, encoding, schema) in topics {
+        channels[format!("{prefix}{topic}")] =
+            serde_json::json!({"encoding": encoding, "schema": schema});
+    }
+    channels
+}
+
+/// The `froctomap.map` metadata records say each map's time and kind (`expected`), and only
+/// retrieved maps name a sample.
+fn assert_map_kinds(metadata: &serde_json::Value, expected: &[serde_json::Value]) {
+    let records = metadata.as_array().unwrap();
+    for record in records {
+        assert_eq!(record["name"], "froctomap.map");
+        assert_eq!(
+            record.get("sample").is_some(),
+            record["map"] == "retrieved",
+            "{record}"
+        );
+    }
+    let got: Vec<serde_json::Value> = records
+        .iter()
+        .map(|m| serde_json::json!([m["time_ns"], m["map"]]))
+        .collect();
+    assert_eq!(got, expected);
+}
+
+/// A PointCloud2's `p` and `dynamic` values: a predicted map's p above the threshold,
+/// a retrieved map's occupied voxels certain, dynamic and static ones in their colours.
+fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f64) {
+    // The same fields in every message, retrieved or predicted.
+    assert_eq!(
+        cloud2["fields"],
+        serde_json::json!([
+            ["x", 7],
+            ["y", 7],
+            ["z", 7],
+            ["rgba", 6],
+            ["p", 7],
+            ["dynamic", 7]
+        ])
+    );
+    let value = &cloud2["values"];
+    if predicted {
+        let low = value["p"][0].as_f64().unwrap();
+        assert!(
+            low > threshold && value["p"][1].as_f64().unwrap() <= 1.0,
+            "{cloud2}"
+        );
+        // Below 0.5 too when the threshold is lower: uncertain space drawn.
+        assert_eq!(low <= 0.5, threshold < 0.5, "{cloud2}");
+        assert_eq!(value["dynamic"], "nan");
+    } else {
+        // Dynamic and static voxels, each in its own colour, observed occupied.
+        assert_eq!(cloud2["colours"], 2, "{cloud2}");
+        assert_eq!(value["dynamic"], serde_json::json!([0.0, 1.0]));
+        assert_eq!(value["p"], serde_json::json!([1.0, 1.0]));
     }
 }
 
