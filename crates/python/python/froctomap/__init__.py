@@ -26,11 +26,12 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
 from . import _progress
 from ._errors import FroctError
-from ._native import FroctFile, Map, __version__, convert, info, open, parse_time
+from ._native import DEFAULT_MODEL, FroctFile, Map, __version__, convert, info, open, parse_time
 from . import _native
 from ._progress import ProgressCallback
 
 __all__ = [
+    "DEFAULT_MODEL",
     "FroctError",
     "FroctFile",
     "Map",
@@ -79,7 +80,7 @@ def build(
     lossy: bool = False,
     order: Union[str, int] = "auto",
     progress: Union[bool, ProgressCallback, None] = True,
-    model: str = "fremen-periods",
+    model: str = DEFAULT_MODEL,
     model_options: Optional[Mapping[str, Any]] = None,
     max_order: Optional[int] = None,
     periods: Optional[Iterable[Union[str, float]]] = None,
