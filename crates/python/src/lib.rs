@@ -42,6 +42,5 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verbs::render, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::generate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("DEFAULT_MODEL", froctomap_temporal::models::DEFAULT_MODEL)?;
     Ok(())
 }

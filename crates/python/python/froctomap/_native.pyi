@@ -9,8 +9,6 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
-#: The temporal model `build` uses unless told otherwise.
-DEFAULT_MODEL: str
 
 PathLike = Union[str, os.PathLike[str]]
 #: Unix seconds, a datetime or date (naive: UTC), ISO 8601 text, numpy.datetime64, or
