@@ -4,6 +4,7 @@
 //! The JSON of a [`SkippedInput`] (in `froctomap build --json`, `append --json` and the
 //! Python reports) is `{"path": "...", "code": "...", "message": "..."}`.
 
+use froctomap_core::Named;
 use serde::{Serialize, Serializer};
 use std::path::PathBuf;
 
@@ -32,8 +33,14 @@ pub enum SkipReason {
 }
 
 impl SkipReason {
-    /// Every reason, in declaration order.
-    pub const ALL: [Self; 9] = [
+    /// The stable machine name, as the JSON reports give it (its [`Named::name`]).
+    pub fn code(self) -> &'static str {
+        self.name()
+    }
+}
+
+impl Named for SkipReason {
+    const ALL: &'static [Self] = &[
         Self::Unreadable,
         Self::Empty,
         Self::TooLarge,
@@ -44,9 +51,9 @@ impl SkipReason {
         Self::DamagedRecording,
         Self::Internal,
     ];
+    const WHAT: &'static str = "skip reason";
 
-    /// The stable machine name, as the JSON reports give it.
-    pub fn code(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Self::Unreadable => "unreadable",
             Self::Empty => "empty",
@@ -59,6 +66,20 @@ impl SkipReason {
             Self::Internal => "internal",
         }
     }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Unreadable => "The file could not be read",
+            Self::Empty => "The file is empty",
+            Self::TooLarge => "The file is over a limit for one map",
+            Self::NotAMap => "No registered format reads it",
+            Self::Malformed => "Its format recognised it but it is malformed",
+            Self::NotCompared => "Its format's byte-level comparison refused it",
+            Self::ResolutionMismatch => "Its resolution is not the series'",
+            Self::DamagedRecording => "A damaged part of a recording",
+            Self::Internal => "A fault of froctomap itself",
+        }
+    }
 }
 
 impl std::fmt::Display for SkipReason {
@@ -68,13 +89,10 @@ impl std::fmt::Display for SkipReason {
 }
 
 impl std::str::FromStr for SkipReason {
-    type Err = String;
+    type Err = froctomap_core::UnknownName;
 
     fn from_str(code: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|r| r.code() == code)
-            .ok_or_else(|| format!("unknown skip reason `{code}`"))
+        froctomap_core::parse_named(code)
     }
 }
 
@@ -136,7 +154,7 @@ mod tests {
 
     #[test]
     fn codes_are_unique_and_parse_back() {
-        for reason in SkipReason::ALL {
+        for &reason in SkipReason::ALL {
             assert_eq!(reason.code().parse::<SkipReason>(), Ok(reason));
             let same: Vec<_> = SkipReason::ALL
                 .iter()
