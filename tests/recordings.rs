@@ -561,8 +561,9 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
         let report = build(&context, &inputs, &out, &options, &Silent).unwrap();
         assert_eq!(report.used, 2, "{name}");
         assert_eq!(report.skipped.len(), 1, "{name}");
+        assert_eq!(report.skipped[0].code(), "damaged-recording", "{name}");
         assert!(
-            report.skipped[0].1.contains("2023-11-14T22:14:21Z"),
+            report.skipped[0].message.contains("2023-11-14T22:14:21Z"),
             "{:?}",
             report.skipped
         );
@@ -837,7 +838,8 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         }
         let err = strict.unwrap_err().to_string();
         assert_eq!(lenient.skipped.len(), 1, "{name}: {:?}", lenient.skipped);
-        let listed = &lenient.skipped[0].1;
+        assert_eq!(lenient.skipped[0].code(), "damaged-recording", "{name}");
+        let listed = &lenient.skipped[0].message;
         for text in [&err, listed] {
             for part in [name, "/octomap_binary", "chunk at byte", problem] {
                 assert!(text.contains(part), "{name}: {text}");

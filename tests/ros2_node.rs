@@ -986,7 +986,7 @@ fn note_left_out(
     recorder.on_event(move |event| match event {
         froctomap_convert::RecordEvent::Committed(commit) => seen
             .borrow_mut()
-            .extend(commit.skipped.iter().map(|(_, why)| why.clone())),
+            .extend(commit.skipped.iter().map(|s| s.message.clone())),
         froctomap_convert::RecordEvent::LeftOut { what, .. } => {
             seen.borrow_mut().push(what.to_string())
         }

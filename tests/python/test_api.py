@@ -390,3 +390,31 @@ def test_maps_outlive_the_closed_file(cli_file):
     with pytest.raises(froctomap.FroctError, match="closed"):
         file.retrieve("index:0")
     assert "closed" in repr(file)
+
+
+def test_skipped_inputs_are_dicts_with_a_code(series, tmp_path):
+    """Each input `skip_bad` leaves out is {"path", "code", "message"}, as `build --json`
+    gives it: a truncated .bt, a file that is no map, an empty file, a map of another
+    resolution (rewritten by octomap-python, an independent writer)."""
+    import shutil
+    copy = tmp_path / "maps"
+    shutil.copytree(series, copy)
+    files = snapshot_files(copy)
+    data = files[1].read_bytes()
+    files[1].write_bytes(data[:-7])
+    files[3].write_text("timestamp,x,y,z\n1,2,3,4\n")
+    files[5].write_bytes(b"")
+    tree = octomap.OcTree(0.2)
+    tree.updateNode(np.array([1.0, 2.0, 0.5]), True)
+    tree.writeBinary(str(files[7]).encode())
+    expected = {files[1]: "malformed", files[3]: "not-a-map", files[5]: "empty",
+                files[7]: "resolution-mismatch"}
+    report = froctomap.build(copy, tmp_path / "py.froct", skip_bad=True, progress=False)
+    cli = json.loads(run_cli("-q", "build", copy, "-o", tmp_path / "cli.froct", "--skip-bad",
+                             "--json").stdout)
+    for skipped in (report["skipped"], cli["skipped"]):
+        assert all(sorted(entry) == ["code", "message", "path"] for entry in skipped), skipped
+        assert {Path(e["path"]): e["code"] for e in skipped} == expected, skipped
+        assert all(e["message"] for e in skipped), skipped
+    assert report["skipped"] == cli["skipped"]
+    assert report["used"] == len(files) - 4

@@ -46,7 +46,7 @@ pub struct BuildChildArgs {
     #[arg(long)]
     output: PathBuf,
     /// Temporal model (a registered name).
-    #[arg(long, default_value = "fremen-periods")]
+    #[arg(long, default_value = froctomap_temporal::models::DEFAULT_MODEL)]
     model: String,
     /// Fixed order (default: auto up to --max-order), for models with orders.
     #[arg(long)]
@@ -140,7 +140,7 @@ impl ChildModel<'_> {
     /// The default model (FreMEn at candidate periods).
     pub(crate) fn fremen(order: Option<u8>, max_order: u8) -> Self {
         ChildModel {
-            name: "fremen-periods",
+            name: froctomap_temporal::models::fremen_periods::DESCRIPTOR.name,
             order,
             max_order,
         }

@@ -1,8 +1,9 @@
 //! `anomalies`: what a snapshot shows that the file's model did not expect at its time.
 
+use crate::plugins::named;
 use crate::ui::{escaped, Ui};
 use anyhow::{bail, Context as _, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use froctomap_convert::{
     anomalies, collect_inputs, read_snapshot, read_time_from_file_name, refuse_overwriting_input,
     write_owned_map, AnomalyKind, AnomalyOptions, AnomalyReport, Expectation, TimeSource,
@@ -52,21 +53,11 @@ pub struct AnomaliesArgs {
     min_score: f64,
     /// What the snapshot is compared with: the model at its time, or a baseline (each
     /// cell's mean over the history; the last snapshot at or before the time).
-    #[arg(long, value_enum, default_value_t = ExpectationArg::Model)]
-    expect: ExpectationArg,
+    #[arg(long, value_parser = named::<Expectation>(), default_value_t = Expectation::Model)]
+    expect: Expectation,
     /// Print at most this many regions (all of them with --json or 0).
     #[arg(long, value_name = "N", default_value_t = 20)]
     top: usize,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum ExpectationArg {
-    /// The file's model at the snapshot's time.
-    Model,
-    /// Each cell's mean occupancy over the file's history.
-    StaticMean,
-    /// The map as last seen at or before the time.
-    LastSeen,
 }
 
 impl AnomaliesArgs {
@@ -81,11 +72,7 @@ impl AnomaliesArgs {
         options.error_rate = self.error_rate;
         options.voxel_threshold = -self.voxel_probability.ln();
         options.min_region_score = self.min_score;
-        options.expectation = match self.expect {
-            ExpectationArg::Model => Expectation::Model,
-            ExpectationArg::StaticMean => Expectation::StaticMean,
-            ExpectationArg::LastSeen => Expectation::LastSeen,
-        };
+        options.expectation = self.expect;
         Ok(options)
     }
 }

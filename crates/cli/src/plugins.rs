@@ -1,6 +1,7 @@
 //! The plugins of this program, registered once and handed to every command.
 
 use froctomap_convert::Context;
+use froctomap_core::{parse_named, Named};
 use std::sync::OnceLock;
 
 /// The formats, models and limits every command uses (the option parsers too, so that the
@@ -35,6 +36,19 @@ pub fn export_format() -> clap::builder::PossibleValuesParser {
             .map(|f| f.name),
     );
     clap::builder::PossibleValuesParser::new(names)
+}
+
+/// The value parser of a library enum: its names and descriptions (what `--help` and the
+/// shell completions list), each parsed by the library, so that a new variant needs no
+/// change here.
+pub fn named<T: Named + Send + Sync>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(
+        T::ALL
+            .iter()
+            .map(|v| PossibleValue::new(v.name()).help(v.description())),
+    )
+    .try_map(|name| parse_named::<T>(&name))
 }
 
 /// The writable recording format whose extension `path` has (`out.mcap`: `mcap`).

@@ -2,7 +2,7 @@
 //! FROctomap files. Each is a thin layer over `froctomap-convert`.
 
 use crate::froct_info::class_counts;
-use crate::plugins::{context, export_format, recording_format_of, writable_format};
+use crate::plugins::{context, export_format, named, recording_format_of, writable_format};
 use crate::progress::{peak_memory_bytes, Bars};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
@@ -13,7 +13,7 @@ use froctomap_convert::{
     ExportOptions, IngestOptions, IngestTarget, Pick, RecordedTime, RecordingOptions,
     RecordingProfile, RecordingWriteOptions, SeriesInput, TimeQuery, TimeSource,
 };
-use froctomap_convert::{group_thousands, IngestReport, SeriesRead};
+use froctomap_convert::{group_thousands, IngestReport, SeriesRead, SkippedInput};
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_file::{Codec, ToggleLayout};
@@ -46,11 +46,11 @@ pub struct TimeArgs {
     topic: Option<String>,
     /// Recordings: which time a map gets, its message's header stamp (zero stamps take the
     /// log time, with a warning) or the time it was logged.
-    #[arg(long, value_enum, value_name = "SOURCE", default_value_t = RecordedTimeArg::Header)]
-    time_source: RecordedTimeArg,
+    #[arg(long, value_name = "SOURCE", value_parser = named::<RecordedTime>(),
+          default_value_t = RecordedTime::Header)]
+    time_source: RecordedTime,
 }
 
-/// `--time-source`.
 /// The format version `build` writes (`--toggle-block 0` writes 1.0 whatever it says).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum FormatVersionArg {
@@ -60,14 +60,6 @@ enum FormatVersionArg {
     /// Toggle blocks as varints under zstd.
     #[value(name = "1.1")]
     V1_1,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum RecordedTimeArg {
-    /// The header stamp of each message.
-    Header,
-    /// The recording (log) time of each message.
-    Log,
 }
 
 impl TimeArgs {
@@ -81,12 +73,8 @@ impl TimeArgs {
         skip_bad: bool,
         spool_dir: Option<PathBuf>,
     ) -> froctomap_convert::Context {
-        let time = match self.time_source {
-            RecordedTimeArg::Header => RecordedTime::Header,
-            RecordedTimeArg::Log => RecordedTime::Log,
-        };
         ui.context.clone().with_recording_options(
-            RecordingOptions::new(self.topic.clone(), time)
+            RecordingOptions::new(self.topic.clone(), self.time_source)
                 .with_skip_bad(skip_bad)
                 .with_spool_dir(spool_dir),
         )
@@ -169,7 +157,7 @@ pub struct BuildArgs {
     #[command(flatten)]
     times: TimeArgs,
     /// Temporal model of dynamic voxels (`--help` lists the models and their options).
-    #[arg(long, default_value = "fremen-periods", value_name = "NAME",
+    #[arg(long, default_value = froctomap_temporal::models::DEFAULT_MODEL, value_name = "NAME",
           value_parser = model_name, long_help = models_help())]
     model: String,
     /// A model option (repeatable; `--help` on --model lists them).
@@ -754,24 +742,6 @@ pub fn predict_command(ui: &Ui, args: &PredictArgs) -> Result<()> {
     Ok(())
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum ExportModeArg {
-    /// Predicted maps (any instant).
-    Predict,
-    /// The last observed snapshot at or before each instant.
-    Retrieve,
-    /// Retrieved inside the file's span, predicted outside it.
-    Auto,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-pub enum ProfileArg {
-    /// Standard ROS 2 messages only, all CDR.
-    Ros2,
-    /// Also Foxglove's schemas (JSON).
-    Foxglove,
-}
-
 #[derive(Args)]
 pub struct ExportArgs {
     /// The FROctomap file.
@@ -793,8 +763,8 @@ pub struct ExportArgs {
     /// Predicted maps (one per instant), retrieved snapshots (each snapshot seen at the
     /// instants once, named and listed at its own time), or auto: retrieved inside the
     /// file's span, predicted outside it.
-    #[arg(long, value_enum, default_value_t = ExportModeArg::Predict)]
-    mode: ExportModeArg,
+    #[arg(long, value_parser = named::<ExportMode>(), default_value_t = ExportMode::Predict)]
+    mode: ExportMode,
     /// Map format (see `froctomap formats`), or `mcap`: one MCAP file with the maps as
     /// octomap_msgs/msg/Octomap on /octomap_binary (for ros2 bag play), their occupied
     /// voxels as a sensor_msgs/msg/PointCloud2 on /froctomap/occupied_voxels_pc2 (for rviz2,
@@ -810,8 +780,8 @@ pub struct ExportArgs {
     /// ROS 2's tools and mcap-ros2-support); foxglove, also a foxglove.PointCloud on
     /// /froctomap/occupied_voxels and foxglove.SceneUpdate cubes sized by the cell on
     /// /froctomap/occupied_cubes (JSON, for Foxglove's 3D panel).
-    #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
-    profile: ProfileArg,
+    #[arg(long, value_parser = named::<RecordingProfile>(), default_value_t = RecordingProfile::Ros2)]
+    profile: RecordingProfile,
     /// Recordings: the frame_id of every message (e.g. --frame-id odom).
     #[arg(long, value_name = "FRAME", default_value = "map")]
     frame_id: String,
@@ -921,11 +891,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         from: ui.time(&args.from, "--from")?,
         to: ui.time(&args.to, "--to")?,
         every_ns: parse_duration(&args.every)?,
-        mode: match args.mode {
-            ExportModeArg::Predict => ExportMode::Predict,
-            ExportModeArg::Retrieve => ExportMode::Retrieve,
-            ExportModeArg::Auto => ExportMode::Auto,
-        },
+        mode: args.mode,
         format: args
             .format
             .clone()
@@ -935,10 +901,7 @@ pub fn export_command(ui: &Ui, args: &ExportArgs) -> Result<()> {
         prefix: args.prefix.clone(),
         overwrite: args.overwrite,
         recording: RecordingWriteOptions::default()
-            .with_profile(match args.profile {
-                ProfileArg::Ros2 => RecordingProfile::Ros2,
-                ProfileArg::Foxglove => RecordingProfile::Foxglove,
-            })
+            .with_profile(args.profile)
             .with_frame_id(args.frame_id.clone())
             .with_topic_prefix(args.topic_prefix.clone())
             .with_threshold(args.threshold),
@@ -1170,11 +1133,7 @@ fn print_eval(report: &EvalReport) -> std::io::Result<()> {
 }
 
 /// The readers' warnings (the first ten) and the files left out, after a build or an append.
-pub(crate) fn print_input_notes(
-    ui: &Ui,
-    warnings: &[(PathBuf, String)],
-    skipped: &[(PathBuf, String)],
-) {
+pub(crate) fn print_input_notes(ui: &Ui, warnings: &[(PathBuf, String)], skipped: &[SkippedInput]) {
     if !warnings.is_empty() && !ui.quiet {
         for (path, warning) in warnings.iter().take(10) {
             eprintln!("warning: {}: {}", escaped(path.display()), escaped(warning));
@@ -1185,14 +1144,8 @@ pub(crate) fn print_input_notes(
     }
     if !skipped.is_empty() {
         eprintln!("skipped {} file(s) or recorded map(s):", skipped.len());
-        for (path, reason) in skipped {
-            // A recorded map's reason names its recording, topic and time already.
-            let name = path.display().to_string();
-            if reason.starts_with(&format!("{name}: ")) {
-                eprintln!("  {}", escaped(reason));
-            } else {
-                eprintln!("  {name}: {}", escaped(reason), name = escaped(&name));
-            }
+        for input in skipped {
+            eprintln!("  {}", escaped(input));
         }
     }
 }

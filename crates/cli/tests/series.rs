@@ -1073,3 +1073,111 @@ fn append_refuses_mostly_skipped_inputs_unless_allowed() {
     assert!(info.contains("\"samples\": 8"), "{info}");
     assert!(info.contains("\"missing\": 3"), "{info}");
 }
+
+/// Makes `files` really bad inputs, one of each kind a directory of map files can hold,
+/// and gives the code `--skip-bad`'s report must give each (issue 31: a typed reason).
+fn spoil(files: &[PathBuf]) -> Vec<(PathBuf, &'static str)> {
+    let cut = std::fs::read(&files[0]).unwrap();
+    std::fs::write(&files[0], &cut[..cut.len() - 7]).unwrap();
+    std::fs::write(&files[1], b"timestamp,x,y,z\n1,2,3,4\n").unwrap();
+    std::fs::write(&files[2], b"").unwrap();
+    let coarse = Snapshot::from_leaves(0.2, frame(0).leaves().to_vec()).unwrap();
+    FormatRegistry::with_default_formats()
+        .write_file(&coarse, &files[3], WriteOptions::default())
+        .unwrap();
+    let codes = ["malformed", "not-a-map", "empty", "resolution-mismatch"];
+    files.iter().cloned().zip(codes).collect()
+}
+
+/// The `skipped` of a `--json` report as (path, code), checking each entry is an object of
+/// exactly `path`, `code` and a non-empty `message`.
+fn skipped_codes(report: &serde_json::Value) -> Vec<(PathBuf, String)> {
+    let listed = report["skipped"].as_array().expect("skipped is a list");
+    listed
+        .iter()
+        .map(|entry| {
+            let fields = entry.as_object().expect("each skipped input is an object");
+            let mut keys: Vec<&str> = fields.keys().map(String::as_str).collect();
+            keys.sort_unstable();
+            assert_eq!(keys, ["code", "message", "path"], "{entry}");
+            assert!(!entry["message"].as_str().unwrap().is_empty(), "{entry}");
+            (
+                PathBuf::from(entry["path"].as_str().unwrap()),
+                entry["code"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+/// Each input `build --skip-bad --json` and `append --skip-bad --json` leave out is listed
+/// as `{"path", "code", "message"}`, its code saying why: a truncated .bt, a file that is no
+/// map, an empty file, a map of another resolution.
+#[test]
+fn skipped_inputs_carry_their_reason_code_in_json() {
+    let (dir, inputs, files) = series_in_subdir(9);
+    let mut expected = spoil(&files[1..5]);
+    expected.sort();
+    let map = dir.path().join("room.froct");
+    let report: serde_json::Value = serde_json::from_str(&ok(&[
+        "build",
+        "--quiet",
+        "--json",
+        "--skip-bad",
+        s(&inputs),
+        "-o",
+        s(&map),
+    ]))
+    .unwrap();
+    let mut listed = skipped_codes(&report);
+    listed.sort();
+    let expected: Vec<(PathBuf, String)> = expected
+        .into_iter()
+        .map(|(p, c)| (p, c.to_string()))
+        .collect();
+    assert_eq!(listed, expected, "{report}");
+    assert_eq!(report["used"], 5, "{report}");
+    // The truncated file's message says what is wrong with it.
+    let truncated = report["skipped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["code"] == "malformed")
+        .unwrap();
+    assert!(
+        truncated["message"].as_str().unwrap().contains("truncated"),
+        "{truncated}"
+    );
+
+    // Append: the same kinds among later maps.
+    let later = dir.path().join("later");
+    std::fs::create_dir(&later).unwrap();
+    let registry = FormatRegistry::with_default_formats();
+    let added: Vec<PathBuf> = (9..18)
+        .map(|i| {
+            let path = later.join(format!("room_{}.bt", 1_451_865_600 + i * 600));
+            registry
+                .write_file(&frame(i), &path, WriteOptions::default())
+                .unwrap();
+            path
+        })
+        .collect();
+    let mut expected = spoil(&added[2..6]);
+    expected.sort();
+    let report: serde_json::Value = serde_json::from_str(&ok(&[
+        "append",
+        "--quiet",
+        "--json",
+        "--skip-bad",
+        s(&map),
+        s(&later),
+    ]))
+    .unwrap();
+    let mut listed = skipped_codes(&report);
+    listed.sort();
+    let expected: Vec<(PathBuf, String)> = expected
+        .into_iter()
+        .map(|(p, c)| (p, c.to_string()))
+        .collect();
+    assert_eq!(listed, expected, "{report}");
+    assert_eq!(report["added"], 5, "{report}");
+}

@@ -271,12 +271,9 @@ fn new_file(run: &Run<'_>, output: &Path) -> Result<IngestReport, ConvertError> 
     let models = context.models();
     let model = models
         .by_name(&options.model)
-        .ok_or_else(|| {
-            let known: Vec<&str> = models.iter().map(|d| d.name).collect();
-            ConvertError::UnknownModel {
-                name: options.model.clone(),
-                known: known.join(", "),
-            }
+        .ok_or_else(|| ConvertError::UnknownModel {
+            name: options.model.clone(),
+            known: models.names(),
         })?
         .create();
     let times: Vec<Timestamp> = inputs.iter().map(|i| i.time).collect();

@@ -2,6 +2,7 @@
 //! variant (a front end adds its own hints, e.g. the option that skips bad files) and never
 //! by message text.
 
+use crate::skip::{SkipReason, SkippedInput};
 use crate::time::TimeError;
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -228,12 +229,12 @@ pub enum ConvertError {
     #[error(transparent)]
     File(#[from] froctomap_file::FileError),
     /// No registered temporal model has this name.
-    #[error("unknown model `{name}` (known: {known})")]
+    #[error("unknown model `{name}` (known: {})", known.join(", "))]
     UnknownModel {
         /// The name given.
         name: String,
         /// The registered names.
-        known: String,
+        known: Vec<&'static str>,
     },
     /// The temporal model refused its configuration or data.
     #[error("temporal model: {0}")]
@@ -442,7 +443,7 @@ pub enum ConvertError {
         /// Inputs given.
         inputs: usize,
         /// The inputs left out, and why.
-        skipped: Vec<(PathBuf, String)>,
+        skipped: Vec<SkippedInput>,
         /// The series' resolution, where one was chosen.
         resolution: Option<f64>,
     },
@@ -579,6 +580,27 @@ impl SnapshotError {
         }
     }
 
+    /// Why a file refused for this is left out, for routing (a copy of a refused file gives
+    /// that file's reason).
+    pub fn skip_reason(&self) -> SkipReason {
+        match self {
+            Self::Io(_) => SkipReason::Unreadable,
+            Self::Empty => SkipReason::Empty,
+            Self::TooLarge { .. } | Self::TooManyTiles { .. } => SkipReason::TooLarge,
+            Self::Format(e) => format_skip_reason(e),
+            Self::NotCompared(_) => SkipReason::NotCompared,
+            Self::Resolution { .. } => SkipReason::ResolutionMismatch,
+            Self::SameAsRefused(earlier) => earlier.skip_reason(),
+            Self::Recorded(_) => SkipReason::DamagedRecording,
+            Self::Internal(_) => SkipReason::Internal,
+        }
+    }
+
+    /// The file at `path` left out for this.
+    pub(crate) fn skipped(&self, path: PathBuf) -> SkippedInput {
+        SkippedInput::new(path, self.skip_reason(), self.to_string())
+    }
+
     /// The series' and the file's resolutions, when that is why the file was refused.
     pub fn resolution_mismatch(&self) -> Option<(f64, f64)> {
         match self {
@@ -586,6 +608,19 @@ impl SnapshotError {
             Self::SameAsRefused(earlier) => earlier.resolution_mismatch(),
             _ => None,
         }
+    }
+}
+
+/// Why a file its format refused is left out.
+fn format_skip_reason(error: &froctomap_formats::FormatError) -> SkipReason {
+    use froctomap_formats::FormatError;
+    match error {
+        FormatError::Io { .. } | FormatError::NotAFile { .. } => SkipReason::Unreadable,
+        FormatError::Unrecognized { .. }
+        | FormatError::SeriesNotMap { .. }
+        | FormatError::UnknownFormat { .. }
+        | FormatError::Unsupported { .. } => SkipReason::NotAMap,
+        _ => SkipReason::Malformed,
     }
 }
 
@@ -599,7 +634,7 @@ fn snapshot_message(path: &std::path::Path, error: &SnapshotError) -> String {
 
 fn mostly_skipped_message(
     inputs: usize,
-    skipped: &[(PathBuf, String)],
+    skipped: &[SkippedInput],
     resolution: Option<f64>,
 ) -> String {
     let mut text = format!(
@@ -611,10 +646,7 @@ fn mostly_skipped_message(
     }
     // One line (front ends escape control characters): every file, as `--skip-bad` lists
     // them, so that one run shows all of them.
-    let listed: Vec<String> = skipped
-        .iter()
-        .map(|(path, why)| format!("{}: {why}", path.display()))
-        .collect();
+    let listed: Vec<String> = skipped.iter().map(ToString::to_string).collect();
     format!("{text}: {}", listed.join("; "))
 }
 

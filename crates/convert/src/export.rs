@@ -30,6 +30,41 @@ pub enum ExportMode {
     Auto,
 }
 
+impl froctomap_core::Named for ExportMode {
+    const ALL: &'static [Self] = &[Self::Predict, Self::Retrieve, Self::Auto];
+    const WHAT: &'static str = "export mode";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Predict => "predict",
+            Self::Retrieve => "retrieve",
+            Self::Auto => "auto",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Predict => "Predicted maps (any instant)",
+            Self::Retrieve => "The last observed snapshot at or before each instant",
+            Self::Auto => "Retrieved inside the file's span, predicted outside it",
+        }
+    }
+}
+
+impl std::fmt::Display for ExportMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(froctomap_core::Named::name(*self))
+    }
+}
+
+impl std::str::FromStr for ExportMode {
+    type Err = froctomap_core::UnknownName;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        froctomap_core::parse_named(name)
+    }
+}
+
 /// Settings of an export.
 #[derive(Clone, Debug)]
 pub struct ExportOptions {

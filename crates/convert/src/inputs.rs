@@ -5,6 +5,7 @@ use crate::error::{ConvertError, ManifestProblem, SnapshotError};
 use crate::files::{refuse_special_file, special_kind};
 use crate::glob_walk::recursive_matches;
 use crate::recording::RecordedMap;
+use crate::skip::SkippedInput;
 use crate::time::{
     check_range, read_time, read_time_from_file_name, TimeError, Zone, EARLIEST_IN_NAME,
 };
@@ -119,7 +120,7 @@ pub struct CollectedInputs {
     /// recording and why, as a build reports files it left out.
     ///
     /// [`RecordingOptions::skip_bad`]: crate::RecordingOptions::skip_bad
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
 }
 
 /// Something odd about the inputs that does not stop a build.
@@ -173,7 +174,7 @@ impl Candidate {
 #[derive(Default)]
 struct InputNotes {
     warnings: Vec<InputWarning>,
-    skipped: Vec<(PathBuf, String)>,
+    skipped: Vec<SkippedInput>,
 }
 
 /// Adds `path` to `candidates`: the maps of a recording (of a format registered in
@@ -271,7 +272,7 @@ fn push_recording(
         recording
             .skipped
             .iter()
-            .map(|part| (path.clone(), part.to_string())),
+            .map(|part| SkippedInput::recording_part(path.clone(), part.as_ref())),
     );
     notes.warnings.extend(
         recording
@@ -459,7 +460,10 @@ fn collected(
 ) -> Result<CollectedInputs, ConvertError> {
     if candidates.is_empty() {
         return Err(match notes.skipped.into_iter().next() {
-            Some((path, problem)) => ConvertError::AllSkipped { path, problem },
+            Some(SkippedInput { path, message, .. }) => ConvertError::AllSkipped {
+                path,
+                problem: message,
+            },
             None => ConvertError::NoInputs,
         });
     }

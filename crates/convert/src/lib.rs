@@ -64,6 +64,7 @@ mod record;
 mod recording;
 mod recording_export;
 mod series_file;
+mod skip;
 mod snapshot_changes;
 mod text;
 mod time;
@@ -122,6 +123,7 @@ pub use record::{
 pub use recording::{describe_recording, RecordedMap, RecordedTopicInfo, RecordingInfo};
 pub use recording_export::{occupied_cells_above, occupied_cells_at};
 pub use series_file::{FroctFile, SeriesRead, StateVisit};
+pub use skip::{SkipReason, SkippedInput};
 pub use text::{group_thousands, tidy_float, tidy_floats};
 pub use time::{
     check_range, parse_duration, parse_time, read_time, read_time_from_file_name,

@@ -23,6 +23,7 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
 use crate::progress::Silent;
+use crate::skip::SkippedInput;
 use froctomap_core::{remove_stale_temporary_dirs, remove_stale_temporary_files, Timestamp};
 use froctomap_file::LivingWriter;
 use froctomap_formats::{MapSpool, SpoolError, SPOOL_PREFIX};
@@ -149,7 +150,7 @@ pub struct CommitReport {
     /// (input, warning) of maps that read with a warning.
     pub warnings: Vec<(PathBuf, String)>,
     /// (input, reason) of maps skipped (with `skip_bad`).
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
 }
 
 /// What happened while recording, in the order it happened, as [`Recorder::on_event`]'s

@@ -462,7 +462,8 @@ fn broken_snapshots_left_out_become_missing_samples_as_in_a_build() {
     .unwrap();
     assert_eq!(report.added, 3);
     assert_eq!(report.skipped.len(), 1);
-    assert_eq!(report.skipped[0].0, broken);
+    assert_eq!(report.skipped[0].path, broken);
+    assert_eq!(report.skipped[0].reason, SkipReason::Malformed);
     assert_retrieves(&context, &file, &series);
     let reader = FroctReader::open(&file).unwrap();
     assert_eq!(reader.header().axis.missing(), &[6]);

@@ -106,7 +106,8 @@ fn mixed_resolutions_name_both_files_or_are_skipped() {
     )
     .unwrap();
     assert_eq!((report.used, report.skipped.len()), (3, 1));
-    assert!(report.skipped[0].0.ends_with("map_1451867400.bt"));
+    assert!(report.skipped[0].path.ends_with("map_1451867400.bt"));
+    assert_eq!(report.skipped[0].reason, SkipReason::ResolutionMismatch);
 }
 
 #[test]
@@ -136,6 +137,13 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
     )
     .unwrap();
     assert_eq!(report.used, 3);
+    assert_eq!(report.skipped[0].path, files[2]);
+    assert_eq!(report.skipped[0].reason, SkipReason::Malformed);
+    assert!(
+        report.skipped[0].message.contains("truncated"),
+        "{:?}",
+        report.skipped
+    );
     // The skipped snapshot's time is unknown in the file, not a copy of a neighbour.
     let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
     let err = resolve_observed(&reader, TimeQuery::Sample(2))

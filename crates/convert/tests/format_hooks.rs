@@ -226,9 +226,10 @@ fn the_header_hook_checks_inputs_before_they_are_decoded() {
     let report = build(&context, &inputs, &out, &skip_bad, &Silent).unwrap();
     assert_eq!(report.used, 4);
     assert_eq!(report.skipped.len(), 1);
-    assert_eq!(report.skipped[0].0, inputs[0].path);
+    assert_eq!(report.skipped[0].path, inputs[0].path);
+    assert_eq!(report.skipped[0].code(), "resolution-mismatch");
     assert_eq!(
-        report.skipped[0].1,
+        report.skipped[0].message,
         "resolution 0.2 m differs from the series' 0.1 m"
     );
     assert_eq!(

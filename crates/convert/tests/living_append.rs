@@ -505,7 +505,8 @@ fn a_map_skipped_as_bad_is_a_missing_sample_of_the_segment() {
     .unwrap();
     drop(writer);
     assert_eq!((report.added, report.skipped.len()), (3, 1));
-    assert_eq!(report.skipped[0].0, bad);
+    assert_eq!(report.skipped[0].path, bad);
+    assert_eq!(report.skipped[0].code(), "malformed");
     let reader = LivingReader::open(&file).unwrap();
     assert_eq!(reader.sample_count(), 7);
     assert!(reader.is_missing(4));

@@ -22,6 +22,7 @@ pub mod cleanup;
 mod error;
 mod key;
 mod leaf;
+mod named;
 mod snapshot;
 mod time;
 
@@ -35,5 +36,6 @@ pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};
 pub use leaf::{
     defaults, free_log_odds, log_odds, occupied_log_odds, probability, Leaf, Occupancy,
 };
+pub use named::{parse_named, Named, UnknownName};
 pub use snapshot::{validate_resolution, BoundingBox, Snapshot, SnapshotStats};
 pub use time::Timestamp;

@@ -23,6 +23,39 @@ pub enum RecordedTime {
     Log,
 }
 
+impl froctomap_core::Named for RecordedTime {
+    const ALL: &'static [Self] = &[Self::Header, Self::Log];
+    const WHAT: &'static str = "time source";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Header => "header",
+            Self::Log => "log",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Header => "The header stamp of each message",
+            Self::Log => "The recording (log) time of each message",
+        }
+    }
+}
+
+impl std::fmt::Display for RecordedTime {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(froctomap_core::Named::name(*self))
+    }
+}
+
+impl std::str::FromStr for RecordedTime {
+    type Err = froctomap_core::UnknownName;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        froctomap_core::parse_named(name)
+    }
+}
+
 /// How recordings are read: which topic and which time.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -252,6 +285,39 @@ pub enum RecordingProfile {
     /// The ROS 2 messages, and Foxglove's own schemas (`foxglove.PointCloud`,
     /// `foxglove.SceneUpdate` cubes sized by the cell) in JSON for Foxglove's 3D panel.
     Foxglove,
+}
+
+impl froctomap_core::Named for RecordingProfile {
+    const ALL: &'static [Self] = &[Self::Ros2, Self::Foxglove];
+    const WHAT: &'static str = "recording profile";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Ros2 => "ros2",
+            Self::Foxglove => "foxglove",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Ros2 => "Standard ROS 2 messages only, all CDR",
+            Self::Foxglove => "Also Foxglove's schemas (JSON)",
+        }
+    }
+}
+
+impl std::fmt::Display for RecordingProfile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(froctomap_core::Named::name(*self))
+    }
+}
+
+impl std::str::FromStr for RecordingProfile {
+    type Err = froctomap_core::UnknownName;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        froctomap_core::parse_named(name)
+    }
 }
 
 /// How a recording is written: what a [`RecordingFormat::create`] is handed (and, for

@@ -287,16 +287,9 @@ impl FroctFile {
     ) -> PyResult<Bound<'py, PyDict>> {
         let reader = self.reader()?;
         let mut options = AnomalyOptions::default();
-        options.expectation = match expect {
-            "model" => Expectation::Model,
-            "static-mean" => Expectation::StaticMean,
-            "last-seen" => Expectation::LastSeen,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "expect={other:?}: give \"model\", \"static-mean\" or \"last-seen\""
-                )))
-            }
-        };
+        options.expectation = expect
+            .parse::<Expectation>()
+            .map_err(|e| PyValueError::new_err(format!("expect: {e}")))?;
         let at = match t {
             Some(t) => self.instant_of(&reader, t)?,
             None => {

@@ -256,7 +256,7 @@ pub(crate) fn tags_metadata(tags: Option<&Bound<'_, PyDict>>) -> PyResult<Map<St
 /// See the package's `build` for the arguments. Returns the report of `build --json`.
 #[pyfunction]
 #[pyo3(signature = (
-    inputs, output, *, lossy = false, order = None, model = "fremen-periods".to_string(),
+    inputs, output, *, lossy = false, order = None, model = None,
     model_options = None, max_order = None, periods = None, tile_depth = 10, zstd_level = 19,
     toggle_block = 256, skip_bad = false, resolution = None, allow_mostly_skipped = false,
     tags = None, created = None, memory = None, tmp_dir = None, start = None, step = None,
@@ -270,7 +270,7 @@ pub fn build<'py>(
     output: PathBuf,
     lossy: bool,
     order: Option<&Bound<'py, PyAny>>,
-    model: String,
+    model: Option<String>,
     model_options: Option<&Bound<'py, PyDict>>,
     max_order: Option<u8>,
     periods: Option<&Bound<'py, PyAny>>,
@@ -299,20 +299,16 @@ pub fn build<'py>(
     if !(0..=22).contains(&zstd_level) {
         return Err(froct_error_text("zstd_level must be 0 ..= 22"));
     }
-    let recorded = match time_source.as_str() {
-        "header" => RecordedTime::Header,
-        "log" => RecordedTime::Log,
-        other => {
-            return Err(froct_error_text(format!(
-                "time_source {other:?}: expected \"header\" or \"log\""
-            )))
-        }
-    };
+    let recorded: RecordedTime = time_source
+        .parse()
+        .map_err(|e| froct_error_text(format!("time_source: {e}")))?;
     let spool_dir = tmp_dir
         .clone()
         .or_else(|| Some(froctomap_convert::output_dir(&output).to_path_buf()));
     let inputs = build_inputs(inputs, spool_dir.as_deref())?;
     let source = series_times(start, step, times_file, times_from_names)?;
+    // `None`: the library's default, named in one place.
+    let model = model.unwrap_or_else(|| froctomap_temporal::models::DEFAULT_MODEL.to_string());
     let options = IngestOptions {
         model: model.clone(),
         config: model_config(&model, lossy, order, max_order, periods, model_options)?,

@@ -281,25 +281,12 @@ pub fn export<'py>(
     threshold: f64,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let profile = match profile.as_str() {
-        "ros2" => RecordingProfile::Ros2,
-        "foxglove" => RecordingProfile::Foxglove,
-        other => {
-            return Err(froct_error_text(format!(
-                "profile {other:?}: expected \"ros2\" or \"foxglove\""
-            )))
-        }
-    };
-    let mode = match mode.as_str() {
-        "predict" => ExportMode::Predict,
-        "retrieve" => ExportMode::Retrieve,
-        "auto" => ExportMode::Auto,
-        other => {
-            return Err(froct_error_text(format!(
-                "mode {other:?}: expected \"predict\", \"retrieve\" or \"auto\""
-            )))
-        }
-    };
+    let profile: RecordingProfile = profile
+        .parse()
+        .map_err(|e| froct_error_text(format!("profile: {e}")))?;
+    let mode: ExportMode = mode
+        .parse()
+        .map_err(|e| froct_error_text(format!("mode: {e}")))?;
     let recording = output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
@@ -484,7 +471,11 @@ fn run_recorder(
                 "bytes_before": commit.bytes_before,
                 "bytes": commit.bytes,
                 "warnings": commit.warnings.iter().map(|(p, w)| format!("{}: {w}", p.display())).collect::<Vec<_>>(),
-                "skipped": commit.skipped.iter().map(|(p, w)| format!("{}: {w}", p.display())).collect::<Vec<_>>(),
+                "skipped": commit.skipped.iter().map(|s| json!({
+                    "path": s.path.display().to_string(),
+                    "code": s.code(),
+                    "message": s.message,
+                })).collect::<Vec<_>>(),
             }),
             RecordEvent::Compacted(report) => json!({
                 "event": "compaction",

@@ -7,11 +7,11 @@ use crate::{ModelDescriptor, ModelId, PreparedModel, TemporalError, TimeAxis};
 /// ```
 /// use froctomap_temporal::{ModelId, ModelRegistry};
 /// let registry = ModelRegistry::with_default_models();
-/// let fremen = registry.by_name("fremen-periods").unwrap();
+/// let fremen = registry.by_name(froctomap_temporal::models::DEFAULT_MODEL).unwrap();
 /// assert_eq!(fremen.id, ModelId::FREMEN_PERIODS);
 /// assert_eq!(registry.by_id(ModelId(0)).unwrap().name, "static");
 /// assert!(registry.by_id(ModelId(999)).is_none());
-/// assert_eq!(registry.iter().count(), 4);
+/// assert_eq!(registry.names(), ["static", "fremen-regular", "fremen-periods", "markov"]);
 /// assert!(fremen.options.iter().any(|o| o.key == "order" && o.default == "auto"));
 /// ```
 #[derive(Debug, Clone, Default)]
@@ -50,6 +50,11 @@ impl ModelRegistry {
     /// The model with this id.
     pub fn by_id(&self, id: ModelId) -> Option<&ModelDescriptor> {
         self.models.iter().find(|d| d.id == id)
+    }
+
+    /// The names of every model, in registration order.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.models.iter().map(|d| d.name).collect()
     }
 
     /// The model with this name.

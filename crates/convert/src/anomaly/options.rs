@@ -17,6 +17,41 @@ pub enum Expectation {
     LastSeen,
 }
 
+impl froctomap_core::Named for Expectation {
+    const ALL: &'static [Self] = &[Self::Model, Self::StaticMean, Self::LastSeen];
+    const WHAT: &'static str = "expectation";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Model => "model",
+            Self::StaticMean => "static-mean",
+            Self::LastSeen => "last-seen",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Model => "The file's model at the snapshot's time",
+            Self::StaticMean => "Each cell's mean occupancy over the file's history",
+            Self::LastSeen => "The map as last seen at or before the time",
+        }
+    }
+}
+
+impl std::fmt::Display for Expectation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(froctomap_core::Named::name(*self))
+    }
+}
+
+impl std::str::FromStr for Expectation {
+    type Err = froctomap_core::UnknownName;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        froctomap_core::parse_named(name)
+    }
+}
+
 /// Thresholds of [`anomalies`](super::anomalies). Surprises are in nats (`−ln p`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]

@@ -31,6 +31,7 @@ use crate::files::output_dir;
 use crate::history::PackedCell;
 use crate::inputs::SeriesInput;
 use crate::maps::observed_map;
+use crate::skip::SkippedInput;
 use crate::snapshot_changes::Accepted;
 use froctomap_core::{Occupancy, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader, Header};
@@ -56,7 +57,7 @@ pub struct AppendReport {
     /// Snapshots added.
     pub added: usize,
     /// Files left out with `skip_bad`, and why.
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
     /// Reader warnings (file, message).
     pub warnings: Vec<(PathBuf, String)>,
     /// Total bytes of the input files added.

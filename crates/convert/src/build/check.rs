@@ -9,10 +9,11 @@
 use crate::error::{ConvertError, SnapshotError};
 use crate::inputs::SeriesInput;
 use crate::progress::Progress;
+use crate::skip::SkippedInput;
 use froctomap_core::{voxels_per_node, StateChange};
 use froctomap_formats::{FormatRegistry, ReadOptions, PROBE_BYTES};
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 /// The header check of a series.
@@ -35,7 +36,7 @@ pub(crate) struct CheckedInputs {
     /// Per input, `false` when it was left out.
     pub usable: Vec<bool>,
     /// Inputs left out, and why.
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
     /// The series' resolution: the one given, else the one most headers give (the earliest
     /// file's on a tie); `None` when no header gives one and none was given.
     pub resolution: Option<f64>,
@@ -144,7 +145,7 @@ impl InputCheck<'_> {
             }
             checked
                 .skipped
-                .push((inputs[i].path.clone(), refusal.to_string()));
+                .push(refusal.skipped(inputs[i].path.clone()));
             checked.usable[i] = false;
         }
         refuse_mostly_skipped(
@@ -182,7 +183,7 @@ fn majority_resolution(headers: &[Result<Option<f64>, SnapshotError>]) -> Option
 /// from a few stray files of another resolution, say), unless `allow`.
 pub(crate) fn refuse_mostly_skipped(
     inputs: usize,
-    skipped: &[(PathBuf, String)],
+    skipped: &[SkippedInput],
     resolution: Option<f64>,
     allow: bool,
 ) -> Result<(), ConvertError> {
@@ -273,6 +274,7 @@ fn header_resolution(
 mod tests {
     use super::*;
     use froctomap_core::Timestamp;
+    use std::path::PathBuf;
 
     /// The decisions are taken from header resolutions given to them.
     static NO_FORMATS: std::sync::LazyLock<FormatRegistry> =
@@ -323,9 +325,10 @@ mod tests {
         assert_eq!(checked.resolution, Some(0.1));
         assert_eq!(checked.resolution_file, Some(1));
         assert_eq!(checked.skipped.len(), 1);
-        assert_eq!(checked.skipped[0].0, inputs[3].path);
+        assert_eq!(checked.skipped[0].path, inputs[3].path);
+        assert_eq!(checked.skipped[0].code(), "resolution-mismatch");
         assert_eq!(
-            checked.skipped[0].1,
+            checked.skipped[0].message,
             "resolution 0.05 m differs from the series' 0.1 m"
         );
     }
@@ -344,7 +347,8 @@ mod tests {
         let checked = check(true).decide(&inputs, headers()).unwrap();
         assert_eq!(checked.usable, [false, true, true]);
         assert_eq!(checked.resolution, Some(0.2));
-        assert_eq!(checked.skipped[0].1, SnapshotError::Empty.to_string());
+        assert_eq!(checked.skipped[0].code(), "empty");
+        assert_eq!(checked.skipped[0].message, SnapshotError::Empty.to_string());
     }
 
     /// Issue 16 item 13: a 0.1 m file first in a series of 0.05 m files used to set the
@@ -360,7 +364,7 @@ mod tests {
         let checked = check(true).decide(&inputs, headers()).unwrap();
         assert_eq!(checked.resolution, Some(0.05));
         assert_eq!(checked.resolution_file, Some(1));
-        let skipped: Vec<&PathBuf> = checked.skipped.iter().map(|(p, _)| p).collect();
+        let skipped: Vec<&PathBuf> = checked.skipped.iter().map(|s| &s.path).collect();
         assert_eq!(skipped, [&inputs[0].path, &inputs[17].path]);
         assert_eq!(checked.usable.iter().filter(|u| **u).count(), 28);
         // Without --skip-bad, the error names the stray file against a majority one.

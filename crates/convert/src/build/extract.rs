@@ -12,6 +12,7 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{input_name, snapshot_bytes, SeriesInput};
 use crate::progress::Progress;
+use crate::skip::SkippedInput;
 use crate::snapshot_changes::{Accepted, ChangeReader, Refusal};
 use froctomap_core::StateChange;
 use froctomap_formats::ReadOptions;
@@ -39,7 +40,7 @@ pub(crate) struct Extracted {
     /// Bytes of the files accepted.
     pub input_bytes: u64,
     /// Files refused with `skip_bad`, and why.
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
     /// The samples of those files.
     pub absent: Vec<u32>,
     /// Reader warnings (file, message).
@@ -192,9 +193,7 @@ impl<'a> ChangeExtractor<'a> {
                     });
                 }
                 Err(reason) if self.options.skip_bad => {
-                    self.tally
-                        .skipped
-                        .push((input.path.clone(), reason.to_string()));
+                    self.tally.skipped.push(reason.skipped(input.path.clone()));
                     self.tally.absent.push(sample);
                     self.progress.advance(1);
                 }
@@ -374,9 +373,13 @@ mod tests {
         assert_eq!(samples, [0, 2]);
         let tally = lenient.finish();
         assert_eq!(tally.absent, [1]);
-        assert_eq!(tally.skipped[0].0, inputs[1].path);
+        assert_eq!(tally.skipped[0].path, inputs[1].path);
         assert_eq!(
-            tally.skipped[0].1,
+            tally.skipped[0].reason,
+            crate::SkipReason::ResolutionMismatch
+        );
+        assert_eq!(
+            tally.skipped[0].message,
             SnapshotError::Resolution {
                 found: 0.2,
                 series: 0.1

@@ -24,6 +24,7 @@ use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::{CollectedInputs, SeriesInput};
 use crate::progress::Progress;
+use crate::skip::SkippedInput;
 use crate::snapshot_changes::Accepted;
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -103,7 +104,7 @@ pub struct IngestOptions {
 impl Default for IngestOptions {
     fn default() -> Self {
         Self {
-            model: "fremen-periods".to_string(),
+            model: froctomap_temporal::models::DEFAULT_MODEL.to_string(),
             config: ModelConfig::default(),
             tile_depth: 10,
             codec: Codec::default(),
@@ -166,7 +167,7 @@ pub struct IngestInputs<'a> {
     /// The maps, sorted by time, with distinct times.
     pub maps: &'a [SeriesInput],
     /// Left out while collecting (the recording and why).
-    pub left_out: &'a [(PathBuf, String)],
+    pub left_out: &'a [SkippedInput],
 }
 
 impl<'a> From<&'a [SeriesInput]> for IngestInputs<'a> {
@@ -205,7 +206,7 @@ pub struct IngestReport {
     /// Snapshots used (added).
     pub used: usize,
     /// Files and parts of recordings left out with `skip_bad`, and why.
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
     /// Reader warnings (file, message), e.g. tolerated header problems.
     pub warnings: Vec<(PathBuf, String)>,
     /// Total bytes of the input files used.
@@ -325,7 +326,7 @@ pub(super) struct Intaken {
     pub used: usize,
     pub input_bytes: u64,
     /// Inputs left out by the check and by extraction, in that order.
-    pub skipped: Vec<(PathBuf, String)>,
+    pub skipped: Vec<SkippedInput>,
     pub warnings: Vec<(PathBuf, String)>,
     /// Voxel-samples of the inputs whose state changed (the seed not counted).
     pub changed_voxels: u64,

@@ -17,7 +17,7 @@ pub(super) fn default_model(samples: u32) -> PreparedOnAxis {
     let context = Context::with_default_plugins();
     let model = context
         .models()
-        .by_name("fremen-periods")
+        .by_name(froctomap_temporal::models::DEFAULT_MODEL)
         .expect("the default model")
         .create();
     let prepared = model

@@ -79,7 +79,7 @@ def build(
     lossy: bool = False,
     order: Union[str, int] = "auto",
     progress: Union[bool, ProgressCallback, None] = True,
-    model: str = "fremen-periods",
+    model: Optional[str] = None,
     model_options: Optional[Mapping[str, Any]] = None,
     max_order: Optional[int] = None,
     periods: Optional[Iterable[Union[str, float]]] = None,
@@ -113,7 +113,8 @@ def build(
     seconds), or one per line from ``times_file``; times without a zone are UTC.
 
     ``lossy=False`` keeps every observed state exactly; ``order`` is the number of periodic
-    components per voxel or ``"auto"`` (chosen per voxel, up to ``max_order``). ``model``,
+    components per voxel or ``"auto"`` (chosen per voxel, up to ``max_order``). ``model``
+    (default ``None``: the command line's default, ``fremen-periods``),
     ``model_options`` (``{"key": value}``) and ``periods`` (extra candidate periods, e.g.
     ``["1d", "8h"]``) choose the temporal model as ``--model``, ``--model-option`` and
     ``--periods`` do. ``created`` (a time) or ``SOURCE_DATE_EPOCH`` makes the file

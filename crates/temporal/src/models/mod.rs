@@ -16,6 +16,9 @@ pub use static_mean::{PreparedStaticMean, StaticMean};
 
 use crate::ModelDescriptor;
 
+/// The name of the model a build uses unless told otherwise (`--model`, Python's `model=`).
+pub const DEFAULT_MODEL: &str = fremen_periods::DESCRIPTOR.name;
+
 /// Every built-in model, as registered by
 /// [`ModelRegistry::with_default_models`](crate::ModelRegistry::with_default_models).
 pub const DEFAULT_MODELS: &[ModelDescriptor] = &[
