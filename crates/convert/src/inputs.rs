@@ -271,7 +271,7 @@ fn push_recording(
         recording
             .skipped
             .iter()
-            .map(|part| (path.clone(), part.to_string())),
+            .map(|part| (path.clone(), froctomap_core::error_message(&**part))),
     );
     notes.warnings.extend(
         recording
@@ -988,9 +988,9 @@ mod manifest_tests {
         let context = Context::with_default_plugins();
         let read = |text: &str| {
             std::fs::write(&manifest, text).unwrap();
-            collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
-                .unwrap_err()
-                .to_string()
+            let err = collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
+                .unwrap_err();
+            froctomap_core::error_message(&err)
         };
         let err = read("file,note\na.bt,x\n");
         assert!(

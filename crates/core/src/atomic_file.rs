@@ -102,7 +102,7 @@ fn open_stream(path: &Path, destination: Destination) -> io::Result<Box<dyn Writ
 
 /// Writing `path` failed; nothing was left at `path` (a previous file there is untouched).
 #[derive(Debug, thiserror::Error)]
-#[error("cannot write {}: {source}", path.display())]
+#[error("cannot write {}", path.display())]
 pub struct AtomicWriteError {
     /// Destination that was being written.
     pub path: PathBuf,

@@ -62,13 +62,13 @@ pub enum OctomapError {
         output: String,
     },
     /// Leaves that do not form a valid tree.
-    #[error("invalid map: {0}")]
+    #[error("invalid map")]
     InvalidMap(#[from] MapError),
     /// An argument out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
     /// Reading a file failed.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io {
         /// The file.
         path: std::path::PathBuf,

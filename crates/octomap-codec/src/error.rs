@@ -69,7 +69,7 @@ pub enum CodecError {
 #[non_exhaustive]
 pub enum EncodeError {
     /// The resolution or a leaf is invalid on its own (depth, alignment, NaN value).
-    #[error("invalid map: {0}")]
+    #[error("invalid map")]
     InvalidMap(#[from] froctomap_core::MapError),
     /// A leaf does not come strictly after the previous one in Morton order (it overlaps it
     /// or precedes it). Streaming encoders write depth-first, so order is required.

@@ -34,7 +34,7 @@ pub enum RenderError {
         message: String,
     },
     /// PNG encoding failed.
-    #[error("encoding the PNG: {source}")]
+    #[error("encoding the PNG")]
     Encode {
         /// The encoder's error.
         #[source]

@@ -26,7 +26,7 @@ pub enum NodeError {
         reason: String,
     },
     /// The `.froct` file could not be read or its map predicted.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Froct {
         /// The file.
         path: PathBuf,

@@ -20,7 +20,7 @@ pub enum SynthError {
     #[error("the base map is empty (no known voxels)")]
     EmptyBase,
     /// A door series file could not be read.
-    #[error("{}: cannot read door series: {source}", path.display())]
+    #[error("{}: cannot read door series", path.display())]
     DoorSeriesIo {
         /// The file.
         path: PathBuf,
@@ -53,17 +53,17 @@ pub enum SynthError {
         index: u64,
     },
     /// A generated map failed validation (a bug in the generator, reported rather than hidden).
-    #[error("generated map is invalid: {0}")]
+    #[error("generated map is invalid")]
     Map(#[from] MapError),
     /// Writing a frame through the format registry failed.
     #[error(transparent)]
     Format(#[from] FormatError),
     /// The sink of [`encode_series`](crate::encode_series) refused a frame (writing a
     /// stream failed).
-    #[error("writing the series: {0}")]
+    #[error("writing the series")]
     Sink(#[source] Box<dyn std::error::Error + Send + Sync>),
     /// A scenario file that is not a serialised [`SeriesSpec`](crate::SeriesSpec).
-    #[error("{}: not a scenario: {source}", path.display())]
+    #[error("{}: not a scenario", path.display())]
     SpecJson {
         /// The file.
         path: PathBuf,
@@ -72,7 +72,7 @@ pub enum SynthError {
         source: serde_json::Error,
     },
     /// A file or directory could not be created or written.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Io {
         /// The file or directory.
         path: PathBuf,

@@ -142,9 +142,10 @@ impl InputCheck<'_> {
                     source: Arc::new(refusal),
                 });
             }
-            checked
-                .skipped
-                .push((inputs[i].path.clone(), refusal.to_string()));
+            checked.skipped.push((
+                inputs[i].path.clone(),
+                froctomap_core::error_message(&refusal),
+            ));
             checked.usable[i] = false;
         }
         refuse_mostly_skipped(

@@ -194,7 +194,7 @@ impl<'a> ChangeExtractor<'a> {
                 Err(reason) if self.options.skip_bad => {
                     self.tally
                         .skipped
-                        .push((input.path.clone(), reason.to_string()));
+                        .push((input.path.clone(), froctomap_core::error_message(&reason)));
                     self.tally.absent.push(sample);
                     self.progress.advance(1);
                 }
