@@ -728,7 +728,7 @@ mod tests {
     }
 
     fn manifest_problems() -> Vec<ManifestProblem> {
-        vec![
+        let all = vec![
             ManifestProblem::NotPathTime,
             ManifestProblem::Time(time_error()),
             ManifestProblem::MissingColumn {
@@ -736,7 +736,16 @@ mod tests {
                 names: "time, stamp",
             },
             ManifestProblem::MissingField { column: 3 },
-        ]
+        ];
+        for e in &all {
+            match e {
+                ManifestProblem::NotPathTime
+                | ManifestProblem::Time(_)
+                | ManifestProblem::MissingColumn { .. }
+                | ManifestProblem::MissingField { .. } => {}
+            }
+        }
+        all
     }
 
     /// Every variant of [`ConvertError`] (and through it of the errors it wraps).
@@ -1042,6 +1051,9 @@ mod tests {
             },
         ];
         for e in warnings {
+            match e {
+                crate::InputWarning::Unlisted { .. } | crate::InputWarning::Recording { .. } => {}
+            }
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
         let record = [
@@ -1065,6 +1077,13 @@ mod tests {
             },
         ];
         for e in record {
+            match e {
+                crate::RecordError::Convert(_)
+                | crate::RecordError::Spool(_)
+                | crate::RecordError::SegmentLimit { .. }
+                | crate::RecordError::Compact { .. }
+                | crate::RecordError::Commit { .. } => {}
+            }
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
     }

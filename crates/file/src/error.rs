@@ -308,15 +308,23 @@ mod tests {
     }
 
     fn header_errors() -> Vec<HeaderError> {
-        vec![
+        let all = vec![
             HeaderError::Resolution(MapError::InvalidResolution(0.0)),
             HeaderError::TileDepth(17),
             HeaderError::EmptyToggleBlocks,
-        ]
+        ];
+        for e in &all {
+            match e {
+                HeaderError::Resolution(_)
+                | HeaderError::TileDepth(_)
+                | HeaderError::EmptyToggleBlocks => {}
+            }
+        }
+        all
     }
 
     fn tile_errors() -> Vec<TileEncodeError> {
-        vec![
+        let all = vec![
             TileEncodeError::NoCells,
             TileEncodeError::InvalidCell {
                 start: 1,
@@ -334,7 +342,22 @@ mod tests {
             TileEncodeError::EmptyRemainderMask { code: 1 },
             TileEncodeError::BadRemainderRuns { code: 1 },
             TileEncodeError::Compression(io()),
-        ]
+        ];
+        for e in &all {
+            match e {
+                TileEncodeError::NoCells
+                | TileEncodeError::InvalidCell { .. }
+                | TileEncodeError::OutOfPlace { .. }
+                | TileEncodeError::BeyondAxis { .. }
+                | TileEncodeError::NeverObserved { .. }
+                | TileEncodeError::TooLarge(_)
+                | TileEncodeError::NoBaseTile { .. }
+                | TileEncodeError::EmptyRemainderMask { .. }
+                | TileEncodeError::BadRemainderRuns { .. }
+                | TileEncodeError::Compression(_) => {}
+            }
+        }
+        all
     }
 
     fn file_errors() -> Vec<FileError> {

@@ -188,7 +188,34 @@ mod tests {
             },
         ];
         for e in &spool {
+            match e {
+                crate::SpoolError::Io { .. }
+                | crate::SpoolError::TooLarge { .. }
+                | crate::SpoolError::NoMap { .. } => {}
+            }
             assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        // The native OctoMap reader's errors, on their own and as a file's decoding error.
+        use crate::octomap_native::NativeError;
+        let native = || {
+            [
+                NativeError::Malformed(froctomap_octomap_codec::CodecError::Empty),
+                NativeError::InvalidMap(froctomap_core::MapError::InvalidResolution(0.0)),
+            ]
+        };
+        for e in native() {
+            match e {
+                NativeError::Malformed(_) | NativeError::InvalidMap(_) => {}
+            }
+            let decode = FormatError::Decode {
+                path: path(),
+                format: "bt",
+                source: Box::new(e),
+            };
+            assert_eq!(said_twice(&decode), None, "{decode:?}");
+        }
+        for e in native() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
         }
         let duplicate = DuplicateName {
             kind: "map format",

@@ -313,13 +313,55 @@ mod tests {
     }
 
     fn message_errors() -> Vec<MessageError> {
-        vec![
+        let all = vec![
             MessageError::Truncated { field: "data" },
             MessageError::Encapsulation(7),
             MessageError::BadString { field: "id" },
             MessageError::Resolution("-1".into()),
             MessageError::NotAMap(CodecError::Empty),
-        ]
+        ];
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                MessageError::Truncated { .. }
+                | MessageError::Encapsulation(_)
+                | MessageError::BadString { .. }
+                | MessageError::Resolution(_)
+                | MessageError::NotAMap(_) => {}
+            }
+        }
+        all
+    }
+
+    fn write_errors() -> Vec<McapWriteError> {
+        let all = vec![
+            McapWriteError::Mcap(mcap_error()),
+            McapWriteError::Io(std::io::Error::other("disk full")),
+            McapWriteError::TimeOutOfRange("2100-01-01".into()),
+            McapWriteError::NotBinary(CodecError::Empty),
+            McapWriteError::MessageTooLong { bytes: 9 },
+            McapWriteError::BadOption {
+                option: "frame id",
+                value: "".into(),
+                reason: "is empty",
+            },
+            McapWriteError::TooManyPoints {
+                voxels: 9,
+                limit: 8,
+            },
+        ];
+        for e in &all {
+            match e {
+                McapWriteError::Mcap(_)
+                | McapWriteError::Io(_)
+                | McapWriteError::TimeOutOfRange(_)
+                | McapWriteError::NotBinary(_)
+                | McapWriteError::MessageTooLong { .. }
+                | McapWriteError::BadOption { .. }
+                | McapWriteError::TooManyPoints { .. } => {}
+            }
+        }
+        all
     }
 
     fn ros_errors() -> Vec<RosError> {
@@ -450,18 +492,7 @@ mod tests {
         for e in message_errors() {
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
-        let write = [
-            McapWriteError::Mcap(mcap_error()),
-            McapWriteError::Io(std::io::Error::other("disk full")),
-            McapWriteError::TimeOutOfRange("2100-01-01".into()),
-            McapWriteError::NotBinary(CodecError::Empty),
-            McapWriteError::MessageTooLong { bytes: 9 },
-            McapWriteError::TooManyPoints {
-                voxels: 9,
-                limit: 8,
-            },
-        ];
-        for e in write {
+        for e in write_errors() {
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
     }

@@ -102,3 +102,86 @@ pub enum SynthError {
     #[error("cannot start worker threads: {0}")]
     ThreadPool(String),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+
+    fn io() -> std::io::Error {
+        std::io::Error::other("disk full")
+    }
+
+    /// Every variant, as its chain prints: no text repeats another of the chain (a cause is
+    /// printed once, after the error naming the file) and none is empty.
+    #[test]
+    fn every_error_is_said_once() {
+        let path = || PathBuf::from("doors.txt");
+        let all = [
+            SynthError::InvalidSpec {
+                field: "count",
+                reason: "must be at least 1".into(),
+            },
+            SynthError::EmptyBase,
+            SynthError::DoorSeriesIo {
+                path: path(),
+                source: io(),
+            },
+            SynthError::DoorSeriesParse {
+                source_name: "doors.txt".into(),
+                line: 2,
+                reason: "state \"2\" is neither 0 (closed) nor 1 (open)".into(),
+            },
+            SynthError::FrameOutOfRange { index: 9, count: 8 },
+            SynthError::MissedFrame { index: 3 },
+            SynthError::Map(MapError::InvalidResolution(0.0)),
+            SynthError::Format(FormatError::Io {
+                path: "frame.bt".into(),
+                source: io(),
+            }),
+            SynthError::Sink(Box::new(io())),
+            SynthError::SpecJson {
+                path: "scenario.json".into(),
+                source: serde_json::from_str::<u8>("x").unwrap_err(),
+            },
+            SynthError::Io {
+                path: "out".into(),
+                source: io(),
+            },
+            SynthError::InvalidPattern {
+                pattern: "frame.bt".into(),
+                reason: "no {index} or {time}".into(),
+            },
+            SynthError::Manifest {
+                path: "manifest.csv".into(),
+                line: 2,
+                reason: "not path,time".into(),
+            },
+            SynthError::ThreadPool("out of threads".into()),
+        ];
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                SynthError::InvalidSpec { .. }
+                | SynthError::EmptyBase
+                | SynthError::DoorSeriesIo { .. }
+                | SynthError::DoorSeriesParse { .. }
+                | SynthError::FrameOutOfRange { .. }
+                | SynthError::MissedFrame { .. }
+                | SynthError::Map(_)
+                | SynthError::Format(_)
+                | SynthError::Sink(_)
+                | SynthError::SpecJson { .. }
+                | SynthError::Io { .. }
+                | SynthError::InvalidPattern { .. }
+                | SynthError::Manifest { .. }
+                | SynthError::ThreadPool(_) => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        assert_eq!(
+            froctomap_core::error_message(&all[2]),
+            "doors.txt: cannot read door series: disk full"
+        );
+    }
+}
