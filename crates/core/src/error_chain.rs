@@ -6,7 +6,8 @@
 //! errors are not all so kind: an `io::Error` made from another error, `mcap`'s and
 //! `rusqlite`'s errors, zstd's (an `io::Error`) and PyO3's may show their cause in their own
 //! text and return it from `source()` too, so [`error_message`] leaves out a cause whose text
-//! the line already holds.
+//! the line already holds, and lets a cause that repeats the text before it with more
+//! (rusqlite's `Error code 11: …` under its own `…`) take that text's place.
 
 use std::error::Error;
 
@@ -25,11 +26,18 @@ pub fn error_chain<'a>(error: &'a (dyn Error + 'static)) -> impl Iterator<Item =
 /// ```
 pub fn error_message(error: &(dyn Error + 'static)) -> String {
     let mut text = String::new();
+    // Where the last text joined starts: a cause that repeats it with more (rusqlite's
+    // `Error code 11: …` under its own `…`) takes its place.
+    let mut last = 0;
     for part in error_chain(error) {
         if text.is_empty() {
             text = part;
+        } else if part.contains(&text[last..]) {
+            text.truncate(last);
+            text.push_str(&part);
         } else if !text.contains(&part) {
             text.push_str(": ");
+            last = text.len();
             text.push_str(&part);
         }
     }
@@ -86,6 +94,25 @@ mod tests {
                 "no such file".to_string()
             ))
         );
+    }
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("database disk image is malformed")]
+    struct Short(#[source] std::io::Error);
+
+    #[test]
+    fn a_cause_repeating_its_parent_with_more_replaces_it() {
+        let error = crate::AtomicWriteError {
+            path: "a.db3".into(),
+            source: std::io::Error::other(Short(std::io::Error::other(
+                "Error code 11: database disk image is malformed",
+            ))),
+        };
+        assert_eq!(
+            error_message(&error),
+            "cannot write a.db3: Error code 11: database disk image is malformed"
+        );
+        assert!(said_twice(&error).is_some());
     }
 
     #[test]
