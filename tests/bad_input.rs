@@ -18,6 +18,13 @@ const SMALL_FIXTURES: [&str; 6] = [
     "legacy_headerless.bt",
 ];
 
+/// `error` as the front ends print it (its causes after it, each once): a refusal's reason is
+/// often the cause of an error that names the file.
+fn printed(error: &FormatError) -> String {
+    assert_eq!(froctomap_core::said_twice(error), None, "{error:?}");
+    froctomap_core::error_message(error)
+}
+
 fn read_bytes(name: &str, bytes: &[u8]) -> Result<froctomap_formats::ReadOutcome, FormatError> {
     FormatRegistry::with_default_formats().read_bytes(
         Path::new(name),
@@ -36,7 +43,7 @@ fn every_truncation_of_every_small_fixture_is_a_clear_error() {
                 Err(err) => err,
                 Ok(_) => panic!("{name} cut to {len} of {} bytes was accepted", bytes.len()),
             };
-            let message = err.to_string();
+            let message = printed(&err);
             assert!(message.starts_with(&format!("{name}: ")), "{message}");
             // Straight through the FFI too: it must refuse before upstream reads garbage.
             assert!(OcTree::read(cut).is_err(), "{name} cut to {len}");
@@ -47,9 +54,7 @@ fn every_truncation_of_every_small_fixture_is_a_clear_error() {
 #[test]
 fn truncated_body_names_the_offset() {
     let bytes = std::fs::read(octomap_fixture("few_voxels.bt")).unwrap();
-    let err = read_bytes("few_voxels.bt", &bytes[..bytes.len() - 1])
-        .unwrap_err()
-        .to_string();
+    let err = printed(&read_bytes("few_voxels.bt", &bytes[..bytes.len() - 1]).unwrap_err());
     assert!(err.contains("truncated"), "{err}");
     assert!(
         err.contains(&format!("offset {}", bytes.len() - 2)),
@@ -62,10 +67,11 @@ fn empty_file_is_reported_as_empty() {
     let dir = scratch();
     let path = dir.path().join("nothing.bt");
     std::fs::write(&path, b"").unwrap();
-    let err = FormatRegistry::with_default_formats()
-        .read_file(&path, ReadOptions::default())
-        .unwrap_err()
-        .to_string();
+    let err = printed(
+        &FormatRegistry::with_default_formats()
+            .read_file(&path, ReadOptions::default())
+            .unwrap_err(),
+    );
     assert!(err.contains("nothing.bt") && err.contains("empty"), "{err}");
     assert!(matches!(
         OcTree::read(b""),
@@ -75,10 +81,11 @@ fn empty_file_is_reported_as_empty() {
 
 #[test]
 fn missing_file_is_reported_with_its_path() {
-    let err = FormatRegistry::with_default_formats()
-        .read_file(Path::new("/no/such/dir/map.bt"), ReadOptions::default())
-        .unwrap_err()
-        .to_string();
+    let err = printed(
+        &FormatRegistry::with_default_formats()
+            .read_file(Path::new("/no/such/dir/map.bt"), ReadOptions::default())
+            .unwrap_err(),
+    );
     assert!(
         err.contains("/no/such/dir/map.bt") && err.contains("cannot read"),
         "{err}"
@@ -87,9 +94,7 @@ fn missing_file_is_reported_with_its_path() {
 
 #[test]
 fn unrecognised_content_says_what_it_starts_with() {
-    let err = read_bytes("photo.bt", b"\x89PNG\r\n\x1a\n....")
-        .unwrap_err()
-        .to_string();
+    let err = printed(&read_bytes("photo.bt", b"\x89PNG\r\n\x1a\n....").unwrap_err());
     assert!(
         err.contains("photo.bt") && err.contains("not a map file"),
         "{err}"
@@ -124,9 +129,7 @@ fn wrong_size_header_is_tolerated_with_a_warning_or_skips_the_body_when_zero() {
         .iter()
         .any(|w| w.contains("size 0") && w.contains("ignored")));
     // A size that is not a number is malformed.
-    let err = read_bytes("few_voxels.bt", &wrong("size x7"))
-        .unwrap_err()
-        .to_string();
+    let err = printed(&read_bytes("few_voxels.bt", &wrong("size x7")).unwrap_err());
     assert!(
         err.contains("few_voxels.bt") && err.contains("size"),
         "{err}"
@@ -143,17 +146,18 @@ fn bt_renamed_ot_is_read_by_content_with_a_warning_but_a_forced_format_is_an_err
         .warnings
         .iter()
         .any(|w| w.contains(".bt file despite the file name")));
-    let forced = FormatRegistry::with_default_formats()
-        .read_bytes(
-            Path::new("renamed.ot"),
-            &bytes,
-            ReadOptions {
-                format: Some("ot"),
-                ..Default::default()
-            },
-        )
-        .unwrap_err()
-        .to_string();
+    let forced = printed(
+        &FormatRegistry::with_default_formats()
+            .read_bytes(
+                Path::new("renamed.ot"),
+                &bytes,
+                ReadOptions {
+                    format: Some("ot"),
+                    ..Default::default()
+                },
+            )
+            .unwrap_err(),
+    );
     assert!(
         forced.starts_with("renamed.ot: not an OctoMap .ot file"),
         "{forced}"
@@ -218,7 +222,7 @@ fn unsupported_tree_types_are_named() {
     // A `.ot` of a type whose node layout froctomap does not know is refused by name.
     let at = ot.windows(9).position(|w| w == b"id OcTree").unwrap() + 9;
     let stamped = [&ot[..at], b"Stamped", &ot[at..]].concat();
-    let err = read_bytes("stamped.ot", &stamped).unwrap_err().to_string();
+    let err = printed(&read_bytes("stamped.ot", &stamped).unwrap_err());
     assert!(
         err.contains("stamped.ot") && err.contains("OcTreeStamped"),
         "{err}"

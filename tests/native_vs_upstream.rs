@@ -26,7 +26,12 @@ fn read_with(backend: Backend, name: &str, bytes: &[u8]) -> Result<ReadOutcome, 
                 ..ReadOptions::default()
             },
         )
-        .map_err(|e| e.to_string())
+        // The printed chain, not the outer text alone: a refusal's reason is the cause of
+        // the error that names the file, and the backends must agree on it too.
+        .map_err(|e| {
+            assert_eq!(froctomap_core::said_twice(&e), None, "{e:?}");
+            froctomap_core::error_message(&e)
+        })
 }
 
 /// Reads `bytes` through both backends and requires identical outcomes: the same snapshot

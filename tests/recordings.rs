@@ -542,9 +542,8 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
     for name in ["not_a_map.bag", "not_a_map.mcap"] {
         let context = context();
         let inputs = collect_inputs(&context, &[path(name)], TimeSource::Auto).unwrap();
-        let err = build(&context, &inputs, &out, &BuildOptions::default(), &Silent)
-            .unwrap_err()
-            .to_string();
+        let err =
+            chain(&build(&context, &inputs, &out, &BuildOptions::default(), &Silent).unwrap_err());
         // The message is named by its log time (one second after its stamp here).
         for part in [
             name,
@@ -570,9 +569,8 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
     }
 
     // Two maps of one time.
-    let err = collect_inputs(&context(), &[path("same.bag")], TimeSource::Auto)
-        .unwrap_err()
-        .to_string();
+    let err =
+        chain(&collect_inputs(&context(), &[path("same.bag")], TimeSource::Auto).unwrap_err());
     for part in [
         "same.bag",
         "/octomap_binary",
@@ -591,9 +589,8 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
     let mut unknown = bag.clone();
     unknown[field + 12..field + 15].copy_from_slice(b"xz4");
     std::fs::write(path("unknown.bag"), unknown).unwrap();
-    let err = collect_inputs(&context(), &[path("unknown.bag")], TimeSource::Auto)
-        .unwrap_err()
-        .to_string();
+    let err =
+        chain(&collect_inputs(&context(), &[path("unknown.bag")], TimeSource::Auto).unwrap_err());
     assert!(
         err.contains("unknown.bag") && err.contains("`xz4` is not supported"),
         "{err}"
@@ -603,15 +600,15 @@ fn damaged_recordings_are_refused_or_skipped_with_their_bag_topic_and_time() {
         *byte ^= 0x5a;
     }
     std::fs::write(path("damaged.bag"), damaged).unwrap();
-    let err = collect_inputs(&context(), &[path("damaged.bag")], TimeSource::Auto)
-        .unwrap_err()
-        .to_string();
+    let err =
+        chain(&collect_inputs(&context(), &[path("damaged.bag")], TimeSource::Auto).unwrap_err());
     assert!(err.contains("damaged.bag"), "{err}");
     // Cut anywhere: an error naming the bag, never a panic.
     for end in (0..bag.len()).step_by(97) {
         std::fs::write(path("cut.bag"), &bag[..end]).unwrap();
         if let Err(err) = collect_inputs(&context(), &[path("cut.bag")], TimeSource::Auto) {
-            assert!(err.to_string().contains("cut.bag"), "cut at {end}: {err}");
+            let err = chain(&err);
+            assert!(err.contains("cut.bag"), "cut at {end}: {err}");
         }
     }
 }
@@ -836,7 +833,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
             assert!(lenient.skipped.is_empty() || strict.is_err(), "{name}");
             continue;
         }
-        let err = strict.unwrap_err().to_string();
+        let err = chain(&strict.unwrap_err());
         assert_eq!(lenient.skipped.len(), 1, "{name}: {:?}", lenient.skipped);
         assert_eq!(lenient.skipped[0].code(), "damaged-recording", "{name}");
         let listed = &lenient.skipped[0].message;
@@ -1119,15 +1116,11 @@ fn run_script(script: &str, args: &[&Path]) -> Output {
     out
 }
 
-/// An error and its causes, one text.
-fn chain(error: &dyn std::error::Error) -> String {
-    let mut text = error.to_string();
-    let mut cause = error.source();
-    while let Some(next) = cause {
-        text.push_str(&format!(": {next}"));
-        cause = next.source();
-    }
-    text
+/// An error and its causes, one text, as the front ends print it (a refusal's reason is the
+/// cause of the error that names the file). Not checked with `said_twice`: rusqlite's errors
+/// repeat their own causes, which the printed line shows once.
+fn chain(error: &(dyn std::error::Error + 'static)) -> String {
+    froctomap_core::error_message(error)
 }
 
 /// `info` on every kind of recording (ROS 1 bag, MCAP file, ROS 2 bag directories with MCAP

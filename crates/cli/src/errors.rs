@@ -4,21 +4,12 @@
 use froctomap_convert::{ConvertError, SnapshotError};
 use froctomap_formats::FormatError;
 use froctomap_ros::RosError;
-use std::fmt::Write as _;
 
-/// The error and its causes on one line, each text once: a cause whose text its parent's
-/// message already includes (a `{source}` in the parent's format) is not repeated.
+/// The error and its causes on one line, each text once
+/// ([`froctomap_core::error_message`], which Python's `FroctError` shows too).
 pub fn message(error: &anyhow::Error) -> String {
-    let mut text = String::new();
-    for cause in error.chain() {
-        let part = cause.to_string();
-        if text.is_empty() {
-            text = part;
-        } else if !text.contains(&part) {
-            let _ = write!(text, ": {part}");
-        }
-    }
-    text
+    let error: &(dyn std::error::Error + Send + Sync + 'static) = error.as_ref();
+    froctomap_core::error_message(error)
 }
 
 /// A hint for `error`, from the first typed cause that has one. `skips_bad_files`: the

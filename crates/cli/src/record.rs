@@ -435,7 +435,7 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
             }
         }
         RecordEvent::LeftOut { maps, what, error } => {
-            let why = escaped(format!("{what}: {}", chain(error)));
+            let why = escaped(format!("{what}: {}", froctomap_core::error_message(*error)));
             match maps {
                 1 => ui.note(&format!("warning: left out: {why}")),
                 _ => ui.note(&format!(
@@ -445,17 +445,6 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
         }
         _ => {}
     }
-}
-
-/// An error and its causes, as `{:#}` prints an `anyhow` error.
-fn chain(error: &dyn std::error::Error) -> String {
-    let mut text = error.to_string();
-    let mut source = error.source();
-    while let Some(cause) = source {
-        text.push_str(&format!(": {cause}"));
-        source = cause.source();
-    }
-    text
 }
 
 fn read_files(recorder: &mut Recording<'_>, args: &RecordArgs, source: &Path) -> Result<()> {

@@ -375,7 +375,7 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 }
             }
             Ok(None) => {}
-            Err(e) => eprintln!("warning: {e}"),
+            Err(e) => eprintln!("warning: {}", froctomap_core::error_message(&e)),
         }
         let next = Instant::now() + period;
         while Instant::now() < next && !STOP.load(Ordering::SeqCst) {
@@ -386,7 +386,11 @@ pub fn ros2_command(_ui: &Ui, args: &Ros2Args) -> anyhow::Result<()> {
                 Some(sink) => {
                     node.receive_into(sink, wait)?;
                     if let Err(e) = sink.tick() {
-                        eprintln!("warning: {}: {e}", args.file.display());
+                        eprintln!(
+                            "warning: {}: {}",
+                            args.file.display(),
+                            froctomap_core::error_message(&e)
+                        );
                     }
                 }
                 None => {
@@ -532,7 +536,10 @@ fn open_recording<'a>(
             );
         }
         RecordEvent::LeftOut { maps, what, error } => {
-            eprintln!("warning: {maps} map(s) left out: {what}: {error}");
+            eprintln!(
+                "warning: {maps} map(s) left out: {what}: {}",
+                froctomap_core::error_message(error)
+            );
         }
         _ => {}
     });

@@ -44,7 +44,7 @@ pub enum ConvertError {
         kind: &'static str,
     },
     /// A glob pattern that does not parse.
-    #[error("bad pattern {pattern:?}: {source}")]
+    #[error("bad pattern {pattern:?}")]
     BadPattern {
         /// The pattern.
         pattern: String,
@@ -60,7 +60,7 @@ pub enum ConvertError {
     },
     /// A recording (a ROS bag, an MCAP file) that its format's plugin could not open or
     /// expand into maps (the cause names the recording).
-    #[error("{source}")]
+    #[error("{format} recording")]
     Recording {
         /// The recording.
         path: PathBuf,
@@ -88,7 +88,7 @@ pub enum ConvertError {
     #[error("-: standard input is a terminal; pipe an MCAP stream into it (e.g. `froctomap generate --stream | froctomap build - -o f.froct`)")]
     StdinIsTerminal,
     /// Standard input could not be read.
-    #[error("-: cannot read standard input: {source}")]
+    #[error("-: cannot read standard input")]
     StdinRead {
         /// The cause.
         #[source]
@@ -112,7 +112,7 @@ pub enum ConvertError {
         extensions: String,
     },
     /// A directory or manifest that cannot be read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Unlistable {
         /// The directory or manifest.
         path: PathBuf,
@@ -121,7 +121,7 @@ pub enum ConvertError {
         source: std::io::Error,
     },
     /// A manifest line that is not `path,time`.
-    #[error("{}:{line}: {problem}", manifest.display())]
+    #[error("{}:{line}", manifest.display())]
     ManifestLine {
         /// The manifest.
         manifest: PathBuf,
@@ -155,7 +155,7 @@ pub enum ConvertError {
     },
     /// A time that cannot be used for a file (outside the supported range, or past what a
     /// start and step can reach).
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     InputTime {
         /// The file.
         path: PathBuf,
@@ -237,10 +237,10 @@ pub enum ConvertError {
         known: Vec<&'static str>,
     },
     /// The temporal model refused its configuration or data.
-    #[error("temporal model: {0}")]
+    #[error("temporal model")]
     Model(#[from] froctomap_temporal::TemporalError),
     /// The snapshots' times make no time axis.
-    #[error("time axis: {0}")]
+    #[error("the snapshots' times")]
     TimeAxis(#[source] froctomap_temporal::TemporalError),
     /// A time given by the user could not be read.
     #[error(transparent)]
@@ -384,7 +384,7 @@ pub enum ConvertError {
     },
     /// Cells of a FROctomap file that do not make a map (overlapping, out of order): only a
     /// damaged or foreign writer's file gets past the reader's checks this way.
-    #[error("{}: inconsistent cells: {source}", path.display())]
+    #[error("{}: inconsistent cells", path.display())]
     InconsistentCells {
         /// The FROctomap file.
         path: PathBuf,
@@ -400,7 +400,7 @@ pub enum ConvertError {
     #[error(transparent)]
     Output(#[from] froctomap_core::AtomicWriteError),
     /// A recording format's writer refused or failed to write an exported map.
-    #[error("{}: writing the {format} recording failed{}: {source}", path.display(), at.map(|t| format!(" at the map for {}", iso8601(t))).unwrap_or_default())]
+    #[error("{}: writing the {format} recording failed{}", path.display(), at.map(|t| format!(" at the map for {}", iso8601(t))).unwrap_or_default())]
     RecordingWrite {
         /// The recording being written.
         path: PathBuf,
@@ -428,7 +428,7 @@ pub enum ConvertError {
         dir: PathBuf,
     },
     /// A series resolution that no map can have (not positive and finite).
-    #[error("resolution {resolution} m: {source}")]
+    #[error("the series' resolution")]
     BadResolution {
         /// As given.
         resolution: f64,
@@ -468,7 +468,7 @@ pub enum ConvertError {
     },
     /// The build's spill data (runs set aside on disk to bound memory, see
     /// `IngestOptions::memory`) could not be written or read back.
-    #[error("{}: spill data of the build: {source}", path.display())]
+    #[error("{}: spill data of the build", path.display())]
     Spill {
         /// The spill file or directory.
         path: PathBuf,
@@ -520,7 +520,7 @@ impl ConvertError {
 #[non_exhaustive]
 pub enum SnapshotError {
     /// The file could not be read.
-    #[error("cannot read: {0}")]
+    #[error("cannot read")]
     Io(#[source] std::io::Error),
     /// The file is empty.
     #[error("the file is empty")]
@@ -537,7 +537,7 @@ pub enum SnapshotError {
     #[error(transparent)]
     Format(froctomap_formats::FormatError),
     /// Its format's reader accepts it but its byte-level comparison refused it.
-    #[error("read but not compared: {0}")]
+    #[error("read but not compared")]
     NotCompared(#[source] froctomap_formats::FormatError),
     /// Its resolution is not the series'.
     #[error("resolution {found} m differs from the series' {series} m")]
@@ -560,11 +560,11 @@ pub enum SnapshotError {
         limit: u64,
     },
     /// Byte-identical to a file refused before it, and so refused for the same reason.
-    #[error("byte-identical to a file refused before it: {0}")]
+    #[error("byte-identical to a file refused before it")]
     SameAsRefused(#[source] Arc<SnapshotError>),
     /// A recorded map could not be fetched from its recording (the cause names it).
-    #[error("{0}")]
-    Recorded(#[source] Arc<dyn std::error::Error + Send + Sync + 'static>),
+    #[error(transparent)]
+    Recorded(Arc<dyn std::error::Error + Send + Sync + 'static>),
     /// A fault of froctomap itself.
     #[error("internal error: {0}")]
     Internal(&'static str),
@@ -574,7 +574,7 @@ impl SnapshotError {
     /// `true` when the message names the file already.
     fn names_file(&self) -> bool {
         match self {
-            Self::Format(_) | Self::Recorded(_) => true,
+            Self::Format(_) | Self::NotCompared(_) | Self::Recorded(_) => true,
             // It names the earlier file, if any.
             _ => false,
         }
@@ -598,7 +598,11 @@ impl SnapshotError {
 
     /// The file at `path` left out for this.
     pub(crate) fn skipped(&self, path: PathBuf) -> SkippedInput {
-        SkippedInput::new(path, self.skip_reason(), self.to_string())
+        SkippedInput::new(
+            path,
+            self.skip_reason(),
+            froctomap_core::error_message(self),
+        )
     }
 
     /// The series' and the file's resolutions, when that is why the file was refused.
@@ -624,11 +628,12 @@ fn format_skip_reason(error: &froctomap_formats::FormatError) -> SkipReason {
     }
 }
 
+/// The file, unless the refusal (the cause) names it already.
 fn snapshot_message(path: &std::path::Path, error: &SnapshotError) -> String {
     if error.names_file() {
-        error.to_string()
+        "refused as a snapshot of the series".to_string()
     } else {
-        format!("{}: {error}", path.display())
+        path.display().to_string()
     }
 }
 
@@ -693,4 +698,457 @@ fn shown(files: &[PathBuf]) -> String {
         .map(|p| p.display().to_string())
         .collect();
     names.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+    use froctomap_formats::FormatError;
+    use froctomap_temporal::TemporalError;
+
+    fn io() -> std::io::Error {
+        std::io::Error::other("disk full")
+    }
+    fn path() -> PathBuf {
+        PathBuf::from("a.bt")
+    }
+    fn time_error() -> TimeError {
+        TimeError {
+            input: "yesterday".into(),
+            what: "time",
+            reason: "not a date".into(),
+        }
+    }
+    fn format_error() -> FormatError {
+        FormatError::Io {
+            path: path(),
+            source: io(),
+        }
+    }
+
+    fn snapshot_errors() -> Vec<SnapshotError> {
+        let all = vec![
+            SnapshotError::Io(io()),
+            SnapshotError::Empty,
+            SnapshotError::TooLarge { bytes: 9, limit: 8 },
+            SnapshotError::Format(format_error()),
+            SnapshotError::NotCompared(format_error()),
+            SnapshotError::Resolution {
+                found: 0.05,
+                series: 0.1,
+            },
+            SnapshotError::TooManyTiles {
+                tile_depth: 4,
+                limit: 8,
+            },
+            SnapshotError::SameAsRefused(Arc::new(SnapshotError::Empty)),
+            SnapshotError::Recorded(Arc::new(format_error())),
+            SnapshotError::Internal("a test"),
+        ];
+        for e in &all {
+            match e {
+                SnapshotError::Io(_)
+                | SnapshotError::Empty
+                | SnapshotError::TooLarge { .. }
+                | SnapshotError::Format(_)
+                | SnapshotError::NotCompared(_)
+                | SnapshotError::Resolution { .. }
+                | SnapshotError::TooManyTiles { .. }
+                | SnapshotError::SameAsRefused(_)
+                | SnapshotError::Recorded(_)
+                | SnapshotError::Internal(_) => {}
+            }
+        }
+        all
+    }
+
+    fn manifest_problems() -> Vec<ManifestProblem> {
+        let all = vec![
+            ManifestProblem::NotPathTime,
+            ManifestProblem::Time(time_error()),
+            ManifestProblem::MissingColumn {
+                wanted: "time",
+                names: "time, stamp",
+            },
+            ManifestProblem::MissingField { column: 3 },
+        ];
+        for e in &all {
+            match e {
+                ManifestProblem::NotPathTime
+                | ManifestProblem::Time(_)
+                | ManifestProblem::MissingColumn { .. }
+                | ManifestProblem::MissingField { .. } => {}
+            }
+        }
+        all
+    }
+
+    /// Every variant of [`ConvertError`] (and through it of the errors it wraps).
+    fn convert_errors() -> Vec<ConvertError> {
+        let t = Timestamp(1_700_000_000_000_000_000);
+        let cause = || -> Cause { Box::new(format_error()) };
+        let mut all = vec![
+            ConvertError::NoInputs,
+            ConvertError::AllSkipped {
+                path: path(),
+                problem: "damaged chunk".into(),
+            },
+            ConvertError::NotFound { path: path() },
+            ConvertError::NotAFile {
+                path: path(),
+                kind: "a FIFO",
+            },
+            ConvertError::BadPattern {
+                pattern: "[".into(),
+                source: glob::Pattern::new("[").unwrap_err(),
+            },
+            ConvertError::NoMatch {
+                pattern: "*.bt".into(),
+            },
+            ConvertError::Recording {
+                path: path(),
+                format: "rosbag",
+                source: cause(),
+            },
+            ConvertError::UnknownStream {
+                formats: "mcap".into(),
+                start: "it starts with 00".into(),
+            },
+            ConvertError::StdinTwice,
+            ConvertError::StdinIsTerminal,
+            ConvertError::StdinRead { source: io() },
+            ConvertError::RecordingTimes { path: path() },
+            ConvertError::NoMapFiles {
+                dir: path(),
+                manifest: "manifest.csv",
+                extensions: ".bt".into(),
+            },
+            ConvertError::Unlistable {
+                path: path(),
+                source: io(),
+            },
+            ConvertError::TimesCount {
+                list: path(),
+                times: 1,
+                files: 2,
+            },
+            ConvertError::EmptyManifest { manifest: path() },
+            ConvertError::NoTimes {
+                files: vec![path(); 7],
+            },
+            ConvertError::InputTime {
+                path: path(),
+                source: time_error(),
+            },
+            ConvertError::EarlyNameTime {
+                path: path(),
+                time: t,
+            },
+            ConvertError::DuplicateTime {
+                first: path(),
+                second: "b.bt".into(),
+                time: t,
+            },
+            ConvertError::MixedResolution {
+                first: path(),
+                first_resolution: 0.1,
+                second: "b.bt".into(),
+                second_resolution: 0.05,
+            },
+            ConvertError::Read(format_error()),
+            ConvertError::Write(format_error()),
+            ConvertError::MapNotSeries {
+                path: path(),
+                format: "octomap-binary",
+            },
+            ConvertError::NeedsCompaction {
+                path: path(),
+                segments: 2,
+            },
+            ConvertError::File(froctomap_file::FileError::Io {
+                path: path(),
+                source: io(),
+            }),
+            ConvertError::UnknownModel {
+                name: "fourier".into(),
+                known: vec!["fremen", "static-mean"],
+            },
+            ConvertError::Model(TemporalError::Malformed("parameters")),
+            ConvertError::TimeAxis(TemporalError::InvalidAxis("no samples")),
+            ConvertError::BadTime(time_error()),
+            ConvertError::BadSampleIndex {
+                text: "index:".into(),
+            },
+            ConvertError::SampleBeyondAxis {
+                sample: 9,
+                samples: 3,
+                start: t,
+                end: t,
+            },
+            ConvertError::SampleBeforeAxis {
+                back: 9,
+                samples: 3,
+                start: t,
+                end: t,
+            },
+            ConvertError::NoSnapshotAtSample { sample: 1, time: t },
+            ConvertError::BeforeFirstSnapshot {
+                path: path(),
+                time: t,
+                first: Some(t),
+                start: t,
+                end: t,
+            },
+            ConvertError::PointOutsideMap {
+                path: path(),
+                point: [1.0, 2.0, 3.0],
+                extent: None,
+            },
+            ConvertError::RangeOutsideAxis {
+                path: path(),
+                from: t,
+                to: t,
+                start: t,
+                end: t,
+            },
+            ConvertError::SnapshotResolution {
+                snapshot: Some("b.bt".into()),
+                resolution: 0.05,
+                file: path(),
+                file_resolution: 0.1,
+            },
+            ConvertError::AnomalyTimeBeforeFile {
+                file: path(),
+                time: t,
+                start: t,
+                end: t,
+            },
+            ConvertError::BadAnomalyOption {
+                what: "threshold (0 .. 1)",
+                value: 2.0,
+            },
+            ConvertError::EmptyRange { from: t, to: t },
+            ConvertError::NonPositiveInterval,
+            ConvertError::TooManyMaps { count: 9, limit: 8 },
+            ConvertError::InconsistentCells {
+                path: path(),
+                source: Box::new(froctomap_core::MapError::InvalidResolution(0.0)),
+            },
+            ConvertError::Cancelled,
+            ConvertError::Output(froctomap_core::AtomicWriteError {
+                path: path(),
+                source: io(),
+            }),
+            ConvertError::RecordingWrite {
+                path: path(),
+                format: "mcap",
+                at: Some(t),
+                source: cause(),
+            },
+            ConvertError::OutputIsInput {
+                output: path(),
+                input: path(),
+            },
+            ConvertError::DirectoryNotEmpty { dir: path() },
+            ConvertError::BadResolution {
+                resolution: 0.0,
+                source: froctomap_core::MapError::InvalidResolution(0.0),
+            },
+            ConvertError::MostlySkipped {
+                inputs: 3,
+                skipped: vec![
+                    SkippedInput::new(
+                        path(),
+                        SkipReason::Empty,
+                        "the file is empty".into()
+                    );
+                    2
+                ],
+                resolution: Some(0.1),
+            },
+            ConvertError::NothingToBuild { inputs: 3 },
+            ConvertError::AppendOverlap {
+                file: path(),
+                last: t,
+                input: "b.bt".into(),
+                time: t,
+            },
+            ConvertError::Spill {
+                path: path(),
+                source: io(),
+            },
+            ConvertError::ModelCannotGrow {
+                file: path(),
+                model: "fremen",
+            },
+            ConvertError::Internal {
+                what: "a test",
+                source: Some(cause()),
+            },
+        ];
+        all.extend(
+            snapshot_errors()
+                .into_iter()
+                .map(|e| ConvertError::Snapshot {
+                    path: path(),
+                    source: Arc::new(e),
+                }),
+        );
+        all.extend(
+            manifest_problems()
+                .into_iter()
+                .map(|problem| ConvertError::ManifestLine {
+                    manifest: path(),
+                    line: 2,
+                    problem,
+                }),
+        );
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                ConvertError::NoInputs
+                | ConvertError::AllSkipped { .. }
+                | ConvertError::NotFound { .. }
+                | ConvertError::NotAFile { .. }
+                | ConvertError::BadPattern { .. }
+                | ConvertError::NoMatch { .. }
+                | ConvertError::Recording { .. }
+                | ConvertError::UnknownStream { .. }
+                | ConvertError::StdinTwice
+                | ConvertError::StdinIsTerminal
+                | ConvertError::StdinRead { .. }
+                | ConvertError::RecordingTimes { .. }
+                | ConvertError::NoMapFiles { .. }
+                | ConvertError::Unlistable { .. }
+                | ConvertError::ManifestLine { .. }
+                | ConvertError::TimesCount { .. }
+                | ConvertError::EmptyManifest { .. }
+                | ConvertError::NoTimes { .. }
+                | ConvertError::InputTime { .. }
+                | ConvertError::EarlyNameTime { .. }
+                | ConvertError::DuplicateTime { .. }
+                | ConvertError::MixedResolution { .. }
+                | ConvertError::Snapshot { .. }
+                | ConvertError::Read(_)
+                | ConvertError::Write(_)
+                | ConvertError::MapNotSeries { .. }
+                | ConvertError::NeedsCompaction { .. }
+                | ConvertError::File(_)
+                | ConvertError::UnknownModel { .. }
+                | ConvertError::Model(_)
+                | ConvertError::TimeAxis(_)
+                | ConvertError::BadTime(_)
+                | ConvertError::BadSampleIndex { .. }
+                | ConvertError::SampleBeyondAxis { .. }
+                | ConvertError::SampleBeforeAxis { .. }
+                | ConvertError::NoSnapshotAtSample { .. }
+                | ConvertError::BeforeFirstSnapshot { .. }
+                | ConvertError::PointOutsideMap { .. }
+                | ConvertError::RangeOutsideAxis { .. }
+                | ConvertError::SnapshotResolution { .. }
+                | ConvertError::AnomalyTimeBeforeFile { .. }
+                | ConvertError::BadAnomalyOption { .. }
+                | ConvertError::EmptyRange { .. }
+                | ConvertError::NonPositiveInterval
+                | ConvertError::TooManyMaps { .. }
+                | ConvertError::InconsistentCells { .. }
+                | ConvertError::Cancelled
+                | ConvertError::Output(_)
+                | ConvertError::RecordingWrite { .. }
+                | ConvertError::OutputIsInput { .. }
+                | ConvertError::DirectoryNotEmpty { .. }
+                | ConvertError::BadResolution { .. }
+                | ConvertError::MostlySkipped { .. }
+                | ConvertError::NothingToBuild { .. }
+                | ConvertError::AppendOverlap { .. }
+                | ConvertError::Spill { .. }
+                | ConvertError::ModelCannotGrow { .. }
+                | ConvertError::Internal { .. } => {}
+            }
+        }
+        all
+    }
+
+    /// Every variant of this crate's errors (built above), as its chain prints: no text
+    /// repeats another of the chain and none is empty.
+    #[test]
+    fn every_error_is_said_once() {
+        for e in snapshot_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in manifest_problems() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in convert_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        let warnings = [
+            crate::InputWarning::Unlisted {
+                manifest: path(),
+                files: vec![path()],
+            },
+            crate::InputWarning::Recording {
+                path: path(),
+                message: "zero stamps".into(),
+            },
+        ];
+        for e in warnings {
+            match e {
+                crate::InputWarning::Unlisted { .. } | crate::InputWarning::Recording { .. } => {}
+            }
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        let record = [
+            crate::RecordError::Convert(ConvertError::NoInputs),
+            crate::RecordError::Spool(froctomap_formats::SpoolError::NoMap {
+                name: "spool".into(),
+                index: 3,
+            }),
+            crate::RecordError::SegmentLimit {
+                file: path(),
+                segments: 9,
+                limit: 9,
+            },
+            crate::RecordError::Compact {
+                file: path(),
+                source: Box::new(ConvertError::Cancelled),
+            },
+            crate::RecordError::Commit {
+                what: "the map of 2024-01-01T00:00:00Z".into(),
+                source: Box::new(ConvertError::Cancelled),
+            },
+        ];
+        for e in record {
+            match e {
+                crate::RecordError::Convert(_)
+                | crate::RecordError::Spool(_)
+                | crate::RecordError::SegmentLimit { .. }
+                | crate::RecordError::Compact { .. }
+                | crate::RecordError::Commit { .. } => {}
+            }
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+    }
+
+    /// The chain still names the file and the problem.
+    #[test]
+    fn the_printed_chain_names_the_file_and_the_problem() {
+        let e = ConvertError::Snapshot {
+            path: path(),
+            source: Arc::new(SnapshotError::Io(io())),
+        };
+        assert_eq!(
+            froctomap_core::error_message(&e),
+            "a.bt: cannot read: disk full"
+        );
+        let e = ConvertError::Snapshot {
+            path: path(),
+            source: Arc::new(SnapshotError::Format(format_error())),
+        };
+        assert_eq!(
+            froctomap_core::error_message(&e),
+            "refused as a snapshot of the series: a.bt: cannot read: disk full"
+        );
+    }
 }

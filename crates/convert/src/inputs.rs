@@ -992,9 +992,9 @@ mod manifest_tests {
         let context = Context::with_default_plugins();
         let read = |text: &str| {
             std::fs::write(&manifest, text).unwrap();
-            collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
-                .unwrap_err()
-                .to_string()
+            let err = collect_inputs(&context, std::slice::from_ref(&manifest), TimeSource::Auto)
+                .unwrap_err();
+            froctomap_core::error_message(&err)
         };
         let err = read("file,note\na.bt,x\n");
         assert!(

@@ -277,7 +277,10 @@ impl FroctFile {
             ConvertError::File(error) => error,
             other => FileError::Io {
                 path: path.to_path_buf(),
-                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, other.to_string()),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    froctomap_core::error_message(&other),
+                ),
             },
         })?;
         if living {

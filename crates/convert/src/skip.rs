@@ -127,8 +127,12 @@ impl SkippedInput {
     }
 
     /// A damaged part of the recording at `path` its reader left out.
-    pub fn recording_part(path: PathBuf, problem: &dyn std::error::Error) -> Self {
-        Self::new(path, SkipReason::DamagedRecording, problem.to_string())
+    pub fn recording_part(path: PathBuf, problem: &(dyn std::error::Error + 'static)) -> Self {
+        Self::new(
+            path,
+            SkipReason::DamagedRecording,
+            froctomap_core::error_message(problem),
+        )
     }
 
     /// The stable code of its reason.

@@ -71,7 +71,7 @@ fn duplicate_times_name_both_files() {
         "path,time\nmap_1451865600.bt,1451865600\nmap_1451866200.bt,2016-01-04T00:00:00Z\n",
     )
     .unwrap();
-    let err = inputs(dir.path()).unwrap_err().to_string();
+    let err = froctomap_core::error_message(&inputs(dir.path()).unwrap_err());
     assert!(
         err.contains("map_1451865600.bt")
             && err.contains("map_1451866200.bt")
@@ -85,9 +85,9 @@ fn mixed_resolutions_name_both_files_or_are_skipped() {
     let dir = tempfile::tempdir().unwrap();
     series(dir.path(), 3);
     write(dir.path(), "map_1451867400.bt", &small(0.05, true));
-    let err = build_dir(dir.path(), &BuildOptions::default())
-        .unwrap_err()
-        .to_string();
+    let err = froctomap_core::error_message(
+        &build_dir(dir.path(), &BuildOptions::default()).unwrap_err(),
+    );
     assert!(
         err.contains("map_1451867400.bt has resolution 0.05 m")
             && err.contains("map_1451865600.bt has 0.1 m"),
@@ -123,7 +123,7 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
             && err.is_skippable(),
         "{err:?}"
     );
-    let err = err.to_string();
+    let err = froctomap_core::error_message(&err);
     assert!(
         err.contains("map_1451866800.bt") && err.contains("truncated"),
         "{err}"
@@ -146,9 +146,9 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
     );
     // The skipped snapshot's time is unknown in the file, not a copy of a neighbour.
     let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
-    let err = resolve_observed(&reader, TimeQuery::Sample(2))
-        .unwrap_err()
-        .to_string();
+    let err = froctomap_core::error_message(
+        &resolve_observed(&reader, TimeQuery::Sample(2)).unwrap_err(),
+    );
     assert!(
         err.contains("sample 2") && err.contains("has no snapshot"),
         "{err}"
@@ -157,9 +157,9 @@ fn corrupt_inputs_name_the_file_and_problem_or_are_skipped() {
     assert!(!observed_map(&reader, 3).unwrap().is_empty());
     // An empty file is named as such.
     std::fs::write(&files[1], b"").unwrap();
-    let err = build_dir(dir.path(), &BuildOptions::default())
-        .unwrap_err()
-        .to_string();
+    let err = froctomap_core::error_message(
+        &build_dir(dir.path(), &BuildOptions::default()).unwrap_err(),
+    );
     assert!(
         err.contains("map_1451866200.bt") && err.contains("empty"),
         "{err}"
@@ -189,16 +189,16 @@ fn names_without_times_and_missing_inputs_are_reported() {
     )
     .unwrap();
     assert_eq!(with_step[0].time, Timestamp::from_secs(1_451_865_600));
-    let err = collect_inputs(context(), &[dir.path().join("nope")], TimeSource::Auto)
-        .unwrap_err()
-        .to_string();
+    let err = froctomap_core::error_message(
+        &collect_inputs(context(), &[dir.path().join("nope")], TimeSource::Auto).unwrap_err(),
+    );
     assert!(
         err.contains("nope") && err.contains("no such file"),
         "{err}"
     );
-    let err = collect_inputs(context(), &[dir.path().join("*.ot")], TimeSource::Auto)
-        .unwrap_err()
-        .to_string();
+    let err = froctomap_core::error_message(
+        &collect_inputs(context(), &[dir.path().join("*.ot")], TimeSource::Auto).unwrap_err(),
+    );
     assert!(err.contains("matches no files"), "{err}");
 }
 
@@ -206,15 +206,16 @@ fn names_without_times_and_missing_inputs_are_reported() {
 fn unwritable_output_is_reported_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     series(dir.path(), 2);
-    let err = build(
-        context(),
-        &inputs(dir.path()).unwrap(),
-        Path::new("/nonexistent-dir/out.froct"),
-        &BuildOptions::default(),
-        &Silent,
-    )
-    .unwrap_err()
-    .to_string();
+    let err = froctomap_core::error_message(
+        &build(
+            context(),
+            &inputs(dir.path()).unwrap(),
+            Path::new("/nonexistent-dir/out.froct"),
+            &BuildOptions::default(),
+            &Silent,
+        )
+        .unwrap_err(),
+    );
     assert!(err.contains("/nonexistent-dir/out.froct"), "{err}");
 }
 
@@ -229,7 +230,7 @@ fn times_outside_a_sensible_range_are_refused() {
     ] {
         assert!(bad.parse::<TimeQuery>().is_err(), "{bad}");
     }
-    let err = "99999999999".parse::<TimeQuery>().unwrap_err().to_string();
+    let err = froctomap_core::error_message(&"99999999999".parse::<TimeQuery>().unwrap_err());
     assert!(
         err.contains("outside the supported range 1970-01-01 .. 2200-01-01"),
         "{err}"
@@ -238,17 +239,17 @@ fn times_outside_a_sensible_range_are_refused() {
     series(dir.path(), 3);
     build_dir(dir.path(), &BuildOptions::default()).unwrap();
     let reader = froctomap_file::FroctReader::open(&dir.path().join("out.froct")).unwrap();
-    let before = resolve_observed(&reader, "2015-01-01T00:00:00Z".parse().unwrap())
-        .unwrap_err()
-        .to_string();
+    let before = froctomap_core::error_message(
+        &resolve_observed(&reader, "2015-01-01T00:00:00Z".parse().unwrap()).unwrap_err(),
+    );
     assert!(
         before.contains("before the first snapshot")
             && before.contains("2016-01-04T00:00:00Z .. 2016-01-04T00:20:00Z"),
         "{before}"
     );
-    let beyond = resolve_observed(&reader, "index:3".parse().unwrap())
-        .unwrap_err()
-        .to_string();
+    let beyond = froctomap_core::error_message(
+        &resolve_observed(&reader, "index:3".parse().unwrap()).unwrap_err(),
+    );
     assert!(beyond.contains("beyond the 3 samples"), "{beyond}");
 }
 
@@ -256,15 +257,16 @@ fn times_outside_a_sensible_range_are_refused() {
 fn unknown_model_and_incompatible_axis_are_refused_before_reading() {
     let dir = tempfile::tempdir().unwrap();
     series(dir.path(), 3);
-    let err = build_dir(
-        dir.path(),
-        &BuildOptions {
-            model: "magic".into(),
-            ..Default::default()
-        },
-    )
-    .unwrap_err()
-    .to_string();
+    let err = froctomap_core::error_message(
+        &build_dir(
+            dir.path(),
+            &BuildOptions {
+                model: "magic".into(),
+                ..Default::default()
+            },
+        )
+        .unwrap_err(),
+    );
     assert!(
         err.contains("unknown model `magic`") && err.contains("fremen-periods"),
         "{err}"
@@ -278,8 +280,8 @@ fn unknown_model_and_incompatible_axis_are_refused_before_reading() {
             ..Default::default()
         },
     )
-    .unwrap_err()
-    .to_string();
+    .unwrap_err();
+    let err = froctomap_core::error_message(&err);
     assert!(err.contains("fremen-regular"), "{err}");
 }
 

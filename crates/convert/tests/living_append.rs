@@ -392,7 +392,7 @@ fn a_bad_map_commits_nothing() {
     )
     .unwrap_err();
     assert!(
-        error.to_string().contains(&*bad.to_string_lossy()),
+        froctomap_core::error_message(&error).contains(&*bad.to_string_lossy()),
         "{error}"
     );
     drop(writer);

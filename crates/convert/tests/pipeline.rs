@@ -435,5 +435,8 @@ fn limits_of_the_context_are_enforced() {
         }
         other => panic!("{other:?}"),
     }
-    assert!(err.to_string().contains("limit of 1000 bytes"), "{err}");
+    assert!(
+        froctomap_core::error_message(&err).contains("limit of 1000 bytes"),
+        "{err}"
+    );
 }

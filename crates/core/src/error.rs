@@ -42,3 +42,48 @@ pub enum MapError {
         second_depth: u8,
     },
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::said_twice;
+
+    /// Every variant (the match fails to compile when one is added and not listed here).
+    fn every_variant() -> Vec<MapError> {
+        let key = VoxelKey::new(1, 2, 3);
+        let all = vec![
+            MapError::InvalidResolution(0.0),
+            MapError::DepthOutOfRange { depth: 17 },
+            MapError::MisalignedLeaf { code: 3, depth: 15 },
+            MapError::NanLogOdds { key },
+            MapError::OverlappingLeaves {
+                first: key,
+                first_depth: 15,
+                second: key,
+                second_depth: 16,
+            },
+        ];
+        for error in &all {
+            match error {
+                MapError::InvalidResolution(_)
+                | MapError::DepthOutOfRange { .. }
+                | MapError::MisalignedLeaf { .. }
+                | MapError::NanLogOdds { .. }
+                | MapError::OverlappingLeaves { .. } => {}
+            }
+        }
+        all
+    }
+
+    #[test]
+    fn every_error_is_said_once() {
+        for error in every_variant() {
+            assert_eq!(said_twice(&error), None, "{error:?}");
+        }
+        let write = crate::AtomicWriteError {
+            path: "a.froct".into(),
+            source: std::io::Error::other("disk full"),
+        };
+        assert_eq!(said_twice(&write), None);
+    }
+}

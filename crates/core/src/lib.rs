@@ -20,6 +20,7 @@ pub mod calendar;
 mod change;
 pub mod cleanup;
 mod error;
+mod error_chain;
 mod key;
 mod leaf;
 mod named;
@@ -32,6 +33,7 @@ pub use atomic_file::{
 };
 pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;
+pub use error_chain::{error_chain, error_message, said_twice};
 pub use key::{voxels_per_node, MortonCode, VoxelKey, KEY_ORIGIN, TREE_DEPTH};
 pub use leaf::{
     defaults, free_log_odds, log_odds, occupied_log_odds, probability, Leaf, Occupancy,

@@ -62,13 +62,13 @@ pub enum OctomapError {
         output: String,
     },
     /// Leaves that do not form a valid tree.
-    #[error("invalid map: {0}")]
+    #[error("invalid map")]
     InvalidMap(#[from] MapError),
     /// An argument out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
     /// Reading a file failed.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io {
         /// The file.
         path: std::path::PathBuf,
@@ -472,5 +472,51 @@ impl LeafRecord {
             depth: leaf.depth,
             log_odds: leaf.log_odds,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+
+    /// Every variant, as its chain prints: no text repeats another of the chain and none is
+    /// empty.
+    #[test]
+    fn every_error_is_said_once() {
+        let io = || std::io::Error::other("disk full");
+        let all = [
+            OctomapError::Malformed(CodecError::Empty),
+            OctomapError::Library {
+                message: "readBinary failed".into(),
+                output: "ERROR: data stream not readable\n".into(),
+            },
+            OctomapError::InvalidMap(MapError::InvalidResolution(0.0)),
+            OctomapError::InvalidArgument("resolution -1".into()),
+            OctomapError::Io {
+                path: "a.bt".into(),
+                source: io(),
+            },
+            OctomapError::Write(AtomicWriteError {
+                path: "a.bt".into(),
+                source: io(),
+            }),
+        ];
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                OctomapError::Malformed(_)
+                | OctomapError::Library { .. }
+                | OctomapError::InvalidMap(_)
+                | OctomapError::InvalidArgument(_)
+                | OctomapError::Io { .. }
+                | OctomapError::Write(_) => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        assert_eq!(
+            froctomap_core::error_message(&all[4]),
+            "cannot read a.bt: disk full"
+        );
     }
 }

@@ -45,8 +45,17 @@ pub enum FormatViolation {
     #[error("unsupported feature: {0} (written by a newer froctomap?)")]
     UnsupportedFeature(String),
     /// The temporal model could not be set up or decode a cell.
+    ///
+    /// The model's error is this violation's own detail (shown in its message, not a cause
+    /// of the chain), as the violation is [`FileError::Invalid`]'s.
     #[error("temporal model: {0}")]
-    Model(#[from] TemporalError),
+    Model(TemporalError),
+}
+
+impl From<TemporalError> for FormatViolation {
+    fn from(error: TemporalError) -> Self {
+        Self::Model(error)
+    }
 }
 
 pub(crate) fn corrupt(what: &'static str, detail: impl Into<String>) -> FormatViolation {
@@ -61,7 +70,7 @@ pub(crate) fn corrupt(what: &'static str, detail: impl Into<String>) -> FormatVi
 #[non_exhaustive]
 pub enum FileError {
     /// The operating system refused an operation on the file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -82,7 +91,7 @@ pub enum FileError {
         violation: FormatViolation,
     },
     /// The header handed to a writer holds a value no file may hold.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Header {
         /// The file being written.
         path: PathBuf,
@@ -127,7 +136,7 @@ pub enum FileError {
         path: PathBuf,
     },
     /// Cells could not be encoded as a tile.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     TileEncode {
         /// The file being written.
         path: PathBuf,
@@ -182,8 +191,8 @@ impl FileError {
 #[non_exhaustive]
 pub enum HeaderError {
     /// The voxel edge length is not a positive finite number.
-    #[error("invalid resolution")]
-    Resolution(#[source] MapError),
+    #[error(transparent)]
+    Resolution(MapError),
     /// Tiles must be octree nodes of depth 1 to 16.
     #[error("tile depth {0} is outside 1..=16")]
     TileDepth(u8),
@@ -257,4 +266,193 @@ pub enum TileEncodeError {
     /// The compressor failed.
     #[error("zstd compression failed")]
     Compression(#[source] std::io::Error),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+
+    fn io() -> std::io::Error {
+        std::io::Error::other("disk full")
+    }
+
+    fn violations() -> Vec<FormatViolation> {
+        let all = vec![
+            FormatViolation::Checksum("index"),
+            corrupt("header", "bad magic"),
+            FormatViolation::Limit {
+                what: "tiles",
+                value: 9,
+                limit: 8,
+            },
+            FormatViolation::UnsupportedVersion {
+                major: 9,
+                minor: 0,
+                supported: 2,
+            },
+            FormatViolation::UnsupportedFeature("section 77".into()),
+            FormatViolation::Model(TemporalError::Malformed("parameters")),
+        ];
+        for v in &all {
+            match v {
+                FormatViolation::Checksum(_)
+                | FormatViolation::Corrupt { .. }
+                | FormatViolation::Limit { .. }
+                | FormatViolation::UnsupportedVersion { .. }
+                | FormatViolation::UnsupportedFeature(_)
+                | FormatViolation::Model(_) => {}
+            }
+        }
+        all
+    }
+
+    fn header_errors() -> Vec<HeaderError> {
+        let all = vec![
+            HeaderError::Resolution(MapError::InvalidResolution(0.0)),
+            HeaderError::TileDepth(17),
+            HeaderError::EmptyToggleBlocks,
+        ];
+        for e in &all {
+            match e {
+                HeaderError::Resolution(_)
+                | HeaderError::TileDepth(_)
+                | HeaderError::EmptyToggleBlocks => {}
+            }
+        }
+        all
+    }
+
+    fn tile_errors() -> Vec<TileEncodeError> {
+        let all = vec![
+            TileEncodeError::NoCells,
+            TileEncodeError::InvalidCell {
+                start: 1,
+                depth: 3,
+                tile_depth: 4,
+            },
+            TileEncodeError::OutOfPlace { start: 1 },
+            TileEncodeError::BeyondAxis {
+                start: 1,
+                list: "outliers",
+            },
+            TileEncodeError::NeverObserved { start: 1 },
+            TileEncodeError::TooLarge("the cells"),
+            TileEncodeError::NoBaseTile { code: 1 },
+            TileEncodeError::EmptyRemainderMask { code: 1 },
+            TileEncodeError::BadRemainderRuns { code: 1 },
+            TileEncodeError::Compression(io()),
+        ];
+        for e in &all {
+            match e {
+                TileEncodeError::NoCells
+                | TileEncodeError::InvalidCell { .. }
+                | TileEncodeError::OutOfPlace { .. }
+                | TileEncodeError::BeyondAxis { .. }
+                | TileEncodeError::NeverObserved { .. }
+                | TileEncodeError::TooLarge(_)
+                | TileEncodeError::NoBaseTile { .. }
+                | TileEncodeError::EmptyRemainderMask { .. }
+                | TileEncodeError::BadRemainderRuns { .. }
+                | TileEncodeError::Compression(_) => {}
+            }
+        }
+        all
+    }
+
+    fn file_errors() -> Vec<FileError> {
+        let path = || PathBuf::from("a.froct");
+        let t = froctomap_core::Timestamp(0);
+        let mut all = vec![
+            FileError::Io {
+                path: path(),
+                source: io(),
+            },
+            FileError::NoTile {
+                path: path(),
+                tile: 3,
+                tiles: 2,
+            },
+            FileError::NoSegment {
+                path: path(),
+                segment: 3,
+                segments: 2,
+            },
+            FileError::TileOrder {
+                path: path(),
+                code: 1,
+                previous: 2,
+            },
+            FileError::Locked { path: path() },
+            FileError::SegmentTime {
+                path: path(),
+                first: t,
+                last: t,
+            },
+            FileError::TooLarge {
+                path: path(),
+                what: "segments",
+                value: 9,
+                limit: 8,
+            },
+            FileError::TileTooLarge {
+                path: path(),
+                len: 1 << 33,
+            },
+        ];
+        all.extend(
+            violations()
+                .into_iter()
+                .map(|violation| FileError::Invalid {
+                    path: path(),
+                    violation,
+                }),
+        );
+        all.extend(header_errors().into_iter().map(|source| FileError::Header {
+            path: path(),
+            source,
+        }));
+        all.extend(
+            tile_errors()
+                .into_iter()
+                .map(|source| FileError::TileEncode {
+                    path: path(),
+                    source,
+                }),
+        );
+        for e in &all {
+            match e {
+                FileError::Io { .. }
+                | FileError::Invalid { .. }
+                | FileError::Header { .. }
+                | FileError::NoTile { .. }
+                | FileError::NoSegment { .. }
+                | FileError::TileOrder { .. }
+                | FileError::Locked { .. }
+                | FileError::TileEncode { .. }
+                | FileError::SegmentTime { .. }
+                | FileError::TooLarge { .. }
+                | FileError::TileTooLarge { .. } => {}
+            }
+        }
+        all
+    }
+
+    /// Every variant of every error of this crate, each on its own and as a file's error.
+    #[test]
+    fn every_error_is_said_once() {
+        for e in violations() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in header_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in tile_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in file_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+            assert!(froctomap_core::error_message(&e).starts_with("a.froct"));
+        }
+    }
 }

@@ -11,7 +11,7 @@ pub type PluginError = Box<dyn std::error::Error + Send + Sync + 'static>;
 #[non_exhaustive]
 pub enum FormatError {
     /// The file could not be opened or read.
-    #[error("{}: cannot read: {source}", path.display())]
+    #[error("{}: cannot read", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -47,7 +47,7 @@ pub enum FormatError {
         description: &'static str,
     },
     /// The content was recognised (or forced) but is malformed.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Decode {
         /// The file.
         path: PathBuf,
@@ -58,7 +58,7 @@ pub enum FormatError {
         source: PluginError,
     },
     /// Encoding or writing failed.
-    #[error("{}: cannot write {format}: {source}", path.display())]
+    #[error("{}: cannot write {format}", path.display())]
     Encode {
         /// The destination.
         path: PathBuf,
@@ -104,4 +104,123 @@ pub struct DuplicateName {
     pub kind: &'static str,
     /// The name (for a map format, with its backend).
     pub name: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+
+    /// Every variant, as its chain prints: no text repeats another and none is empty.
+    #[test]
+    fn every_error_is_said_once() {
+        let path = || PathBuf::from("a.bt");
+        let cause = || -> PluginError { Box::new(std::io::Error::other("disk full")) };
+        let all = [
+            FormatError::Io {
+                path: path(),
+                source: std::io::Error::other("disk full"),
+            },
+            FormatError::NotAFile {
+                path: path(),
+                kind: "a FIFO",
+            },
+            FormatError::Unrecognized {
+                path: path(),
+                reason: "it starts with 00".into(),
+            },
+            FormatError::SeriesNotMap {
+                path: path(),
+                format: "froct",
+                description: "FROctomap series",
+            },
+            FormatError::Decode {
+                path: path(),
+                format: "octomap-binary",
+                source: cause(),
+            },
+            FormatError::Encode {
+                path: path(),
+                format: "octomap-binary",
+                source: cause(),
+            },
+            FormatError::UnknownFormat {
+                name: "ply".into(),
+                known: "bt, ot".into(),
+            },
+            FormatError::UnknownExtension {
+                path: path(),
+                known: ".bt, .ot".into(),
+            },
+            FormatError::Unsupported {
+                format: "ot",
+                action: "written",
+            },
+        ];
+        for e in &all {
+            match e {
+                FormatError::Io { .. }
+                | FormatError::NotAFile { .. }
+                | FormatError::Unrecognized { .. }
+                | FormatError::SeriesNotMap { .. }
+                | FormatError::Decode { .. }
+                | FormatError::Encode { .. }
+                | FormatError::UnknownFormat { .. }
+                | FormatError::UnknownExtension { .. }
+                | FormatError::Unsupported { .. } => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        let spool = [
+            crate::SpoolError::Io {
+                path: path(),
+                source: std::io::Error::other("disk full"),
+            },
+            crate::SpoolError::TooLarge {
+                name: "spool".into(),
+                index: 1,
+                bytes: 9,
+                limit: 8,
+            },
+            crate::SpoolError::NoMap {
+                name: "spool".into(),
+                index: 1,
+            },
+        ];
+        for e in &spool {
+            match e {
+                crate::SpoolError::Io { .. }
+                | crate::SpoolError::TooLarge { .. }
+                | crate::SpoolError::NoMap { .. } => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        // The native OctoMap reader's errors, on their own and as a file's decoding error.
+        use crate::octomap_native::NativeError;
+        let native = || {
+            [
+                NativeError::Malformed(froctomap_octomap_codec::CodecError::Empty),
+                NativeError::InvalidMap(froctomap_core::MapError::InvalidResolution(0.0)),
+            ]
+        };
+        for e in native() {
+            match e {
+                NativeError::Malformed(_) | NativeError::InvalidMap(_) => {}
+            }
+            let decode = FormatError::Decode {
+                path: path(),
+                format: "bt",
+                source: Box::new(e),
+            };
+            assert_eq!(said_twice(&decode), None, "{decode:?}");
+        }
+        for e in native() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        let duplicate = DuplicateName {
+            kind: "map format",
+            name: "bt".into(),
+        };
+        assert_eq!(said_twice(&duplicate), None);
+    }
 }

@@ -92,7 +92,7 @@ pub enum NativeError {
     #[error(transparent)]
     Malformed(#[from] CodecError),
     /// The file is well-formed but its leaves are not a valid map (e.g. a NaN log-odds).
-    #[error("invalid map: {0}")]
+    #[error("invalid map")]
     InvalidMap(#[from] MapError),
 }
 

@@ -17,7 +17,7 @@ use std::sync::Arc;
 #[non_exhaustive]
 pub enum SpoolError {
     /// The spool could not be made, written or read.
-    #[error("{}: spooled maps: {source}", path.display())]
+    #[error("{}: spooled maps", path.display())]
     Io {
         /// The spool's directory.
         path: PathBuf,

@@ -69,7 +69,7 @@ pub enum CodecError {
 #[non_exhaustive]
 pub enum EncodeError {
     /// The resolution or a leaf is invalid on its own (depth, alignment, NaN value).
-    #[error("invalid map: {0}")]
+    #[error("invalid map")]
     InvalidMap(#[from] froctomap_core::MapError),
     /// A leaf does not come strictly after the previous one in Morton order (it overlaps it
     /// or precedes it). Streaming encoders write depth-first, so order is required.
@@ -103,4 +103,82 @@ pub enum EncodeError {
         /// Depth of the part's node.
         depth: u8,
     },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::{said_twice, MapError, VoxelKey};
+
+    /// Every variant of both errors, as its chain prints: no text repeats another of the
+    /// chain and none is empty (`EncodeError::InvalidMap` prints the map's error once, as its
+    /// cause).
+    #[test]
+    fn every_error_is_said_once() {
+        let codec = [
+            CodecError::Empty,
+            CodecError::WrongFirstLine {
+                kind: FileKind::Full,
+                found: "# Octomap OcTree binary file".into(),
+                hint: " (this is a .bt file)".into(),
+            },
+            CodecError::BadHeader {
+                kind: FileKind::Binary,
+                reason: "no `res` line".into(),
+            },
+            CodecError::UnsupportedTreeType("OcTreeStamped".into()),
+            CodecError::Truncated {
+                offset: 9,
+                needed: 2,
+                available: 1,
+            },
+            CodecError::TooDeep { offset: 9 },
+            CodecError::NotANumber { offset: 9 },
+            CodecError::TooManyNodes { limit: 8 },
+        ];
+        for e in &codec {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                CodecError::Empty
+                | CodecError::WrongFirstLine { .. }
+                | CodecError::BadHeader { .. }
+                | CodecError::UnsupportedTreeType(_)
+                | CodecError::Truncated { .. }
+                | CodecError::TooDeep { .. }
+                | CodecError::NotANumber { .. }
+                | CodecError::TooManyNodes { .. } => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        let key = VoxelKey::new(1, 2, 3);
+        let encode = [
+            EncodeError::InvalidMap(MapError::InvalidResolution(0.0)),
+            EncodeError::OutOfOrder {
+                previous: key,
+                previous_depth: 16,
+                next: key,
+                next_depth: 16,
+            },
+            EncodeError::OutsidePart {
+                node: key,
+                depth: 16,
+                part: key,
+                part_depth: 4,
+            },
+            EncodeError::NotTheRoot { depth: 4 },
+        ];
+        for e in &encode {
+            match e {
+                EncodeError::InvalidMap(_)
+                | EncodeError::OutOfOrder { .. }
+                | EncodeError::OutsidePart { .. }
+                | EncodeError::NotTheRoot { .. } => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        assert_eq!(
+            froctomap_core::error_message(&encode[0]),
+            "invalid map: invalid resolution 0 (must be a positive number of metres)"
+        );
+    }
 }

@@ -4,24 +4,11 @@
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::PyType;
-use std::fmt::Write as _;
 
-/// The error and its causes on one line, each text once: a cause whose text its parent's
-/// message already includes is not repeated (the CLI's `errors::message`, so that Python
-/// and the command line say the same thing).
+/// The error and its causes on one line, each text once: what the command-line tool prints
+/// for the same failure ([`froctomap_core::error_message`]).
 pub(crate) fn message(error: &(dyn std::error::Error + 'static)) -> String {
-    let mut text = String::new();
-    let mut cause = Some(error);
-    while let Some(current) = cause {
-        let part = current.to_string();
-        if text.is_empty() {
-            text = part;
-        } else if !text.contains(&part) {
-            let _ = write!(text, ": {part}");
-        }
-        cause = current.source();
-    }
-    text
+    froctomap_core::error_message(error)
 }
 
 /// The operating system's error number of the first I/O error in the chain, if any (so that

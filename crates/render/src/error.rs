@@ -34,7 +34,7 @@ pub enum RenderError {
         message: String,
     },
     /// PNG encoding failed.
-    #[error("encoding the PNG: {source}")]
+    #[error("encoding the PNG")]
     Encode {
         /// The encoder's error.
         #[source]
@@ -81,5 +81,76 @@ pub enum RenderError {
 pub(crate) fn draw_error(error: impl std::fmt::Display) -> RenderError {
     RenderError::Draw {
         message: error.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+
+    fn io() -> std::io::Error {
+        std::io::Error::other("disk full")
+    }
+
+    /// Every variant, as its chain prints: no text repeats another of the chain and none is
+    /// empty (the wrapped errors of the other crates have their own table tests).
+    #[test]
+    fn every_error_is_said_once() {
+        let path = || PathBuf::from("a.froct");
+        let all = [
+            RenderError::Convert(froctomap_convert::ConvertError::NoInputs),
+            RenderError::File(froctomap_file::FileError::Io {
+                path: path(),
+                source: io(),
+            }),
+            RenderError::NoFont {
+                tried: "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf".into(),
+            },
+            RenderError::BadFont {
+                path: "font.ttf".into(),
+            },
+            draw_error("the backend refused"),
+            RenderError::Encode {
+                source: image::ImageError::IoError(io()),
+            },
+            RenderError::Write(froctomap_core::AtomicWriteError {
+                path: "map.png".into(),
+                source: io(),
+            }),
+            RenderError::EmptyMap { path: path() },
+            RenderError::SliceOutside {
+                z: 9.0,
+                min: 0.0,
+                max: 2.0,
+            },
+            RenderError::BadSlice { text: "y=1".into() },
+            RenderError::BadWidth {
+                width: 1,
+                min: 200,
+                max: 4000,
+            },
+        ];
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                RenderError::Convert(_)
+                | RenderError::File(_)
+                | RenderError::NoFont { .. }
+                | RenderError::BadFont { .. }
+                | RenderError::Draw { .. }
+                | RenderError::Encode { .. }
+                | RenderError::Write(_)
+                | RenderError::EmptyMap { .. }
+                | RenderError::SliceOutside { .. }
+                | RenderError::BadSlice { .. }
+                | RenderError::BadWidth { .. } => {}
+            }
+            assert_eq!(said_twice(e), None, "{e:?}");
+        }
+        assert_eq!(
+            froctomap_core::error_message(&all[5]),
+            "encoding the PNG: disk full"
+        );
     }
 }

@@ -236,7 +236,10 @@ impl Bag {
         } else {
             match bag.read_index(index_pos) {
                 Ok(()) => return Ok(bag),
-                Err(e) => format!("its index does not read ({e})"),
+                Err(e) => format!(
+                    "its index does not read ({})",
+                    froctomap_core::error_message(&e)
+                ),
             }
         };
         bag.connections.clear();
@@ -311,11 +314,21 @@ impl Bag {
             let record = match read_record(&self.file, pos, "record") {
                 Ok(record) => record,
                 Err(RosError::Truncated { .. }) => break Some("is cut off".to_string()),
-                Err(e) => break Some(format!("does not read ({e})")),
+                Err(e) => {
+                    break Some(format!(
+                        "does not read ({})",
+                        froctomap_core::error_message(&e)
+                    ))
+                }
             };
             let fields = match Fields::parse(&self.file, &record.header) {
                 Ok(fields) => fields,
-                Err(e) => break Some(format!("does not read ({e})")),
+                Err(e) => {
+                    break Some(format!(
+                        "does not read ({})",
+                        froctomap_core::error_message(&e)
+                    ))
+                }
             };
             match fields.required_op(&self.file, || format!("byte {pos}"))? {
                 Some(OP_CHUNK) => match self.scan_chunk(pos, limit) {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum RosError {
     /// The file could not be opened or read.
-    #[error("{}: cannot read: {source}", path.display())]
+    #[error("{}: cannot read", path.display())]
     Io {
         /// The recording.
         path: PathBuf,
@@ -57,7 +57,7 @@ pub enum RosError {
         supported: &'static str,
     },
     /// The MCAP library refused the file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", path.display())]
     Mcap {
         /// The recording.
         path: PathBuf,
@@ -89,7 +89,7 @@ pub enum RosError {
         format: String,
     },
     /// SQLite refused a database of a ROS 2 bag (it is not a database, is damaged or cut).
-    #[error("{}: SQLite: {source}", path.display())]
+    #[error("{}: SQLite", path.display())]
     Sqlite {
         /// The storage file.
         path: PathBuf,
@@ -157,8 +157,10 @@ pub enum RosError {
     },
     /// A chunk that does not read (it does not decompress, its checksum fails, its records
     /// are cut…): the problem (which names the recording), then which chunk and, where its
-    /// index or records tell, the topic and the log times of its messages.
-    #[error("{problem} (chunk at byte {offset}{}{})", topic.as_ref().map(|t| format!(", messages on `{t}`")).unwrap_or_default(), times.as_ref().map(|t| format!(" logged {t}")).unwrap_or_default())]
+    /// index or records tell, the topic and the log times of its messages. The problem is
+    /// this error's own detail, shown whole (with its causes) in its message, not a separate
+    /// cause: the message starts with the recording the problem names.
+    #[error("{} (chunk at byte {offset}{}{})", froctomap_core::error_message(&**problem), topic.as_ref().map(|t| format!(", messages on `{t}`")).unwrap_or_default(), times.as_ref().map(|t| format!(" logged {t}")).unwrap_or_default())]
     DamagedChunk {
         /// Where the chunk starts in its file.
         offset: u64,
@@ -167,12 +169,13 @@ pub enum RosError {
         /// The log times of the chunk's messages (`from A to B`, ISO 8601), when known.
         times: Option<String>,
         /// What is wrong with the chunk.
-        #[source]
         problem: Box<RosError>,
     },
     /// An MCAP stream (standard input) that does not read: it ends inside a record or
     /// before its end magic (its writer stopped), or holds a record that is not MCAP.
-    #[error("MCAP stream on standard input: does not read after {messages} message(s), at byte {bytes}: {source}")]
+    #[error(
+        "MCAP stream on standard input: does not read after {messages} message(s), at byte {bytes}"
+    )]
     Stream {
         /// The bytes read from the stream when it stopped.
         bytes: u64,
@@ -183,7 +186,7 @@ pub enum RosError {
         source: mcap::McapError,
     },
     /// A message that does not decode as `octomap_msgs/Octomap`.
-    #[error("{}: message on `{topic}` at {time}: {problem}", path.display())]
+    #[error("{}: message on `{topic}` at {time}", path.display())]
     BadMessage {
         /// The recording.
         path: PathBuf,
@@ -220,7 +223,7 @@ pub enum MessageError {
     #[error("resolution {0} is not a positive number")]
     Resolution(String),
     /// The map data is not an OctoMap tree.
-    #[error("the map data is not an OctoMap tree: {0}")]
+    #[error("the map data is not an OctoMap tree")]
     NotAMap(#[source] froctomap_octomap_codec::CodecError),
 }
 
@@ -258,14 +261,14 @@ pub enum McapWriteError {
     #[error(transparent)]
     Mcap(#[from] mcap::McapError),
     /// Flushing the output failed.
-    #[error("cannot write: {0}")]
+    #[error("cannot write")]
     Io(#[from] std::io::Error),
     /// A time that a ROS 2 stamp (`int32` seconds) or an MCAP log time (unsigned
     /// nanoseconds since 1970) cannot hold.
     #[error("{0} cannot be written as a ROS 2 stamp (1970 to 2038)")]
     TimeOutOfRange(String),
     /// The exported map is not a `.bt` file (a fault of the exporter).
-    #[error("the exported map is not a .bt file: {0}")]
+    #[error("the exported map is not a .bt file")]
     NotBinary(#[source] froctomap_octomap_codec::CodecError),
     /// A map too large for one message (CDR lengths are `u32`).
     #[error("a map of {bytes} bytes is longer than one ROS 2 message may hold")]
@@ -291,4 +294,224 @@ pub enum McapWriteError {
         /// The limit.
         limit: u64,
     },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use froctomap_core::said_twice;
+    use froctomap_octomap_codec::CodecError;
+
+    fn path() -> PathBuf {
+        PathBuf::from("a.bag")
+    }
+    fn mcap_error() -> mcap::McapError {
+        mcap::McapError::UnexpectedEof
+    }
+    fn topics() -> Vec<(String, String)> {
+        vec![("/map".into(), "octomap_msgs/Octomap".into())]
+    }
+
+    fn message_errors() -> Vec<MessageError> {
+        let all = vec![
+            MessageError::Truncated { field: "data" },
+            MessageError::Encapsulation(7),
+            MessageError::BadString { field: "id" },
+            MessageError::Resolution("-1".into()),
+            MessageError::NotAMap(CodecError::Empty),
+        ];
+        for e in &all {
+            // Fails to compile when a variant is added and not listed above.
+            match e {
+                MessageError::Truncated { .. }
+                | MessageError::Encapsulation(_)
+                | MessageError::BadString { .. }
+                | MessageError::Resolution(_)
+                | MessageError::NotAMap(_) => {}
+            }
+        }
+        all
+    }
+
+    fn write_errors() -> Vec<McapWriteError> {
+        let all = vec![
+            McapWriteError::Mcap(mcap_error()),
+            McapWriteError::Io(std::io::Error::other("disk full")),
+            McapWriteError::TimeOutOfRange("2100-01-01".into()),
+            McapWriteError::NotBinary(CodecError::Empty),
+            McapWriteError::MessageTooLong { bytes: 9 },
+            McapWriteError::BadOption {
+                option: "frame id",
+                value: "".into(),
+                reason: "is empty",
+            },
+            McapWriteError::TooManyPoints {
+                voxels: 9,
+                limit: 8,
+            },
+        ];
+        for e in &all {
+            match e {
+                McapWriteError::Mcap(_)
+                | McapWriteError::Io(_)
+                | McapWriteError::TimeOutOfRange(_)
+                | McapWriteError::NotBinary(_)
+                | McapWriteError::MessageTooLong { .. }
+                | McapWriteError::BadOption { .. }
+                | McapWriteError::TooManyPoints { .. } => {}
+            }
+        }
+        all
+    }
+
+    fn ros_errors() -> Vec<RosError> {
+        let mut all = vec![
+            RosError::Io {
+                path: path(),
+                source: std::io::Error::other("disk full"),
+            },
+            RosError::Truncated {
+                path: path(),
+                what: "a chunk",
+            },
+            RosError::Malformed {
+                path: path(),
+                what: "header",
+                problem: "no op field".into(),
+            },
+            RosError::TooLarge {
+                path: path(),
+                what: "a chunk",
+                bytes: 9,
+                limit: 8,
+            },
+            RosError::UnsupportedCompression {
+                path: path(),
+                name: "lz5".into(),
+                supported: "none, bz2, lz4",
+            },
+            RosError::Mcap {
+                path: path(),
+                source: mcap_error(),
+            },
+            RosError::NoSummary { path: path() },
+            RosError::NoStorageInBag { path: path() },
+            RosError::UnsupportedBagCompression {
+                path: path(),
+                mode: "file".into(),
+                format: "lz4".into(),
+            },
+            RosError::Sqlite {
+                path: path(),
+                source: rusqlite::Error::InvalidQuery,
+            },
+            RosError::NoOctomapTopic {
+                path: path(),
+                topics: topics(),
+            },
+            RosError::SeveralOctomapTopics {
+                path: path(),
+                topics: topics(),
+            },
+            RosError::NoSuchTopic {
+                path: path(),
+                topic: "/x".into(),
+                topics: topics(),
+            },
+            RosError::NotOctomapTopic {
+                path: path(),
+                topic: "/x".into(),
+                found: "std_msgs/String".into(),
+            },
+            RosError::UnsupportedEncoding {
+                path: path(),
+                topic: "/x".into(),
+                encoding: "json".into(),
+            },
+            RosError::DuplicateTimes {
+                path: path(),
+                topic: "/x".into(),
+                time: "2024-01-01T00:00:00Z".into(),
+                count: 2,
+            },
+            RosError::Stream {
+                bytes: 9,
+                messages: 1,
+                source: mcap_error(),
+            },
+        ];
+        let chunk = RosError::DamagedChunk {
+            offset: 9,
+            topic: Some("/x".into()),
+            times: Some("at 2024-01-01T00:00:00Z".into()),
+            problem: Box::new(RosError::Mcap {
+                path: path(),
+                source: mcap_error(),
+            }),
+        };
+        all.push(chunk);
+        all.extend(message_errors().into_iter().map(|e| RosError::BadMessage {
+            path: path(),
+            topic: "/x".into(),
+            time: "2024-01-01T00:00:00Z".into(),
+            problem: Box::new(e),
+        }));
+        for e in &all {
+            match e {
+                RosError::Io { .. }
+                | RosError::Truncated { .. }
+                | RosError::Malformed { .. }
+                | RosError::TooLarge { .. }
+                | RosError::UnsupportedCompression { .. }
+                | RosError::Mcap { .. }
+                | RosError::NoSummary { .. }
+                | RosError::NoStorageInBag { .. }
+                | RosError::UnsupportedBagCompression { .. }
+                | RosError::Sqlite { .. }
+                | RosError::NoOctomapTopic { .. }
+                | RosError::SeveralOctomapTopics { .. }
+                | RosError::NoSuchTopic { .. }
+                | RosError::NotOctomapTopic { .. }
+                | RosError::UnsupportedEncoding { .. }
+                | RosError::DuplicateTimes { .. }
+                | RosError::DamagedChunk { .. }
+                | RosError::Stream { .. }
+                | RosError::BadMessage { .. } => {}
+            }
+        }
+        all
+    }
+
+    /// Every variant of this crate's errors, as its chain prints: no text repeats another
+    /// and none is empty.
+    #[test]
+    fn every_error_is_said_once() {
+        for e in ros_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in message_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in write_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+    }
+
+    /// A damaged chunk still reads as before: the recording and its problem, then where.
+    #[test]
+    fn a_damaged_chunk_names_the_recording_first() {
+        let chunk = RosError::DamagedChunk {
+            offset: 9,
+            topic: None,
+            times: None,
+            problem: Box::new(RosError::Io {
+                path: path(),
+                source: std::io::Error::other("disk full"),
+            }),
+        };
+        assert_eq!(
+            froctomap_core::error_message(&chunk),
+            "a.bag: cannot read: disk full (chunk at byte 9)"
+        );
+    }
 }

@@ -156,7 +156,10 @@ impl McapFile {
             Err(RosError::Mcap { source, .. }) => {
                 format!("its summary does not read ({source})")
             }
-            Err(e) => format!("its summary does not read ({e})"),
+            Err(e) => format!(
+                "its summary does not read ({})",
+                froctomap_core::error_message(&e)
+            ),
         };
         mcap.scan(limit, skip_bad, &why)?;
         Ok(mcap)
@@ -224,7 +227,10 @@ impl McapFile {
                             parse_record(&self.file, opcode, &body).map(|r| found.add(&r))
                         });
                     if let Err(e) = record {
-                        break Some(Some(format!("does not read ({e})")));
+                        break Some(Some(format!(
+                            "does not read ({})",
+                            froctomap_core::error_message(&e)
+                        )));
                     }
                 }
                 mcap::records::op::MESSAGE => unchunked += 1,

@@ -307,30 +307,39 @@ fn an_mcap_stream_gives_the_maps_of_the_file() {
 /// A stream cut anywhere (its writer died) or damaged anywhere is an error naming where it
 /// stopped (bytes and messages read) or a bad message, never a panic, a hang or a recording
 /// of part of the stream; nothing is left in the spool directory.
+/// `error` as the front ends print it: the MCAP reader's own error is the cause, after the
+/// place the stream stopped.
+fn printed(error: &(dyn std::error::Error + Send + Sync + 'static)) -> String {
+    assert_eq!(froctomap_core::said_twice(error), None, "{error:?}");
+    froctomap_core::error_message(error)
+}
+
 #[test]
 fn cut_or_damaged_mcap_streams_are_errors_naming_where_they_stopped() {
     let bytes = std::fs::read(fixture("ros/two_maps_zstd.mcap")).unwrap();
     let spool = tempfile::tempdir().unwrap();
     for end in 0..bytes.len() {
-        let error = open_stream(&bytes[..end], 64, spool.path(), false)
-            .expect_err("a cut stream is refused")
-            .to_string();
+        let error = printed(
+            &*open_stream(&bytes[..end], 64, spool.path(), false)
+                .expect_err("a cut stream is refused"),
+        );
         assert!(
             error.starts_with("MCAP stream on standard input: does not read after ")
                 && error.contains(&format!("at byte {end}: ")),
             "cut at {end}: {error}"
         );
     }
-    let error = open_stream(&bytes[..bytes.len() - 8], 64, spool.path(), true)
-        .expect_err("--skip-bad does not take a cut stream")
-        .to_string();
+    let error = printed(
+        &*open_stream(&bytes[..bytes.len() - 8], 64, spool.path(), true)
+            .expect_err("--skip-bad does not take a cut stream"),
+    );
     assert!(error.contains("after 3 message(s)"), "{error}");
     for at in (0..bytes.len()).step_by(3) {
         let mut damaged = bytes.clone();
         damaged[at] ^= 0x5a;
         match open_stream(&damaged, 64, spool.path(), false) {
             Err(error) => {
-                let error = error.to_string();
+                let error = printed(&*error);
                 assert!(
                     error.starts_with("MCAP stream on standard input:") || error.starts_with("-: "),
                     "damaged at {at}: {error}"

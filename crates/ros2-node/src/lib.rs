@@ -61,7 +61,7 @@ pub use services::{
 };
 
 use froctomap_convert::{FroctFile, SeriesRead};
-use froctomap_core::Timestamp;
+use froctomap_core::{error_message, Timestamp};
 use froctomap_formats::{ExportedKind, OccupiedCell};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use froctomap_ros::{decode_message, encode_octomap_cdr, Encoding, MessageError, MessageType};
@@ -586,19 +586,25 @@ impl Node {
                                 // A failed commit loses more than this map: say so.
                                 Err(e) => match e.downcast_ref::<CommitFailed>() {
                                     Some(failed) => sink.skipped(format!(
-                                        "{}: {failed} (the last one received stamped {} ns)",
-                                        self.topic, stamp.0
+                                        "{}: {} (the last one received stamped {} ns)",
+                                        self.topic,
+                                        error_message(failed),
+                                        stamp.0
                                     )),
                                     None => sink.skipped(format!(
-                                        "{}: the map stamped {} ns was not recorded: {e}",
-                                        self.topic, stamp.0
+                                        "{}: the map stamped {} ns was not recorded: {}",
+                                        self.topic,
+                                        stamp.0,
+                                        error_message(&*e)
                                     )),
                                 },
                             }
                         }
-                        Err(reason) => {
-                            sink.skipped(format!("{}: message skipped: {reason}", self.topic))
-                        }
+                        Err(reason) => sink.skipped(format!(
+                            "{}: message skipped: {}",
+                            self.topic,
+                            error_message(&reason)
+                        )),
                     }
                     continue;
                 }
@@ -1098,7 +1104,10 @@ impl PredictedPublisher {
             });
         let occupied = markers.map_err(|e| NodeError::Publish {
             topic: node.names.dynamic.clone(),
-            reason: format!("the predicted map was published, its markers were not: {e}"),
+            reason: format!(
+                "the predicted map was published, its markers were not: {}",
+                error_message(&e)
+            ),
         })?;
         Ok(Some(PublishedCells {
             occupied,

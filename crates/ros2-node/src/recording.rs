@@ -35,7 +35,7 @@ impl std::str::FromStr for TimeSource {
 /// A commit failed for a reason of the file's or the disk's (not a bad map's, those are left
 /// out): the maps gathered since the last commit are lost.
 #[derive(Debug, thiserror::Error)]
-#[error("commit failed, {lost} map(s) gathered since the last commit lost: {source}")]
+#[error("commit failed, {lost} map(s) gathered since the last commit lost")]
 pub struct CommitFailed {
     /// Maps lost (taken, neither committed nor left out as bad).
     pub lost: u64,

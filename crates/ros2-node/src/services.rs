@@ -13,7 +13,7 @@ use froctomap_convert::{
     TimeQuery,
 };
 use froctomap_core::calendar::iso8601;
-use froctomap_core::Timestamp;
+use froctomap_core::{error_message, Timestamp};
 use froctomap_octomap_codec::{parse_header, FileKind};
 use rustdds::cdr_encoding;
 use serde::{Deserialize, Serialize};
@@ -240,7 +240,8 @@ impl FileServices {
     }
 
     fn open(&self) -> Result<FroctFile, String> {
-        FroctFile::open(&self.froct).map_err(|e| format!("{}: {e}", self.froct.display()))
+        // The reader's errors name the file.
+        FroctFile::open(&self.froct).map_err(|e| error_message(&e))
     }
 
     /// The `.bt` answering `request` and the time its map is at, or why there is none.
@@ -250,7 +251,7 @@ impl FileServices {
     ) -> Result<(Vec<u8>, Timestamp, String), String> {
         let reader = self.open()?;
         let t = request.stamp.timestamp();
-        let fail = |e: froctomap_convert::ConvertError| e.to_string();
+        let fail = |e: froctomap_convert::ConvertError| error_message(&e);
         if request.predict {
             let bt = predicted_bt(&reader, t).map_err(fail)?;
             return Ok((
@@ -313,7 +314,7 @@ impl ServiceHandler for FileServices {
         let points: Vec<[f64; 3]> = request.points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let t = request.stamp.timestamp();
         let p = self.open().and_then(|reader| {
-            series_probabilities(&reader, t, &points).map_err(|e| e.to_string())
+            series_probabilities(&reader, t, &points).map_err(|e| error_message(&e))
         });
         match p {
             Ok(p) => ProbabilityAtResponse { p },
