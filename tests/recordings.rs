@@ -715,6 +715,72 @@ fn positions(haystack: &[u8], needle: &[u8]) -> Vec<usize> {
         .collect()
 }
 
+/// `inputs` as a ROS 1 bag (rosbags, lz4) `bag.bag` and an MCAP file (mcap-ros2-support, zstd)
+/// `mcap.mcap` in `dir`, one chunk per map, each logged a second after its stamp.
+fn write_one_chunk_per_map(inputs: &[SeriesInput], dir: &Path) {
+    let second = 1_000_000_000;
+    let mut spec = String::from("{\"recordings\": [");
+    for (i, (kind, name, compression)) in
+        [("ros1", "bag.bag", "lz4"), ("mcap", "mcap.mcap", "zstd")]
+            .iter()
+            .enumerate()
+    {
+        let messages: Vec<String> = inputs
+            .iter()
+            .map(|m| {
+                format!(
+                    "{{\"topic\": \"/octomap_binary\", \"map\": \"{}\", \"stamp_ns\": {}, \"log_ns\": {}}}",
+                    m.path.display(),
+                    m.time.0,
+                    m.time.0 + second
+                )
+            })
+            .collect();
+        spec.push_str(&format!(
+            "{}{{\"kind\": \"{kind}\", \"path\": \"{}\", \"compression\": \"{compression}\", \"chunk_bytes\": 1, \"messages\": [{}]}}",
+            if i > 0 { ", " } else { "" },
+            dir.join(name).display(),
+            messages.join(", ")
+        ));
+    }
+    spec.push_str("]}");
+    let spec_path = dir.join("spec.json");
+    std::fs::write(&spec_path, spec).unwrap();
+    froctomap_test_support::write_recordings(&spec_path);
+}
+
+/// `bytes` with those of `range` after `at` inverted.
+fn damaged(bytes: &[u8], at: usize, range: std::ops::Range<usize>) -> Vec<u8> {
+    let mut bytes = bytes.to_vec();
+    for b in &mut bytes[at + range.start..at + range.end] {
+        *b ^= 0xff;
+    }
+    bytes
+}
+
+/// The default plugins and the ROS ones, times from the header stamps, damaged parts of
+/// recordings left out with `skip_bad`.
+fn header_time_context(skip_bad: bool) -> Context {
+    let mut context = Context::with_default_plugins();
+    froctomap_ros::register(context.formats_mut()).unwrap();
+    context.with_recording_options(
+        RecordingOptions::new(None, RecordedTime::Header).with_skip_bad(skip_bad),
+    )
+}
+
+/// The inputs of one recording, as `build` collects them.
+fn collect_one(
+    context: &Context,
+    file: &Path,
+) -> Result<froctomap_convert::CollectedInputs, froctomap_convert::ConvertError> {
+    froctomap_convert::collect_inputs_explained(
+        context,
+        &[file.to_path_buf()],
+        TimeSource::Auto,
+        &Default::default(),
+    )
+}
+
 /// Recordings of four maps, one chunk each, written by rosbags (ROS 1, lz4) and
 /// mcap-ros2-support (zstd), then damaged here: a chunk whose compressed data is not lz4 or
 /// zstd, one whose CRC fails, and files cut inside their third chunk (no index, no summary).
@@ -736,33 +802,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         })
         .collect();
     let path = |name: &str| dir.path().join(name);
-    let mut spec = String::from("{\"recordings\": [");
-    for (i, (kind, name, compression)) in
-        [("ros1", "bag.bag", "lz4"), ("mcap", "mcap.mcap", "zstd")]
-            .iter()
-            .enumerate()
-    {
-        let messages: Vec<String> = inputs
-            .iter()
-            .map(|m| {
-                format!(
-                    "{{\"topic\": \"/octomap_binary\", \"map\": \"{}\", \"stamp_ns\": {}, \"log_ns\": {}}}",
-                    m.path.display(),
-                    m.time.0,
-                    m.time.0 + second
-                )
-            })
-            .collect();
-        spec.push_str(&format!(
-            "{}{{\"kind\": \"{kind}\", \"path\": \"{}\", \"compression\": \"{compression}\", \"chunk_bytes\": 1, \"messages\": [{}]}}",
-            if i > 0 { ", " } else { "" },
-            path(name).display(),
-            messages.join(", ")
-        ));
-    }
-    spec.push_str("]}");
-    std::fs::write(path("spec.json"), spec).unwrap();
-    froctomap_test_support::write_recordings(&path("spec.json"));
+    write_one_chunk_per_map(&inputs, dir.path());
 
     let bag = std::fs::read(path("bag.bag")).unwrap();
     let mcap = std::fs::read(path("mcap.mcap")).unwrap();
@@ -775,13 +815,6 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     );
     // The chunk of the second map: the second frame, or the third when the first chunk holds
     // only connection records (find it by the map it holds).
-    let damaged = |bytes: &[u8], at: usize, range: std::ops::Range<usize>| {
-        let mut bytes = bytes.to_vec();
-        for b in &mut bytes[at + range.start..at + range.end] {
-            *b ^= 0xff;
-        }
-        bytes
-    };
     // The message logged at t0 + 61 s (the second map), in ISO 8601.
     let second_map = "2023-11-14T22:14:21Z";
     let cases: Vec<(&str, Vec<u8>, &str)> = lz4_frames
@@ -799,21 +832,6 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
                 .map(|&at| ("crc.mcap", damaged(&mcap, at - 4, 0..4), "CRC")),
         )
         .collect();
-    let context_for = |skip_bad: bool| {
-        let mut context = Context::with_default_plugins();
-        froctomap_ros::register(context.formats_mut()).unwrap();
-        context.with_recording_options(
-            RecordingOptions::new(None, RecordedTime::Header).with_skip_bad(skip_bad),
-        )
-    };
-    let collect = |context: &Context, file: &Path| {
-        froctomap_convert::collect_inputs_explained(
-            context,
-            &[file.to_path_buf()],
-            TimeSource::Auto,
-            &Default::default(),
-        )
-    };
     // The build from the .bt files of `kept` (indexes into `inputs`), and its maps.
     let from_bt = |kept: &[usize], name: &str| {
         let files: Vec<SeriesInput> = kept.iter().map(|&k| inputs[k].clone()).collect();
@@ -825,9 +843,9 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
     let mut seen = Vec::new();
     for (name, bytes, problem) in &cases {
         std::fs::write(path(name), bytes).unwrap();
-        let strict = collect(&context_for(false), &path(name));
-        let context = context_for(true);
-        let lenient = collect(&context, &path(name)).unwrap();
+        let strict = collect_one(&header_time_context(false), &path(name));
+        let context = header_time_context(true);
+        let lenient = collect_one(&context, &path(name)).unwrap();
         if lenient.series.len() == inputs.len() {
             // A frame of a chunk without maps (the connections only): nothing of ours lost.
             assert!(lenient.skipped.is_empty() || strict.is_err(), "{name}");
@@ -877,7 +895,7 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
             .copied()
             .filter(|&at| {
                 std::fs::write(path("probe"), damaged(bytes, at, 0..4)).unwrap();
-                collect(&context_for(true), &path("probe"))
+                collect_one(&header_time_context(true), &path("probe"))
                     .unwrap()
                     .series
                     .len()
@@ -887,8 +905,8 @@ fn damaged_chunks_are_skipped_and_cut_recordings_read_up_to_the_cut() {
         assert_eq!(map_frames.len(), 4, "{name}");
         let cut = &bytes[..map_frames[2] + 10];
         std::fs::write(path(name), cut).unwrap();
-        let context = context_for(false);
-        let collected = collect(&context, &path(name)).unwrap();
+        let context = header_time_context(false);
+        let collected = collect_one(&context, &path(name)).unwrap();
         let times: Vec<Timestamp> = collected.series.iter().map(|i| i.time).collect();
         assert_eq!(times, [inputs[0].time, inputs[1].time], "{name}");
         let warnings: Vec<String> = collected.warnings.iter().map(|w| w.to_string()).collect();
