@@ -49,7 +49,7 @@ mod series;
 mod signals;
 mod ui;
 
-use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand};
 use froctomap_formats::Backend;
 use std::process::ExitCode;
 
@@ -90,8 +90,9 @@ struct Cli {
 
     /// Implementation that reads and writes OctoMap .bt/.ot files: froctomap's native Rust
     /// codec, or the upstream OctoMap C++ library. Both give identical maps and bytes.
-    #[arg(long, global = true, value_enum, default_value_t = BackendArg::Native)]
-    backend: BackendArg,
+    #[arg(long, global = true, value_parser = crate::plugins::named::<Backend>(),
+          default_value_t = Backend::Native)]
+    backend: Backend,
 
     /// Time zone of times given without one (in file names, manifests, --start, --time,
     /// --from/--to): UTC (the default), local, an offset like +01:00, or a name like
@@ -101,23 +102,6 @@ struct Cli {
 
     #[command(subcommand)]
     command: Command,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum BackendArg {
-    /// The upstream OctoMap C++ library (liboctomap).
-    Octomap,
-    /// froctomap's own Rust codec (the default; faster).
-    Native,
-}
-
-impl From<BackendArg> for Backend {
-    fn from(arg: BackendArg) -> Self {
-        match arg {
-            BackendArg::Octomap => Backend::Octomap,
-            BackendArg::Native => Backend::Native,
-        }
-    }
 }
 
 #[derive(Subcommand)]
@@ -329,7 +313,7 @@ fn main() -> ExitCode {
     };
     let ui = ui::Ui {
         quiet: cli.quiet,
-        backend: cli.backend.into(),
+        backend: cli.backend,
         context: plugins::context(),
         zone,
         zone_given: cli.tz.is_some(),

@@ -93,6 +93,36 @@ impl Backend {
     }
 }
 
+impl froctomap_core::Named for Backend {
+    const ALL: &'static [Self] = &[Self::Octomap, Self::Native];
+    const WHAT: &'static str = "backend";
+
+    fn name(self) -> &'static str {
+        Backend::name(self)
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Octomap => "The upstream OctoMap C++ library (liboctomap)",
+            Self::Native => "froctomap's own Rust codec (the default; faster)",
+        }
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(Backend::name(*self))
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = froctomap_core::UnknownName;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        froctomap_core::parse_named(name)
+    }
+}
+
 /// A format's header hook ([`MapFormat::header`]): the header a file's first bytes give.
 pub type ReadHeader = fn(&[u8]) -> Option<MapHeader>;
 
