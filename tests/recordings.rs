@@ -12,6 +12,7 @@ use froctomap_convert::{
 use froctomap_core::Timestamp;
 use froctomap_file::FroctReader;
 use froctomap_formats::{FormatRegistry, ReadOptions};
+use froctomap_ros::OCTOMAP_ROS1_MD5;
 use froctomap_synth::{write_series, Generator, SeriesSpec, WriteSeriesOptions};
 use froctomap_test_support::{geb079, octomap_python, scratch, workspace_root};
 use std::path::{Path, PathBuf};
@@ -164,22 +165,8 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
     let froct = dir.path().join("series.froct");
     build_with_defaults(&plain, &inputs, &froct);
     let reader = FroctReader::open(&froct).unwrap();
-    let minute = 60_000_000_000;
-    let first = inputs.first().unwrap().time;
-    let last = inputs.last().unwrap().time;
-    // Retrieved inside the span (instants between snapshots give each snapshot once),
-    // predicted before and after it.
-    let options = |format: &str, recording: RecordingWriteOptions| ExportOptions {
-        from: Timestamp(first.0 - 40 * minute),
-        to: Timestamp(last.0 + 60 * minute),
-        every_ns: 20 * minute,
-        mode: ExportMode::Auto,
-        format: format.to_string(),
-        backend: None,
-        prefix: "map".to_string(),
-        overwrite: false,
-        recording,
-    };
+    let (first, last) = (inputs[0].time, inputs.last().unwrap().time);
+    let options = |format: &str, recording| export_options(&inputs, format, recording);
     let bt_dir = dir.path().join("bt");
     let bts = export(
         &plain,
@@ -287,6 +274,29 @@ fn exported_mcap_holds_the_bt_exports_and_their_occupied_voxels() {
         if foxglove {
             assert_some_coarse_cubes(&report["scene"]);
         }
+    }
+}
+
+/// Export options over `inputs`' span and beyond, every 20 minutes, mode auto: retrieved
+/// inside the span (instants between snapshots give each snapshot once), predicted 40
+/// minutes before and an hour after it.
+fn export_options(
+    inputs: &[SeriesInput],
+    format: &str,
+    recording: RecordingWriteOptions,
+) -> ExportOptions {
+    let minute = 60_000_000_000;
+    let (first, last) = (inputs[0].time, inputs[inputs.len() - 1].time);
+    ExportOptions {
+        from: Timestamp(first.0 - 40 * minute),
+        to: Timestamp(last.0 + 60 * minute),
+        every_ns: 20 * minute,
+        mode: ExportMode::Auto,
+        format: format.to_string(),
+        backend: None,
+        prefix: "map".to_string(),
+        overwrite: false,
+        recording,
     }
 }
 
@@ -488,6 +498,80 @@ fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f
         assert_eq!(value["dynamic"], serde_json::json!([0.0, 1.0]));
         assert_eq!(value["p"], serde_json::json!([1.0, 1.0]));
     }
+}
+
+/// `export -o maps.bag`, read back by PyPI rosbags' indexed reader: one
+/// `octomap_msgs/Octomap` connection whose MD5 sum is the one rosbags computes from the
+/// definition the bag stores, one message per exported time, stamped and logged at it, in
+/// order, whose data is the body of the `.bt` export of that time byte for byte; the frame
+/// and topic prefix as asked. A profile other than the default is refused, nothing written.
+#[test]
+fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
+    let dir = scratch();
+    let inputs = series(&dir.path().join("maps"));
+    let plain = Context::with_default_plugins();
+    let froct = dir.path().join("series.froct");
+    build_with_defaults(&plain, &inputs, &froct);
+    let reader = FroctReader::open(&froct).unwrap();
+    let options = |format: &str, recording| export_options(&inputs, format, recording);
+    let bts = export(
+        &plain,
+        &reader,
+        &dir.path().join("bt"),
+        &options("bt", RecordingWriteOptions::default()),
+        &Silent,
+    )
+    .unwrap();
+    let context = context(RecordedTime::Header);
+    let write = RecordingWriteOptions::default()
+        .with_frame_id("odom")
+        .with_topic_prefix("/robot1");
+    let bag = dir.path().join("maps.bag");
+    let exported = export(&context, &reader, &bag, &options("rosbag", write), &Silent).unwrap();
+    assert_eq!(exported.files.len(), bts.files.len());
+
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir(&data_dir).unwrap();
+    let out = run_script("read_exported_bag.py", &[&bag, &data_dir]);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = bts.files.len();
+    assert_eq!(
+        report["connections"],
+        serde_json::json!([{"topic": "/robot1/octomap_binary", "type": "octomap_msgs/msg/Octomap",
+            "md5": OCTOMAP_ROS1_MD5, "computed_md5": OCTOMAP_ROS1_MD5, "count": n}])
+    );
+    assert_eq!(report["count"], n);
+    let messages = report["messages"].as_array().unwrap();
+    assert_eq!(messages.len(), n);
+    for (i, (message, file)) in messages.iter().zip(&bts.files).enumerate() {
+        let t = file.time.0;
+        assert_eq!(message["log_time"], t);
+        assert_eq!(message["stamp_ns"], t);
+        assert_eq!(message["seq"], i);
+        assert_eq!(message["frame_id"], "odom");
+        assert_eq!(message["binary"], true);
+        assert_eq!(message["id"], "OcTree");
+        assert_eq!(message["resolution"], reader.header().resolution);
+        let bt = std::fs::read(&file.path).unwrap();
+        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+        assert!(data == bt[body_at..], "data of the message at {t}");
+    }
+
+    // Foxglove's messages have no place in a ROS 1 bag: refused, naming the option.
+    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
+    let refused = dir.path().join("foxglove.bag");
+    let err = export(
+        &context,
+        &reader,
+        &refused,
+        &options("rosbag", foxglove),
+        &Silent,
+    )
+    .unwrap_err();
+    let message = froctomap_core::error_message(&err);
+    assert!(message.contains("profile"), "{message}");
+    assert!(!refused.exists());
 }
 
 /// Recordings written by rosbags and mcap-ros2-support, then damaged here: each problem is an

@@ -195,6 +195,38 @@ def test_export_to_mcap_is_the_command_lines_and_holds_octomap_messages(cli_file
         assert made.size() > 0
 
 
+def test_export_to_a_bag_is_the_command_lines_and_rosbags_reads_it(cli_file, tmp_path):
+    from rosbags.rosbag1 import Reader
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    ours, theirs = tmp_path / "ours.bag", tmp_path / "theirs.bag"
+    span = dict(start="2016-01-04T00:00:00Z", end="2016-01-04T06:00:00Z", every="2h")
+    froctomap.export(cli_file, ours, mode="retrieve", frame_id="odom", progress=False, **span)
+    run_cli("-q", "export", cli_file, "--from", span["start"], "--to", span["end"], "--every",
+            span["every"], "--mode", "retrieve", "--frame-id", "odom", "-o", theirs)
+    assert ours.read_bytes() == theirs.read_bytes()
+    with pytest.raises(froctomap.FroctError, match="profile"):
+        froctomap.export(cli_file, tmp_path / "bad.bag", profile="foxglove", progress=False,
+                         **span)
+    assert not (tmp_path / "bad.bag").exists()
+    # rosbags reads the bag through its index; each Octomap message holds the retrieved .bt's
+    # body, in the frame asked.
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Reader(ours) as reader:
+        (connection,) = reader.connections
+        store.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+        messages = [store.deserialize_ros1(raw, connection.msgtype)
+                    for _, _, raw in reader.messages()]
+    assert connection.topic == "/octomap_binary"
+    assert len(messages) == 4
+    for i, message in enumerate(messages):
+        retrieved = tmp_path / f"{i}.bt"
+        run_cli("retrieve", cli_file, "--time", f"index:{i}", "-o", retrieved)
+        fields = froctomap.message_from_map(retrieved.read_bytes())
+        assert (message.header.frame_id, message.binary, message.id) == ("odom", True, "OcTree")
+        assert message.data.tobytes() == fields["data"].tobytes(), i
+
+
 def test_info_of_map_files_and_froct_files_is_the_command_lines(series, cli_file):
     snapshot = snapshot_files(series)[0]
     cli = json.loads(run_cli("info", "--json", snapshot).stdout)

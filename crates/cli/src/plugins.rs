@@ -53,16 +53,8 @@ pub fn named<T: Named + Send + Sync>() -> impl clap::builder::TypedValueParser<V
 
 /// The writable recording format whose extension `path` has (`out.mcap`: `mcap`).
 pub fn recording_format_of(path: &std::path::Path) -> Option<&'static str> {
-    let extension = path.extension()?.to_str()?;
     context()
         .formats()
-        .recording_formats()
-        .iter()
-        .find(|f| {
-            f.create.is_some()
-                && f.extensions
-                    .iter()
-                    .any(|e| e.eq_ignore_ascii_case(extension))
-        })
+        .writable_recording_for(path)
         .map(|f| f.name)
 }

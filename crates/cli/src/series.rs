@@ -824,7 +824,7 @@ fn estimated_map_bytes(reader: &dyn SeriesRead, format: &str) -> u64 {
     }
 }
 
-/// Refuses what cannot be exported: ROS bags, and an export larger than `--max-output` or
+/// Refuses what cannot be exported: sqlite3 ROS 2 bags, and an export larger than `--max-output` or
 /// than the free space where it goes. Says how many maps and about how many bytes first.
 fn check_export(
     ui: &Ui,
@@ -837,10 +837,10 @@ fn check_export(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    if matches!(extension.as_deref(), Some("bag" | "db3")) {
+    if extension.as_deref() == Some("db3") {
         anyhow::bail!(
-            "{}: froctomap does not write ROS bags; export to a .mcap file (`ros2 bag play` \
-             reads it) or to a directory of maps",
+            "{}: froctomap does not write sqlite3 ROS 2 bags; export to a .mcap file \
+             (`ros2 bag play` reads it), a ROS 1 .bag or a directory of maps",
             escaped(args.output.display())
         );
     }

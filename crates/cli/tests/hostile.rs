@@ -134,28 +134,30 @@ fn a_bag_record_header_of_length_zero_anywhere_is_an_error_naming_the_bag() {
 }
 
 #[test]
-fn export_refuses_bags_and_sizes_beyond_max_output_before_writing() {
+fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     let dir = tempfile::tempdir().unwrap();
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
-    for name in ["x.bag", "x.db3"] {
-        let output = dir.path().join(name);
-        let run = froctomap_bounded(&[
-            Path::new("export"),
-            &file,
-            Path::new("--from"),
-            Path::new("1700000000"),
-            Path::new("--to"),
-            Path::new("1700003600"),
-            Path::new("--every"),
-            Path::new("10min"),
-            Path::new("-o"),
-            &output,
-        ]);
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert_eq!(run.status.code(), Some(1), "{stderr}");
-        assert!(stderr.contains("does not write ROS bags"), "{stderr}");
-        assert!(!output.exists(), "{name}");
-    }
+    // A sqlite3 ROS 2 bag is read, not written.
+    let output = dir.path().join("x.db3");
+    let run = froctomap_bounded(&[
+        Path::new("export"),
+        &file,
+        Path::new("--from"),
+        Path::new("1700000000"),
+        Path::new("--to"),
+        Path::new("1700003600"),
+        Path::new("--every"),
+        Path::new("10min"),
+        Path::new("-o"),
+        &output,
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("does not write sqlite3 ROS 2 bags"),
+        "{stderr}"
+    );
+    assert!(!output.exists());
     // A year every minute: refused with the count and the size, nothing written.
     let output = dir.path().join("year.mcap");
     let run = froctomap_bounded(&[

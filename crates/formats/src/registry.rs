@@ -419,6 +419,18 @@ impl FormatRegistry {
             .find(|f| f.name == name && f.create.is_some())
     }
 
+    /// The writable recording format whose extension `path` has (`out.mcap`: MCAP, `out.bag`:
+    /// a ROS 1 bag when the ROS plugins are registered), for an export's default format.
+    pub fn writable_recording_for(&self, path: &std::path::Path) -> Option<&RecordingFormat> {
+        let extension = path.extension()?.to_str()?;
+        self.recordings.iter().find(|f| {
+            f.create.is_some()
+                && f.extensions
+                    .iter()
+                    .any(|e| e.eq_ignore_ascii_case(extension))
+        })
+    }
+
     /// Every registered series format, in registration order.
     pub fn series_formats(&self) -> &[SeriesFormat] {
         &self.series

@@ -287,15 +287,17 @@ pub fn export<'py>(
     let mode: ExportMode = mode
         .parse()
         .map_err(|e| froct_error_text(format!("mode: {e}")))?;
-    let recording = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    // `out.mcap`, `out.bag`: the recording format of that extension; else `.bt` files.
+    let recording = crate::plugins::context()
+        .formats()
+        .writable_recording_for(&output)
+        .map(|f| f.name);
     let options = ExportOptions {
         from: instant(start, "start")?,
         to: instant(end, "end")?,
         every_ns: duration_ns(every)?,
         mode,
-        format: format.unwrap_or_else(|| if recording { "mcap" } else { "bt" }.to_string()),
+        format: format.unwrap_or_else(|| recording.unwrap_or("bt").to_string()),
         backend: None,
         prefix,
         overwrite,

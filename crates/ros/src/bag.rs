@@ -27,12 +27,12 @@ pub(crate) const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
 /// The longest record header read (bag headers hold a few short fields).
 const MAX_HEADER_BYTES: u64 = 1 << 20;
 
-const OP_MESSAGE: u8 = 0x02;
-const OP_BAG_HEADER: u8 = 0x03;
-const OP_INDEX: u8 = 0x04;
-const OP_CHUNK: u8 = 0x05;
-const OP_CHUNK_INFO: u8 = 0x06;
-const OP_CONNECTION: u8 = 0x07;
+pub(crate) const OP_MESSAGE: u8 = 0x02;
+pub(crate) const OP_BAG_HEADER: u8 = 0x03;
+pub(crate) const OP_INDEX: u8 = 0x04;
+pub(crate) const OP_CHUNK: u8 = 0x05;
+pub(crate) const OP_CHUNK_INFO: u8 = 0x06;
+pub(crate) const OP_CONNECTION: u8 = 0x07;
 
 /// Header fields of a record.
 struct Fields<'a>(Vec<(&'a [u8], &'a [u8])>);

@@ -74,6 +74,71 @@ pub fn encode_octomap_cdr(
     Some(out.bytes)
 }
 
+/// The ROS 1 type name of the messages [`encode_octomap_ros1`] writes.
+pub const OCTOMAP_ROS1_TYPE: &str = "octomap_msgs/Octomap";
+
+/// The full ROS 1 definition of `octomap_msgs/Octomap` as a bag's connection stores it: its
+/// fields, then the nested `std_msgs/Header` after a separator line.
+pub const OCTOMAP_ROS1_DEFINITION: &str = "\
+std_msgs/Header header
+bool binary
+string id
+float64 resolution
+int8[] data
+================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+";
+
+/// ROS 1's MD5 sum of `octomap_msgs/Octomap` (of its definition with the nested type's sum
+/// in its place), which a bag's connection and ROS 1 subscribers check.
+pub const OCTOMAP_ROS1_MD5: &str = "9a45536b45c5e409cd49f04bb2d9999f";
+
+/// An `octomap_msgs/Octomap` message serialised as ROS 1 does (little-endian, no alignment):
+/// header `seq`, stamp (`secs`, `nsecs`) and `frame_id`, `binary`, the tree `id`,
+/// `resolution` and the map `data`. `None` when a field is longer than a ROS 1 length
+/// (`u32`) can say.
+///
+/// ```
+/// use froctomap_ros::{decode_message, encode_octomap_ros1, Encoding, MessageType};
+/// let bytes = encode_octomap_ros1(7, (1_700_000_000, 5), "map", true, "OcTree", 0.05, &[0x09, 0x00]).unwrap();
+/// let message = decode_message(&bytes, Encoding::Ros1, MessageType::Octomap)?;
+/// assert_eq!(message.stamp_ns, 1_700_000_000_000_000_005);
+/// assert_eq!((message.binary, message.id, message.resolution, message.data), (true, "OcTree", 0.05, &[0x09, 0x00][..]));
+/// # Ok::<(), froctomap_ros::MessageError>(())
+/// ```
+pub fn encode_octomap_ros1(
+    seq: u32,
+    stamp: (u32, u32),
+    frame_id: &str,
+    binary: bool,
+    id: &str,
+    resolution: f64,
+    data: &[u8],
+) -> Option<Vec<u8>> {
+    let length = |bytes: &[u8]| u32::try_from(bytes.len()).ok().map(u32::to_le_bytes);
+    let (frame_len, id_len, data_len) = (
+        length(frame_id.as_bytes())?,
+        length(id.as_bytes())?,
+        length(data)?,
+    );
+    let mut out = Vec::with_capacity(40 + frame_id.len() + id.len() + data.len());
+    out.extend_from_slice(&seq.to_le_bytes());
+    out.extend_from_slice(&stamp.0.to_le_bytes());
+    out.extend_from_slice(&stamp.1.to_le_bytes());
+    out.extend_from_slice(&frame_len);
+    out.extend_from_slice(frame_id.as_bytes());
+    out.push(u8::from(binary));
+    out.extend_from_slice(&id_len);
+    out.extend_from_slice(id.as_bytes());
+    out.extend_from_slice(&resolution.to_le_bytes());
+    out.extend_from_slice(&data_len);
+    out.extend_from_slice(data);
+    Some(out)
+}
+
 /// The `ros2msg` schema of `sensor_msgs/msg/PointCloud2`, with its nested types.
 pub const POINT_CLOUD2_ROS2MSG: &str = concat!(
     "\

@@ -253,6 +253,37 @@ fn list_topics(topics: &[(String, String)]) -> String {
         .join(", ")
 }
 
+/// Why a map could not be written into a ROS 1 bag.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BagWriteError {
+    /// Writing the output failed.
+    #[error("cannot write")]
+    Io(#[from] std::io::Error),
+    /// A time before 1970 or after 2106, which a ROS 1 time (`u32` seconds) cannot hold.
+    #[error("{0} cannot be written as a ROS 1 time (1970 to 2106)")]
+    TimeOutOfRange(String),
+    /// The exported map is not a `.bt` file (a fault of the exporter).
+    #[error("the exported map is not a .bt file")]
+    NotBinary(#[source] froctomap_octomap_codec::CodecError),
+    /// A map too large for one record (a bag's lengths are `u32`).
+    #[error("a map of {bytes} bytes is longer than one bag record may hold")]
+    MessageTooLong {
+        /// The map's bytes.
+        bytes: u64,
+    },
+    /// An export option the bag cannot be written with.
+    #[error("{option} {value:?}: {reason}")]
+    BadOption {
+        /// The option (`profile`, `frame id`, `topic prefix`, `threshold`).
+        option: &'static str,
+        /// Its value.
+        value: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
 /// Why a map could not be written into an MCAP recording.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -359,6 +390,30 @@ mod tests {
                 | McapWriteError::MessageTooLong { .. }
                 | McapWriteError::BadOption { .. }
                 | McapWriteError::TooManyPoints { .. } => {}
+            }
+        }
+        all
+    }
+
+    fn bag_write_errors() -> Vec<BagWriteError> {
+        let all = vec![
+            BagWriteError::Io(std::io::Error::other("disk full")),
+            BagWriteError::TimeOutOfRange("2200-01-01".into()),
+            BagWriteError::NotBinary(CodecError::Empty),
+            BagWriteError::MessageTooLong { bytes: 9 },
+            BagWriteError::BadOption {
+                option: "profile",
+                value: "foxglove".into(),
+                reason: "a ROS 1 bag holds ROS 1 messages only",
+            },
+        ];
+        for e in &all {
+            match e {
+                BagWriteError::Io(_)
+                | BagWriteError::TimeOutOfRange(_)
+                | BagWriteError::NotBinary(_)
+                | BagWriteError::MessageTooLong { .. }
+                | BagWriteError::BadOption { .. } => {}
             }
         }
         all
@@ -493,6 +548,9 @@ mod tests {
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
         for e in write_errors() {
+            assert_eq!(said_twice(&e), None, "{e:?}");
+        }
+        for e in bag_write_errors() {
             assert_eq!(said_twice(&e), None, "{e:?}");
         }
     }

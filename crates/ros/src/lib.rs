@@ -29,6 +29,7 @@
 //! ```
 
 mod bag;
+mod bag_export;
 mod bag_metadata;
 mod describe;
 mod encode;
@@ -47,10 +48,11 @@ mod topic_counts;
 mod topics;
 
 pub use encode::{
-    encode_octomap_cdr, encode_point_cloud2_cdr, PointFieldSpec, MARKER_ARRAY_ROS2MSG,
+    encode_octomap_cdr, encode_octomap_ros1, encode_point_cloud2_cdr, PointFieldSpec,
+    MARKER_ARRAY_ROS2MSG, OCTOMAP_ROS1_DEFINITION, OCTOMAP_ROS1_MD5, OCTOMAP_ROS1_TYPE,
     OCTOMAP_ROS2MSG, OCTOMAP_TYPE, POINT_CLOUD2_ROS2MSG, POINT_CLOUD2_TYPE,
 };
-pub use error::{McapWriteError, MessageError, RosError};
+pub use error::{BagWriteError, McapWriteError, MessageError, RosError};
 pub use foxglove::{
     kind_name, point_cloud_json, scene_update_json, MAX_POINTS, POINT_CLOUD_JSON_SCHEMA,
     POINT_CLOUD_SCHEMA, SCENE_ENTITY_ID, SCENE_UPDATE_JSON_SCHEMA, SCENE_UPDATE_SCHEMA,
@@ -73,7 +75,9 @@ use froctomap_formats::{
 };
 use std::path::{Path, PathBuf};
 
-/// ROS 1 bags (format 2.0; chunks uncompressed, bz2 or lz4).
+/// ROS 1 bags (format 2.0; chunks uncompressed, bz2 or lz4). Written by `export --format
+/// rosbag` (`-o maps.bag`): the maps as `octomap_msgs/Octomap` on [`OCTOMAP_TOPIC`], one
+/// uncompressed chunk each.
 pub const ROSBAG: RecordingFormat = RecordingFormat {
     name: "rosbag",
     description: "ROS 1 bag",
@@ -82,7 +86,7 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     probe_dir: None,
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     open_stream: None,
-    create: None,
+    create: Some(bag_export::create),
     describe: Some(|path, limit| Ok(describe::describe_bag(path, limit)?)),
 };
 

@@ -126,15 +126,13 @@ struct McapMapWriter {
 /// `sample` (its index on the file's axis).
 pub const MAP_METADATA: &str = "froctomap.map";
 
-/// Refuses options an MCAP export cannot be written with, naming the option.
-fn check_options(options: &RecordingWriteOptions) -> Result<(), McapWriteError> {
-    let bad = |option, value: &str, reason| {
-        Err(McapWriteError::BadOption {
-            option,
-            value: value.to_string(),
-            reason,
-        })
-    };
+/// Refuses options a recording cannot be written with, naming the option (made an error by
+/// `refused`: option, value, reason).
+pub(crate) fn check_options<E>(
+    options: &RecordingWriteOptions,
+    refused: fn(&'static str, String, &'static str) -> E,
+) -> Result<(), E> {
+    let bad = |option, value: &str, reason| Err(refused(option, value.to_string(), reason));
     let frame = &options.frame_id;
     if frame.is_empty() || frame.len() > 256 || frame.chars().any(char::is_whitespace) {
         return bad(
@@ -181,7 +179,11 @@ impl McapMapWriter {
         sink: Box<dyn RecordingSink>,
         options: &RecordingWriteOptions,
     ) -> Result<Self, McapWriteError> {
-        check_options(options)?;
+        check_options(options, |option, value, reason| McapWriteError::BadOption {
+            option,
+            value,
+            reason,
+        })?;
         let mut writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("froctomap ", env!("CARGO_PKG_VERSION")))
