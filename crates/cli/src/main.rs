@@ -223,7 +223,7 @@ enum Command {
     /// Example: froctomap history office.froct --at 23.5,-0.5,1.0 -o voxel.png
     History(history::HistoryArgs),
     /// Write one OctoMap file per instant of a range, plus a manifest.csv, or every map into
-    /// one MCAP recording (an output named *.mcap).
+    /// one recording: MCAP (an output named *.mcap) or a ROS 1 bag (*.bag).
     ///
     /// Examples (a directory of .bt files; an MCAP for rviz2; one for Foxglove, uncertain
     /// space drawn, under a robot's namespace):

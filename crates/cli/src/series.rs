@@ -757,7 +757,8 @@ pub struct ExportArgs {
     #[arg(long, value_name = "DURATION")]
     every: String,
     /// Directory for the maps and manifest.csv (created if missing); for a recording format
-    /// (--format mcap, or an output named *.mcap), the one file holding every map.
+    /// (--format mcap or rosbag, or an output named *.mcap or *.bag), the one file holding
+    /// every map.
     #[arg(short, long, value_name = "DIR|FILE")]
     output: PathBuf,
     /// Predicted maps (one per instant), retrieved snapshots (each snapshot seen at the
@@ -770,7 +771,8 @@ pub struct ExportArgs {
     /// voxels as a sensor_msgs/msg/PointCloud2 on /froctomap/occupied_voxels_pc2 (for rviz2,
     /// Rerun) and their occupied cells as a visualization_msgs/msg/MarkerArray on
     /// /froctomap/occupied_cells_vis_array (CUBE_LIST per depth, for rviz2); see --profile.
-    /// Default: mcap for an output named *.mcap, else bt.
+    /// Or `rosbag`: a ROS 1 bag with the maps as octomap_msgs/Octomap on /octomap_binary (for
+    /// rosbag play). Default: mcap for an output named *.mcap, rosbag for *.bag, else bt.
     #[arg(long, value_parser = export_format())]
     format: Option<String>,
     /// File name prefix.
