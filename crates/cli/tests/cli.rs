@@ -207,10 +207,16 @@ fn formats_lists_both_backends_native_first() {
             "native is the default, listed first:\n{stdout}"
         );
     }
-    // Recording formats are listed once each, MCAP as writable too.
+    // Recording formats are listed once each, ROS 1 bags and MCAP as writable too, ROS 2
+    // bag directories read only.
     assert!(stdout
         .lines()
         .nth(line_of("rosbag "))
+        .unwrap()
+        .contains(" rec,w "));
+    assert!(stdout
+        .lines()
+        .nth(line_of("ros2bag "))
         .unwrap()
         .contains(" rec "));
     assert!(stdout
