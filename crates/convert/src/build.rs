@@ -325,22 +325,14 @@ fn new_file(run: &Run<'_>, output: &Path) -> Result<IngestReport, ConvertError> 
     fit_and_write(cells, tile_depth, &fitter, &encoder, &mut writer, progress)?;
     let model_seconds = modelling.elapsed().as_secs_f64();
     let stats = writer.stats().clone();
-    let summary = json!({
-        "cell_classes": stats.cells,
-        "voxel_classes": stats.voxels,
-        "toggles": stats.toggles,
-        "model_errors": stats.model_errors,
-        "outliers": if options.config.outliers == OutlierMode::Lossless { "lossless" } else { "lossy" },
-        "snapshots_used": intaken.used,
-        "snapshots_skipped": intaken.skipped.len(),
-        "input_bytes": intaken.input_bytes,
-        "changed_voxels": intaken.changed_voxels,
-        "read_seconds": intaken.read_seconds,
-        "model_seconds": model_seconds,
-    });
-    let Value::Object(mut summary) = summary else {
-        unreachable!("json! of an object literal")
-    };
+    let mut summary = stats.summary(options.config.outliers == OutlierMode::Lossless);
+    let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
+    put("snapshots_used", json!(intaken.used));
+    put("snapshots_skipped", json!(intaken.skipped.len()));
+    put("input_bytes", json!(intaken.input_bytes));
+    put("changed_voxels", json!(intaken.changed_voxels));
+    put("read_seconds", json!(intaken.read_seconds));
+    put("model_seconds", json!(model_seconds));
     if options.time.is_some() {
         // A reproducible file: no wall-clock measurement in it (the report keeps them).
         summary.remove("read_seconds");

@@ -302,16 +302,8 @@ impl Added {
         seconds: Option<(f64, f64)>,
     ) -> Map<String, Value> {
         let previously = |key: &str| previously.get(key).and_then(Value::as_u64).unwrap_or(0);
-        let mut summary = Map::new();
+        let mut summary = stats.summary(lossless);
         let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
-        put("cell_classes", json!(stats.cells));
-        put("voxel_classes", json!(stats.voxels));
-        put("toggles", json!(stats.toggles));
-        put("model_errors", json!(stats.model_errors));
-        put(
-            "outliers",
-            json!(if lossless { "lossless" } else { "lossy" }),
-        );
         put(
             "snapshots_used",
             json!(previously("snapshots_used") + self.used),

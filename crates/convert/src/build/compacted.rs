@@ -136,16 +136,8 @@ pub(crate) fn merge_into(
     )?;
     let stats = writer.stats().clone();
     let lossless = settings.config.outliers == OutlierMode::Lossless;
-    let mut summary = Map::new();
+    let mut summary = stats.summary(lossless);
     let mut put = |key: &str, value: Value| summary.insert(key.to_string(), value);
-    put("cell_classes", json!(stats.cells));
-    put("voxel_classes", json!(stats.voxels));
-    put("toggles", json!(stats.toggles));
-    put("model_errors", json!(stats.model_errors));
-    put(
-        "outliers",
-        json!(if lossless { "lossless" } else { "lossy" }),
-    );
     put("snapshots_used", json!(maps));
     put("snapshots_skipped", json!(0));
     if !settings.reproducible {

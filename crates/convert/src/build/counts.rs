@@ -59,4 +59,22 @@ impl TileStats {
         self.toggles += other.toggles;
         self.model_errors += other.model_errors;
     }
+
+    /// The file summary's entries these counts give (`cell_classes`, `voxel_classes`,
+    /// `toggles`, `model_errors`) and `outliers`, which build, append and compaction write
+    /// first, each adding its own after.
+    pub fn summary(&self, lossless: bool) -> serde_json::Map<String, serde_json::Value> {
+        use serde_json::json;
+        let mut summary = serde_json::Map::new();
+        let mut put = |key: &str, value| summary.insert(key.to_string(), value);
+        put("cell_classes", json!(self.cells));
+        put("voxel_classes", json!(self.voxels));
+        put("toggles", json!(self.toggles));
+        put("model_errors", json!(self.model_errors));
+        put(
+            "outliers",
+            json!(if lossless { "lossless" } else { "lossy" }),
+        );
+        summary
+    }
 }
