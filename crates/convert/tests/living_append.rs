@@ -263,7 +263,7 @@ fn appended_segments_retrieve_every_snapshot_as_a_full_build_does() {
     assert!(patch_tiles(&reader) > 0, "no patch tile");
     let regional = (0..reader.segment_count())
         .flat_map(|k| (0..reader.segment_tiles(k).len()).map(move |t| (k, t)))
-        .filter_map(|(k, t)| reader.remainder(k, t))
+        .filter_map(|(k, t)| reader.remainder(k, t).unwrap())
         .filter(|r| !r.runs.is_empty())
         .count();
     assert!(regional > 0, "no patch tile with remainder runs");

@@ -40,7 +40,11 @@ fn main() {
         tiles += entries.len() as u64;
         for t in 0..entries.len() {
             patches += u64::from(reader.is_patch_tile(k, t));
-            if let Some(remainder) = reader.remainder(k, t).filter(|r| !r.runs.is_empty()) {
+            if let Some(remainder) = reader
+                .remainder(k, t)
+                .unwrap()
+                .filter(|r| !r.runs.is_empty())
+            {
                 regional += 1;
                 runs += remainder.runs.len() as u64;
             }

@@ -32,7 +32,8 @@ pub struct ReadLimits {
     /// Toggles (observation changes, outliers, exceptions) a reader decodes from one tile
     /// (default 2^28): whole toggle lists are built from them.
     pub max_toggles_per_tile: u64,
-    /// Segments of a format 2.0 file (default 2^16): a reader keeps each segment's index.
+    /// Segments of a format 2.0 file (default 2^16): a reader keeps each segment's tile
+    /// index and axis (its patch remainders are read when a query needs them).
     /// The segment indexes count, summed, against `max_index_bytes`.
     pub max_segments: u64,
 }

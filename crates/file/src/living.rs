@@ -64,12 +64,38 @@ use std::sync::Arc;
 /// A cell's state as a visit reports it: Morton code of its first voxel, depth, state.
 pub type CellState = (MortonCode, u8, Occupancy);
 
-/// One committed segment as a reader holds it: its record and a tile reader over its
-/// samples.
+/// One committed segment as a reader holds it: where its record is, which of its tiles are
+/// patch tiles, and a tile reader over its samples (whose header holds the segment's axis).
+/// The patch tiles' remainders are not kept: they are most of a record's decoded size (runs
+/// and masks for every base region a view left out), so a reader holding them for every
+/// segment would grow with the file's history; [`LivingReader::patches`] reads them again
+/// when a query needs them.
 struct Segment {
-    record: SegmentRecord,
+    /// Global index of the segment's first sample.
+    first_sample: u32,
+    /// Where its record starts, and where the tiles before it begin (its tiles lie between).
+    record_at: u64,
+    tiles_from: u64,
+    /// One past the record's last byte.
+    end: u64,
+    /// Per tile, whether it is a patch tile.
+    patch_tiles: Box<[bool]>,
     tiles: FroctReader,
 }
+
+impl Segment {
+    /// The segment's own samples.
+    fn axis(&self) -> &TimeAxis {
+        &self.tiles.header().axis
+    }
+}
+
+/// The patch remainders of a segment, per tile (`None` for a plain tile).
+type Patches = Arc<[Option<Arc<TileRemainder>>]>;
+
+/// How many segments' patch remainders a reader keeps decoded: queries go through a
+/// segment's tiles one after another, and compaction through the segments in order.
+const CACHED_PATCHES: usize = 4;
 
 /// An open format 2.0 file: its base and its committed segments, as the root read at open
 /// (or at the last [`refresh`](Self::refresh)) says. Bytes past the committed length are
@@ -82,6 +108,8 @@ pub struct LivingReader {
     slot: usize,
     base: FroctReader,
     segments: Vec<Segment>,
+    /// The patch remainders of the segments read last, newest first.
+    patches: std::sync::Mutex<Vec<(usize, Patches)>>,
     /// Segment index bytes the limits still allow.
     index_budget: u64,
 }
@@ -156,6 +184,7 @@ impl LivingReader {
             index_budget: limits.max_index_bytes,
             base,
             segments: Vec::new(),
+            patches: std::sync::Mutex::new(Vec::new()),
         };
         reader.root.sample_count = reader.base.header().axis.len();
         reader.load_segments(root, slot)?;
@@ -210,6 +239,7 @@ impl LivingReader {
                     ),
                 )));
             }
+            let offset = raw.offset;
             let record = raw
                 .decode(tiles_from, header.tile_depth, &self.limits)
                 .map_err(invalid)?;
@@ -237,19 +267,26 @@ impl LivingReader {
             }
             self.check_patches(&record)?;
             last_instant = record.axis.end();
-            tiles_from = record.end;
-            let segment_header = Header {
-                axis: record.axis.clone(),
-                ..header.clone()
+            let patch_tiles = record.patches.iter().map(Option::is_some).collect();
+            let segment = Segment {
+                first_sample: record.first_sample,
+                record_at: offset,
+                tiles_from,
+                end: record.end,
+                patch_tiles,
+                tiles: FroctReader::from_parts(
+                    Box::new(Arc::clone(&self.source)),
+                    Header {
+                        axis: record.axis.clone(),
+                        ..header.clone()
+                    },
+                    record.tiles,
+                    Box::new(InheritedModel::new(record.axis)),
+                    self.limits,
+                ),
             };
-            let tiles = FroctReader::from_parts(
-                Box::new(Arc::clone(&self.source)),
-                segment_header,
-                record.tiles.clone(),
-                Box::new(InheritedModel::new(record.axis.clone())),
-                self.limits,
-            );
-            added.push(Segment { record, tiles });
+            tiles_from = segment.end;
+            added.push(segment);
         }
         if samples != u64::from(root.sample_count) {
             return Err(invalid(corrupt(
@@ -363,6 +400,24 @@ impl LivingReader {
         &self.base
     }
 
+    /// A second reader of the base alone, over the same bytes: its header and index read
+    /// again, no segment (the cost of the base, whatever the file's history). A writer
+    /// lends its reader to nothing while a segment is being written; this is what code
+    /// that needs the base meanwhile holds.
+    pub fn reopen_base(&self, models: &ModelRegistry) -> Result<FroctReader, FileError> {
+        let body = Body {
+            header_at: LIVING_HEADER_AT,
+            end: self.root.base_len,
+            major: LIVING_MAJOR_VERSION,
+        };
+        FroctReader::open_body(
+            Box::new(Arc::clone(&self.source)),
+            body,
+            self.limits,
+            models,
+        )
+    }
+
     /// The header (the base's; segments carry their own samples).
     pub fn header(&self) -> &Header {
         self.base.header()
@@ -380,9 +435,7 @@ impl LivingReader {
 
     /// Segment `k`'s global first sample and its own samples.
     pub fn segment_axis(&self, k: usize) -> Option<(u32, &TimeAxis)> {
-        self.segments
-            .get(k)
-            .map(|s| (s.record.first_sample, &s.record.axis))
+        self.segments.get(k).map(|s| (s.first_sample, s.axis()))
     }
 
     /// Segment `k`'s tiles (sample ranges in the segment's own samples).
@@ -399,7 +452,7 @@ impl LivingReader {
         segment
             .tiles
             .visit_cells(tile, |cell| cells.push(SegmentCell::from_cell(cell)))?;
-        if let Some(remainder) = self.remainder(k, tile) {
+        if let Some(remainder) = self.remainder(k, tile)? {
             let covered: Vec<(u64, u64)> = cells
                 .iter()
                 .map(|c| (c.start.0, c.start.0 + voxels_per_node(c.depth)))
@@ -426,23 +479,91 @@ impl LivingReader {
     /// `true` when tile `tile` of segment `k` is a patch tile (FORMAT.md §10.6): the base
     /// tile's cells are inherited where its own cells do not cover them.
     pub fn is_patch_tile(&self, k: usize, tile: usize) -> bool {
-        self.remainder_mask(k, tile).is_some()
+        self.segments
+            .get(k)
+            .and_then(|s| s.patch_tiles.get(tile))
+            .is_some_and(|&patch| patch)
     }
 
     /// For a patch tile, the observation mask of what it leaves to the base where no
     /// remainder run says otherwise (`Some(None)`: observed at every sample that is not
     /// missing); `None` for any other tile.
-    pub fn remainder_mask(&self, k: usize, tile: usize) -> Option<Option<Arc<Toggles>>> {
-        self.remainder(k, tile).map(|r| r.default.clone())
+    pub fn remainder_mask(
+        &self,
+        k: usize,
+        tile: usize,
+    ) -> Result<Option<RemainderMask>, FileError> {
+        Ok(self.remainder(k, tile)?.map(|r| r.default.clone()))
     }
 
     /// For a patch tile, what observes what it leaves to the base (its default mask, and
-    /// the masks of runs of base cells, FORMAT.md §10.7); `None` for any other tile.
-    pub fn remainder(&self, k: usize, tile: usize) -> Option<&TileRemainder> {
-        self.segments
-            .get(k)
-            .and_then(|s| s.record.patches.get(tile))
-            .and_then(Option::as_deref)
+    /// the masks of runs of base cells, FORMAT.md §10.7); `None` for any other tile. Read
+    /// from the segment's record unless one of the last segments asked for.
+    pub fn remainder(
+        &self,
+        k: usize,
+        tile: usize,
+    ) -> Result<Option<Arc<TileRemainder>>, FileError> {
+        if !self.is_patch_tile(k, tile) {
+            return Ok(None);
+        }
+        Ok(self.patches(k)?.get(tile).cloned().flatten())
+    }
+
+    /// Segment `k`'s patch remainders: from the cache, or its record read, checked and
+    /// decoded again (it was checked whole when the reader opened; what it says now must be
+    /// what it said then).
+    fn patches(&self, k: usize) -> Result<Patches, FileError> {
+        let lock = || {
+            self.patches
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+        };
+        {
+            let mut cache = lock();
+            if let Some(i) = cache.iter().position(|(segment, _)| *segment == k) {
+                let entry = cache.remove(i);
+                let patches = Arc::clone(&entry.1);
+                cache.insert(0, entry);
+                return Ok(patches);
+            }
+        }
+        let segment = self.segment(k)?;
+        let invalid = |v| self.invalid(v);
+        // Counted against the index budget when the reader opened.
+        let mut budget = u64::MAX;
+        let record = RawRecord::read(
+            self.source.as_ref(),
+            segment.record_at,
+            segment.end,
+            &mut budget,
+        )
+        .map_err(|source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        })?
+        .map_err(invalid)?
+        .decode(segment.tiles_from, self.header().tile_depth, &self.limits)
+        .map_err(invalid)?;
+        let same = record.first_sample == segment.first_sample
+            && record.end == segment.end
+            && record
+                .patches
+                .iter()
+                .map(Option::is_some)
+                .eq(segment.patch_tiles.iter().copied());
+        if !same {
+            return Err(invalid(corrupt(
+                "segment record",
+                format!("segment {k}'s record changed since the file was opened"),
+            )));
+        }
+        self.check_patches(&record)?;
+        let patches: Patches = record.patches.into();
+        let mut cache = lock();
+        cache.insert(0, (k, Arc::clone(&patches)));
+        cache.truncate(CACHED_PATCHES);
+        Ok(patches)
     }
 
     /// Calls `visit` with the parts of the cells of the base tile `code` that no range of
@@ -520,17 +641,17 @@ impl LivingReader {
         }
         let k = self
             .segments
-            .partition_point(|s| s.record.first_sample <= sample)
+            .partition_point(|s| s.first_sample <= sample)
             .checked_sub(1)?;
-        let local = sample - self.segments[k].record.first_sample;
-        (local < self.segments[k].record.axis.len()).then_some(SampleAt::Segment(k, local))
+        let local = sample - self.segments[k].first_sample;
+        (local < self.segments[k].axis().len()).then_some(SampleAt::Segment(k, local))
     }
 
     /// The instant of a global sample.
     pub fn sample_time(&self, sample: u32) -> Option<Timestamp> {
         match self.locate(sample)? {
             SampleAt::Base(i) => self.base.header().axis.time(i),
-            SampleAt::Segment(k, i) => self.segments[k].record.axis.time(i),
+            SampleAt::Segment(k, i) => self.segments[k].axis().time(i),
         }
     }
 
@@ -538,7 +659,7 @@ impl LivingReader {
     pub fn is_missing(&self, sample: u32) -> bool {
         match self.locate(sample) {
             Some(SampleAt::Base(i)) => self.base.header().axis.is_missing(i),
-            Some(SampleAt::Segment(k, i)) => self.segments[k].record.axis.is_missing(i),
+            Some(SampleAt::Segment(k, i)) => self.segments[k].axis().is_missing(i),
             None => true,
         }
     }
@@ -547,21 +668,19 @@ impl LivingReader {
     pub fn last_instant(&self) -> Timestamp {
         self.segments
             .last()
-            .map_or_else(|| self.base.header().axis.end(), |s| s.record.axis.end())
+            .map_or_else(|| self.base.header().axis.end(), |s| s.axis().end())
     }
 
     /// The last global sample with a map at or before `t` (missing samples skipped), `None`
     /// before the first one.
     pub fn sample_at_or_before(&self, t: Timestamp) -> Option<u32> {
-        let k = self
-            .segments
-            .partition_point(|s| s.record.axis.start() <= t);
+        let k = self.segments.partition_point(|s| s.axis().start() <= t);
         self.segments[..k]
             .iter()
             .rev()
             .find_map(|s| {
-                let local = s.record.axis.last_at_or_before(t)?;
-                Some(s.record.first_sample + local)
+                let local = s.axis().last_at_or_before(t)?;
+                Some(s.first_sample + local)
             })
             .or_else(|| self.base.header().axis.last_at_or_before(t))
     }
@@ -597,7 +716,8 @@ impl LivingReader {
                 tiles: segment.tiles.tiles().len(),
             });
         };
-        let remainder = self.remainder(k, tile);
+        let remainder = self.remainder(k, tile)?;
+        let remainder = remainder.as_deref();
         let patch = remainder.is_some();
         if !entry.may_observe(local) && !patch {
             return Ok(());
@@ -642,7 +762,7 @@ impl LivingReader {
         // Whether the default mask and each further one observe the remainder here.
         let observes = |mask: &RemainderMask| mask.as_ref().is_none_or(|m| m.parity_at(local));
         let observed: Option<(bool, Vec<bool>)> = remainder
-            .filter(|_| !segment.record.axis.is_missing(local))
+            .filter(|_| !segment.axis().is_missing(local))
             .map(|r| {
                 (
                     observes(&r.default),

@@ -944,7 +944,7 @@ fn a_patch_tile_is_its_cells_and_the_base_predictions_elsewhere() {
             && c.mask.as_deref().map(Toggles::as_slice) == Some(&[1][..])
     }));
     assert_eq!(
-        reader.remainder_mask(0, 0),
+        reader.remainder_mask(0, 0).unwrap(),
         Some(Some(Arc::new(Toggles::new(vec![1]).unwrap())))
     );
     // A patch tile needs a base tile with its code.
@@ -988,12 +988,7 @@ fn an_empty_remainder_mask_is_refused_by_the_writer() {
         .unwrap();
     let mut encoder = segment.tile_encoder();
     encoder
-        .push(SegmentCell {
-            start: base_cells[0].start,
-            depth: base_cells[0].depth,
-            mask: None,
-            content: SegmentContent::Constant(Occupancy::Occupied),
-        })
+        .push(stored_constant(&base_cells[0], Occupancy::Occupied))
         .unwrap();
     let err = segment
         .write_patch_tile(&encoder.finish().unwrap(), Some(Arc::new(Toggles::empty())))

@@ -10,8 +10,7 @@ use common::living::*;
 use froctomap_core::{MortonCode, Occupancy};
 use froctomap_file::{
     Cell, FileError, FormatViolation, LivingReader, LivingWriter, MemorySource, ReadLimits,
-    RemainderRun, SegmentCell, SegmentContent, TileEncodeError, TileRemainder, ROOT_SLOTS_AT,
-    ROOT_SLOT_LEN,
+    RemainderRun, TileEncodeError, TileRemainder, ROOT_SLOTS_AT, ROOT_SLOT_LEN,
 };
 use froctomap_temporal::{ModelRegistry, TimeAxis, Toggles};
 use std::sync::Arc;
@@ -99,8 +98,8 @@ fn each_base_cell_of_a_patch_tile_reads_by_the_mask_its_run_gives() {
     assert_eq!(starts, expected);
     assert_eq!(cells[1].mask, mask(&[0, 1]));
     assert!(cells[2..].iter().all(|c| c.mask == mask(&[1])));
-    assert_eq!(reader.remainder_mask(0, 0), Some(mask(&[1])));
-    assert_eq!(reader.remainder(0, 0).unwrap().runs.len(), 2);
+    assert_eq!(reader.remainder_mask(0, 0).unwrap(), Some(mask(&[1])));
+    assert_eq!(reader.remainder(0, 0).unwrap().unwrap().runs.len(), 2);
     // The section is where and as the format says.
     let bytes = std::fs::read(&path).unwrap();
     let (at, body) = newest_record(&bytes);
@@ -152,12 +151,7 @@ fn the_writer_refuses_remainder_runs_the_format_cannot_hold() {
         let mut segment = writer.begin_segment(axis.clone()).unwrap();
         let mut encoder = segment.tile_encoder();
         encoder
-            .push(SegmentCell {
-                start: base_cells[0].start,
-                depth: base_cells[0].depth,
-                mask: None,
-                content: SegmentContent::Constant(Occupancy::Free),
-            })
+            .push(stored_constant(&base_cells[0], Occupancy::Free))
             .unwrap();
         let result = segment.write_patch_tile_with(&encoder.finish().unwrap(), remainder);
         if well_formed {
@@ -316,4 +310,58 @@ fn reframed(bytes: &[u8], at: usize, keep: usize, tail: &[u8]) -> Vec<u8> {
     let crc = crc32c::crc32c(&out[slot..slot + 60]);
     out[slot + 60..slot + 64].copy_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// A reader keeps only a few segments' remainders decoded and reads a record again when a
+/// query needs it: a record damaged under an open reader is a checksum error, one damaged and
+/// resealed a typed error or a well-formed map, never a panic; the file put back, the same
+/// reader reads every map again as at first.
+#[test]
+fn a_record_changed_under_an_open_reader_is_read_again_safely() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("remainder.froct");
+    write_remainder_golden(&path);
+    let original = std::fs::read(&path).unwrap();
+    let (at, body) = newest_record(&original);
+    let reader = LivingReader::open(&path).unwrap();
+    let samples = reader.segment_axis(0).unwrap().0..reader.sample_count();
+    let maps = |reader: &LivingReader| -> Vec<Result<Vec<_>, FileError>> {
+        samples.clone().map(|g| reader.observed_states(g)).collect()
+    };
+    let expected: Vec<_> = maps(&reader).into_iter().map(Result::unwrap).collect();
+    for byte in at + 24..at + 24 + body {
+        for resealed in [false, true] {
+            // A new reader each time: the one above has the record decoded.
+            let reader = LivingReader::open(&path).unwrap();
+            let mut hostile = original.clone();
+            hostile[byte] ^= 0x01;
+            if resealed {
+                reseal_record(&mut hostile, at, body);
+            }
+            std::fs::write(&path, &hostile).unwrap();
+            let mut decoded = false;
+            for map in maps(&reader) {
+                match map {
+                    Err(err) if !resealed => assert!(
+                        matches!(
+                            err.violation(),
+                            Some(FormatViolation::Checksum("segment record"))
+                        ),
+                        "byte {byte}: {err}"
+                    ),
+                    Err(err) => assert!(err.violation().is_some(), "byte {byte}: {err}"),
+                    Ok(_) => {
+                        assert!(resealed, "byte {byte}: damage read as a map");
+                        decoded = true;
+                    }
+                }
+            }
+            std::fs::write(&path, &original).unwrap();
+            // What a reader decoded it keeps; what failed it reads again.
+            if !decoded {
+                let read: Vec<_> = maps(&reader).into_iter().map(Result::unwrap).collect();
+                assert_eq!(read, expected, "byte {byte}: put back");
+            }
+        }
+    }
 }

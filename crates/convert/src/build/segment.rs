@@ -92,11 +92,11 @@ pub(super) fn add_segment(
     let modelling = Instant::now();
     let before = writer.reader().root();
     let (samples_before, end_before) = (before.sample_count, writer.reader().last_instant());
-    // A second view of the committed state for the base's tiles, which the segment being
-    // written cannot lend (it borrows the writer); the lock keeps both the same.
-    let base_view =
-        LivingReader::open_with_limits(&file, context.limits().froct, context.models())?;
-    let base = base_view.base();
+    // A second reader of the base's tiles, which the segment being written cannot lend (it
+    // borrows the writer); the lock keeps both the same. The base alone: opening the whole
+    // file again would read every segment's record, a cost that grows with the history.
+    let base_view = writer.reader().reopen_base(context.models())?;
+    let base = &base_view;
     let chooser = ContentChooser::new(&file, &axis, base, plan.inherit_models);
     let join = BaseJoin { base };
     let accumulated = intaken.accumulated;

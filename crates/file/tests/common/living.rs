@@ -320,10 +320,20 @@ pub fn expected_maps(plans: &[PlannedSegment]) -> Vec<Vec<(MortonCode, u8, Occup
     maps
 }
 
+/// `cell` stored whole in a segment, in one state throughout.
+pub fn stored_constant(cell: &Cell, state: Occupancy) -> SegmentCell {
+    SegmentCell {
+        start: cell.start,
+        depth: cell.depth,
+        mask: None,
+        content: SegmentContent::Constant(state),
+    }
+}
+
 /// What both patch golden files start from: the 1.2 golden file converted at `path`, its
 /// writer, the first golden segment axis, and the cells of the base's largest tile (the
 /// tile the patch covers).
-fn golden_base_for_a_patch(path: &Path) -> (LivingWriter, TimeAxis, Vec<Cell>) {
+pub fn golden_base_for_a_patch(path: &Path) -> (LivingWriter, TimeAxis, Vec<Cell>) {
     LivingWriter::convert(&golden_path_of("golden-v1.2.froct"), path).unwrap();
     let axis = golden_segment_axes()[0].clone();
     let writer = LivingWriter::open(path).unwrap();
@@ -347,12 +357,7 @@ pub fn write_patch_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
     let mut segment = writer.begin_segment(axis.clone()).unwrap();
     let mut encoder = segment.tile_encoder();
     encoder
-        .push(SegmentCell {
-            start: base_cells[0].start,
-            depth: base_cells[0].depth,
-            mask: None,
-            content: SegmentContent::Constant(Occupancy::Occupied),
-        })
+        .push(stored_constant(&base_cells[0], Occupancy::Occupied))
         .unwrap();
     encoder
         .push(SegmentCell {
@@ -381,12 +386,7 @@ pub fn write_remainder_golden(path: &Path) -> (TimeAxis, Vec<Cell>) {
     let mut segment = writer.begin_segment(axis.clone()).unwrap();
     let mut encoder = segment.tile_encoder();
     encoder
-        .push(SegmentCell {
-            start: base_cells[0].start,
-            depth: base_cells[0].depth,
-            mask: None,
-            content: SegmentContent::Constant(Occupancy::Occupied),
-        })
+        .push(stored_constant(&base_cells[0], Occupancy::Occupied))
         .unwrap();
     let remainder = froctomap_file::TileRemainder {
         default: remainder_mask(&[1]),
