@@ -229,7 +229,9 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     let living = dir.path().join("living.froct");
     let options =
         froctomap_convert::RecordOptions::for_live_source(froctomap_convert::CommitEvery::Maps(2));
-    let recorder = froctomap_convert::Recorder::open(&context, &living, options).expect("record");
+    let mut recorder =
+        froctomap_convert::Recorder::open(&context, &living, options).expect("record");
+    let retried = note_retries(&mut recorder);
     let mut sink = FilesSink {
         dir: received_dir.clone(),
         received: Vec::new(),
@@ -276,7 +278,7 @@ fn cyclonedds_peer_maps_arrive_byte_identical_and_it_reads_the_predicted_map() {
     let (resolution, leaves) =
         peer_reads_the_predicted_map(&peer, &predicted, t, &predicted_out, dir.path());
     assert_markers_are_the_occupied_leaves(&peer, &markers_out, t, resolution, &leaves);
-    assert_recording_retrieves_each_map(sink, &maps, &living, dir.path(), &context);
+    assert_recording_retrieves_each_map(sink, &maps, &living, dir.path(), &context, &retried);
     living_services_answer_as_upstream(&mut peer, &node, &living, &maps, dir.path());
     file_services_answer_as_retrieve(&mut peer, &node, &froct, dir.path());
     assert_loopback_only(&peer);
@@ -436,9 +438,15 @@ fn assert_recording_retrieves_each_map(
     living: &Path,
     dir: &Path,
     context: &Context,
+    retried: &std::cell::RefCell<Vec<String>>,
 ) {
     let FilesSink { recording, .. } = sink;
     let summary = recording.finish().expect("the last commit");
+    assert!(
+        retried.borrow().is_empty(),
+        "no commit failed and was tried again as halves: {:?}",
+        retried.borrow()
+    );
     assert_eq!((summary.committed_maps, summary.commits), (maps.len(), 2));
     let recorded = FroctFile::open(living).expect("the living map");
     for (i, map) in maps.iter().enumerate() {
@@ -993,6 +1001,21 @@ fn note_left_out(
         _ => {}
     });
     left_out
+}
+
+/// The commits of `recorder` that failed and were tried again as halves, with why.
+fn note_retries(
+    recorder: &mut froctomap_convert::Recorder<'_>,
+) -> std::rc::Rc<std::cell::RefCell<Vec<String>>> {
+    let retried: std::rc::Rc<std::cell::RefCell<Vec<String>>> = Default::default();
+    let seen = std::rc::Rc::clone(&retried);
+    recorder.on_event(move |event| {
+        if let froctomap_convert::RecordEvent::Retrying { what, error, .. } = event {
+            seen.borrow_mut()
+                .push(format!("{what}: {}", froctomap_core::error_message(error)));
+        }
+    });
+    retried
 }
 
 /// The file reads, and holds the `good` maps (at seconds `first`, `first + 1` and

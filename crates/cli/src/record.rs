@@ -443,6 +443,12 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
                 )),
             }
         }
+        RecordEvent::Retrying { maps, what, error } => {
+            let why = escaped(format!("{what}: {}", froctomap_core::error_message(*error)));
+            ui.note(&format!(
+                "warning: a commit of {maps} maps failed, trying its halves: {why}"
+            ));
+        }
         _ => {}
     }
 }

@@ -509,12 +509,22 @@ fn open_recording<'a>(
         _ => {}
     }
     let file = args.file.clone();
+    // One reader for the commit lines, refreshed after each commit: it reads the new
+    // segments' records only (opening the file again would read every one, each commit).
+    let mut view: Option<FroctFile> = None;
     recorder.on_event(move |event| match event {
         RecordEvent::Committed(commit) => {
+            let refreshed = match view.as_mut() {
+                Some(open) => open.refresh().is_ok(),
+                None => false,
+            };
+            if !refreshed {
+                view = FroctFile::open(&file).ok();
+            }
             // The cells of the map as observed at the last sample (the file's own cells
             // add those of every earlier map).
-            let cells = FroctFile::open(&file)
-                .ok()
+            let cells = view
+                .as_ref()
                 .and_then(|f| {
                     let last = f.sample_at_or_before(f.last_instant())?;
                     let tiles = f.observed_tiles(last);
@@ -541,6 +551,14 @@ fn open_recording<'a>(
                 froctomap_core::error_message(error)
             );
         }
+        RecordEvent::Retrying { maps, what, error } => {
+            eprintln!(
+                "warning: a commit of {maps} maps failed, trying its halves: {what}: {}",
+                froctomap_core::error_message(error)
+            );
+        }
+        // A compaction replaces the file: the reader held sees the old one.
+        RecordEvent::Compacted(_) => view = None,
         _ => {}
     });
     Ok(RecordingSink::new(recorder, args.time_source, min_interval))

@@ -526,6 +526,11 @@ fn a_map_of_another_resolution_commits_the_maps_before_it_and_stops_or_is_skippe
     assert!(!output.status.success(), "{stderr}");
     assert!(stderr.contains("frame_20160104T013000Z.bt"), "{stderr}");
     assert!(stderr.contains("resolution 0.16"), "{stderr}");
+    // The halves are said, with the error of the whole.
+    assert!(
+        stderr.contains("warning: a commit of 5 maps failed, trying its halves: committing 5 maps"),
+        "{stderr}"
+    );
     assert_eq!(samples(&file), 3);
     same_snapshots(&file, &whole, 3);
 

@@ -171,6 +171,17 @@ pub enum RecordEvent<'e> {
     },
     /// The file compacted after a commit: base and segments refitted into one base.
     Compacted(&'e CompactReport),
+    /// A commit of several maps failed and is tried again as two halves, in order (a bad
+    /// map among them is then found and left out, or the failure repeats): how many maps,
+    /// which, and the error of the whole.
+    Retrying {
+        /// How many maps the failed commit held.
+        maps: usize,
+        /// Which ("committing N maps (… .. …)").
+        what: &'e str,
+        /// Why the whole failed.
+        error: &'e ConvertError,
+    },
 }
 
 /// Counts of a recording so far.
@@ -613,6 +624,13 @@ impl<'a> Recorder<'a> {
                 source: Box::new(error),
             }),
             _ => {
+                // Said, so that a failure the halves then get past (a transient one, the
+                // file's or the disk's) is not hidden.
+                (self.observer)(RecordEvent::Retrying {
+                    maps: series.len(),
+                    what: &committing(series),
+                    error: &error,
+                });
                 let (before, after) = series.split_at(series.len() / 2);
                 self.commit_pieces(before)?;
                 self.commit_pieces(after)

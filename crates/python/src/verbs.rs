@@ -491,6 +491,12 @@ fn run_recorder(
                 "what": what,
                 "error": message(error),
             }),
+            RecordEvent::Retrying { maps, what, error } => json!({
+                "event": "retrying",
+                "maps": maps,
+                "what": what,
+                "error": message(error),
+            }),
             _ => return,
         };
         seen.borrow_mut().push(value);

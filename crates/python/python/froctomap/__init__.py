@@ -283,7 +283,8 @@ def record(
     converted to 2.0 first. A failure (or Ctrl-C) commits the maps taken before it, then
     raises. Returns a summary: ``committed_maps``, ``commits``, ``older``, ``bad``,
     ``compactions``, ``opened`` (``"living"``, ``"converted"``, ``"missing"``) and
-    ``events`` (one dict per commit, compaction or map left out).
+    ``events`` (one dict per commit, compaction, map left out or commit retried as two
+    halves after an error, its kind under ``"event"``).
     """
     return _native.record(
         file, _maps(sources), commit_every=commit_every, skip_bad=skip_bad,
