@@ -500,6 +500,26 @@ fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f
     }
 }
 
+/// A generated series in `dir` (`maps/`), built (`series.froct`, opened) and exported as
+/// `.bt` files (`bt/`) at the instants of [`export_options`]: what the recordings exported
+/// from the same file are compared with.
+fn exported_bts(
+    dir: &Path,
+) -> (
+    Vec<SeriesInput>,
+    FroctReader,
+    froctomap_convert::ExportReport,
+) {
+    let inputs = series(&dir.join("maps"));
+    let plain = Context::with_default_plugins();
+    let froct = dir.join("series.froct");
+    build_with_defaults(&plain, &inputs, &froct);
+    let reader = FroctReader::open(&froct).unwrap();
+    let options = export_options(&inputs, "bt", RecordingWriteOptions::default());
+    let bts = export(&plain, &reader, &dir.join("bt"), &options, &Silent).unwrap();
+    (inputs, reader, bts)
+}
+
 /// `export -o maps.bag`, read back by PyPI rosbags' indexed reader: one
 /// `octomap_msgs/Octomap` connection whose MD5 sum is the one rosbags computes from the
 /// definition the bag stores, one message per exported time, stamped and logged at it, in
@@ -508,20 +528,8 @@ fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f
 #[test]
 fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
     let dir = scratch();
-    let inputs = series(&dir.path().join("maps"));
-    let plain = Context::with_default_plugins();
-    let froct = dir.path().join("series.froct");
-    build_with_defaults(&plain, &inputs, &froct);
-    let reader = FroctReader::open(&froct).unwrap();
+    let (inputs, reader, bts) = exported_bts(dir.path());
     let options = |format: &str, recording| export_options(&inputs, format, recording);
-    let bts = export(
-        &plain,
-        &reader,
-        &dir.path().join("bt"),
-        &options("bt", RecordingWriteOptions::default()),
-        &Silent,
-    )
-    .unwrap();
     let context = context(RecordedTime::Header);
     let write = RecordingWriteOptions::default()
         .with_frame_id("odom")
@@ -586,20 +594,8 @@ fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
 #[test]
 fn exported_ros2_bag_directory_holds_the_bt_exports_as_cdr_messages() {
     let dir = scratch();
-    let inputs = series(&dir.path().join("maps"));
-    let plain = Context::with_default_plugins();
-    let froct = dir.path().join("series.froct");
-    build_with_defaults(&plain, &inputs, &froct);
-    let reader = FroctReader::open(&froct).unwrap();
+    let (inputs, reader, bts) = exported_bts(dir.path());
     let options = |format: &str, recording| export_options(&inputs, format, recording);
-    let bts = export(
-        &plain,
-        &reader,
-        &dir.path().join("bt"),
-        &options("bt", RecordingWriteOptions::default()),
-        &Silent,
-    )
-    .unwrap();
     let context = context(RecordedTime::Header);
     let write = RecordingWriteOptions::default()
         .with_frame_id("odom")
@@ -637,6 +633,7 @@ fn exported_ros2_bag_directory_holds_the_bt_exports_as_cdr_messages() {
     assert_eq!(got, times);
     let from_bag = dir.path().join("from_bag.froct");
     let from_bts = dir.path().join("from_bts.froct");
+    let plain = Context::with_default_plugins();
     build_with_defaults(&plain, &collected, &from_bag);
     build_with_defaults(&plain, &bts.files, &from_bts);
     let stamps: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();

@@ -133,24 +133,26 @@ fn a_bag_record_header_of_length_zero_anywhere_is_an_error_naming_the_bag() {
     }
 }
 
+/// `froctomap export golden-v1.2.froct --from 1700000000 --to TO --every EVERY [more…] -o
+/// output`, `args` being `[TO, EVERY, more…]`.
+fn export_golden(output: &Path, args: &[&str]) -> Output {
+    let file = fixture("froct/golden-v1.2.froct");
+    let mut all: Vec<&Path> = vec![Path::new("export"), &file, Path::new("--from")];
+    all.push(Path::new("1700000000"));
+    all.push(Path::new("--to"));
+    all.push(Path::new(args[0]));
+    all.push(Path::new("--every"));
+    all.extend(args[1..].iter().map(Path::new));
+    all.extend([Path::new("-o"), output]);
+    froctomap_bounded(&all)
+}
+
 #[test]
 fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     let dir = tempfile::tempdir().unwrap();
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
     // A sqlite3 ROS 2 bag is read, not written.
     let output = dir.path().join("x.db3");
-    let run = froctomap_bounded(&[
-        Path::new("export"),
-        &file,
-        Path::new("--from"),
-        Path::new("1700000000"),
-        Path::new("--to"),
-        Path::new("1700003600"),
-        Path::new("--every"),
-        Path::new("10min"),
-        Path::new("-o"),
-        &output,
-    ]);
+    let run = export_golden(&output, &["1700003600", "10min"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(
@@ -160,20 +162,7 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     assert!(!output.exists());
     // A year every minute: refused with the count and the size, nothing written.
     let output = dir.path().join("year.mcap");
-    let run = froctomap_bounded(&[
-        Path::new("export"),
-        &file,
-        Path::new("--from"),
-        Path::new("1700000000"),
-        Path::new("--to"),
-        Path::new("1731536000"),
-        Path::new("--every"),
-        Path::new("1min"),
-        Path::new("--max-output"),
-        Path::new("1MiB"),
-        Path::new("-o"),
-        &output,
-    ]);
+    let run = export_golden(&output, &["1731536000", "1min", "--max-output", "1MiB"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(
@@ -190,21 +179,10 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
 #[test]
 fn export_to_a_ros2_bag_directory_refuses_an_existing_target_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
     let export = |output: &Path, extra: &[&str]| {
-        let mut args: Vec<&Path> = vec![
-            Path::new("export"),
-            &file,
-            Path::new("--from"),
-            Path::new("1700000000"),
-            Path::new("--to"),
-            Path::new("1700003600"),
-            Path::new("--every"),
-            Path::new("20min"),
-        ];
-        args.extend(extra.iter().map(Path::new));
-        args.extend([Path::new("-o"), output]);
-        froctomap_bounded(&args)
+        let mut args = vec!["1700003600", "20min"];
+        args.extend(extra);
+        export_golden(output, &args)
     };
     let listing = |path: &Path| {
         let mut names: Vec<String> = std::fs::read_dir(path)
