@@ -567,19 +567,23 @@ fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
     }
 
     // Foxglove's messages have no place in a ROS 1 bag: refused, naming the option.
-    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
     let refused = dir.path().join("foxglove.bag");
-    let err = export(
-        &context,
-        &reader,
-        &refused,
-        &options("rosbag", foxglove),
-        &Silent,
-    )
-    .unwrap_err();
-    let message = froctomap_core::error_message(&err);
+    let message = foxglove_refused(&reader, &inputs, "rosbag", &refused);
     assert!(message.contains("profile"), "{message}");
     assert!(!refused.exists());
+}
+
+/// The error of an export of `reader` into `output` as `format` with the foxglove profile.
+fn foxglove_refused(
+    reader: &FroctReader,
+    inputs: &[SeriesInput],
+    format: &str,
+    output: &Path,
+) -> String {
+    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
+    let options = export_options(inputs, format, foxglove);
+    let context = context(RecordedTime::Header);
+    chain(&export(&context, reader, output, &options, &Silent).unwrap_err())
 }
 
 /// `export --format ros2bag` makes a ROS 2 bag directory `maps_bag/` (metadata.yaml and
@@ -655,17 +659,7 @@ fn exported_ros2_bag_directory_holds_the_bt_exports_as_cdr_messages() {
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
 
     // Foxglove's JSON messages have no place in a ROS 2 bag: refused, nothing left.
-    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
-    let refused = out.join("foxglove_bag");
-    let err = export(
-        &context,
-        &reader,
-        &refused,
-        &options("ros2bag", foxglove),
-        &Silent,
-    )
-    .unwrap_err();
-    let message = chain(&err);
+    let message = foxglove_refused(&reader, &inputs, "ros2bag", &out.join("foxglove_bag"));
     assert!(message.contains("profile"), "{message}");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
 }
