@@ -500,6 +500,26 @@ fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f
     }
 }
 
+/// A generated series in `dir` (`maps/`), built (`series.froct`, opened) and exported as
+/// `.bt` files (`bt/`) at the instants of [`export_options`]: what the recordings exported
+/// from the same file are compared with.
+fn exported_bts(
+    dir: &Path,
+) -> (
+    Vec<SeriesInput>,
+    FroctReader,
+    froctomap_convert::ExportReport,
+) {
+    let inputs = series(&dir.join("maps"));
+    let plain = Context::with_default_plugins();
+    let froct = dir.join("series.froct");
+    build_with_defaults(&plain, &inputs, &froct);
+    let reader = FroctReader::open(&froct).unwrap();
+    let options = export_options(&inputs, "bt", RecordingWriteOptions::default());
+    let bts = export(&plain, &reader, &dir.join("bt"), &options, &Silent).unwrap();
+    (inputs, reader, bts)
+}
+
 /// `export -o maps.bag`, read back by PyPI rosbags' indexed reader: one
 /// `octomap_msgs/Octomap` connection whose MD5 sum is the one rosbags computes from the
 /// definition the bag stores, one message per exported time, stamped and logged at it, in
@@ -508,20 +528,8 @@ fn assert_cloud_values(cloud2: &serde_json::Value, predicted: bool, threshold: f
 #[test]
 fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
     let dir = scratch();
-    let inputs = series(&dir.path().join("maps"));
-    let plain = Context::with_default_plugins();
-    let froct = dir.path().join("series.froct");
-    build_with_defaults(&plain, &inputs, &froct);
-    let reader = FroctReader::open(&froct).unwrap();
+    let (inputs, reader, bts) = exported_bts(dir.path());
     let options = |format: &str, recording| export_options(&inputs, format, recording);
-    let bts = export(
-        &plain,
-        &reader,
-        &dir.path().join("bt"),
-        &options("bt", RecordingWriteOptions::default()),
-        &Silent,
-    )
-    .unwrap();
     let context = context(RecordedTime::Header);
     let write = RecordingWriteOptions::default()
         .with_frame_id("odom")
@@ -559,19 +567,180 @@ fn exported_bag_holds_the_bt_exports_as_octomap_messages() {
     }
 
     // Foxglove's messages have no place in a ROS 1 bag: refused, naming the option.
-    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
     let refused = dir.path().join("foxglove.bag");
+    let message = foxglove_refused(&reader, &inputs, "rosbag", &refused);
+    assert!(message.contains("profile"), "{message}");
+    assert!(!refused.exists());
+}
+
+/// The error of an export of `reader` into `output` as `format` with the foxglove profile.
+fn foxglove_refused(
+    reader: &FroctReader,
+    inputs: &[SeriesInput],
+    format: &str,
+    output: &Path,
+) -> String {
+    let foxglove = RecordingWriteOptions::default().with_profile(RecordingProfile::Foxglove);
+    let options = export_options(inputs, format, foxglove);
+    let context = context(RecordedTime::Header);
+    chain(&export(&context, reader, output, &options, &Silent).unwrap_err())
+}
+
+/// `export --format ros2bag` makes a ROS 2 bag directory `maps_bag/` (metadata.yaml and
+/// `maps_bag_0.mcap`) that rosbags' rosbag2 Reader opens: metadata.yaml (parsed on its own
+/// too) names the MCAP storage, its one file, every topic with its type, `cdr` and its real
+/// message count, the first map's time and the span to the last, no compression; every
+/// message of every topic decodes as CDR through the types the MCAP file stores, one octomap
+/// message per exported time, stamped and logged at it, whose data is the body of the `.bt`
+/// export of that time byte for byte, with the frame and topic prefix asked. Our own reader
+/// reads the directory back: a build from it equals the build from the `.bt` export. An
+/// existing directory, or a profile a bag cannot hold, is refused, nothing left.
+#[test]
+fn exported_ros2_bag_directory_holds_the_bt_exports_as_cdr_messages() {
+    let dir = scratch();
+    let (inputs, reader, bts) = exported_bts(dir.path());
+    let options = |format: &str, recording| export_options(&inputs, format, recording);
+    let context = context(RecordedTime::Header);
+    let write = RecordingWriteOptions::default()
+        .with_frame_id("odom")
+        .with_topic_prefix("/robot1");
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let bag = out.join("maps_bag");
+    let exported = export(&context, &reader, &bag, &options("ros2bag", write), &Silent).unwrap();
+    let n = bts.files.len();
+    assert_eq!(exported.files.len(), n);
+    assert!(exported.manifest.is_none());
+    let mut names: Vec<String> = std::fs::read_dir(&bag)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["maps_bag_0.mcap", "metadata.yaml"]);
+    let beside: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
+    assert_eq!(
+        beside.len(),
+        1,
+        "no temporary directory left beside the bag"
+    );
+
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir(&data_dir).unwrap();
+    let report = run_script("read_exported_ros2bag.py", &[&bag, &data_dir]);
+    let report: serde_json::Value = serde_json::from_slice(&report.stdout).unwrap();
+    check_exported_ros2_bag(&report, &bts.files, reader.header().resolution, &data_dir);
+    let times: Vec<i64> = bts.files.iter().map(|f| f.time.0).collect();
+
+    // Read back by our own reader (a ROS 2 bag directory among the inputs): the same maps.
+    let collected = collect_inputs(&context, std::slice::from_ref(&bag), TimeSource::Auto).unwrap();
+    let got: Vec<i64> = collected.iter().map(|i| i.time.0).collect();
+    assert_eq!(got, times);
+    let from_bag = dir.path().join("from_bag.froct");
+    let from_bts = dir.path().join("from_bts.froct");
+    let plain = Context::with_default_plugins();
+    build_with_defaults(&plain, &collected, &from_bag);
+    build_with_defaults(&plain, &bts.files, &from_bts);
+    let stamps: Vec<Timestamp> = bts.files.iter().map(|f| f.time).collect();
+    assert!(observed(&from_bag, &stamps) == observed(&from_bts, &stamps));
+
+    // An existing directory is refused, untouched, nothing written beside it.
+    let metadata = std::fs::read(bag.join("metadata.yaml")).unwrap();
     let err = export(
         &context,
         &reader,
-        &refused,
-        &options("rosbag", foxglove),
+        &bag,
+        &options("ros2bag", RecordingWriteOptions::default()),
         &Silent,
     )
     .unwrap_err();
-    let message = froctomap_core::error_message(&err);
+    let message = chain(&err);
+    assert!(message.contains("already exists"), "{message}");
+    assert_eq!(std::fs::read(bag.join("metadata.yaml")).unwrap(), metadata);
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+
+    // Foxglove's JSON messages have no place in a ROS 2 bag: refused, nothing left.
+    let message = foxglove_refused(&reader, &inputs, "ros2bag", &out.join("foxglove_bag"));
     assert!(message.contains("profile"), "{message}");
-    assert!(!refused.exists());
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+}
+
+/// What rosbags read from the ROS 2 bag exported from the maps `files` (the `.bt` export)
+/// with frame `odom` and topic prefix `/robot1` (`read_exported_ros2bag.py`'s report): the
+/// metadata, the connections and every message as the test above says.
+fn check_exported_ros2_bag(
+    report: &serde_json::Value,
+    files: &[SeriesInput],
+    resolution: f64,
+    data_dir: &Path,
+) {
+    let n = files.len();
+    let times: Vec<i64> = files.iter().map(|f| f.time.0).collect();
+    let (first, last) = (times[0], times[n - 1]);
+    let topics = [
+        ("/robot1/octomap_binary", "octomap_msgs/msg/Octomap"),
+        (
+            "/robot1/froctomap/occupied_voxels_pc2",
+            "sensor_msgs/msg/PointCloud2",
+        ),
+        (
+            "/robot1/froctomap/occupied_cells_vis_array",
+            "visualization_msgs/msg/MarkerArray",
+        ),
+    ];
+    let topic_counts: Vec<serde_json::Value> = topics
+        .iter()
+        .map(|(name, type_name)| {
+            serde_json::json!({"topic_metadata": {"name": name, "type": type_name,
+                "serialization_format": "cdr", "offered_qos_profiles": "",
+                "type_description_hash": ""}, "message_count": n})
+        })
+        .collect();
+    let span = serde_json::json!({"nanoseconds": last - first});
+    let start = serde_json::json!({"nanoseconds_since_epoch": first});
+    assert_eq!(
+        report["metadata"],
+        serde_json::json!({"rosbag2_bagfile_information": {
+            "version": 8, "storage_identifier": "mcap", "duration": span,
+            "starting_time": start, "message_count": 3 * n,
+            "topics_with_message_count": topic_counts,
+            "compression_format": "", "compression_mode": "",
+            "relative_file_paths": ["maps_bag_0.mcap"],
+            "files": [{"path": "maps_bag_0.mcap", "starting_time": start, "duration": span,
+                "message_count": 3 * n}],
+            "custom_data": {}, "ros_distro": ""}})
+    );
+    assert_eq!(report["start_time"], first);
+    assert_eq!(report["end_time"], last + 1);
+    assert_eq!(report["message_count"], 3 * n);
+    assert_eq!(report["compression"], serde_json::json!([null, null]));
+    for (topic, type_name) in topics {
+        assert!(
+            report["connections"]
+                .as_array()
+                .unwrap()
+                .contains(&serde_json::json!({"topic": topic, "type": type_name,
+                    "format": "cdr", "count": n})),
+            "{topic}: {}",
+            report["connections"]
+        );
+        assert_eq!(report["decoded"][topic], n, "{topic}");
+    }
+    let octomaps = report["octomaps"].as_array().unwrap();
+    assert_eq!(octomaps.len(), n);
+    for (message, file) in octomaps.iter().zip(files) {
+        let t = file.time.0;
+        assert_eq!(message["topic"], "/robot1/octomap_binary");
+        assert_eq!(message["log_time"], t);
+        assert_eq!(message["stamp_ns"], t);
+        assert_eq!(message["frame_id"], "odom");
+        assert_eq!(message["binary"], true);
+        assert_eq!(message["id"], "OcTree");
+        assert_eq!(message["resolution"], resolution);
+        let bt = std::fs::read(&file.path).unwrap();
+        let body_at = bt.windows(6).position(|w| w == b"\ndata\n").unwrap() + 6;
+        let data = std::fs::read(data_dir.join(format!("{t}.data"))).unwrap();
+        assert!(data == bt[body_at..], "data of the message at {t}");
+    }
 }
 
 /// Recordings written by rosbags and mcap-ros2-support, then damaged here: each problem is an

@@ -227,6 +227,52 @@ def test_export_to_a_bag_is_the_command_lines_and_rosbags_reads_it(cli_file, tmp
         assert message.data.tobytes() == fields["data"].tobytes(), i
 
 
+def test_export_to_a_ros2_bag_is_the_command_lines_and_rosbags_reads_it(cli_file, tmp_path):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    (tmp_path / "ours").mkdir()
+    (tmp_path / "theirs").mkdir()
+    ours, theirs = tmp_path / "ours" / "maps_bag", tmp_path / "theirs" / "maps_bag"
+    span = dict(start="2016-01-04T00:00:00Z", end="2016-01-04T06:00:00Z", every="2h")
+    # format="ros2bag" asks for the bag directory as --format ros2bag does.
+    report = froctomap.export(cli_file, ours, mode="retrieve", format="ros2bag",
+                              frame_id="odom", progress=False, **span)
+    run_cli("-q", "export", cli_file, "--from", span["start"], "--to", span["end"], "--every",
+            span["every"], "--mode", "retrieve", "--format", "ros2bag", "--frame-id", "odom",
+            "-o", theirs)
+    assert report["format"] == "ros2bag" and report["manifest"] is None
+    assert sorted(p.name for p in ours.iterdir()) == ["maps_bag_0.mcap", "metadata.yaml"]
+    for name in ["maps_bag_0.mcap", "metadata.yaml"]:
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+    # An existing directory is refused, as on the command line; a profile a bag cannot hold
+    # too; nothing is left.
+    with pytest.raises(froctomap.FroctError, match="already exists"):
+        froctomap.export(cli_file, ours, format="ros2bag", progress=False, **span)
+    with pytest.raises(froctomap.FroctError, match="profile"):
+        froctomap.export(cli_file, tmp_path / "bad_bag", format="ros2bag", profile="foxglove",
+                         progress=False, **span)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ours", "theirs"]
+    # rosbags opens the directory; each Octomap message holds the retrieved .bt's body.
+    store = get_typestore(Stores.EMPTY)
+    with Reader(ours) as reader:
+        for connection in reader.connections:
+            types = get_types_from_msg(connection.msgdef.data, connection.msgtype)
+            store.register({k: v for k, v in types.items() if k not in store.types})
+        assert reader.message_count == 12
+        messages = [store.deserialize_cdr(raw, connection.msgtype)
+                    for connection, _, raw in reader.messages()
+                    if connection.topic == "/octomap_binary"]
+    assert len(messages) == 4
+    for i, message in enumerate(messages):
+        retrieved = tmp_path / f"{i}.bt"
+        run_cli("retrieve", cli_file, "--time", f"index:{i}", "-o", retrieved)
+        fields = froctomap.message_from_map(retrieved.read_bytes())
+        retrieved.unlink()
+        assert (message.header.frame_id, message.binary, message.id) == ("odom", True, "OcTree")
+        assert message.data.tobytes() == fields["data"].tobytes(), i
+
+
 def test_info_of_map_files_and_froct_files_is_the_command_lines(series, cli_file):
     snapshot = snapshot_files(series)[0]
     cli = json.loads(run_cli("info", "--json", snapshot).stdout)

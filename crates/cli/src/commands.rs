@@ -226,7 +226,7 @@ pub fn formats(ui: &Ui) -> Result<()> {
         .iter()
         .map(|f| (f.name, f.extensions, "series", f.description));
     let recordings = registry.recording_formats().iter().map(|f| {
-        let modes = if f.create.is_some() { "rec,w" } else { "rec" };
+        let modes = if f.writable() { "rec,w" } else { "rec" };
         (f.name, f.extensions, modes, f.description)
     });
     for (name, extensions, modes, description) in series.chain(recordings) {

@@ -32,7 +32,7 @@ pub fn export_format() -> clap::builder::PossibleValuesParser {
             .formats()
             .recording_formats()
             .iter()
-            .filter(|f| f.create.is_some())
+            .filter(|f| f.writable())
             .map(|f| f.name),
     );
     clap::builder::PossibleValuesParser::new(names)

@@ -758,7 +758,7 @@ pub struct ExportArgs {
     every: String,
     /// Directory for the maps and manifest.csv (created if missing); for a recording format
     /// (--format mcap or rosbag, or an output named *.mcap or *.bag), the one file holding
-    /// every map.
+    /// every map; for --format ros2bag, the ROS 2 bag directory to make (it must not exist).
     #[arg(short, long, value_name = "DIR|FILE")]
     output: PathBuf,
     /// Predicted maps (one per instant), retrieved snapshots (each snapshot seen at the
@@ -772,7 +772,10 @@ pub struct ExportArgs {
     /// Rerun) and their occupied cells as a visualization_msgs/msg/MarkerArray on
     /// /froctomap/occupied_cells_vis_array (CUBE_LIST per depth, for rviz2); see --profile.
     /// Or `rosbag`: a ROS 1 bag with the maps as octomap_msgs/Octomap on /octomap_binary (for
-    /// rosbag play). Default: mcap for an output named *.mcap, rosbag for *.bag, else bt.
+    /// rosbag play). Or `ros2bag`: a new ROS 2 bag directory OUT holding metadata.yaml and
+    /// OUT_0.mcap (MCAP storage: the messages of `mcap`, ros2 profile only) for ros2 bag
+    /// play/info. Default: mcap for an output named *.mcap, rosbag for *.bag, else bt (never
+    /// ros2bag: a directory output is a directory of maps unless --format ros2bag).
     #[arg(long, value_parser = export_format())]
     format: Option<String>,
     /// File name prefix.
@@ -781,7 +784,7 @@ pub struct ExportArgs {
     /// Which messages a recording holds: ros2, CDR only (every message decodes with
     /// ROS 2's tools and mcap-ros2-support); foxglove, also a foxglove.PointCloud on
     /// /froctomap/occupied_voxels and foxglove.SceneUpdate cubes sized by the cell on
-    /// /froctomap/occupied_cubes (JSON, for Foxglove's 3D panel).
+    /// /froctomap/occupied_cubes (JSON, for Foxglove's 3D panel; MCAP files only).
     #[arg(long, value_parser = named::<RecordingProfile>(), default_value_t = RecordingProfile::Ros2)]
     profile: RecordingProfile,
     /// Recordings: the frame_id of every message (e.g. --frame-id odom).
@@ -811,7 +814,8 @@ pub struct ExportArgs {
 
 /// A rough size of one exported map: a `.bt` costs about half a byte per leaf (the
 /// file's cells are an upper bound on a map's leaves); an MCAP file adds the occupied
-/// voxels' two point clouds (about five times the map in the generated office).
+/// voxels' two point clouds (about five times the map in the generated office), and so does
+/// a ROS 2 bag (an MCAP file inside).
 fn estimated_map_bytes(reader: &dyn SeriesRead, format: &str) -> u64 {
     let cells: u64 = reader
         .predicted_tiles()
@@ -819,7 +823,7 @@ fn estimated_map_bytes(reader: &dyn SeriesRead, format: &str) -> u64 {
         .map(|&(_, cells)| cells as u64)
         .sum();
     let bt = cells / 2 + 64;
-    if format == "mcap" {
+    if matches!(format, "mcap" | "ros2bag") {
         bt * 5
     } else {
         bt
@@ -841,8 +845,9 @@ fn check_export(
         .map(str::to_ascii_lowercase);
     if extension.as_deref() == Some("db3") {
         anyhow::bail!(
-            "{}: froctomap does not write sqlite3 ROS 2 bags; export to a .mcap file \
-             (`ros2 bag play` reads it), a ROS 1 .bag or a directory of maps",
+            "{}: froctomap does not write sqlite3 ROS 2 bags; export to a ROS 2 bag \
+             directory with MCAP storage (--format ros2bag), a .mcap file (`ros2 bag play` \
+             reads both), a ROS 1 .bag or a directory of maps",
             escaped(args.output.display())
         );
     }

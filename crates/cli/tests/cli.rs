@@ -207,8 +207,8 @@ fn formats_lists_both_backends_native_first() {
             "native is the default, listed first:\n{stdout}"
         );
     }
-    // Recording formats are listed once each, ROS 1 bags and MCAP as writable too, ROS 2
-    // bag directories read only.
+    // Recording formats are listed once each, ROS 1 bags, ROS 2 bag directories and MCAP
+    // as writable too.
     assert!(stdout
         .lines()
         .nth(line_of("rosbag "))
@@ -218,7 +218,7 @@ fn formats_lists_both_backends_native_first() {
         .lines()
         .nth(line_of("ros2bag "))
         .unwrap()
-        .contains(" rec "));
+        .contains(" rec,w "));
     assert!(stdout
         .lines()
         .nth(line_of("mcap "))

@@ -133,24 +133,26 @@ fn a_bag_record_header_of_length_zero_anywhere_is_an_error_naming_the_bag() {
     }
 }
 
+/// `froctomap export golden-v1.2.froct --from 1700000000 --to TO --every EVERY [more…] -o
+/// output`, `args` being `[TO, EVERY, more…]`.
+fn export_golden(output: &Path, args: &[&str]) -> Output {
+    let file = fixture("froct/golden-v1.2.froct");
+    let mut all: Vec<&Path> = vec![Path::new("export"), &file, Path::new("--from")];
+    all.push(Path::new("1700000000"));
+    all.push(Path::new("--to"));
+    all.push(Path::new(args[0]));
+    all.push(Path::new("--every"));
+    all.extend(args[1..].iter().map(Path::new));
+    all.extend([Path::new("-o"), output]);
+    froctomap_bounded(&all)
+}
+
 #[test]
 fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     let dir = tempfile::tempdir().unwrap();
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct/golden-v1.2.froct");
     // A sqlite3 ROS 2 bag is read, not written.
     let output = dir.path().join("x.db3");
-    let run = froctomap_bounded(&[
-        Path::new("export"),
-        &file,
-        Path::new("--from"),
-        Path::new("1700000000"),
-        Path::new("--to"),
-        Path::new("1700003600"),
-        Path::new("--every"),
-        Path::new("10min"),
-        Path::new("-o"),
-        &output,
-    ]);
+    let run = export_golden(&output, &["1700003600", "10min"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(
@@ -160,20 +162,7 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     assert!(!output.exists());
     // A year every minute: refused with the count and the size, nothing written.
     let output = dir.path().join("year.mcap");
-    let run = froctomap_bounded(&[
-        Path::new("export"),
-        &file,
-        Path::new("--from"),
-        Path::new("1700000000"),
-        Path::new("--to"),
-        Path::new("1731536000"),
-        Path::new("--every"),
-        Path::new("1min"),
-        Path::new("--max-output"),
-        Path::new("1MiB"),
-        Path::new("-o"),
-        &output,
-    ]);
+    let run = export_golden(&output, &["1731536000", "1min", "--max-output", "1MiB"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(
@@ -181,6 +170,111 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
         "{stderr}"
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+/// `export --format ros2bag` makes a new bag directory: one that exists (even empty) is
+/// refused and left as it was, nothing made beside it; a bag directory that holds a file of a
+/// name the export would write is refused too; a refused profile leaves nothing. A directory
+/// named `OUT/` without `--format ros2bag` is a directory of `.bt` maps, never a bag.
+#[test]
+fn export_to_a_ros2_bag_directory_refuses_an_existing_target_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = |output: &Path, extra: &[&str]| {
+        let mut args = vec!["1700003600", "20min"];
+        args.extend(extra);
+        export_golden(output, &args)
+    };
+    let listing = |path: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(path)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        names
+    };
+    // An empty directory: refused, still empty, nothing beside it.
+    let empty = dir.path().join("empty_bag");
+    std::fs::create_dir(&empty).unwrap();
+    // A directory holding what a bag holds (a previous export): refused, untouched.
+    let previous = dir.path().join("previous_bag");
+    std::fs::create_dir(&previous).unwrap();
+    std::fs::write(previous.join("metadata.yaml"), b"kept").unwrap();
+    // A file where the bag would go.
+    let taken = dir.path().join("taken_bag");
+    std::fs::write(&taken, b"kept").unwrap();
+    for target in [&empty, &previous, &taken] {
+        let run = export(target, &["--format", "ros2bag"]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("{}: it already exists", target.display())),
+            "{stderr}"
+        );
+    }
+    assert!(listing(&empty).is_empty());
+    assert_eq!(
+        std::fs::read(previous.join("metadata.yaml")).unwrap(),
+        b"kept"
+    );
+    assert_eq!(std::fs::read(&taken).unwrap(), b"kept");
+    let before = listing(dir.path());
+    assert_eq!(before, ["empty_bag", "previous_bag", "taken_bag"]);
+
+    // Foxglove's JSON messages: refused, naming the option, nothing left.
+    let refused = dir.path().join("foxglove_bag");
+    let run = export(&refused, &["--format", "ros2bag", "--profile", "foxglove"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("profile \"foxglove\""), "{stderr}");
+    assert_eq!(listing(dir.path()), before);
+
+    // The bag made new; the same name given again is refused, the bag unchanged.
+    let bag = dir.path().join("maps_bag");
+    let run = export(&bag, &["--format", "ros2bag"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(listing(&bag), ["maps_bag_0.mcap", "metadata.yaml"]);
+    // Our own commands read it back: `info` lists its topics, `build` makes a file of it.
+    let run = froctomap_bounded(&[Path::new("info"), &bag]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("ros2bag (ROS 2 bag directory)"), "{stdout}");
+    assert!(
+        stdout.contains("/octomap_binary [octomap_msgs/msg/Octomap, cdr]: 4 message(s)"),
+        "{stdout}"
+    );
+    let built = dir.path().join("built.froct");
+    let run = froctomap_bounded(&[Path::new("build"), &bag, Path::new("-o"), &built]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(built.is_file());
+    std::fs::remove_file(&built).unwrap();
+    let metadata = std::fs::read(bag.join("metadata.yaml")).unwrap();
+    let run = export(&bag, &["--format", "ros2bag"]);
+    assert_eq!(run.status.code(), Some(1));
+    assert_eq!(std::fs::read(bag.join("metadata.yaml")).unwrap(), metadata);
+    assert_eq!(listing(&bag), ["maps_bag_0.mcap", "metadata.yaml"]);
+
+    // `-o maps/` alone: a directory of .bt maps and their manifest, not a bag.
+    let maps = dir.path().join("maps");
+    let run = export(&maps, &[]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(listing(&maps).contains(&"manifest.csv".to_string()));
+    assert!(!maps.join("metadata.yaml").exists());
 }
 
 /// Issue 29, item 3: a map whose build needs more memory than allowed ends in an error

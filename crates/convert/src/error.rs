@@ -421,6 +421,13 @@ pub enum ConvertError {
         /// The input it is.
         input: PathBuf,
     },
+    /// An output that is written new (a recording that is a directory, such as a ROS 2
+    /// bag) and already exists.
+    #[error("{}: it already exists; this recording is a directory made new, never written into or over anything (remove it, or name another)", path.display())]
+    OutputExists {
+        /// The output.
+        path: PathBuf,
+    },
     /// An export directory that already holds files, which the export would replace.
     #[error("{}: the directory is not empty", dir.display())]
     DirectoryNotEmpty {
@@ -952,6 +959,7 @@ mod tests {
                 output: path(),
                 input: path(),
             },
+            ConvertError::OutputExists { path: path() },
             ConvertError::DirectoryNotEmpty { dir: path() },
             ConvertError::BadResolution {
                 resolution: 0.0,
@@ -1059,6 +1067,7 @@ mod tests {
                 | ConvertError::Output(_)
                 | ConvertError::RecordingWrite { .. }
                 | ConvertError::OutputIsInput { .. }
+                | ConvertError::OutputExists { .. }
                 | ConvertError::DirectoryNotEmpty { .. }
                 | ConvertError::BadResolution { .. }
                 | ConvertError::MostlySkipped { .. }

@@ -79,7 +79,7 @@ pub struct ExportOptions {
     pub mode: ExportMode,
     /// Output format name: a writable map format of the context (e.g. `bt` or `ot`, one file
     /// per map in a directory) or a recording format that can be written (e.g. `mcap`, one
-    /// file holding every map).
+    /// file holding every map, or `ros2bag`, a new directory holding them).
     pub format: String,
     /// Preferred writer implementation.
     pub backend: Option<Backend>,
@@ -109,11 +109,13 @@ pub struct ExportReport {
 /// Writes one map per instant of `from..=to` (every `every_ns`): into `output`, a directory
 /// (missing or empty, unless [`ExportOptions::overwrite`]), one file per map, each written
 /// atomically, then a manifest; or, when [`ExportOptions::format`] names a recording format
-/// of the context that can be written ([`RecordingFormat::create`], e.g. `mcap`), into
+/// of the context that can be written ([`RecordingFormat::create`], e.g. `mcap`, or
+/// [`RecordingFormat::create_dir`], e.g. `ros2bag`, whose `output` must not exist), into
 /// `output` as one recording, written atomically, one map at a time. A failure leaves only
 /// complete files behind. At most [`Limits::max_exports`](crate::Limits) maps are written.
 ///
 /// [`RecordingFormat::create`]: froctomap_formats::RecordingFormat::create
+/// [`RecordingFormat::create_dir`]: froctomap_formats::RecordingFormat::create_dir
 pub fn export(
     context: &Context,
     reader: &dyn SeriesRead,

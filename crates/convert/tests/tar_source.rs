@@ -36,6 +36,7 @@ mod tar_maps {
         open,
         open_stream: None,
         create: None,
+        create_dir: None,
         describe: None,
     };
 

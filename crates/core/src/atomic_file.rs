@@ -269,6 +269,58 @@ impl TemporaryDir {
     pub fn path(&self) -> &Path {
         self.dir.path()
     }
+
+    /// Makes it the new directory `path`: syncs the files it holds (not its
+    /// subdirectories) and itself, then renames it to `path` unless something is there
+    /// already (an error of kind [`io::ErrorKind::AlreadyExists`], the directory left
+    /// to be removed on drop), atomically where the system can (`renameat2` with
+    /// `RENAME_NOREPLACE`), and syncs `path`'s parent.
+    pub fn persist_new(self, path: &Path) -> io::Result<()> {
+        for entry in std::fs::read_dir(self.path())? {
+            let entry = entry?;
+            if entry.file_type()?.is_file() {
+                std::fs::File::open(entry.path())?.sync_all()?;
+            }
+        }
+        std::fs::File::open(self.path())?.sync_all()?;
+        rename_new(self.path(), path)?;
+        // Renamed: nothing to remove any more.
+        let Self {
+            dir, _registered, ..
+        } = self;
+        let _ = dir.keep();
+        drop(_registered);
+        let parent = match path.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent,
+            _ => Path::new("."),
+        };
+        std::fs::File::open(parent)?.sync_all()
+    }
+}
+
+/// Renames `from` to `to` unless `to` exists (`AlreadyExists`).
+fn rename_new(from: &Path, to: &Path) -> io::Result<()> {
+    let exists = || {
+        io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            "it already exists, and is not replaced",
+        )
+    };
+    #[cfg(any(target_os = "linux", target_os = "android", target_os = "macos"))]
+    {
+        use rustix::fs::{renameat_with, RenameFlags, CWD};
+        match renameat_with(CWD, from, CWD, to, RenameFlags::NOREPLACE) {
+            Ok(()) => return Ok(()),
+            Err(rustix::io::Errno::EXIST) => return Err(exists()),
+            // A file system without RENAME_NOREPLACE: checked, then renamed below.
+            Err(rustix::io::Errno::INVAL | rustix::io::Errno::NOSYS) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+    if to.symlink_metadata().is_ok() {
+        return Err(exists());
+    }
+    std::fs::rename(from, to)
 }
 
 /// A new temporary directory `prefix…` in `parent` (a build's spill files), removed when
@@ -276,15 +328,50 @@ impl TemporaryDir {
 /// [`temporary_beside`], it is locked (`flock`) while its writer lives, and the unlocked
 /// directories `prefix…` that killed writers left in `parent` are removed first.
 pub fn temporary_dir_in(parent: &Path, prefix: &std::ffi::OsStr) -> io::Result<TemporaryDir> {
+    make_temporary_dir(parent, prefix, false)
+}
+
+/// A new temporary directory in `path`'s parent directory (named `.NAME.…`, `NAME` being
+/// `path`'s file name), for an output that is a directory (a ROS 2 bag): filled, then
+/// renamed into place by [`TemporaryDir::persist_new`]. Its permissions are those of a
+/// plain `mkdir` (`0777` less the umask); it is locked and cleaned up as
+/// [`temporary_dir_in`]'s.
+pub fn temporary_dir_beside(path: &Path) -> io::Result<TemporaryDir> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "not a directory name"))?;
+    let parent = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let mut prefix = std::ffi::OsString::from(".");
+    prefix.push(name);
+    prefix.push(".");
+    make_temporary_dir(parent, &prefix, true)
+}
+
+fn make_temporary_dir(
+    parent: &Path,
+    prefix: &std::ffi::OsStr,
+    as_mkdir: bool,
+) -> io::Result<TemporaryDir> {
     let directory_lock = std::fs::File::open(parent).ok();
     remove_stale(parent, prefix, Leftover::Directory, directory_lock.as_ref());
     if let Some(directory) = &directory_lock {
         let _ = lock(directory, rustix::fs::FlockOperation::LockShared);
     }
-    let (dir, registered) = crate::cleanup::create_registered(
-        || tempfile::Builder::new().prefix(prefix).tempdir_in(parent),
-        |dir| dir.path(),
-    )?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(prefix);
+    #[cfg(unix)]
+    if as_mkdir {
+        use std::os::unix::fs::PermissionsExt;
+        // mkdir(2) applies the umask.
+        builder.permissions(std::fs::Permissions::from_mode(0o777));
+    }
+    #[cfg(not(unix))]
+    let _ = as_mkdir;
+    let (dir, registered) =
+        crate::cleanup::create_registered(|| builder.tempdir_in(parent), |dir| dir.path())?;
     let held = std::fs::File::open(dir.path())?;
     lock(&held, rustix::fs::FlockOperation::LockExclusive)?;
     drop(directory_lock);
@@ -383,6 +470,38 @@ mod tests {
 
     fn mode(path: &Path) -> u32 {
         std::fs::metadata(path).map_or(0, |m| m.permissions().mode() & 0o777)
+    }
+
+    /// A directory output appears whole under its name, with a plain mkdir's mode, and
+    /// never replaces anything there (an empty directory, a file): the temporary one is
+    /// removed instead.
+    #[test]
+    fn directory_outputs_are_renamed_into_place_never_over_anything() {
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::create_dir(&plain).unwrap();
+        let bag = dir.path().join("bag");
+        let temp = temporary_dir_beside(&bag).unwrap();
+        std::fs::write(temp.path().join("a"), b"a").unwrap();
+        temp.persist_new(&bag).unwrap();
+        assert_eq!(std::fs::read(bag.join("a")).unwrap(), b"a");
+        assert_eq!(mode(&bag), mode(&plain));
+        for taken in [plain.clone(), bag.clone(), dir.path().join("file")] {
+            if !taken.exists() {
+                std::fs::write(&taken, b"kept").unwrap();
+            }
+            let temp = temporary_dir_beside(&taken).unwrap();
+            std::fs::write(temp.path().join("b"), b"b").unwrap();
+            let err = temp.persist_new(&taken).unwrap_err();
+            assert_eq!(err.kind(), io::ErrorKind::AlreadyExists, "{taken:?}");
+        }
+        let mut names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["bag", "file", "plain"]);
+        assert!(std::fs::read_dir(&plain).unwrap().next().is_none());
     }
 
     #[test]

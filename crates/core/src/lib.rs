@@ -29,7 +29,8 @@ mod time;
 
 pub use atomic_file::{
     is_stream_output, remove_stale_temporary_dirs, remove_stale_temporary_files, temporary_beside,
-    temporary_dir_in, write_atomically, AtomicWriteError, TemporaryDir, TemporaryFile, STDOUT,
+    temporary_dir_beside, temporary_dir_in, write_atomically, AtomicWriteError, TemporaryDir,
+    TemporaryFile, STDOUT,
 };
 pub use change::{changes, push_merged, StateChange};
 pub use error::MapError;

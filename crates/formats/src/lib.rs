@@ -58,10 +58,10 @@ pub use hooks::{MapHeader, MapPartWriter, TiledMapWriter, WrittenPart};
 pub use natural::natural_cmp;
 pub use probe::{Confidence, PROBE_BYTES};
 pub use recording::{
-    CellShade, CreateRecording, DescribeRecording, ExportedKind, ExportedMap, OccupiedCell,
-    OpenStream, RecordedMaps, RecordedTime, RecordedTopic, Recording, RecordingFormat,
-    RecordingOptions, RecordingProfile, RecordingSink, RecordingSummary, RecordingWriteOptions,
-    RecordingWriter,
+    CellShade, CreateRecording, CreateRecordingDir, DescribeRecording, ExportedKind, ExportedMap,
+    OccupiedCell, OpenStream, RecordedMaps, RecordedTime, RecordedTopic, Recording, RecordingDir,
+    RecordingFormat, RecordingOptions, RecordingProfile, RecordingSink, RecordingSummary,
+    RecordingWriteOptions, RecordingWriter,
 };
 pub use registry::{
     Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,

@@ -169,8 +169,13 @@ pub struct RecordingFormat {
     /// disk ([`RecordingOptions::spool_dir`]) rather than into memory; a stream that ends
     /// early or does not read is an error naming where in the stream it stopped.
     pub open_stream: Option<OpenStream>,
-    /// Writes a new recording of exported maps, if the format can be written.
+    /// Writes a new recording of exported maps into one file, if the format can be written
+    /// so.
     pub create: Option<CreateRecording>,
+    /// Writes a new recording of exported maps that is a directory of files (a ROS 2 bag),
+    /// if the format can be written so. The export makes the directory (new: an existing
+    /// one is refused) and renames it into place once the writer finished.
+    pub create_dir: Option<CreateRecordingDir>,
     /// Lists what a recording holds (every topic, not only maps), if the format can tell:
     /// `froctomap info` on a recording.
     pub describe: Option<DescribeRecording>,
@@ -252,6 +257,12 @@ pub type OpenStream =
     fn(&mut dyn std::io::Read, &RecordingOptions, u64) -> Result<Recording, PluginError>;
 
 impl RecordingFormat {
+    /// `true` when this format can be written ([`create`](Self::create) or
+    /// [`create_dir`](Self::create_dir)).
+    pub fn writable(&self) -> bool {
+        self.create.is_some() || self.create_dir.is_some()
+    }
+
     /// `true` when this format recognises `path`: a directory by its layout, a file by its
     /// first bytes. A file that cannot be read is nobody's recording (its reader says why).
     pub fn recognises(&self, path: &Path) -> bool {
@@ -271,6 +282,24 @@ impl<T: std::io::Write + std::io::Seek + Send> RecordingSink for T {}
 /// Makes a writer of a new recording into a sink, with the export's options.
 pub type CreateRecording = fn(
     Box<dyn RecordingSink>,
+    &RecordingWriteOptions,
+) -> Result<Box<dyn RecordingWriter>, PluginError>;
+
+/// Where a writer of a recording that is a directory ([`RecordingFormat::create_dir`]) puts
+/// its files: a new temporary directory beside the output, owned by the export, renamed
+/// to the output once the writer finished (so a failed export leaves nothing).
+pub trait RecordingDir: Send {
+    /// The name the recording will have (the output directory's own name, lossily UTF-8),
+    /// for the names of the files in it (a ROS 2 bag's `NAME_0.mcap`).
+    fn name(&self) -> &str;
+
+    /// A new file `name` in the directory (a plain file name), to write.
+    fn create_file(&mut self, name: &str) -> Result<Box<dyn RecordingSink>, PluginError>;
+}
+
+/// Makes a writer of a new recording that is a directory, with the export's options.
+pub type CreateRecordingDir = fn(
+    Box<dyn RecordingDir>,
     &RecordingWriteOptions,
 ) -> Result<Box<dyn RecordingWriter>, PluginError>;
 

@@ -416,7 +416,7 @@ impl FormatRegistry {
     pub fn writable_recording(&self, name: &str) -> Option<&RecordingFormat> {
         self.recordings
             .iter()
-            .find(|f| f.name == name && f.create.is_some())
+            .find(|f| f.name == name && f.writable())
     }
 
     /// The writable recording format whose extension `path` has (`out.mcap`: MCAP, `out.bag`:
@@ -424,7 +424,7 @@ impl FormatRegistry {
     pub fn writable_recording_for(&self, path: &std::path::Path) -> Option<&RecordingFormat> {
         let extension = path.extension()?.to_str()?;
         self.recordings.iter().find(|f| {
-            f.create.is_some()
+            f.writable()
                 && f.extensions
                     .iter()
                     .any(|e| e.eq_ignore_ascii_case(extension))
@@ -854,6 +854,7 @@ mod registration_tests {
             open: |_, _, _| Err("not opened".into()),
             open_stream: None,
             create: None,
+            create_dir: None,
             describe: None,
         };
         registry.register_series(series).unwrap();

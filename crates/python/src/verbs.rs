@@ -287,7 +287,8 @@ pub fn export<'py>(
     let mode: ExportMode = mode
         .parse()
         .map_err(|e| froct_error_text(format!("mode: {e}")))?;
-    // `out.mcap`, `out.bag`: the recording format of that extension; else `.bt` files.
+    // `out.mcap`, `out.bag`: the recording format of that extension; else `.bt` files. A
+    // ROS 2 bag directory only by `format="ros2bag"`, as `--format ros2bag`.
     let recording = crate::plugins::context()
         .formats()
         .writable_recording_for(&output)

@@ -3,8 +3,8 @@
 //! bag directories (MCAP storage), as timed snapshots of a froctomap series.
 //!
 //! The crate is a plugin: [`register`] adds its [`RecordingFormat`]s to a
-//! [`FormatRegistry`] (one descriptor per container recognises, opens and, for MCAP, writes
-//! it), after which froctomap's input collection expands a recording into one input per map
+//! [`FormatRegistry`] (one descriptor per container recognises, opens and writes it: ROS 1
+//! bags and MCAP files as one file, ROS 2 bags as a directory), after which froctomap's input collection expands a recording into one input per map
 //! and `build` reads it like a directory of `.bt` files.
 //!
 //! * Which topic: [`RecordingOptions::topic`], else the
@@ -41,6 +41,7 @@ mod mcap_export;
 mod mcap_file;
 mod mcap_lengths;
 mod message;
+mod ros2bag_export;
 mod source;
 mod sqlite_bag;
 mod stream;
@@ -87,6 +88,7 @@ pub const ROSBAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(source::open_bag(path, options, limit)?),
     open_stream: None,
     create: Some(bag_export::create),
+    create_dir: None,
     describe: Some(|path, limit| Ok(describe::describe_bag(path, limit)?)),
 };
 
@@ -115,6 +117,7 @@ pub const MCAP: RecordingFormat = RecordingFormat {
     },
     open_stream: Some(|input, options, limit| Ok(stream::open_mcap_stream(input, options, limit)?)),
     create: Some(mcap_export::create),
+    create_dir: None,
     describe: Some(|path, limit| Ok(describe::describe_mcap(path, &[path.to_path_buf()], limit)?)),
 };
 
@@ -123,7 +126,10 @@ pub const MCAP: RecordingFormat = RecordingFormat {
 /// writing an MCAP bag (it writes `metadata.yaml` when it ends), a directory `NAME` holding
 /// its first split `NAME_0.mcap`. MCAP splits are read in name order (`NAME_2` before
 /// `NAME_10`), each up to its last complete chunk when it has no summary yet (the split
-/// being written).
+/// being written). Written by `export --format ros2bag` (`-o maps_bag`, a new directory):
+/// `maps_bag/maps_bag_0.mcap`, the messages of an MCAP export (profile ros2 only: a bag holds
+/// CDR), and `maps_bag/metadata.yaml` (rosbag2's version 8) with every topic's real message
+/// count and the span of the maps' times.
 pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     name: "ros2bag",
     description: "ROS 2 bag directory",
@@ -133,6 +139,7 @@ pub const ROS2_BAG: RecordingFormat = RecordingFormat {
     open: |path, options, limit| Ok(open_ros2_bag(path, options, limit)?),
     open_stream: None,
     create: None,
+    create_dir: Some(ros2bag_export::create),
     describe: Some(|path, limit| Ok(describe_ros2_bag(path, limit)?)),
 };
 

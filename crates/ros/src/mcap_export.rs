@@ -112,11 +112,12 @@ impl Channel {
     }
 }
 
-/// An MCAP file being written.
-struct McapMapWriter {
+/// An MCAP file being written (also a ROS 2 bag's storage file).
+pub(crate) struct McapMapWriter {
     writer: mcap::Writer<Box<dyn RecordingSink>>,
     /// The profile's channels and their ids.
     channels: Vec<(Channel, u16)>,
+    topic_prefix: String,
     frame_id: String,
     sequence: u32,
 }
@@ -175,7 +176,7 @@ pub(crate) fn create(
 }
 
 impl McapMapWriter {
-    fn new(
+    pub(crate) fn new(
         sink: Box<dyn RecordingSink>,
         options: &RecordingWriteOptions,
     ) -> Result<Self, McapWriteError> {
@@ -202,12 +203,25 @@ impl McapMapWriter {
         Ok(Self {
             writer,
             channels,
+            topic_prefix: options.topic_prefix.clone(),
             frame_id: options.frame_id.clone(),
             sequence: 0,
         })
     }
 
-    fn write(&mut self, map: &ExportedMap<'_>) -> Result<(), McapWriteError> {
+    /// The topics written, in order, each with its message type and encoding; every map
+    /// is one message on each.
+    pub(crate) fn topics(&self) -> Vec<(String, &'static str, &'static str)> {
+        self.channels
+            .iter()
+            .map(|&(channel, _)| {
+                let (topic, name, _, _, encoding) = channel.spec();
+                (format!("{}{topic}", self.topic_prefix), name, encoding)
+            })
+            .collect()
+    }
+
+    pub(crate) fn write(&mut self, map: &ExportedMap<'_>) -> Result<(), McapWriteError> {
         let frame = self.frame_id.as_str();
         let (log_time, stamp, message) =
             octomap_message(map.time, frame, map.bt, Some(map.resolution))?;

@@ -342,10 +342,14 @@ def export(
     """Writes maps of a FROctomap file at ``start``, ``start + every``, ... up to ``end``
     (``froctomap export --from START --to END --every EVERY``): into the directory
     ``output``, one ``.bt``/``.ot`` file per map (``format``) and a ``manifest.csv``; or,
-    for ``format="mcap"`` or an output named ``*.mcap``, into one MCAP file. ``mode``:
+    for ``format="mcap"`` or an output named ``*.mcap``, into one MCAP file; for
+    ``format="rosbag"`` or ``*.bag``, into one ROS 1 bag; for ``format="ros2bag"`` (only
+    so), into a new ROS 2 bag directory ``output`` (``metadata.yaml`` and
+    ``NAME_0.mcap``; an existing one is refused). ``mode``:
     ``"predict"``, ``"retrieve"`` or ``"auto"`` (retrieved inside the file's span,
     predicted outside). An MCAP file takes ``profile`` (``"ros2"``: CDR messages only;
-    ``"foxglove"``: also Foxglove's point cloud and cubes), ``frame_id``, ``topic_prefix``
+    ``"foxglove"``: also Foxglove's point cloud and cubes; bags take ``"ros2"`` only),
+    ``frame_id``, ``topic_prefix``
     (``"/robot1"``: ``/robot1/octomap_binary``...) and ``threshold`` (predicted cells drawn
     where p > threshold), as ``export --profile/--frame-id/--topic-prefix/--threshold``
     (docs/ROS.md). Returns ``{"files": [[path, time], ...], "manifest", "bytes", ...}``.
