@@ -30,7 +30,7 @@ def manifest_times(series: Path) -> list:
 
 def test_public_names_are_exported():
     verbs = ["append", "record", "compact", "export", "info", "convert", "render", "generate",
-             "message_from_map", "map_from_message"]
+             "formats", "message_from_map", "map_from_message"]
     for name in ["open", "build", "evaluate", "parse_time", "FroctFile", "Map", "FroctError",
                  "__version__", *verbs]:
         assert hasattr(froctomap, name), name

@@ -273,6 +273,15 @@ def test_export_to_a_ros2_bag_is_the_command_lines_and_rosbags_reads_it(cli_file
         assert message.data.tobytes() == fields["data"].tobytes(), i
 
 
+def test_formats_are_the_command_lines_less_the_upstream_backend():
+    cli = json.loads(run_cli("formats", "--json").stdout)
+    # The wheel reads and writes maps with the native codec only.
+    assert froctomap.formats() == [row for row in cli if row["backend"] != "octomap"]
+    assert any(row["backend"] == "octomap" for row in cli)
+    kinds = {row["name"]: row["kind"] for row in froctomap.formats()}
+    assert (kinds["bt"], kinds["froct"], kinds["mcap"]) == ("map", "series", "recording")
+
+
 def test_info_of_map_files_and_froct_files_is_the_command_lines(series, cli_file):
     snapshot = snapshot_files(series)[0]
     cli = json.loads(run_cli("info", "--json", snapshot).stdout)

@@ -5,7 +5,8 @@ Usage: python read_exported_mcap.py FILE.mcap OUT_DIR [BT_FILES.json]
 Every CDR message of the whole file is decoded by mcap-ros2-support's DecoderFactory through
 its embedded ros2msg schema (`iter_decoded_messages()` without a topic filter when the file
 has only CDR channels: a channel it cannot decode raises DecoderNotFoundError); JSON channels
-(profile foxglove) are parsed and checked against the structure of Foxglove's schemas.
+(profile foxglove) are parsed and checked against Foxglove's own schemas (PyPI
+foxglove-schemas-protobuf, each message parsed strictly with protobuf's JSON parser).
 Writes OUT_DIR/<log_time>.data (each octomap message's decoded `data` field) and prints one
 JSON object: the header profile, the schemas and channels, the message count per topic, each
 octomap message's fields, and per message of the point clouds, markers and scene updates its
@@ -23,6 +24,53 @@ import sys
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+
+
+def foxglove_problems(body, schema):
+    """What Foxglove's own schema (the message of PyPI foxglove-schemas-protobuf named
+    `schema`) refuses in a JSON message: parsed strictly (no unknown field, every value of its
+    field's type) after the one difference of Foxglove's JSON encoding from protobuf's, times
+    as {"sec", "nsec"} objects."""
+    from google.protobuf import json_format
+    from google.protobuf.duration_pb2 import Duration
+    from google.protobuf.timestamp_pb2 import Timestamp
+    import foxglove_schemas_protobuf
+    import importlib
+
+    name = schema.split(".")[-1]
+    module = importlib.import_module(f"foxglove_schemas_protobuf.{name}_pb2")
+    cls = getattr(module, name)
+    times = {"google.protobuf.Timestamp": Timestamp, "google.protobuf.Duration": Duration}
+
+    def convert(value, descriptor):
+        if not isinstance(value, dict):
+            return value
+        out = {}
+        for key, item in value.items():
+            field = descriptor.fields_by_name.get(key)
+            kind = field.message_type if field is not None else None
+            if kind is None:
+                out[key] = item
+                continue
+            def one(v):
+                if kind.full_name in times and isinstance(v, dict) and set(v) == {"sec", "nsec"}:
+                    t = times[kind.full_name](seconds=v["sec"], nanos=v["nsec"])
+                    return t.ToJsonString()
+                return convert(v, kind)
+            out[key] = [one(v) for v in item] if isinstance(item, list) else one(item)
+        return out
+
+    try:
+        message = json_format.Parse(json.dumps(convert(body, cls.DESCRIPTOR)), cls(),
+                                    ignore_unknown_fields=False)
+    except json_format.ParseError as error:
+        return [f"{schema}: {error}"]
+    # The parse kept what matters: the cubes or the points are there.
+    if name == "SceneUpdate" and len(message.entities[0].cubes) != len(body["entities"][0]["cubes"]):
+        return [f"{schema}: cubes lost in parsing"]
+    if name == "PointCloud" and len(message.data) != len(base64.b64decode(body["data"])):
+        return [f"{schema}: data lost in parsing"]
+    return []
 
 
 def occupied_voxels(bt, resolution):
@@ -208,10 +256,11 @@ with open(path, "rb") as f:
                 "points": len(data) // stride,
                 "remainder": len(data) % stride,
                 "fields": sorted(fields),
+                "problems": foxglove_problems(body, schema),
                 "same_voxels": same_voxels(message.log_time, keys, resolution),
             })
         elif schema == "foxglove.SceneUpdate":
-            problems = conforms(body, SCENE_UPDATE)
+            problems = conforms(body, SCENE_UPDATE) + foxglove_problems(body, schema)
             keys, sizes = set(), set()
             entity = body["entities"][0]
             for cube in entity["cubes"]:

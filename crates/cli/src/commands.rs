@@ -8,7 +8,7 @@ use froctomap_convert::{
     MetricBounds, RecordingInfo, FROCT,
 };
 use froctomap_core::Snapshot;
-use froctomap_formats::{Identified, ReadOptions, WriteOptions};
+use froctomap_formats::{FormatKind, Identified, ReadOptions, WriteOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
@@ -195,49 +195,46 @@ fn summary(input: &Path, from: &str, output: &Path, to: &str, snapshot: &Snapsho
     )
 }
 
-pub fn formats(ui: &Ui) -> Result<()> {
-    let registry = ui.context.formats();
+#[derive(Args)]
+pub struct FormatsArgs {
+    /// Print JSON: a list of `{name, kind, backend, extensions, read, write, description}`
+    /// (what Python's `froctomap.formats()` returns).
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn formats(ui: &Ui, args: &FormatsArgs) -> Result<()> {
+    let listing = ui.context.formats().listing();
+    if args.json {
+        let rows = froctomap_convert::format_listing(ui.context);
+        outln!("{}", crate::ui::json_report(&rows)?)?;
+        return Ok(());
+    }
     outln!(
-        "{:<6} {:<8} {:<12} {:<6} description",
+        "{:<7} {:<8} {:<12} {:<6} description",
         "name",
         "backend",
         "extensions",
         "modes"
     )?;
-    for format in registry.formats() {
-        let modes = match (format.reader.is_some(), format.writer.is_some()) {
-            (true, true) => "rw",
-            (true, false) => "r",
-            (false, true) => "w",
-            (false, false) => "-",
+    for format in &listing {
+        let modes = match (format.kind, format.read, format.write) {
+            (FormatKind::Series, ..) => "series",
+            (FormatKind::Recording, _, true) => "rec,w",
+            (FormatKind::Recording, ..) => "rec",
+            (_, true, true) => "rw",
+            (_, true, false) => "r",
+            (_, false, true) => "w",
+            (_, false, false) => "-",
         };
         let extensions: Vec<String> = format.extensions.iter().map(|e| format!(".{e}")).collect();
         outln!(
-            "{:<6} {:<8} {:<12} {:<6} {}",
+            "{:<7} {:<8} {:<12} {:<6} {}",
             format.name,
-            format.backend.name(),
+            format.backend.map_or("-", |b| b.name()),
             extensions.join(","),
             modes,
             format.description
-        )?;
-    }
-    let series = registry
-        .series_formats()
-        .iter()
-        .map(|f| (f.name, f.extensions, "series", f.description));
-    let recordings = registry.recording_formats().iter().map(|f| {
-        let modes = if f.writable() { "rec,w" } else { "rec" };
-        (f.name, f.extensions, modes, f.description)
-    });
-    for (name, extensions, modes, description) in series.chain(recordings) {
-        let extensions: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
-        outln!(
-            "{:<6} {:<8} {:<12} {:<6} {}",
-            name,
-            "-",
-            extensions.join(","),
-            modes,
-            description
         )?;
     }
     Ok(())

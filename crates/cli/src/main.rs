@@ -122,8 +122,9 @@ enum Command {
     ///
     /// Example: froctomap convert geb079.bt geb079.ot
     Convert(commands::ConvertArgs),
-    /// List the registered map formats.
-    Formats,
+    /// List the registered formats: map files per backend, the series file, recordings
+    /// (with `rec,w` where froctomap writes them).
+    Formats(commands::FormatsArgs),
     /// Build one FROctomap file from a series of OctoMap snapshots.
     ///
     /// Inputs are directories (their manifest.csv, else every .bt/.ot file), glob patterns,
@@ -330,7 +331,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(args) => commands::info(&ui, &args),
         Command::Convert(args) => commands::convert(&ui, &args),
-        Command::Formats => commands::formats(&ui),
+        Command::Formats(args) => commands::formats(&ui, &args),
         Command::Build(args) => series::build_command(&ui, &args),
         Command::Append(args) => append::append_command(&ui, &args),
         Command::Compact(args) => compact::compact_command(&ui, &args),

@@ -200,8 +200,8 @@ fn formats_lists_both_backends_native_first() {
             .unwrap_or_else(|| panic!("no line starting with {needle:?} in:\n{stdout}"))
     };
     for name in ["bt", "ot"] {
-        let native = line_of(&format!("{name}     native   .{name}"));
-        let upstream = line_of(&format!("{name}     octomap  .{name}"));
+        let native = line_of(&format!("{name:<7} native   .{name}"));
+        let upstream = line_of(&format!("{name:<7} octomap  .{name}"));
         assert!(
             native < upstream,
             "native is the default, listed first:\n{stdout}"
@@ -225,6 +225,36 @@ fn formats_lists_both_backends_native_first() {
         .unwrap()
         .contains(" rec,w "));
     assert_eq!(stdout.matches("\nmcap ").count(), 1, "{stdout}");
+
+    // `--json` lists the same rows, in the same order, as data.
+    let out = froctomap(&["formats", "--json"]);
+    assert!(out.status.success());
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = stdout
+        .lines()
+        .skip(1)
+        .map(|l| l.split(' ').next().unwrap())
+        .collect();
+    let json_names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(json_names, names);
+    let row = |name: &str, backend: serde_json::Value| {
+        rows.iter()
+            .find(|r| r["name"] == name && r["backend"] == backend)
+            .unwrap_or_else(|| panic!("no {name} in {rows:?}"))
+            .clone()
+    };
+    assert_eq!(
+        row("bt", "native".into()),
+        serde_json::json!({"name": "bt", "kind": "map", "backend": "native", "extensions": ["bt"],
+            "read": true, "write": true,
+            "description": "OctoMap binary tree (.bt): maximum-likelihood states, native Rust codec"})
+    );
+    assert_eq!(row("froct", serde_json::Value::Null)["kind"], "series");
+    let bag = row("ros2bag", serde_json::Value::Null);
+    assert_eq!(
+        (&bag["kind"], &bag["extensions"], &bag["write"]),
+        (&"recording".into(), &serde_json::json!([]), &true.into())
+    );
 }
 
 /// `--backend octomap` selects the C++ library; it must tell exactly the same story as the

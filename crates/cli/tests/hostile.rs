@@ -172,6 +172,65 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
+/// `export -o -` writes one recording file to standard output; a directory export (maps, a
+/// ROS 2 bag) is refused there before anything is made (it used to make a directory `-`).
+#[test]
+fn export_of_a_directory_to_standard_output_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for format in [None, Some("ros2bag")] {
+        let file = fixture("froct/golden-v1.2.froct");
+        let mut command = Command::new(env!("CARGO_BIN_EXE_froctomap"));
+        command.current_dir(dir.path()).arg("export").arg(&file);
+        command.args([
+            "--from",
+            "1700000000",
+            "--to",
+            "1700003600",
+            "--every",
+            "10min",
+        ]);
+        if let Some(format) = format {
+            command.args(["--format", format]);
+        }
+        let run = command.args(["-o", "-"]).output().unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{format:?}: {stderr}");
+        assert!(
+            stderr.contains("-: a ") && stderr.contains("export is a directory"),
+            "{format:?}: {stderr}"
+        );
+        assert!(run.stdout.is_empty(), "{format:?}");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "{format:?}"
+        );
+    }
+    // One MCAP file goes there.
+    let run = Command::new(env!("CARGO_BIN_EXE_froctomap"))
+        .current_dir(dir.path())
+        .arg("export")
+        .arg(fixture("froct/golden-v1.2.froct"))
+        .args([
+            "--from",
+            "1700000000",
+            "--to",
+            "1700003600",
+            "--every",
+            "10min",
+        ])
+        .args(["--format", "mcap", "-o", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(run.stdout.starts_with(b"\x89MCAP0\r\n"));
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
 /// `export --format ros2bag` makes a new bag directory: one that exists (even empty) is
 /// refused and left as it was, nothing made beside it; a bag directory that holds a file of a
 /// name the export would write is refused too; a refused profile leaves nothing. A directory

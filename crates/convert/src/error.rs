@@ -428,6 +428,15 @@ pub enum ConvertError {
         /// The output.
         path: PathBuf,
     },
+    /// An export to standard output or a device of something that is a directory (a series
+    /// of map files, a ROS 2 bag).
+    #[error("{}: a {format} export is a directory, which cannot go to standard output or a device (export one recording file, e.g. --format mcap, or name a directory)", path.display())]
+    StreamNotADirectory {
+        /// The output.
+        path: PathBuf,
+        /// The export's format.
+        format: String,
+    },
     /// An export directory that already holds files, which the export would replace.
     #[error("{}: the directory is not empty", dir.display())]
     DirectoryNotEmpty {
@@ -960,6 +969,10 @@ mod tests {
                 input: path(),
             },
             ConvertError::OutputExists { path: path() },
+            ConvertError::StreamNotADirectory {
+                path: path(),
+                format: "bt".to_string(),
+            },
             ConvertError::DirectoryNotEmpty { dir: path() },
             ConvertError::BadResolution {
                 resolution: 0.0,
@@ -1068,6 +1081,7 @@ mod tests {
                 | ConvertError::RecordingWrite { .. }
                 | ConvertError::OutputIsInput { .. }
                 | ConvertError::OutputExists { .. }
+                | ConvertError::StreamNotADirectory { .. }
                 | ConvertError::DirectoryNotEmpty { .. }
                 | ConvertError::BadResolution { .. }
                 | ConvertError::MostlySkipped { .. }

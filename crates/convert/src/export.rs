@@ -123,8 +123,15 @@ pub fn export(
     options: &ExportOptions,
     progress: &dyn Progress,
 ) -> Result<ExportReport, ConvertError> {
+    let recording = context.formats().writable_recording(&options.format);
+    if froctomap_core::is_stream_output(output) && recording.is_none_or(|f| f.create.is_none()) {
+        return Err(ConvertError::StreamNotADirectory {
+            path: output.to_path_buf(),
+            format: options.format.clone(),
+        });
+    }
     let (times, samples) = export_instants(context, reader, options)?;
-    if let Some(format) = context.formats().writable_recording(&options.format) {
+    if let Some(format) = recording {
         let (files, bytes) = crate::recording_export::export_recording(
             reader,
             output,

@@ -414,3 +414,30 @@ pub fn describe_map_file(
         warnings: read.map.warnings.clone(),
     })
 }
+
+/// The registered formats as `froctomap formats --json` prints them and Python's
+/// `froctomap.formats()` returns them: a row `{name, kind, backend, extensions, read,
+/// write, description}` per [`FormatRegistry::listing`](froctomap_formats::FormatRegistry::listing) entry.
+///
+/// ```
+/// let rows = froctomap_convert::format_listing(&froctomap_convert::Context::with_default_plugins());
+/// assert!(rows.iter().any(|row| row["name"] == "froct" && row["kind"] == "series"));
+/// ```
+pub fn format_listing(context: &Context) -> Vec<serde_json::Value> {
+    context
+        .formats()
+        .listing()
+        .iter()
+        .map(|format| {
+            serde_json::json!({
+                "name": format.name,
+                "kind": froctomap_core::Named::name(format.kind),
+                "backend": format.backend.map(|b| b.name()),
+                "extensions": format.extensions,
+                "read": format.read,
+                "write": format.write,
+                "description": format.description,
+            })
+        })
+        .collect()
+}

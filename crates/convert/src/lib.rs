@@ -97,8 +97,8 @@ pub use froctomap_formats::{
 };
 pub use history::SeriesHistory;
 pub use info::{
-    describe, describe_map_file, describe_series, AxisInfo, FroctInfo, LivingInfo, MapFileInfo,
-    MetricBounds, SegmentInfo, SizeInfo, LARGEST_REGIONS,
+    describe, describe_map_file, describe_series, format_listing, AxisInfo, FroctInfo, LivingInfo,
+    MapFileInfo, MetricBounds, SegmentInfo, SizeInfo, LARGEST_REGIONS,
 };
 pub use inputs::{
     collect_inputs, collect_inputs_explained, collect_recording, manifest_text, CollectedInputs,

@@ -64,8 +64,8 @@ pub use recording::{
     RecordingWriteOptions, RecordingWriter,
 };
 pub use registry::{
-    Backend, Capabilities, DiffOutcome, DiffState, FormatRegistry, Identified, MapDiff, MapDiffer,
-    MapFormat, MapReader, MapWriter, PreviousFile, ReadHeader, ReadMap, ReadOptions, ReadOutcome,
-    SeriesFormat, WriteOptions,
+    Backend, Capabilities, DiffOutcome, DiffState, FormatKind, FormatListing, FormatRegistry,
+    Identified, MapDiff, MapDiffer, MapFormat, MapReader, MapWriter, PreviousFile, ReadHeader,
+    ReadMap, ReadOptions, ReadOutcome, SeriesFormat, WriteOptions,
 };
 pub use spool::{MapSpool, SpoolError, SPOOL_PREFIX};

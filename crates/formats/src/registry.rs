@@ -436,6 +436,103 @@ impl FormatRegistry {
         &self.series
     }
 
+    /// What is registered, a row per format: the map formats (per backend), then the series
+    /// and the recording formats, each in registration order. What `froctomap formats`
+    /// prints and Python's `formats()` returns.
+    ///
+    /// ```
+    /// use froctomap_formats::{FormatKind, FormatRegistry};
+    /// let listing = FormatRegistry::with_default_formats().listing();
+    /// let bt = listing.iter().find(|f| f.name == "bt").unwrap();
+    /// assert_eq!((bt.kind, bt.read, bt.write), (FormatKind::Map, true, true));
+    /// assert!(listing.iter().any(|f| f.kind == FormatKind::Series && f.name == "froct"));
+    /// ```
+    pub fn listing(&self) -> Vec<FormatListing> {
+        let maps = self.formats.iter().map(|f| FormatListing {
+            name: f.name,
+            kind: FormatKind::Map,
+            backend: Some(f.backend),
+            extensions: f.extensions,
+            read: f.reader.is_some(),
+            write: f.writer.is_some(),
+            description: f.description,
+        });
+        let series = self.series.iter().map(|f| FormatListing {
+            name: f.name,
+            kind: FormatKind::Series,
+            backend: None,
+            extensions: f.extensions,
+            read: true,
+            write: true,
+            description: f.description,
+        });
+        let recordings = self.recordings.iter().map(|f| FormatListing {
+            name: f.name,
+            kind: FormatKind::Recording,
+            backend: None,
+            extensions: f.extensions,
+            read: true,
+            write: f.writable(),
+            description: f.description,
+        });
+        maps.chain(series).chain(recordings).collect()
+    }
+}
+
+/// What a registered format is (a row of [`FormatRegistry::listing`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum FormatKind {
+    /// One map a file (OctoMap `.bt`, `.ot`).
+    Map,
+    /// A spatio-temporal series file (`.froct`).
+    Series,
+    /// A recording of map messages (ROS bags, MCAP).
+    Recording,
+}
+
+impl froctomap_core::Named for FormatKind {
+    const ALL: &'static [Self] = &[Self::Map, Self::Series, Self::Recording];
+    const WHAT: &'static str = "format kind";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Map => "map",
+            Self::Series => "series",
+            Self::Recording => "recording",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Self::Map => "one map a file",
+            Self::Series => "a spatio-temporal series file",
+            Self::Recording => "a recording of map messages",
+        }
+    }
+}
+
+/// A registered format as [`FormatRegistry::listing`] lists it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct FormatListing {
+    /// Its name (`--format`, `format=`).
+    pub name: &'static str,
+    /// What it is.
+    pub kind: FormatKind,
+    /// A map format's implementation; `None` for the others.
+    pub backend: Option<Backend>,
+    /// File name extensions, without the dot (none for a directory format).
+    pub extensions: &'static [&'static str],
+    /// Whether froctomap reads it.
+    pub read: bool,
+    /// Whether froctomap writes it.
+    pub write: bool,
+    /// One line.
+    pub description: &'static str,
+}
+
+impl FormatRegistry {
     /// What `bytes` (the start of a file) are: the most confident of the readable map
     /// formats, the series and the recording formats (map formats win ties).
     ///

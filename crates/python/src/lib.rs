@@ -37,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verbs::compact, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::convert, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::export, m)?)?;
+    m.add_function(wrap_pyfunction!(verbs::formats, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::info, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::record, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::render, m)?)?;

@@ -216,6 +216,13 @@ pub fn convert<'py>(
     json_value(py, &report?)
 }
 
+/// The registered formats (`froctomap formats --json`): a dict per format.
+#[pyfunction]
+pub fn formats(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    let rows = froctomap_convert::format_listing(crate::plugins::context());
+    json_value(py, &report_json(&rows)?)
+}
+
 /// Any file described (`froctomap info --json`): a FROctomap file, one map file, or a
 /// recording (ROS 1 bag, MCAP file, ROS 2 bag directory: its topics).
 #[pyfunction]

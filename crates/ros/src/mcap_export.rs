@@ -185,8 +185,14 @@ impl McapMapWriter {
             value,
             reason,
         })?;
+        // MCAP's `ros2` profile promises CDR channels with `ros2msg` schemas only: a file
+        // with Foxglove's JSON channels names no profile.
+        let header_profile = match options.profile {
+            RecordingProfile::Ros2 => "ros2",
+            _ => "",
+        };
         let mut writer = mcap::WriteOptions::new()
-            .profile("ros2")
+            .profile(header_profile)
             .library(concat!("froctomap ", env!("CARGO_PKG_VERSION")))
             .create(sink)?;
         let none = BTreeMap::new();

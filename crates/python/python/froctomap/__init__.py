@@ -26,7 +26,7 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
 from . import _progress
 from ._errors import FroctError
-from ._native import FroctFile, Map, __version__, convert, info, open, parse_time
+from ._native import FroctFile, Map, __version__, convert, formats, info, open, parse_time
 from . import _native
 from ._progress import ProgressCallback
 
@@ -42,6 +42,7 @@ __all__ = [
     "convert",
     "evaluate",
     "export",
+    "formats",
     "generate",
     "info",
     "map_from_message",

@@ -58,6 +58,13 @@ def convert(
     and is never the input. Returns ``input_format``, ``output_format``, ``leaves`` and the
     reader's ``warnings``."""
 
+def formats() -> List[Dict[str, Any]]:
+    """The registered formats, as ``froctomap formats --json`` lists them: a dict per format
+    (``name``, ``kind``: ``"map"``, ``"series"`` or ``"recording"``, ``backend``: a map
+    format's implementation, else None, ``extensions``, ``read``, ``write``,
+    ``description``). The wheel reads and writes maps with the native codec only: the
+    command line's ``octomap`` backend rows are not here."""
+
 def info(path: PathLike, *, count: bool = False, input_format: Optional[str] = None) -> Dict[str, Any]:
     """Describes a file as ``froctomap info --json`` does: a FROctomap file (the fields of
     ``FroctFile.info``; ``count=True`` recounts its cells), one map file (format,
