@@ -336,11 +336,13 @@ elif call == "export":
                      end="2016-01-05T00:00:00Z", every="1h", progress=slow)
 elif call == "append":
     froctomap.append(sys.argv[2], sys.argv[3], progress=slow)
+elif call == "compact":
+    froctomap.compact(sys.argv[2], progress=slow)
 print("finished", flush=True)
 """
 
 
-@pytest.mark.parametrize("call", ["build", "export", "append"])
+@pytest.mark.parametrize("call", ["build", "export", "append", "compact"])
 def test_ctrl_c_stops_a_long_call_and_leaves_no_output(call, series, cli_file, tmp_path):
     """SIGINT while the work runs (its progress callback slowed down so that the signal
     comes first): KeyboardInterrupt once the work stopped at its next batch, and nothing
@@ -365,6 +367,10 @@ def test_ctrl_c_stops_a_long_call_and_leaves_no_output(call, series, cli_file, t
         later = tmp_path / "later.csv"
         later.write_text("path,time\n" + "".join(f"{p},{t}\n" for p, t in rows[6:]))
         args, output = [base, later], base
+        if call == "compact":
+            # A living map of a base and a segment, compacted in place.
+            froctomap.append(base, later, format_version="2.0", progress=False)
+            args = [base]
     before = output.read_bytes() if output.exists() else None
     child = subprocess.Popen([sys.executable, str(script), call, *map(str, args)],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

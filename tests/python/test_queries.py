@@ -128,6 +128,30 @@ def test_history_gives_the_states_of_the_input_snapshots(f, series):
             assert list(story["outlier_samples"]) == list(story["samples"][disagree])
 
 
+def test_history_is_the_command_lines(f, cli_file):
+    states = {"free": 0.0, "occupied": 1.0}
+    for point in dynamic_points(f, 3):
+        story = f.history(point)
+        at = ",".join(repr(float(c)) for c in point)
+        cli = json.loads(run_cli("history", cli_file, f"--at={at}", "--json").stdout)
+        assert (story["class"], story["sometimes_unknown"]) == (cli["class"], cli["sometimes_unknown"])
+        for key in ["depth", "size", "center", "min", "max"]:
+            assert story["cell"][key] == pytest.approx(cli["cell"][key], rel=1e-12), key
+        if cli["model"] is None:
+            assert story["model"] is None
+        else:
+            assert story["model"]["mean"] == pytest.approx(cli["model"]["mean"], rel=1e-12)
+            assert len(story["model"]["periodic"]) == len(cli["model"]["periodic"])
+        rows = cli["samples"]
+        assert list(story["samples"]) == [row["sample"] for row in rows]
+        assert list(story["times"]) == [froctomap.parse_time(row["time"]) for row in rows]
+        assert list(story["p"]) == pytest.approx([row["p"] for row in rows], rel=1e-12, abs=1e-15)
+        expected = [states.get(row["state"], float("nan")) for row in rows]
+        assert np.array_equal(story["states"], np.array(expected), equal_nan=True)
+        assert list(story["outlier_samples"]) == [row["sample"] for row in rows if row["outlier"]]
+        assert len(cli["outliers"]) == len(story["outlier_samples"])
+
+
 def test_history_ranges_and_refusals(f):
     point = dynamic_points(f, 1)[0]
     part = f.history(point, start="2016-01-04T04:00:00Z", end="2016-01-04T10:00:00Z")

@@ -87,3 +87,19 @@ pub fn peak_memory_bytes() -> Option<u64> {
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::rate;
+
+    #[test]
+    fn rates_read_as_people_write_them() {
+        assert_eq!(rate(190.2223), "190/s");
+        assert_eq!(rate(10.0), "10/s");
+        assert_eq!(rate(9.96), "10.0/s");
+        assert_eq!(rate(2.345), "2.3/s");
+        assert_eq!(rate(0.0), "0.0/s");
+        assert_eq!(rate(f64::INFINITY), "-/s");
+        assert_eq!(rate(f64::NAN), "-/s");
+    }
+}
