@@ -327,6 +327,27 @@ def test_render_draws_the_command_lines_picture(cli_file, tmp_path, how):
     assert font.read_bytes()[:4] == b"\x00\x01\x00\x00"
 
 
+def test_render_with_the_wheels_own_font_is_the_command_lines(cli_file, tmp_path):
+    """The font the wheel ships renders (a machine without DejaVu Sans gets it): a picture
+    drawn with it by Python is the command line's drawn with the same file."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import cli_path
+
+    font = Path(froctomap.__file__).parent / "fonts" / "DejaVuSans.ttf"
+    env = {**os.environ, "FROCTOMAP_FONT": str(font)}
+    ours, theirs = tmp_path / "ours.png", tmp_path / "theirs.png"
+    # A process of its own: a process looks its font up once.
+    draw = ("import sys, froctomap; froctomap.render(sys.argv[1], sys.argv[2], width=400, "
+            "dynamics=True)")
+    subprocess.run([sys.executable, "-c", draw, str(cli_file), str(ours)], env=env, check=True)
+    subprocess.run([str(cli_path()), "-q", "render", str(cli_file), "--dynamics", "--width", "400", "-o",
+                    str(theirs)], env=env, check=True)
+    assert ours.read_bytes() == theirs.read_bytes()
+
+
 def test_generate_writes_the_command_lines_series(tmp_path):
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     options = dict(days=0.25, step="2h", seed=4, noise=0.001)
