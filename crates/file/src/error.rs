@@ -144,6 +144,13 @@ pub enum FileError {
         #[source]
         source: TileEncodeError,
     },
+    /// The file a writer holds is no longer the one its path names (removed, or replaced
+    /// by another): what it committed would be lost with it.
+    #[error("{}: the file was removed or replaced while it was open for writing; nothing more is written to it", path.display())]
+    Replaced {
+        /// The file.
+        path: PathBuf,
+    },
     /// A segment's samples must come after every sample of the file.
     #[error("{}: a segment starting at {first} does not follow the file's last sample at {last}", path.display())]
     SegmentTime {
@@ -384,6 +391,7 @@ mod tests {
                 previous: 2,
             },
             FileError::Locked { path: path() },
+            FileError::Replaced { path: path() },
             FileError::SegmentTime {
                 path: path(),
                 first: t,
@@ -429,6 +437,7 @@ mod tests {
                 | FileError::NoSegment { .. }
                 | FileError::TileOrder { .. }
                 | FileError::Locked { .. }
+                | FileError::Replaced { .. }
                 | FileError::TileEncode { .. }
                 | FileError::SegmentTime { .. }
                 | FileError::TooLarge { .. }

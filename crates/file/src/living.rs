@@ -1088,6 +1088,28 @@ impl std::fmt::Debug for LivingWriter {
 }
 
 impl LivingWriter {
+    /// The file this writer holds is still the one its path names: a segment written into
+    /// a file removed (or replaced by a compaction of another process) since it was opened
+    /// would be committed and lost.
+    fn check_in_place(&self) -> Result<(), FileError> {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let io = |source| FileError::Io {
+                path: self.path.clone(),
+                source,
+            };
+            let held = self.file.metadata().map_err(io)?;
+            let named = std::fs::metadata(&self.path).map_err(io)?;
+            if (held.dev(), held.ino()) != (named.dev(), named.ino()) {
+                return Err(FileError::Replaced {
+                    path: self.path.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Writes the 2.0 file `output` whose base is the 1.x file `input` (tiles copied
     /// verbatim, offsets moved past the root slots), with no segment. Atomic: `output`
     /// appears complete or not at all, and `input` is only read (it may be `output` itself,
@@ -1253,6 +1275,7 @@ impl LivingWriter {
     /// visible to readers until [`SegmentWriter::commit`]; a segment dropped uncommitted
     /// leaves bytes past the committed length, which readers ignore and the next segment cuts.
     pub fn begin_segment(&mut self, axis: TimeAxis) -> Result<SegmentWriter<'_>, FileError> {
+        self.check_in_place()?;
         let path = self.path.clone();
         let last = self.reader.last_instant();
         if axis.start() <= last {

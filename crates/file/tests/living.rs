@@ -1180,3 +1180,32 @@ fn resealed_hostile_patch_tile_sections_are_typed_errors() {
         }
     }
 }
+
+/// A writer whose file was removed, or replaced by another file under its name, writes no
+/// segment into it (it would be committed and lost): an error naming the path.
+#[test]
+fn a_writer_refuses_to_write_into_a_file_removed_or_replaced_under_it() {
+    let (dir, path, _) = living_file(1);
+    let axis = |writer: &LivingWriter| {
+        let next = Timestamp(writer.reader().last_instant().0 + 1_000_000_000);
+        TimeAxis::regular(next, 1_000_000_000, 1, vec![]).unwrap()
+    };
+    // Replaced: a copy renamed over the name.
+    let mut writer = LivingWriter::open(&path).unwrap();
+    let copy = dir.path().join("copy.froct");
+    std::fs::copy(&path, &copy).unwrap();
+    std::fs::rename(&copy, &path).unwrap();
+    let err = writer.begin_segment(axis(&writer)).unwrap_err();
+    assert!(matches!(err, FileError::Replaced { .. }), "{err}");
+    assert!(err.to_string().contains("living.froct"), "{err}");
+    drop(writer);
+    // Removed.
+    let mut writer = LivingWriter::open(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    let err = writer.begin_segment(axis(&writer)).unwrap_err();
+    assert!(
+        matches!(&err, FileError::Io { path: named, source } if named == &path
+            && source.kind() == std::io::ErrorKind::NotFound),
+        "{err}"
+    );
+}
