@@ -56,7 +56,7 @@ fn read_every_way(data: &[u8]) {
                     assert!(cells.len() >= stored);
                 }
             }
-            if let Some(remainder) = reader.remainder(k, tile) {
+            if let Ok(Some(remainder)) = reader.remainder(k, tile) {
                 // Runs name only ranks the base tile has (checked at open), so few.
                 let named = remainder.ranks_named();
                 assert!(named <= LIMITS.max_cells_per_tile);
