@@ -177,22 +177,27 @@ fn export_refuses_sqlite3_bags_and_sizes_beyond_max_output_before_writing() {
 #[test]
 fn export_of_a_directory_to_standard_output_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    for format in [None, Some("ros2bag")] {
-        let file = fixture("froct/golden-v1.2.froct");
+    let export_to_stdout = |format: Option<&str>| {
         let mut command = Command::new(env!("CARGO_BIN_EXE_froctomap"));
-        command.current_dir(dir.path()).arg("export").arg(&file);
-        command.args([
-            "--from",
-            "1700000000",
-            "--to",
-            "1700003600",
-            "--every",
-            "10min",
-        ]);
+        command
+            .current_dir(dir.path())
+            .arg("export")
+            .arg(fixture("froct/golden-v1.2.froct"))
+            .args([
+                "--from",
+                "1700000000",
+                "--to",
+                "1700003600",
+                "--every",
+                "10min",
+            ]);
         if let Some(format) = format {
             command.args(["--format", format]);
         }
-        let run = command.args(["-o", "-"]).output().unwrap();
+        command.args(["-o", "-"]).output().unwrap()
+    };
+    for format in [None, Some("ros2bag")] {
+        let run = export_to_stdout(format);
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(1), "{format:?}: {stderr}");
         assert!(
@@ -207,21 +212,7 @@ fn export_of_a_directory_to_standard_output_is_refused() {
         );
     }
     // One MCAP file goes there.
-    let run = Command::new(env!("CARGO_BIN_EXE_froctomap"))
-        .current_dir(dir.path())
-        .arg("export")
-        .arg(fixture("froct/golden-v1.2.froct"))
-        .args([
-            "--from",
-            "1700000000",
-            "--to",
-            "1700003600",
-            "--every",
-            "10min",
-        ])
-        .args(["--format", "mcap", "-o", "-"])
-        .output()
-        .unwrap();
+    let run = export_to_stdout(Some("mcap"));
     assert!(
         run.status.success(),
         "{}",

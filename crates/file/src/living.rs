@@ -162,12 +162,12 @@ impl LivingReader {
     ) -> Result<Self, FileError> {
         let path = source.name().to_path_buf();
         let (root, slot) = read_root(source.as_ref(), &limits)?;
-        let body = Body {
-            header_at: LIVING_HEADER_AT,
-            end: root.base_len,
-            major: LIVING_MAJOR_VERSION,
-        };
-        let base = FroctReader::open_body(Box::new(Arc::clone(&source)), body, limits, models)?;
+        let base = FroctReader::open_body(
+            Box::new(Arc::clone(&source)),
+            base_body(root.base_len),
+            limits,
+            models,
+        )?;
         let mut reader = Self {
             path,
             source,
@@ -405,14 +405,9 @@ impl LivingReader {
     /// lends its reader to nothing while a segment is being written; this is what code
     /// that needs the base meanwhile holds.
     pub fn reopen_base(&self, models: &ModelRegistry) -> Result<FroctReader, FileError> {
-        let body = Body {
-            header_at: LIVING_HEADER_AT,
-            end: self.root.base_len,
-            major: LIVING_MAJOR_VERSION,
-        };
         FroctReader::open_body(
             Box::new(Arc::clone(&self.source)),
-            body,
+            base_body(self.root.base_len),
             self.limits,
             models,
         )
@@ -936,6 +931,15 @@ impl LivingReader {
             })?;
         }
         Ok(out)
+    }
+}
+
+/// Where a 2.0 file's base lies: after the root slots, up to `base_len`.
+fn base_body(base_len: u64) -> Body {
+    Body {
+        header_at: LIVING_HEADER_AT,
+        end: base_len,
+        major: LIVING_MAJOR_VERSION,
     }
 }
 
