@@ -16,12 +16,19 @@
 # recorded, wall and CPU seconds, the peak memory of `record` and of `generate`, and the
 # file's size; `record`'s own lines (one per commit) go to FILE.commits.log.
 #
+# After the last week, the report's steps, each skipped when its output exists (so they
+# resume too): `compact FILE` in place (the lossless size), `compact FILE -o
+# FILE.lossy.froct --lossy` (the lossy size), and the prediction error on the HELD_OUT
+# days after the 8 weeks: `generate --stream --from END | eval FILE --against - --json` into
+# FILE.eval.json (the dynamic voxels' error, against the static mean and last seen), each
+# timed with its peak memory in the log.
+#
 # Settings (environment): G (the froctomap binary, default target/release/froctomap,
 # built with `cargo build --release -p froctomap-cli`), SEED (5), STEP_SECS (seconds between
 # maps, 5), WEEKS (8),
 # COMMIT (maps per commit, default 720: an hour of maps, 1,344 segments in 8 weeks, within
 # the format's 65,536), COMPACT (1: `froctomap compact FILE` after each full week, timed
-# and logged; default 0), NICE (10).
+# and logged; default 0), NICE (10), HELD_OUT (days predicted after the weeks, 2).
 set -euo pipefail
 
 FILE=${1:-eight-weeks.froct}
@@ -33,6 +40,7 @@ WEEKS=${WEEKS:-8}
 COMMIT=${COMMIT:-720}
 COMPACT=${COMPACT:-0}
 NICE=${NICE:-10}
+HELD_OUT=${HELD_OUT:-2}
 # generate's default start: Monday 2016-01-04 00:00 UTC.
 START_UNIX=1451865600
 WEEK_SECS=$((7 * 86400))
@@ -85,4 +93,34 @@ for week in $(seq 1 "$WEEKS"); do
   fi
   rm -f "$gen_time" "$rec_time"
 done
-log "done: $("$G" info "$FILE" | grep -E '^(time|size|file)' | tr '\n' ' ')"
+log "recorded: $("$G" info "$FILE" | grep -E '^(time|size|file)' | tr '\n' ' ')"
+
+# The report's steps. `timed NAME CMD…` runs CMD under /usr/bin/time -v and logs its wall
+# and CPU seconds and peak memory.
+timed() {
+  local name=$1 out
+  shift
+  out=$(mktemp)
+  local started
+  started=$(date +%s.%N)
+  nice -n "$NICE" /usr/bin/time -v -o "$out" "$@"
+  log "$name: $(echo "$(date +%s.%N) - $started" | bc | cut -d. -f1) s wall," \
+    "$(cpu_secs "$out") s CPU, peak $(($(peak_kib "$out") / 1024)) MiB"
+  rm -f "$out"
+}
+if [ "$("$G" info --json "$FILE" | jq '.living.segments // [] | length')" != 0 ]; then
+  timed "compact (lossless)" "$G" -q compact "$FILE"
+fi
+log "lossless: $(stat -c %s "$FILE") B"
+if [ ! -e "$FILE.lossy.froct" ]; then
+  timed "compact --lossy" "$G" -q compact "$FILE" -o "$FILE.lossy.froct" --lossy
+fi
+log "lossy: $(stat -c %s "$FILE.lossy.froct") B"
+if [ ! -e "$FILE.eval.json" ]; then
+  end=$(date -u -d "@$((START_UNIX + WEEKS * WEEK_SECS))" +%FT%TZ)
+  # `eval` reads the held-out maps from the pipe; its JSON is written atomically.
+  timed "eval of $HELD_OUT held-out days" bash -c "
+    '$G' -q generate --stream --days $((WEEKS * 7 + HELD_OUT)) --step ${STEP_SECS}s --seed $SEED --from $end |
+      '$G' -q eval '$FILE' --against - --json > '$FILE.eval.json.tmp' && mv '$FILE.eval.json.tmp' '$FILE.eval.json'"
+fi
+log "prediction, dynamic voxels: $(jq -c '[.prediction[] | {(.[0]): .[1].dynamic}] | add' "$FILE.eval.json")"

@@ -105,3 +105,18 @@ def test_whole_history_queries_ask_for_compact_first(parts: dict) -> None:
     assert g.probability("2016-01-05T00:00:00Z", [[0.0, 0.0, 0.0]]).shape == (1,)
     for i in range(9):
         assert g.retrieve(f"index:{i}").to_bt_bytes() == parts["maps"][i].read_bytes(), i
+
+
+def test_a_lossy_compaction_is_the_command_lines_and_never_in_place(parts: dict) -> None:
+    path = fresh_living(parts, "to-lossy.froct")
+    before = path.read_bytes()
+    with pytest.raises(froctomap.FroctError, match="lossy compaction in place"):
+        froctomap.compact(path, lossy=True, progress=False)
+    assert path.read_bytes() == before
+    ours = parts["dir"] / "lossy-python.froct"
+    cli = parts["dir"] / "lossy-cli.froct"
+    report = froctomap.compact(path, ours, lossy=True, created=CREATED, progress=False)
+    run_cli("-q", "compact", path, "-o", cli, "--lossy", "--created", CREATED)
+    assert ours.read_bytes() == cli.read_bytes()
+    assert froctomap.open(ours).info["outliers"] == "lossy"
+    assert report["bytes"] == ours.stat().st_size

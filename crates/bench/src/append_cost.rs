@@ -6,6 +6,14 @@
 //! base converted beforehand, outside the timing) and by the 1.x rebuild-append (`append`:
 //! every cell refitted on its whole history). Prints the median wall time of each and the
 //! ratio of the longest base's median to the shortest's.
+//!
+//! Without `--series` the series is generated in this process (the FR-079 office of
+//! `froctomap generate`, every `--step`, seed `--seed`; no map on disk) and the bases are
+//! what `froctomap record` makes of it (commits every `--commit-every`, automatic
+//! compaction on; each base a copy of the one file recorded from the start). The maps
+//! after the longest base are then recorded into copies of each base as `record` does
+//! (its `Recorder`, the maps taken as bytes, commits and any compaction they trigger all
+//! timed): median wall time, maps per second, ratio.
 
 use anyhow::{bail, Context as _, Result};
 use clap::Args;
@@ -17,13 +25,17 @@ use froctomap_file::LivingWriter;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+mod recorded;
+use recorded::{recorded_append_cost, GeneratedArgs};
+
 /// Options of `append-cost`.
 #[derive(Args, Debug)]
 pub struct AppendCostArgs {
     /// A generated series (its directory with manifest.csv, from `generate`), covering the
     /// longest base and the hours appended after it.
+    /// Without it, the series is generated here (see --step).
     #[arg(long)]
-    series: PathBuf,
+    series: Option<PathBuf>,
     /// Where the bases and their copies go (created; a few files of the bases' size).
     #[arg(long)]
     work: PathBuf,
@@ -36,6 +48,8 @@ pub struct AppendCostArgs {
     /// Appends per base and way.
     #[arg(long, default_value_t = 5)]
     reps: usize,
+    #[command(flatten)]
+    generated: GeneratedArgs,
 }
 
 fn median(mut times: Vec<Duration>) -> Duration {
@@ -85,11 +99,10 @@ fn time_appends(
 
 pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
     let context = Context::with_default_plugins();
-    let series = collect_inputs(
-        &context,
-        std::slice::from_ref(&args.series),
-        TimeSource::Auto,
-    )?;
+    let Some(series) = &args.series else {
+        return recorded_append_cost(&context, args);
+    };
+    let series = collect_inputs(&context, std::slice::from_ref(series), TimeSource::Auto)?;
     let start = series.first().context("an empty series")?.time;
     let at = |days: f64| start.0 + (days * 86_400e9) as i64;
     let longest = args.base_days.iter().copied().fold(0.0, f64::max);

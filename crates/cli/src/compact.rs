@@ -50,6 +50,11 @@ pub struct CompactArgs {
     created: Option<String>,
     #[command(flatten)]
     spill: SpillArgs,
+    /// Write the models without the outlier set, as `build --lossy` (the paper's compact
+    /// file: its past is the models' reconstruction); only into another file (-o), the
+    /// file itself is left whole.
+    #[arg(long)]
+    lossy: bool,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -89,6 +94,7 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
             .transpose()?,
         memory: args.spill.memory,
         tmp_dir: args.spill.tmp_dir.clone(),
+        lossy: args.lossy,
         ..CompactOptions::default()
     };
     ui.note(&format!("compacting {}", escaped(args.file.display())));

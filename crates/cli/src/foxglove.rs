@@ -13,7 +13,6 @@ use foxglove::{
     WebSocketServerHandle,
 };
 use froctomap_core::Timestamp;
-use froctomap_formats::ExportedKind;
 use froctomap_ros::{
     point_cloud_json, POINT_CLOUD_JSON_SCHEMA, POINT_CLOUD_SCHEMA, POINT_CLOUD_TOPIC,
 };
@@ -87,14 +86,8 @@ impl FoxgloveView {
         t: Timestamp,
         frame_id: &str,
     ) -> anyhow::Result<()> {
-        let message = point_cloud_json(
-            t,
-            frame_id,
-            ExportedKind::Predicted,
-            published.resolution,
-            &published.occupied,
-        )
-        .context("--foxglove: the predicted map")?;
+        let message = point_cloud_json(t, frame_id, published.resolution, &published.occupied)
+            .context("--foxglove: the predicted map")?;
         self.log(&message, t);
         self.last = Some((message, t));
         Ok(())

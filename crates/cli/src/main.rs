@@ -211,6 +211,8 @@ enum Command {
     Predict(series::PredictArgs),
     /// Draw a FROctomap file as a PNG picture: the map at a time seen from above (occupied,
     /// free, unknown columns), a horizontal slice, or where the world changes (--dynamics).
+    /// The text is set in DejaVu Sans (Debian: fonts-dejavu-core), or in the .ttf file the
+    /// environment variable FROCTOMAP_FONT names.
     ///
     /// Examples (the map at a time; where the world changes):
     ///

@@ -19,8 +19,8 @@ use crate::ui::{escaped, Ui};
 use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
-    group_thousands, parse_duration, AppendOptions, CommitEvery, Context, Opened, RecordError,
-    RecordEvent, RecordOptions, RecordSummary, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
+    group_thousands, AppendOptions, CommitEvery, Context, Opened, RecordError, RecordEvent,
+    RecordOptions, RecordSummary, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -31,7 +31,6 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
-use std::time::Duration;
 
 #[derive(Args)]
 pub struct RecordArgs {
@@ -61,7 +60,7 @@ pub struct RecordArgs {
     follow: Option<PathBuf>,
     /// Commit a segment every N maps (a plain number) or every so much time (5s, 1min:
     /// measured from the first map of the commit as it arrives).
-    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = commit_every)]
+    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = clap::value_parser!(CommitEvery))]
     commit_every: CommitEvery,
     /// Leave maps that do not read out (logged, counted) instead of stopping; without it
     /// a bad map stops `record` after committing the maps before it.
@@ -98,20 +97,6 @@ pub struct RecordArgs {
     times: TimeArgs,
     #[command(flatten)]
     spill: SpillArgs,
-}
-
-pub(crate) fn commit_every(text: &str) -> Result<CommitEvery, String> {
-    if let Ok(maps) = text.trim().parse::<usize>() {
-        return match maps {
-            0 => Err("at least 1 map".into()),
-            maps => Ok(CommitEvery::Maps(maps)),
-        };
-    }
-    match parse_duration(text) {
-        Ok(ns) if ns > 0 => Ok(CommitEvery::Time(Duration::from_nanos(ns.unsigned_abs()))),
-        Ok(_) => Err("a positive duration".into()),
-        Err(e) => Err(format!("{e} (or a number of maps)")),
-    }
 }
 
 /// What reaches the main thread: the stream's maps and the signals.

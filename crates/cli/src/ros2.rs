@@ -6,7 +6,7 @@ use crate::ui::Ui;
 use anyhow::Context as _;
 use froctomap_convert::{
     group_thousands, parse_duration, CommitEvery, Context, FroctFile, Opened, RecordEvent,
-    RecordOptions, Recorder, SeriesRead,
+    RecordOptions, Recorder, SeriesRead, TimeError,
 };
 use froctomap_core::Timestamp;
 use froctomap_ros2_node::{
@@ -27,7 +27,7 @@ pub struct Ros2Args {
     /// /froctomap/predicted and the services answer from it.
     file: PathBuf,
     /// Commit every N maps or every DURATION (as `record`).
-    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = crate::record::commit_every)]
+    #[arg(long, value_name = "N|DURATION", default_value = "5s", value_parser = clap::value_parser!(CommitEvery))]
     commit_every: CommitEvery,
     /// Take at most one map per DURATION (a fast publisher thinned); 0: every map.
     #[arg(long, value_name = "DURATION", default_value = "0")]
@@ -123,7 +123,7 @@ fn with_parameters(args: &Ros2Args, ros: &RosArgs) -> anyhow::Result<(Ros2Args, 
         };
         match name.as_str() {
             "commit_every" => {
-                args.commit_every = crate::record::commit_every(&text).map_err(bad)?
+                args.commit_every = text.parse().map_err(|e: TimeError| bad(e.to_string()))?
             }
             "frame_id" => args.frame_id = Some(text),
             "horizon" => args.horizon = text,

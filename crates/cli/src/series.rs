@@ -856,11 +856,15 @@ fn check_export(
     // Saturating: a span of centuries at 1 ns counts u64::MAX maps, and is refused.
     let maps = (span / every).floor() as u64 + 1;
     let bytes = maps.saturating_mul(estimated_map_bytes(reader, &options.format));
-    ui.note(&format!(
-        "exporting up to {} maps, about {}",
-        group_thousands(maps),
-        mib(bytes)
-    ));
+    // With --json the report says what was written; with `-o -` it shares standard error
+    // with notes, and must be the whole of it.
+    if !args.json {
+        ui.note(&format!(
+            "exporting up to {} maps, about {}",
+            group_thousands(maps),
+            mib(bytes)
+        ));
+    }
     if bytes > args.max_output {
         anyhow::bail!(
             "{}: the export would write about {} ({} maps), more than --max-output {}; \

@@ -192,7 +192,7 @@ fn export_of_a_directory_to_standard_output_is_refused() {
                 "10min",
             ]);
         if let Some(format) = format {
-            command.args(["--format", format]);
+            command.arg("--format").args(format.split(' '));
         }
         command.args(["-o", "-"]).output().unwrap()
     };
@@ -220,6 +220,13 @@ fn export_of_a_directory_to_standard_output_is_refused() {
     );
     assert!(run.stdout.starts_with(b"\x89MCAP0\r\n"));
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    // With --json the report is the whole of standard error (the map has standard output).
+    let run = export_to_stdout(Some("mcap --json"));
+    assert!(run.stdout.starts_with(b"\x89MCAP0\r\n"));
+    let report: serde_json::Value = serde_json::from_slice(&run.stderr)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&run.stderr)));
+    assert_eq!(report["format"], "mcap");
+    assert_eq!(report["maps"].as_array().map(Vec::len), Some(7));
 }
 
 /// `export --format ros2bag` makes a new bag directory: one that exists (even empty) is

@@ -411,6 +411,38 @@ fn export_past_the_span_predicts(series: &Living, out: &Path) {
     assert_eq!(std::fs::read(last).unwrap(), std::fs::read(direct).unwrap());
 }
 
+/// `compact --lossy -o` writes what `build --lossy` of the same maps writes (the models
+/// without the outlier set); in place it is refused, naming the file, which is left whole.
+#[test]
+fn a_lossy_compaction_is_a_lossy_build_and_never_in_place() {
+    let series = living_series();
+    let root = series.dir.path();
+    let built = root.join("lossy-build.froct");
+    let compacted = root.join("lossy.froct");
+    let lossy = ["--lossy", "--created", CREATED, "-q", "-o"];
+    ok(&[&["build", s(&root.join("all"))], &lossy[..], &[s(&built)]].concat());
+    ok(&[&["compact", s(&series.living)], &lossy[..], &[s(&compacted)]].concat());
+    let compacted_info = info(&compacted);
+    assert_eq!(compacted_info["outliers"], "lossy", "{compacted_info}");
+    assert_eq!(content(compacted_info), content(info(&built)));
+    let out = root.join("out-lossy");
+    std::fs::create_dir_all(&out).unwrap();
+    for sample in 0..24 {
+        assert!(
+            retrieved(&compacted, sample, &out.join("a.bt"))
+                == retrieved(&built, sample, &out.join("b.bt")),
+            "sample {sample}"
+        );
+    }
+    let before = std::fs::read(&series.living).unwrap();
+    let message = err(&["compact", s(&series.living), "--lossy"]);
+    assert!(
+        message.contains(s(&series.living)) && message.contains("-o"),
+        "{message}"
+    );
+    assert_eq!(std::fs::read(&series.living).unwrap(), before);
+}
+
 #[test]
 fn compact_equals_a_build_of_the_same_maps() {
     let series = living_series();

@@ -480,3 +480,34 @@ fn bad_inputs_get_clear_errors() {
     assert!(map.contains("map file"), "{map}");
     assert!(!png.exists());
 }
+
+/// `FROCTOMAP_FONT` is the user's choice: a file that is not a font, or no file, stops
+/// `render` with the variable and the file named, and no picture, rather than drawing with
+/// another font.
+#[test]
+fn a_font_variable_naming_no_font_is_an_error() {
+    let series = series();
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("x.png");
+    let not_a_font = dir.path().join("notes.ttf");
+    std::fs::write(&not_a_font, "not a font\n").unwrap();
+    for (font, problem) in [
+        (not_a_font.clone(), "not a TrueType font"),
+        (dir.path().join("missing.ttf"), "No such file"),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_froctomap"))
+            .args(["render", s(&series.froct), "--time", "last", "-o", s(&png)])
+            .env("FROCTOMAP_FONT", &font)
+            .stdin(std::process::Stdio::null())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{stderr}");
+        let named = format!("FROCTOMAP_FONT={}", font.display());
+        assert!(
+            stderr.contains(&named) && stderr.contains(problem),
+            "{stderr}"
+        );
+        assert!(!png.exists());
+    }
+}

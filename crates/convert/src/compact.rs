@@ -21,7 +21,7 @@ use crate::progress::Progress;
 use crate::series_file::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
 use froctomap_file::{LivingWriter, ToggleLayout};
-use froctomap_temporal::{ModelConfig, ModelOptions};
+use froctomap_temporal::{ModelConfig, ModelOptions, OutlierMode};
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -66,6 +66,10 @@ pub struct CompactOptions {
     /// Maps decoded in parallel per batch by a rebuild from maps. Unused since compaction
     /// merges histories; kept so that callers keep compiling.
     pub batch: usize,
+    /// Write the models without the outlier set (as `build --lossy`): tiny, and its past is
+    /// the models' reconstruction. Only into another file
+    /// ([`ConvertError::LossyInPlace`]).
+    pub lossy: bool,
 }
 
 impl Default for CompactOptions {
@@ -77,6 +81,7 @@ impl Default for CompactOptions {
             memory: DEFAULT_BUILD_MEMORY,
             tmp_dir: None,
             batch: 8 * rayon::current_num_threads().max(1),
+            lossy: false,
         }
     }
 }
@@ -132,8 +137,14 @@ pub fn compact(
     options: &CompactOptions,
     progress: &dyn Progress,
 ) -> Result<CompactReport, ConvertError> {
-    if let Some(output) = output {
-        refuse_overwriting_input(output, [file])?;
+    match output {
+        Some(output) => refuse_overwriting_input(output, [file])?,
+        None if options.lossy => {
+            return Err(ConvertError::LossyInPlace {
+                file: file.to_path_buf(),
+            })
+        }
+        None => {}
     }
     // In place, the writer lock of a 2.0 file is taken before its state is read and held
     // until the new file replaces it.
@@ -185,7 +196,12 @@ fn compact_with(
         FroctFile::Living(living) => living.base(),
     };
     let model = context.model_of(&header)?;
-    let mut config = ModelConfig::default().with_outliers(body.model().outlier_mode());
+    let outliers = if options.lossy {
+        OutlierMode::Lossy
+    } else {
+        body.model().outlier_mode()
+    };
+    let mut config = ModelConfig::default().with_outliers(outliers);
     config.options = options.model_options.clone();
     // As a build of the file's maps writes it (its inputs being the file).
     let maps = (0..series.sample_count())

@@ -412,6 +412,13 @@ pub enum ConvertError {
         #[source]
         source: Cause,
     },
+    /// A lossy compaction asked for in place: it would drop the file's outlier set, the
+    /// only exact record of its past.
+    #[error("{}: a lossy compaction in place would drop the file's exact history; write it elsewhere with -o", file.display())]
+    LossyInPlace {
+        /// The file.
+        file: PathBuf,
+    },
     /// An output that is one of the inputs (also through a link): writing it would destroy
     /// the input.
     #[error("{}: this output is the input {}; writing it would destroy the input", output.display(), input.display())]
@@ -964,6 +971,7 @@ mod tests {
                 at: Some(t),
                 source: cause(),
             },
+            ConvertError::LossyInPlace { file: path() },
             ConvertError::OutputIsInput {
                 output: path(),
                 input: path(),
@@ -1079,6 +1087,7 @@ mod tests {
                 | ConvertError::Cancelled
                 | ConvertError::Output(_)
                 | ConvertError::RecordingWrite { .. }
+                | ConvertError::LossyInPlace { .. }
                 | ConvertError::OutputIsInput { .. }
                 | ConvertError::OutputExists { .. }
                 | ConvertError::StreamNotADirectory { .. }

@@ -24,6 +24,7 @@ use crate::error::ConvertError;
 use crate::inputs::{collect_recording, SeriesInput, STDIN_INPUT};
 use crate::progress::Silent;
 use crate::skip::SkippedInput;
+use crate::time::{parse_duration, TimeError};
 use froctomap_core::{remove_stale_temporary_dirs, remove_stale_temporary_files, Timestamp};
 use froctomap_file::LivingWriter;
 use froctomap_formats::{MapSpool, SpoolError, SPOOL_PREFIX};
@@ -44,6 +45,39 @@ pub enum CommitEvery {
 impl Default for CommitEvery {
     fn default() -> Self {
         Self::Time(Duration::from_secs(5))
+    }
+}
+
+/// Reads what `record --commit-every` takes: a number of maps (`720`) or a duration (`5s`,
+/// `1min`).
+///
+/// ```
+/// use froctomap_convert::CommitEvery;
+/// use std::time::Duration;
+/// assert_eq!("720".parse::<CommitEvery>().unwrap(), CommitEvery::Maps(720));
+/// assert_eq!("5s".parse::<CommitEvery>().unwrap(), CommitEvery::Time(Duration::from_secs(5)));
+/// assert!("0".parse::<CommitEvery>().unwrap_err().to_string().contains("at least 1 map"));
+/// ```
+impl std::str::FromStr for CommitEvery {
+    type Err = TimeError;
+
+    fn from_str(text: &str) -> Result<Self, TimeError> {
+        let refuse = |reason: String| TimeError {
+            input: text.to_string(),
+            what: "number of maps or a duration",
+            reason,
+        };
+        if let Ok(maps) = text.trim().parse::<usize>() {
+            return match maps {
+                0 => Err(refuse("give at least 1 map".into())),
+                maps => Ok(Self::Maps(maps)),
+            };
+        }
+        match parse_duration(text) {
+            Ok(ns) if ns > 0 => Ok(Self::Time(Duration::from_nanos(ns.unsigned_abs()))),
+            Ok(_) => Err(refuse("give a positive duration".into())),
+            Err(error) => Err(refuse(error.reason)),
+        }
     }
 }
 

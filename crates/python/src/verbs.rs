@@ -126,7 +126,7 @@ pub fn append<'py>(
 #[pyfunction]
 #[pyo3(signature = (file, output = None, *, format_version = "2.0".to_string(),
                     model_options = None, created = None, memory = None, tmp_dir = None,
-                    progress = None))]
+                    lossy = false, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn compact<'py>(
     py: Python<'py>,
@@ -137,6 +137,7 @@ pub fn compact<'py>(
     created: Option<&Bound<'py, PyAny>>,
     memory: Option<u64>,
     tmp_dir: Option<PathBuf>,
+    lossy: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let layout: Option<fn(u32) -> ToggleLayout> = match format_version.as_str() {
@@ -154,6 +155,7 @@ pub fn compact<'py>(
         created: created.map(|t| instant(t, "created")).transpose()?,
         memory: memory.unwrap_or(froctomap_convert::DEFAULT_BUILD_MEMORY),
         tmp_dir,
+        lossy,
         ..CompactOptions::default()
     };
     let report = with_progress(py, progress, |progress| {

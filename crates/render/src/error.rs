@@ -21,6 +21,16 @@ pub enum RenderError {
         /// The paths tried, joined.
         tried: String,
     },
+    /// `$FROCTOMAP_FONT` names a file that is not a usable font.
+    #[error(
+        "FROCTOMAP_FONT={path}: {reason}; name a .ttf file, or unset it to use the system's font"
+    )]
+    FontVariable {
+        /// The file it names.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A font file is not one the text renderer can use.
     #[error("{path}: not a TrueType font the plotter can use")]
     BadFont {
@@ -110,6 +120,10 @@ mod tests {
             RenderError::BadFont {
                 path: "font.ttf".into(),
             },
+            RenderError::FontVariable {
+                path: "notes.txt".into(),
+                reason: "not a TrueType font the plotter can use".into(),
+            },
             draw_error("the backend refused"),
             RenderError::Encode {
                 source: image::ImageError::IoError(io()),
@@ -138,6 +152,7 @@ mod tests {
                 | RenderError::File(_)
                 | RenderError::NoFont { .. }
                 | RenderError::BadFont { .. }
+                | RenderError::FontVariable { .. }
                 | RenderError::Draw { .. }
                 | RenderError::Encode { .. }
                 | RenderError::Write(_)
@@ -149,7 +164,7 @@ mod tests {
             assert_eq!(said_twice(e), None, "{e:?}");
         }
         assert_eq!(
-            froctomap_core::error_message(&all[5]),
+            froctomap_core::error_message(&all[6]),
             "encoding the PNG: disk full"
         );
     }

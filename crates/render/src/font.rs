@@ -38,17 +38,36 @@ pub fn set_fallback_font(path: PathBuf) {
     let _ = FALLBACK.set(path);
 }
 
-/// Makes sure a font is registered: `$FROCTOMAP_FONT`, else DejaVu Sans where Linux
-/// distributions install it, else the fallback ([`set_fallback_font`]). Looked up once per
-/// process.
+/// Why no font was registered (kept for the process, so not a [`RenderError`]).
+#[derive(Debug)]
+enum Missing {
+    /// `$FROCTOMAP_FONT` names a file that cannot be read or is not a font.
+    Given { path: PathBuf, reason: String },
+    /// No file of the candidates was a font: the paths tried, joined.
+    NotFound(String),
+}
+
+/// Makes sure a font is registered: `$FROCTOMAP_FONT` if set (an error if it is not a
+/// usable font: the user chose it), else DejaVu Sans where Linux distributions install it,
+/// else the fallback ([`set_fallback_font`]). Looked up once per process.
 pub fn ensure_font() -> Result<(), RenderError> {
-    static FOUND: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    static FOUND: OnceLock<Result<PathBuf, Missing>> = OnceLock::new();
     let found = FOUND.get_or_init(|| {
+        if let Some(path) = std::env::var_os(FONT_VARIABLE).filter(|v| !v.is_empty()) {
+            let path = PathBuf::from(path);
+            let given = |reason: String| Missing::Given {
+                path: path.clone(),
+                reason,
+            };
+            let bytes = std::fs::read(&path).map_err(|e| given(e.to_string()))?;
+            register_font(bytes, &path)
+                .map_err(|_| given("not a TrueType font the plotter can use".into()))?;
+            return Ok(path);
+        }
         let mut tried = Vec::new();
-        let given = std::env::var_os(FONT_VARIABLE).map(PathBuf::from);
-        for path in given
-            .into_iter()
-            .chain(CANDIDATES.iter().map(PathBuf::from))
+        for path in CANDIDATES
+            .iter()
+            .map(PathBuf::from)
             .chain(FALLBACK.get().cloned())
         {
             if let Ok(bytes) = std::fs::read(&path) {
@@ -58,11 +77,15 @@ pub fn ensure_font() -> Result<(), RenderError> {
             }
             tried.push(path.display().to_string());
         }
-        Err(tried.join(", "))
+        Err(Missing::NotFound(tried.join(", ")))
     });
     match found {
         Ok(_) => Ok(()),
-        Err(tried) => Err(RenderError::NoFont {
+        Err(Missing::Given { path, reason }) => Err(RenderError::FontVariable {
+            path: path.clone(),
+            reason: reason.clone(),
+        }),
+        Err(Missing::NotFound(tried)) => Err(RenderError::NoFont {
             tried: tried.clone(),
         }),
     }

@@ -102,11 +102,9 @@ fn points(
 pub fn point_cloud_json(
     time: Timestamp,
     frame_id: &str,
-    kind: ExportedKind,
     resolution: f64,
     occupied: &[OccupiedCell],
 ) -> Result<Vec<u8>, McapWriteError> {
-    let _ = kind; // Every map's points have the same fields.
     let data = points(resolution, occupied, |rgba| rgba)?;
     let fields: Vec<serde_json::Value> = [
         ("x", 0, FLOAT32),
@@ -145,12 +143,10 @@ pub fn point_cloud_json(
 pub(crate) fn point_cloud2(
     stamp: (i32, u32),
     frame_id: &str,
-    kind: ExportedKind,
     resolution: f64,
     occupied: &[OccupiedCell],
 ) -> Result<Vec<u8>, McapWriteError> {
     // Little-endian 0xAARRGGBB: blue, green, red, alpha.
-    let _ = kind; // Every map's points have the same fields.
     let data = points(resolution, occupied, |[r, g, b, a]| [b, g, r, a])?;
     const ROS_UINT32: u8 = 6;
     const ROS_FLOAT32: u8 = 7;

@@ -248,13 +248,9 @@ impl McapMapWriter {
         for &(channel, channel_id) in &self.channels {
             let data = match channel {
                 Channel::Octomap => None,
-                Channel::PointCloud2 => Some(point_cloud2(
-                    stamp,
-                    frame,
-                    map.kind,
-                    map.resolution,
-                    map.occupied,
-                )?),
+                Channel::PointCloud2 => {
+                    Some(point_cloud2(stamp, frame, map.resolution, map.occupied)?)
+                }
                 Channel::Markers => Some(
                     encode_occupied_marker_array_cdr(stamp, frame, map.resolution, map.occupied)
                         .ok_or_else(|| too_long(map.occupied.len()))?,
@@ -262,7 +258,6 @@ impl McapMapWriter {
                 Channel::FoxglovePointCloud => Some(point_cloud_json(
                     map.time,
                     frame,
-                    map.kind,
                     map.resolution,
                     map.occupied,
                 )?),

@@ -303,6 +303,7 @@ def compact(
     created: Any = None,
     memory: Optional[int] = None,
     tmp_dir: Optional[PathLike] = None,
+    lossy: bool = False,
     progress: Union[bool, ProgressCallback, None] = True,
 ) -> Dict[str, Any]:
     """Rewrites a FROctomap file's base and segments as one base (``froctomap compact
@@ -310,14 +311,15 @@ def compact(
     ``output``. ``format_version``: ``"2.0"`` (a living map), ``"1.2"`` or ``"1.1"`` (for
     older readers). Every model is refitted on the whole history: give the
     ``model_options`` of the build. ``created`` fixes the creation time (reproducible
-    files). Returns the report as a dict.
+    files). ``lossy``: the models without the outlier set (``build --lossy``'s file), only
+    into ``output``. Returns the report as a dict.
     """
     callback = _progress.reporter(progress)
     try:
         return _native.compact(
             file, output, format_version=format_version,
             model_options=_model_options(model_options), created=created, memory=memory,
-            tmp_dir=tmp_dir, progress=callback,
+            tmp_dir=tmp_dir, lossy=lossy, progress=callback,
         )
     finally:
         _progress.close(callback)
