@@ -120,7 +120,7 @@ if [ ! -e "$FILE.eval.json" ]; then
   end=$(date -u -d "@$((START_UNIX + WEEKS * WEEK_SECS))" +%FT%TZ)
   # `eval` reads the held-out maps from the pipe; its JSON is written atomically.
   timed "eval of $HELD_OUT held-out days" bash -c "
-    '$G' -q generate --stream --days $((WEEKS * 7 + HELD_OUT)) --step ${STEP_SECS}s --seed $SEED --from $end |
+    '$G' -q generate --stream --days $((WEEKS * 7 + HELD_OUT)) --step ${STEP_SECS}s --seed $SEED --from $end 2>>'$FILE.generate.log' |
       '$G' -q eval '$FILE' --against - --json > '$FILE.eval.json.tmp' && mv '$FILE.eval.json.tmp' '$FILE.eval.json'"
 fi
 log "prediction, dynamic voxels: $(jq -c '[.prediction[] | {(.[0]): .[1].dynamic}] | add' "$FILE.eval.json")"
