@@ -421,7 +421,12 @@ fn a_lossy_compaction_is_a_lossy_build_and_never_in_place() {
     let compacted = root.join("lossy.froct");
     let lossy = ["--lossy", "--created", CREATED, "-q", "-o"];
     ok(&[&["build", s(&root.join("all"))], &lossy[..], &[s(&built)]].concat());
-    ok(&[&["compact", s(&series.living)], &lossy[..], &[s(&compacted)]].concat());
+    ok(&[
+        &["compact", s(&series.living)],
+        &lossy[..],
+        &[s(&compacted)],
+    ]
+    .concat());
     let compacted_info = info(&compacted);
     assert_eq!(compacted_info["outliers"], "lossy", "{compacted_info}");
     assert_eq!(content(compacted_info), content(info(&built)));
