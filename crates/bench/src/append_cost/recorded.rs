@@ -122,14 +122,16 @@ pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<
         });
         let boundaries: Vec<(f64, Timestamp)> = base_days.iter().map(|&d| (d, at(d))).collect();
         let recorded = record_bases(context, args, &boundaries, hours, maps);
-        let generated = producer.join();
-        // The recorder's error first: the generator's is then only that it stopped.
-        let recorded = recorded?;
-        match generated {
-            Ok(generated) => generated?,
-            Err(panic) => std::panic::resume_unwind(panic),
+        let generated = producer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        match (recorded, generated) {
+            (Ok(recorded), Ok(())) => Ok(recorded),
+            // The generator stopped because the recorder did: the recorder's error says why.
+            (Err(error), Ok(()) | Err(SynthError::Sink(_))) => Err(error),
+            // The recorder ran out of maps because the generator failed.
+            (_, Err(error)) => Err(error.into()),
         }
-        Ok(recorded)
     })?;
     eprintln!(
         "generated and recorded in {:.0} s",
