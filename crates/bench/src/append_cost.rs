@@ -26,7 +26,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 mod recorded;
-use recorded::{recorded_append_cost, GeneratedArgs};
+use crate::system::copy_file as copy;
+use crate::tables::median_duration;
+use recorded::{recorded_append_cost, GeneratedArgs, Plan};
 
 /// Options of `append-cost`.
 #[derive(Args, Debug)]
@@ -52,14 +54,8 @@ pub struct AppendCostArgs {
     generated: GeneratedArgs,
 }
 
-fn median(mut times: Vec<Duration>) -> Duration {
-    times.sort_unstable();
-    times[times.len() / 2]
-}
-
-fn copy(from: &Path, to: &Path) -> Result<()> {
-    std::fs::copy(from, to).with_context(|| format!("copying {}", from.display()))?;
-    Ok(())
+fn median(times: Vec<Duration>) -> Duration {
+    median_duration(&times)
 }
 
 /// Times one append of `new` to a copy of `base` as a segment (the copy converted to 2.0
@@ -100,7 +96,13 @@ fn time_appends(
 pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
     let context = Context::with_default_plugins();
     let Some(series) = &args.series else {
-        return recorded_append_cost(&context, args);
+        let plan = Plan {
+            work: &args.work,
+            base_days: &args.base_days,
+            hours: args.hours,
+            reps: args.reps,
+        };
+        return recorded_append_cost(&context, &plan, &args.generated);
     };
     let series = collect_inputs(&context, std::slice::from_ref(series), TimeSource::Auto)?;
     let start = series.first().context("an empty series")?.time;

@@ -53,6 +53,12 @@ pub const TOOLS: [Tool; 3] = [
 /// The font the plots are labelled with.
 pub const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
+/// Copies `from` to `to`, the error naming `from`.
+pub fn copy_file(from: &Path, to: &Path) -> Result<()> {
+    std::fs::copy(from, to).with_context(|| format!("copying {}", from.display()))?;
+    Ok(())
+}
+
 /// Each tool's `--version` first line; an error naming the missing packages otherwise.
 pub fn check_tools() -> Result<Vec<String>> {
     let mut versions = Vec::new();

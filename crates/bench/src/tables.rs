@@ -114,6 +114,12 @@ pub fn percent(p: Option<f64>) -> String {
     p.map_or_else(|| "-".into(), |p| format!("{p:.2} %"))
 }
 
+/// The median of `times` (mean of the middle two for even counts); zero for none.
+pub fn median_duration(times: &[std::time::Duration]) -> std::time::Duration {
+    let seconds: Vec<f64> = times.iter().map(std::time::Duration::as_secs_f64).collect();
+    std::time::Duration::from_secs_f64(median(&seconds).unwrap_or(0.0))
+}
+
 /// The median (mean of the middle two for even counts); `None` for no values.
 pub fn median(values: &[f64]) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();

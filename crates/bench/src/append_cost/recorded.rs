@@ -7,8 +7,9 @@
 //! after a gap of the difference, which the shorter files answer as `record` would, by
 //! compacting when their span has doubled.
 
-use super::{copy, median, AppendCostArgs};
 use crate::generate::step_seconds;
+use crate::system::copy_file as copy;
+use crate::tables::median_duration;
 use anyhow::{bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
@@ -44,7 +45,19 @@ pub struct GeneratedArgs {
     same_maps: bool,
 }
 
-/// A maps' time and its `.bt` bytes.
+/// What to measure (`append-cost`'s options but the generator's).
+pub struct Plan<'a> {
+    /// Where the bases and their copies go.
+    pub work: &'a Path,
+    /// Lengths of the bases in days.
+    pub base_days: &'a [f64],
+    /// Hours of maps recorded into each base.
+    pub hours: f64,
+    /// Recordings per base.
+    pub reps: usize,
+}
+
+/// A map's time and its `.bt` bytes.
 type Map = (Timestamp, Vec<u8>);
 
 /// A base recorded for the appends.
@@ -83,11 +96,15 @@ fn generator(context: &Context, args: &GeneratedArgs, days: f64) -> Result<Gener
     Ok(Generator::new(&base, spec, None)?)
 }
 
-pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<()> {
-    let mut base_days = args.base_days.clone();
+pub fn recorded_append_cost(
+    context: &Context,
+    args: &Plan<'_>,
+    generated: &GeneratedArgs,
+) -> Result<()> {
+    let mut base_days = args.base_days.to_vec();
     base_days.sort_by(f64::total_cmp);
     let longest = *base_days.last().context("no --base-days")?;
-    let generator = generator(context, &args.generated, longest + args.hours / 24.0)?;
+    let generator = generator(context, generated, longest + args.hours / 24.0)?;
     let hours = Duration::from_secs_f64(args.hours * 3600.0);
     let start = generator
         .frames()
@@ -95,13 +112,13 @@ pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<
         .context("the generated series has no map")?
         .time;
     let at = |days: f64| Timestamp(start.0 + (days * 86_400e9) as i64);
-    std::fs::create_dir_all(&args.work)?;
+    std::fs::create_dir_all(args.work)?;
     let frames = generator.frames().count();
     eprintln!(
         "generating {} maps (every {}, seed {}) and recording the bases",
         group_thousands(frames as u64),
-        args.generated.step,
-        args.generated.seed
+        generated.step,
+        generated.seed
     );
     let started = Instant::now();
     let (bases, new) = std::thread::scope(|scope| -> Result<_> {
@@ -121,7 +138,7 @@ pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<
             )
         });
         let boundaries: Vec<(f64, Timestamp)> = base_days.iter().map(|&d| (d, at(d))).collect();
-        let recorded = record_bases(context, args, &boundaries, hours, maps);
+        let recorded = record_bases(context, args.work, generated, &boundaries, hours, maps);
         let generated = producer
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -138,7 +155,7 @@ pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<
         started.elapsed().as_secs_f64()
     );
     let appended = |k: usize| {
-        if args.generated.same_maps {
+        if generated.same_maps {
             &new[new.len() - 1]
         } else {
             &new[k]
@@ -152,16 +169,15 @@ pub fn recorded_append_cost(context: &Context, args: &AppendCostArgs) -> Result<
         "recording the {} maps ({} h) after {} into copies of each base (commits every {}), {} times",
         count,
         args.hours,
-        if args.generated.same_maps { "the longest base" } else { "each base" },
-        describe(args.generated.commit_every),
+        if generated.same_maps { "the longest base" } else { "each base" },
+        describe(generated.commit_every),
         args.reps
     );
     let mut times: Vec<Vec<Duration>> = vec![Vec::new(); bases.len()];
     let mut summaries = vec![RecordSummary::default(); bases.len()];
     for round in 0..args.reps {
         for (k, base) in bases.iter().enumerate() {
-            let (elapsed, summary) =
-                time_record(context, &args.generated, &base.path, appended(k))?;
+            let (elapsed, summary) = time_record(context, generated, &base.path, appended(k))?;
             eprintln!(
                 "round {round}, {} d: {:.3} s ({} commits, {} compactions)",
                 base.days,
@@ -189,15 +205,16 @@ fn describe(every: CommitEvery) -> String {
 /// length leaves); returns the bases and, for each, the maps within `hours` after it.
 fn record_bases(
     context: &Context,
-    args: &AppendCostArgs,
+    work: &Path,
+    generated: &GeneratedArgs,
     boundaries: &[(f64, Timestamp)],
     hours: Duration,
     maps: Receiver<Map>,
 ) -> Result<(Vec<Base>, Vec<Vec<Map>>)> {
-    let growing = args.work.join("recorded.froct");
+    let growing = work.join("recorded.froct");
     std::fs::remove_file(&growing).ok();
     let open = || -> Result<Recorder<'_>> {
-        let mut recorder = Recorder::open(context, &growing, record_options(&args.generated))?;
+        let mut recorder = Recorder::open(context, &growing, record_options(generated))?;
         recorder.on_event(|event| {
             if let RecordEvent::Compacted(report) = event {
                 eprintln!(
@@ -222,7 +239,7 @@ fn record_bases(
             if let Some(recorder) = recorder.take() {
                 recorder.finish()?;
             }
-            let path = args.work.join(format!("base-{days}d.froct"));
+            let path = work.join(format!("base-{days}d.froct"));
             copy(&growing, &path)?;
             let segments = LivingReader::open(&path)?.segment_count();
             let bytes = std::fs::metadata(&path)?.len();
@@ -305,7 +322,7 @@ fn print_table(bases: &[Base], times: Vec<Vec<Duration>>, summaries: &[RecordSum
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     let mut medians = Vec::new();
     for ((base, times), summary) in bases.iter().zip(times).zip(summaries) {
-        let median = median(times);
+        let median = median_duration(&times);
         println!(
             "| {} d | {} | {} | {} | {:.3} s | {:.0} | {} | {} |",
             base.days,
