@@ -54,10 +54,6 @@ pub struct AppendCostArgs {
     generated: GeneratedArgs,
 }
 
-fn median(times: Vec<Duration>) -> Duration {
-    median_duration(&times)
-}
-
 /// Times one append of `new` to a copy of `base` as a segment (the copy converted to 2.0
 /// beforehand, outside the timing), then one as a rebuild; with the bytes each added.
 fn time_appends(
@@ -167,7 +163,7 @@ pub fn append_cost(args: &AppendCostArgs) -> Result<()> {
     for (((days, _, maps, bytes, build_time), (segment, rebuild)), added) in
         bases.iter().zip(times).zip(added)
     {
-        let (segment, rebuild) = (median(segment), median(rebuild));
+        let (segment, rebuild) = (median_duration(&segment), median_duration(&rebuild));
         println!(
             "| {days} d | {maps} | {bytes} | {:.1} | {:.3} s | {:.3} s | {} | {} |",
             build_time.as_secs_f64(),

@@ -277,10 +277,7 @@ fn announce(ui: &Ui, args: &RecordArgs, recorder: &Recorder<'_>) {
         "recording into {} (last sample {}), committing every {}",
         escaped(args.file.display()),
         recorder.last_time().map_or("none".to_string(), iso8601),
-        match args.commit_every {
-            CommitEvery::Maps(n) => format!("{n} maps"),
-            CommitEvery::Time(t) => format!("{:.3} s", t.as_secs_f64()),
-        }
+        args.commit_every
     ));
 }
 

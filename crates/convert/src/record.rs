@@ -58,6 +58,16 @@ impl Default for CommitEvery {
 /// assert_eq!("5s".parse::<CommitEvery>().unwrap(), CommitEvery::Time(Duration::from_secs(5)));
 /// assert!("0".parse::<CommitEvery>().unwrap_err().to_string().contains("at least 1 map"));
 /// ```
+/// How `record` says it: `720 maps`, `5.000 s`.
+impl std::fmt::Display for CommitEvery {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Maps(n) => write!(f, "{n} maps"),
+            Self::Time(t) => write!(f, "{:.3} s", t.as_secs_f64()),
+        }
+    }
+}
+
 impl std::str::FromStr for CommitEvery {
     type Err = TimeError;
 

@@ -170,7 +170,7 @@ pub fn recorded_append_cost(
         count,
         args.hours,
         if generated.same_maps { "the longest base" } else { "each base" },
-        describe(generated.commit_every),
+        generated.commit_every,
         args.reps
     );
     let mut times: Vec<Vec<Duration>> = vec![Vec::new(); bases.len()];
@@ -191,13 +191,6 @@ pub fn recorded_append_cost(
     }
     print_table(&bases, times, &summaries, count);
     Ok(())
-}
-
-fn describe(every: CommitEvery) -> String {
-    match every {
-        CommitEvery::Maps(n) => format!("{n} maps"),
-        CommitEvery::Time(t) => format!("{} s", t.as_secs_f64()),
-    }
 }
 
 /// Records the maps before the longest base into one file, copying it to a base at each
