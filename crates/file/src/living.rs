@@ -48,8 +48,8 @@ use crate::root::{
     ROOT_SLOT_LEN,
 };
 use crate::segment::{
-    encode_record, InheritedModel, RawRecord, RemainderMask, SegmentCell, SegmentContent,
-    SegmentRecord, SegmentTileEncoder, TileRemainder,
+    encode_record, InheritedModel, RawRecord, RecordHead, RemainderMask, SegmentCell,
+    SegmentContent, SegmentRecord, SegmentTileEncoder, TileRemainder,
 };
 use crate::source::{ByteSource, FileSource};
 use crate::tile::{CellRef, EncodedTile, WalkNeed};
@@ -223,13 +223,20 @@ impl LivingReader {
             )));
         }
         let mut budget = self.index_budget;
-        let raws = self.read_new_records(&root, &mut budget)?;
+        let heads = self.read_new_heads(&root, &mut budget)?;
         let header = self.base.header().clone();
         let mut tiles_from = held.committed_len;
         let mut samples = u64::from(held.sample_count);
         let mut last_instant = self.last_instant();
-        let mut added = Vec::with_capacity(raws.len());
-        for raw in raws {
+        let mut added = Vec::with_capacity(heads.len());
+        for head in heads {
+            let raw = head
+                .read_body(self.source.as_ref())
+                .map_err(|source| FileError::Io {
+                    path: self.path.clone(),
+                    source,
+                })?
+                .map_err(invalid)?;
             if u64::from(raw.first_sample) != samples {
                 return Err(invalid(corrupt(
                     "segment record",
@@ -304,9 +311,11 @@ impl LivingReader {
         Ok(())
     }
 
-    /// The records of the segments `root` commits beyond those held, oldest first, each
-    /// checked to point to the one before it.
-    fn read_new_records(&self, root: &Root, budget: &mut u64) -> Result<Vec<RawRecord>, FileError> {
+    /// The heads of the records of the segments `root` commits beyond those held, oldest
+    /// first, each checked to point to the one before it. Only heads: the bodies are read
+    /// one at a time as they are decoded, so opening a file of many segments never holds
+    /// them all.
+    fn read_new_heads(&self, root: &Root, budget: &mut u64) -> Result<Vec<RecordHead>, FileError> {
         let invalid = |v| self.invalid(v);
         let io = |source| FileError::Io {
             path: self.path.clone(),
@@ -314,13 +323,13 @@ impl LivingReader {
         };
         let held = self.root;
         // Newest first, back to the newest segment held.
-        let mut raws = Vec::new();
+        let mut heads = Vec::new();
         let (mut at, mut limit) = (root.last_segment, root.committed_len);
         for k in (held.segment_count..root.segment_count).rev() {
-            let raw = RawRecord::read(self.source.as_ref(), at, limit, budget)
+            let head = RecordHead::read(self.source.as_ref(), at, limit, budget)
                 .map_err(io)?
                 .map_err(invalid)?;
-            if raws.is_empty() && raw.end() != root.committed_len {
+            if heads.is_empty() && head.end() != root.committed_len {
                 return Err(invalid(corrupt(
                     "segment record",
                     "the newest segment does not end at the committed length",
@@ -328,8 +337,8 @@ impl LivingReader {
             }
             let expected_previous = (k == held.segment_count).then_some(held.last_segment);
             let chained = match expected_previous {
-                Some(previous) => raw.previous == previous,
-                None => raw.previous >= self.root.base_len && raw.previous < at,
+                Some(previous) => head.previous == previous,
+                None => head.previous >= self.root.base_len && head.previous < at,
             };
             if !chained {
                 return Err(invalid(corrupt(
@@ -337,11 +346,11 @@ impl LivingReader {
                     format!("segment {k} points to an impossible previous segment"),
                 )));
             }
-            (at, limit) = (raw.previous, raw.offset);
-            raws.push(raw);
+            (at, limit) = (head.previous, head.offset);
+            heads.push(head);
         }
-        raws.reverse();
-        Ok(raws)
+        heads.reverse();
+        Ok(heads)
     }
 
     /// A segment's patch tiles each patch a base tile, naming only cells that tile has.
@@ -1130,6 +1139,42 @@ impl LivingWriter {
         let root = Self::convert_into(base, &self.path, false)?;
         drop(self);
         Ok(root)
+    }
+
+    /// Replaces this writer's file by the 2.0 file `replacement` holds (renamed over it,
+    /// then the directory synced), and returns `replacement` as the writer of this path.
+    /// Both locks are held throughout, so no other writer appends to either meanwhile; how
+    /// a compaction made beside the file while segments kept coming is swapped in. Readers
+    /// that had the old file open keep reading it. Everything `replacement` holds must be
+    /// committed (its commits are synced).
+    pub fn replace_with(
+        self,
+        replacement: LivingWriter,
+        models: &ModelRegistry,
+    ) -> Result<LivingWriter, FileError> {
+        self.check_in_place()?;
+        replacement.check_in_place()?;
+        let io = |source| FileError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        std::fs::rename(&replacement.path, &self.path).map_err(io)?;
+        // Durable only once the directory is: until then a power loss could bring the old
+        // file back under segments committed to the new one.
+        let parent = match self.path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => Path::new("."),
+        };
+        if let Ok(dir) = std::fs::File::open(parent) {
+            dir.sync_all().map_err(io)?;
+        }
+        let reader = LivingReader::open_with_limits(&self.path, replacement.reader.limits, models)?;
+        let LivingWriter { path, .. } = self;
+        Ok(LivingWriter {
+            path,
+            file: replacement.file,
+            reader,
+        })
     }
 
     /// [`convert`](Self::convert); `lock`: take the lock of an existing `output` first

@@ -342,21 +342,24 @@ pub(crate) fn encode_record(
     Ok(out)
 }
 
-/// A record read and checksummed, its body not yet decoded.
-pub(crate) struct RawRecord {
+/// A record's head: where it is, the one before it, its first sample and its body's
+/// length, checked to fit the committed bytes; its body not read yet.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RecordHead {
     pub(crate) offset: u64,
     pub(crate) previous: u64,
     pub(crate) first_sample: u32,
-    pub(crate) body: Vec<u8>,
+    body_len: u64,
 }
 
-impl RawRecord {
+impl RecordHead {
+    /// Where the record ends (its checksum included).
     pub(crate) fn end(&self) -> u64 {
-        self.offset + (RECORD_HEAD_LEN + self.body.len() + 4) as u64
+        self.offset + (RECORD_HEAD_LEN + 4) as u64 + self.body_len
     }
 
-    /// Reads the record at `offset`, which must end at or before `limit`; its body counts
-    /// against `budget` (the index bytes the reader still accepts).
+    /// Reads the head of the record at `offset`, which must end at or before `limit`; its
+    /// body counts against `budget` (the index bytes the reader still accepts).
     pub(crate) fn read(
         source: &dyn ByteSource,
         offset: u64,
@@ -401,27 +404,74 @@ impl RawRecord {
             )));
         }
         *budget -= body_len;
-        let mut rest = vec![0u8; body_len as usize + 4];
-        source.read_exact_at(offset + RECORD_HEAD_LEN as u64, &mut rest)?;
-        let crc_at = rest.len() - 4;
-        let stored = u32::from_le_bytes([
-            rest[crc_at],
-            rest[crc_at + 1],
-            rest[crc_at + 2],
-            rest[crc_at + 3],
-        ]);
-        let mut hasher = crc32c::crc32c(&head);
-        hasher = crc32c::crc32c_append(hasher, &rest[..crc_at]);
-        if hasher != stored {
-            return Ok(Err(FormatViolation::Checksum("segment record")));
-        }
-        rest.truncate(crc_at);
         Ok(Ok(Self {
             offset,
             previous,
             first_sample,
-            body: rest,
+            body_len,
         }))
+    }
+
+    /// Reads the body and checks the record's checksum (head and body); the head is read
+    /// again, so that what is checked is what the file holds now.
+    pub(crate) fn read_body(
+        self,
+        source: &dyn ByteSource,
+    ) -> Result<Result<RawRecord, FormatViolation>, std::io::Error> {
+        let mut record = vec![0u8; RECORD_HEAD_LEN + self.body_len as usize + 4];
+        source.read_exact_at(self.offset, &mut record)?;
+        let crc_at = record.len() - 4;
+        let stored = u32::from_le_bytes([
+            record[crc_at],
+            record[crc_at + 1],
+            record[crc_at + 2],
+            record[crc_at + 3],
+        ]);
+        if crc32c::crc32c(&record[..crc_at]) != stored {
+            return Ok(Err(FormatViolation::Checksum("segment record")));
+        }
+        let mut c = Cursor::new(&record[8..RECORD_HEAD_LEN], "segment record");
+        let same = (|| Ok::<_, FormatViolation>((c.u64()?, c.u32()?, u64::from(c.u32()?))))()
+            .is_ok_and(|head| head == (self.previous, self.first_sample, self.body_len));
+        if record[..8] != SEGMENT_MAGIC || !same {
+            return Ok(Err(corrupt(
+                "segment record",
+                "its head changed while it was read",
+            )));
+        }
+        record.truncate(crc_at);
+        record.drain(..RECORD_HEAD_LEN);
+        Ok(Ok(RawRecord {
+            offset: self.offset,
+            first_sample: self.first_sample,
+            body: record,
+        }))
+    }
+}
+
+/// A record read and checksummed, its body not yet decoded.
+pub(crate) struct RawRecord {
+    pub(crate) offset: u64,
+    pub(crate) first_sample: u32,
+    pub(crate) body: Vec<u8>,
+}
+
+impl RawRecord {
+    pub(crate) fn end(&self) -> u64 {
+        self.offset + (RECORD_HEAD_LEN + self.body.len() + 4) as u64
+    }
+
+    /// Reads the record at `offset` (see [`RecordHead::read`]) and its body.
+    pub(crate) fn read(
+        source: &dyn ByteSource,
+        offset: u64,
+        limit: u64,
+        budget: &mut u64,
+    ) -> Result<Result<Self, FormatViolation>, std::io::Error> {
+        match RecordHead::read(source, offset, limit, budget)? {
+            Ok(head) => head.read_body(source),
+            Err(violation) => Ok(Err(violation)),
+        }
     }
 
     /// Decodes the body: the axis piece, then the tile index, whose tiles must lie in
