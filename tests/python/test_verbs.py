@@ -117,6 +117,29 @@ def test_record_into_a_missing_file_builds_its_base(halves, tmp_path):
         assert retrieved.read_bytes() == run_retrieve_of(halves, i, tmp_path)
 
 
+def test_record_compacts_in_the_background(halves, tmp_path):
+    """`auto_compact="background"`: commits go on while the file is compacted on a thread
+    of its own; the maps committed meanwhile are added to the result, which replaces the
+    file; every map then retrieves as from a build of the whole series (and reads in
+    octomap-python)."""
+    out = tmp_path / "background.froct"
+    pairs = [(int(t), p.read_bytes()) for p, t in halves["rows"]]
+    summary = froctomap.record(out, pairs, commit_every=1, auto_compact="background")
+    assert (summary["committed_maps"], summary["commits"]) == (12, 12)
+    compactions = [e for e in summary["events"] if e["event"] == "compaction"]
+    assert summary["compactions"] == len(compactions) > 0
+    # The first compaction is due before the last commit: its result took that commit.
+    assert any(e["maps_added_meanwhile"] > 0 for e in compactions), compactions
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".froct-")]
+    for i in range(len(halves["rows"])):
+        retrieved = tmp_path / "r.bt"
+        run_cli("retrieve", out, "--time", f"index:{i}", "-o", retrieved)
+        assert octomap.OcTree(0.1).readBinary(retrieved.read_bytes())
+        assert retrieved.read_bytes() == run_retrieve_of(halves, i, tmp_path), i
+    with pytest.raises(froctomap.FroctError, match="auto_compact"):
+        froctomap.record(tmp_path / "x.froct", pairs, auto_compact="later")
+
+
 def run_retrieve_of(halves, i: int, tmp_path: Path) -> bytes:
     """The command line's own retrieval of sample `i` from a build of the whole series."""
     whole = tmp_path / "whole.froct"

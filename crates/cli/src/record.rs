@@ -19,8 +19,8 @@ use crate::ui::{escaped, Ui};
 use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
 use froctomap_convert::{
-    group_thousands, AppendOptions, CommitEvery, Context, Opened, RecordError, RecordEvent,
-    RecordOptions, RecordSummary, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
+    group_thousands, AppendOptions, CommitEvery, Compaction, Context, Opened, RecordError,
+    RecordEvent, RecordOptions, RecordSummary, Recorder, SeriesInput, MANIFEST_NAME, STDIN_INPUT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -31,6 +31,7 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::time::Duration;
 
 #[derive(Args)]
 pub struct RecordArgs {
@@ -81,6 +82,14 @@ pub struct RecordArgs {
     /// where automatic compaction was opt-in keep working.
     #[arg(long, hide = true, conflicts_with = "no_compact")]
     auto_compact: bool,
+    /// Compact on a thread of its own while maps keep being taken and committed (the file
+    /// as committed when a compaction is due is compacted beside it, the maps committed
+    /// meanwhile are added to the result, which then replaces the file): for live sources
+    /// (--follow), whose maps would otherwise wait for as long as a build of the whole
+    /// history. Needs the compaction's memory on top of the commits'. At the end `record`
+    /// waits for a compaction still running; stopped by a signal, it abandons it.
+    #[arg(long, conflicts_with = "no_compact")]
+    compact_in_background: bool,
     /// A temporal model option (KEY=VALUE, repeatable): for the base a missing FILE is
     /// built with and for automatic compactions (see `froctomap models`).
     #[arg(long, value_name = "KEY=VALUE")]
@@ -225,7 +234,17 @@ pub fn record_command(ui: &Ui, args: &RecordArgs) -> Result<()> {
         }
     }
     recording.commit()?;
-    let summary = recording.recorder.finish()?;
+    if recording.recorder.compacting() && !STOP.load(Ordering::SeqCst) {
+        ui.note("waiting for the compaction running in the background (Ctrl-C abandons it)");
+        while recording.recorder.compacting() && !STOP.load(Ordering::SeqCst) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    let summary = if STOP.load(Ordering::SeqCst) {
+        recording.recorder.stop()?
+    } else {
+        recording.recorder.finish()?
+    };
     if STOP.load(Ordering::SeqCst) {
         ui.note("stopped by a signal: the maps received are committed");
     }
@@ -247,7 +266,13 @@ fn record_options(ui: &Ui, args: &RecordArgs, spool_parent: PathBuf) -> Result<R
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
-        compact: !args.no_compact,
+        compact: if args.no_compact {
+            Compaction::Off
+        } else if args.compact_in_background {
+            Compaction::Background
+        } else {
+            Compaction::AfterCommit
+        },
     };
     for assignment in &args.model_option {
         options
@@ -405,8 +430,12 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
             print_input_notes(ui, &commit.warnings, &commit.skipped);
         }
         RecordEvent::Compacted(compacted) => {
+            let meanwhile = match compacted.maps_added_meanwhile {
+                0 => String::new(),
+                maps => format!(", in the background ({maps} maps committed meanwhile added)"),
+            };
             let printed = outln!(
-                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms",
+                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms{meanwhile}",
                 compacted.segments_before,
                 group_thousands(compacted.bytes_before),
                 group_thousands(compacted.bytes),
@@ -416,6 +445,10 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
                 failed.borrow_mut().get_or_insert(error);
             }
         }
+        RecordEvent::CompactionFailed(error) => ui.note(&format!(
+            "warning: the background compaction failed (every commit is kept; no more compactions in this run): {}",
+            escaped(froctomap_core::error_message(*error))
+        )),
         RecordEvent::LeftOut { maps, what, error } => {
             let why = escaped(format!("{what}: {}", froctomap_core::error_message(*error)));
             match maps {

@@ -491,10 +491,9 @@ fn open_recording<'a>(
     args: &Ros2Args,
     min_interval: Duration,
 ) -> anyhow::Result<RecordingSink<'a>> {
-    // A bad map over the wire is left out (and said), never the end of the node; no
-    // automatic compaction: it blocks the map intake for as long as a build of the whole
-    // history takes, while the DDS reader keeps only the last 16 maps. `froctomap compact
-    // FILE` with the node stopped does it (docs/ROS.md).
+    // A bad map over the wire is left out (and said), never the end of the node; compaction
+    // in the background: in place it would block the map intake for as long as a build of
+    // the whole history takes, while the DDS reader keeps only the last 16 maps.
     let options = RecordOptions::for_live_source(args.commit_every);
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
@@ -558,7 +557,21 @@ fn open_recording<'a>(
             );
         }
         // A compaction replaces the file: the reader held sees the old one.
-        RecordEvent::Compacted(_) => view = None,
+        RecordEvent::Compacted(report) => {
+            view = None;
+            println!(
+                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms, {} maps committed meanwhile added",
+                report.segments_before,
+                group_thousands(report.bytes_before),
+                group_thousands(report.bytes),
+                (report.seconds * 1000.0).round(),
+                report.maps_added_meanwhile
+            );
+        }
+        RecordEvent::CompactionFailed(error) => eprintln!(
+            "warning: the background compaction failed (every commit is kept; no more compactions until the node restarts): {}",
+            froctomap_core::error_message(error)
+        ),
         _ => {}
     });
     Ok(RecordingSink::new(recorder, args.time_source, min_interval))

@@ -177,10 +177,13 @@ fn record_killed_at_random_instants_keeps_every_printed_commit() {
         let file = work.join("map.froct");
         first_map(&series, &file);
         let delay = delays.next(whole);
-        // Every other run may compact (the default), and may be killed compacting.
+        // Runs compact in place (the default), not at all, or in the background while
+        // committing, and may be killed compacting.
         let mut args = vec!["record", s(&file), "-", "--commit-every", "2"];
-        if run % 2 == 1 {
-            args.push("--no-compact");
+        match run % 3 {
+            1 => args.push("--no-compact"),
+            2 => args.push("--compact-in-background"),
+            _ => {}
         }
         let stdout = killed_after(&args, &series.stream, delay);
         let held = samples(&file);

@@ -631,3 +631,60 @@ fn automatic_compaction_keeps_a_recorded_file_within_1_5_times_its_build() {
     assert_eq!(samples(&compacted), 9);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
 }
+
+/// `--compact-in-background`: maps keep being committed while the file is compacted on a
+/// thread of its own; the compaction's result gets the maps committed meanwhile and then
+/// replaces the file, which retrieves every snapshot as a build of the same maps does and
+/// compacts to that build's tiles; nothing is left beside it.
+#[test]
+fn a_background_compaction_adds_the_maps_committed_meanwhile() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, whole) = built(dir.path(), "maps", &LONGER);
+    let file = dir.path().join("recorded.froct");
+    let output = froctomap()
+        .args(["record", s(&file), "-", "--commit-every", "1"])
+        .arg("--compact-in-background")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .and_then(|mut child| {
+            child.stdin.take().unwrap().write_all(&stream(&LONGER))?;
+            child.wait_with_output()
+        })
+        .unwrap();
+    let (stdout, stderr) = (text(&output.stdout), text(&output.stderr));
+    assert!(output.status.success(), "record: {stderr}");
+    assert_eq!(commit_lines(&stdout).len(), 8, "{stdout}");
+    // A compaction starts after the commit that makes it due and is swapped in at the first
+    // commit after it is done, or at the end: the first is due before the last commit, so
+    // its result took at least that commit's map.
+    let meanwhile: Vec<usize> = stdout
+        .lines()
+        .filter(|line| line.starts_with("compacted: "))
+        .map(|line| {
+            let (_, added) = line
+                .split_once("in the background (")
+                .unwrap_or_else(|| panic!("not a background compaction: {line}"));
+            added.split(' ').next().unwrap().parse().unwrap()
+        })
+        .collect();
+    assert!(meanwhile.iter().any(|&maps| maps > 0), "{stdout}");
+    assert_eq!(samples(&file), 9);
+    same_snapshots(&file, &whole, 9);
+    // Compacted once more, it holds the build's tiles, byte for byte.
+    let compacted = dir.path().join("compacted.froct");
+    ok(&["-q", "compact", s(&file), "-o", s(&compacted)]);
+    let tiles = |path: &Path, reader: &froctomap_file::FroctReader| {
+        let bytes = std::fs::read(path).unwrap();
+        let (first, last) = (&reader.tiles()[0], reader.tiles().last().unwrap());
+        bytes[first.offset as usize..(last.offset + u64::from(last.stored_len)) as usize].to_vec()
+    };
+    let living = froctomap_file::LivingReader::open(&compacted).unwrap();
+    let build = froctomap_file::FroctReader::open(&whole).unwrap();
+    assert!(
+        tiles(&compacted, living.base()) == tiles(&whole, &build),
+        "the compacted recording's tiles differ from the build's"
+    );
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+}

@@ -112,6 +112,17 @@ pub struct CompactReport {
     pub toggles: u64,
     /// Seconds the whole compaction took.
     pub seconds: f64,
+    /// Maps a recorder committed to the file while it was compacted in the background,
+    /// added to the result before it replaced the file ([`Compaction::Background`]); 0
+    /// otherwise (and then not in the JSON).
+    ///
+    /// [`Compaction::Background`]: crate::Compaction::Background
+    #[serde(skip_serializing_if = "is_zero")]
+    pub maps_added_meanwhile: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// Rewrites `file`'s base and segments as one base: into `output`, or in place (replacing
@@ -181,9 +192,36 @@ fn compact_with(
     options: &CompactOptions,
     progress: &dyn Progress,
 ) -> Result<CompactReport, ConvertError> {
+    let series = context.open_series(file)?;
+    compact_series(context, series, file, output, writer, options, progress)
+}
+
+/// [`compact`] of `series`, opened from `file` (the state it saw then is what is
+/// compacted, whatever is committed meanwhile), into `output`: how a background compaction
+/// compacts a file that a recorder keeps appending to.
+pub(crate) fn compact_opened(
+    context: &Context,
+    series: FroctFile,
+    file: &Path,
+    output: &Path,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    refuse_overwriting_input(output, [file])?;
+    compact_series(context, series, file, Some(output), None, options, progress)
+}
+
+fn compact_series(
+    context: &Context,
+    series: FroctFile,
+    file: &Path,
+    output: Option<&Path>,
+    writer: Option<LivingWriter>,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
     let started = Instant::now();
     let target = output.unwrap_or(file);
-    let series = context.open_series(file)?;
     let version_before = version_text(series.version());
     let segments_before = series.segment_count();
     let bytes_before = match &series {
@@ -298,6 +336,7 @@ fn compact_with(
         bytes,
         toggles: merged.toggles,
         seconds: started.elapsed().as_secs_f64(),
+        maps_added_meanwhile: 0,
     })
 }
 

@@ -44,6 +44,7 @@
 //! ```
 
 mod anomaly;
+mod background_compaction;
 mod build;
 mod compact;
 mod context;
@@ -117,8 +118,8 @@ pub use query::{
     CellGeometry, HistorySample, VoxelHistory,
 };
 pub use record::{
-    CommitEvery, CommitReport, Opened, RecordError, RecordEvent, RecordOptions, RecordSummary,
-    Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
+    CommitEvery, CommitReport, Compaction, Opened, RecordError, RecordEvent, RecordOptions,
+    RecordSummary, Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
 };
 pub use recording::{describe_recording, RecordedMap, RecordedTopicInfo, RecordingInfo};
 pub use recording_export::{occupied_cells_above, occupied_cells_at};

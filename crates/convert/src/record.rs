@@ -14,6 +14,7 @@
 //! that cannot grow is refused before anything is written. At the file's segment limit the
 //! next commit is refused ([`RecordError::SegmentLimit`]) until the file is compacted.
 
+use crate::background_compaction::BackgroundCompaction;
 use crate::build::{
     append_segment, build, is_living_file, output_dir, refuse_growing_fixed_span, AppendOptions,
     BuildOptions,
@@ -48,16 +49,6 @@ impl Default for CommitEvery {
     }
 }
 
-/// Reads what `record --commit-every` takes: a number of maps (`720`) or a duration (`5s`,
-/// `1min`).
-///
-/// ```
-/// use froctomap_convert::CommitEvery;
-/// use std::time::Duration;
-/// assert_eq!("720".parse::<CommitEvery>().unwrap(), CommitEvery::Maps(720));
-/// assert_eq!("5s".parse::<CommitEvery>().unwrap(), CommitEvery::Time(Duration::from_secs(5)));
-/// assert!("0".parse::<CommitEvery>().unwrap_err().to_string().contains("at least 1 map"));
-/// ```
 /// How `record` says it: `720 maps`, `5.000 s`.
 impl std::fmt::Display for CommitEvery {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -68,6 +59,16 @@ impl std::fmt::Display for CommitEvery {
     }
 }
 
+/// Reads what `record --commit-every` takes: a number of maps (`720`) or a duration (`5s`,
+/// `1min`).
+///
+/// ```
+/// use froctomap_convert::CommitEvery;
+/// use std::time::Duration;
+/// assert_eq!("720".parse::<CommitEvery>().unwrap(), CommitEvery::Maps(720));
+/// assert_eq!("5s".parse::<CommitEvery>().unwrap(), CommitEvery::Time(Duration::from_secs(5)));
+/// assert!("0".parse::<CommitEvery>().unwrap_err().to_string().contains("at least 1 map"));
+/// ```
 impl std::str::FromStr for CommitEvery {
     type Err = TimeError;
 
@@ -102,10 +103,29 @@ pub struct RecordOptions {
     pub append: AppendOptions,
     /// Where the spool of maps taken as bytes goes; `None`: beside the file.
     pub spool_dir: Option<PathBuf>,
-    /// Compact the file after a commit when due (see [`Recorder`]); `true` by default. A
-    /// compaction refits with `append.config.options`, not the options the file was built
-    /// with (files do not record them).
-    pub compact: bool,
+    /// When and how the file is compacted once due (see [`Recorder`]); after the commit
+    /// that makes it due by default. A compaction refits with `append.config.options`, not
+    /// the options the file was built with (files do not record them).
+    pub compact: Compaction,
+}
+
+/// How a [`Recorder`] compacts its file once a compaction is due (see [`Recorder`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Compaction {
+    /// Never: the file grows by a segment per commit until `froctomap compact` makes it one
+    /// base again.
+    Off,
+    /// In place, right after the commit that makes it due: no map is taken until it is done
+    /// (a caller's queue or pipe holds them meanwhile).
+    #[default]
+    AfterCommit,
+    /// On a thread of its own while commits go on: the file as committed when it became
+    /// due is compacted beside it, the maps committed meanwhile are added to the result,
+    /// which replaces the file at the first commit after it is done (or at
+    /// [`Recorder::finish`], which waits for it). For live sources, whose maps would be lost
+    /// while the recorder waited. Memory: the compaction's budget on top of the commits'.
+    Background,
 }
 
 impl Default for RecordOptions {
@@ -114,7 +134,7 @@ impl Default for RecordOptions {
             commit_every: CommitEvery::default(),
             append: AppendOptions::default(),
             spool_dir: None,
-            compact: true,
+            compact: Compaction::AfterCommit,
         }
     }
 }
@@ -138,13 +158,13 @@ pub const SPAN_GROWTH: i64 = 2;
 impl RecordOptions {
     /// The options of a live source (a ROS 2 subscription): commits every `commit_every`,
     /// a bad map is left out and said, never the end of the recording (`skip_bad`, however
-    /// many are skipped), the spool beside the file and no automatic compaction (it would
-    /// stall the intake for as long as a build of the whole history).
+    /// many are skipped), the spool beside the file and compaction in the background (in
+    /// place it would stall the intake for as long as a build of the whole history).
     ///
     /// ```
-    /// use froctomap_convert::{CommitEvery, RecordOptions};
+    /// use froctomap_convert::{CommitEvery, Compaction, RecordOptions};
     /// let options = RecordOptions::for_live_source(CommitEvery::Maps(2));
-    /// assert!(options.append.skip_bad && !options.compact);
+    /// assert!(options.append.skip_bad && options.compact == Compaction::Background);
     /// ```
     pub fn for_live_source(commit_every: CommitEvery) -> Self {
         Self {
@@ -155,7 +175,7 @@ impl RecordOptions {
                 ..AppendOptions::default()
             },
             spool_dir: None,
-            compact: false,
+            compact: Compaction::Background,
         }
     }
 }
@@ -213,8 +233,13 @@ pub enum RecordEvent<'e> {
         /// Why.
         error: &'e ConvertError,
     },
-    /// The file compacted after a commit: base and segments refitted into one base.
+    /// The file compacted after a commit: base and segments refitted into one base (in
+    /// the background: swapped in, [`CompactReport::maps_added_meanwhile`] the maps
+    /// committed while it ran).
     Compacted(&'e CompactReport),
+    /// A background compaction failed: the file keeps every commit, as before it, and
+    /// this recorder compacts no more (`froctomap compact` the file later).
+    CompactionFailed(&'e RecordError),
     /// A commit of several maps failed and is tried again as two halves, in order (a bad
     /// map among them is then found and left out, or the failure repeats): how many maps,
     /// which, and the error of the whole.
@@ -356,6 +381,10 @@ pub struct Recorder<'a> {
     gathering_since: Option<Instant>,
     summary: RecordSummary,
     observer: Observer<'a>,
+    /// A compaction running on its own thread ([`Compaction::Background`]).
+    background: Option<BackgroundCompaction>,
+    /// A background compaction failed: no more are started.
+    compaction_failed: bool,
 }
 
 impl std::fmt::Debug for Recorder<'_> {
@@ -419,6 +448,8 @@ impl<'a> Recorder<'a> {
             gathering_since: None,
             summary: RecordSummary::default(),
             observer: Box::new(|_| {}),
+            background: None,
+            compaction_failed: false,
         })
     }
 
@@ -523,8 +554,15 @@ impl<'a> Recorder<'a> {
         }
         series.sort_by_key(|input| input.time);
         self.commit_pieces(&series)?;
+        if self.background.as_ref().is_some_and(|b| b.is_finished()) {
+            self.swap_in_background()?;
+        }
         if self.compaction_due() {
-            self.compact()?;
+            match self.options.compact {
+                Compaction::AfterCommit => self.compact()?,
+                Compaction::Background => self.start_background()?,
+                _ => {}
+            }
         }
         Ok(())
     }
@@ -535,7 +573,8 @@ impl<'a> Recorder<'a> {
             return false;
         };
         let reader = writer.reader();
-        if !self.options.compact || reader.segment_count() == 0 {
+        let off = self.options.compact == Compaction::Off || self.compaction_failed;
+        if off || self.background.is_some() || reader.segment_count() == 0 {
             return false;
         }
         let root = reader.root();
@@ -559,13 +598,7 @@ impl<'a> Recorder<'a> {
         let Some(writer) = self.writer.take() else {
             return Ok(());
         };
-        let append = &self.options.append;
-        let options = CompactOptions {
-            model_options: append.config.options.clone(),
-            memory: append.memory,
-            tmp_dir: append.tmp_dir.clone(),
-            ..CompactOptions::default()
-        };
+        let options = self.compact_options();
         let compacted = compact_held(self.context, writer, &options, &Silent);
         // Opened again whether or not it succeeded: a failed compaction left the file as
         // it was.
@@ -594,10 +627,110 @@ impl<'a> Recorder<'a> {
         Ok(())
     }
 
-    /// Commits what is gathered and ends the recording (the writer lock is released).
+    /// Starts compacting the file as committed now on a thread of its own.
+    fn start_background(&mut self) -> Result<(), RecordError> {
+        let series = self.context.open_series(&self.file)?;
+        let started = BackgroundCompaction::start(
+            self.context,
+            series,
+            &self.file,
+            self.compact_options(),
+            self.options.append.clone(),
+        );
+        match started {
+            Ok(background) => self.background = Some(background),
+            Err(error) => {
+                self.compaction_failed = true;
+                (self.observer)(RecordEvent::CompactionFailed(&error));
+            }
+        }
+        Ok(())
+    }
+
+    /// Waits for the background compaction (if any), adds to its result the maps committed
+    /// since it last looked, and makes it the file. A failure is said
+    /// ([`RecordEvent::CompactionFailed`]), and leaves the file as it was: recording goes
+    /// on, without compactions.
+    fn swap_in_background(&mut self) -> Result<(), RecordError> {
+        let Some(background) = self.background.take() else {
+            return Ok(());
+        };
+        let swapped = background.join().and_then(|mut compacted| {
+            compacted.catch_up(self.context, &self.file, &self.options.append, &Silent)?;
+            let held = self
+                .writer
+                .take()
+                .ok_or_else(|| ConvertError::internal("no writer to replace"))?;
+            let writer = held
+                .replace_with(compacted.writer, self.context.models())
+                .map_err(ConvertError::from)?;
+            self.writer = Some(writer);
+            let mut report = compacted.report;
+            report.bytes = self
+                .writer
+                .as_ref()
+                .map_or(0, |w| w.reader().root().committed_len);
+            report.seconds = compacted.started.elapsed().as_secs_f64();
+            Ok(report)
+        });
+        match swapped {
+            Ok(report) => {
+                self.summary.compactions += 1;
+                (self.observer)(RecordEvent::Compacted(&report));
+            }
+            Err(error) => {
+                self.compaction_failed = true;
+                (self.observer)(RecordEvent::CompactionFailed(&error));
+            }
+        }
+        if self.writer.is_none() {
+            // Lost with a swap that failed midway: the file is as it was.
+            self.writer = Some(
+                LivingWriter::open_with_limits(
+                    &self.file,
+                    self.context.limits().froct,
+                    self.context.models(),
+                )
+                .map_err(ConvertError::from)?,
+            );
+        }
+        Ok(())
+    }
+
+    /// The options of the recorder's compactions.
+    fn compact_options(&self) -> CompactOptions {
+        let append = &self.options.append;
+        CompactOptions {
+            model_options: append.config.options.clone(),
+            memory: append.memory,
+            tmp_dir: append.tmp_dir.clone(),
+            ..CompactOptions::default()
+        }
+    }
+
+    /// Commits what is gathered and ends the recording (the writer lock is released); a
+    /// background compaction still running is waited for and swapped in.
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
         self.commit()?;
+        self.swap_in_background()?;
         Ok(self.summary)
+    }
+
+    /// Commits what is gathered and ends the recording at once (the writer lock is
+    /// released): a background compaction still running is cancelled, its work lost, the
+    /// file as committed (how a live recorder stops on a signal).
+    pub fn stop(mut self) -> Result<RecordSummary, RecordError> {
+        self.commit()?;
+        if self.background.as_ref().is_some_and(|b| b.is_finished()) {
+            self.swap_in_background()?;
+        }
+        drop(self.background.take());
+        Ok(self.summary)
+    }
+
+    /// Whether a background compaction is running (not yet done).
+    pub fn compacting(&self) -> bool {
+        self.background.as_ref().is_some_and(|b| !b.is_finished())
     }
 
     /// Whether a map at `time` is later than the last one taken (else it is counted as

@@ -181,7 +181,7 @@ fn series_probabilities_of_a_living_file_follow_its_predicted_map() {
     let options = RecordOptions {
         commit_every: CommitEvery::Maps(12),
         // Kept in segments: what this test reads.
-        compact: false,
+        compact: froctomap_convert::Compaction::Off,
         ..RecordOptions::default()
     };
     let mut recorder = Recorder::open(&context, &living, options).unwrap();

@@ -10,9 +10,9 @@ use crate::times::instant;
 use froctomap_convert::{
     compact as compact_file, describe_map_file, describe_recording, describe_series,
     export as export_maps, ingest, is_living_file, refuse_overwriting_input, AppendReport,
-    CollectedInputs, CommitEvery, CompactFormat, CompactOptions, ExportMode, ExportOptions,
-    IngestOptions, IngestTarget, RecordEvent, RecordOptions, Recorder, RecordingProfile,
-    RecordingWriteOptions, SeriesInput, TimeSource, FROCT,
+    CollectedInputs, CommitEvery, CompactFormat, CompactOptions, Compaction, ExportMode,
+    ExportOptions, IngestOptions, IngestTarget, RecordEvent, RecordOptions, Recorder,
+    RecordingProfile, RecordingWriteOptions, SeriesInput, TimeSource, FROCT,
 };
 use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
@@ -349,7 +349,7 @@ enum Feed {
 /// seconds (`froctomap record`).
 #[pyfunction]
 #[pyo3(signature = (file, sources, *, commit_every = None, skip_bad = false,
-                    model_options = None, auto_compact = false, memory = None,
+                    model_options = None, auto_compact = None, memory = None,
                     tmp_dir = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn record<'py>(
@@ -359,7 +359,7 @@ pub fn record<'py>(
     commit_every: Option<&Bound<'py, PyAny>>,
     skip_bad: bool,
     model_options: Option<&Bound<'py, PyDict>>,
-    auto_compact: bool,
+    auto_compact: Option<&Bound<'py, PyAny>>,
     memory: Option<u64>,
     tmp_dir: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -390,7 +390,7 @@ pub fn record<'py>(
             ..IngestOptions::default()
         },
         spool_dir: Some(spool_dir.clone()),
-        compact: auto_compact,
+        compact: compaction(auto_compact)?,
     };
     options.append.config.options = model_config_options(model_options)?;
     let context = crate::plugins::context().clone().with_recording_options(
@@ -459,6 +459,26 @@ fn feed_recorder(
     Ok(())
 }
 
+/// `record`'s `auto_compact`: `False` (or `None`), `True`, or `"background"`.
+fn compaction(value: Option<&Bound<'_, PyAny>>) -> PyResult<Compaction> {
+    let Some(value) = value.filter(|v| !v.is_none()) else {
+        return Ok(Compaction::Off);
+    };
+    if let Ok(on) = value.extract::<bool>() {
+        return Ok(if on {
+            Compaction::AfterCommit
+        } else {
+            Compaction::Off
+        });
+    }
+    match value.extract::<String>().as_deref() {
+        Ok("background") => Ok(Compaction::Background),
+        _ => Err(froct_error_text(
+            "auto_compact: False, True or \"background\"",
+        )),
+    }
+}
+
 /// The recorder's thread: takes what the feed sends, commits when due and at the end;
 /// returns the summary as JSON text.
 fn run_recorder(
@@ -494,6 +514,11 @@ fn run_recorder(
                 "segments_before": report.segments_before,
                 "bytes_before": report.bytes_before,
                 "bytes": report.bytes,
+                "maps_added_meanwhile": report.maps_added_meanwhile,
+            }),
+            RecordEvent::CompactionFailed(error) => json!({
+                "event": "compaction_failed",
+                "error": message(error),
             }),
             RecordEvent::LeftOut { maps, what, error } => json!({
                 "event": "left_out",

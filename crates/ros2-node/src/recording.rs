@@ -114,10 +114,11 @@ impl<'a> RecordingSink<'a> {
         self.recorder.summary()
     }
 
-    /// Commits what is gathered and ends the recording.
+    /// Commits what is gathered and ends the recording at once: a background compaction
+    /// still running is abandoned (the file keeps every commit; the next run compacts).
     pub fn finish(mut self) -> Result<RecordSummary, CommitFailed> {
         self.counting_lost(false, |recorder| recorder.commit().map(|()| true))?;
-        self.recorder.finish().map_err(|source| CommitFailed {
+        self.recorder.stop().map_err(|source| CommitFailed {
             lost: 0,
             source: Box::new(source),
         })

@@ -266,7 +266,7 @@ def record(
     commit_every: Union[int, str, float, None] = None,
     skip_bad: bool = False,
     model_options: Optional[Mapping[str, Any]] = None,
-    auto_compact: bool = False,
+    auto_compact: Union[bool, str] = False,
     memory: Optional[int] = None,
     tmp_dir: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
@@ -286,6 +286,12 @@ def record(
     ``compactions``, ``opened`` (``"living"``, ``"converted"``, ``"missing"``) and
     ``events`` (one dict per commit, compaction, map left out or commit retried as two
     halves after an error, its kind under ``"event"``).
+
+    ``auto_compact``: ``False`` (the default: the caller decides when to ``compact``),
+    ``True`` (in place after the commit that makes a compaction due, as ``froctomap
+    record``) or ``"background"`` (on a thread of its own while maps keep being taken; the
+    maps committed meanwhile are added to the result, which then replaces the file; the
+    end waits for it).
     """
     return _native.record(
         file, _maps(sources), commit_every=commit_every, skip_bad=skip_bad,
