@@ -15,15 +15,14 @@
 use crate::build::{append_segment, output_dir, AppendOptions};
 use crate::compact::{compact_opened, CompactOptions, CompactReport, COMPACT_PREFIX};
 use crate::context::Context;
-use crate::inputs::collect_recording;
+use crate::error::ConvertError;
+use crate::inputs::SeriesInput;
 use crate::maps::observed_bt;
 use crate::progress::Progress;
-use crate::record::RecordError;
 use crate::series_file::{FroctFile, SeriesRead};
 use froctomap_core::{temporary_dir_in, AtomicWriteError, TemporaryDir, Timestamp};
 use froctomap_file::LivingWriter;
-use froctomap_formats::MapSpool;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -33,7 +32,7 @@ use std::time::Instant;
 /// temporary directory removed) and waited for.
 pub(crate) struct BackgroundCompaction {
     cancel: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<Compacted, RecordError>>>,
+    thread: Option<JoinHandle<Result<Compacted, ConvertError>>>,
 }
 
 /// A finished background compaction: the compacted file (2.0, the maps committed while it
@@ -55,7 +54,7 @@ impl BackgroundCompaction {
         file: &Path,
         options: CompactOptions,
         append: AppendOptions,
-    ) -> Result<Self, RecordError> {
+    ) -> Result<Self, ConvertError> {
         let cancel = Arc::new(AtomicBool::new(false));
         let flag = CancelFlag(Arc::clone(&cancel));
         let context = context.clone();
@@ -76,13 +75,12 @@ impl BackgroundCompaction {
     }
 
     /// Waits for the thread and gives what it made.
-    pub(crate) fn join(mut self) -> Result<Compacted, RecordError> {
+    pub(crate) fn join(mut self) -> Result<Compacted, ConvertError> {
         match self.thread.take().map(JoinHandle::join) {
             Some(Ok(result)) => result,
-            Some(Err(_)) | None => Err(crate::ConvertError::internal(
+            Some(Err(_)) | None => Err(ConvertError::internal(
                 "the background compaction's thread panicked",
-            )
-            .into()),
+            )),
         }
     }
 }
@@ -115,7 +113,7 @@ fn compact_beside(
     options: &CompactOptions,
     append: &AppendOptions,
     progress: &CancelFlag,
-) -> Result<Compacted, RecordError> {
+) -> Result<Compacted, ConvertError> {
     let started = Instant::now();
     let parent = output_dir(file);
     let dir = temporary_dir_in(parent, COMPACT_PREFIX.as_ref())
@@ -128,7 +126,7 @@ fn compact_beside(
     let report = compact_opened(context, series, file, &compacted, options, progress)?;
     let writer =
         LivingWriter::open_with_limits(&compacted, context.limits().froct, context.models())
-            .map_err(crate::ConvertError::from)?;
+            .map_err(ConvertError::from)?;
     let mut compacted = Compacted {
         writer,
         report,
@@ -148,7 +146,7 @@ impl Compacted {
         file: &Path,
         append: &AppendOptions,
         progress: &dyn Progress,
-    ) -> Result<usize, RecordError> {
+    ) -> Result<usize, ConvertError> {
         let source = context.open_series(file)?;
         let after = self.writer.reader().last_instant();
         let mut later: Vec<(u32, Timestamp)> = Vec::new();
@@ -166,15 +164,18 @@ impl Compacted {
             return Ok(0);
         }
         later.reverse();
-        let name = file.display().to_string();
+        // Each map as the `.bt` file it retrieves as, in the work directory until the
+        // compaction's directory goes.
         let work = self._dir.path().join("work");
-        let mut spool = MapSpool::new(Some(&work), &name)?;
+        let mut series = Vec::with_capacity(later.len());
         for &(sample, time) in &later {
             crate::progress::stop_if_cancelled(progress)?;
-            spool.push(time, &observed_bt(&source, sample)?)?;
+            let path = work.join(format!("caught-up-{sample}.bt"));
+            std::fs::write(&path, observed_bt(&source, sample)?)
+                .map_err(|source| written(&path, source))?;
+            series.push(SeriesInput::new(path, time));
         }
         drop(source);
-        let series = collect_recording(PathBuf::from(name), spool.into_recording()?)?.series;
         append_segment(context, &mut self.writer, &series, append, progress)?;
         self.report.maps_added_meanwhile += later.len();
         Ok(later.len())
@@ -182,10 +183,9 @@ impl Compacted {
 }
 
 /// The compaction's work beside the file could not be made or written.
-fn written(dir: &Path, source: std::io::Error) -> RecordError {
-    crate::ConvertError::from(AtomicWriteError {
-        path: dir.to_path_buf(),
+fn written(path: &Path, source: std::io::Error) -> ConvertError {
+    ConvertError::from(AtomicWriteError {
+        path: path.to_path_buf(),
         source,
     })
-    .into()
 }

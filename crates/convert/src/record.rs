@@ -239,7 +239,7 @@ pub enum RecordEvent<'e> {
     Compacted(&'e CompactReport),
     /// A background compaction failed: the file keeps every commit, as before it, and
     /// this recorder compacts no more (`froctomap compact` the file later).
-    CompactionFailed(&'e RecordError),
+    CompactionFailed(&'e ConvertError),
     /// A commit of several maps failed and is tried again as two halves, in order (a bad
     /// map among them is then found and left out, or the failure repeats): how many maps,
     /// which, and the error of the whole.
