@@ -451,12 +451,48 @@ impl LivingReader {
     /// include what it inherits: the base cells (or their parts, as aligned nodes) that its
     /// stored cells do not cover, as inherited cells without outliers or mask.
     pub fn read_segment_tile(&self, k: usize, tile: usize) -> Result<Vec<SegmentCell>, FileError> {
+        let remainder = self.remainder(k, tile)?;
+        self.read_segment_tile_with(k, tile, remainder.as_deref())
+    }
+
+    /// The remainders of segment `k`'s tiles `tiles` (`None` for a tile that is not a
+    /// patch tile), its record decoded once for them and not cached: for a reader of every
+    /// segment's tile after tile (a compaction), which would miss the cache of the last
+    /// segments asked for each time, and which holds a few tiles' remainders per segment.
+    pub fn segment_tile_remainders(
+        &self,
+        k: usize,
+        tiles: std::ops::Range<usize>,
+    ) -> Result<Vec<Option<Arc<TileRemainder>>>, FileError> {
+        let beyond = || FileError::Invalid {
+            path: self.path.clone(),
+            violation: corrupt(
+                "segment tiles",
+                format!("segment {k} has no tiles {tiles:?}"),
+            ),
+        };
+        let flags = self.segment(k)?.patch_tiles.get(tiles.clone());
+        if !flags.ok_or_else(beyond)?.iter().any(|&patch| patch) {
+            return Ok(vec![None; tiles.len()]);
+        }
+        let patches = self.decode_patches(k)?;
+        Ok(patches.get(tiles.clone()).ok_or_else(beyond)?.to_vec())
+    }
+
+    /// [`read_segment_tile`](Self::read_segment_tile) with the tile's remainder given (from
+    /// [`segment_tile_remainders`](Self::segment_tile_remainders)).
+    pub fn read_segment_tile_with(
+        &self,
+        k: usize,
+        tile: usize,
+        remainder: Option<&TileRemainder>,
+    ) -> Result<Vec<SegmentCell>, FileError> {
         let segment = self.segment(k)?;
         let mut cells = Vec::new();
         segment
             .tiles
             .visit_cells(tile, |cell| cells.push(SegmentCell::from_cell(cell)))?;
-        if let Some(remainder) = self.remainder(k, tile)? {
+        if let Some(remainder) = remainder {
             let covered: Vec<(u64, u64)> = cells
                 .iter()
                 .map(|c| (c.start.0, c.start.0 + voxels_per_node(c.depth)))
@@ -532,6 +568,15 @@ impl LivingReader {
                 return Ok(patches);
             }
         }
+        let patches = self.decode_patches(k)?;
+        let mut cache = lock();
+        cache.insert(0, (k, Arc::clone(&patches)));
+        cache.truncate(CACHED_PATCHES);
+        Ok(patches)
+    }
+
+    /// Segment `k`'s patch remainders, its record read, checked and decoded again.
+    fn decode_patches(&self, k: usize) -> Result<Patches, FileError> {
         let segment = self.segment(k)?;
         let invalid = |v| self.invalid(v);
         // Counted against the index budget when the reader opened.
@@ -564,9 +609,6 @@ impl LivingReader {
         }
         self.check_patches(&record)?;
         let patches: Patches = record.patches.into();
-        let mut cache = lock();
-        cache.insert(0, (k, Arc::clone(&patches)));
-        cache.truncate(CACHED_PATCHES);
         Ok(patches)
     }
 

@@ -22,13 +22,15 @@ use crate::history::PackedCell;
 use crate::progress::Progress;
 use froctomap_core::{voxels_per_node, Occupancy, Timestamp};
 use froctomap_file::{
-    Cell, CellContent, FroctReader, Header, LivingReader, SegmentCell, SegmentContent, ToggleLayout,
+    Cell, CellContent, FroctReader, Header, LivingReader, SegmentCell, SegmentContent,
+    TileRemainder, ToggleLayout,
 };
 use froctomap_temporal::{ModelConfig, OutlierMode, TemporalModel, Toggles, VoxelObservations};
 use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 
 /// What [`merge_into`] wrote.
 #[derive(Debug)]
@@ -203,7 +205,15 @@ struct SegmentTiles<'a> {
     /// base's models are evaluated for the frozen prediction).
     seconds: Vec<f64>,
     next: usize,
+    /// The remainders of the tiles from `window.0` on, decoded together from the
+    /// segment's record ([`REMAINDER_WINDOW`] at a time).
+    window: (usize, Vec<Option<Arc<TileRemainder>>>),
 }
+
+/// How many tiles' remainders a segment's stream decodes at once: the merge walks every
+/// segment for each tile, so decoding a record per tile would decode each record once per
+/// tile; holding them all would hold every segment's remainders at once.
+const REMAINDER_WINDOW: usize = 8;
 
 impl<'a> SegmentTiles<'a> {
     fn new(living: &'a LivingReader, k: usize, samples: &'a SampleMap<'a>) -> Self {
@@ -219,12 +229,27 @@ impl<'a> SegmentTiles<'a> {
             samples,
             seconds,
             next: 0,
+            window: (0, Vec::new()),
         }
     }
 
-    fn tile(&self, i: usize) -> Result<TileHistory, ConvertError> {
+    /// Tile `i`'s remainder (the window moved on to `i` when it lies past it).
+    fn remainder(&mut self, i: usize) -> Result<Option<Arc<TileRemainder>>, ConvertError> {
+        let (from, held) = &self.window;
+        if i < *from || i >= from + held.len() {
+            let tiles = self.living.segment_tiles(self.k).len();
+            let window = i..(i + REMAINDER_WINDOW).min(tiles);
+            let held = self.living.segment_tile_remainders(self.k, window)?;
+            self.window = (i, held);
+        }
+        let (from, held) = &self.window;
+        Ok(held.get(i - from).cloned().flatten())
+    }
+
+    fn tile(&mut self, i: usize) -> Result<TileHistory, ConvertError> {
+        let remainder = self.remainder(i)?;
         let living = self.living;
-        let cells = living.read_segment_tile(self.k, i)?;
+        let cells = living.read_segment_tile_with(self.k, i, remainder.as_deref())?;
         let inherits = cells
             .iter()
             .any(|c| matches!(c.content, SegmentContent::Inherited { .. }));
