@@ -112,17 +112,16 @@ pub(crate) fn merge_into(
         .map(|(_, piece)| SampleMap::new(piece, &axis))
         .collect();
     let tile_depth = old.tile_depth;
-    let mut tiles: Box<dyn Iterator<Item = Result<TileHistory, ConvertError>> + Send + '_> =
-        Box::new(OldTiles::new(base, &base_samples));
+    // The base and the segments, in time order, merged as a balanced tree of seams: a
+    // chain (base + s0, then + s1, …) would unpack and pack every cell's history so far
+    // once per segment, the cost growing with the square of the segments.
+    let mut parts: Vec<TileStream<'_>> = vec![Box::new(OldTiles::new(base, &base_samples))];
     if let Some(living) = living {
         for (k, samples) in segment_samples.iter().enumerate() {
-            tiles = Box::new(merge_tiles(
-                tiles,
-                SegmentTiles::new(living, k, samples),
-                tile_depth,
-            ));
+            parts.push(Box::new(SegmentTiles::new(living, k, samples)));
         }
     }
+    let tiles = merged_in_order(parts, tile_depth);
     let tiles = tiles.map(move |tile| {
         tile.map(|tile| TileHistory::from_packed(coarsest(tile.into_packed(), tile_depth)))
     });
@@ -150,6 +149,26 @@ pub(crate) fn merge_into(
         maps,
         toggles: stats.toggles,
     })
+}
+
+/// A stream of tiles in Morton order.
+type TileStream<'a> = Box<dyn Iterator<Item = Result<TileHistory, ConvertError>> + Send + 'a>;
+
+/// `parts` (each later in time than the one before) merged into one stream, neighbours
+/// first, level by level.
+fn merged_in_order(mut parts: Vec<TileStream<'_>>, tile_depth: u8) -> TileStream<'_> {
+    while parts.len() > 1 {
+        let mut level = Vec::with_capacity(parts.len().div_ceil(2));
+        let mut pairs = parts.into_iter();
+        while let Some(earlier) = pairs.next() {
+            level.push(match pairs.next() {
+                Some(later) => Box::new(merge_tiles(earlier, later, tile_depth)) as TileStream<'_>,
+                None => earlier,
+            });
+        }
+        parts = level;
+    }
+    parts.pop().unwrap_or_else(|| Box::new(std::iter::empty()))
 }
 
 /// The instants of an axis's samples that have a map.
