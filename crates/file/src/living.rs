@@ -1097,6 +1097,19 @@ fn aligned_nodes(mut start: u64, end: u64, mut node: impl FnMut(MortonCode, u8))
 }
 
 /// Takes the exclusive lock of the one writer, or fails at once if another holds it.
+/// Syncs the directory holding `path`, so that a rename into it is durable. A directory
+/// cannot be opened on every platform; where it can, a failed sync is said.
+fn sync_parent(path: &Path) -> std::io::Result<()> {
+    let parent = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    match std::fs::File::open(parent) {
+        Ok(dir) => dir.sync_all(),
+        Err(_) => Ok(()),
+    }
+}
+
 fn lock_exclusive(file: &File, path: &Path) -> Result<(), FileError> {
     #[cfg(unix)]
     {
@@ -1203,13 +1216,7 @@ impl LivingWriter {
         std::fs::rename(&replacement.path, &self.path).map_err(io)?;
         // Durable only once the directory is: until then a power loss could bring the old
         // file back under segments committed to the new one.
-        let parent = match self.path.parent() {
-            Some(dir) if !dir.as_os_str().is_empty() => dir,
-            _ => Path::new("."),
-        };
-        if let Ok(dir) = std::fs::File::open(parent) {
-            dir.sync_all().map_err(io)?;
-        }
+        sync_parent(&self.path).map_err(io)?;
         let reader = LivingReader::open_with_limits(&self.path, replacement.reader.limits, models)?;
         let LivingWriter { path, .. } = self;
         Ok(LivingWriter {
@@ -1311,14 +1318,7 @@ impl LivingWriter {
         temp.persist(output).map_err(io(output))?;
         // The rename is durable only once the directory is: until then a power loss could
         // bring the old file back under segments committed to the new one.
-        let parent = match output.parent() {
-            Some(dir) if !dir.as_os_str().is_empty() => dir,
-            _ => Path::new("."),
-        };
-        // (A directory cannot be opened on every platform; where it can, a failed sync is said.)
-        if let Ok(dir) = std::fs::File::open(parent) {
-            dir.sync_all().map_err(io(output))?;
-        }
+        sync_parent(output).map_err(io(output))?;
         Ok(root)
     }
 

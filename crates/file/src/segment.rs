@@ -377,18 +377,10 @@ impl RecordHead {
         }
         let mut head = [0u8; RECORD_HEAD_LEN];
         source.read_exact_at(offset, &mut head)?;
-        if head[..8] != SEGMENT_MAGIC {
-            return Ok(Err(corrupt(
-                "segment record",
-                "the segment magic is missing",
-            )));
-        }
-        let mut c = Cursor::new(&head[8..], "segment record");
-        let (previous, first_sample, body_len) =
-            match (|| Ok::<_, FormatViolation>((c.u64()?, c.u32()?, u64::from(c.u32()?))))() {
-                Ok(fields) => fields,
-                Err(e) => return Ok(Err(e)),
-            };
+        let (previous, first_sample, body_len) = match head_fields(&head) {
+            Ok(fields) => fields,
+            Err(e) => return Ok(Err(e)),
+        };
         if body_len > *budget {
             return Ok(Err(FormatViolation::Limit {
                 what: "segment index bytes",
@@ -430,10 +422,9 @@ impl RecordHead {
         if crc32c::crc32c(&record[..crc_at]) != stored {
             return Ok(Err(FormatViolation::Checksum("segment record")));
         }
-        let mut c = Cursor::new(&record[8..RECORD_HEAD_LEN], "segment record");
-        let same = (|| Ok::<_, FormatViolation>((c.u64()?, c.u32()?, u64::from(c.u32()?))))()
+        let same = head_fields(&record[..RECORD_HEAD_LEN])
             .is_ok_and(|head| head == (self.previous, self.first_sample, self.body_len));
-        if record[..8] != SEGMENT_MAGIC || !same {
+        if !same {
             return Ok(Err(corrupt(
                 "segment record",
                 "its head changed while it was read",
@@ -447,6 +438,15 @@ impl RecordHead {
             body: record,
         }))
     }
+}
+
+/// A record head's (previous, first sample, body length), after its magic.
+fn head_fields(head: &[u8]) -> Result<(u64, u32, u64), FormatViolation> {
+    if head.get(..8) != Some(&SEGMENT_MAGIC[..]) {
+        return Err(corrupt("segment record", "the segment magic is missing"));
+    }
+    let mut c = Cursor::new(&head[8..], "segment record");
+    Ok((c.u64()?, c.u32()?, u64::from(c.u32()?)))
 }
 
 /// A record read and checksummed, its body not yet decoded.
