@@ -19,16 +19,18 @@
 # After the last week, the report's steps, each skipped when its output exists (so they
 # resume too): `compact FILE` in place (the lossless size), `compact FILE -o
 # FILE.lossy.froct --lossy` (the lossy size), and the prediction error on the HELD_OUT
-# days after the 8 weeks: `generate --stream --from END | eval FILE --against - --json` into
-# FILE.eval.json (the dynamic voxels' error, against the static mean and last seen), each
-# timed with its peak memory in the log.
+# days after the 8 weeks: `generate --stream --from END | eval FILE --against - --stride
+# EVAL_STRIDE --json` into FILE.eval.json (the dynamic voxels' error, against the static mean
+# and last seen), each timed with its peak memory in the log.
 #
 # Settings (environment): G (the froctomap binary, default target/release/froctomap,
 # built with `cargo build --release -p froctomap-cli`), SEED (5), STEP_SECS (seconds between
 # maps, 5), WEEKS (8),
 # COMMIT (maps per commit, default 720: an hour of maps, 1,344 segments in 8 weeks, within
 # the format's 65,536), COMPACT (1: `froctomap compact FILE` after each full week, timed
-# and logged; default 0), NICE (10), HELD_OUT (days predicted after the weeks, 2).
+# and logged; default 0), NICE (10), HELD_OUT (days predicted after the weeks, 2),
+# EVAL_STRIDE (every how many held-out maps one is compared, 60: every 5 minutes; each map
+# compared walks the whole file).
 set -euo pipefail
 
 FILE=${1:-eight-weeks.froct}
@@ -41,6 +43,7 @@ COMMIT=${COMMIT:-720}
 COMPACT=${COMPACT:-0}
 NICE=${NICE:-10}
 HELD_OUT=${HELD_OUT:-2}
+EVAL_STRIDE=${EVAL_STRIDE:-60}
 # generate's default start: Monday 2016-01-04 00:00 UTC.
 START_UNIX=1451865600
 WEEK_SECS=$((7 * 86400))
@@ -119,8 +122,8 @@ log "lossy: $(stat -c %s "$FILE.lossy.froct") B"
 if [ ! -e "$FILE.eval.json" ]; then
   end=$(date -u -d "@$((START_UNIX + WEEKS * WEEK_SECS))" +%FT%TZ)
   # `eval` reads the held-out maps from the pipe; its JSON is written atomically.
-  timed "eval of $HELD_OUT held-out days" bash -c "
+  timed "eval of $HELD_OUT held-out days, every ${EVAL_STRIDE}th map" bash -c "
     '$G' -q generate --stream --days $((WEEKS * 7 + HELD_OUT)) --step ${STEP_SECS}s --seed $SEED --from $end 2>>'$FILE.generate.log' |
-      '$G' -q eval '$FILE' --against - --json > '$FILE.eval.json.tmp' && mv '$FILE.eval.json.tmp' '$FILE.eval.json'"
+      '$G' -q eval '$FILE' --against - --stride $EVAL_STRIDE --json > '$FILE.eval.json.tmp' && mv '$FILE.eval.json.tmp' '$FILE.eval.json'"
 fi
 log "prediction, dynamic voxels: $(jq -c '[.prediction[] | {(.[0]): .[1].dynamic}] | add' "$FILE.eval.json")"

@@ -285,6 +285,14 @@ def test_evaluate_returns_the_tables_of_eval_json(cli_file, held_out, series):
     assert 0 < ours["log_loss_epsilon"] < 0.5
     assert ours["outside"] == len(snapshot_files(held_out))
     assert ours["inside"] == len(snapshot_files(series))
+    strided = froctomap.evaluate(cli_file, [held_out, series], stride=2)
+    theirs = json.loads(run_cli("-q", "eval", cli_file, "--against", held_out, series,
+                                "--stride", "2", "--json").stdout)
+    assert strided == theirs
+    assert strided["inside"] + strided["outside"] == (
+        len(snapshot_files(held_out)) + len(snapshot_files(series)) + 1) // 2
+    with pytest.raises(ValueError, match="stride"):
+        froctomap.evaluate(cli_file, [held_out, series], stride=0)
 
 
 def test_progress_reaches_a_callback(series, tmp_path):

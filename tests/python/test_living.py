@@ -120,3 +120,18 @@ def test_a_lossy_compaction_is_the_command_lines_and_never_in_place(parts: dict)
     assert ours.read_bytes() == cli.read_bytes()
     assert froctomap.open(ours).info["outliers"] == "lossy"
     assert report["bytes"] == ours.stat().st_size
+
+
+def test_a_compaction_into_smaller_tiles_is_the_command_lines(parts: dict) -> None:
+    path = fresh_living(parts, "to-small-tiles.froct")
+    ours = parts["dir"] / "small-tiles-python.froct"
+    cli = parts["dir"] / "small-tiles-cli.froct"
+    froctomap.compact(path, ours, tile_depth=13, created=CREATED, progress=False)
+    run_cli("-q", "compact", path, "-o", cli, "--tile-depth", "13", "--created", CREATED)
+    assert ours.read_bytes() == cli.read_bytes()
+    g = froctomap.open(ours)
+    assert g.info["tile_depth"] == 13
+    for i in range(len(g)):
+        assert g.retrieve(f"index:{i}").to_bt_bytes() == parts["maps"][i].read_bytes(), i
+    with pytest.raises(froctomap.FroctError, match="tile depth 9"):
+        froctomap.compact(path, parts["dir"] / "coarser.froct", tile_depth=9, progress=False)

@@ -115,6 +115,15 @@ def test_record_into_a_missing_file_builds_its_base(halves, tmp_path):
         tree = octomap.OcTree(0.1)
         assert tree.readBinary(retrieved.read_bytes())
         assert retrieved.read_bytes() == run_retrieve_of(halves, i, tmp_path)
+    small = tmp_path / "small-tiles.froct"
+    froctomap.record(small, [halves["first"], halves["second"]], commit_every=8, tile_depth=12)
+    assert froctomap.open(small).info["tile_depth"] == 12
+    for i in range(len(halves["rows"])):
+        retrieved = tmp_path / "s.bt"
+        run_cli("retrieve", small, "--time", f"index:{i}", "-o", retrieved)
+        assert retrieved.read_bytes() == run_retrieve_of(halves, i, tmp_path)
+    with pytest.raises(froctomap.FroctError, match="tile_depth"):
+        froctomap.record(tmp_path / "bad.froct", [halves["first"]], tile_depth=17)
 
 
 def test_record_compacts_in_the_background(halves, tmp_path):

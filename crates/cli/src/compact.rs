@@ -55,6 +55,13 @@ pub struct CompactArgs {
     /// file itself is left whole.
     #[arg(long)]
     lossy: bool,
+    /// Tiles of the result: cubes of 2^(16 − depth) voxels per edge; the file's depth or
+    /// deeper (default: the file's). Compacting (and building) holds one tile's whole
+    /// history at a time, which grows with the history: a file that grows for months keeps
+    /// its compactions' memory down in smaller tiles (each level deeper: an eighth of the
+    /// volume). The result equals a build at that depth.
+    #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(1..=16))]
+    tile_depth: Option<u8>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -95,6 +102,7 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
         memory: args.spill.memory,
         tmp_dir: args.spill.tmp_dir.clone(),
         lossy: args.lossy,
+        tile_depth: args.tile_depth,
         ..CompactOptions::default()
     };
     ui.note(&format!("compacting {}", escaped(args.file.display())));

@@ -182,7 +182,8 @@ enum Command {
     /// one line per commit. Only the maps of the commit being gathered are kept (on disk,
     /// beside the file), so memory and spool follow one commit; the file grows by a segment
     /// per commit and is compacted in place after a commit when its segments pass half its
-    /// base's size or its span has doubled since the last compaction (one line each;
+    /// base's size, its span has doubled since the last compaction or its segments reach a
+    /// quarter of the format's limit of 65,536 (one line each;
     /// --no-compact: only `froctomap compact FILE` does; at the segment limit `record`
     /// commits what it received and stops, saying so). -v prints a line per map received.
     /// Maps not later than the last one taken are skipped and counted (overlapping bag

@@ -72,12 +72,21 @@ pub struct RecordArgs {
     /// when its segments exceed half of its base's size (once the maps added since the base
     /// are a quarter of the base's) or its span has doubled since the last compaction: the
     /// file stays at most 1.5× its base where segments cost per map at most twice what the
-    /// base does, and the cost of compacting, amortised, does not grow with the history; one
+    /// base does, and the cost of compacting, amortised, does not grow with the history. It
+    /// is also compacted when its segments reach 16,384, a quarter of the format's limit
+    /// (commits every few seconds for days would reach the limit otherwise); one
     /// line says so, with the time it took. A compaction refits with the model options given
     /// here (--model-option), not the ones the file was built with, which files do not
     /// record.
     #[arg(long)]
     no_compact: bool,
+    /// Tiles of a new file's base: cubes of 2^(16 − depth) voxels per edge (default 10, as
+    /// `build`); an existing file keeps its own (`froctomap compact FILE --tile-depth N`
+    /// makes them smaller). A compaction holds one tile's whole history at a time, so a
+    /// recording meant to run for weeks keeps its compactions' memory down in smaller tiles
+    /// (12: a 64th of the volume; docs/BENCHMARKS.md).
+    #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(1..=16))]
+    tile_depth: Option<u8>,
     /// The default (see --no-compact); accepted so that scripts written for the release
     /// where automatic compaction was opt-in keep working.
     #[arg(long, hide = true, conflicts_with = "no_compact")]
@@ -263,6 +272,9 @@ fn record_options(ui: &Ui, args: &RecordArgs, spool_parent: PathBuf) -> Result<R
             backend: Some(ui.backend),
             memory: args.spill.memory,
             tmp_dir: args.spill.tmp_dir.clone(),
+            tile_depth: args
+                .tile_depth
+                .unwrap_or(AppendOptions::default().tile_depth),
             ..AppendOptions::default()
         },
         spool_dir: Some(spool_parent),
@@ -297,6 +309,15 @@ fn announce(ui: &Ui, args: &RecordArgs, recorder: &Recorder<'_>) {
             escaped(args.file.display())
         )),
         _ => {}
+    }
+    if let (Some(asked), Some(depth)) = (args.tile_depth, recorder.tile_depth()) {
+        if asked != depth {
+            ui.note(&format!(
+                "warning: {} keeps its tiles of depth {depth}: --tile-depth {asked} is for a new file (`froctomap compact {} --tile-depth {asked}` makes them smaller)",
+                escaped(args.file.display()),
+                escaped(args.file.display()),
+            ));
+        }
     }
     ui.note(&format!(
         "recording into {} (last sample {}), committing every {}",

@@ -66,6 +66,11 @@ pub struct Ros2Args {
     /// once DDS has reassembled the message.
     #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
     max_message_bytes: usize,
+    /// Tiles of a new file's base (as `record --tile-depth`; default 10): smaller tiles
+    /// (12) keep the background compactions of a long recording in less memory. An
+    /// existing file keeps its own.
+    #[arg(long, value_name = "DEPTH", value_parser = tile_depth)]
+    tile_depth: Option<u8>,
     /// The ROS 2 distribution of the peers, for the node's graph entry (`ros2 node list`,
     /// `ros2 param`): `jazzy` (Iron and later) or `humble` (Humble and before).
     #[arg(long, value_name = "DISTRO", default_value = "jazzy")]
@@ -94,7 +99,7 @@ pub struct Ros2Args {
 }
 
 /// The options `-p name:=value` sets, by their parameter names.
-const PARAMETERS: [&str; 12] = [
+const PARAMETERS: [&str; 13] = [
     "commit_every",
     "frame_id",
     "horizon",
@@ -104,6 +109,7 @@ const PARAMETERS: [&str; 12] = [
     "publish_every",
     "record",
     "service_mapping",
+    "tile_depth",
     "time_source",
     "topic",
     "use_sim_time",
@@ -133,6 +139,7 @@ fn with_parameters(args: &Ros2Args, ros: &RosArgs) -> anyhow::Result<(Ros2Args, 
             "publish_every" => args.publish_every = text,
             "record" => args.no_record = !boolean()?,
             "service_mapping" => args.service_mapping = text.parse().map_err(bad)?,
+            "tile_depth" => args.tile_depth = Some(tile_depth(&text).map_err(bad)?),
             "time_source" => args.time_source = text.parse().map_err(bad)?,
             "topic" => args.topic = text,
             "use_sim_time" => use_sim_time = boolean()?,
@@ -207,10 +214,26 @@ fn parameters(args: &Ros2Args) -> Parameters {
             ParameterValue::integer(i64::try_from(args.max_message_bytes).unwrap_or(i64::MAX)),
             "larger messages are refused",
         ),
+        (
+            "tile_depth",
+            ParameterValue::integer(i64::from(
+                args.tile_depth
+                    .unwrap_or(froctomap_convert::AppendOptions::default().tile_depth),
+            )),
+            "a new file's tiles: 2^(16 - depth) voxels per edge",
+        ),
     ] {
         parameters.set(name, value, description);
     }
     parameters
+}
+
+/// `--tile-depth`: 1 to 16.
+fn tile_depth(text: &str) -> Result<u8, String> {
+    match text.trim().parse::<u8>() {
+        Ok(depth @ 1..=16) => Ok(depth),
+        _ => Err(format!("{text:?}: a tile depth from 1 to 16")),
+    }
 }
 
 /// `--max-message-bytes`: a byte size (`64MiB`), at least 1 byte.
@@ -494,7 +517,10 @@ fn open_recording<'a>(
     // A bad map over the wire is left out (and said), never the end of the node; compaction
     // in the background: in place it would block the map intake for as long as a build of
     // the whole history takes, while the DDS reader keeps only the last 16 maps.
-    let options = RecordOptions::for_live_source(args.commit_every);
+    let mut options = RecordOptions::for_live_source(args.commit_every);
+    if let Some(depth) = args.tile_depth {
+        options.append.tile_depth = depth;
+    }
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
         Opened::Missing => eprintln!(

@@ -448,6 +448,41 @@ fn a_lossy_compaction_is_a_lossy_build_and_never_in_place() {
     assert_eq!(std::fs::read(&series.living).unwrap(), before);
 }
 
+/// `compact --tile-depth` into smaller tiles writes what `build --tile-depth` of the same
+/// maps writes; larger tiles than the file's are refused, naming the file.
+#[test]
+fn compacting_into_smaller_tiles_is_a_build_in_them() {
+    let series = living_series();
+    let root = series.dir.path();
+    let built = root.join("small-tiles-build.froct");
+    let compacted = root.join("small-tiles.froct");
+    let common = ["--tile-depth", "14", "--created", CREATED, "-q", "-o"];
+    ok(&[&["build", s(&root.join("all"))], &common[..], &[s(&built)]].concat());
+    ok(&[
+        &["compact", s(&series.living)],
+        &common[..],
+        &[s(&compacted)],
+    ]
+    .concat());
+    let compacted_info = info(&compacted);
+    assert_eq!(compacted_info["tile_depth"], 14, "{compacted_info}");
+    assert_eq!(content(compacted_info), content(info(&built)));
+    let out = root.join("out-small-tiles");
+    std::fs::create_dir_all(&out).unwrap();
+    for sample in [0, 11, 12, 23] {
+        assert!(
+            retrieved(&compacted, sample, &out.join("a.bt"))
+                == retrieved(&series.full, sample, &out.join("b.bt")),
+            "sample {sample}"
+        );
+    }
+    let message = err(&["compact", s(&series.living), "--tile-depth", "9"]);
+    assert!(
+        message.contains(s(&series.living)) && message.contains("tile depth 9"),
+        "{message}"
+    );
+}
+
 #[test]
 fn compact_equals_a_build_of_the_same_maps() {
     let series = living_series();

@@ -462,6 +462,29 @@ fn a_missing_file_gets_the_first_commit_as_its_base() {
     assert_eq!(segments(&file), [2]);
     same_snapshots(&file, &whole, 6);
     assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+
+    // --tile-depth: a new file's tiles; an existing file keeps its own, and says so.
+    let small = dir.path().join("small-tiles.froct");
+    let output = record_piped(
+        &SERIES,
+        &small,
+        &["--commit-every", "4", "--tile-depth", "12"],
+    );
+    assert!(output.status.success(), "record: {}", text(&output.stderr));
+    let depth = |file: &Path| -> Value {
+        serde_json::from_str::<Value>(&ok(&["info", s(file), "--json"])).unwrap()["tile_depth"]
+            .clone()
+    };
+    assert_eq!(depth(&small), 12);
+    same_snapshots(&small, &whole, 6);
+    let output = record_piped(&LONGER, &small, &["--tile-depth", "11"]);
+    let stderr = text(&output.stderr);
+    assert!(output.status.success(), "record: {stderr}");
+    assert!(
+        stderr.contains("keeps its tiles of depth 12: --tile-depth 11 is for a new file"),
+        "{stderr}"
+    );
+    assert_eq!(depth(&small), 12);
 }
 
 /// Snapshots of `file` at `times` (instants or `index:N`) retrieve byte-identical to those of

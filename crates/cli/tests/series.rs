@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
-use common::{err, froctomap, ok, s};
+use common::{err, fails, froctomap, ok, s};
 
 /// A room of 16×16 free voxels with a wall, and a "door" of 4 voxels that is closed
 /// (occupied) on frames 2, 3, 6, 7 (every other pair), ten minutes apart.
@@ -228,6 +228,30 @@ fn eval_against_the_inputs(dir: &Path, map: &Path, inputs: &Path) {
     );
     let picture = image::open(&png).unwrap();
     assert!(picture.width() > 100 && picture.height() > 100);
+    // --stride 3 compares the 1st, 4th and 7th maps: the same report as those three alone.
+    let strided = dir.join("every-third");
+    std::fs::create_dir(&strided).unwrap();
+    let mut names: Vec<_> = std::fs::read_dir(inputs)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "bt"))
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 8);
+    for name in names.iter().step_by(3) {
+        std::fs::copy(name, strided.join(name.file_name().unwrap())).unwrap();
+    }
+    let eval_of = |args: &[&str]| -> serde_json::Value {
+        let mut all = vec!["eval", "--quiet", "--json", s(map)];
+        all.extend_from_slice(args);
+        serde_json::from_str(&ok(&all)).unwrap()
+    };
+    let every_third = eval_of(&["--stride", "3", "--against", s(inputs)]);
+    assert_eq!(every_third["inside"], 3);
+    assert_eq!(every_third, eval_of(&["--against", s(&strided)]));
+    assert_ne!(every_third, eval);
+    let refused = fails(&["eval", s(map), "--against", s(inputs), "--stride", "0"]);
+    assert!(refused.contains("--stride"), "{refused}");
 }
 
 /// Every toggle layout (whole lists = format 1.0, blocks of 3 samples in 1.1 and 1.2, the

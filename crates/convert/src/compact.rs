@@ -70,6 +70,11 @@ pub struct CompactOptions {
     /// the models' reconstruction. Only into another file
     /// ([`ConvertError::LossyInPlace`]).
     pub lossy: bool,
+    /// Tile depth of the result; `None`: the file's. Deeper (smaller tiles) only
+    /// ([`ConvertError::CoarserTiles`]): compacting and building hold one tile's whole
+    /// history, which grows with the history, so a file meant to grow for months is
+    /// better kept in smaller tiles. The result equals a build at that depth.
+    pub tile_depth: Option<u8>,
 }
 
 impl Default for CompactOptions {
@@ -82,6 +87,7 @@ impl Default for CompactOptions {
             tmp_dir: None,
             batch: 8 * rayon::current_num_threads().max(1),
             lossy: false,
+            tile_depth: None,
         }
     }
 }
@@ -211,6 +217,24 @@ pub(crate) fn compact_opened(
     compact_series(context, series, file, Some(output), None, options, progress)
 }
 
+/// The result's tile depth: the file's (`file_depth`) or the deeper one `options` ask for.
+fn written_tile_depth(
+    file: &Path,
+    file_depth: u8,
+    options: &CompactOptions,
+) -> Result<u8, ConvertError> {
+    let tile_depth = options.tile_depth.unwrap_or(file_depth);
+    if (file_depth..=froctomap_core::TREE_DEPTH).contains(&tile_depth) {
+        Ok(tile_depth)
+    } else {
+        Err(ConvertError::CoarserTiles {
+            file: file.to_path_buf(),
+            tile_depth,
+            file_depth,
+        })
+    }
+}
+
 fn compact_series(
     context: &Context,
     series: FroctFile,
@@ -234,6 +258,7 @@ fn compact_series(
         FroctFile::Living(living) => living.base(),
     };
     let model = context.model_of(&header)?;
+    let tile_depth = written_tile_depth(file, header.tile_depth, options)?;
     let outliers = if options.lossy {
         OutlierMode::Lossy
     } else {
@@ -293,6 +318,7 @@ fn compact_series(
     let settings = MergeSettings {
         model: model.create(),
         config: &config,
+        tile_depth,
         toggles,
         metadata,
         reproducible: options.created.is_some(),

@@ -419,6 +419,16 @@ pub enum ConvertError {
         /// The file.
         file: PathBuf,
     },
+    /// A compaction asked for tiles larger than the file's (or past the deepest depth).
+    #[error("{}: tile depth {tile_depth} for the compacted file: it can only be the file's ({file_depth}) or deeper, up to 16 (smaller tiles)", file.display())]
+    CoarserTiles {
+        /// The file.
+        file: PathBuf,
+        /// The depth asked for.
+        tile_depth: u8,
+        /// The file's.
+        file_depth: u8,
+    },
     /// An output that is one of the inputs (also through a link): writing it would destroy
     /// the input.
     #[error("{}: this output is the input {}; writing it would destroy the input", output.display(), input.display())]
@@ -972,6 +982,11 @@ mod tests {
                 source: cause(),
             },
             ConvertError::LossyInPlace { file: path() },
+            ConvertError::CoarserTiles {
+                file: path(),
+                tile_depth: 9,
+                file_depth: 10,
+            },
             ConvertError::OutputIsInput {
                 output: path(),
                 input: path(),
@@ -1088,6 +1103,7 @@ mod tests {
                 | ConvertError::Output(_)
                 | ConvertError::RecordingWrite { .. }
                 | ConvertError::LossyInPlace { .. }
+                | ConvertError::CoarserTiles { .. }
                 | ConvertError::OutputIsInput { .. }
                 | ConvertError::OutputExists { .. }
                 | ConvertError::StreamNotADirectory { .. }

@@ -119,7 +119,7 @@ pub use query::{
 };
 pub use record::{
     CommitEvery, CommitReport, Compaction, Opened, RecordError, RecordEvent, RecordOptions,
-    RecordSummary, Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SPAN_GROWTH,
+    RecordSummary, Recorder, ADDED_PER_BASE, SEGMENTS_PER_BASE, SEGMENT_LIMIT_SHARE, SPAN_GROWTH,
 };
 pub use recording::{describe_recording, RecordedMap, RecordedTopicInfo, RecordingInfo};
 pub use recording_export::{occupied_cells_above, occupied_cells_at};

@@ -149,11 +149,22 @@ impl Default for RecordOptions {
 /// whole history) costs at most what compacting 2 maps does per map added, however long
 /// the history; the second makes compactions a geometric series in time (each one's history
 /// twice the last one's), refitting models as the span grows.
+///
+/// A third rule is a safety net: a compaction is also due when the segments reach
+/// [`SEGMENT_LIMIT_SHARE`] of the format's segment limit
+/// ([`ReadLimits::max_segments`](froctomap_file::ReadLimits::max_segments), 65,536). Without
+/// it, commits every 5 s in real time (17,280 segments a day) reach the limit between two
+/// doublings of the span (at about 11 days) and recording stops. Past that point its
+/// compactions are not amortised: one every 16,384 commits (about 23 hours at 5 s), each a
+/// build of the whole history (LIVING-MAP.md, "Segments piling up").
 pub const SEGMENTS_PER_BASE: (u64, u64) = (1, 2);
 /// See [`SEGMENTS_PER_BASE`].
 pub const ADDED_PER_BASE: (u64, u64) = (1, 1);
 /// See [`SEGMENTS_PER_BASE`].
 pub const SPAN_GROWTH: i64 = 2;
+/// See [`SEGMENTS_PER_BASE`]: a quarter of the segment limit, so that a background
+/// compaction has the other three quarters' commits to finish in.
+pub const SEGMENT_LIMIT_SHARE: (u64, u64) = (1, 4);
 
 impl RecordOptions {
     /// The options of a live source (a ROS 2 subscription): commits every `commit_every`,
@@ -344,7 +355,8 @@ type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 /// many as the base's), or when the span from its first sample to its last has reached
 /// twice the base's span ([`SEGMENTS_PER_BASE`]): at most 1.5× the base at every commit
 /// where segments cost per map at most twice what the base does, at an amortised cost per
-/// map that does not grow with the history. Maps are not taken while it runs (a caller's
+/// map that does not grow with the history; and when the segments reach a quarter of the
+/// segment limit ([`SEGMENT_LIMIT_SHARE`]), so that frequent commits never reach it. Maps are not taken while it runs (a caller's
 /// queue or pipe holds them).
 ///
 /// ```no_run
@@ -463,6 +475,14 @@ impl<'a> Recorder<'a> {
         self.opened
     }
 
+    /// The file's tile depth (`None` until a missing file's first commit made its base,
+    /// which takes [`AppendOptions::tile_depth`](crate::AppendOptions)).
+    pub fn tile_depth(&self) -> Option<u8> {
+        self.writer
+            .as_ref()
+            .map(|writer| writer.reader().header().tile_depth)
+    }
+
     /// The file's last sample, or the last map taken since (`None`: a new file, nothing
     /// taken yet).
     pub fn last_time(&self) -> Option<Timestamp> {
@@ -576,6 +596,11 @@ impl<'a> Recorder<'a> {
         let off = self.options.compact == Compaction::Off || self.compaction_failed;
         if off || self.background.is_some() || reader.segment_count() == 0 {
             return false;
+        }
+        let (l_num, l_den) = SEGMENT_LIMIT_SHARE;
+        let limit = self.context.limits().froct.max_segments;
+        if (reader.segment_count() as u64).saturating_mul(l_den) >= limit.saturating_mul(l_num) {
+            return true;
         }
         let root = reader.root();
         let base = &reader.header().axis;
@@ -881,6 +906,7 @@ impl<'a> Recorder<'a> {
             backend: append.backend,
             memory: append.memory,
             tmp_dir: append.tmp_dir.clone(),
+            tile_depth: append.tile_depth,
             ..BuildOptions::default()
         };
         let report = build(self.context, series, &self.file, &options, &Silent)?;

@@ -576,3 +576,103 @@ proptest::proptest! {
         proptest::prop_assert!(tiles == built_tiles, "tiles differ from the build's");
     }
 }
+
+/// One map per commit never reaches the segment limit: a compaction is due once the
+/// segments reach a quarter of it, though neither the size nor the span rule is (the
+/// base holds a day, the 12 maps add half of one). With a limit of 8 segments, 12
+/// one-map commits stopped at the ninth before that rule.
+#[test]
+fn one_map_commits_compact_before_the_segment_limit() {
+    let mut limits = Limits::default();
+    limits.froct.max_segments = 8;
+    let context = Context::with_default_plugins().with_limits(limits);
+    let dir = tempfile::tempdir().unwrap();
+    let (paths, file) = room_built(&context, dir.path(), 36, 24);
+    let options = RecordOptions {
+        commit_every: CommitEvery::Maps(1),
+        ..RecordOptions::default()
+    };
+    let mut recorder = Recorder::open(&context, &file, options).unwrap();
+    let mut most_segments = 0;
+    for input in inputs_of(&context, &paths[24..]) {
+        recorder.take_file(input).unwrap();
+        let reader = LivingReader::open(&file).unwrap();
+        most_segments = most_segments.max(reader.segment_count());
+    }
+    let summary = recorder.finish().unwrap();
+    assert_eq!(summary.committed_maps, 12);
+    assert_eq!(summary.compactions, 6, "{summary:?}");
+    assert_eq!(
+        most_segments, 1,
+        "compacted at the second segment each time"
+    );
+    let reader = LivingReader::open(&file).unwrap();
+    assert_eq!(reader.segment_count(), 0);
+    assert_eq!(reader.sample_count(), 36);
+    for (i, path) in paths.iter().enumerate() {
+        let got = living_snapshot(&reader, i as u32);
+        assert!(
+            got.same_voxel_states(&decoded(&context, path)),
+            "sample {i} differs from its input"
+        );
+    }
+}
+
+/// `compact` into smaller tiles than the file's gives the tiles and model of a build at
+/// that depth, byte for byte; larger tiles are refused, naming the file.
+#[test]
+fn compacting_into_smaller_tiles_gives_the_build_at_that_depth() {
+    let context = Context::with_default_plugins();
+    let series = shared_series();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("living.froct");
+    LivingWriter::convert(&series.base, &file).unwrap();
+    let split = BASE_FRAMES as usize + 7;
+    append_part(&context, &file, &series.frames[BASE_FRAMES as usize..split]);
+    append_part(&context, &file, &series.frames[split..]);
+    let deeper = dir.path().join("deeper.froct");
+    let options = CompactOptions {
+        format: CompactFormat::Flat(None),
+        tile_depth: Some(15),
+        ..CompactOptions::default()
+    };
+    compact(&context, &file, Some(&deeper), &options, &Silent).unwrap();
+    let built = dir.path().join("built.froct");
+    let build_options = BuildOptions {
+        model: "fremen-periods".to_string(),
+        tile_depth: 15,
+        ..BuildOptions::default()
+    };
+    let inputs = inputs_of(&context, &series.frames);
+    build(&context, &inputs, &built, &build_options, &Silent).unwrap();
+    let reader = FroctReader::open(&deeper).unwrap();
+    assert_eq!(reader.header().tile_depth, 15);
+    let file_tiles = FroctReader::open(&series.full).unwrap().tiles().len();
+    assert!(
+        reader.tiles().len() > file_tiles,
+        "{file_tiles} tiles before"
+    );
+    let (tiles, axis, model) = tiles_and_model(&deeper);
+    let (built_tiles, built_axis, built_model) = tiles_and_model(&built);
+    assert_eq!(axis, built_axis);
+    assert!(model == built_model, "model parameters differ");
+    assert!(tiles == built_tiles, "tiles differ from the build's");
+    let codes = |r: &FroctReader| r.tiles().iter().map(|t| t.code).collect::<Vec<_>>();
+    assert_eq!(codes(&reader), codes(&FroctReader::open(&built).unwrap()));
+
+    let coarser = CompactOptions {
+        tile_depth: Some(9),
+        ..options
+    };
+    let err = compact(
+        &context,
+        &file,
+        Some(&dir.path().join("c.froct")),
+        &coarser,
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(err, ConvertError::CoarserTiles { .. }), "{err}");
+    assert!(err.to_string().contains("living.froct"), "{err}");
+    assert!(!dir.path().join("c.froct").exists());
+}

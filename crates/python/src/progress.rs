@@ -123,7 +123,7 @@ impl Progress for Callback {
 
 /// How often a long call looks for Ctrl-C (signals reach Python only through the thread
 /// that holds the interpreter, which waits meanwhile).
-const SIGNAL_CHECKS: Duration = Duration::from_millis(100);
+pub(crate) const SIGNAL_CHECKS: Duration = Duration::from_millis(100);
 
 /// The [`Progress`] handed to the library: the callback's, and a stop asked for by Ctrl-C
 /// or by a callback that raised.

@@ -360,10 +360,11 @@ pub fn build<'py>(
     json_value(py, &report)
 }
 
-/// Compares a FROctomap file with ground-truth maps (`froctomap eval --json`).
+/// Compares a FROctomap file with ground-truth maps (`froctomap eval --json`); `stride`
+/// compares every `stride`th of them in time order (`eval --stride`).
 #[pyfunction]
 #[pyo3(signature = (path, against, *, start = None, step = None, times_file = None,
-                    times_from_names = false, progress = None))]
+                    times_from_names = false, stride = 1, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -373,8 +374,14 @@ pub fn evaluate<'py>(
     step: Option<&Bound<'py, PyAny>>,
     times_file: Option<PathBuf>,
     times_from_names: bool,
+    stride: usize,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if stride == 0 {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "stride must be at least 1",
+        ));
+    }
     let against = paths(against)?;
     let source = series_times(start, step, times_file, times_from_names)?;
     let report = with_progress(py, progress, |progress| {
@@ -382,13 +389,8 @@ pub fn evaluate<'py>(
         let file = context.open_series(&path)?;
         let reader = file.whole_history()?;
         let collected = collect_inputs_explained(context, &against, source, &Zone::utc())?;
-        let report = evaluate_file(
-            context,
-            reader,
-            &collected.series,
-            ReadOptions::default(),
-            progress,
-        )?;
+        let truths: Vec<_> = collected.series.into_iter().step_by(stride).collect();
+        let report = evaluate_file(context, reader, &truths, ReadOptions::default(), progress)?;
         report_json(&report)
     })?;
     json_value(py, &report)

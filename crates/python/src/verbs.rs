@@ -4,7 +4,7 @@
 
 use crate::errors::{froct_error_text, message, Failure};
 use crate::file::{json_value, report_json};
-use crate::progress::with_progress;
+use crate::progress::{with_progress, SIGNAL_CHECKS};
 use crate::series::{build_inputs, duration_ns, model_config_options, series_times, BuildInputs};
 use crate::times::instant;
 use froctomap_convert::{
@@ -18,10 +18,12 @@ use froctomap_core::calendar::iso8601;
 use froctomap_core::Timestamp;
 use froctomap_file::ToggleLayout;
 use froctomap_formats::{Identified, ReadOptions, WriteOptions};
+use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver};
 
 /// The warnings of collected inputs, as the reports list them.
@@ -126,7 +128,7 @@ pub fn append<'py>(
 #[pyfunction]
 #[pyo3(signature = (file, output = None, *, format_version = "2.0".to_string(),
                     model_options = None, created = None, memory = None, tmp_dir = None,
-                    lossy = false, progress = None))]
+                    lossy = false, tile_depth = None, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn compact<'py>(
     py: Python<'py>,
@@ -138,6 +140,7 @@ pub fn compact<'py>(
     memory: Option<u64>,
     tmp_dir: Option<PathBuf>,
     lossy: bool,
+    tile_depth: Option<u8>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let layout: Option<fn(u32) -> ToggleLayout> = match format_version.as_str() {
@@ -156,6 +159,7 @@ pub fn compact<'py>(
         memory: memory.unwrap_or(froctomap_convert::DEFAULT_BUILD_MEMORY),
         tmp_dir,
         lossy,
+        tile_depth,
         ..CompactOptions::default()
     };
     let report = with_progress(py, progress, |progress| {
@@ -350,7 +354,7 @@ enum Feed {
 #[pyfunction]
 #[pyo3(signature = (file, sources, *, commit_every = None, skip_bad = false,
                     model_options = None, auto_compact = None, memory = None,
-                    tmp_dir = None))]
+                    tmp_dir = None, tile_depth = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn record<'py>(
     py: Python<'py>,
@@ -362,7 +366,11 @@ pub fn record<'py>(
     auto_compact: Option<&Bound<'py, PyAny>>,
     memory: Option<u64>,
     tmp_dir: Option<PathBuf>,
+    tile_depth: Option<u8>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if tile_depth.is_some_and(|d| !(1..=16).contains(&d)) {
+        return Err(froct_error_text("tile_depth: 1 to 16"));
+    }
     let commit_every = match commit_every {
         None => CommitEvery::default(),
         Some(value) => match value.extract::<usize>() {
@@ -387,6 +395,7 @@ pub fn record<'py>(
             allow_mostly_skipped: true,
             memory: memory.unwrap_or(froctomap_convert::DEFAULT_BUILD_MEMORY),
             tmp_dir,
+            tile_depth: tile_depth.unwrap_or(IngestOptions::default().tile_depth),
             ..IngestOptions::default()
         },
         spool_dir: Some(spool_dir.clone()),
@@ -399,13 +408,30 @@ pub fn record<'py>(
             .with_spool_dir(Some(spool_dir)),
     );
     let (sender, feed) = sync_channel::<Feed>(2);
+    // Set by Ctrl-C: the recorder ends at once, abandoning a background compaction, as
+    // `froctomap record` does at a signal.
+    let stop = AtomicBool::new(false);
     let report = std::thread::scope(|scope| -> PyResult<String> {
-        let (context, file) = (&context, &file);
-        let worker = scope.spawn(move || run_recorder(context, file, options, feed));
+        let (context, file, stop) = (&context, &file, &stop);
+        let worker = scope.spawn(move || run_recorder(context, file, options, feed, stop));
         let fed = feed_recorder(py, sources, &sender);
+        if fed
+            .as_ref()
+            .is_err_and(|e| e.is_instance_of::<PyKeyboardInterrupt>(py))
+        {
+            stop.store(true, Ordering::SeqCst);
+        }
         drop(sender);
-        let outcome = py.detach(|| worker.join());
-        let recorded = match outcome {
+        // The end may wait for a compaction: Ctrl-C still reaches Python meanwhile.
+        let mut interrupted = None;
+        while !worker.is_finished() {
+            py.detach(|| std::thread::sleep(SIGNAL_CHECKS));
+            if let Err(signal) = py.check_signals() {
+                stop.store(true, Ordering::SeqCst);
+                interrupted.get_or_insert(signal);
+            }
+        }
+        let recorded = match worker.join() {
             Ok(recorded) => recorded,
             Err(_) => Err(Failure::text(
                 "internal error: the recording thread panicked",
@@ -415,6 +441,9 @@ pub fn record<'py>(
         // it were committed; the recorder's own failure comes first.
         let recorded = recorded?;
         fed?;
+        if let Some(signal) = interrupted {
+            return Err(signal);
+        }
         Ok(recorded)
     })?;
     json_value(py, &report)
@@ -486,6 +515,7 @@ fn run_recorder(
     file: &Path,
     options: RecordOptions,
     feed: Receiver<Feed>,
+    stop: &AtomicBool,
 ) -> Result<String, Failure> {
     let commit_every = options.commit_every;
     let mut recorder = Recorder::open(context, file, options)?;
@@ -568,9 +598,20 @@ fn run_recorder(
             }
         }
     })();
-    // What was taken before a failure is committed, as `froctomap record` does.
+    // What was taken before a failure is committed, as `froctomap record` does, before
+    // waiting for a background compaction (which Ctrl-C abandons).
     drop(feed);
-    let finished = recorder.finish();
+    let committed = recorder.commit();
+    while committed.is_ok() && recorder.compacting() && !stop.load(Ordering::SeqCst) {
+        std::thread::sleep(SIGNAL_CHECKS);
+    }
+    let finished = committed.and_then(|()| {
+        if stop.load(Ordering::SeqCst) {
+            recorder.stop()
+        } else {
+            recorder.finish()
+        }
+    });
     taken?;
     let summary = finished?;
     let events = events.borrow().clone();

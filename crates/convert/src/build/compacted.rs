@@ -18,9 +18,9 @@ use super::fit::{cells_of_tiles, fit_and_write, TileFitter};
 use super::merge::merge_tiles;
 use super::write::{TileEncoder, TileWriter};
 use crate::error::ConvertError;
-use crate::history::PackedCell;
+use crate::history::{PackedCell, PackedObservations};
 use crate::progress::Progress;
-use froctomap_core::{voxels_per_node, Occupancy, Timestamp};
+use froctomap_core::{voxels_per_node, MortonCode, Occupancy, Timestamp};
 use froctomap_file::{
     Cell, CellContent, FroctReader, Header, LivingReader, SegmentCell, SegmentContent,
     TileRemainder, ToggleLayout,
@@ -47,6 +47,8 @@ pub(crate) struct MergeSettings<'a> {
     pub model: Box<dyn TemporalModel>,
     /// The model's configuration for the refit (outlier mode from the file).
     pub config: &'a ModelConfig,
+    /// Tile depth written: the base's, or deeper (its cells split into the smaller tiles).
+    pub tile_depth: u8,
     /// Toggle layout written.
     pub toggles: ToggleLayout,
     /// Header metadata written.
@@ -79,7 +81,7 @@ pub(crate) fn merge_into(
     let prepared = settings.model.prepare(&axis, settings.config)?;
     let mut header = Header::new(
         old.resolution,
-        old.tile_depth,
+        settings.tile_depth,
         axis.clone(),
         settings.model.id(),
         prepared.encode_parameters(),
@@ -111,7 +113,7 @@ pub(crate) fn merge_into(
         .filter_map(|k| living.and_then(|l| l.segment_axis(k)))
         .map(|(_, piece)| SampleMap::new(piece, &axis))
         .collect();
-    let tile_depth = old.tile_depth;
+    let (tile_depth, written_depth) = (old.tile_depth, settings.tile_depth);
     // The base and the segments, in time order, merged as a balanced tree of seams: a
     // chain (base + s0, then + s1, …) would unpack and pack every cell's history so far
     // once per segment, the cost growing with the square of the segments.
@@ -123,13 +125,16 @@ pub(crate) fn merge_into(
     }
     let tiles = merged_in_order(parts, tile_depth);
     let tiles = tiles.map(move |tile| {
-        tile.map(|tile| TileHistory::from_packed(coarsest(tile.into_packed(), tile_depth)))
+        tile.map(|tile| {
+            let cells = split_to(tile.into_packed(), written_depth);
+            TileHistory::from_packed(coarsest(cells, written_depth))
+        })
     });
     let fitter = TileFitter::new(&axis, prepared.as_ref());
     let encoder = TileEncoder::new(header.tile_layout(), prepared.as_ref());
     fit_and_write(
         cells_of_tiles(tiles),
-        tile_depth,
+        written_depth,
         &fitter,
         &encoder,
         &mut writer,
@@ -184,34 +189,70 @@ fn present_times(axis: &froctomap_temporal::TimeAxis) -> Vec<Timestamp> {
 /// parent, repeatedly. A build splits a cell only where a change boundary falls inside it,
 /// so its siblings never share a whole history; the merge splits a cell wherever any
 /// stream did (a segment splits a base cell around what changed in its maps only).
-pub(crate) fn coarsest(cells: Vec<PackedCell>, tile_depth: u8) -> Vec<PackedCell> {
-    let mut out: Vec<PackedCell> = Vec::with_capacity(cells.len());
-    for cell in cells {
-        out.push(cell);
-        while let Some(parent) = siblings_as_parent(&out, tile_depth) {
-            out.truncate(out.len() - 8);
-            out.push(parent);
+///
+/// In place, freeing the runs of merged siblings at once: a tile of a long series is held
+/// once, not once read and once written.
+pub(crate) fn coarsest(mut cells: Vec<PackedCell>, tile_depth: u8) -> Vec<PackedCell> {
+    // `cells[..kept]` are the cells so far; the ones from `kept` to the one read are spent.
+    let mut kept = 0;
+    for read in 0..cells.len() {
+        cells.swap(kept, read);
+        kept += 1;
+        while same_siblings(&cells[..kept], tile_depth) {
+            let first = kept - 8;
+            for sibling in &mut cells[first + 1..kept] {
+                sibling.2 = PackedObservations::pack([]);
+            }
+            // The first child starts where its parent does.
+            cells[first].1 -= 1;
+            kept = first + 1;
         }
+    }
+    cells.truncate(kept);
+    cells
+}
+
+/// Cells (in Morton order) coarser than `depth` split into their pieces of that depth, each
+/// with the cell's runs: the cells of smaller tiles than the file's, as a build at `depth`
+/// makes them (a leaf coarser than a tile is split into the tiles it covers).
+fn split_to(cells: Vec<PackedCell>, depth: u8) -> Vec<PackedCell> {
+    if cells.iter().all(|(_, d, _)| *d >= depth) {
+        return cells;
+    }
+    let size = voxels_per_node(depth);
+    let mut out = Vec::with_capacity(cells.len());
+    for (start, d, runs) in cells {
+        if d >= depth {
+            out.push((start, d, runs));
+            continue;
+        }
+        let pieces = voxels_per_node(d) / size;
+        out.extend((0..pieces).map(|i| (MortonCode(start.0 + i * size), depth, runs.clone())));
     }
     out
 }
 
-/// The parent of the last eight cells of `cells` when they are its eight children with the
-/// same runs.
-fn siblings_as_parent(cells: &[PackedCell], tile_depth: u8) -> Option<PackedCell> {
-    let last = cells.get(cells.len().checked_sub(8)?..)?;
+/// Whether the last eight of `cells` are the eight children of one parent with the same
+/// runs.
+fn same_siblings(cells: &[PackedCell], tile_depth: u8) -> bool {
+    let Some(last) = cells
+        .len()
+        .checked_sub(8)
+        .and_then(|from| cells.get(from..))
+    else {
+        return false;
+    };
     let (start, depth, runs) = &last[0];
     if *depth <= tile_depth || start.0 % voxels_per_node(depth - 1) != 0 {
-        return None;
+        return false;
     }
     let size = voxels_per_node(*depth);
-    let same = last.iter().enumerate().all(|(i, (s, d, r))| {
+    last.iter().enumerate().all(|(i, (s, d, r))| {
         d == depth
             && s.0 == start.0 + i as u64 * size
             && r.run_count() == runs.run_count()
             && r.packed_bytes() == runs.packed_bytes()
-    });
-    same.then(|| (*start, depth - 1, runs.clone()))
+    })
 }
 
 /// Segment `k`'s tiles as [`TileHistory`] values on the compacted axis, in Morton order,
@@ -461,4 +502,58 @@ fn predicted_runs(
         }
     }
     samples.push_run(cursor, end, current, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn runs(state: Occupancy) -> PackedObservations {
+        PackedObservations::pack([(0, 3, state), (3, 2, !state)])
+    }
+
+    /// 64 single voxels (depth 16) with the given runs, in Morton order.
+    fn voxels(odd_one: Option<u64>) -> Vec<PackedCell> {
+        (0..64u64)
+            .map(|i| {
+                let state = if Some(i) == odd_one {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                };
+                (MortonCode(i), 16, runs(state))
+            })
+            .collect()
+    }
+
+    fn shape(cells: &[PackedCell]) -> Vec<(u64, u8)> {
+        cells.iter().map(|(s, d, _)| (s.0, *d)).collect()
+    }
+
+    #[test]
+    fn eight_siblings_with_the_same_runs_become_their_parent_repeatedly() {
+        let merged = coarsest(voxels(None), 13);
+        assert_eq!(shape(&merged), [(0, 14)]);
+        assert_eq!(merged[0].2, runs(Occupancy::Free));
+        // Not above the tile depth.
+        let at_tiles = coarsest(voxels(None), 15);
+        assert_eq!(
+            shape(&at_tiles),
+            (0..8).map(|i| (i * 8, 15)).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn one_sibling_with_other_runs_keeps_its_group_split() {
+        let merged = coarsest(voxels(Some(9)), 13);
+        let mut expected = vec![(0, 15)];
+        expected.extend((8..16).map(|i| (i, 16)));
+        expected.extend((2..8).map(|i| (i * 8, 15)));
+        assert_eq!(shape(&merged), expected);
+        assert_eq!(merged[2].2, runs(Occupancy::Occupied));
+        assert!(merged
+            .iter()
+            .enumerate()
+            .all(|(i, c)| (i == 2) == (c.2 == runs(Occupancy::Occupied))));
+    }
 }

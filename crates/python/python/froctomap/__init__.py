@@ -170,6 +170,7 @@ def evaluate(
     step: Union[str, float, None] = None,
     times_file: Optional[PathLike] = None,
     times_from_names: bool = False,
+    stride: int = 1,
 ) -> Dict[str, Any]:
     """Compares a FROctomap file with ground-truth maps (``froctomap eval --json``).
 
@@ -183,6 +184,8 @@ def evaluate(
     ``reconstruction_calibration`` and ``prediction_calibration`` (per method, bins of p over
     the dynamic voxels: ``lower``, ``upper``, ``voxels``, ``mean_p``, ``occupied_fraction``),
     ``log_loss_epsilon`` and ``unmodelled_voxels``: the fields of ``froctomap eval --json``.
+    ``stride``: compare every ``stride``-th map in time order (``eval --stride``), for long
+    held-out series; each map compared walks the whole file.
     """
     callback = _progress.reporter(progress)
     try:
@@ -193,6 +196,7 @@ def evaluate(
             step=step,
             times_file=times_file,
             times_from_names=times_from_names,
+            stride=stride,
             progress=callback,
         )
     finally:
@@ -269,6 +273,7 @@ def record(
     auto_compact: Union[bool, str] = False,
     memory: Optional[int] = None,
     tmp_dir: Optional[PathLike] = None,
+    tile_depth: Optional[int] = None,
 ) -> Dict[str, Any]:
     """Adds maps to a FROctomap 2.0 file as they come (``froctomap record``): one segment
     is committed (durably, under the file's writer lock) every ``commit_every`` maps (an
@@ -291,12 +296,14 @@ def record(
     ``True`` (in place after the commit that makes a compaction due, as ``froctomap
     record``) or ``"background"`` (on a thread of its own while maps keep being taken; the
     maps committed meanwhile are added to the result, which then replaces the file; the
-    end waits for it).
+    end waits for it, and Ctrl-C abandons it). ``tile_depth``: a new file's tiles
+    (``record --tile-depth``; default 10; an existing file keeps its own): smaller tiles
+    (12) keep the compactions of a long recording in less memory.
     """
     return _native.record(
         file, _maps(sources), commit_every=commit_every, skip_bad=skip_bad,
         model_options=_model_options(model_options), auto_compact=auto_compact,
-        memory=memory, tmp_dir=tmp_dir,
+        memory=memory, tmp_dir=tmp_dir, tile_depth=tile_depth,
     )
 
 
@@ -310,6 +317,7 @@ def compact(
     memory: Optional[int] = None,
     tmp_dir: Optional[PathLike] = None,
     lossy: bool = False,
+    tile_depth: Optional[int] = None,
     progress: Union[bool, ProgressCallback, None] = True,
 ) -> Dict[str, Any]:
     """Rewrites a FROctomap file's base and segments as one base (``froctomap compact
@@ -318,14 +326,16 @@ def compact(
     older readers). Every model is refitted on the whole history: give the
     ``model_options`` of the build. ``created`` fixes the creation time (reproducible
     files). ``lossy``: the models without the outlier set (``build --lossy``'s file), only
-    into ``output``. Returns the report as a dict.
+    into ``output``. ``tile_depth``: the result's tiles, the file's depth (the default) or
+    deeper, smaller tiles that keep a long history's compactions in less memory
+    (``compact --tile-depth``). Returns the report as a dict.
     """
     callback = _progress.reporter(progress)
     try:
         return _native.compact(
             file, output, format_version=format_version,
             model_options=_model_options(model_options), created=created, memory=memory,
-            tmp_dir=tmp_dir, lossy=lossy, progress=callback,
+            tmp_dir=tmp_dir, lossy=lossy, tile_depth=tile_depth, progress=callback,
         )
     finally:
         _progress.close(callback)
