@@ -30,7 +30,7 @@
 # the format's 65,536), COMPACT (1: `froctomap compact FILE` after each full week, timed
 # and logged; default 0), NICE (10), HELD_OUT (days predicted after the weeks, 2),
 # EVAL_STRIDE (every how many held-out maps one is compared, 60: every 5 minutes; each map
-# compared walks the whole file).
+# compared is checked against every cell of the file).
 set -euo pipefail
 
 FILE=${1:-eight-weeks.froct}

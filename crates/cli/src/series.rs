@@ -968,7 +968,8 @@ pub struct EvalArgs {
     #[command(flatten)]
     times: TimeArgs,
     /// Compare every Nth ground-truth map in time order (the 1st, the N+1th, …): each map
-    /// compared walks the whole file, so a long held-out series (days at 5 s) is better
+    /// compared is held in memory and checked against every cell of the file (the file is
+    /// walked once per 256 MiB of maps), so a long held-out series (days at 5 s) is better
     /// sampled. The others are still listed (a stream on standard input is read to its end).
     #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     stride: u64,

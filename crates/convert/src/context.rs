@@ -27,6 +27,11 @@ pub struct Limits {
     /// make a build split space into billions of cells; the cells inside the tiles are
     /// bounded by the snapshot's leaves, that is by its bytes.
     pub max_snapshot_tiles: u64,
+    /// Ground-truth leaves [`evaluate`](crate::evaluate) holds while it walks the file once,
+    /// bytes (default 256 MiB: about 16 maps of a building floor at 5 cm, 1 M leaves each).
+    /// Each walk decodes the whole file, which on a long history costs far more than
+    /// comparing one more map; at least as many maps as threads are held whatever this says.
+    pub eval_group_bytes: usize,
     /// What a FROctomap file may make its reader allocate ([`Context::open_froct`]).
     pub froct: ReadLimits,
 }
@@ -38,6 +43,7 @@ impl Default for Limits {
             max_map_file_bytes: 4 << 30,
             max_exports: 1_000_000,
             max_snapshot_tiles: 1 << 20,
+            eval_group_bytes: 256 << 20,
             froct: ReadLimits::default(),
         }
     }

@@ -31,7 +31,7 @@
 use crate::context::Context;
 use crate::error::ConvertError;
 use crate::inputs::SeriesInput;
-use crate::progress::Progress;
+use crate::progress::{stop_if_cancelled, Progress};
 use froctomap_core::{Occupancy, Snapshot, Timestamp};
 use froctomap_file::{Cell, CellContent, FroctReader};
 use froctomap_formats::ReadOptions;
@@ -471,14 +471,20 @@ fn read_truth(
 }
 
 /// The tallies of a group of ground truths: the file's tiles in parallel, each walked
-/// once, one cell at a time, against every truth's leaves inside the tile.
-fn tally_group(reader: &FroctReader, truths: &[GroundTruth]) -> Result<Vec<Tally>, ConvertError> {
+/// once, one cell at a time, against every truth's leaves inside the tile; `progress`
+/// advances by the group's size per tile.
+fn tally_group(
+    reader: &FroctReader,
+    truths: &[GroundTruth],
+    progress: &dyn Progress,
+) -> Result<Vec<Tally>, ConvertError> {
     let axis = &reader.header().axis;
     let model = reader.model();
     let empty = || vec![Tally::default(); truths.len()];
     let mut tallies = (0..reader.tiles().len())
         .into_par_iter()
         .map(|tile| {
+            stop_if_cancelled(progress)?;
             let code = reader.tiles()[tile].code.0;
             let mut out = empty();
             // Each truth's first leaf reaching into the tile (a coarse leaf may span tiles).
@@ -491,6 +497,7 @@ fn tally_group(reader: &FroctReader, truths: &[GroundTruth]) -> Result<Vec<Tally
                     tally_cell(&cell, truth, next, axis, model, out);
                 }
             })?;
+            progress.advance(truths.len() as u64);
             Ok::<_, ConvertError>(out)
         })
         .try_reduce(empty, |mut a, b| {
@@ -523,9 +530,11 @@ fn named<T: Copy>(values: &[T; 4], keep_stored: bool) -> Vec<(String, T)> {
 /// Compares a file with ground-truth maps (map files of any format of `context`, with their
 /// times).
 ///
-/// Memory is a few ground truths and one tile's decoded bytes per thread, whatever the size
-/// of the file's map: ground truths are read a group at a time (as many as threads) and the
-/// file's tiles are walked cell by cell against each group.
+/// Ground truths are read a group at a time and the file's tiles are walked cell by cell
+/// against each group. Each walk decodes the whole file, which on a long history costs far
+/// more than comparing one more map, so a group is as many truths as fit in
+/// [`Limits::eval_group_bytes`](crate::Limits) of leaves (at least as many as threads). Memory is that group
+/// and one tile's decoded bytes per thread, whatever the size of the file.
 pub fn evaluate(
     context: &Context,
     reader: &FroctReader,
@@ -533,17 +542,31 @@ pub fn evaluate(
     read: ReadOptions<'_>,
     progress: &dyn Progress,
 ) -> Result<EvalReport, ConvertError> {
-    progress.stage("evaluating", truths.len() as u64);
-    let group = rayon::current_num_threads().max(1);
+    // Counted in maps × tiles: a walk of the file for many maps is long.
+    let tiles = reader.tiles().len() as u64;
+    progress.stage("evaluating", (truths.len() as u64).saturating_mul(tiles));
+    let threads = rayon::current_num_threads().max(1);
     let mut tallies: Vec<(bool, Tally)> = Vec::with_capacity(truths.len());
-    for inputs in truths.chunks(group) {
-        let loaded = inputs
-            .par_iter()
-            .map(|truth| read_truth(context, reader, truth, read))
-            .collect::<Result<Vec<_>, ConvertError>>()?;
-        let group_tallies = tally_group(reader, &loaded)?;
+    let mut rest = truths;
+    while !rest.is_empty() {
+        let mut loaded: Vec<GroundTruth> = Vec::new();
+        let mut leaf_bytes = 0usize;
+        while !rest.is_empty()
+            && (loaded.is_empty() || leaf_bytes < context.limits().eval_group_bytes)
+        {
+            let (inputs, tail) = rest.split_at(threads.min(rest.len()));
+            rest = tail;
+            let read_now = inputs
+                .par_iter()
+                .map(|truth| read_truth(context, reader, truth, read))
+                .collect::<Result<Vec<_>, ConvertError>>()?;
+            leaf_bytes = read_now.iter().fold(leaf_bytes, |sum, t| {
+                sum.saturating_add(std::mem::size_of_val(t.snapshot.leaves()))
+            });
+            loaded.extend(read_now);
+        }
+        let group_tallies = tally_group(reader, &loaded, progress)?;
         tallies.extend(loaded.iter().map(|t| t.inside).zip(group_tallies));
-        progress.advance(inputs.len() as u64);
     }
     let mut report = EvalReport {
         log_loss_epsilon: LOG_LOSS_EPSILON,

@@ -8,7 +8,10 @@ mod common;
 use common::*;
 use froctomap_convert::*;
 use froctomap_core::VoxelKey;
+use froctomap_file::FroctReader;
 use froctomap_formats::ReadOptions;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 /// Three days of hourly frames; the next 14 hours held out.
 const FRAMES: u32 = 72;
@@ -43,18 +46,27 @@ fn method<'a>(rows: &'a [(String, ErrorRates)], name: &str) -> &'a ErrorRates {
     &rows.iter().find(|(m, _)| m == name).unwrap().1
 }
 
+/// The room built from its first `FRAMES` frames, and the frames `truths` as ground truths.
+fn room_and_truths(
+    context: &Context,
+    dir: &std::path::Path,
+    truths: impl IntoIterator<Item = u32>,
+) -> (FroctReader, Vec<SeriesInput>) {
+    let (file, _) = build_room(context, dir, FRAMES);
+    let truths_dir = dir.join("truths");
+    std::fs::create_dir_all(&truths_dir).unwrap();
+    for i in truths {
+        write_frame(context, &truths_dir, i, &frame(i));
+    }
+    let truths = collect_inputs(context, &[truths_dir], TimeSource::Auto).unwrap();
+    (context.open_froct(&file).unwrap(), truths)
+}
+
 #[test]
 fn brier_and_log_loss_match_a_direct_computation() {
     let dir = tempfile::tempdir().unwrap();
     let context = Context::with_default_plugins();
-    let (file, _) = build_room(&context, dir.path(), FRAMES);
-    let truths_dir = dir.path().join("truths");
-    std::fs::create_dir_all(&truths_dir).unwrap();
-    for i in HELD_OUT {
-        write_frame(&context, &truths_dir, i, &frame(i));
-    }
-    let truths = collect_inputs(&context, &[truths_dir], TimeSource::Auto).unwrap();
-    let reader = context.open_froct(&file).unwrap();
+    let (reader, truths) = room_and_truths(&context, dir.path(), HELD_OUT);
     let report = evaluate(&context, &reader, &truths, ReadOptions::default(), &Silent).unwrap();
     assert_eq!((report.inside, report.outside), (0, HELD_OUT.len()));
     assert_eq!(report.log_loss_epsilon, 1e-3);
@@ -173,4 +185,74 @@ fn brier_and_log_loss_match_a_direct_computation() {
     }
     assert_eq!(objects, 9);
     assert_eq!(json["log_loss_epsilon"], 1e-3);
+}
+
+/// Ground truths are compared a group at a time, one walk of the file each: a group of one
+/// (no leaf budget, one thread) and one group of all of them give the same report.
+#[test]
+fn the_report_does_not_depend_on_how_truths_are_grouped() {
+    let dir = tempfile::tempdir().unwrap();
+    let context = Context::with_default_plugins();
+    // Some inside the span (reconstruction), the held-out hours after it (prediction).
+    let (reader, truths) =
+        room_and_truths(&context, dir.path(), (0..FRAMES).step_by(5).chain(HELD_OUT));
+    let report = |context: &Context, threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let report = pool
+            .install(|| evaluate(context, &reader, &truths, ReadOptions::default(), &Silent))
+            .unwrap();
+        serde_json::to_value(&report).unwrap()
+    };
+    let one_group = report(&context, 2);
+    let mut limits = Limits::default();
+    limits.eval_group_bytes = 0;
+    let one_each = Context::with_default_plugins().with_limits(limits);
+    let one_each = report(&one_each, 1);
+    assert_eq!(one_group["inside"], 15);
+    assert_eq!(one_group["outside"], HELD_OUT.len());
+    assert_eq!(one_group, one_each);
+
+    // Progress is counted in maps × tiles, and a cancellation is heard within a walk.
+    let counted = Counted::default();
+    evaluate(&context, &reader, &truths, ReadOptions::default(), &counted).unwrap();
+    let total = (truths.len() * reader.tiles().len()) as u64;
+    assert_eq!(
+        counted.stages.lock().unwrap().as_slice(),
+        [("evaluating".to_string(), total)]
+    );
+    assert_eq!(counted.done.load(Ordering::Relaxed), total);
+    let cancelled = Counted {
+        cancel: true,
+        ..Counted::default()
+    };
+    let result = evaluate(
+        &context,
+        &reader,
+        &truths,
+        ReadOptions::default(),
+        &cancelled,
+    );
+    assert!(matches!(result, Err(ConvertError::Cancelled)), "{result:?}");
+}
+
+#[derive(Default)]
+struct Counted {
+    stages: Mutex<Vec<(String, u64)>>,
+    done: AtomicU64,
+    cancel: bool,
+}
+
+impl Progress for Counted {
+    fn stage(&self, name: &str, total: u64) {
+        self.stages.lock().unwrap().push((name.to_string(), total));
+    }
+    fn advance(&self, units: u64) {
+        self.done.fetch_add(units, Ordering::Relaxed);
+    }
+    fn cancelled(&self) -> bool {
+        self.cancel
+    }
 }

@@ -185,7 +185,7 @@ def evaluate(
     the dynamic voxels: ``lower``, ``upper``, ``voxels``, ``mean_p``, ``occupied_fraction``),
     ``log_loss_epsilon`` and ``unmodelled_voxels``: the fields of ``froctomap eval --json``.
     ``stride``: compare every ``stride``-th map in time order (``eval --stride``), for long
-    held-out series; each map compared walks the whole file.
+    held-out series; each map compared is checked against every cell of the file.
     """
     callback = _progress.reporter(progress)
     try:
