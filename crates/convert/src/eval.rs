@@ -533,8 +533,9 @@ fn named<T: Copy>(values: &[T; 4], keep_stored: bool) -> Vec<(String, T)> {
 /// Ground truths are read a group at a time and the file's tiles are walked cell by cell
 /// against each group. Each walk decodes the whole file, which on a long history costs far
 /// more than comparing one more map, so a group is as many truths as fit in
-/// [`Limits::eval_group_bytes`](crate::Limits) of leaves (at least as many as threads). Memory is that group
-/// and one tile's decoded bytes per thread, whatever the size of the file.
+/// [`Limits::eval_group_bytes`](crate::Limits) of leaves (at least as many as threads).
+/// Memory is that group and one tile's decoded bytes per thread, whatever the size of the
+/// file.
 pub fn evaluate(
     context: &Context,
     reader: &FroctReader,
