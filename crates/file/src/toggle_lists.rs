@@ -8,8 +8,6 @@ use crate::error::{corrupt, FormatViolation};
 use crate::limits::ToggleBudget;
 use crate::toggle_code::{BlockEncoder, CodedListReader};
 use froctomap_temporal::varint;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// How a file stores toggle lists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -313,6 +311,58 @@ fn holds_exactly(bitmap: &[u8], count: u64) -> bool {
             .is_none_or(|&last| used == 0 || last >> used == 0)
 }
 
+/// Blocks in buckets by the next list each holds toggles of: reading every list whole takes
+/// each block from its bucket once per list it holds, at no cost growing with the blocks
+/// (a heap cost log(blocks) each time, and a long history has thousands of blocks).
+struct WaitingBlocks {
+    /// Per list, the block put last in its bucket ([`NO_BLOCK`]: none).
+    last: Vec<u32>,
+    /// Per block, the block put in the same bucket before it.
+    before: Vec<u32>,
+    /// The blocks of the bucket being read (kept to reuse its allocation).
+    taken: Vec<usize>,
+}
+
+const NO_BLOCK: u32 = u32::MAX;
+
+impl WaitingBlocks {
+    fn new(lists: usize, blocks: usize) -> Self {
+        Self {
+            last: vec![NO_BLOCK; lists],
+            before: vec![NO_BLOCK; blocks],
+            taken: Vec::new(),
+        }
+    }
+
+    /// Puts `block` in the bucket of `list`; a list past the most read is never read, and
+    /// what its block holds is refused when the reader finishes.
+    fn put(&mut self, list: u64, block: usize) {
+        let bucket = usize::try_from(list)
+            .ok()
+            .and_then(|l| self.last.get_mut(l));
+        if let (Some(last), Some(before), Ok(id)) =
+            (bucket, self.before.get_mut(block), u32::try_from(block))
+        {
+            *before = *last;
+            *last = id;
+        }
+    }
+
+    /// Empties the bucket of `list` into `blocks`, in block order.
+    fn take(&mut self, list: usize, blocks: &mut Vec<usize>) {
+        blocks.clear();
+        let Some(last) = self.last.get_mut(list) else {
+            return;
+        };
+        let mut block = std::mem::replace(last, NO_BLOCK);
+        while block != NO_BLOCK {
+            blocks.push(block as usize);
+            block = self.before.get(block as usize).copied().unwrap_or(NO_BLOCK);
+        }
+        blocks.sort_unstable();
+    }
+}
+
 /// Reads a tile's toggle lists in order from the blocks at hand: the single block of the
 /// whole layout, every block (to read lists whole), or the one block holding a queried
 /// sample.
@@ -322,11 +372,13 @@ pub(crate) struct ToggleListReader<'a> {
     /// Lists read so far.
     read: usize,
     part: &'static str,
-    /// Reading whole lists in the blocked layout: the next list each block holds toggles
-    /// of, as `(list, block)`, smallest first (filled on the first whole list). A list is
-    /// read from the blocks listing it only, so that reading every list costs the toggles
-    /// and the bitmaps' bytes, not lists × blocks.
-    pending: Option<BinaryHeap<Reverse<(u64, usize)>>>,
+    /// Reading whole lists in the blocked layout: the blocks by the next list each holds
+    /// toggles of (filled on the first whole list). A list is read from the blocks listing
+    /// it only, so that reading every list costs the toggles and the bitmaps' bytes, not
+    /// lists × blocks.
+    pending: Option<WaitingBlocks>,
+    /// Most lists read (the tile's cells): the buckets of `pending`.
+    max_read: usize,
     /// Per block, the lists with an odd number of toggles in it: the parity bitmaps of
     /// consecutive blocks must differ in exactly those lists (checked by [`finish`](Self::finish)).
     odd_lists: Vec<u64>,
@@ -335,15 +387,16 @@ pub(crate) struct ToggleListReader<'a> {
 }
 
 impl<'a> ToggleListReader<'a> {
-    /// A reader over `blocks` (in block order) of an axis of `axis_len` samples, decoding
-    /// at most `max_toggles` toggles.
+    /// A reader over `blocks` (in block order) of an axis of `axis_len` samples, reading at
+    /// most `max_read` lists and decoding at most `max_toggles` toggles.
     pub(crate) fn new(
         blocks: Vec<ListBlock<'a>>,
         layout: ToggleLayout,
         axis_len: u32,
         part: &'static str,
-        max_toggles: u64,
+        limits: (usize, u64),
     ) -> Self {
+        let (max_read, max_toggles) = limits;
         let blocks: Vec<_> = blocks
             .into_iter()
             .map(|block| {
@@ -364,6 +417,7 @@ impl<'a> ToggleListReader<'a> {
             read: 0,
             part,
             pending: None,
+            max_read,
             budget: ToggleBudget::new(max_toggles),
         }
     }
@@ -432,20 +486,22 @@ impl<'a> ToggleListReader<'a> {
         let pending = match &mut self.pending {
             Some(pending) => pending,
             None => {
-                let first = self
-                    .blocks
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(b, (_, _, reader))| Some(Reverse((reader.next_listed()?, b))));
-                self.pending.insert(first.collect())
+                let mut waiting = WaitingBlocks::new(self.max_read, self.blocks.len());
+                for (b, (_, _, reader)) in self.blocks.iter().enumerate() {
+                    if let Some(next) = reader.next_listed() {
+                        // Lists passed over before (none in a walk) are read with this one.
+                        waiting.put(next.max(list as u64), b);
+                    }
+                }
+                self.pending.insert(waiting)
             }
         };
         let mut scratch = Vec::new();
-        while let Some(&Reverse((next, b))) = pending.peek() {
-            if next > list as u64 {
-                break;
-            }
-            pending.pop();
+        // Each block's next list only grows, and every list is read in turn: the blocks
+        // waiting for this one are all there are with toggles of it.
+        let mut listing = std::mem::take(&mut pending.taken);
+        pending.take(list, &mut listing);
+        for &b in &listing {
             let (parity, start, reader) = &mut self.blocks[b];
             let parity = bit(parity, list as u64)
                 .ok_or_else(|| corrupt(self.part, "parity bitmap shorter than the lists"))?;
@@ -462,9 +518,10 @@ impl<'a> ToggleListReader<'a> {
                 self.odd_lists[b] += 1;
             }
             if let Some(next) = reader.next_listed() {
-                pending.push(Reverse((next, b)));
+                pending.put(next, b);
             }
         }
+        pending.taken = listing;
         self.budget.spend(positions.len() as u64)
     }
 
@@ -526,8 +583,9 @@ impl<'a> ListReader<'a> {
         coded: bool,
         axis_len: u32,
         part: &'static str,
-        max_toggles: u64,
+        limits: (usize, u64),
     ) -> Self {
+        let max_toggles = limits.1;
         match (layout, coded) {
             (ToggleLayout::Coded(len), true) => ListReader::Coded(CodedListReader::new(
                 blocks.into_iter().map(|block| {
@@ -543,14 +601,10 @@ impl<'a> ListReader<'a> {
                 ToggleLayout::Blocked(len),
                 axis_len,
                 part,
-                max_toggles,
+                limits,
             )),
             _ => ListReader::Columns(ToggleListReader::new(
-                blocks,
-                layout,
-                axis_len,
-                part,
-                max_toggles,
+                blocks, layout, axis_len, part, limits,
             )),
         }
     }
@@ -784,7 +838,7 @@ mod tests {
 
     fn read_whole(columns: &[ListColumns]) -> Result<Vec<Vec<u32>>, FormatViolation> {
         let blocks = blocks_of(columns);
-        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 100);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", (LISTS.len(), 100));
         let mut lists = Vec::new();
         for _ in LISTS {
             let mut positions = Vec::new();
@@ -815,7 +869,7 @@ mod tests {
     fn toggles_beyond_the_limit_are_refused() {
         let columns = encode_lists(&LISTS, LAYOUT, 12);
         let blocks = blocks_of(&columns);
-        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", 2);
+        let mut reader = ToggleListReader::new(blocks, LAYOUT, 12, "lists", (LISTS.len(), 2));
         let mut positions = Vec::new();
         reader.next_list_into(&mut positions).unwrap();
         let err = reader.next_list_into(&mut positions).unwrap_err();

@@ -224,7 +224,7 @@ fn list_readers<'a>(
     blocks: &[(u32, PartStreams<'a>)],
     toggles: ToggleLayout,
     axis_len: u32,
-    max_toggles: u64,
+    limits: (usize, u64),
 ) -> [ListReader<'a>; 3] {
     [
         (ListSet::Masks, "tile masks"),
@@ -240,7 +240,7 @@ fn list_readers<'a>(
                 .collect(),
         };
         let coded = set == ListSet::Exceptions;
-        ListReader::new(blocks, toggles, coded, axis_len, part, max_toggles)
+        ListReader::new(blocks, toggles, coded, axis_len, part, limits)
     })
 }
 
@@ -270,7 +270,8 @@ pub(crate) fn walk_payload(
         &parts.blocks,
         layout.toggles,
         axis.len(),
-        limits.max_toggles_per_tile,
+        // A cell has at most one list of each set.
+        (count, limits.max_toggles_per_tile),
     );
     let coded = matches!(layout.toggles, ToggleLayout::Coded(_));
     let (depths, classes) = (cells.get(Stream::Depth), cells.get(Stream::Class));
