@@ -819,11 +819,19 @@ mod tests {
     const LAYOUT: ToggleLayout = ToggleLayout::Blocked(4);
 
     fn blocks_of(columns: &[ListColumns]) -> Vec<ListBlock<'_>> {
+        blocks_in(columns, LAYOUT, 12)
+    }
+
+    fn blocks_in(
+        columns: &[ListColumns],
+        layout: ToggleLayout,
+        axis_len: u32,
+    ) -> Vec<ListBlock<'_>> {
         columns
             .iter()
             .enumerate()
             .map(|(b, c)| ListBlock {
-                start: LAYOUT.block_span(b as u32, 12).0,
+                start: layout.block_span(b as u32, axis_len).0,
                 parity: c.get(Column::Parity),
                 present: Some(c.get(Column::Lists)),
                 columns: [
@@ -884,5 +892,36 @@ mod tests {
             ),
             "{err}"
         );
+    }
+
+    proptest::proptest! {
+        /// Lists spread over many blocks (a list in several, several in one, blocks with
+        /// none) read back whole, and their parity at any sample is the count before it.
+        #[test]
+        fn lists_over_many_blocks_read_back_whole(
+            lists in proptest::collection::vec(
+                proptest::collection::btree_set(0u32..200, 1..12), 1..40),
+            block in 1u32..16,
+            sample in 0u32..200,
+        ) {
+            let lists: Vec<Vec<u32>> = lists.into_iter().map(|l| l.into_iter().collect()).collect();
+            let refs: Vec<&[u32]> = lists.iter().map(Vec::as_slice).collect();
+            let layout = ToggleLayout::Blocked(block);
+            let columns = encode_lists(&refs, layout, 200);
+            let mut whole = ToggleListReader::new(blocks_in(&columns, layout, 200), layout, 200, "lists", (lists.len(), 1 << 20));
+            for list in &lists {
+                let mut positions = Vec::new();
+                whole.next_list_into(&mut positions).unwrap();
+                proptest::prop_assert_eq!(&positions, list);
+            }
+            whole.finish().unwrap();
+            // At one sample: the block holding it alone.
+            let at = (sample / block) as usize;
+            let mut one = ToggleListReader::new(blocks_in(&columns, layout, 200).into_iter().skip(at).take(1).collect(), layout, 200, "lists", (lists.len(), 1 << 20));
+            for list in &lists {
+                let odd = list.iter().filter(|&&t| t <= sample).count() % 2 == 1;
+                proptest::prop_assert_eq!(one.parity_at(sample).unwrap(), odd);
+            }
+        }
     }
 }
