@@ -512,7 +512,21 @@ fn compact_equals_a_build_of_the_same_maps() {
     .unwrap();
     assert_eq!(report["segments_before"], 2);
     assert_eq!(report["version"], "1.2");
-    assert_eq!(content(info(&flat)), content(info(&series.full)));
+    let compacted = info(&flat);
+    assert_eq!(content(compacted.clone()), content(info(&series.full)));
+    // Every map counted, but the segments' input bytes are not recorded: no ratio claimed
+    // from the base's inputs alone.
+    assert_eq!(compacted["input_files"], 24);
+    assert!(compacted["input_bytes"].is_null(), "{compacted}");
+    assert!(compacted["ratio_vs_inputs"].is_null(), "{compacted}");
+    // Before compaction, the ratio is the base's against the base's inputs.
+    let before = info(&series.living);
+    let base_len = before["living"]["base_len"].as_f64().unwrap();
+    let ratio = before["input_bytes"].as_f64().unwrap() / base_len;
+    assert!(
+        (before["ratio_vs_inputs"].as_f64().unwrap() - ratio).abs() < 1e-9,
+        "{before}"
+    );
 
     // In place, as 2.0 without segments (the default), under the writer lock: refused
     // while another writer holds it, and the file left as it was.

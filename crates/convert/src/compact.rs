@@ -280,10 +280,16 @@ fn compact_series(
         "source".into(),
         Value::from(crate::build::output_dir(file).display().to_string()),
     );
-    metadata.insert("sources".into(), Value::from(maps));
+    // The bytes of the maps read are known for the base's maps only: segments do not
+    // record theirs, and a sum of part of them beside the count of all would be a wrong
+    // compression ratio.
+    let base_sources = header.metadata.get("sources").and_then(Value::as_u64);
     if let Some(bytes) = header.metadata.get("input_bytes") {
-        metadata.insert("input_bytes".into(), bytes.clone());
+        if base_sources == Some(maps as u64) {
+            metadata.insert("input_bytes".into(), bytes.clone());
+        }
     }
+    metadata.insert("sources".into(), Value::from(maps));
     if let Some(tags) = header.metadata.get("tags") {
         metadata.insert("tags".to_string(), tags.clone());
     }

@@ -277,9 +277,8 @@ pub fn describe_series(
     info.size.file = root.committed_len;
     let raw_bits = info.voxels.total() as f64 * f64::from(base_axis.len());
     info.ratio_vs_raw_states = raw_bits / 8.0 / root.base_len as f64;
-    info.ratio_vs_inputs = info
-        .input_bytes
-        .map(|b| b as f64 / root.committed_len as f64);
+    // The inputs known are the base's (segments do not record theirs): the base against them.
+    info.ratio_vs_inputs = info.input_bytes.map(|b| b as f64 / root.base_len as f64);
     info.living = Some(LivingInfo {
         sequence: root.sequence,
         committed_len: root.committed_len,
