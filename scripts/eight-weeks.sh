@@ -67,8 +67,8 @@ cpu_secs() {
 }
 
 log "eight weeks into $FILE: seed $SEED, a map every $STEP_SECS s, $COMMIT maps per commit, $("$G" --version)"
-# `info` describes a compacted file from a walk of its tiles (a minute on the 8 weeks'), so
-# the last sample is read once here and again only after a week is recorded.
+# The last sample is read once here and again only after a week is recorded (`info` used
+# to walk every tile of a compacted file: a minute on the 8 weeks').
 last=$(last_unix)
 for week in $(seq 1 "$WEEKS"); do
   week_end=$((START_UNIX + week * WEEK_SECS))

@@ -1,11 +1,11 @@
 //! Where and with which rhythm a file's world changes: the map's extent, the periods its
 //! dynamic cells follow, and the connected regions of dynamic voxels. Every pass decodes one
-//! tile at a time (per thread); what is kept grows with the dynamic cells, never with the
-//! number of snapshots.
+//! tile at a time (per thread), the summary only its classes and models; what is kept grows
+//! with the dynamic cells, never with the number of snapshots.
 
 use crate::error::ConvertError;
 use froctomap_core::{voxels_per_node, Leaf, MortonCode, Occupancy, VoxelKey};
-use froctomap_file::{Cell, CellContent, FroctReader};
+use froctomap_file::{Cell, CellClass, CellContent, FroctReader, FrozenPrediction};
 use froctomap_temporal::PreparedModel;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -35,19 +35,30 @@ impl CellDynamics {
         match &cell.content {
             CellContent::Constant(state) => CellDynamics::Static(*state),
             CellContent::ConstantExcept { state, .. } => CellDynamics::RareFlips(*state),
-            CellContent::Modelled(voxel) => {
-                let parameters = voxel.parameters();
-                // The reader validated the bytes; a description failing anyway still has a mean.
-                let description = model.describe(parameters).ok();
-                CellDynamics::Modelled {
-                    mean: description
-                        .as_ref()
-                        .map_or_else(|| model.mean(parameters), |d| d.mean),
-                    period_seconds: description
-                        .and_then(|d| d.periodic.first().map(|term| term.period_seconds))
-                        .filter(|p| p.is_finite() && *p > 0.0),
-                }
-            }
+            CellContent::Modelled(voxel) => Self::modelled(voxel.parameters(), model),
+        }
+    }
+
+    /// What a cell does, read from its class and model alone (no history decoded): the
+    /// same as [`of`](Self::of) the cell.
+    pub fn of_class(cell: &CellClass<'_>, model: &dyn PreparedModel) -> Self {
+        match cell.prediction {
+            FrozenPrediction::State(state) if cell.has_outliers => CellDynamics::RareFlips(state),
+            FrozenPrediction::State(state) => CellDynamics::Static(state),
+            FrozenPrediction::Model(parameters) => Self::modelled(parameters, model),
+        }
+    }
+
+    fn modelled(parameters: &[u8], model: &dyn PreparedModel) -> Self {
+        // The reader checked the bytes; a description failing anyway still has a mean.
+        let description = model.describe(parameters).ok();
+        CellDynamics::Modelled {
+            mean: description
+                .as_ref()
+                .map_or_else(|| model.mean(parameters), |d| d.mean),
+            period_seconds: description
+                .and_then(|d| d.periodic.first().map(|term| term.period_seconds))
+                .filter(|p| p.is_finite() && *p > 0.0),
         }
     }
 }
@@ -220,10 +231,11 @@ pub fn summarize_dynamics(
         .into_par_iter()
         .map(|tile| {
             let mut part = TilePart::default();
-            reader.visit_cells(tile, |cell| {
+            // Classes and models only: a walk of the histories would cost the file's bytes.
+            reader.visit_cell_classes(tile, |cell| {
                 let one = KeyExtent::of_cell(cell.start, cell.depth);
                 part.extent = Some(part.extent.map_or(one, |e| e.union(one)));
-                let dynamics = CellDynamics::of(&cell, model);
+                let dynamics = CellDynamics::of_class(&cell, model);
                 if let CellDynamics::Modelled { period_seconds, .. } = dynamics {
                     let key = period_seconds.map_or(-1, |p| p.round() as i64);
                     let entry = part.periods.entry(key).or_default();

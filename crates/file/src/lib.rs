@@ -91,7 +91,7 @@ pub use layout::{Codec, TileLayout};
 pub use limits::ReadLimits;
 pub use living::{CellState, LivingReader, LivingWriter, SegmentWriter};
 pub use query::CellValue;
-pub use reader::{FroctReader, FrozenPrediction};
+pub use reader::{CellClass, FroctReader, FrozenPrediction};
 pub use root::{Root, LIVING_MAJOR_VERSION, LIVING_MINOR_VERSION, ROOT_SLOTS_AT, ROOT_SLOT_LEN};
 pub use segment::{
     RemainderMask, RemainderRun, SegmentCell, SegmentContent, SegmentTileEncoder, TileRemainder,

@@ -548,6 +548,48 @@ impl FroctReader {
         })
     }
 
+    /// Calls `visit` with every cell of a tile, in Morton order, as its class and model say
+    /// ([`CellClass`]), without decoding masks or toggles: what a summary of where and how
+    /// the world changes needs (`info`). Like
+    /// [`visit_frozen_predictions`](Self::visit_frozen_predictions), it does not validate
+    /// the rest of the tile first: its cost is the tile's cells, not their histories.
+    ///
+    /// ```
+    /// # use froctomap_file::{FroctReader, FrozenPrediction};
+    /// # let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+    /// #     .join("../../fixtures/froct/golden-v1.1.froct");
+    /// let reader = FroctReader::open(&path)?;
+    /// let (mut modelled, mut cells) = (0, 0);
+    /// reader.visit_cell_classes(0, |cell| {
+    ///     cells += 1;
+    ///     modelled += usize::from(matches!(cell.prediction, FrozenPrediction::Model(_)));
+    /// })?;
+    /// let mut walked = 0;
+    /// reader.visit_cells(0, |_| walked += 1)?;
+    /// assert!(cells == walked && modelled <= cells);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn visit_cell_classes(
+        &self,
+        tile: usize,
+        mut visit: impl FnMut(CellClass<'_>),
+    ) -> Result<(), FileError> {
+        self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
+            let prediction = match (cell.constant, cell.model) {
+                (Some(state), _) => FrozenPrediction::State(state),
+                (None, Some(parameters)) => FrozenPrediction::Model(parameters),
+                (None, None) => FrozenPrediction::State(Occupancy::Free),
+            };
+            visit(CellClass {
+                start: cell.start,
+                depth: cell.depth,
+                prediction,
+                has_outliers: cell.has_outliers,
+                sometimes_unknown: cell.has_mask,
+            });
+        })
+    }
+
     /// Appends to `out` one leaf per cell of a tile with `log_odds(p)` of its probability at
     /// `seconds` since the first sample (any instant), in Morton order.
     pub fn predicted_leaves(
@@ -602,6 +644,22 @@ impl FroctReader {
             .map(|(i, _)| i)
             .collect()
     }
+}
+
+/// A cell as its class and model say, without its mask or toggles (see
+/// [`FroctReader::visit_cell_classes`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellClass<'a> {
+    /// Morton code of the cell's first voxel.
+    pub start: MortonCode,
+    /// Depth of the cell's node.
+    pub depth: u8,
+    /// Its constant state, or its model's parameters.
+    pub prediction: FrozenPrediction<'a>,
+    /// A constant cell with exceptions, or a modelled one with outliers.
+    pub has_outliers: bool,
+    /// Not observed at every sample (it has an observation mask).
+    pub sometimes_unknown: bool,
 }
 
 /// What a cell of a file predicts at any instant (see

@@ -61,6 +61,10 @@ pub(crate) struct CellRef<'a> {
     /// an odd number of its outliers lie at or before it.
     pub(crate) observed: bool,
     pub(crate) outlier_parity: bool,
+    /// Whatever the walk decoded: whether the cell has a mask (is not observed at every
+    /// sample), and outliers (or exceptions).
+    pub(crate) has_mask: bool,
+    pub(crate) has_outliers: bool,
 }
 
 impl CellRef<'_> {
@@ -344,6 +348,8 @@ pub(crate) fn walk_payload(
             outliers: if has_list { &scratch } else { &[] },
             observed: mask_table.sample_present && mask_observed,
             outlier_parity,
+            has_mask: class & CLASS_HAS_MASK != 0,
+            has_outliers: class & CLASS_HAS_OUTLIERS != 0,
         });
     }
     if !geometry.gaps.is_empty() || !mask_refs.is_empty() || !models.is_done() {
