@@ -538,14 +538,7 @@ impl FroctReader {
         tile: usize,
         mut visit: impl FnMut(MortonCode, u8, FrozenPrediction<'_>),
     ) -> Result<(), FileError> {
-        self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
-            let prediction = match (cell.constant, cell.model) {
-                (Some(state), _) => FrozenPrediction::State(state),
-                (None, Some(parameters)) => FrozenPrediction::Model(parameters),
-                (None, None) => FrozenPrediction::State(Occupancy::Free),
-            };
-            visit(cell.start, cell.depth, prediction);
-        })
+        self.visit_cell_classes(tile, |cell| visit(cell.start, cell.depth, cell.prediction))
     }
 
     /// Calls `visit` with every cell of a tile, in Morton order, as its class and model say
