@@ -434,8 +434,10 @@ impl FroctReader {
     }
 
     /// Walks a tile whole, as [`visit_cells`](Self::visit_cells) does, the first time a
-    /// query at one sample or a prediction asks for it (before the index's sample span of
-    /// the tile is trusted to skip it): every path then refuses what the full walk refuses.
+    /// query at one sample asks for it (before the index's sample span of the tile is
+    /// trusted to skip it, and the lists read at one sample are trusted to match the cells'
+    /// flags): such a query then refuses what the full walk refuses. Predictions read the
+    /// models only, which the lists cannot shift.
     fn validate_once(&self, tile: usize) -> Result<(), FileError> {
         let Some(validated) = self.validated.get(tile) else {
             return Ok(()); // walk_tile reports the missing tile
@@ -518,7 +520,6 @@ impl FroctReader {
         seconds: f64,
         mut visit: impl FnMut(MortonCode, u8, Occupancy),
     ) -> Result<(), FileError> {
-        self.validate_once(tile)?;
         let model = self.model.as_ref();
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             let occupied = cell.probability(model, seconds) > 0.5;
@@ -592,7 +593,6 @@ impl FroctReader {
         log_odds: &dyn Fn(f64) -> f32,
         out: &mut Vec<Leaf>,
     ) -> Result<(), FileError> {
-        self.validate_once(tile)?;
         let model = self.model.as_ref();
         self.walk_tile(tile, WalkNeed::ModelOnly, |cell| {
             out.push(Leaf {
