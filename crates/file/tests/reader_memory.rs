@@ -14,6 +14,7 @@ use froctomap_temporal::TimeAxis;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 /// The system allocator, counting the bytes live.
 struct Counting;
@@ -40,6 +41,16 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
+
+/// Held by each test for its whole run: the counters are the process's, and a test running
+/// beside another would count (or free) the other's bytes.
+static ALONE: Mutex<()> = Mutex::new(());
+
+fn alone() -> MutexGuard<'static, ()> {
+    ALONE
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
 
 const SEGMENTS: usize = 32;
 const SAMPLES: u32 = 4096;
@@ -91,6 +102,7 @@ fn opening_peak(path: &Path) -> usize {
 /// segments of the generated office opened at some 290 MB).
 #[test]
 fn opening_reads_one_record_at_a_time() {
+    let _alone = alone();
     const MANY: usize = 128;
     let dir = tempfile::tempdir().unwrap();
     let (small, large) = (
@@ -113,6 +125,7 @@ fn opening_reads_one_record_at_a_time() {
 
 #[test]
 fn a_reader_holds_no_segments_remainder_masks() {
+    let _alone = alone();
     let dir = tempfile::tempdir().unwrap();
     let (small, large) = (
         dir.path().join("small.froct"),
