@@ -2,7 +2,7 @@
 //! layer over `froctomap_convert::compact`.
 
 use crate::progress::Bars;
-use crate::series::SpillArgs;
+use crate::series::{SpillArgs, TileBudgetArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -56,12 +56,14 @@ pub struct CompactArgs {
     #[arg(long)]
     lossy: bool,
     /// Tiles of the result: cubes of 2^(16 − depth) voxels per edge; the file's depth or
-    /// deeper (default: the file's). Compacting (and building) holds one tile's whole
+    /// deeper (default: the file's, or deeper as --tile-budget decides). Compacting (and building) holds one tile's whole
     /// history at a time, which grows with the history: a file that grows for months keeps
     /// its compactions' memory down in smaller tiles (each level deeper: an eighth of the
     /// volume). The result equals a build at that depth.
     #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(1..=16))]
     tile_depth: Option<u8>,
+    #[command(flatten)]
+    tile_budget: TileBudgetArgs,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -103,6 +105,7 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
         tmp_dir: args.spill.tmp_dir.clone(),
         lossy: args.lossy,
         tile_depth: args.tile_depth,
+        tile_budget: args.tile_budget.tile_budget.0,
         ..CompactOptions::default()
     };
     ui.note(&format!("compacting {}", escaped(args.file.display())));
@@ -149,6 +152,17 @@ pub fn compact_command(ui: &Ui, args: &CompactArgs) -> Result<()> {
         n(report.bytes),
         n(report.bytes_before)
     )?;
+    if report.tile_depth != report.tile_depth_before {
+        outln!(
+            "tiles:       depth {} (was {}){}",
+            report.tile_depth,
+            report.tile_depth_before,
+            match args.tile_depth {
+                Some(_) => "",
+                None => ": the largest tile's history passed --tile-budget",
+            }
+        )?;
+    }
     outln!("time:        {:.1} s", report.seconds)?;
     Ok(())
 }

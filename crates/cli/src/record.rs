@@ -14,7 +14,7 @@
 //! stream's are.
 
 use crate::follow::DirEvent;
-use crate::series::{print_input_notes, SpillArgs, TimeArgs};
+use crate::series::{print_input_notes, SpillArgs, TileBudgetArgs, TimeArgs};
 use crate::ui::{escaped, Ui};
 use anyhow::{anyhow, bail, Context as _, Result};
 use clap::Args;
@@ -84,7 +84,8 @@ pub struct RecordArgs {
     /// `build`); an existing file keeps its own (`froctomap compact FILE --tile-depth N`
     /// makes them smaller). A compaction holds one tile's whole history at a time, so a
     /// recording meant to run for weeks keeps its compactions' memory down in smaller tiles
-    /// (12: a 64th of the volume; docs/BENCHMARKS.md).
+    /// (12: a 64th of the volume; docs/BENCHMARKS.md); --tile-budget deepens them as the
+    /// history grows.
     #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(1..=16))]
     tile_depth: Option<u8>,
     /// The default (see --no-compact); accepted so that scripts written for the release
@@ -99,6 +100,8 @@ pub struct RecordArgs {
     /// waits for a compaction still running; stopped by a signal, it abandons it.
     #[arg(long, conflicts_with = "no_compact")]
     compact_in_background: bool,
+    #[command(flatten)]
+    tile_budget: TileBudgetArgs,
     /// A temporal model option (KEY=VALUE, repeatable): for the base a missing FILE is
     /// built with and for automatic compactions (see `froctomap models`).
     #[arg(long, value_name = "KEY=VALUE")]
@@ -285,6 +288,7 @@ fn record_options(ui: &Ui, args: &RecordArgs, spool_parent: PathBuf) -> Result<R
         } else {
             Compaction::AfterCommit
         },
+        tile_budget: args.tile_budget.tile_budget.0,
     };
     for assignment in &args.model_option {
         options
@@ -455,8 +459,14 @@ fn print_event(ui: &Ui, failed: &RefCell<Option<std::io::Error>>, event: &Record
                 0 => String::new(),
                 maps => format!(", in the background ({maps} maps committed meanwhile added)"),
             };
+            let deeper = match (compacted.tile_depth_before, compacted.tile_depth) {
+                (before, after) if before != after => {
+                    format!(", tiles of depth {after} (was {before}: --tile-budget)")
+                }
+                _ => String::new(),
+            };
             let printed = outln!(
-                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms{meanwhile}",
+                "compacted: the base and {} segment(s) into one base, {} -> {} bytes, {} ms{deeper}{meanwhile}",
                 compacted.segments_before,
                 group_thousands(compacted.bytes_before),
                 group_thousands(compacted.bytes),

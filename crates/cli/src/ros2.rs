@@ -2,6 +2,7 @@
 //! receives into FILE through `record`'s `Recorder` (`--no-record`: receives only),
 //! publishes the map FILE predicts and answers the services from FILE.
 
+use crate::series::{tile_budget, TileBudgetArgs};
 use crate::ui::Ui;
 use anyhow::Context as _;
 use froctomap_convert::{
@@ -71,6 +72,8 @@ pub struct Ros2Args {
     /// existing file keeps its own.
     #[arg(long, value_name = "DEPTH", value_parser = tile_depth)]
     tile_depth: Option<u8>,
+    #[command(flatten)]
+    tile_budget: TileBudgetArgs,
     /// The ROS 2 distribution of the peers, for the node's graph entry (`ros2 node list`,
     /// `ros2 param`): `jazzy` (Iron and later) or `humble` (Humble and before).
     #[arg(long, value_name = "DISTRO", default_value = "jazzy")]
@@ -99,7 +102,7 @@ pub struct Ros2Args {
 }
 
 /// The options `-p name:=value` sets, by their parameter names.
-const PARAMETERS: [&str; 13] = [
+const PARAMETERS: [&str; 14] = [
     "commit_every",
     "frame_id",
     "horizon",
@@ -109,6 +112,7 @@ const PARAMETERS: [&str; 13] = [
     "publish_every",
     "record",
     "service_mapping",
+    "tile_budget",
     "tile_depth",
     "time_source",
     "topic",
@@ -139,6 +143,7 @@ fn with_parameters(args: &Ros2Args, ros: &RosArgs) -> anyhow::Result<(Ros2Args, 
             "publish_every" => args.publish_every = text,
             "record" => args.no_record = !boolean()?,
             "service_mapping" => args.service_mapping = text.parse().map_err(bad)?,
+            "tile_budget" => args.tile_budget.tile_budget = tile_budget(&text).map_err(bad)?,
             "tile_depth" => args.tile_depth = Some(tile_depth(&text).map_err(bad)?),
             "time_source" => args.time_source = text.parse().map_err(bad)?,
             "topic" => args.topic = text,
@@ -221,6 +226,17 @@ fn parameters(args: &Ros2Args) -> Parameters {
                     .unwrap_or(froctomap_convert::AppendOptions::default().tile_depth),
             )),
             "a new file's tiles: 2^(16 - depth) voxels per edge",
+        ),
+        (
+            "tile_budget",
+            text(
+                &args
+                    .tile_budget
+                    .tile_budget
+                    .0
+                    .map_or("none".into(), |b| b.to_string()),
+            ),
+            "bytes of history past which a compaction deepens the tiles",
         ),
     ] {
         parameters.set(name, value, description);
@@ -521,6 +537,7 @@ fn open_recording<'a>(
     if let Some(depth) = args.tile_depth {
         options.append.tile_depth = depth;
     }
+    options.tile_budget = args.tile_budget.tile_budget.0;
     let mut recorder = Recorder::open(context, &args.file, options)?;
     match recorder.opened() {
         Opened::Missing => eprintln!(

@@ -288,6 +288,34 @@ fn max_memory(text: &str) -> Result<MaxMemory, String> {
     }
 }
 
+/// `--tile-budget` of the verbs that compact (`compact`, `record`).
+#[derive(Args, Clone, Debug)]
+pub(crate) struct TileBudgetArgs {
+    /// The most history one tile may hold in a compaction (its cells' observation runs,
+    /// packed; e.g. 32MiB, the default), or `none`. A compaction whose largest tile would
+    /// pass it (the last build's or compaction's largest, grown with the maps since) writes
+    /// deeper tiles, an eighth of the volume each level, down to depth 15, so that its
+    /// memory stays bounded however long the file grows, for a file a few percent larger
+    /// (`compact --tile-depth` chooses instead). `none`: keep the file's depth.
+    #[arg(long, value_name = "SIZE", default_value = "32MiB", value_parser = tile_budget)]
+    pub(crate) tile_budget: TileBudget,
+}
+
+/// A tile budget, or none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct TileBudget(pub(crate) Option<u64>);
+
+/// `--tile-budget` (and the node's `tile_budget` parameter): a size, or `none`.
+pub(crate) fn tile_budget(text: &str) -> Result<TileBudget, String> {
+    match text.trim() {
+        "none" => Ok(TileBudget(None)),
+        text => match byte_size(text)? {
+            0 => Err("a positive size, or none".into()),
+            bytes => Ok(TileBudget(Some(bytes))),
+        },
+    }
+}
+
 pub(crate) fn byte_size(text: &str) -> Result<u64, String> {
     let text = text.trim();
     let digits = text
@@ -1187,7 +1215,15 @@ pub(crate) fn tags_metadata(tags: &[String]) -> Result<Map<String, Value>> {
 
 #[cfg(test)]
 mod tests {
-    use super::byte_size;
+    use super::{byte_size, tile_budget, TileBudget};
+
+    #[test]
+    fn a_tile_budget_is_a_positive_size_or_none() {
+        assert_eq!(tile_budget("32MiB"), Ok(TileBudget(Some(32 << 20))));
+        assert_eq!(tile_budget(" none "), Ok(TileBudget(None)));
+        assert!(tile_budget("0").unwrap_err().contains("or none"));
+        assert!(tile_budget("lots").is_err());
+    }
 
     #[test]
     fn memory_sizes_read_with_binary_units() {

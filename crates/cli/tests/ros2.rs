@@ -199,6 +199,7 @@ fn bad_ros_args_are_refused_by_name() {
         (&["-p", "no_such:=1"][..], "no parameter `no_such`"),
         (&["-p", "use_sim_time:=maybe"], "true or false"),
         (&["-p", "commit_every:=0"], "commit_every"),
+        (&["-p", "tile_budget:=0"], "tile_budget"),
         (&["-r", "__ns:=robot1"], "absolute"),
         (&["--no-such-argument"], "--no-such-argument"),
     ] {

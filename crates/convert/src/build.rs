@@ -52,6 +52,7 @@ pub use append::{AppendOptions, AppendReport};
 pub use axis::axis_for_times;
 pub(crate) use compacted::{merge_into, MergeSettings};
 pub use counts::ClassCounts;
+pub(crate) use counts::LARGEST_TILE_HISTORY_KEY;
 use fit::{fit_and_write, TileFitter};
 use froctomap_core::Timestamp;
 use froctomap_file::{Header, LivingWriter, WrittenFile};

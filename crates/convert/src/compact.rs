@@ -20,7 +20,7 @@ use crate::outputs::refuse_overwriting_input;
 use crate::progress::Progress;
 use crate::series_file::{FroctFile, SeriesRead};
 use froctomap_core::Timestamp;
-use froctomap_file::{LivingWriter, ToggleLayout};
+use froctomap_file::{FroctReader, LivingWriter, ToggleLayout};
 use froctomap_temporal::{ModelConfig, ModelOptions, OutlierMode};
 use serde::Serialize;
 use serde_json::{Map, Value};
@@ -75,7 +75,25 @@ pub struct CompactOptions {
     /// history, which grows with the history, so a file meant to grow for months is
     /// better kept in smaller tiles. The result equals a build at that depth.
     pub tile_depth: Option<u8>,
+    /// When [`tile_depth`](Self::tile_depth) is `None`: the most history (bytes of
+    /// observation runs, packed) one tile may hold in this compaction, which decides its
+    /// depth so that a file that grows for months compacts in bounded memory. The largest
+    /// tile's history of the last build or compaction (in the base's summary) is scaled by
+    /// the maps since; past the budget, the result goes as many levels deeper (each an
+    /// eighth of the volume, up to [`AUTOMATIC_TILE_DEPTH_LIMIT`]) as bring it under, for a
+    /// file a few percent larger. `None`: the file's depth. A file whose summary does not
+    /// say (written before this was recorded) keeps its depth once, and says it after.
+    pub tile_budget: Option<u64>,
 }
+
+/// [`CompactOptions::tile_budget`]'s default: 32 MiB of packed runs, about 12 million
+/// observation runs; a compaction holds a few times that at its peak.
+pub const DEFAULT_TILE_BUDGET: u64 = 32 << 20;
+
+/// The deepest tiles a [`CompactOptions::tile_budget`] chooses: cubes of 2 voxels an edge,
+/// whose history is at most 8 voxels' (a few bytes a map each), under any sensible budget
+/// for millions of maps.
+pub const AUTOMATIC_TILE_DEPTH_LIMIT: u8 = froctomap_core::TREE_DEPTH - 1;
 
 impl Default for CompactOptions {
     fn default() -> Self {
@@ -88,6 +106,7 @@ impl Default for CompactOptions {
             batch: 8 * rayon::current_num_threads().max(1),
             lossy: false,
             tile_depth: None,
+            tile_budget: Some(DEFAULT_TILE_BUDGET),
         }
     }
 }
@@ -106,6 +125,12 @@ pub struct CompactReport {
     pub version: String,
     /// Segments the input had.
     pub segments_before: usize,
+    /// Tile depth of the input.
+    pub tile_depth_before: u8,
+    /// Tile depth written: deeper than the input's when asked
+    /// ([`CompactOptions::tile_depth`]) or when the largest tile's history passed
+    /// [`CompactOptions::tile_budget`].
+    pub tile_depth: u8,
     /// Samples of the series (missing ones included).
     pub samples: u32,
     /// Maps (samples with a map) refitted.
@@ -217,13 +242,28 @@ pub(crate) fn compact_opened(
     compact_series(context, series, file, Some(output), None, options, progress)
 }
 
-/// The result's tile depth: the file's (`file_depth`) or the deeper one `options` ask for.
+/// The result's tile depth: the one `options` ask for (the file's, `file_depth`, or deeper),
+/// or, with none asked, the file's or deeper as [`CompactOptions::tile_budget`] decides from
+/// `base`'s largest tile history, measured over `base_maps` and grown to `maps`.
 fn written_tile_depth(
     file: &Path,
     file_depth: u8,
+    (base, base_maps, maps): (&FroctReader, usize, usize),
     options: &CompactOptions,
 ) -> Result<u8, ConvertError> {
-    let tile_depth = options.tile_depth.unwrap_or(file_depth);
+    let Some(tile_depth) = options.tile_depth else {
+        let largest = base
+            .summary()
+            .get(crate::build::LARGEST_TILE_HISTORY_KEY)
+            .and_then(Value::as_u64);
+        return Ok(match (options.tile_budget, largest) {
+            (Some(budget), Some(largest)) if base_maps > 0 => {
+                let grown = u128::from(largest) * maps as u128 / base_maps as u128;
+                deeper_for(grown, budget, file_depth)
+            }
+            _ => file_depth,
+        });
+    };
     if (file_depth..=froctomap_core::TREE_DEPTH).contains(&tile_depth) {
         Ok(tile_depth)
     } else {
@@ -235,41 +275,30 @@ fn written_tile_depth(
     }
 }
 
-fn compact_series(
-    context: &Context,
-    series: FroctFile,
+/// The depth from `depth` on whose largest tile holds at most `budget` of a history whose
+/// largest tile holds `largest` at `depth`, taking each level deeper to divide it by eight
+/// (its volume's share); never shallower than `depth`, never past
+/// [`AUTOMATIC_TILE_DEPTH_LIMIT`].
+fn deeper_for(largest: u128, budget: u64, depth: u8) -> u8 {
+    let mut deeper = depth;
+    let mut held = largest;
+    while held > u128::from(budget) && deeper < AUTOMATIC_TILE_DEPTH_LIMIT {
+        held /= 8;
+        deeper += 1;
+    }
+    deeper
+}
+
+/// The metadata of the compaction of `file` (whose header is `header`, `maps` maps, its
+/// version and segments `before`), as a build of the file's maps writes it (its inputs
+/// being the file).
+fn compacted_metadata(
     file: &Path,
-    output: Option<&Path>,
-    writer: Option<LivingWriter>,
+    header: &froctomap_file::Header,
+    maps: usize,
     options: &CompactOptions,
-    progress: &dyn Progress,
-) -> Result<CompactReport, ConvertError> {
-    let started = Instant::now();
-    let target = output.unwrap_or(file);
-    let version_before = version_text(series.version());
-    let segments_before = series.segment_count();
-    let bytes_before = match &series {
-        FroctFile::Flat(reader) => reader.file_len(),
-        FroctFile::Living(living) => living.root().committed_len,
-    };
-    let header = series.header().clone();
-    let body = match &series {
-        FroctFile::Flat(reader) => reader,
-        FroctFile::Living(living) => living.base(),
-    };
-    let model = context.model_of(&header)?;
-    let tile_depth = written_tile_depth(file, header.tile_depth, options)?;
-    let outliers = if options.lossy {
-        OutlierMode::Lossy
-    } else {
-        body.model().outlier_mode()
-    };
-    let mut config = ModelConfig::default().with_outliers(outliers);
-    config.options = options.model_options.clone();
-    // As a build of the file's maps writes it (its inputs being the file).
-    let maps = (0..series.sample_count())
-        .filter(|&s| !series.is_missing(s))
-        .count();
+    (version_before, segments_before): (&str, usize),
+) -> Map<String, Value> {
     let mut metadata = Map::new();
     metadata.insert(
         "creator".into(),
@@ -296,6 +325,54 @@ fn compact_series(
     metadata.insert(
         "compacted_from".to_string(),
         serde_json::json!({ "version": version_before, "segments": segments_before }),
+    );
+    metadata
+}
+
+fn compact_series(
+    context: &Context,
+    series: FroctFile,
+    file: &Path,
+    output: Option<&Path>,
+    writer: Option<LivingWriter>,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactReport, ConvertError> {
+    let started = Instant::now();
+    let target = output.unwrap_or(file);
+    let version_before = version_text(series.version());
+    let segments_before = series.segment_count();
+    let bytes_before = match &series {
+        FroctFile::Flat(reader) => reader.file_len(),
+        FroctFile::Living(living) => living.root().committed_len,
+    };
+    let header = series.header().clone();
+    let body = match &series {
+        FroctFile::Flat(reader) => reader,
+        FroctFile::Living(living) => living.base(),
+    };
+    let model = context.model_of(&header)?;
+    let outliers = if options.lossy {
+        OutlierMode::Lossy
+    } else {
+        body.model().outlier_mode()
+    };
+    let mut config = ModelConfig::default().with_outliers(outliers);
+    config.options = options.model_options.clone();
+    // The maps of the series, and of its base, which measured the largest tile.
+    let maps = (0..series.sample_count())
+        .filter(|&s| !series.is_missing(s))
+        .count();
+    let base_maps = (0..body.header().axis.len())
+        .filter(|&s| !body.header().axis.is_missing(s))
+        .count();
+    let tile_depth = written_tile_depth(file, header.tile_depth, (body, base_maps, maps), options)?;
+    let metadata = compacted_metadata(
+        file,
+        &header,
+        maps,
+        options,
+        (&version_before, segments_before),
     );
     let toggles = match options.format {
         CompactFormat::Flat(Some(layout)) => layout,
@@ -362,6 +439,8 @@ fn compact_series(
         version_before,
         version,
         segments_before,
+        tile_depth_before: header.tile_depth,
+        tile_depth,
         samples: sample_count,
         maps: merged.maps,
         bytes_before,
@@ -374,4 +453,23 @@ fn compact_series(
 
 fn version_text((major, minor): (u16, u16)) -> String {
     format!("{major}.{minor}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_budget_takes_as_many_levels_as_bring_the_largest_tile_under() {
+        let budget = 1000;
+        assert_eq!(deeper_for(1000, budget, 10), 10, "at the budget: kept");
+        assert_eq!(deeper_for(1001, budget, 10), 11);
+        assert_eq!(deeper_for(8000, budget, 10), 11);
+        assert_eq!(deeper_for(8008, budget, 10), 12, "8008 / 8 = 1001");
+        assert_eq!(
+            deeper_for(u128::MAX, budget, 10),
+            AUTOMATIC_TILE_DEPTH_LIMIT
+        );
+        assert_eq!(deeper_for(u128::MAX, budget, 16), 16, "never shallower");
+    }
 }

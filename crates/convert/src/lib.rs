@@ -79,7 +79,10 @@ pub use build::{
     refuse_growing_fixed_span, AppendOptions, AppendReport, BuildOptions, BuildReport, ClassCounts,
     Extended, IngestInputs, IngestOptions, IngestReport, IngestTarget, DEFAULT_BUILD_MEMORY,
 };
-pub use compact::{compact, CompactFormat, CompactOptions, CompactReport};
+pub use compact::{
+    compact, CompactFormat, CompactOptions, CompactReport, AUTOMATIC_TILE_DEPTH_LIMIT,
+    DEFAULT_TILE_BUDGET,
+};
 pub use context::{Context, Limits, FROCT};
 pub use dynamics::{
     key_extent, period_text, summarize_dynamics, CellDynamics, DynamicRegion, DynamicsSummary,

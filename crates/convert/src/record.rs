@@ -107,6 +107,10 @@ pub struct RecordOptions {
     /// that makes it due by default. A compaction refits with `append.config.options`, not
     /// the options the file was built with (files do not record them).
     pub compact: Compaction,
+    /// The compactions' [`CompactOptions::tile_budget`]: past it, a compaction writes
+    /// deeper (smaller) tiles, so that the recording compacts in bounded memory however
+    /// long it runs.
+    pub tile_budget: Option<u64>,
 }
 
 /// How a [`Recorder`] compacts its file once a compaction is due (see [`Recorder`]).
@@ -135,6 +139,7 @@ impl Default for RecordOptions {
             append: AppendOptions::default(),
             spool_dir: None,
             compact: Compaction::AfterCommit,
+            tile_budget: Some(crate::compact::DEFAULT_TILE_BUDGET),
         }
     }
 }
@@ -185,8 +190,8 @@ impl RecordOptions {
                 allow_mostly_skipped: true,
                 ..AppendOptions::default()
             },
-            spool_dir: None,
             compact: Compaction::Background,
+            ..Self::default()
         }
     }
 }
@@ -729,6 +734,7 @@ impl<'a> Recorder<'a> {
             model_options: append.config.options.clone(),
             memory: append.memory,
             tmp_dir: append.tmp_dir.clone(),
+            tile_budget: self.options.tile_budget,
             ..CompactOptions::default()
         }
     }

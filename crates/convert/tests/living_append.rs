@@ -577,17 +577,35 @@ proptest::proptest! {
     }
 }
 
+/// A context whose files hold at most 8 segments, and the room of `frames` frames built from
+/// its first 24 (as [`room_built`]).
+fn room_under_a_segment_limit_of_8(dir: &Path, frames: u32) -> (Context, Vec<PathBuf>, PathBuf) {
+    let mut limits = Limits::default();
+    limits.froct.max_segments = 8;
+    let context = Context::with_default_plugins().with_limits(limits);
+    let (paths, file) = room_built(&context, dir, frames, 24);
+    (context, paths, file)
+}
+
+/// Each sample of `reader` retrieves its input, `paths` in order.
+fn assert_snapshots_are_the_inputs(context: &Context, reader: &LivingReader, paths: &[PathBuf]) {
+    for (i, path) in paths.iter().enumerate() {
+        let got = living_snapshot(reader, i as u32);
+        assert!(
+            got.same_voxel_states(&decoded(context, path)),
+            "sample {i} differs from its input"
+        );
+    }
+}
+
 /// One map per commit never reaches the segment limit: a compaction is due once the
 /// segments reach a quarter of it, though neither the size nor the span rule is (the
 /// base holds a day, the 12 maps add half of one). With a limit of 8 segments, 12
 /// one-map commits stopped at the ninth before that rule.
 #[test]
 fn one_map_commits_compact_before_the_segment_limit() {
-    let mut limits = Limits::default();
-    limits.froct.max_segments = 8;
-    let context = Context::with_default_plugins().with_limits(limits);
     let dir = tempfile::tempdir().unwrap();
-    let (paths, file) = room_built(&context, dir.path(), 36, 24);
+    let (context, paths, file) = room_under_a_segment_limit_of_8(dir.path(), 36);
     let options = RecordOptions {
         commit_every: CommitEvery::Maps(1),
         ..RecordOptions::default()
@@ -609,12 +627,138 @@ fn one_map_commits_compact_before_the_segment_limit() {
     let reader = LivingReader::open(&file).unwrap();
     assert_eq!(reader.segment_count(), 0);
     assert_eq!(reader.sample_count(), 36);
-    for (i, path) in paths.iter().enumerate() {
-        let got = living_snapshot(&reader, i as u32);
-        assert!(
-            got.same_voxel_states(&decoded(&context, path)),
-            "sample {i} differs from its input"
-        );
+    assert_snapshots_are_the_inputs(&context, &reader, &paths);
+}
+
+/// The shared series' base as a 2.0 file in `dir`.
+fn living_of_the_shared_base(dir: &Path) -> PathBuf {
+    let file = dir.join("living.froct");
+    LivingWriter::convert(&shared_series().base, &file).unwrap();
+    file
+}
+
+/// A build of all the shared series' frames (fremen-periods) with tiles of `depth`, in `dir`.
+fn series_built_at_depth(context: &Context, dir: &Path, depth: u8) -> PathBuf {
+    let built = dir.join("built.froct");
+    let options = BuildOptions {
+        model: "fremen-periods".to_string(),
+        tile_depth: depth,
+        ..BuildOptions::default()
+    };
+    let inputs = inputs_of(context, &shared_series().frames);
+    build(context, &inputs, &built, &options, &Silent).unwrap();
+    built
+}
+
+/// `file` has the axis, model parameters and tiles of `built`, byte for byte.
+fn assert_same_tiles_and_model(file: &Path, built: &Path) {
+    let (tiles, axis, model) = tiles_and_model(file);
+    let (built_tiles, built_axis, built_model) = tiles_and_model(built);
+    assert_eq!(axis, built_axis);
+    assert!(model == built_model, "model parameters differ");
+    assert!(tiles == built_tiles, "tiles differ from the build's");
+}
+
+/// The largest tile's history a build measured, in its summary.
+fn largest_tile_history(file: &Path) -> u64 {
+    FroctReader::open(file).unwrap().summary()["largest_tile_history_bytes"]
+        .as_u64()
+        .unwrap()
+}
+
+/// A compaction whose largest tile's history (as the base's build measured it, grown with
+/// the maps since) passes the tile budget writes tiles as many levels deeper as bring it
+/// under, and the result is a build at that depth; at the budget, or with none, the file
+/// keeps its depth.
+#[test]
+fn a_tile_budget_deepens_the_tiles_as_the_history_grows() {
+    let context = Context::with_default_plugins();
+    let series = shared_series();
+    let dir = tempfile::tempdir().unwrap();
+    let file = living_of_the_shared_base(dir.path());
+    append_part(&context, &file, &series.frames[BASE_FRAMES as usize..]);
+    let measured = largest_tile_history(&series.base);
+    assert!(measured > 0);
+    let grown = measured * u64::from(FRAMES) / u64::from(BASE_FRAMES);
+    let compacted = |name: &str, tile_budget: Option<u64>| {
+        let output = dir.path().join(name);
+        let options = CompactOptions {
+            format: CompactFormat::Flat(None),
+            tile_budget,
+            ..CompactOptions::default()
+        };
+        let report = compact(&context, &file, Some(&output), &options, &Silent).unwrap();
+        assert_eq!(report.tile_depth_before, 10);
+        let depth = FroctReader::open(&output).unwrap().header().tile_depth;
+        assert_eq!(report.tile_depth, depth, "{name}");
+        (output, depth)
+    };
+    assert_eq!(compacted("kept.froct", None).1, 10);
+    let (at_budget, depth) = compacted("at.froct", Some(grown));
+    assert_eq!(depth, 10);
+    assert_eq!(compacted("past.froct", Some(grown - 1)).1, 11);
+    let (deeper, depth) = compacted("deeper.froct", Some(grown / 8 - 1));
+    assert_eq!(depth, 12);
+
+    let built = series_built_at_depth(&context, dir.path(), 12);
+    assert_same_tiles_and_model(&deeper, &built);
+    // What the next compaction reads: each result measured its own largest tile.
+    let (whole, smaller) = (
+        largest_tile_history(&at_budget),
+        largest_tile_history(&deeper),
+    );
+    assert!(
+        0 < smaller && smaller < whole,
+        "{smaller} B at depth 12, {whole} B at 10"
+    );
+    assert_eq!(smaller, largest_tile_history(&built));
+}
+
+/// A recording's compactions deepen the tiles as the budget asks and keep every snapshot:
+/// with a budget of one byte, the first compaction goes to the deepest automatic depth, in
+/// place or in the background (whose result takes the maps committed meanwhile as
+/// segments of its deeper tiles).
+#[test]
+fn a_recording_compacts_into_deeper_tiles_past_its_tile_budget() {
+    let limit = AUTOMATIC_TILE_DEPTH_LIMIT;
+    for compact in [Compaction::AfterCommit, Compaction::Background] {
+        let dir = tempfile::tempdir().unwrap();
+        let (context, paths, file) = room_under_a_segment_limit_of_8(dir.path(), 30);
+        let options = RecordOptions {
+            commit_every: CommitEvery::Maps(1),
+            tile_budget: Some(1),
+            compact,
+            ..RecordOptions::default()
+        };
+        let depths = std::cell::RefCell::new(Vec::new());
+        let mut recorder = Recorder::open(&context, &file, options).unwrap();
+        recorder.on_event(|event| {
+            if let RecordEvent::Compacted(report) = event {
+                depths
+                    .borrow_mut()
+                    .push((report.tile_depth_before, report.tile_depth));
+            }
+        });
+        for input in inputs_of(&context, &paths[24..]) {
+            recorder.take_file(input).unwrap();
+        }
+        recorder.finish().unwrap();
+        let depths = depths.into_inner();
+        match compact {
+            Compaction::AfterCommit => {
+                assert_eq!(depths, [(10, limit), (limit, limit), (limit, limit)]);
+            }
+            _ => {
+                assert_eq!(depths.first(), Some(&(10, limit)), "{compact:?}");
+                assert!(
+                    depths[1..].iter().all(|&d| d == (limit, limit)),
+                    "{depths:?}"
+                );
+            }
+        }
+        let reader = LivingReader::open(&file).unwrap();
+        assert_eq!(reader.base().header().tile_depth, limit, "{compact:?}");
+        assert_snapshots_are_the_inputs(&context, &reader, &paths);
     }
 }
 
@@ -625,8 +769,7 @@ fn compacting_into_smaller_tiles_gives_the_build_at_that_depth() {
     let context = Context::with_default_plugins();
     let series = shared_series();
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("living.froct");
-    LivingWriter::convert(&series.base, &file).unwrap();
+    let file = living_of_the_shared_base(dir.path());
     let split = BASE_FRAMES as usize + 7;
     append_part(&context, &file, &series.frames[BASE_FRAMES as usize..split]);
     append_part(&context, &file, &series.frames[split..]);
@@ -637,14 +780,7 @@ fn compacting_into_smaller_tiles_gives_the_build_at_that_depth() {
         ..CompactOptions::default()
     };
     compact(&context, &file, Some(&deeper), &options, &Silent).unwrap();
-    let built = dir.path().join("built.froct");
-    let build_options = BuildOptions {
-        model: "fremen-periods".to_string(),
-        tile_depth: 15,
-        ..BuildOptions::default()
-    };
-    let inputs = inputs_of(&context, &series.frames);
-    build(&context, &inputs, &built, &build_options, &Silent).unwrap();
+    let built = series_built_at_depth(&context, dir.path(), 15);
     let reader = FroctReader::open(&deeper).unwrap();
     assert_eq!(reader.header().tile_depth, 15);
     let file_tiles = FroctReader::open(&series.full).unwrap().tiles().len();
@@ -652,11 +788,7 @@ fn compacting_into_smaller_tiles_gives_the_build_at_that_depth() {
         reader.tiles().len() > file_tiles,
         "{file_tiles} tiles before"
     );
-    let (tiles, axis, model) = tiles_and_model(&deeper);
-    let (built_tiles, built_axis, built_model) = tiles_and_model(&built);
-    assert_eq!(axis, built_axis);
-    assert!(model == built_model, "model parameters differ");
-    assert!(tiles == built_tiles, "tiles differ from the build's");
+    assert_same_tiles_and_model(&deeper, &built);
     let codes = |r: &FroctReader| r.tiles().iter().map(|t| t.code).collect::<Vec<_>>();
     assert_eq!(codes(&reader), codes(&FroctReader::open(&built).unwrap()));
 

@@ -43,5 +43,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verbs::render, m)?)?;
     m.add_function(wrap_pyfunction!(verbs::generate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add(
+        "_DEFAULT_TILE_BUDGET",
+        froctomap_convert::DEFAULT_TILE_BUDGET,
+    )?;
     Ok(())
 }

@@ -128,7 +128,8 @@ pub fn append<'py>(
 #[pyfunction]
 #[pyo3(signature = (file, output = None, *, format_version = "2.0".to_string(),
                     model_options = None, created = None, memory = None, tmp_dir = None,
-                    lossy = false, tile_depth = None, progress = None))]
+                    lossy = false, tile_depth = None,
+                    tile_budget = Some(froctomap_convert::DEFAULT_TILE_BUDGET), progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn compact<'py>(
     py: Python<'py>,
@@ -141,6 +142,7 @@ pub fn compact<'py>(
     tmp_dir: Option<PathBuf>,
     lossy: bool,
     tile_depth: Option<u8>,
+    tile_budget: Option<u64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let layout: Option<fn(u32) -> ToggleLayout> = match format_version.as_str() {
@@ -160,6 +162,7 @@ pub fn compact<'py>(
         tmp_dir,
         lossy,
         tile_depth,
+        tile_budget,
         ..CompactOptions::default()
     };
     let report = with_progress(py, progress, |progress| {
@@ -354,7 +357,8 @@ enum Feed {
 #[pyfunction]
 #[pyo3(signature = (file, sources, *, commit_every = None, skip_bad = false,
                     model_options = None, auto_compact = None, memory = None,
-                    tmp_dir = None, tile_depth = None))]
+                    tmp_dir = None, tile_depth = None,
+                    tile_budget = Some(froctomap_convert::DEFAULT_TILE_BUDGET)))]
 #[allow(clippy::too_many_arguments)]
 pub fn record<'py>(
     py: Python<'py>,
@@ -367,6 +371,7 @@ pub fn record<'py>(
     memory: Option<u64>,
     tmp_dir: Option<PathBuf>,
     tile_depth: Option<u8>,
+    tile_budget: Option<u64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     if tile_depth.is_some_and(|d| !(1..=16).contains(&d)) {
         return Err(froct_error_text("tile_depth: 1 to 16"));
@@ -400,6 +405,7 @@ pub fn record<'py>(
         },
         spool_dir: Some(spool_dir.clone()),
         compact: compaction(auto_compact)?,
+        tile_budget,
     };
     options.append.config.options = model_config_options(model_options)?;
     let context = crate::plugins::context().clone().with_recording_options(
@@ -544,6 +550,8 @@ fn run_recorder(
                 "segments_before": report.segments_before,
                 "bytes_before": report.bytes_before,
                 "bytes": report.bytes,
+                "tile_depth_before": report.tile_depth_before,
+                "tile_depth": report.tile_depth,
                 "maps_added_meanwhile": report.maps_added_meanwhile,
             }),
             RecordEvent::CompactionFailed(error) => json!({

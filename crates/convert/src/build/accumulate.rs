@@ -136,6 +136,12 @@ impl TileHistory {
         self.cells.first().map(|cell| cell.0)
     }
 
+    /// The cells, packed, in place.
+    #[cfg(test)]
+    pub fn packed(&self) -> &[PackedCell] {
+        &self.cells
+    }
+
     /// The cells, packed.
     pub fn into_packed(self) -> Vec<PackedCell> {
         self.cells

@@ -42,6 +42,10 @@ impl ClassCounts {
     }
 }
 
+/// The summary entry of [`TileStats::largest_tile_history_bytes`]: what the next compaction
+/// reads to choose its tile depth (`compact`).
+pub(crate) const LARGEST_TILE_HISTORY_KEY: &str = "largest_tile_history_bytes";
+
 /// Counts of a tile's (or a file's) cells, voxels and stored toggles.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct TileStats {
@@ -49,15 +53,32 @@ pub(crate) struct TileStats {
     pub voxels: ClassCounts,
     pub toggles: u64,
     pub model_errors: u64,
+    /// Bytes of the cells' observation runs as the fit received them, packed
+    /// ([`PackedObservations`](crate::history::PackedObservations)): what a build or a
+    /// compaction holds of a tile's history while it fits the tile.
+    pub history_bytes: u64,
+    /// The most [`history_bytes`](Self::history_bytes) of one tile among the tiles added
+    /// with [`add_tile`](Self::add_tile).
+    pub largest_tile_history_bytes: u64,
 }
 
 impl TileStats {
-    /// Adds another tile's counts.
+    /// Adds other counts (of part of a tile, or of other tiles).
     pub fn add(&mut self, other: &TileStats) {
         self.cells.add(&other.cells);
         self.voxels.add(&other.voxels);
         self.toggles += other.toggles;
         self.model_errors += other.model_errors;
+        self.history_bytes += other.history_bytes;
+        self.largest_tile_history_bytes = self
+            .largest_tile_history_bytes
+            .max(other.largest_tile_history_bytes);
+    }
+
+    /// Adds a whole tile's counts.
+    pub fn add_tile(&mut self, tile: &TileStats) {
+        self.add(tile);
+        self.largest_tile_history_bytes = self.largest_tile_history_bytes.max(tile.history_bytes);
     }
 
     /// The file summary's entries these counts give (`cell_classes`, `voxel_classes`,
@@ -71,6 +92,10 @@ impl TileStats {
         put("voxel_classes", json!(self.voxels));
         put("toggles", json!(self.toggles));
         put("model_errors", json!(self.model_errors));
+        put(
+            LARGEST_TILE_HISTORY_KEY,
+            json!(self.largest_tile_history_bytes),
+        );
         put(
             "outliers",
             json!(if lossless { "lossless" } else { "lossy" }),

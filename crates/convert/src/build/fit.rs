@@ -41,13 +41,7 @@ impl<'a> TileFitter<'a> {
     /// same for a whole tile.)
     #[cfg(test)]
     pub fn fit(&self, tile: &TileHistory) -> Result<FittedTile, ConvertError> {
-        let mut stats = TileStats::default();
-        let mut cells = Vec::with_capacity(tile.len());
-        for cell in tile.cells() {
-            let (start, depth, obs) = cell?;
-            cells.push(self.fit_cell(start, depth, &obs, &mut stats)?);
-        }
-        Ok(FittedTile { cells, stats })
+        self.fit_chunk(tile.packed())
     }
 
     /// Consecutive cells of one tile (packed), as stored, with their counts.
@@ -55,6 +49,7 @@ impl<'a> TileFitter<'a> {
         let mut stats = TileStats::default();
         let mut fitted = Vec::with_capacity(cells.len());
         for (start, depth, packed) in cells {
+            stats.history_bytes += packed.packed_bytes().len() as u64;
             let obs = packed.unpack()?;
             fitted.push(self.fit_cell(*start, *depth, &obs, &mut stats)?);
         }

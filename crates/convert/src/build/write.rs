@@ -75,7 +75,7 @@ impl TileWriter {
     /// Writes the next tile (after the ones before in Morton order), with its counts.
     pub fn write(&mut self, tile: &EncodedTile, stats: &TileStats) -> Result<(), ConvertError> {
         self.writer.write_tile(tile)?;
-        self.stats.add(stats);
+        self.stats.add_tile(stats);
         Ok(())
     }
 
@@ -238,7 +238,9 @@ mod tests {
         let whole = dir.path().join("whole.froct");
         let fitted = fitter.fit(&tile).unwrap();
         assert!(fitted.stats.cells.dynamic > 1_000 && fitted.stats.cells.unknown_sometimes > 1_000);
-        assert_eq!(counts, fitted.stats);
+        let mut whole_tile = TileStats::default();
+        whole_tile.add_tile(&fitted.stats);
+        assert_eq!(counts, whole_tile);
         let mut writer = TileWriter::create(&whole, &header).unwrap();
         writer
             .write(&encoder.encode(&fitted.cells).unwrap(), &fitted.stats)

@@ -31,6 +31,7 @@ from . import _native
 from ._progress import ProgressCallback
 
 __all__ = [
+    "DEFAULT_TILE_BUDGET",
     "FroctError",
     "FroctFile",
     "Map",
@@ -59,6 +60,9 @@ def __dir__() -> List[str]:
     return sorted(__all__)
 
 PathLike = Union[str, "os.PathLike[str]"]
+
+#: The default ``tile_budget`` of :func:`compact` and :func:`record` (bytes): the library's.
+DEFAULT_TILE_BUDGET: int = _native._DEFAULT_TILE_BUDGET
 #: One input, or several: directories (their manifest.csv, else every map file), glob
 #: patterns, manifest CSV files, map files, ROS bags / MCAP files.
 Inputs = Union[PathLike, Iterable[PathLike]]
@@ -274,6 +278,7 @@ def record(
     memory: Optional[int] = None,
     tmp_dir: Optional[PathLike] = None,
     tile_depth: Optional[int] = None,
+    tile_budget: Optional[int] = DEFAULT_TILE_BUDGET,
 ) -> Dict[str, Any]:
     """Adds maps to a FROctomap 2.0 file as they come (``froctomap record``): one segment
     is committed (durably, under the file's writer lock) every ``commit_every`` maps (an
@@ -298,12 +303,13 @@ def record(
     maps committed meanwhile are added to the result, which then replaces the file; the
     end waits for it, and Ctrl-C abandons it). ``tile_depth``: a new file's tiles
     (``record --tile-depth``; default 10; an existing file keeps its own): smaller tiles
-    (12) keep the compactions of a long recording in less memory.
+    (12) keep the compactions of a long recording in less memory. ``tile_budget``: the
+    compactions' (see :func:`compact`).
     """
     return _native.record(
         file, _maps(sources), commit_every=commit_every, skip_bad=skip_bad,
         model_options=_model_options(model_options), auto_compact=auto_compact,
-        memory=memory, tmp_dir=tmp_dir, tile_depth=tile_depth,
+        memory=memory, tmp_dir=tmp_dir, tile_depth=tile_depth, tile_budget=tile_budget,
     )
 
 
@@ -318,6 +324,7 @@ def compact(
     tmp_dir: Optional[PathLike] = None,
     lossy: bool = False,
     tile_depth: Optional[int] = None,
+    tile_budget: Optional[int] = DEFAULT_TILE_BUDGET,
     progress: Union[bool, ProgressCallback, None] = True,
 ) -> Dict[str, Any]:
     """Rewrites a FROctomap file's base and segments as one base (``froctomap compact
@@ -328,14 +335,18 @@ def compact(
     files). ``lossy``: the models without the outlier set (``build --lossy``'s file), only
     into ``output``. ``tile_depth``: the result's tiles, the file's depth (the default) or
     deeper, smaller tiles that keep a long history's compactions in less memory
-    (``compact --tile-depth``). Returns the report as a dict.
+    (``compact --tile-depth``). Without ``tile_depth``, ``tile_budget`` (bytes; ``None``:
+    keep the file's depth) chooses it: when the largest tile's history, as the last build or
+    compaction measured it and grown with the maps since, passes it, the result's tiles go
+    deeper (``compact --tile-budget``). Returns the report as a dict.
     """
     callback = _progress.reporter(progress)
     try:
         return _native.compact(
             file, output, format_version=format_version,
             model_options=_model_options(model_options), created=created, memory=memory,
-            tmp_dir=tmp_dir, lossy=lossy, tile_depth=tile_depth, progress=callback,
+            tmp_dir=tmp_dir, lossy=lossy, tile_depth=tile_depth, tile_budget=tile_budget,
+            progress=callback,
         )
     finally:
         _progress.close(callback)

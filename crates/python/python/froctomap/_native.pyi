@@ -9,6 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+_DEFAULT_TILE_BUDGET: int
 
 PathLike = Union[str, os.PathLike[str]]
 #: Unix seconds, a datetime or date (naive: UTC), ISO 8601 text, numpy.datetime64, or
