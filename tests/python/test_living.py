@@ -128,17 +128,19 @@ def test_a_tile_budget_deepens_the_tiles_as_the_command_line_does(parts: dict) -
     kept = parts["dir"] / "budget-none.froct"
     report = froctomap.compact(path, kept, tile_budget=None, progress=False)
     assert (report["tile_depth_before"], report["tile_depth"]) == (depth, depth)
-    # A budget of one byte: as deep as a budget goes, as the command line's --tile-budget 1.
+    # A budget of one byte: one level deeper, as the command line's --tile-budget 1.
     ours = parts["dir"] / "budget-python.froct"
     cli = parts["dir"] / "budget-cli.froct"
     report = froctomap.compact(path, ours, tile_budget=1, created=CREATED, progress=False)
     run_cli("-q", "compact", path, "-o", cli, "--tile-budget", "1", "--created", CREATED)
     assert ours.read_bytes() == cli.read_bytes()
-    assert report["tile_depth"] == froctomap.open(ours).info["tile_depth"] == 15 > depth
+    assert report["tile_depth"] == froctomap.open(ours).info["tile_depth"] == depth + 1
     g = froctomap.open(ours)
     for i in range(len(g)):
         assert g.retrieve(f"index:{i}").to_bt_bytes() == parts["maps"][i].read_bytes(), i
     assert froctomap.DEFAULT_TILE_BUDGET == 32 << 20
+    with pytest.raises(froctomap.FroctError, match="tile_budget"):
+        froctomap.compact(path, parts["dir"] / "zero.froct", tile_budget=0, progress=False)
 
 
 def test_a_compaction_into_smaller_tiles_is_the_command_lines(parts: dict) -> None:

@@ -17,8 +17,8 @@ pub struct InfoArgs {
     /// segments, their samples and the committed length); or a recording (ROS 1 bag, MCAP
     /// file, ROS 2 bag directory): its topics, types, message counts and log-time spans.
     file: PathBuf,
-    /// For a FROctomap file: recount cells by decoding every tile instead of trusting the
-    /// summary written at build time.
+    /// For a FROctomap file: recount cells from every tile's cell classes instead of
+    /// trusting the summary written at build time.
     #[arg(long)]
     count: bool,
     /// Force the input format (see `froctomap formats`) instead of detecting it.

@@ -56,7 +56,7 @@ pub struct CompactArgs {
     #[arg(long)]
     lossy: bool,
     /// Tiles of the result: cubes of 2^(16 − depth) voxels per edge; the file's depth or
-    /// deeper (default: the file's, or deeper as --tile-budget decides). Compacting (and building) holds one tile's whole
+    /// deeper (default: the file's, or one deeper as --tile-budget decides). Compacting (and building) holds one tile's whole
     /// history at a time, which grows with the history: a file that grows for months keeps
     /// its compactions' memory down in smaller tiles (each level deeper: an eighth of the
     /// volume). The result equals a build at that depth.

@@ -67,9 +67,8 @@ pub struct Ros2Args {
     /// once DDS has reassembled the message.
     #[arg(long, value_name = "SIZE", default_value = "256MiB", value_parser = message_bytes)]
     max_message_bytes: usize,
-    /// Tiles of a new file's base (as `record --tile-depth`; default 10): smaller tiles
-    /// (12) keep the background compactions of a long recording in less memory. An
-    /// existing file keeps its own.
+    /// Tiles of a new file's base (as `record --tile-depth`; default 10). An existing file
+    /// keeps its own; the background compactions deepen them past --tile-budget.
     #[arg(long, value_name = "DEPTH", value_parser = tile_depth)]
     tile_depth: Option<u8>,
     #[command(flatten)]

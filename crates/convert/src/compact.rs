@@ -1,6 +1,7 @@
 //! `compact`: a FROctomap file's base and segments rewritten as one base, every cell refitted
 //! on its whole history, so that the result equals a [`build`](crate::build) of the same maps
-//! apart from metadata.
+//! at the tile depth written (the file's, or deeper: [`CompactOptions::tile_budget`]) apart
+//! from metadata.
 //!
 //! No map is retrieved: each cell's history is read where it is stored (the base's cells on
 //! the base axis, each segment's cells on its own axis piece, inherited cells and patch
@@ -70,19 +71,23 @@ pub struct CompactOptions {
     /// the models' reconstruction. Only into another file
     /// ([`ConvertError::LossyInPlace`]).
     pub lossy: bool,
-    /// Tile depth of the result; `None`: the file's. Deeper (smaller tiles) only
+    /// Tile depth of the result; `None`: the file's, or one deeper as
+    /// [`tile_budget`](Self::tile_budget) decides. Deeper (smaller tiles) only
     /// ([`ConvertError::CoarserTiles`]): compacting and building hold one tile's whole
     /// history, which grows with the history, so a file meant to grow for months is
     /// better kept in smaller tiles. The result equals a build at that depth.
     pub tile_depth: Option<u8>,
-    /// When [`tile_depth`](Self::tile_depth) is `None`: the most history (bytes of
-    /// observation runs, packed) one tile may hold in this compaction, which decides its
-    /// depth so that a file that grows for months compacts in bounded memory. The largest
-    /// tile's history of the last build or compaction (in the base's summary) is scaled by
-    /// the maps since; past the budget, the result goes as many levels deeper (each an
-    /// eighth of the volume, up to [`AUTOMATIC_TILE_DEPTH_LIMIT`]) as bring it under, for a
-    /// file a few percent larger. `None`: the file's depth. A file whose summary does not
-    /// say (written before this was recorded) keeps its depth once, and says it after.
+    /// When [`tile_depth`](Self::tile_depth) is `None`: the history (bytes of observation
+    /// runs, packed) past which the result's tiles go one level deeper (an eighth of the
+    /// volume, down to [`AUTOMATIC_TILE_DEPTH_LIMIT`]), so that the compactions of a file
+    /// that grows for months hold bounded memory. What is compared is the largest tile's
+    /// history of the last build or compaction (in the base's summary) scaled by the maps
+    /// added since. A target for the compactions after this one, not a bound on it: this
+    /// one still merges the tiles it reads, at their depth. One level per compaction, since
+    /// a busy spot does not shrink with the volume and the summary is only advice; the
+    /// file grows for it (1.06× at one level deeper, 1.21× at two, on 32 hours of the
+    /// generated office). `None`: the file's depth. A file whose summary does not say
+    /// (written before this was recorded) keeps its depth once, and says it after.
     pub tile_budget: Option<u64>,
 }
 
@@ -159,8 +164,9 @@ fn is_zero(n: &usize) -> bool {
 /// Rewrites `file`'s base and segments as one base: into `output`, or in place (replacing
 /// `file` atomically) when `output` is `None`. Every cell's history is merged from the base
 /// and the segments, without retrieving any map, and refitted; the result equals a
-/// [`build`](crate::build) of the same maps apart from metadata. Memory holds a tile of each
-/// part of the file at a time. In place, a 2.0 file's writer lock is held from before the
+/// [`build`](crate::build) of the same maps at the tile depth written apart from metadata.
+/// Memory holds a tile of each part of the file at a time, and the merged tile's history
+/// (which [`CompactOptions::tile_budget`] keeps bounded over a file's compactions). In place, a 2.0 file's writer lock is held from before the
 /// file is read until the result replaces it.
 ///
 /// ```no_run
@@ -275,18 +281,14 @@ fn written_tile_depth(
     }
 }
 
-/// The depth from `depth` on whose largest tile holds at most `budget` of a history whose
-/// largest tile holds `largest` at `depth`, taking each level deeper to divide it by eight
-/// (its volume's share); never shallower than `depth`, never past
-/// [`AUTOMATIC_TILE_DEPTH_LIMIT`].
+/// `depth`, or the next one when `largest` (the largest tile's history at `depth`) passes
+/// `budget`; never past [`AUTOMATIC_TILE_DEPTH_LIMIT`].
 fn deeper_for(largest: u128, budget: u64, depth: u8) -> u8 {
-    let mut deeper = depth;
-    let mut held = largest;
-    while held > u128::from(budget) && deeper < AUTOMATIC_TILE_DEPTH_LIMIT {
-        held /= 8;
-        deeper += 1;
+    if largest > u128::from(budget) && depth < AUTOMATIC_TILE_DEPTH_LIMIT {
+        depth + 1
+    } else {
+        depth
     }
-    deeper
 }
 
 /// The metadata of the compaction of `file` (whose header is `header`, `maps` maps, its
@@ -460,16 +462,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_budget_takes_as_many_levels_as_bring_the_largest_tile_under() {
+    fn a_budget_passed_takes_the_next_level() {
         let budget = 1000;
         assert_eq!(deeper_for(1000, budget, 10), 10, "at the budget: kept");
         assert_eq!(deeper_for(1001, budget, 10), 11);
-        assert_eq!(deeper_for(8000, budget, 10), 11);
-        assert_eq!(deeper_for(8008, budget, 10), 12, "8008 / 8 = 1001");
-        assert_eq!(
-            deeper_for(u128::MAX, budget, 10),
-            AUTOMATIC_TILE_DEPTH_LIMIT
-        );
+        assert_eq!(deeper_for(u128::MAX, budget, 10), 11, "one level at a time");
+        let limit = AUTOMATIC_TILE_DEPTH_LIMIT;
+        assert_eq!(deeper_for(u128::MAX, budget, limit), limit);
         assert_eq!(deeper_for(u128::MAX, budget, 16), 16, "never shallower");
     }
 }

@@ -7,7 +7,7 @@ use crate::error::ConvertError;
 use crate::series_file::FroctFile;
 use froctomap_core::calendar::iso8601;
 use froctomap_core::{voxels_per_node, Occupancy};
-use froctomap_file::{CellContent, FroctReader};
+use froctomap_file::{FroctReader, FrozenPrediction};
 use froctomap_temporal::AxisKind;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -295,23 +295,22 @@ fn count(reader: &FroctReader) -> Result<(ClassCounts, ClassCounts), ConvertErro
         .map(|i| {
             let mut cells = ClassCounts::default();
             let mut voxels = ClassCounts::default();
-            // One cell at a time: a tile may hold millions of cells.
-            reader.visit_cells(i, |cell| {
+            // One cell at a time (a tile may hold millions), from its class alone: no
+            // history needs decoding to count it.
+            reader.visit_cell_classes(i, |cell| {
                 let n = voxels_per_node(cell.depth);
-                let (c, v) = match cell.content {
-                    CellContent::Constant(Occupancy::Free) => {
+                let (c, v) = match (cell.prediction, cell.has_outliers) {
+                    (FrozenPrediction::State(Occupancy::Free), false) => {
                         (&mut cells.static_free, &mut voxels.static_free)
                     }
-                    CellContent::Constant(Occupancy::Occupied) => {
+                    (FrozenPrediction::State(Occupancy::Occupied), false) => {
                         (&mut cells.static_occupied, &mut voxels.static_occupied)
                     }
-                    CellContent::Modelled(_) | CellContent::ConstantExcept { .. } => {
-                        (&mut cells.dynamic, &mut voxels.dynamic)
-                    }
+                    _ => (&mut cells.dynamic, &mut voxels.dynamic),
                 };
                 *c += 1;
                 *v += n;
-                if cell.mask.is_some() {
+                if cell.sometimes_unknown {
                     cells.unknown_sometimes += 1;
                     voxels.unknown_sometimes += n;
                 }

@@ -354,7 +354,8 @@ type Observer<'a> = Box<dyn FnMut(RecordEvent<'_>) + 'a>;
 ///
 /// **Compaction.** With [`RecordOptions::compact`] (the default), after a commit the file
 /// is compacted in place ([`compact`](crate::compact()): base and segments refitted into one
-/// base, equal to a build of the same maps; the build's bounded memory,
+/// base, equal to a build of the same maps at the depth written, which deepens past
+/// [`RecordOptions::tile_budget`]; the build's bounded memory,
 /// [`AppendOptions::memory`]; atomic; under the writer lock the recorder holds) when its
 /// segments exceed half of its base's bytes (once the samples added since the base are as
 /// many as the base's), or when the span from its first sample to its last has reached

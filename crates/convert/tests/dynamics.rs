@@ -83,3 +83,76 @@ fn cell_classes_read_as_the_full_walk_reads_the_cells() {
     // Every kind of cell was compared.
     assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");
 }
+
+/// The count of `counts` that a cell of `content` adds to.
+fn class_of<'a>(counts: &'a mut ClassCounts, content: &froctomap_file::CellContent) -> &'a mut u64 {
+    use froctomap_core::Occupancy;
+    use froctomap_file::CellContent;
+    match content {
+        CellContent::Constant(Occupancy::Free) => &mut counts.static_free,
+        CellContent::Constant(Occupancy::Occupied) => &mut counts.static_occupied,
+        _ => &mut counts.dynamic,
+    }
+}
+
+/// Cells and voxels by class, counted from the full walk's cells.
+fn walked_counts(reader: &FroctReader) -> (ClassCounts, ClassCounts) {
+    let (mut cells, mut voxels) = (ClassCounts::default(), ClassCounts::default());
+    for tile in 0..reader.tiles().len() {
+        reader
+            .visit_cells(tile, |cell| {
+                let n = froctomap_core::voxels_per_node(cell.depth);
+                *class_of(&mut cells, &cell.content) += 1;
+                *class_of(&mut voxels, &cell.content) += n;
+                if cell.mask.is_some() {
+                    cells.unknown_sometimes += 1;
+                    voxels.unknown_sometimes += n;
+                }
+            })
+            .unwrap();
+    }
+    (cells, voxels)
+}
+
+/// `info --count` recounts the cells from their classes: the counts of the full walk's
+/// cells on every fixture and on a room with static, dynamic and sometimes unknown cells,
+/// and there the counts its build wrote in the summary (from the fitted cells).
+#[test]
+fn recounted_classes_are_the_walked_and_the_built_counts() {
+    let context = Context::with_default_plugins();
+    let dir = tempfile::tempdir().unwrap();
+    let (room, _) = build_room(&context, dir.path(), 48);
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/froct");
+    let mut paths = vec![room];
+    paths.extend(
+        std::fs::read_dir(&fixtures)
+            .unwrap()
+            .map(|e| e.unwrap().path()),
+    );
+    for (i, path) in paths.iter().enumerate() {
+        let series = context.open_series(path).unwrap();
+        let reader = match &series {
+            FroctFile::Flat(reader) => reader,
+            FroctFile::Living(living) => living.base(),
+        };
+        let what = path.display();
+        let recounted = describe(&context, reader, true).unwrap();
+        let (cells, voxels) = walked_counts(reader);
+        assert_eq!(
+            (recounted.cells, recounted.voxels),
+            (cells, voxels),
+            "{what}"
+        );
+        if i == 0 {
+            let recorded = describe(&context, reader, false).unwrap();
+            assert_eq!(recounted.cells, recorded.cells, "{what}");
+            assert_eq!(recounted.voxels, recorded.voxels, "{what}");
+            assert!(reader.summary().get("cell_classes").is_some());
+            assert!(
+                cells.static_free > 0 && cells.dynamic > 0 && cells.unknown_sometimes > 0,
+                "{cells:?}"
+            );
+        }
+    }
+    assert!(paths.len() >= 10, "{} files", paths.len());
+}

@@ -668,8 +668,8 @@ fn largest_tile_history(file: &Path) -> u64 {
 
 /// A compaction whose largest tile's history (as the base's build measured it, grown with
 /// the maps since) passes the tile budget writes tiles as many levels deeper as bring it
-/// under, and the result is a build at that depth; at the budget, or with none, the file
-/// keeps its depth.
+/// under, one level at a time, and the result is a build at that depth; at the budget, or
+/// with none, the file keeps its depth.
 #[test]
 fn a_tile_budget_deepens_the_tiles_as_the_history_grows() {
     let context = Context::with_default_plugins();
@@ -696,11 +696,12 @@ fn a_tile_budget_deepens_the_tiles_as_the_history_grows() {
     assert_eq!(compacted("kept.froct", None).1, 10);
     let (at_budget, depth) = compacted("at.froct", Some(grown));
     assert_eq!(depth, 10);
-    assert_eq!(compacted("past.froct", Some(grown - 1)).1, 11);
-    let (deeper, depth) = compacted("deeper.froct", Some(grown / 8 - 1));
-    assert_eq!(depth, 12);
+    let (deeper, depth) = compacted("past.froct", Some(grown - 1));
+    assert_eq!(depth, 11);
+    // One level at a time, however far past.
+    assert_eq!(compacted("far-past.froct", Some(1)).1, 11);
 
-    let built = series_built_at_depth(&context, dir.path(), 12);
+    let built = series_built_at_depth(&context, dir.path(), 11);
     assert_same_tiles_and_model(&deeper, &built);
     // What the next compaction reads: each result measured its own largest tile.
     let (whole, smaller) = (
@@ -708,19 +709,18 @@ fn a_tile_budget_deepens_the_tiles_as_the_history_grows() {
         largest_tile_history(&deeper),
     );
     assert!(
-        0 < smaller && smaller < whole,
-        "{smaller} B at depth 12, {whole} B at 10"
+        0 < smaller && smaller <= whole,
+        "{smaller} B at depth 11, {whole} B at 10"
     );
     assert_eq!(smaller, largest_tile_history(&built));
 }
 
 /// A recording's compactions deepen the tiles as the budget asks and keep every snapshot:
-/// with a budget of one byte, the first compaction goes to the deepest automatic depth, in
-/// place or in the background (whose result takes the maps committed meanwhile as
-/// segments of its deeper tiles).
+/// with a budget of one byte, each compaction goes one level deeper, in place or in the
+/// background (whose result takes the maps committed meanwhile as segments of its deeper
+/// tiles).
 #[test]
 fn a_recording_compacts_into_deeper_tiles_past_its_tile_budget() {
-    let limit = AUTOMATIC_TILE_DEPTH_LIMIT;
     for compact in [Compaction::AfterCommit, Compaction::Background] {
         let dir = tempfile::tempdir().unwrap();
         let (context, paths, file) = room_under_a_segment_limit_of_8(dir.path(), 30);
@@ -744,20 +744,16 @@ fn a_recording_compacts_into_deeper_tiles_past_its_tile_budget() {
         }
         recorder.finish().unwrap();
         let depths = depths.into_inner();
-        match compact {
-            Compaction::AfterCommit => {
-                assert_eq!(depths, [(10, limit), (limit, limit), (limit, limit)]);
-            }
-            _ => {
-                assert_eq!(depths.first(), Some(&(10, limit)), "{compact:?}");
-                assert!(
-                    depths[1..].iter().all(|&d| d == (limit, limit)),
-                    "{depths:?}"
-                );
-            }
+        if compact == Compaction::AfterCommit {
+            assert_eq!(depths, [(10, 11), (11, 12), (12, 13)]);
+        }
+        assert!(!depths.is_empty(), "{compact:?}");
+        for (k, &(before, after)) in depths.iter().enumerate() {
+            assert_eq!((before, after), (10 + k as u8, 11 + k as u8), "{depths:?}");
         }
         let reader = LivingReader::open(&file).unwrap();
-        assert_eq!(reader.base().header().tile_depth, limit, "{compact:?}");
+        let last = depths.last().unwrap().1;
+        assert_eq!(reader.base().header().tile_depth, last, "{compact:?}");
         assert_snapshots_are_the_inputs(&context, &reader, &paths);
     }
 }

@@ -124,6 +124,16 @@ pub fn append<'py>(
     json_value(py, &report)
 }
 
+/// `tile_budget` as the command line takes it: a positive size, or `None`.
+fn positive_tile_budget(tile_budget: Option<u64>) -> PyResult<()> {
+    match tile_budget {
+        Some(0) => Err(froct_error_text(
+            "tile_budget: a positive number of bytes, or None",
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// A FROctomap file's base and segments rewritten as one base (`froctomap compact --json`).
 #[pyfunction]
 #[pyo3(signature = (file, output = None, *, format_version = "2.0".to_string(),
@@ -145,6 +155,7 @@ pub fn compact<'py>(
     tile_budget: Option<u64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    positive_tile_budget(tile_budget)?;
     let layout: Option<fn(u32) -> ToggleLayout> = match format_version.as_str() {
         "2.0" => None,
         "1.2" => Some(ToggleLayout::Coded),
@@ -376,6 +387,7 @@ pub fn record<'py>(
     if tile_depth.is_some_and(|d| !(1..=16).contains(&d)) {
         return Err(froct_error_text("tile_depth: 1 to 16"));
     }
+    positive_tile_budget(tile_budget)?;
     let commit_every = match commit_every {
         None => CommitEvery::default(),
         Some(value) => match value.extract::<usize>() {

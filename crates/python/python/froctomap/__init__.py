@@ -333,12 +333,12 @@ def compact(
     older readers). Every model is refitted on the whole history: give the
     ``model_options`` of the build. ``created`` fixes the creation time (reproducible
     files). ``lossy``: the models without the outlier set (``build --lossy``'s file), only
-    into ``output``. ``tile_depth``: the result's tiles, the file's depth (the default) or
-    deeper, smaller tiles that keep a long history's compactions in less memory
-    (``compact --tile-depth``). Without ``tile_depth``, ``tile_budget`` (bytes; ``None``:
-    keep the file's depth) chooses it: when the largest tile's history, as the last build or
-    compaction measured it and grown with the maps since, passes it, the result's tiles go
-    deeper (``compact --tile-budget``). Returns the report as a dict.
+    into ``output``. ``tile_depth``: the result's tiles, the file's depth or deeper, smaller
+    tiles that keep a long history's compactions in less memory (``compact --tile-depth``).
+    Without it, ``tile_budget`` (bytes; ``None``: keep the file's depth) chooses: when the
+    largest tile's history, as the last build or compaction measured it and grown with the
+    maps since, passes it, the result's tiles go one level deeper (``compact
+    --tile-budget``). Returns the report as a dict.
     """
     callback = _progress.reporter(progress)
     try:
