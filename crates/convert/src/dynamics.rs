@@ -196,13 +196,14 @@ impl KeyExtent {
     }
 }
 
-/// Key extent of every cell of the file (known at some time), tile by tile in parallel.
+/// Key extent of every cell of the file (known at some time), tile by tile in parallel, from
+/// the cells' geometry alone (no history is decoded).
 pub fn key_extent(reader: &FroctReader) -> Result<Option<KeyExtent>, ConvertError> {
     let per_tile = (0..reader.tiles().len())
         .into_par_iter()
         .map(|tile| {
             let mut extent: Option<KeyExtent> = None;
-            reader.visit_cells(tile, |cell| {
+            reader.visit_cell_classes(tile, |cell| {
                 let one = KeyExtent::of_cell(cell.start, cell.depth);
                 extent = Some(extent.map_or(one, |e| e.union(one)));
             })?;

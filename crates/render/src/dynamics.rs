@@ -100,7 +100,8 @@ struct Survey {
 }
 
 impl Survey {
-    /// Spreads every cell of `reader` over the columns of `grid` it covers, one tile at a time.
+    /// Spreads every cell of `reader` over the columns of `grid` it covers, one tile at a time,
+    /// read from its class and model alone (no history is decoded).
     fn of(reader: &FroctReader, grid: &Grid) -> Result<Self, RenderError> {
         let mut columns = vec![Column::default(); grid.len()];
         // Periods by whole seconds, numbered as met.
@@ -108,7 +109,7 @@ impl Survey {
         let mut periods: Vec<f64> = Vec::new();
         let model = reader.model();
         for tile in 0..reader.tiles().len() {
-            reader.visit_cells(tile, |cell| {
+            reader.visit_cell_classes(tile, |cell| {
                 let edge = f64::from(
                     froctomap_core::Leaf {
                         start: cell.start,
@@ -117,7 +118,7 @@ impl Survey {
                     }
                     .edge_voxels(),
                 );
-                let dynamics = CellDynamics::of(&cell, model);
+                let dynamics = CellDynamics::of_class(&cell, model);
                 let id = match dynamics {
                     CellDynamics::Modelled {
                         period_seconds: Some(p),
